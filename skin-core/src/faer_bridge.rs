@@ -1,0 +1,1 @@
+//! Private bridge between nalgebra/nalgebra-sparse and faer (zero-copy views).

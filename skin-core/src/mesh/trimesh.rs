@@ -1,0 +1,100 @@
+//! The indexed triangle mesh type.
+
+use crate::math::DVec3;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// An indexed triangle mesh.
+///
+/// Invariants (checked by [`TriMesh::new`]): every coordinate is finite and every face index
+/// is `< vertices.len()`. Degenerate (zero-area) faces are allowed in the container — real
+/// scans have them — and each algorithm that cannot handle them says so in its `# Errors`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct TriMesh {
+    /// Vertex positions, metres (or the file's unit when loaded).
+    pub vertices: Vec<DVec3>,
+    /// Triangles as vertex indices, counter-clockwise seen from outside.
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// Builds a mesh, validating coordinates and indices.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf coordinates, [`Error::IndexOutOfRange`] for a face
+    /// index past the vertex count.
+    pub fn new(vertices: Vec<DVec3>, faces: Vec<[u32; 3]>) -> Result<Self> {
+        let mesh = TriMesh { vertices, faces };
+        mesh.validate()?;
+        Ok(mesh)
+    }
+
+    /// Checks the invariants of [`TriMesh::new`] on a mesh whose fields were set directly.
+    ///
+    /// # Errors
+    /// As [`TriMesh::new`].
+    pub fn validate(&self) -> Result<()> {
+        if !self.vertices.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "mesh vertices",
+            });
+        }
+        let n = self.vertices.len();
+        for f in &self.faces {
+            for &i in f {
+                if i as usize >= n {
+                    return Err(Error::IndexOutOfRange {
+                        what: "mesh face",
+                        index: i as usize,
+                        len: n,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Number of faces.
+    pub fn face_count(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// The three corner positions of face `f`.
+    ///
+    /// # Panics
+    /// If `f` is out of range (an indexing error in the caller).
+    pub fn triangle(&self, f: usize) -> [DVec3; 3] {
+        let [a, b, c] = self.faces[f];
+        [
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_index_and_nan() {
+        let v = vec![DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert!(TriMesh::new(v.clone(), vec![[0, 1, 2]]).is_ok());
+        assert!(matches!(
+            TriMesh::new(v.clone(), vec![[0, 1, 3]]),
+            Err(Error::IndexOutOfRange { index: 3, .. })
+        ));
+        let mut bad = v;
+        bad[1].x = f64::NAN;
+        assert!(matches!(
+            TriMesh::new(bad, vec![[0, 1, 2]]),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+}

@@ -1,0 +1,8 @@
+//! # dynamic-shapes
+//!
+//! Capture and re-animation of moving human bodies and faces. This facade re-exports each
+//! crate of the workspace as a module, so users can depend on one crate.
+#![warn(missing_docs)]
+
+#[doc(inline)]
+pub use skin_core as core;
