@@ -658,16 +658,24 @@ mod tests {
     /// The MakeHuman base mesh, group `body` (see data/makehuman/SOURCE.md).
     #[test]
     fn makehuman_body_group() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman/base.obj");
-        let path = if Path::new(path).exists() {
-            PathBuf::from(path)
-        } else {
-            PathBuf::from("/work/shared/data/makehuman/base.obj")
-        };
-        if !path.exists() {
+        // `$DYNAMIC_SHAPES_DATA`, the workspace `data/`, or the shared data directory.
+        let candidates = [
+            std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
+            Some(PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../data"
+            ))),
+            Some(PathBuf::from("/work/shared/data")),
+        ];
+        let Some(path) = candidates
+            .into_iter()
+            .flatten()
+            .map(|d| d.join("makehuman/base.obj"))
+            .find(|p| p.exists())
+        else {
             eprintln!("skipping: MakeHuman base.obj not found");
             return;
-        }
+        };
         let obj = ObjFile::read(&path).unwrap();
         assert_eq!(obj.vertices.len(), 19_158);
         assert_eq!(obj.polygon_count(), 18_486);
@@ -678,6 +686,11 @@ mod tests {
         assert_eq!(body.mesh.vertex_count(), 13_380);
         assert_eq!(body.original_index.len(), 13_380);
         assert_eq!(body.mesh.face_count() % 2, 0);
+        eprintln!(
+            "MakeHuman body: {} vertices, {} triangles",
+            body.mesh.vertex_count(),
+            body.mesh.face_count()
+        );
         let bb = body.mesh.bounding_box().unwrap();
         // Decimetres: body spans y = -8.17 .. 8.49.
         assert!(
