@@ -17,6 +17,9 @@
 //! and `b`; a bare `g` means `default`) and to the name of the last `o` line. Faces before any
 //! `g` are in `default`, as the OBJ specification says.
 //!
+//! Lines may end in `\n` or `\r\n`; `#` starts a comment; line continuations (`\`) are not
+//! supported and are reported as errors.
+//!
 //! **Triangulation:** polygons are fanned from their first corner, `(0, i, i+1)`. This is exact
 //! for the planar convex polygons OBJ exporters write (the MakeHuman quads) and keeps the
 //! corner order, hence the outward orientation.
@@ -537,6 +540,13 @@ mod tests {
         let m = read_obj_from_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nf 1 2 3 4 5\n")
             .unwrap();
         assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+        // Windows line endings and tabs.
+        let m =
+            read_obj_from_str("v\t0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng  body \r\nf 1 2 3\r\n").unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2]]);
+        let g =
+            ObjFile::parse_str("v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng body\r\nf 1 2 3\r\n").unwrap();
+        assert_eq!(g.group_names(), vec!["body"]);
     }
 
     #[test]
