@@ -30,6 +30,7 @@ mod intrinsics;
 mod model;
 mod rig;
 mod synthetic;
+mod time_offset;
 
 pub use calibrate::{
     calibrate, CalibrationMethod, CalibrationParams, CalibrationReport, SimplexObjective,
@@ -46,3 +47,4 @@ pub use rig::Rig;
 pub use synthetic::{
     standard_normal, synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams,
 };
+pub use time_offset::{estimate_time_offset, SampledSignal, TimeOffset, TimeOffsetParams};
