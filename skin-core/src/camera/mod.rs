@@ -28,6 +28,8 @@ mod distortion;
 mod dlt;
 mod intrinsics;
 mod model;
+mod opencv;
+mod opencv_yaml;
 mod rig;
 mod synthetic;
 mod time_offset;
@@ -43,6 +45,7 @@ pub use dlt::{
 };
 pub use intrinsics::Intrinsics;
 pub use model::{Camera, Projection, Ray, MIN_DEPTH_M};
+pub use opencv::{OpenCvCalibration, OpenCvExport, OpenCvImport, OpenCvParams};
 pub use rig::Rig;
 pub use synthetic::{
     standard_normal, synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams,
