@@ -82,7 +82,7 @@ impl From<Camera> for CameraRepr {
 
 fn check_rigid(what: &'static str, t: &DAffine3) -> Result<()> {
     ensure_finite(what, t.to_cols_array().iter())?;
-    let r = DMat3::from(t.matrix3);
+    let r = t.matrix3;
     let off = (r.transpose() * r - DMat3::IDENTITY)
         .to_cols_array()
         .iter()

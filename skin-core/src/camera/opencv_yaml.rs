@@ -130,12 +130,10 @@ pub(crate) fn parse(text: &str) -> Result<YamlEntries> {
 }
 
 fn parse_matrix(block: &[(usize, &str)], key_line: usize) -> Result<YamlMatrix> {
-    let (mut rows, mut cols, mut dt, mut data): (
-        Option<usize>,
-        Option<usize>,
-        Option<String>,
-        Option<(usize, String)>,
-    ) = (None, None, None, None);
+    let mut rows: Option<usize> = None;
+    let mut cols: Option<usize> = None;
+    let mut dt: Option<String> = None;
+    let mut data: Option<(usize, String)> = None;
     let mut k = 0;
     while k < block.len() {
         let (ln, l) = block[k];
