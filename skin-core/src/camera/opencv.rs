@@ -199,6 +199,13 @@ impl OpenCvCalibration {
             }
             Some(t) => return Err(shape_err(&t, "T")),
         };
+        if !rotation.iter().all(|v| v.is_finite()) {
+            return Err(Error::Parse {
+                format: FORMAT,
+                line: 0,
+                message: "rotation vector too large".into(),
+            });
+        }
         Ok(Self {
             image_width,
             image_height,
@@ -535,6 +542,25 @@ mod tests {
             (r.x_axis.z - (-(0.5f64).sin())).abs() < 1e-9,
             "rvec about y"
         );
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+        /// Mutated files never panic the reader; whatever it accepts survives a round trip.
+        #[test]
+        fn mutated_files_never_panic(cut in 0usize..400, len in 0usize..40, insert in "[ -~\n]{0,12}") {
+            let good = OpenCvCalibration::from_camera(&truth().with_distortion(RadialDistortion::NONE), &OpenCvParams::default())
+                .unwrap()
+                .calibration
+                .to_yaml_string();
+            let start = cut.min(good.len());
+            let end = (start + len).min(good.len());
+            let text = format!("{}{}{}", &good[..start], insert, &good[end..]);
+            if let Ok(c) = OpenCvCalibration::from_yaml_str(&text) {
+                let again = OpenCvCalibration::from_yaml_str(&c.to_yaml_string()).unwrap();
+                proptest::prop_assert_eq!(again, c);
+            }
+        }
     }
 
     #[test]
