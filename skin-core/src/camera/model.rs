@@ -40,6 +40,15 @@ pub struct Projection {
     pub depth_m: f64,
 }
 
+/// A projection with its derivative with respect to the world point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ProjectionJacobian {
+    /// The projection.
+    pub projection: Projection,
+    /// Rows of `∂pixel/∂p_world` (px/m): `[∂u/∂p, ∂v/∂p]`.
+    pub d_pixel_d_world: [DVec3; 2],
+}
+
 /// A calibrated camera: `pixel = D(K · π(camera_from_world · p))` with `π(x, y, z) = (x/z, y/z)`.
 ///
 /// The pose is kept as both `world_from_camera` (the camera's placement; its translation is the
@@ -257,6 +266,42 @@ impl Camera {
         Ok(self.project_with_depth(p_world)?.pixel)
     }
 
+    /// Projects a world point and returns the analytic Jacobian `∂pixel/∂p_world` (for
+    /// reprojection-error optimisers such as marker or silhouette fitting). By the chain rule
+    /// through `p_c = R p + t`, `n = (x/z, y/z)`, `u = (fx·nₓ + cx, fy·n_y + cy)` and
+    /// `D(u) = c + w(1 + k1ρ²)` with `w = u − c`, `ρ² = (wₓ/fx)² + (w_y/fy)²`:
+    /// `∂D/∂u = (1 + k1ρ²) I + k1 w ∇ρ²ᵀ`, `∇ρ² = (2wₓ/fx², 2w_y/fy²)`.
+    ///
+    /// # Errors
+    /// As [`Camera::project`].
+    pub fn project_with_jacobian(&self, p_world: DVec3) -> Result<ProjectionJacobian> {
+        let pc = self.camera_from_world.transform_point3(p_world);
+        let projection = self.project_camera_point(pc)?;
+        let k = &self.intrinsics;
+        let (x, y, z) = (pc.x, pc.y, pc.z);
+        // Rows of ∂u/∂p_c (undistorted pixel w.r.t. the camera-frame point).
+        let du = [
+            DVec3::new(k.fx / z, 0.0, -k.fx * x / (z * z)),
+            DVec3::new(0.0, k.fy / z, -k.fy * y / (z * z)),
+        ];
+        let w = k.pixel_from_normalized(DVec2::new(x / z, y / z)) - self.distortion.centre;
+        let k1 = self.distortion.k1;
+        let rho2 = (w.x / k.fx).powi(2) + (w.y / k.fy).powi(2);
+        let grad = DVec2::new(2.0 * w.x / (k.fx * k.fx), 2.0 * w.y / (k.fy * k.fy));
+        let radial = 1.0 + k1 * rho2;
+        let dd = [
+            [radial + k1 * w.x * grad.x, k1 * w.x * grad.y],
+            [k1 * w.y * grad.x, radial + k1 * w.y * grad.y],
+        ];
+        // ∂p_c/∂p_world = R, so a row vector r maps to Rᵀ r.
+        let rt = self.camera_from_world.matrix3.transpose();
+        let row = |i: usize| rt * (du[0] * dd[i][0] + du[1] * dd[i][1]);
+        Ok(ProjectionJacobian {
+            projection,
+            d_pixel_d_world: [row(0), row(1)],
+        })
+    }
+
     /// True if the world point is in front of the camera and projects onto the image.
     pub fn is_visible(&self, p_world: DVec3) -> bool {
         self.project(p_world)
@@ -358,6 +403,22 @@ mod tests {
             let q = cam.unproject(px, depth).unwrap();
             let proj = cam.project_with_depth(q).unwrap();
             prop_assert!((proj.depth_m - depth).abs() < 1e-9 && (proj.pixel - px).length() < 1e-7);
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn projection_jacobian_matches_finite_differences(x in -1.0f64..1.0, y in -1.0f64..1.0, z in -1.0f64..1.0) {
+            let cam = camera();
+            let p = DVec3::new(x, y, z);
+            let j = cam.project_with_jacobian(p).unwrap();
+            prop_assert!((j.projection.pixel - cam.project(p).unwrap()).length() < 1e-12);
+            let h = 1e-6;
+            for (a, e) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
+                let fd = (cam.project(p + e * h).unwrap() - cam.project(p - e * h).unwrap()) / (2.0 * h);
+                let an = DVec2::new(j.d_pixel_d_world[0][a], j.d_pixel_d_world[1][a]);
+                prop_assert!((fd - an).length() < 1e-5 * an.length().max(1.0), "axis {a}: {fd} vs {an}");
+            }
         }
     }
 
