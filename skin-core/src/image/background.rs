@@ -189,7 +189,10 @@ impl BackgroundFrame for GrayImage {
 }
 
 /// The learned background: per-pixel mean and threshold map (Sand §4.2).
+///
+/// Serialisable; deserialisation checks sizes and values, so a malformed file gives an error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "BackgroundModelRepr")]
 pub struct BackgroundModel {
     width: u32,
     height: u32,
@@ -201,6 +204,56 @@ pub struct BackgroundModel {
     /// Per-pixel threshold tᵢ, `[0, 1]` units.
     threshold: Vec<f32>,
     params: BackgroundParams,
+}
+
+/// Unvalidated serialised form of [`BackgroundModel`].
+#[derive(Deserialize)]
+struct BackgroundModelRepr {
+    width: u32,
+    height: u32,
+    channels: usize,
+    mean: Vec<f32>,
+    deviation: Vec<f32>,
+    threshold: Vec<f32>,
+    params: BackgroundParams,
+}
+
+impl TryFrom<BackgroundModelRepr> for BackgroundModel {
+    type Error = Error;
+    fn try_from(r: BackgroundModelRepr) -> Result<Self> {
+        if r.width == 0 || r.height == 0 || r.channels == 0 {
+            return Err(Error::Empty {
+                what: "serialised background model (zero size or channels)",
+            });
+        }
+        r.params.validate()?;
+        let n = r.width as usize * r.height as usize;
+        for (what, v, len) in [
+            ("serialised background mean", &r.mean, n * r.channels),
+            ("serialised background deviation", &r.deviation, n),
+            ("serialised background threshold", &r.threshold, n),
+        ] {
+            if v.len() != len {
+                return Err(Error::SizeMismatch {
+                    what,
+                    expected: len,
+                    got: v.len(),
+                });
+            }
+            if v.iter().any(|x| !x.is_finite()) {
+                return Err(Error::NonFinite { what });
+            }
+        }
+        Ok(BackgroundModel {
+            width: r.width,
+            height: r.height,
+            channels: r.channels,
+            mean: r.mean,
+            deviation: r.deviation,
+            threshold: r.threshold,
+            params: r.params,
+        })
+    }
 }
 
 /// The result of classifying one frame: the foreground mask and what clean-up changed.
@@ -262,9 +315,9 @@ impl BackgroundModel {
         })?;
         let (width, height) = first.frame_dimensions();
         let channels = first.channels();
-        if width == 0 || height == 0 {
+        if width == 0 || height == 0 || channels == 0 {
             return Err(Error::Empty {
-                what: "background frame (zero width or height)",
+                what: "background frame (zero width, height or channels)",
             });
         }
         let n = width as usize * height as usize * channels;
@@ -574,6 +627,22 @@ mod tests {
             .unwrap();
         assert_eq!(m.channels(), 3);
         assert!(m.classify(&rgb).unwrap().mask.is_empty());
+    }
+
+    #[test]
+    fn model_serde_round_trip_and_malformed_input() {
+        let frames = [GrayF32Image::from_fn(5, 4, |x, y| {
+            Luma([(x + y) as f32 * 0.1])
+        })];
+        let model = BackgroundModel::learn(&frames, &BackgroundParams::default()).unwrap();
+        let json = serde_json::to_string(&model).unwrap();
+        let back: BackgroundModel = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, model);
+        let mut v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        v["channels"] = 0.into();
+        assert!(serde_json::from_value::<BackgroundModel>(v.clone()).is_err());
+        v["channels"] = 2.into();
+        assert!(serde_json::from_value::<BackgroundModel>(v).is_err());
     }
 
     #[test]

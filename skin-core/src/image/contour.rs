@@ -527,6 +527,40 @@ mod tests {
         assert!(matches!(k.resample(0.0), Err(Error::InvalidParam { .. })));
     }
 
+    /// Normal accuracy against the analytic normals of rotated ellipses (semi-axes 6–30 px).
+    /// Measured with the default window (w = 3): mean 2.2°, 95th percentile 5.4°, max 8.7°.
+    #[test]
+    fn normals_match_analytic_ellipse_normals() {
+        let c = DVec2::new(40.2, 40.7);
+        let mut err_deg = Vec::new();
+        for (a, b, rot) in [
+            (20.0, 12.0, 0.3),
+            (30.0, 25.0, 1.1),
+            (9.0, 6.0, 0.7),
+            (15.0, 15.0, 0.0),
+        ] {
+            let m = ellipse(82, 82, c, a, b, rot);
+            let cs = extract_contours(&m, &ContourParams::default()).unwrap();
+            let (s, co) = f64::sin_cos(rot);
+            for (p, n) in cs[0].points.iter().zip(&cs[0].normals) {
+                // Gradient of (u/a)² + (v/b)² at the point, rotated back to image axes.
+                let d = *p - c;
+                let (u, v) = (co * d.x + s * d.y, -s * d.x + co * d.y);
+                let (gu, gv) = (u / (a * a), v / (b * b));
+                let g = DVec2::new(co * gu - s * gv, s * gu + co * gv).normalize();
+                err_deg.push(g.dot(*n).clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+        err_deg.sort_by(f64::total_cmp);
+        let mean = err_deg.iter().sum::<f64>() / err_deg.len() as f64;
+        let p95 = err_deg[err_deg.len() * 95 / 100];
+        let max = err_deg[err_deg.len() - 1];
+        assert!(
+            mean < 3.0 && p95 < 7.0 && max < 12.0,
+            "mean {mean} p95 {p95} max {max}"
+        );
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// Random rotated ellipses plus a blob: nearly every normal leaves the mask, and each

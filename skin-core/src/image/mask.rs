@@ -22,11 +22,46 @@ pub const MASK_FOREGROUND_GREY: u8 = 255;
 /// 64 pixels at a time. Bits past the last pixel are always zero (a class invariant that
 /// [`Mask::count`] and equality rely on). Zero-sized masks are valid values; operations that
 /// need pixels (distance transforms, background learning) reject them with a clear error.
+///
+/// Deserialisation validates the stored words (count and zero tail bits), so a malformed file
+/// gives an error rather than a mask that panics later.
 #[derive(Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(try_from = "MaskRepr")]
 pub struct Mask {
     width: u32,
     height: u32,
     words: Vec<u64>,
+}
+
+/// Unvalidated serialised form of [`Mask`].
+#[derive(Deserialize)]
+struct MaskRepr {
+    width: u32,
+    height: u32,
+    words: Vec<u64>,
+}
+
+impl TryFrom<MaskRepr> for Mask {
+    type Error = Error;
+    fn try_from(r: MaskRepr) -> Result<Mask> {
+        let mut m = Mask::new(r.width, r.height);
+        if r.words.len() != m.words.len() {
+            return Err(Error::SizeMismatch {
+                what: "serialised mask words (ceil(width * height / 64))",
+                expected: m.words.len(),
+                got: r.words.len(),
+            });
+        }
+        m.words = r.words;
+        let before = m.count();
+        m.clear_tail();
+        if m.count() != before {
+            return Err(Error::Degenerate {
+                what: "serialised mask has bits set past its last pixel".into(),
+            });
+        }
+        Ok(m)
+    }
 }
 
 impl std::fmt::Debug for Mask {
@@ -537,6 +572,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn serde_round_trip_and_malformed_input() {
+        let m = Mask::from_fn(13, 7, |x, y| (x * y) % 3 == 1);
+        let json = serde_json::to_string(&m).unwrap();
+        assert_eq!(serde_json::from_str::<Mask>(&json).unwrap(), m);
+        // Wrong word count and stray tail bits are rejected.
+        assert!(serde_json::from_str::<Mask>(r#"{"width":13,"height":7,"words":[0]}"#).is_err());
+        let tail = format!(r#"{{"width":13,"height":7,"words":[0,{}]}}"#, 1u64 << 40);
+        assert!(serde_json::from_str::<Mask>(&tail).is_err());
     }
 
     #[test]

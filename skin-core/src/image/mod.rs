@@ -8,6 +8,7 @@
 //! | `cleanup.rs` | removal of small foreground specks, filling of small holes | Vlasic 2010 §3.2.1 |
 //! | [`extract_contours`] (`contour.rs`) | borders with outward unit normals, arc-length resampling | silhouette fitting in Fua et al., Vlasic 2010 Ch. 2 |
 //! | [`signed_distance`] (`distance.rs`) | exact Euclidean distance transforms, signed distance to the boundary | Vlasic 2010 §2.3.2 |
+//! | [`sample_bilinear_with_gradient`] (`sample.rs`) | sub-pixel value and gradient of distance fields and depth maps | Vlasic 2010 §2.3.2 |
 //! | `io.rs` | PNG IO: masks, 16-bit depth with [`DepthEncoding`], false-colour depth, normal maps | — |
 //!
 //! ## Conventions
@@ -42,6 +43,7 @@ mod contour;
 mod distance;
 mod io;
 mod mask;
+mod sample;
 
 pub use background::{
     BackgroundFrame, BackgroundModel, BackgroundParams, Segmentation, DEFAULT_K_SIGMA,
@@ -60,3 +62,4 @@ pub use io::{
     Rgb16Image, DEFAULT_DEPTH_SCALE_M, DEPTH_NO_DATA, MASK_READ_THRESHOLD,
 };
 pub use mask::{Mask, PixelRect, MASK_FOREGROUND_GREY};
+pub use sample::{sample_bilinear, sample_bilinear_with_gradient, BilinearSample};
