@@ -495,11 +495,11 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    /// Approximately Gaussian noise (sum of 4 uniforms, variance scaled to sigma²).
+    /// Gaussian noise N(0, sigma²) by the Box–Muller transform.
     fn noise(rng: &mut ChaCha8Rng, sigma: f32) -> f32 {
-        let s: f32 = (0..4).map(|_| rng.random::<f32>() - 0.5).sum();
-        // Var of a sum of 4 U(-1/2, 1/2) is 4/12 = 1/3.
-        s * sigma * 3f32.sqrt()
+        let u1 = 1.0 - rng.random::<f64>(); // in (0, 1]
+        let u2 = rng.random::<f64>();
+        ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32 * sigma
     }
 
     fn backdrop(x: u32, y: u32) -> [f32; 3] {
@@ -531,34 +531,56 @@ mod tests {
         })
     }
 
+    /// Synthetic 64×48 scene, Gaussian noise σ = 0.04 per channel, clothing differing from the
+    /// backdrop by 0.3: per-pixel errors are rare but present (expected raw miss rate ≈ 1 %),
+    /// and clean-up removes most of them. Measured: raw FP 0.008 %, FN 1.0 %; cleaned FP 0 %,
+    /// FN 0.22 %.
     #[test]
     fn recovers_synthetic_foreground_with_noise() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let sigma = 0.03;
+        let sigma = 0.04;
         let bg: Vec<_> = (0..20).map(|_| frame(&mut rng, sigma, false)).collect();
-        let model = BackgroundModel::learn(&bg, &BackgroundParams::default()).unwrap();
-        // The learned deviation approximates the combined noise sqrt(3)·sigma.
-        let dev = model.deviation_map();
-        let mean_dev: f32 = dev.as_raw().iter().sum::<f32>() / dev.as_raw().len() as f32;
-        assert!((mean_dev - 3f32.sqrt() * sigma).abs() < 0.01, "{mean_dev}");
         let truth = Mask::from_fn(64, 48, in_person);
-        for raw in [false, true] {
-            let params = if raw {
-                BackgroundParams::default().without_cleanup()
-            } else {
-                BackgroundParams::default()
-            };
+        let mut rates = Vec::new();
+        for params in [
+            BackgroundParams::default().without_cleanup(),
+            BackgroundParams::default(),
+        ] {
             let model = BackgroundModel::learn(&bg, &params).unwrap();
-            let f = frame(&mut rng, sigma, true);
-            let seg = model.classify(&f).unwrap();
-            let fp = seg.mask.and_not(&truth).unwrap().count() as f64 / truth.not().count() as f64;
-            let fn_ = truth.and_not(&seg.mask).unwrap().count() as f64 / truth.count() as f64;
-            assert!(fp < 0.01, "false positive rate {fp} (raw {raw})");
-            assert!(fn_ < 0.05, "false negative rate {fn_} (raw {raw})");
-            if raw {
-                assert_eq!(seg.removed_px + seg.filled_px, 0);
+            // The learned deviation approximates the combined noise sqrt(3)·sigma.
+            let dev = model.deviation_map();
+            let mean_dev: f32 = dev.as_raw().iter().sum::<f32>() / dev.as_raw().len() as f32;
+            assert!((mean_dev - 3f32.sqrt() * sigma).abs() < 0.01, "{mean_dev}");
+            let (mut fp, mut fn_) = (0.0, 0.0);
+            let trials = 5;
+            let mut rng = ChaCha8Rng::seed_from_u64(11);
+            for _ in 0..trials {
+                let seg = model.classify(&frame(&mut rng, sigma, true)).unwrap();
+                fp += seg.mask.and_not(&truth).unwrap().count() as f64 / truth.not().count() as f64;
+                fn_ += truth.and_not(&seg.mask).unwrap().count() as f64 / truth.count() as f64;
+                assert_eq!(
+                    seg.mask.count(),
+                    seg.raw_foreground_px - seg.removed_px + seg.filled_px
+                );
             }
+            rates.push((fp / trials as f64, fn_ / trials as f64));
         }
+        let (raw, clean) = (rates[0], rates[1]);
+        assert!(
+            raw.0 < 0.002 && clean.0 < 0.002,
+            "false positive rates {raw:?} {clean:?}"
+        );
+        assert!(
+            raw.1 > 0.0 && raw.1 < 0.03,
+            "raw false negative rate {}",
+            raw.1
+        );
+        assert!(
+            clean.1 < 0.5 * raw.1,
+            "clean-up must fill most misses: {} vs {}",
+            clean.1,
+            raw.1
+        );
     }
 
     #[test]
