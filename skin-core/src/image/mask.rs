@@ -5,7 +5,7 @@
 //! centre at the continuous image coordinate `(x, y)`; `x` grows to the right, `y` downwards
 //! (the OpenCV convention). Pixel `(x, y)` covers `[x − ½, x + ½] × [y − ½, y + ½]`.
 
-use ::image::{GrayImage, Luma};
+use ::image::GrayImage;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -128,20 +128,33 @@ impl Mask {
     ///
     /// `threshold = 0` reproduces the "non-zero is foreground" rule of `imageproc`.
     pub fn from_gray(image: &GrayImage, threshold: u8) -> Self {
-        Mask::from_fn(image.width(), image.height(), |x, y| {
-            image.get_pixel(x, y).0[0] > threshold
-        })
+        Mask::from_flags(
+            image.width(),
+            image.height(),
+            image.as_raw().iter().map(|&v| v > threshold),
+        )
+    }
+
+    /// Builds a mask from exactly `width · height` row-major flags, 64 at a time.
+    fn from_flags(width: u32, height: u32, flags: impl IntoIterator<Item = bool>) -> Self {
+        let mut m = Mask::new(width, height);
+        let mut flags = flags.into_iter();
+        for w in &mut m.words {
+            for (b, f) in flags.by_ref().take(BITS).enumerate() {
+                *w |= u64::from(f) << b;
+            }
+        }
+        m
     }
 
     /// A grey image with foreground [`MASK_FOREGROUND_GREY`] (255) and background 0.
     pub fn to_gray(&self) -> GrayImage {
-        GrayImage::from_fn(self.width, self.height, |x, y| {
-            Luma([if self.get(x, y) {
-                MASK_FOREGROUND_GREY
-            } else {
-                0
-            }])
-        })
+        let data = self
+            .iter()
+            .map(|f| if f { MASK_FOREGROUND_GREY } else { 0 })
+            .collect();
+        // `iter` yields exactly width * height values.
+        GrayImage::from_raw(self.width, self.height, data).expect("one sample per pixel")
     }
 
     /// Width in pixels.
@@ -232,7 +245,10 @@ impl Mask {
 
     /// Foreground flags in row-major order (`index = y · width + x`).
     pub fn iter(&self) -> impl Iterator<Item = bool> + '_ {
-        (0..self.pixel_count()).map(move |i| self.bit(i))
+        self.words
+            .iter()
+            .flat_map(|&w| (0..BITS).map(move |b| (w >> b) & 1 == 1))
+            .take(self.pixel_count())
     }
 
     /// Foreground flags as a row-major `Vec<bool>`.
@@ -245,20 +261,15 @@ impl Mask {
     /// # Errors
     /// [`Error::SizeMismatch`] if `flags.len() != width · height`.
     pub fn from_bools(width: u32, height: u32, flags: &[bool]) -> Result<Self> {
-        let mut m = Mask::new(width, height);
-        if flags.len() != m.pixel_count() {
+        let n = width as usize * height as usize;
+        if flags.len() != n {
             return Err(Error::SizeMismatch {
                 what: "mask flags (width * height)",
-                expected: m.pixel_count(),
+                expected: n,
                 got: flags.len(),
             });
         }
-        for (i, &f) in flags.iter().enumerate() {
-            if f {
-                m.set_unchecked(i, true);
-            }
-        }
-        Ok(m)
+        Ok(Mask::from_flags(width, height, flags.iter().copied()))
     }
 
     /// Number of foreground pixels.
