@@ -2,6 +2,9 @@
 //! transform, contour extraction with normals, background classification of a colour frame,
 //! and mask mismatch counting.
 
+// criterion_group!/criterion_main! generate undocumented public functions.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
