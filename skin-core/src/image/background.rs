@@ -479,6 +479,10 @@ impl BackgroundModel {
         let removed_px = raw_foreground_px - specks_removed.count();
         let mask = fill_small_holes(&specks_removed, self.params.max_hole_px)?;
         let filled_px = mask.count() - specks_removed.count();
+        log::debug!(
+            "background subtraction: {raw_foreground_px} px above threshold, \
+             {removed_px} removed as specks, {filled_px} filled as holes"
+        );
         Ok(Segmentation {
             mask,
             raw_foreground_px,

@@ -126,11 +126,9 @@ fn require_pixels(width: u32, height: u32, what: &'static str) -> Result<()> {
 }
 
 fn read_png(path: &Path) -> Result<DynamicImage> {
-    let reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = reader
-        .with_guessed_format()
-        .map_err(|e| Error::io(path, e))?;
-    // The default decoding limits (512 MiB) guard against decompression bombs.
+    let mut reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
+    // Always decode as PNG, whatever the file name says. The default decoding limits
+    // (512 MiB) guard against decompression bombs.
     reader.set_format(ImageFormat::Png);
     reader.decode().map_err(|e| map_image_error(path, e))
 }
@@ -585,6 +583,34 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Randomly corrupted PNG bytes never panic: every reader returns a value or an error.
+        #[test]
+        fn corrupted_png_bytes_never_panic(
+            edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+            cut in any::<prop::sample::Index>(),
+            id in 0u32..1_000_000,
+        ) {
+            let src = tmp(&format!("fuzz_src_{id}.png"));
+            let depth = GrayF32Image::from_fn(9, 7, |x, y| Luma([0.5 + (x * y) as f32 * 0.01]));
+            write_depth_png16(&depth, &src, &DepthEncoding::default()).unwrap();
+            let mut bytes = std::fs::read(&src).unwrap();
+            for (i, v) in &edits {
+                let k = i.index(bytes.len());
+                bytes[k] = *v;
+            }
+            bytes.truncate(cut.index(bytes.len()) + 1);
+            let p = tmp(&format!("fuzz_{id}.png"));
+            std::fs::write(&p, &bytes).unwrap();
+            let _ = read_mask_png(&p);
+            let _ = read_depth_png16(&p, &DepthEncoding::default());
+            let _ = read_normal_png(&p);
+            std::fs::remove_file(&p).ok();
+            std::fs::remove_file(&src).ok();
         }
     }
 
