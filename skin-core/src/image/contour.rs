@@ -1,8 +1,10 @@
 //! Silhouette contours with outward unit normals, and arc-length resampling.
 //!
-//! Silhouette-based fitting (Fua et al. §silhouettes: tangent planes through silhouette points;
-//! Vlasic 2010 §2.3–2.4: silhouette constraints on the template) needs boundary points of the
-//! observed silhouette with the direction that leaves the body. Borders are traced with
+//! Silhouette-based fitting needs boundary points of the observed silhouette with the direction
+//! that leaves the body: Fua et al. §5.3 turn each silhouette point into a tangent plane
+//! (Eq. 11–13); Vlasic 2010 §2.4.2 ("Silhouette Constraints", Algorithm 1 line 10) samples the
+//! contours every 10 pixels and uses "the outward facing silhouette normal" to choose which
+//! surface point each contour ray pulls. Borders are traced with
 //! `imageproc::contours::find_contours` (Suzuki–Abe border following, 8-connected foreground);
 //! normals come from a smoothed tangent and are oriented from foreground to background, then
 //! verified against the mask.
@@ -24,6 +26,9 @@ pub const DEFAULT_TANGENT_HALF_WINDOW: usize = 3;
 /// on the pixel edges between foreground and background, the zero level set of
 /// [`crate::image::signed_distance`].
 pub const DEFAULT_OUTWARD_OFFSET_PX: f64 = 0.5;
+/// Default arc-length spacing of contour samples, pixels: Vlasic 2010 §2.4.2 "we sample the
+/// contours (every 10 pixels)".
+pub const DEFAULT_SAMPLE_STEP_PX: f64 = 10.0;
 /// Default minimum number of traced boundary pixels for a contour to be kept.
 pub const DEFAULT_MIN_POINTS: usize = 1;
 
@@ -50,7 +55,8 @@ pub struct ContourParams {
     /// Default: [`DEFAULT_MIN_POINTS`] = 1.
     pub min_points: usize,
     /// If `> 0`, each contour is resampled every `sample_step_px` pixels of arc length
-    /// ([`Contour::resample`]); 0 keeps one point per boundary pixel. Default: 0.
+    /// ([`Contour::resample`]); 0 keeps one point per boundary pixel. Source: Vlasic 2010
+    /// §2.4.2. Default: [`DEFAULT_SAMPLE_STEP_PX`] = 10.
     pub sample_step_px: f64,
 }
 
@@ -60,7 +66,7 @@ impl Default for ContourParams {
             tangent_half_window: DEFAULT_TANGENT_HALF_WINDOW,
             outward_offset_px: DEFAULT_OUTWARD_OFFSET_PX,
             min_points: DEFAULT_MIN_POINTS,
-            sample_step_px: 0.0,
+            sample_step_px: DEFAULT_SAMPLE_STEP_PX,
         }
     }
 }
@@ -365,8 +371,14 @@ mod tests {
     use crate::image::distance::signed_distance;
     use proptest::prelude::*;
 
+    /// One point per traced boundary pixel, at the pixel centre.
     fn raw_params() -> ContourParams {
-        ContourParams::default().with_outward_offset_px(0.0)
+        all_points().with_outward_offset_px(0.0)
+    }
+
+    /// One point per traced boundary pixel, default offset.
+    fn all_points() -> ContourParams {
+        ContourParams::default().with_sample_step_px(0.0)
     }
 
     fn ellipse(w: u32, h: u32, c: DVec2, a: f64, b: f64, rot: f64) -> Mask {
@@ -433,9 +445,11 @@ mod tests {
     fn default_offset_lands_on_the_zero_level_set() {
         let m = ellipse(60, 40, DVec2::new(30.0, 20.0), 20.0, 9.0, 0.4);
         let sd = signed_distance(&m).unwrap();
-        let cs = extract_contours(&m, &ContourParams::default()).unwrap();
         let mut worst = 0.0f64;
-        for p in &cs[0].points {
+        // Both the traced points and the default 10-pixel samples lie near the zero set.
+        let mut cs = extract_contours(&m, &all_points()).unwrap();
+        cs.extend(extract_contours(&m, &ContourParams::default()).unwrap());
+        for p in cs.iter().flat_map(|c| &c.points) {
             // Bilinear interpolation of the signed distance at the contour point.
             let (x0, y0) = (p.x.floor(), p.y.floor());
             let (fx, fy) = (p.x - x0, p.y - y0);
@@ -510,7 +524,7 @@ mod tests {
     #[test]
     fn resampling_spaces_points_by_arc_length() {
         let m = ellipse(80, 80, DVec2::new(40.0, 40.0), 30.0, 30.0, 0.0);
-        let cs = extract_contours(&m, &ContourParams::default()).unwrap();
+        let cs = extract_contours(&m, &all_points()).unwrap();
         let k = &cs[0];
         let step = 5.0;
         let r = k.resample(step).unwrap();
@@ -521,8 +535,7 @@ mod tests {
             assert!(d <= step + 1e-9 && d > 0.8 * step, "{d}");
             assert!((r.normals[i].length() - 1.0).abs() < 1e-12);
         }
-        let via_params =
-            extract_contours(&m, &ContourParams::default().with_sample_step_px(step)).unwrap();
+        let via_params = extract_contours(&m, &all_points().with_sample_step_px(step)).unwrap();
         assert_eq!(via_params[0], r);
         assert!(matches!(k.resample(0.0), Err(Error::InvalidParam { .. })));
     }
@@ -540,7 +553,7 @@ mod tests {
             (15.0, 15.0, 0.0),
         ] {
             let m = ellipse(82, 82, c, a, b, rot);
-            let cs = extract_contours(&m, &ContourParams::default()).unwrap();
+            let cs = extract_contours(&m, &all_points()).unwrap();
             let (s, co) = f64::sin_cos(rot);
             for (p, n) in cs[0].points.iter().zip(&cs[0].normals) {
                 // Gradient of (u/a)² + (v/b)² at the point, rotated back to image axes.

@@ -1,9 +1,9 @@
 //! Exact Euclidean distance transforms of masks and the signed distance to the silhouette
 //! boundary.
 //!
-//! These feed the silhouette-fitting methods: Vlasic 2010 §2.3.2 evaluates the distance of
-//! projected points to the silhouette and its complement, and Fua et al. fit silhouette
-//! tangents. The transform itself is the exact linear-time algorithm of Felzenszwalb and
+//! These feed the silhouette-fitting methods: Vlasic 2010 §2.3.2 computes, on each camera's
+//! image plane, a distance transform initialised at the contour pixels and evaluates it at
+//! projected points; the signed version tells inside from outside. The transform itself is the exact linear-time algorithm of Felzenszwalb and
 //! Huttenlocher ("Distance Transforms of Sampled Functions"), as implemented by
 //! `imageproc::distance_transform::euclidean_squared_distance_transform`.
 //!
