@@ -34,6 +34,8 @@ pub const DEFAULT_MIN_POINTS: usize = 1;
 
 /// Below this length a smoothed tangent (or fallback direction) is treated as zero.
 const DIRECTION_EPS: f64 = 1e-9;
+/// Largest number of samples [`Contour::resample`] will produce for one contour.
+const MAX_RESAMPLED_POINTS: f64 = 1e8;
 /// Distance, in pixels, of the in/out probes used to verify normal orientation.
 const PROBE_STEP_PX: f64 = 1.0;
 
@@ -156,7 +158,9 @@ impl Contour {
     /// nearer original normal is used). A contour of zero length is returned unchanged.
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] if `step_px` is not finite and positive.
+    /// [`Error::InvalidParam`] if `step_px` is not finite and positive or would give more than
+    /// 10⁸ samples; [`Error::SizeMismatch`] if `points` and `normals` differ in length;
+    /// [`Error::NonFinite`] if a point or normal is NaN or infinite.
     pub fn resample(&self, step_px: f64) -> Result<Contour> {
         if !(step_px.is_finite() && step_px > 0.0) {
             return Err(Error::InvalidParam {
@@ -164,7 +168,30 @@ impl Contour {
                 reason: format!("must be finite and > 0, got {step_px}"),
             });
         }
+        if self.normals.len() != self.points.len() {
+            return Err(Error::SizeMismatch {
+                what: "contour normals vs points",
+                expected: self.points.len(),
+                got: self.normals.len(),
+            });
+        }
+        if !self
+            .points
+            .iter()
+            .chain(&self.normals)
+            .all(|p| p.is_finite())
+        {
+            return Err(Error::NonFinite {
+                what: "contour points or normals",
+            });
+        }
         let total = self.perimeter_px();
+        if total / step_px > MAX_RESAMPLED_POINTS {
+            return Err(Error::InvalidParam {
+                name: "step_px",
+                reason: format!("{step_px} px gives more than 1e8 samples over {total} px"),
+            });
+        }
         if total <= 0.0 {
             return Ok(self.clone());
         }
@@ -538,6 +565,19 @@ mod tests {
         let via_params = extract_contours(&m, &all_points().with_sample_step_px(step)).unwrap();
         assert_eq!(via_params[0], r);
         assert!(matches!(k.resample(0.0), Err(Error::InvalidParam { .. })));
+        assert!(matches!(
+            k.resample(1e-300),
+            Err(Error::InvalidParam { .. })
+        ));
+        let mut bad = k.clone();
+        bad.normals.pop();
+        assert!(matches!(
+            bad.resample(step),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let mut bad = k.clone();
+        bad.points[3].x = f64::NAN;
+        assert!(matches!(bad.resample(step), Err(Error::NonFinite { .. })));
     }
 
     /// Normal accuracy against the analytic normals of rotated ellipses (semi-axes 6–30 px).

@@ -89,14 +89,18 @@ pub struct PixelRect {
 }
 
 impl PixelRect {
-    /// Width in pixels (`x_max − x_min + 1`).
+    /// Width in pixels (`x_max − x_min + 1`; 0 if `x_max < x_min`).
     pub fn width(&self) -> u32 {
-        self.x_max - self.x_min + 1
+        self.x_max
+            .checked_sub(self.x_min)
+            .map_or(0, |d| d.saturating_add(1))
     }
 
-    /// Height in pixels (`y_max − y_min + 1`).
+    /// Height in pixels (`y_max − y_min + 1`; 0 if `y_max < y_min`).
     pub fn height(&self) -> u32 {
-        self.y_max - self.y_min + 1
+        self.y_max
+            .checked_sub(self.y_min)
+            .map_or(0, |d| d.saturating_add(1))
     }
 }
 
@@ -567,6 +571,8 @@ mod tests {
             match m.bounding_box() {
                 None => prop_assert!(m.is_empty()),
                 Some(r) => {
+                    prop_assert!(r.width() >= 1 && r.width() <= m.width());
+                    prop_assert!(r.height() >= 1 && r.height() <= m.height());
                     let mut touches = [false; 4];
                     for y in 0..m.height() {
                         for x in 0..m.width() {
