@@ -336,7 +336,8 @@ fn border_normals(
 /// along the image border (pixels outside the image are background).
 ///
 /// # Errors
-/// [`Error::InvalidParam`] for invalid [`ContourParams`].
+/// [`Error::InvalidParam`] for invalid [`ContourParams`] or a mask wider or taller than
+/// `u32::MAX − 2`.
 ///
 /// # Example
 /// ```
@@ -355,7 +356,13 @@ pub fn extract_contours(mask: &Mask, params: &ContourParams) -> Result<Vec<Conto
     // Pad by one background pixel on every side: imageproc's tracer (Suzuki–Abe) assumes a
     // background frame and misses regions touching the left image border without it.
     let (w, h) = mask.dimensions();
-    let padded = GrayImage::from_fn(w + 2, h + 2, |x, y| {
+    let (Some(pw), Some(ph)) = (w.checked_add(2), h.checked_add(2)) else {
+        return Err(Error::InvalidParam {
+            name: "mask size",
+            reason: format!("{w}x{h} is too large to pad for contour tracing"),
+        });
+    };
+    let padded = GrayImage::from_fn(pw, ph, |x, y| {
         let fg = x >= 1 && y >= 1 && mask.get(x - 1, y - 1);
         Luma([if fg { MASK_FOREGROUND_GREY } else { 0 }])
     });
