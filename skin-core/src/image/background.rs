@@ -1,0 +1,719 @@
+//! Background subtraction with a per-pixel threshold map (Sand 2003 thesis §4.2; Sand,
+//! McMillan, Popović 2003 §4.2).
+//!
+//! Sand: "For each pixel, background subtraction finds the difference between the current frame
+//! and an empty background frame and labels pixels with a high difference as part of the
+//! foreground. Our system uses a large subtraction threshold to overcome shadows and video
+//! compression artifacts. The threshold near the head is smaller [...]". The papers give no
+//! numbers, so we use the standard statistical form of that scheme:
+//!
+//! * learn, from `N` frames of the empty scene, the per-pixel background mean `μᵢ` (a colour or
+//!   grey vector) and the per-pixel deviation `σᵢ = sqrt(Σ_c s²ᵢ,c)` (sample standard deviation
+//!   of each channel, combined over channels);
+//! * per-pixel threshold `tᵢ = max(t_min, k·σᵢ)`: `k·σᵢ` rejects the camera noise of that pixel
+//!   (flicker, compression), `t_min` is Sand's "large threshold" floor against shadows;
+//! * pixel `i` of a frame `I` is foreground iff `‖Iᵢ − μᵢ‖₂ > tᵢ`.
+//!
+//! The threshold map can be edited after learning (Sand's smaller threshold near the head):
+//! [`BackgroundModel::scale_thresholds_in`]. Optional clean-up ([`BackgroundParams`]) removes
+//! specks and fills small holes (Vlasic 2010 §3.2.1, see [`crate::image::cleanup`]).
+//!
+//! Intensities are on a `[0, 1]` scale: `f32` images as given, `u8` images divided by 255.
+
+use std::borrow::Cow;
+
+use ::image::{GrayImage, Rgb32FImage, RgbImage};
+use serde::{Deserialize, Serialize};
+
+use super::cleanup::{fill_small_holes, remove_small_components};
+use super::distance::GrayF32Image;
+use super::mask::Mask;
+use crate::error::{Error, Result};
+
+/// Default multiple of the per-pixel deviation in the threshold. Not given by Sand; 3σ is the
+/// usual choice (it passes 99.7 % of Gaussian noise per channel; Stauffer–Grimson use 2.5σ,
+/// OpenCV MOG2 4σ).
+pub const DEFAULT_K_SIGMA: f32 = 3.0;
+/// Default floor of the per-pixel threshold, in intensity units on `[0, 1]` (≈ 25/255). Sand
+/// §4.2 uses "a large subtraction threshold to overcome shadows and video compression
+/// artifacts" without a value; 0.1 rejects 8-bit compression noise and soft shadows while
+/// keeping clothing that differs from the backdrop by a tenth of full scale.
+pub const DEFAULT_MIN_THRESHOLD: f32 = 0.1;
+/// Default minimum area of a kept foreground component, pixels (a 4×4 speck). Not in Sand.
+pub const DEFAULT_MIN_COMPONENT_PX: usize = 16;
+/// Default largest hole that is filled, pixels (Vlasic §3.2.1 fills "small gaps"; no value).
+pub const DEFAULT_MAX_HOLE_PX: usize = 16;
+
+/// Knobs of background learning and classification.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BackgroundParams {
+    /// Multiple `k` of the per-pixel deviation σᵢ in the threshold `tᵢ = max(t_min, k·σᵢ)`,
+    /// dimensionless. Source: standard practice (Sand §4.2 gives no value).
+    /// Default: [`DEFAULT_K_SIGMA`] = 3.
+    pub k_sigma: f32,
+    /// Threshold floor `t_min`, intensity units on `[0, 1]`. Source: Sand §4.2 ("large
+    /// subtraction threshold", no value). Default: [`DEFAULT_MIN_THRESHOLD`] = 0.1.
+    pub min_threshold: f32,
+    /// Foreground 8-connected components smaller than this many pixels are removed after
+    /// classification; 0 disables. Default: [`DEFAULT_MIN_COMPONENT_PX`] = 16.
+    pub min_component_px: usize,
+    /// Enclosed 4-connected background holes of at most this many pixels are filled after
+    /// classification (Vlasic 2010 §3.2.1); 0 disables. Default: [`DEFAULT_MAX_HOLE_PX`] = 16.
+    pub max_hole_px: usize,
+}
+
+impl Default for BackgroundParams {
+    fn default() -> Self {
+        BackgroundParams {
+            k_sigma: DEFAULT_K_SIGMA,
+            min_threshold: DEFAULT_MIN_THRESHOLD,
+            min_component_px: DEFAULT_MIN_COMPONENT_PX,
+            max_hole_px: DEFAULT_MAX_HOLE_PX,
+        }
+    }
+}
+
+impl BackgroundParams {
+    /// Sets [`BackgroundParams::k_sigma`].
+    pub fn with_k_sigma(mut self, k: f32) -> Self {
+        self.k_sigma = k;
+        self
+    }
+    /// Sets [`BackgroundParams::min_threshold`].
+    pub fn with_min_threshold(mut self, t: f32) -> Self {
+        self.min_threshold = t;
+        self
+    }
+    /// Sets [`BackgroundParams::min_component_px`] (0 disables speck removal).
+    pub fn with_min_component_px(mut self, px: usize) -> Self {
+        self.min_component_px = px;
+        self
+    }
+    /// Sets [`BackgroundParams::max_hole_px`] (0 disables hole filling).
+    pub fn with_max_hole_px(mut self, px: usize) -> Self {
+        self.max_hole_px = px;
+        self
+    }
+    /// Disables both clean-up steps (raw per-pixel classification).
+    pub fn without_cleanup(self) -> Self {
+        self.with_min_component_px(0).with_max_hole_px(0)
+    }
+
+    fn validate(&self) -> Result<()> {
+        if !(self.k_sigma.is_finite() && self.k_sigma >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "k_sigma",
+                reason: format!("must be finite and >= 0, got {}", self.k_sigma),
+            });
+        }
+        if !(self.min_threshold.is_finite() && self.min_threshold >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "min_threshold",
+                reason: format!("must be finite and >= 0, got {}", self.min_threshold),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// An image usable as a video frame for background subtraction: any number of interleaved
+/// channels, intensities on `[0, 1]`.
+pub trait BackgroundFrame {
+    /// `(width, height)` in pixels.
+    fn frame_dimensions(&self) -> (u32, u32);
+    /// Channels per pixel (1 grey, 3 colour).
+    fn channels(&self) -> usize;
+    /// Interleaved samples, row-major, on a `[0, 1]` scale.
+    fn samples(&self) -> Cow<'_, [f32]>;
+}
+
+impl BackgroundFrame for Rgb32FImage {
+    fn frame_dimensions(&self) -> (u32, u32) {
+        self.dimensions()
+    }
+    fn channels(&self) -> usize {
+        3
+    }
+    fn samples(&self) -> Cow<'_, [f32]> {
+        Cow::Borrowed(self.as_raw())
+    }
+}
+
+impl BackgroundFrame for GrayF32Image {
+    fn frame_dimensions(&self) -> (u32, u32) {
+        self.dimensions()
+    }
+    fn channels(&self) -> usize {
+        1
+    }
+    fn samples(&self) -> Cow<'_, [f32]> {
+        Cow::Borrowed(self.as_raw())
+    }
+}
+
+/// Scale of 8-bit samples to `[0, 1]`.
+const U8_SCALE: f32 = 1.0 / 255.0;
+
+impl BackgroundFrame for RgbImage {
+    fn frame_dimensions(&self) -> (u32, u32) {
+        self.dimensions()
+    }
+    fn channels(&self) -> usize {
+        3
+    }
+    fn samples(&self) -> Cow<'_, [f32]> {
+        Cow::Owned(
+            self.as_raw()
+                .iter()
+                .map(|&v| f32::from(v) * U8_SCALE)
+                .collect(),
+        )
+    }
+}
+
+impl BackgroundFrame for GrayImage {
+    fn frame_dimensions(&self) -> (u32, u32) {
+        self.dimensions()
+    }
+    fn channels(&self) -> usize {
+        1
+    }
+    fn samples(&self) -> Cow<'_, [f32]> {
+        Cow::Owned(
+            self.as_raw()
+                .iter()
+                .map(|&v| f32::from(v) * U8_SCALE)
+                .collect(),
+        )
+    }
+}
+
+/// The learned background: per-pixel mean and threshold map (Sand §4.2).
+///
+/// Serialisable; deserialisation checks sizes and values, so a malformed file gives an error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "BackgroundModelRepr")]
+pub struct BackgroundModel {
+    width: u32,
+    height: u32,
+    channels: usize,
+    /// Per-pixel mean, interleaved like the frames, `[0, 1]` units.
+    mean: Vec<f32>,
+    /// Per-pixel deviation σᵢ (combined over channels), `[0, 1]` units.
+    deviation: Vec<f32>,
+    /// Per-pixel threshold tᵢ, `[0, 1]` units.
+    threshold: Vec<f32>,
+    params: BackgroundParams,
+}
+
+/// Unvalidated serialised form of [`BackgroundModel`].
+#[derive(Deserialize)]
+struct BackgroundModelRepr {
+    width: u32,
+    height: u32,
+    channels: usize,
+    mean: Vec<f32>,
+    deviation: Vec<f32>,
+    threshold: Vec<f32>,
+    params: BackgroundParams,
+}
+
+impl TryFrom<BackgroundModelRepr> for BackgroundModel {
+    type Error = Error;
+    fn try_from(r: BackgroundModelRepr) -> Result<Self> {
+        if r.width == 0 || r.height == 0 || r.channels == 0 {
+            return Err(Error::Empty {
+                what: "serialised background model (zero size or channels)",
+            });
+        }
+        r.params.validate()?;
+        let n = r.width as usize * r.height as usize;
+        for (what, v, len) in [
+            ("serialised background mean", &r.mean, n * r.channels),
+            ("serialised background deviation", &r.deviation, n),
+            ("serialised background threshold", &r.threshold, n),
+        ] {
+            if v.len() != len {
+                return Err(Error::SizeMismatch {
+                    what,
+                    expected: len,
+                    got: v.len(),
+                });
+            }
+            if v.iter().any(|x| !x.is_finite()) {
+                return Err(Error::NonFinite { what });
+            }
+        }
+        Ok(BackgroundModel {
+            width: r.width,
+            height: r.height,
+            channels: r.channels,
+            mean: r.mean,
+            deviation: r.deviation,
+            threshold: r.threshold,
+            params: r.params,
+        })
+    }
+}
+
+/// The result of classifying one frame: the foreground mask and what clean-up changed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segmentation {
+    /// Final foreground mask (after clean-up).
+    pub mask: Mask,
+    /// Foreground pixels straight from thresholding, before clean-up.
+    pub raw_foreground_px: usize,
+    /// Pixels removed as small components.
+    pub removed_px: usize,
+    /// Pixels added by hole filling.
+    pub filled_px: usize,
+}
+
+fn check_frame<F: BackgroundFrame>(
+    frame: &F,
+    width: u32,
+    height: u32,
+    channels: usize,
+) -> Result<()> {
+    let (w, h) = frame.frame_dimensions();
+    if w != width {
+        return Err(Error::SizeMismatch {
+            what: "frame width vs background model",
+            expected: width as usize,
+            got: w as usize,
+        });
+    }
+    if h != height {
+        return Err(Error::SizeMismatch {
+            what: "frame height vs background model",
+            expected: height as usize,
+            got: h as usize,
+        });
+    }
+    if frame.channels() != channels {
+        return Err(Error::SizeMismatch {
+            what: "frame channels vs background model",
+            expected: channels,
+            got: frame.channels(),
+        });
+    }
+    Ok(())
+}
+
+impl BackgroundModel {
+    /// Learns the background mean and the threshold map `tᵢ = max(t_min, k·σᵢ)` from frames of
+    /// the empty scene (Sand §4.2). With a single frame σᵢ = 0 and the threshold is `t_min`.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for no frames or zero-sized frames; [`Error::SizeMismatch`] if the
+    /// frames differ in size; [`Error::NonFinite`] if a sample is NaN or infinite;
+    /// [`Error::InvalidParam`] for negative or non-finite parameters.
+    pub fn learn<F: BackgroundFrame>(frames: &[F], params: &BackgroundParams) -> Result<Self> {
+        params.validate()?;
+        let first = frames.first().ok_or(Error::Empty {
+            what: "background frames",
+        })?;
+        let (width, height) = first.frame_dimensions();
+        let channels = first.channels();
+        if width == 0 || height == 0 || channels == 0 {
+            return Err(Error::Empty {
+                what: "background frame (zero width, height or channels)",
+            });
+        }
+        let n = width as usize * height as usize * channels;
+        // Welford's running mean and sum of squared deviations, in f64 for stability.
+        let mut mean = vec![0f64; n];
+        let mut m2 = vec![0f64; n];
+        for (k, frame) in frames.iter().enumerate() {
+            check_frame(frame, width, height, channels)?;
+            let s = frame.samples();
+            if s.iter().any(|v| !v.is_finite()) {
+                return Err(Error::NonFinite {
+                    what: "background frame sample",
+                });
+            }
+            let count = (k + 1) as f64;
+            for ((m, q), &v) in mean.iter_mut().zip(m2.iter_mut()).zip(s.iter()) {
+                let v = f64::from(v);
+                let d = v - *m;
+                *m += d / count;
+                *q += d * (v - *m);
+            }
+        }
+        let denom = (frames.len().max(2) - 1) as f64;
+        let deviation: Vec<f32> = m2
+            .chunks_exact(channels)
+            .map(|q| (q.iter().sum::<f64>() / denom).sqrt() as f32)
+            .collect();
+        let threshold = deviation
+            .iter()
+            .map(|&s| params.min_threshold.max(params.k_sigma * s))
+            .collect();
+        Ok(BackgroundModel {
+            width,
+            height,
+            channels,
+            mean: mean.iter().map(|&m| m as f32).collect(),
+            deviation,
+            threshold,
+            params: *params,
+        })
+    }
+
+    /// `(width, height)` of the frames this model accepts.
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Channels per pixel of the frames this model accepts.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// The parameters used for learning and clean-up.
+    pub fn params(&self) -> &BackgroundParams {
+        &self.params
+    }
+
+    /// Per-pixel threshold map `tᵢ` as an image, `[0, 1]` units.
+    pub fn threshold_map(&self) -> GrayF32Image {
+        self.single_channel_image(&self.threshold)
+    }
+
+    /// Per-pixel background deviation `σᵢ` as an image, `[0, 1]` units.
+    pub fn deviation_map(&self) -> GrayF32Image {
+        self.single_channel_image(&self.deviation)
+    }
+
+    /// Per-pixel background mean, interleaved with [`BackgroundModel::channels`] channels.
+    pub fn mean(&self) -> &[f32] {
+        &self.mean
+    }
+
+    fn single_channel_image(&self, v: &[f32]) -> GrayF32Image {
+        // `v` has one value per pixel by construction.
+        GrayF32Image::from_raw(self.width, self.height, v.to_vec())
+            .expect("per-pixel map has width * height values")
+    }
+
+    fn check_region(&self, region: &Mask) -> Result<()> {
+        if region.dimensions() != (self.width, self.height) {
+            return Err(Error::SizeMismatch {
+                what: "threshold region pixels vs background model",
+                expected: self.width as usize * self.height as usize,
+                got: region.pixel_count(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Multiplies the threshold of every pixel in `region` by `factor`, e.g. `factor < 1`
+    /// around the projected head where skin is close to the background colour (Sand §4.2).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if `region` has another size; [`Error::InvalidParam`] if
+    /// `factor` is negative or not finite.
+    pub fn scale_thresholds_in(&mut self, region: &Mask, factor: f32) -> Result<()> {
+        self.check_region(region)?;
+        if !(factor.is_finite() && factor >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "factor",
+                reason: format!("must be finite and >= 0, got {factor}"),
+            });
+        }
+        for (t, inside) in self.threshold.iter_mut().zip(region.iter()) {
+            if inside {
+                *t *= factor;
+            }
+        }
+        Ok(())
+    }
+
+    /// Sets the threshold of every pixel in `region` to `threshold` (`[0, 1]` units).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if `region` has another size; [`Error::InvalidParam`] if
+    /// `threshold` is negative or not finite.
+    pub fn set_thresholds_in(&mut self, region: &Mask, threshold: f32) -> Result<()> {
+        self.check_region(region)?;
+        if !(threshold.is_finite() && threshold >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "threshold",
+                reason: format!("must be finite and >= 0, got {threshold}"),
+            });
+        }
+        for (t, inside) in self.threshold.iter_mut().zip(region.iter()) {
+            if inside {
+                *t = threshold;
+            }
+        }
+        Ok(())
+    }
+
+    /// Classifies a frame: pixel `i` is foreground iff `‖Iᵢ − μᵢ‖₂ > tᵢ`, followed by the
+    /// optional clean-up of [`BackgroundParams`].
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if the frame's width, height or channel count differ from the
+    /// model's; [`Error::NonFinite`] if a sample is NaN or infinite.
+    pub fn classify<F: BackgroundFrame>(&self, frame: &F) -> Result<Segmentation> {
+        check_frame(frame, self.width, self.height, self.channels)?;
+        let s = frame.samples();
+        if s.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "frame sample",
+            });
+        }
+        let flags: Vec<bool> = s
+            .chunks_exact(self.channels)
+            .zip(self.mean.chunks_exact(self.channels))
+            .zip(&self.threshold)
+            .map(|((px, mu), &t)| {
+                let d2: f32 = px.iter().zip(mu).map(|(a, b)| (a - b) * (a - b)).sum();
+                d2 > t * t
+            })
+            .collect();
+        let raw = Mask::from_bools(self.width, self.height, &flags)?;
+        let raw_foreground_px = raw.count();
+        let specks_removed = remove_small_components(&raw, self.params.min_component_px)?;
+        let removed_px = raw_foreground_px - specks_removed.count();
+        let mask = fill_small_holes(&specks_removed, self.params.max_hole_px)?;
+        let filled_px = mask.count() - specks_removed.count();
+        log::debug!(
+            "background subtraction: {raw_foreground_px} px above threshold, \
+             {removed_px} removed as specks, {filled_px} filled as holes"
+        );
+        Ok(Segmentation {
+            mask,
+            raw_foreground_px,
+            removed_px,
+            filled_px,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ::image::{Luma, Rgb};
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// Gaussian noise N(0, sigma²) by the Box–Muller transform.
+    fn noise(rng: &mut ChaCha8Rng, sigma: f32) -> f32 {
+        let u1 = 1.0 - rng.random::<f64>(); // in (0, 1]
+        let u2 = rng.random::<f64>();
+        ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32 * sigma
+    }
+
+    fn backdrop(x: u32, y: u32) -> [f32; 3] {
+        // A textured backdrop so the mean matters.
+        let fx = x as f32 / 64.0;
+        let fy = y as f32 / 48.0;
+        [0.2 + 0.3 * fx, 0.5 - 0.2 * fy, 0.4 + 0.1 * (fx * 9.0).sin()]
+    }
+
+    fn in_person(x: u32, y: u32) -> bool {
+        let (dx, dy) = (x as f32 - 30.0, y as f32 - 24.0);
+        dx * dx / 100.0 + dy * dy / 300.0 < 1.0 || ((18..42).contains(&x) && (20..24).contains(&y))
+    }
+
+    fn frame(rng: &mut ChaCha8Rng, sigma: f32, with_person: bool) -> Rgb32FImage {
+        Rgb32FImage::from_fn(64, 48, |x, y| {
+            let c = if with_person && in_person(x, y) {
+                // Clothing differing from the backdrop by ~0.3 in one channel.
+                let b = backdrop(x, y);
+                [b[0] + 0.3, b[1] - 0.05, b[2]]
+            } else {
+                backdrop(x, y)
+            };
+            Rgb([
+                c[0] + noise(rng, sigma),
+                c[1] + noise(rng, sigma),
+                c[2] + noise(rng, sigma),
+            ])
+        })
+    }
+
+    /// Synthetic 64×48 scene, Gaussian noise σ = 0.04 per channel, clothing differing from the
+    /// backdrop by 0.3: per-pixel errors are rare but present (expected raw miss rate ≈ 1 %),
+    /// and clean-up removes most of them. Measured: raw FP 0.008 %, FN 1.0 %; cleaned FP 0 %,
+    /// FN 0.22 %.
+    #[test]
+    fn recovers_synthetic_foreground_with_noise() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let sigma = 0.04;
+        let bg: Vec<_> = (0..20).map(|_| frame(&mut rng, sigma, false)).collect();
+        let truth = Mask::from_fn(64, 48, in_person);
+        let mut rates = Vec::new();
+        for params in [
+            BackgroundParams::default().without_cleanup(),
+            BackgroundParams::default(),
+        ] {
+            let model = BackgroundModel::learn(&bg, &params).unwrap();
+            // The learned deviation approximates the combined noise sqrt(3)·sigma.
+            let dev = model.deviation_map();
+            let mean_dev: f32 = dev.as_raw().iter().sum::<f32>() / dev.as_raw().len() as f32;
+            assert!((mean_dev - 3f32.sqrt() * sigma).abs() < 0.01, "{mean_dev}");
+            let (mut fp, mut fn_) = (0.0, 0.0);
+            let trials = 5;
+            let mut rng = ChaCha8Rng::seed_from_u64(11);
+            for _ in 0..trials {
+                let seg = model.classify(&frame(&mut rng, sigma, true)).unwrap();
+                fp += seg.mask.and_not(&truth).unwrap().count() as f64 / truth.not().count() as f64;
+                fn_ += truth.and_not(&seg.mask).unwrap().count() as f64 / truth.count() as f64;
+                assert_eq!(
+                    seg.mask.count(),
+                    seg.raw_foreground_px - seg.removed_px + seg.filled_px
+                );
+            }
+            rates.push((fp / trials as f64, fn_ / trials as f64));
+        }
+        let (raw, clean) = (rates[0], rates[1]);
+        assert!(
+            raw.0 < 0.002 && clean.0 < 0.002,
+            "false positive rates {raw:?} {clean:?}"
+        );
+        assert!(
+            raw.1 > 0.0 && raw.1 < 0.03,
+            "raw false negative rate {}",
+            raw.1
+        );
+        assert!(
+            clean.1 < 0.5 * raw.1,
+            "clean-up must fill most misses: {} vs {}",
+            clean.1,
+            raw.1
+        );
+    }
+
+    #[test]
+    fn threshold_map_follows_noise_and_floor() {
+        // Left half noisy (sigma 0.1), right half quiet: thresholds differ per pixel.
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let frames: Vec<GrayF32Image> = (0..30)
+            .map(|_| {
+                GrayF32Image::from_fn(16, 8, |x, _| {
+                    let s = if x < 8 { 0.1 } else { 0.001 };
+                    Luma([0.5 + noise(&mut rng, s)])
+                })
+            })
+            .collect();
+        let p = BackgroundParams::default();
+        let model = BackgroundModel::learn(&frames, &p).unwrap();
+        let t = model.threshold_map();
+        for y in 0..8 {
+            for x in 0..16 {
+                let v = t.get_pixel(x, y).0[0];
+                if x < 8 {
+                    assert!(v > 0.2 && v < 0.45, "{v}");
+                } else {
+                    assert_eq!(v, p.min_threshold);
+                }
+            }
+        }
+        // Region editing (Sand's smaller threshold near the head).
+        let mut m2 = model.clone();
+        let head = Mask::from_fn(16, 8, |x, _| x >= 12);
+        m2.scale_thresholds_in(&head, 0.5).unwrap();
+        assert_eq!(m2.threshold_map().get_pixel(13, 0).0[0], 0.05);
+        assert_eq!(m2.threshold_map().get_pixel(9, 0).0[0], p.min_threshold);
+        m2.set_thresholds_in(&head, 0.02).unwrap();
+        assert_eq!(m2.threshold_map().get_pixel(13, 0).0[0], 0.02);
+        let probe = GrayF32Image::from_fn(16, 8, |_, _| Luma([0.53]));
+        let seg = m2.classify(&probe).unwrap();
+        // Only the low-threshold region (4 x 8 = 32 px) sees the 0.03 change.
+        assert_eq!(seg.mask, head);
+        assert!(matches!(
+            m2.scale_thresholds_in(&Mask::new(3, 3), 0.5),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            m2.scale_thresholds_in(&head, f32::NAN),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            m2.set_thresholds_in(&head, -1.0),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    #[test]
+    fn u8_frames_are_scaled_to_unit_range() {
+        let bg = GrayImage::from_pixel(4, 4, Luma([100]));
+        let model =
+            BackgroundModel::learn(&[bg], &BackgroundParams::default().without_cleanup()).unwrap();
+        let mut f = GrayImage::from_pixel(4, 4, Luma([100 + 20]));
+        f.put_pixel(1, 1, Luma([100 + 30])); // 30/255 > 0.1 > 20/255
+        let seg = model.classify(&f).unwrap();
+        assert_eq!(seg.mask.count(), 1);
+        assert!(seg.mask.get(1, 1));
+        let rgb = RgbImage::from_pixel(4, 4, Rgb([0, 0, 0]));
+        let m = BackgroundModel::learn(std::slice::from_ref(&rgb), &BackgroundParams::default())
+            .unwrap();
+        assert_eq!(m.channels(), 3);
+        assert!(m.classify(&rgb).unwrap().mask.is_empty());
+    }
+
+    #[test]
+    fn model_serde_round_trip_and_malformed_input() {
+        let frames = [GrayF32Image::from_fn(5, 4, |x, y| {
+            Luma([(x + y) as f32 * 0.1])
+        })];
+        let model = BackgroundModel::learn(&frames, &BackgroundParams::default()).unwrap();
+        let json = serde_json::to_string(&model).unwrap();
+        let back: BackgroundModel = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, model);
+        let mut v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        v["channels"] = 0.into();
+        assert!(serde_json::from_value::<BackgroundModel>(v.clone()).is_err());
+        v["channels"] = 2.into();
+        assert!(serde_json::from_value::<BackgroundModel>(v).is_err());
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let p = BackgroundParams::default();
+        let none: [GrayF32Image; 0] = [];
+        assert!(matches!(
+            BackgroundModel::learn(&none, &p),
+            Err(Error::Empty { .. })
+        ));
+        let zero = GrayF32Image::new(0, 4);
+        assert!(matches!(
+            BackgroundModel::learn(&[zero], &p),
+            Err(Error::Empty { .. })
+        ));
+        let a = GrayF32Image::new(4, 4);
+        let b = GrayF32Image::new(5, 4);
+        assert!(matches!(
+            BackgroundModel::learn(&[a.clone(), b.clone()], &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let mut nan = a.clone();
+        nan.put_pixel(2, 2, Luma([f32::NAN]));
+        assert!(matches!(
+            BackgroundModel::learn(&[a.clone(), nan.clone()], &p),
+            Err(Error::NonFinite { .. })
+        ));
+        let model = BackgroundModel::learn(std::slice::from_ref(&a), &p).unwrap();
+        assert!(matches!(
+            model.classify(&b),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(model.classify(&nan), Err(Error::NonFinite { .. })));
+        let rgb = Rgb32FImage::new(4, 4);
+        assert!(matches!(
+            model.classify(&rgb),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            BackgroundModel::learn(std::slice::from_ref(&a), &p.with_k_sigma(f32::NAN)),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            BackgroundModel::learn(&[a], &p.with_min_threshold(-0.1)),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+}

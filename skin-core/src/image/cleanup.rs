@@ -1,0 +1,244 @@
+//! Silhouette clean-up: removal of small foreground specks and filling of small holes.
+//!
+//! Sand 2003 §4.2 uses plain per-pixel background subtraction; Vlasic 2010 §3.2.1 stresses that
+//! "it is important that the silhouettes not contain spurious holes, so small gaps in the
+//! foreground are detected and filled". Vlasic fills gaps by comparing colour statistics inside
+//! and outside each hole; we use the simpler and more predictable area criterion (a hole is
+//! filled when it is small), which is what most capture pipelines do. Both operations only ever
+//! *grow* the silhouette at holes and drop isolated specks, so the silhouette stays an upper
+//! bound on the body where it matters to Sand's needles (§4.3, §7).
+//!
+//! Connectivity: foreground components are 8-connected (as the contours of
+//! [`crate::image::extract_contours`]); holes are 4-connected background regions, the dual
+//! connectivity, so that a diagonal gap in a foreground ring does not count as a hole's exit.
+
+use super::mask::Mask;
+use crate::error::{Error, Result};
+
+/// Largest supported pixel count (exclusive): component labels are `u32`.
+const MAX_LABEL_PIXELS: usize = 1 << 32;
+
+fn check_labelable(mask: &Mask) -> Result<()> {
+    if mask.pixel_count() >= MAX_LABEL_PIXELS {
+        return Err(Error::InvalidParam {
+            name: "mask size",
+            reason: format!(
+                "component labelling supports fewer than 2^32 pixels, got {}",
+                mask.pixel_count()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Connected components of the pixels whose flag equals `value`.
+struct Components {
+    /// Per pixel: component index + 1, or 0 for pixels of the other value.
+    label: Vec<u32>,
+    /// Per component: pixel count.
+    area: Vec<usize>,
+    /// Per component: whether it touches the image border.
+    touches_border: Vec<bool>,
+}
+
+/// Labels the connected components of pixels with `flags[i] == value` by breadth-first flood
+/// fill (4- or 8-connectivity), linear in the pixel count. Written here rather than using
+/// `imageproc::region_labelling` (the test oracle) because clean-up also needs each
+/// component's border contact, which the flood fill records in the same pass on the mask's
+/// flags without image conversions.
+fn components(mask: &Mask, value: bool, eight: bool) -> Components {
+    let (w, h) = (mask.width() as usize, mask.height() as usize);
+    let flags = mask.to_bools();
+    let mut label = vec![0u32; flags.len()];
+    let mut area = Vec::new();
+    let mut touches_border = Vec::new();
+    let mut stack = Vec::new();
+    let offsets: &[(isize, isize)] = if eight {
+        &[
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ]
+    } else {
+        &[(0, -1), (-1, 0), (1, 0), (0, 1)]
+    };
+    for seed in 0..flags.len() {
+        if flags[seed] != value || label[seed] != 0 {
+            continue;
+        }
+        area.push(0usize);
+        touches_border.push(false);
+        // Fits: callers check that the mask has fewer than 2^32 pixels (hence components).
+        let id = area.len() as u32;
+        label[seed] = id;
+        stack.push(seed);
+        while let Some(i) = stack.pop() {
+            let (x, y) = (i % w, i / w);
+            let c = area.len() - 1;
+            area[c] += 1;
+            if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
+                touches_border[c] = true;
+            }
+            for &(dx, dy) in offsets {
+                let (nx, ny) = (x as isize + dx, y as isize + dy);
+                if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
+                    continue;
+                }
+                let j = ny as usize * w + nx as usize;
+                if flags[j] == value && label[j] == 0 {
+                    label[j] = id;
+                    stack.push(j);
+                }
+            }
+        }
+    }
+    Components {
+        label,
+        area,
+        touches_border,
+    }
+}
+
+/// Removes 8-connected foreground components with fewer than `min_px` pixels (they become
+/// background). `min_px = 0` or `1` changes nothing.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if the mask has 2³² pixels or more.
+pub fn remove_small_components(mask: &Mask, min_px: usize) -> Result<Mask> {
+    if min_px <= 1 || mask.is_empty() {
+        return Ok(mask.clone());
+    }
+    check_labelable(mask)?;
+    let c = components(mask, true, true);
+    let keep: Vec<bool> = c
+        .label
+        .iter()
+        .map(|&l| l != 0 && c.area[l as usize - 1] >= min_px)
+        .collect();
+    Mask::from_bools(mask.width(), mask.height(), &keep)
+}
+
+/// Fills holes: 4-connected background regions that do not touch the image border and have at
+/// most `max_px` pixels become foreground. `max_px = 0` changes nothing.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if the mask has 2³² pixels or more.
+pub fn fill_small_holes(mask: &Mask, max_px: usize) -> Result<Mask> {
+    if max_px == 0 || mask.is_full() || mask.is_zero_sized() {
+        return Ok(mask.clone());
+    }
+    check_labelable(mask)?;
+    let c = components(mask, false, false);
+    let fg: Vec<bool> = c
+        .label
+        .iter()
+        .map(|&l| {
+            l == 0 || {
+                let k = l as usize - 1;
+                !c.touches_border[k] && c.area[k] <= max_px
+            }
+        })
+        .collect();
+    Mask::from_bools(mask.width(), mask.height(), &fg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ::image::Luma;
+    use imageproc::region_labelling::{connected_components, Connectivity};
+    use proptest::prelude::*;
+
+    /// Reference clean-up built on `imageproc`'s union-find labelling.
+    fn reference(mask: &Mask, min_px: usize, max_hole_px: usize) -> (Mask, Mask) {
+        let (w, h) = mask.dimensions();
+        let count = |lab: &[u32]| {
+            let mut a = vec![0usize; lab.iter().copied().max().unwrap_or(0) as usize + 1];
+            lab.iter().for_each(|&l| a[l as usize] += 1);
+            a
+        };
+        let fg = connected_components(&mask.to_gray(), Connectivity::Eight, Luma([0u8])).into_raw();
+        let area = count(&fg);
+        let kept = Mask::from_fn(w, h, |x, y| {
+            let l = fg[(y * w + x) as usize] as usize;
+            l != 0 && (min_px <= 1 || area[l] >= min_px)
+        });
+        let bg =
+            connected_components(&mask.not().to_gray(), Connectivity::Four, Luma([0u8])).into_raw();
+        let area = count(&bg);
+        let mut border = vec![false; area.len()];
+        for y in 0..h {
+            for x in 0..w {
+                if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
+                    border[bg[(y * w + x) as usize] as usize] = true;
+                }
+            }
+        }
+        let filled = Mask::from_fn(w, h, |x, y| {
+            let l = bg[(y * w + x) as usize] as usize;
+            l == 0 || (max_hole_px > 0 && !border[l] && area[l] <= max_hole_px)
+        });
+        (kept, filled)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn matches_imageproc_reference(
+            (w, h, flags) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+                (Just(w), Just(h), proptest::collection::vec(proptest::bool::weighted(0.55), (w * h) as usize))
+            }),
+            min_px in 0usize..6,
+            max_hole_px in 0usize..6,
+        ) {
+            let m = Mask::from_bools(w, h, &flags).unwrap();
+            let (kept, filled) = reference(&m, min_px, max_hole_px);
+            prop_assert_eq!(remove_small_components(&m, min_px).unwrap(), kept);
+            prop_assert_eq!(fill_small_holes(&m, max_hole_px).unwrap(), filled);
+        }
+    }
+
+    #[test]
+    fn removes_specks_keeps_body() {
+        let mut m = Mask::from_fn(30, 30, |x, y| (5..20).contains(&x) && (5..20).contains(&y));
+        m.set(25, 25, true).unwrap();
+        m.set(26, 26, true).unwrap(); // 8-connected to (25, 25): a 2-pixel speck
+        m.set(28, 2, true).unwrap();
+        let c = remove_small_components(&m, 3).unwrap();
+        assert_eq!(c.count(), 15 * 15);
+        assert!(!c.get(25, 25) && !c.get(28, 2) && c.get(5, 5));
+        let c2 = remove_small_components(&m, 2).unwrap();
+        assert_eq!(c2.count(), 15 * 15 + 2);
+        assert_eq!(remove_small_components(&m, 0).unwrap(), m);
+    }
+
+    #[test]
+    fn fills_small_holes_not_large_or_open_ones() {
+        let ring =
+            |x: u32, y: u32, lo: u32, hi: u32| (lo..hi).contains(&x) && (lo..hi).contains(&y);
+        // A square with a 2x2 hole and a 6x6 hole, plus a notch open to the outside.
+        let m = Mask::from_fn(40, 40, |x, y| {
+            let small_hole = ring(x, y, 5, 7);
+            let big_hole = ring(x, y, 20, 26);
+            let notch = x < 10 && y == 30;
+            ring(x, y, 2, 38) && !(small_hole || big_hole || notch)
+        });
+        let f = fill_small_holes(&m, 10).unwrap();
+        assert!(f.get(5, 5) && f.get(6, 6));
+        assert!(!f.get(22, 22));
+        assert!(!f.get(4, 30));
+        assert_eq!(f.count(), m.count() + 4);
+        assert_eq!(fill_small_holes(&m, 36).unwrap().count(), m.count() + 40);
+        assert_eq!(fill_small_holes(&m, 0).unwrap(), m);
+        // Empty and zero-sized masks pass through.
+        assert!(fill_small_holes(&Mask::new(3, 3), 5).unwrap().is_empty());
+        assert!(fill_small_holes(&Mask::new(0, 3), 5)
+            .unwrap()
+            .is_zero_sized());
+    }
+}

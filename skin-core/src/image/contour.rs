@@ -1,0 +1,647 @@
+//! Silhouette contours with outward unit normals, and arc-length resampling.
+//!
+//! Silhouette-based fitting needs boundary points of the observed silhouette with the direction
+//! that leaves the body: Fua et al. §5.3 turn each silhouette point into a tangent plane
+//! (Eq. 11–13); Vlasic 2010 §2.4.2 ("Silhouette Constraints", Algorithm 1 line 10) samples the
+//! contours every 10 pixels and uses "the outward facing silhouette normal" to choose which
+//! surface point each contour ray pulls. Borders are traced with
+//! `imageproc::contours::find_contours` (Suzuki–Abe border following, 8-connected foreground);
+//! normals come from a smoothed tangent and are oriented from foreground to background, then
+//! verified against the mask.
+//!
+//! Pixel convention: pixel `(x, y)` has its centre at `(x, y)` (see [`crate::image::Mask`]).
+
+use ::image::{GrayImage, Luma};
+use imageproc::contours::{find_contours, BorderType};
+use serde::{Deserialize, Serialize};
+
+use super::mask::{Mask, MASK_FOREGROUND_GREY};
+use crate::error::{Error, Result};
+use crate::math::DVec2;
+
+/// Default half-width of the tangent window, in contour points (see
+/// [`ContourParams::tangent_half_window`]).
+pub const DEFAULT_TANGENT_HALF_WINDOW: usize = 3;
+/// Default offset of contour points along their normal, pixels: half a pixel puts the points
+/// on the pixel edges between foreground and background, the zero level set of
+/// [`crate::image::signed_distance`].
+pub const DEFAULT_OUTWARD_OFFSET_PX: f64 = 0.5;
+/// Default arc-length spacing of contour samples, pixels: Vlasic 2010 §2.4.2 "we sample the
+/// contours (every 10 pixels)".
+pub const DEFAULT_SAMPLE_STEP_PX: f64 = 10.0;
+/// Default minimum number of traced boundary pixels for a contour to be kept.
+pub const DEFAULT_MIN_POINTS: usize = 1;
+
+/// Below this length a smoothed tangent (or fallback direction) is treated as zero.
+const DIRECTION_EPS: f64 = 1e-9;
+/// Largest number of samples [`Contour::resample`] will produce for one contour.
+const MAX_RESAMPLED_POINTS: f64 = 1e8;
+/// Distance, in pixels, of the in/out probes used to verify normal orientation.
+const PROBE_STEP_PX: f64 = 1.0;
+
+/// Knobs of contour extraction.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ContourParams {
+    /// Half-width `w` of the tangent window, in contour points: the tangent at point `i` is
+    /// `Σ_{j=1..w} (p_{i+j} − p_{i−j})` (a box-smoothed central difference, indices cyclic).
+    /// Traced 8-connected borders are staircases; `w = 3` smooths the staircase over about
+    /// seven pixels, which keeps normal errors on straight edges of any slope within a few
+    /// degrees while following corners of a human silhouette. Not from a paper.
+    /// Default: [`DEFAULT_TANGENT_HALF_WINDOW`] = 3.
+    pub tangent_half_window: usize,
+    /// Offset of each returned point along its outward normal, pixels. 0 returns the centres
+    /// of the traced boundary pixels (which lie inside the foreground); 0.5 moves them onto
+    /// the pixel-edge boundary. Default: [`DEFAULT_OUTWARD_OFFSET_PX`] = 0.5.
+    pub outward_offset_px: f64,
+    /// Contours with fewer traced pixels are dropped (1 keeps single-pixel specks).
+    /// Default: [`DEFAULT_MIN_POINTS`] = 1.
+    pub min_points: usize,
+    /// If `> 0`, each contour is resampled every `sample_step_px` pixels of arc length
+    /// ([`Contour::resample`]); 0 keeps one point per boundary pixel. Source: Vlasic 2010
+    /// §2.4.2. Default: [`DEFAULT_SAMPLE_STEP_PX`] = 10.
+    pub sample_step_px: f64,
+}
+
+impl Default for ContourParams {
+    fn default() -> Self {
+        ContourParams {
+            tangent_half_window: DEFAULT_TANGENT_HALF_WINDOW,
+            outward_offset_px: DEFAULT_OUTWARD_OFFSET_PX,
+            min_points: DEFAULT_MIN_POINTS,
+            sample_step_px: DEFAULT_SAMPLE_STEP_PX,
+        }
+    }
+}
+
+impl ContourParams {
+    /// Sets [`ContourParams::tangent_half_window`].
+    pub fn with_tangent_half_window(mut self, w: usize) -> Self {
+        self.tangent_half_window = w;
+        self
+    }
+    /// Sets [`ContourParams::outward_offset_px`].
+    pub fn with_outward_offset_px(mut self, px: f64) -> Self {
+        self.outward_offset_px = px;
+        self
+    }
+    /// Sets [`ContourParams::min_points`].
+    pub fn with_min_points(mut self, n: usize) -> Self {
+        self.min_points = n;
+        self
+    }
+    /// Sets [`ContourParams::sample_step_px`].
+    pub fn with_sample_step_px(mut self, px: f64) -> Self {
+        self.sample_step_px = px;
+        self
+    }
+
+    fn validate(&self) -> Result<()> {
+        if self.tangent_half_window == 0 {
+            return Err(Error::InvalidParam {
+                name: "tangent_half_window",
+                reason: "must be at least 1".into(),
+            });
+        }
+        if !self.outward_offset_px.is_finite() {
+            return Err(Error::InvalidParam {
+                name: "outward_offset_px",
+                reason: format!("must be finite, got {}", self.outward_offset_px),
+            });
+        }
+        if !(self.sample_step_px.is_finite() && self.sample_step_px >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "sample_step_px",
+                reason: format!("must be finite and >= 0, got {}", self.sample_step_px),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One closed border of a foreground region.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Contour {
+    /// Points along the border in tracing order (closed: the last connects to the first),
+    /// image pixels.
+    pub points: Vec<DVec2>,
+    /// Outward unit normal at each point (from foreground towards background); for a hole
+    /// border it points into the hole.
+    pub normals: Vec<DVec2>,
+    /// `true` for the outer border of a foreground region, `false` for the border of a hole.
+    pub is_outer: bool,
+    /// Index, in the returned vector, of the enclosing contour (a hole's region border, or
+    /// the hole around an island), if any and if it was kept.
+    pub parent: Option<usize>,
+}
+
+impl Contour {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether the contour has no points.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Length of the closed polyline through the points, pixels.
+    pub fn perimeter_px(&self) -> f64 {
+        let n = self.points.len();
+        (0..n)
+            .map(|i| self.points[i].distance(self.points[(i + 1) % n]))
+            .sum()
+    }
+
+    /// Resamples the closed polyline every `step_px` pixels of arc length, starting at the
+    /// first point. Normals are interpolated linearly and renormalised (where they cancel, the
+    /// nearer original normal is used). A contour of zero length is returned unchanged.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] if `step_px` is not finite and positive or would give more than
+    /// 10⁸ samples; [`Error::SizeMismatch`] if `points` and `normals` differ in length;
+    /// [`Error::NonFinite`] if a point or normal is NaN or infinite.
+    pub fn resample(&self, step_px: f64) -> Result<Contour> {
+        if !(step_px.is_finite() && step_px > 0.0) {
+            return Err(Error::InvalidParam {
+                name: "step_px",
+                reason: format!("must be finite and > 0, got {step_px}"),
+            });
+        }
+        if self.normals.len() != self.points.len() {
+            return Err(Error::SizeMismatch {
+                what: "contour normals vs points",
+                expected: self.points.len(),
+                got: self.normals.len(),
+            });
+        }
+        if !self
+            .points
+            .iter()
+            .chain(&self.normals)
+            .all(|p| p.is_finite())
+        {
+            return Err(Error::NonFinite {
+                what: "contour points or normals",
+            });
+        }
+        let total = self.perimeter_px();
+        if total / step_px > MAX_RESAMPLED_POINTS {
+            return Err(Error::InvalidParam {
+                name: "step_px",
+                reason: format!("{step_px} px gives more than 1e8 samples over {total} px"),
+            });
+        }
+        if total <= 0.0 {
+            return Ok(self.clone());
+        }
+        let n = self.points.len();
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        let mut seg = 0usize;
+        let mut seg_start = 0.0;
+        let count = (total / step_px).ceil() as usize;
+        for k in 0..count {
+            let s = k as f64 * step_px;
+            // Advance to the segment containing arc length s (s < total, so this terminates).
+            loop {
+                let len = self.points[seg].distance(self.points[(seg + 1) % n]);
+                if s < seg_start + len || seg + 1 == n {
+                    break;
+                }
+                seg_start += len;
+                seg += 1;
+            }
+            let (a, b) = (seg, (seg + 1) % n);
+            let len = self.points[a].distance(self.points[b]);
+            let t = if len > 0.0 {
+                ((s - seg_start) / len).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            points.push(self.points[a].lerp(self.points[b], t));
+            let nrm = self.normals[a].lerp(self.normals[b], t);
+            normals.push(if nrm.length() > DIRECTION_EPS {
+                nrm.normalize()
+            } else if t < 0.5 {
+                self.normals[a]
+            } else {
+                self.normals[b]
+            });
+        }
+        Ok(Contour {
+            points,
+            normals,
+            is_outer: self.is_outer,
+            parent: self.parent,
+        })
+    }
+}
+
+/// Mean direction from pixel `p` to its background 8-neighbours (zero if none or balanced).
+fn background_direction(mask: &Mask, p: (i64, i64)) -> DVec2 {
+    let mut d = DVec2::ZERO;
+    for dy in -1i64..=1 {
+        for dx in -1i64..=1 {
+            if (dx, dy) != (0, 0) && !mask.get_i64(p.0 + dx, p.1 + dy) {
+                d += DVec2::new(dx as f64, dy as f64).normalize();
+            }
+        }
+    }
+    d
+}
+
+fn is_fg_at(mask: &Mask, q: DVec2) -> bool {
+    mask.get_i64(q.x.round() as i64, q.y.round() as i64)
+}
+
+/// Unit normals of a traced border, oriented from foreground to background.
+fn border_normals(
+    mask: &Mask,
+    pix: &[(i64, i64)],
+    is_outer: bool,
+    half_window: usize,
+) -> Vec<DVec2> {
+    let n = pix.len();
+    let pts: Vec<DVec2> = pix
+        .iter()
+        .map(|&(x, y)| DVec2::new(x as f64, y as f64))
+        .collect();
+    let centroid = pts.iter().copied().sum::<DVec2>() / n as f64;
+    // Shoelace signed area: > 0 means the right-hand perpendicular (t.y, −t.x) points out of
+    // the polygon. Outer borders want "out of the polygon", hole borders "into" it.
+    let area2: f64 = (0..n).map(|i| pts[i].perp_dot(pts[(i + 1) % n])).sum();
+    let mut sign = if area2 >= 0.0 { 1.0 } else { -1.0 };
+    if !is_outer {
+        sign = -sign;
+    }
+    let w = half_window.min(n.saturating_sub(1) / 2).max(1);
+    let mut normals: Vec<DVec2> = (0..n)
+        .map(|i| {
+            let t: DVec2 = (1..=w)
+                .map(|j| pts[(i + j) % n] - pts[(i + n - j % n) % n])
+                .sum();
+            if n >= 3 && t.length() > DIRECTION_EPS {
+                return sign * DVec2::new(t.y, -t.x).normalize();
+            }
+            // Degenerate tangent (spikes of thin structures, 1–2 pixel borders): fall back to
+            // the local background direction, then to the direction away from the region.
+            let b = background_direction(mask, pix[i]);
+            if b.length() > DIRECTION_EPS {
+                return b.normalize();
+            }
+            let c = if is_outer {
+                pts[i] - centroid
+            } else {
+                centroid - pts[i]
+            };
+            if c.length() > DIRECTION_EPS {
+                c.normalize()
+            } else {
+                // An isolated pixel: every direction leaves the mask.
+                DVec2::X
+            }
+        })
+        .collect();
+    // Verify the orientation against the mask: probes one pixel along ±n must find
+    // background outside and foreground inside. Flip the whole border if most disagree
+    // (robust to the tracer's orientation convention).
+    let votes: i64 = pts
+        .iter()
+        .zip(&normals)
+        .map(|(&p, &nrm)| {
+            let out_fg = is_fg_at(mask, p + PROBE_STEP_PX * nrm);
+            let in_fg = is_fg_at(mask, p - PROBE_STEP_PX * nrm);
+            match (out_fg, in_fg) {
+                (false, true) => 1,
+                (true, false) => -1,
+                _ => 0,
+            }
+        })
+        .sum();
+    if votes < 0 {
+        for nrm in &mut normals {
+            *nrm = -*nrm;
+        }
+    }
+    normals
+}
+
+/// Extracts every border of the mask's 8-connected foreground regions (outer borders and
+/// hole borders) with outward unit normals.
+///
+/// Points are boundary pixel centres moved `outward_offset_px` along their normal, optionally
+/// resampled by arc length ([`ContourParams`]). An empty or zero-sized mask has no border and
+/// yields an empty vector (not an error). Foreground touching the image border is traced
+/// along the image border (pixels outside the image are background).
+///
+/// # Errors
+/// [`Error::InvalidParam`] for invalid [`ContourParams`] or a mask wider or taller than
+/// `u32::MAX − 2`.
+///
+/// # Example
+/// ```
+/// use skin_core::image::{extract_contours, ContourParams, Mask};
+/// let disc = Mask::from_fn(21, 21, |x, y| (x as f64 - 10.0).hypot(y as f64 - 10.0) < 6.0);
+/// let contours = extract_contours(&disc, &ContourParams::default())?;
+/// assert_eq!(contours.len(), 1);
+/// assert!(contours[0].is_outer);
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+pub fn extract_contours(mask: &Mask, params: &ContourParams) -> Result<Vec<Contour>> {
+    params.validate()?;
+    if mask.is_empty() {
+        return Ok(Vec::new());
+    }
+    // Pad by one background pixel on every side: imageproc's tracer (Suzuki–Abe) assumes a
+    // background frame and misses regions touching the left image border without it.
+    let (w, h) = mask.dimensions();
+    let (Some(pw), Some(ph)) = (w.checked_add(2), h.checked_add(2)) else {
+        return Err(Error::InvalidParam {
+            name: "mask size",
+            reason: format!("{w}x{h} is too large to pad for contour tracing"),
+        });
+    };
+    let padded = GrayImage::from_fn(pw, ph, |x, y| {
+        let fg = x >= 1 && y >= 1 && mask.get(x - 1, y - 1);
+        Luma([if fg { MASK_FOREGROUND_GREY } else { 0 }])
+    });
+    let traced = find_contours::<i64>(&padded);
+    let mut new_index = vec![None; traced.len()];
+    let mut out: Vec<Contour> = Vec::new();
+    for (i, c) in traced.iter().enumerate() {
+        if c.points.is_empty() || c.points.len() < params.min_points {
+            continue;
+        }
+        let is_outer = c.border_type == BorderType::Outer;
+        let pix: Vec<(i64, i64)> = c.points.iter().map(|p| (p.x - 1, p.y - 1)).collect();
+        let normals = border_normals(mask, &pix, is_outer, params.tangent_half_window);
+        let points = pix
+            .iter()
+            .zip(&normals)
+            .map(|(&(x, y), &nrm)| DVec2::new(x as f64, y as f64) + params.outward_offset_px * nrm)
+            .collect();
+        new_index[i] = Some(out.len());
+        out.push(Contour {
+            points,
+            normals,
+            is_outer,
+            // Parents precede children in the tracer's output.
+            parent: c.parent.and_then(|p| new_index.get(p).copied().flatten()),
+        });
+    }
+    if params.sample_step_px > 0.0 {
+        out = out
+            .iter()
+            .map(|c| c.resample(params.sample_step_px))
+            .collect::<Result<_>>()?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::distance::signed_distance;
+    use proptest::prelude::*;
+
+    /// One point per traced boundary pixel, at the pixel centre.
+    fn raw_params() -> ContourParams {
+        all_points().with_outward_offset_px(0.0)
+    }
+
+    /// One point per traced boundary pixel, default offset.
+    fn all_points() -> ContourParams {
+        ContourParams::default().with_sample_step_px(0.0)
+    }
+
+    fn ellipse(w: u32, h: u32, c: DVec2, a: f64, b: f64, rot: f64) -> Mask {
+        let (s, co) = rot.sin_cos();
+        Mask::from_fn(w, h, |x, y| {
+            let d = DVec2::new(x as f64, y as f64) - c;
+            let u = co * d.x + s * d.y;
+            let v = -s * d.x + co * d.y;
+            (u / a).powi(2) + (v / b).powi(2) <= 1.0
+        })
+    }
+
+    #[test]
+    fn disc_normals_are_radial_and_leave_the_mask() {
+        for r in [4.0, 9.0, 20.0] {
+            let c = DVec2::new(25.3, 24.6);
+            let m = ellipse(52, 52, c, r, r, 0.0);
+            let cs = extract_contours(&m, &raw_params()).unwrap();
+            assert_eq!(cs.len(), 1);
+            let k = &cs[0];
+            assert!(k.is_outer);
+            assert_eq!(k.points.len(), k.normals.len());
+            for (p, n) in k.points.iter().zip(&k.normals) {
+                assert!((n.length() - 1.0).abs() < 1e-12);
+                let radial = (*p - c).normalize();
+                assert!(n.dot(radial) > 0.9, "r {r}: normal {n} vs radial {radial}");
+                assert!(
+                    m.get(p.x as u32, p.y as u32),
+                    "raw points are foreground pixels"
+                );
+                assert!(
+                    !is_fg_at(&m, *p + 1.5 * *n),
+                    "step along normal stays inside"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn hole_normals_point_into_the_hole() {
+        let c = DVec2::new(20.0, 20.0);
+        let outer = ellipse(41, 41, c, 15.0, 15.0, 0.0);
+        let hole = ellipse(41, 41, c, 6.0, 6.0, 0.0);
+        let ring = outer.and_not(&hole).unwrap();
+        let cs = extract_contours(&ring, &raw_params()).unwrap();
+        assert_eq!(cs.len(), 2);
+        let (o, h) = if cs[0].is_outer {
+            (&cs[0], &cs[1])
+        } else {
+            (&cs[1], &cs[0])
+        };
+        assert!(o.is_outer && !h.is_outer);
+        assert_eq!(cs.iter().filter(|k| k.parent.is_some()).count(), 1);
+        for (p, n) in h.points.iter().zip(&h.normals) {
+            assert!(n.dot((c - *p).normalize()) > 0.9);
+            assert!(!is_fg_at(&ring, *p + 1.5 * *n));
+        }
+        for (p, n) in o.points.iter().zip(&o.normals) {
+            assert!(n.dot((*p - c).normalize()) > 0.9);
+        }
+    }
+
+    #[test]
+    fn default_offset_lands_on_the_zero_level_set() {
+        let m = ellipse(60, 40, DVec2::new(30.0, 20.0), 20.0, 9.0, 0.4);
+        let sd = signed_distance(&m).unwrap();
+        let mut worst = 0.0f64;
+        // Both the traced points and the default 10-pixel samples lie near the zero set.
+        let mut cs = extract_contours(&m, &all_points()).unwrap();
+        cs.extend(extract_contours(&m, &ContourParams::default()).unwrap());
+        for p in cs.iter().flat_map(|c| &c.points) {
+            // Bilinear interpolation of the signed distance at the contour point.
+            let (x0, y0) = (p.x.floor(), p.y.floor());
+            let (fx, fy) = (p.x - x0, p.y - y0);
+            let g = |x: f64, y: f64| f64::from(sd.get_pixel(x as u32, y as u32).0[0]);
+            let v = g(x0, y0) * (1.0 - fx) * (1.0 - fy)
+                + g(x0 + 1.0, y0) * fx * (1.0 - fy)
+                + g(x0, y0 + 1.0) * (1.0 - fx) * fy
+                + g(x0 + 1.0, y0 + 1.0) * fx * fy;
+            worst = worst.max(v.abs());
+        }
+        assert!(worst < 0.6, "worst |sd| at contour points {worst}");
+    }
+
+    #[test]
+    fn regions_touching_the_image_border_are_traced() {
+        let full = Mask::new(6, 5).not();
+        let cs = extract_contours(&full, &raw_params()).unwrap();
+        assert_eq!(cs.len(), 1);
+        assert_eq!(cs[0].points.len(), 2 * (6 + 5) - 4);
+        // Left half of the image.
+        let half = Mask::from_fn(10, 8, |x, _| x < 4);
+        let cs = extract_contours(&half, &raw_params()).unwrap();
+        assert_eq!(cs.len(), 1);
+        // Normals on the right edge (x = 3, away from corners) point to +x.
+        for (p, n) in cs[0].points.iter().zip(&cs[0].normals) {
+            if p.x == 3.0 && (2.0..=5.0).contains(&p.y) {
+                assert!(n.x > 0.99, "{n}");
+            }
+        }
+    }
+
+    #[test]
+    fn empty_and_degenerate_masks() {
+        assert!(
+            extract_contours(&Mask::new(5, 5), &ContourParams::default())
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            extract_contours(&Mask::new(0, 0), &ContourParams::default())
+                .unwrap()
+                .is_empty()
+        );
+        // Single pixel and a one-pixel-wide line: unit normals that leave the mask.
+        let mut m = Mask::new(12, 12);
+        m.set(2, 2, true).unwrap();
+        for x in 5..11 {
+            m.set(x, 8, true).unwrap();
+        }
+        let cs = extract_contours(&m, &raw_params()).unwrap();
+        assert_eq!(cs.len(), 2);
+        for k in &cs {
+            for (p, n) in k.points.iter().zip(&k.normals) {
+                assert!((n.length() - 1.0).abs() < 1e-12);
+                assert!(!is_fg_at(&m, *p + 1.5 * *n));
+            }
+        }
+        let dropped = extract_contours(&m, &raw_params().with_min_points(2)).unwrap();
+        assert_eq!(dropped.len(), 1);
+        for bad in [
+            ContourParams::default().with_tangent_half_window(0),
+            ContourParams::default().with_outward_offset_px(f64::NAN),
+            ContourParams::default().with_sample_step_px(-1.0),
+        ] {
+            assert!(matches!(
+                extract_contours(&m, &bad),
+                Err(Error::InvalidParam { .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn resampling_spaces_points_by_arc_length() {
+        let m = ellipse(80, 80, DVec2::new(40.0, 40.0), 30.0, 30.0, 0.0);
+        let cs = extract_contours(&m, &all_points()).unwrap();
+        let k = &cs[0];
+        let step = 5.0;
+        let r = k.resample(step).unwrap();
+        let expected = (k.perimeter_px() / step).ceil() as usize;
+        assert_eq!(r.len(), expected);
+        for i in 0..r.len() - 1 {
+            let d = r.points[i].distance(r.points[i + 1]);
+            assert!(d <= step + 1e-9 && d > 0.8 * step, "{d}");
+            assert!((r.normals[i].length() - 1.0).abs() < 1e-12);
+        }
+        let via_params = extract_contours(&m, &all_points().with_sample_step_px(step)).unwrap();
+        assert_eq!(via_params[0], r);
+        assert!(matches!(k.resample(0.0), Err(Error::InvalidParam { .. })));
+        assert!(matches!(
+            k.resample(1e-300),
+            Err(Error::InvalidParam { .. })
+        ));
+        let mut bad = k.clone();
+        bad.normals.pop();
+        assert!(matches!(
+            bad.resample(step),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let mut bad = k.clone();
+        bad.points[3].x = f64::NAN;
+        assert!(matches!(bad.resample(step), Err(Error::NonFinite { .. })));
+    }
+
+    /// Normal accuracy against the analytic normals of rotated ellipses (semi-axes 6–30 px).
+    /// Measured with the default window (w = 3): mean 2.2°, 95th percentile 5.4°, max 8.7°.
+    #[test]
+    fn normals_match_analytic_ellipse_normals() {
+        let c = DVec2::new(40.2, 40.7);
+        let mut err_deg = Vec::new();
+        for (a, b, rot) in [
+            (20.0, 12.0, 0.3),
+            (30.0, 25.0, 1.1),
+            (9.0, 6.0, 0.7),
+            (15.0, 15.0, 0.0),
+        ] {
+            let m = ellipse(82, 82, c, a, b, rot);
+            let cs = extract_contours(&m, &all_points()).unwrap();
+            let (s, co) = f64::sin_cos(rot);
+            for (p, n) in cs[0].points.iter().zip(&cs[0].normals) {
+                // Gradient of (u/a)² + (v/b)² at the point, rotated back to image axes.
+                let d = *p - c;
+                let (u, v) = (co * d.x + s * d.y, -s * d.x + co * d.y);
+                let (gu, gv) = (u / (a * a), v / (b * b));
+                let g = DVec2::new(co * gu - s * gv, s * gu + co * gv).normalize();
+                err_deg.push(g.dot(*n).clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+        err_deg.sort_by(f64::total_cmp);
+        let mean = err_deg.iter().sum::<f64>() / err_deg.len() as f64;
+        let p95 = err_deg[err_deg.len() * 95 / 100];
+        let max = err_deg[err_deg.len() - 1];
+        assert!(
+            mean < 3.0 && p95 < 7.0 && max < 12.0,
+            "mean {mean} p95 {p95} max {max}"
+        );
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Random rotated ellipses plus a blob: nearly every normal leaves the mask, and each
+        /// normal points away from the region's side (negative signed distance behind it).
+        #[test]
+        fn normals_point_outward_on_random_shapes(
+            a in 3.0f64..18.0, b in 3.0f64..18.0, rot in 0.0f64..3.2,
+            cx in 18.0f64..22.0, cy in 18.0f64..22.0,
+        ) {
+            let m = ellipse(40, 40, DVec2::new(cx, cy), a, b, rot);
+            let cs = extract_contours(&m, &raw_params()).unwrap();
+            prop_assert_eq!(cs.len(), 1);
+            let k = &cs[0];
+            let leaving = k.points.iter().zip(&k.normals)
+                .filter(|(p, n)| !is_fg_at(&m, **p + 1.5 * **n))
+                .count();
+            prop_assert!(leaving as f64 >= 0.97 * k.len() as f64, "{} of {}", leaving, k.len());
+            let inward = k.points.iter().zip(&k.normals)
+                .filter(|(p, n)| is_fg_at(&m, **p - 1.0 * **n))
+                .count();
+            prop_assert!(inward as f64 >= 0.9 * k.len() as f64, "{} of {}", inward, k.len());
+        }
+    }
+}
