@@ -4,6 +4,12 @@
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
 //! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics.
 
+mod laplacian;
+pub mod shapes;
 mod trimesh;
 
+pub use laplacian::{
+    cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
+    MassKind, DEFAULT_DEGENERATE_TOL,
+};
 pub use trimesh::TriMesh;
