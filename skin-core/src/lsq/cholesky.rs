@@ -55,8 +55,11 @@ pub struct CholeskyParams {
     pub ordering: FillOrdering,
     /// Numeric kernel. Default: [`FactorKind::Auto`] (supernodal on mesh Laplacians).
     pub kind: FactorKind,
-    /// Use the global rayon pool inside the numeric factorisation and the solves. Results do
-    /// not depend on it beyond rounding. Default: `true`.
+    /// Use the global rayon pool inside the numeric factorisation and the solves. Off by
+    /// default: single-threaded results are bit-reproducible for any thread count (DESIGN.md
+    /// "Parallelism"), callers parallelise over frames instead, and on the shared 2-core
+    /// benchmark machine the sequential kernel was faster (level-5 icosphere peer problem:
+    /// factor + solve 123 ms sequential vs 203 ms with rayon under load). Default: `false`.
     pub parallel: bool,
 }
 
@@ -65,7 +68,7 @@ impl Default for CholeskyParams {
         Self {
             ordering: FillOrdering::Amd,
             kind: FactorKind::Auto,
-            parallel: true,
+            parallel: false,
         }
     }
 }

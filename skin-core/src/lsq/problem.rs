@@ -47,7 +47,7 @@ pub struct LsqProblem {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct LsqParams {
     /// Sparse Cholesky settings. Default: [`CholeskyParams::default`] (AMD, automatic
-    /// supernodal/simplicial choice, parallel).
+    /// supernodal/simplicial choice, sequential).
     pub cholesky: CholeskyParams,
 }
 
