@@ -2,6 +2,9 @@
 //! cotangent Laplacian of the deformed level-5 icosphere, factorisation of
 //! `ΔᵀΔ + 1000 CᵀC` (500 constraints `choose(40, n, 500)`), one 3-RHS solve.
 
+// `criterion_group!` generates an undocumented `pub fn benches`.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};

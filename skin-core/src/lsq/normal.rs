@@ -195,10 +195,10 @@ mod tests {
             let expect = da.transpose() * &da + dc.transpose() * &dc * w[1];
             let mut got = DMatrix::zeros(n, n);
             for j in 0..n {
-                for p in pat.col_ptr[j]..pat.col_ptr[j + 1] {
-                    let i = pat.row_idx[p];
+                let r = pat.col_ptr[j]..pat.col_ptr[j + 1];
+                for (&i, &v) in pat.row_idx[r.clone()].iter().zip(&vals[r]) {
                     assert!(i >= j);
-                    got[(i, j)] = vals[p];
+                    got[(i, j)] = v;
                 }
             }
             for j in 0..n {

@@ -78,7 +78,7 @@ impl SkinWeights {
                 }
             }
             let sum: f64 = row.iter().map(|e| e.1).sum();
-            if !(sum > 0.0) {
+            if sum <= 0.0 {
                 return Err(Error::Degenerate {
                     what: format!("vertex {i} has no positive skinning weight"),
                 });
