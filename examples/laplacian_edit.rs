@@ -5,7 +5,8 @@
 //! 1. Peer problem of `bench/peers/laplacian.py`: the deformed level-5 icosphere, 500 random
 //!    constraints, factor `ΔᵀΔ + 1000 CᵀC`, one 3-RHS solve; timings are medians of 5 runs
 //!    after one warm-up, as the peers measure them.
-//! 2. MakeHuman body: pin both feet, pull the left hand up and forward, write the edited mesh
+//! 2. MakeHuman body: pin the feet and the body outside the left arm, pull the left hand up
+//!    and forward, write the edited mesh
 //!    as OBJ and a before/after orthographic render as PNG under `out/laplacian_edit/`.
 //!
 //! `cargo run --release --example laplacian_edit [-- --quick] [-- --par]`
@@ -150,8 +151,8 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
             let px = ((v.x - centre.x) / extent + 0.5) * SIZE as f64;
             let py = (0.5 - (v.y - centre.y) / extent) * SIZE as f64;
             let shade = 0.35 + 0.65 * ((v.z - lo.z) / (hi.z - lo.z).max(1e-12));
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
+            for dy in -2i64..=2 {
+                for dx in -2i64..=2 {
                     let (x, y) = (px as i64 + dx, py as i64 + dy);
                     if x < 0 || y < 0 || x >= SIZE as i64 || y >= SIZE as i64 {
                         continue;
@@ -172,7 +173,11 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
 }
 
 fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
-    let mesh = read_obj_group(MAKEHUMAN_OBJ, "body")?;
+    // `DYNAMIC_SHAPES_DATA` overrides the data folder (e.g. when run from a worktree).
+    let path = std::env::var("DYNAMIC_SHAPES_DATA")
+        .map(|d| format!("{d}/makehuman/base.obj"))
+        .unwrap_or_else(|_| MAKEHUMAN_OBJ.to_string());
+    let mesh = read_obj_group(&path, "body")?;
     let n = mesh.vertices.len();
     eprintln!(
         "makehuman: body with {n} vertices, {} faces",
@@ -188,37 +193,43 @@ fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
     let height = hi.y - lo.y;
-    // Feet: the lowest 3 % of the body height. Hand: the outermost 5 % along +x (the
-    // model's left hand in its rest A/T pose).
-    let feet: Vec<usize> = (0..n)
-        .filter(|&i| mesh.vertices[i].y < lo.y + 0.03 * height)
+    // Anchors: the feet (lowest 3 % of the body height) and, as in region-of-interest
+    // Laplacian editing (Sorkine et al. 2004), everything outside the left arm (x below 35 %
+    // of the half-width), so that only the arm bends. Hand: the outermost 5 % along +x (the
+    // model's left hand in its rest A pose).
+    let arm_start = 0.35 * hi.x;
+    let anchor: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let p = mesh.vertices[i];
+            p.y < lo.y + 0.03 * height || p.x < arm_start
+        })
         .collect();
     let hand: Vec<usize> = (0..n)
         .filter(|&i| mesh.vertices[i].x > hi.x - 0.05 * height)
         .collect();
-    if feet.is_empty() || hand.is_empty() {
-        return Err("no feet or hand vertices found".into());
+    if anchor.is_empty() || hand.is_empty() {
+        return Err("no anchor or hand vertices found".into());
     }
-    let pull = DVec3::new(-0.05, 0.25, 0.15) * height;
-    let p_feet = DMatrix::from_fn(feet.len(), 3, |r, k| v[(feet[r], k)]);
+    let pull = DVec3::new(-0.03, 0.12, 0.08) * height;
+    let p_anchor = DMatrix::from_fn(anchor.len(), 3, |r, k| v[(anchor[r], k)]);
     let p_hand = DMatrix::from_fn(hand.len(), 3, |r, k| v[(hand[r], k)] + pull[k]);
     let t = Instant::now();
     let solver = LsqProblem::new(l)
-        .with_term(selection(n, &feet), W_C)
+        .with_term(selection(n, &anchor), W_C)
         .with_term(selection(n, &hand), W_C)
         .factor(params)?;
     let factor_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    let x = solver.solve(&delta, &[p_feet.clone(), p_hand.clone()])?;
+    let x = solver.solve(&delta, &[p_anchor.clone(), p_hand.clone()])?;
     let solve_ms = t.elapsed().as_secs_f64() * 1e3;
-    let diag = solver.diagnostics(&x, &delta, &[p_feet, p_hand])?;
+    let diag = solver.diagnostics(&x, &delta, &[p_anchor, p_hand])?;
     let edited = TriMesh::new(
         (0..n)
             .map(|i| DVec3::new(x[(i, 0)], x[(i, 1)], x[(i, 2)]))
             .collect(),
         mesh.faces.clone(),
     )?;
-    let feet_err = feet
+    let anchor_err = anchor
         .iter()
         .map(|&i| (edited.vertices[i] - mesh.vertices[i]).length())
         .fold(0.0, f64::max);
@@ -235,18 +246,18 @@ fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
         &Path::new(OUT_DIR).join("makehuman_before_after.png"),
     )?;
     eprintln!(
-        "makehuman: build {build_ms:.2} ms, factor {factor_ms:.2} ms, solve {solve_ms:.2} ms, feet moved <= {feet_err:.4}, hand pull error {:.1} %",
+        "makehuman: build {build_ms:.2} ms, factor {factor_ms:.2} ms, solve {solve_ms:.2} ms, anchors moved <= {anchor_err:.2e}, hand pull error {:.1} %",
         100.0 * hand_err
     );
     Ok(json!({
         "makehuman_vertices": n,
         "makehuman_faces": mesh.faces.len(),
-        "makehuman_feet_constraints": feet.len(),
+        "makehuman_anchor_constraints": anchor.len(),
         "makehuman_hand_constraints": hand.len(),
         "makehuman_laplacian_build_ms": build_ms,
         "makehuman_lsq_factor_ms": factor_ms,
         "makehuman_lsq_solve_ms": solve_ms,
-        "makehuman_feet_max_move": feet_err,
+        "makehuman_anchor_max_move": anchor_err,
         "makehuman_hand_pull_rel_err": hand_err,
         "makehuman_normal_eq_rel_residual": diag.normal_rel_residual,
         "makehuman_objective": diag.objective,
