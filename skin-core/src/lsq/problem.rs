@@ -531,6 +531,13 @@ mod tests {
     }
 
     #[test]
+    fn solvers_can_move_between_threads() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<LsqSolver>();
+        send_sync::<SparseCholesky>();
+    }
+
+    #[test]
     fn rejects_mismatched_sizes() {
         let (a, cs) = case(2);
         let n = a.ncols();
