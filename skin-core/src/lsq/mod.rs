@@ -26,7 +26,7 @@
 //! [`LsqSolver::set_values`] then only re-multiply values and refactorise numerically;
 //! [`LsqSolver::solve`] solves all right-hand sides at once. [`SparseCholesky`] exposes the
 //! same machinery for symmetric positive definite systems that are not in least-squares form
-//! (e.g. the bone-heat system of `mesh::skinning`).
+//! (e.g. the bone-heat system of [`crate::mesh::bone_heat_weights`]).
 
 mod cholesky;
 mod normal;

@@ -58,6 +58,8 @@ impl BoneSegment {
 pub const DEFAULT_HEAT_CONSTANT: f64 = 1.0;
 /// Default relative tolerance under which bones count as equidistant.
 pub const DEFAULT_TIE_TOLERANCE: f64 = 1e-9;
+/// Default distance floor as a fraction of the bounding-box diagonal.
+pub const DEFAULT_MIN_DISTANCE_REL: f64 = 1e-6;
 
 /// Knobs of [`bone_heat_weights`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -76,7 +78,7 @@ pub struct HeatWeightsParams {
     /// Default: [`DEFAULT_TIE_TOLERANCE`].
     pub tie_tolerance: f64,
     /// Distances are floored at this fraction of the bounding-box diagonal, so vertices on a
-    /// bone get a large but finite `H`. Default: 1e-6.
+    /// bone get a large but finite `H`. Default: [`DEFAULT_MIN_DISTANCE_REL`].
     pub min_distance_rel: f64,
     /// Laplacian construction (degenerate triangles). Default: [`LaplacianParams::default`].
     pub laplacian: LaplacianParams,
@@ -93,7 +95,7 @@ impl Default for HeatWeightsParams {
             prune_below: DEFAULT_PRUNE_BELOW,
             max_influences: DEFAULT_MAX_INFLUENCES,
             tie_tolerance: DEFAULT_TIE_TOLERANCE,
-            min_distance_rel: 1e-6,
+            min_distance_rel: DEFAULT_MIN_DISTANCE_REL,
             laplacian: LaplacianParams::default(),
             mass: MassKind::Voronoi,
             cholesky: CholeskyParams::default(),

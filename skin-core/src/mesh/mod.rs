@@ -19,7 +19,7 @@ mod trimesh;
 
 pub use heat_weights::{
     bone_heat_weights, bone_heat_weights_dense, BoneSegment, HeatWeightsParams,
-    DEFAULT_HEAT_CONSTANT, DEFAULT_TIE_TOLERANCE,
+    DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
 };
 pub use laplacian::{
     cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
