@@ -286,6 +286,35 @@ mod tests {
         ));
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        /// Any positive weights normalise to a partition of unity, and a transform shared by
+        /// all bones moves every vertex rigidly.
+        #[test]
+        fn partition_of_unity_and_rigid_invariance(
+            raw in proptest::collection::vec(
+                proptest::collection::vec((0u32..5, 0.001f64..10.0), 1..6), 1..20),
+            angle in -3.0f64..3.0,
+            shift in -5.0f64..5.0,
+        ) {
+            let w = SkinWeights::from_lists(&raw, 5).unwrap();
+            for i in 0..w.vertex_count() {
+                let s: f64 = w.influences(i).map(|e| e.1).sum();
+                proptest::prop_assert!((s - 1.0).abs() < 1e-12);
+            }
+            let rest: Vec<DVec3> =
+                (0..raw.len()).map(|i| DVec3::new(i as f64, -0.5 * i as f64, 1.0)).collect();
+            let t = DAffine3::from_rotation_translation(
+                DQuat::from_rotation_y(angle),
+                DVec3::splat(shift),
+            );
+            let posed = skin(&rest, &w, &[t; 5]).unwrap();
+            for (p, r) in posed.iter().zip(&rest) {
+                proptest::prop_assert!((*p - t.transform_point3(*r)).length() < 1e-12);
+            }
+        }
+    }
+
     #[test]
     fn errors() {
         let (rest, w) = sample();
