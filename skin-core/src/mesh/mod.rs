@@ -4,15 +4,27 @@
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
 //! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics.
 
+mod heat_weights;
+mod laplacian;
 mod metrics;
 mod normals;
 mod obj;
 mod ply;
 mod query;
+pub mod shapes;
+mod skinning;
 mod surface_point;
 mod topology;
 mod trimesh;
 
+pub use heat_weights::{
+    bone_heat_weights, bone_heat_weights_dense, BoneSegment, HeatWeightsParams,
+    DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
+};
+pub use laplacian::{
+    cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
+    MassKind, DEFAULT_DEGENERATE_TOL,
+};
 pub use metrics::{
     mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
     OneSidedDistance,
@@ -27,6 +39,7 @@ pub use obj::{
 };
 pub use ply::{read_ply, read_ply_from_reader, write_ply, write_ply_to, PlyEncoding};
 pub use query::{ClosestPoint, MeshQuery, Ray, RayHit};
+pub use skinning::{skin, SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW};
 pub use surface_point::{
     closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,
 };
