@@ -29,10 +29,6 @@ use serde_json::json;
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
 const OUT_DIR: &str = "out/laplacian_edit";
-const MAKEHUMAN_OBJ: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/makehuman/base.obj"
-);
 /// Constraint weight `w_C` (Vlasic 2010 §2.4.2, Eq. 2.1–2.2).
 const W_C: f64 = 1000.0;
 /// Laplacian-coordinate weight of the peer problem (`laplacian.py`: w = 0.5).
@@ -173,10 +169,8 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
 }
 
 fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
-    // `DYNAMIC_SHAPES_DATA` overrides the data folder (e.g. when run from a worktree).
-    let path = std::env::var("DYNAMIC_SHAPES_DATA")
-        .map(|d| format!("{d}/makehuman/base.obj"))
-        .unwrap_or_else(|_| MAKEHUMAN_OBJ.to_string());
+    // `DYNAMIC_SHAPES_DATA` overrides the data folder (see `skin_core::data`).
+    let path = dynamic_shapes::core::data::shared_data_path("makehuman/base.obj")?;
     let mesh = read_obj_group(&path, "body")?;
     let n = mesh.vertices.len();
     eprintln!(

@@ -16,18 +16,7 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 fn body_path() -> Option<PathBuf> {
-    [
-        std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
-        Some(PathBuf::from(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../data"
-        ))),
-        Some(PathBuf::from("/work/shared/data")),
-    ]
-    .into_iter()
-    .flatten()
-    .map(|d| d.join("makehuman/base.obj"))
-    .find(|p| p.exists())
+    skin_core::data::shared_data_path("makehuman/base.obj").ok()
 }
 
 fn uv_sphere(n_lon: usize, n_lat: usize) -> TriMesh {

@@ -16,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod data;
 pub mod error;
 pub mod image;
 pub mod lsq;

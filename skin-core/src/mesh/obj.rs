@@ -668,24 +668,7 @@ mod tests {
     /// The MakeHuman base mesh, group `body` (see data/makehuman/SOURCE.md).
     #[test]
     fn makehuman_body_group() {
-        // `$DYNAMIC_SHAPES_DATA`, the workspace `data/`, or the shared data directory.
-        let candidates = [
-            std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
-            Some(PathBuf::from(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/../data"
-            ))),
-            Some(PathBuf::from("/work/shared/data")),
-        ];
-        let Some(path) = candidates
-            .into_iter()
-            .flatten()
-            .map(|d| d.join("makehuman/base.obj"))
-            .find(|p| p.exists())
-        else {
-            eprintln!("skipping: MakeHuman base.obj not found");
-            return;
-        };
+        let path = crate::data::shared_data_path("makehuman/base.obj").unwrap();
         let obj = ObjFile::read(&path).unwrap();
         assert_eq!(obj.vertices.len(), 19_158);
         assert_eq!(obj.polygon_count(), 18_486);
