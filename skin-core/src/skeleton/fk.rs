@@ -53,7 +53,10 @@ impl ForwardKinematics {
 
     /// World position of every joint origin, metres.
     pub fn joint_positions(&self) -> Vec<DVec3> {
-        self.world_from_joint.iter().map(|t| t.translation).collect()
+        self.world_from_joint
+            .iter()
+            .map(|t| t.translation)
+            .collect()
     }
 
     /// World direction (unit) of every DOF axis, in θ order.
@@ -71,7 +74,9 @@ impl ForwardKinematics {
     /// # Errors
     /// [`Error::IndexOutOfRange`] for a bad joint index.
     pub fn point(&self, point: &AttachedPoint) -> Result<DVec3> {
-        Ok(self.frame_of(point.joint, "attached point joint")?.transform_point3(point.offset))
+        Ok(self
+            .frame_of(point.joint, "attached point joint")?
+            .transform_point3(point.offset))
     }
 
     /// World orientation of an attached frame (`world_from_frame`).
@@ -84,17 +89,22 @@ impl ForwardKinematics {
     }
 
     pub(super) fn frame_of(&self, joint: usize, what: &'static str) -> Result<&DAffine3> {
-        self.world_from_joint.get(joint).ok_or(Error::IndexOutOfRange {
-            what,
-            index: joint,
-            len: self.world_from_joint.len(),
-        })
+        self.world_from_joint
+            .get(joint)
+            .ok_or(Error::IndexOutOfRange {
+                what,
+                index: joint,
+                len: self.world_from_joint.len(),
+            })
     }
 
     pub(super) fn check_size(&self, skeleton: &Skeleton) -> Result<()> {
-        if self.world_from_joint.len() != skeleton.joint_count() || self.dof_axis_world.len() != skeleton.dof_count() {
+        if self.world_from_joint.len() != skeleton.joint_count()
+            || self.dof_axis_world.len() != skeleton.dof_count()
+        {
             return Err(Error::SizeMismatch {
-                what: "ForwardKinematics buffers (build them with ForwardKinematics::new(skeleton))",
+                what:
+                    "ForwardKinematics buffers (build them with ForwardKinematics::new(skeleton))",
                 expected: skeleton.joint_count(),
                 got: self.world_from_joint.len(),
             });
@@ -127,7 +137,9 @@ impl Skeleton {
         fk.check_size(self)?;
         let mut d = 0;
         for (j, joint) in self.joints().iter().enumerate() {
-            let parent = joint.parent.map_or(DAffine3::IDENTITY, |p| fk.world_from_joint[p]);
+            let parent = joint
+                .parent
+                .map_or(DAffine3::IDENTITY, |p| fk.world_from_joint[p]);
             let mut rot: DMat3 = parent.matrix3;
             let mut origin = parent.transform_point3(joint.offset);
             for dof in &joint.dofs {
