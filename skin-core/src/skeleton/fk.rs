@@ -113,6 +113,27 @@ impl ForwardKinematics {
     }
 }
 
+/// `rot ← rot · R_{eᵢ}(angle)`, touching only the two columns the rotation mixes.
+#[inline]
+fn rotate_about_basis_axis(rot: &mut DMat3, i: usize, angle: f64) {
+    let (s, c) = angle.sin_cos();
+    let (x, y, z) = (rot.x_axis, rot.y_axis, rot.z_axis);
+    match i {
+        0 => {
+            rot.y_axis = y * c + z * s;
+            rot.z_axis = z * c - y * s;
+        }
+        1 => {
+            rot.z_axis = z * c + x * s;
+            rot.x_axis = x * c - z * s;
+        }
+        _ => {
+            rot.x_axis = x * c + y * s;
+            rot.y_axis = y * c - x * s;
+        }
+    }
+}
+
 impl Skeleton {
     /// Forward kinematics of all joints at pose θ (allocating form of
     /// [`Skeleton::forward_kinematics_into`]).
@@ -147,7 +168,10 @@ impl Skeleton {
                 fk.dof_axis_world[d] = axis_world;
                 fk.dof_origin_world[d] = origin;
                 match dof.kind {
-                    DofKind::Rotation => rot *= DMat3::from_axis_angle(dof.axis, theta[d]),
+                    DofKind::Rotation => match self.fast_axis(d) {
+                        Some((i, sign)) => rotate_about_basis_axis(&mut rot, i, sign * theta[d]),
+                        None => rot *= DMat3::from_axis_angle(dof.axis, theta[d]),
+                    },
                     DofKind::Translation => origin += axis_world * theta[d],
                 }
                 d += 1;
@@ -155,5 +179,31 @@ impl Skeleton {
             fk.world_from_joint[j] = DAffine3::from_mat3_translation(rot, origin);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basis_axis_fast_path_matches_general_rotation() {
+        let base = DMat3::from_axis_angle(DVec3::new(0.3, -0.5, 0.8).normalize(), 0.7);
+        for i in 0..3 {
+            for sign in [1.0, -1.0] {
+                let axis = DVec3::AXES[i] * sign;
+                let mut fast = base;
+                rotate_about_basis_axis(&mut fast, i, sign * 1.1);
+                let general = base * DMat3::from_axis_angle(axis, 1.1);
+                assert!(
+                    (fast - general)
+                        .abs()
+                        .to_cols_array()
+                        .iter()
+                        .all(|v| *v < 1e-15),
+                    "axis {axis}"
+                );
+            }
+        }
     }
 }

@@ -76,6 +76,8 @@ pub struct Skeleton {
     dof_joint: Vec<usize>,
     /// For each joint, all DOF indices on the path root → joint (ascending).
     chain_dofs: Vec<Vec<usize>>,
+    /// For each DOF, `Some((i, ±1))` if its axis is exactly `±eᵢ` (fast FK path).
+    dof_fast_axis: Vec<Option<(usize, f64)>>,
 }
 
 impl TryFrom<SkeletonDef> for Skeleton {
@@ -175,11 +177,29 @@ impl Skeleton {
             chain_dofs.push(chain);
         }
         dof_start.push(next);
+        let dof_fast_axis = joints
+            .iter()
+            .flat_map(|j| j.dofs.iter())
+            .map(|d| {
+                (0..3).find_map(|i| {
+                    let mut e = DVec3::ZERO;
+                    e[i] = 1.0;
+                    if d.axis == e {
+                        Some((i, 1.0))
+                    } else if d.axis == -e {
+                        Some((i, -1.0))
+                    } else {
+                        None
+                    }
+                })
+            })
+            .collect();
         Ok(Skeleton {
             joints,
             dof_start,
             dof_joint,
             chain_dofs,
+            dof_fast_axis,
         })
     }
 
@@ -335,6 +355,11 @@ impl Skeleton {
             }
         }
         Ok(())
+    }
+
+    /// `Some((i, ±1))` when DOF `d`'s axis is exactly `±eᵢ`.
+    pub(super) fn fast_axis(&self, d: usize) -> Option<(usize, f64)> {
+        self.dof_fast_axis[d]
     }
 
     /// Whether DOF `d` is a rotation.
