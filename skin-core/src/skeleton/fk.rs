@@ -20,6 +20,10 @@ pub struct AttachedPoint {
 }
 
 /// A frame rigidly attached to a bone (e.g. an IMU's axes).
+///
+/// It carries orientation only; an IMU is an [`AttachedPoint`] (where its accelerometer is)
+/// plus an `AttachedFrame` (how its axes sit) on the same joint: its accelerometer reads
+/// `R_frameᵀ (J θ̈ + J̇θ̇ − g)` and its gyroscope `J_ω,local θ̇` (Vlasic Eq. 4.2–4.3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AttachedFrame {
     /// Index of the joint whose frame carries this frame.
