@@ -1,0 +1,420 @@
+//! Loader of the MakeHuman rig files (CC0): the `default.mhskel` skeleton (bones whose head and
+//! tail are *joints*, each a list of base-mesh vertices whose mean is the joint position) and
+//! the `default_weights.mhw` linear-blend-skinning weights (keyed by bone name and by
+//! **original** `base.obj` vertex index).
+//!
+//! The studio's MakeHuman performer keeps a 19-joint subset of the 163-bone rig with the joint
+//! names and DOFs of [`human_skeleton`](crate::skeleton::human_skeleton) (see
+//! [`MAKEHUMAN_SUBSET`]) and merges the weight of every dropped bone into its nearest kept
+//! ancestor ([`MhSkeleton::subset_weights`]). MakeHuman files are in **decimetres**
+//! ([`MAKEHUMAN_METRES_PER_UNIT`]); everything this module returns is in metres except the raw
+//! vertex lists.
+
+use crate::math::DVec3;
+use crate::{Error, Result};
+use serde::Deserialize;
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+/// Metres per MakeHuman length unit: the base mesh, the rig and its BVH files are in
+/// decimetres (body spans y = −8.17 … 8.49, a 1.67 m person; data/makehuman/SOURCE.md).
+pub const MAKEHUMAN_METRES_PER_UNIT: f64 = 0.1;
+
+/// The performer's 19-joint subset of the MakeHuman rig: `(performer joint, kept MakeHuman
+/// bone, MakeHuman joint giving the performer joint's position)`. Performer joints are those of
+/// [`human_skeleton`](crate::skeleton::human_skeleton), in its order. The pelvis sits at the
+/// root bone's tail (the top of the sacrum; the root's head lies behind the body); limb joints
+/// at the head of the bone they rotate (hip = `upperleg01` head, knee = `lowerleg01` head, ...).
+pub const MAKEHUMAN_SUBSET: [(&str, &str, &str); 19] = [
+    ("pelvis", "root", "root____tail"),
+    ("spine", "spine04", "spine04____head"),
+    ("chest", "spine02", "spine02____head"),
+    ("neck", "neck01", "neck01____head"),
+    ("head", "head", "head____head"),
+    ("l_clavicle", "clavicle.L", "clavicle.L____head"),
+    ("l_shoulder", "upperarm01.L", "upperarm01.L____head"),
+    ("l_elbow", "lowerarm01.L", "lowerarm01.L____head"),
+    ("l_wrist", "wrist.L", "wrist.L____head"),
+    ("r_clavicle", "clavicle.R", "clavicle.R____head"),
+    ("r_shoulder", "upperarm01.R", "upperarm01.R____head"),
+    ("r_elbow", "lowerarm01.R", "lowerarm01.R____head"),
+    ("r_wrist", "wrist.R", "wrist.R____head"),
+    ("l_hip", "upperleg01.L", "upperleg01.L____head"),
+    ("l_knee", "lowerleg01.L", "lowerleg01.L____head"),
+    ("l_ankle", "foot.L", "foot.L____head"),
+    ("r_hip", "upperleg01.R", "upperleg01.R____head"),
+    ("r_knee", "lowerleg01.R", "lowerleg01.R____head"),
+    ("r_ankle", "foot.R", "foot.R____head"),
+];
+
+/// End sites of the subset's leaf joints: `(performer joint, MakeHuman joint at the bone tip)`
+/// — top of the head, middle fingertip, tip of the big toe.
+pub const MAKEHUMAN_END_SITES: [(&str, &str); 5] = [
+    ("head", "head____tail"),
+    ("l_wrist", "finger3-3.L____tail"),
+    ("r_wrist", "finger3-3.R____tail"),
+    ("l_ankle", "toe1-2.L____tail"),
+    ("r_ankle", "toe1-2.R____tail"),
+];
+
+const SKEL_FORMAT: &str = "MHSKEL";
+const WEIGHTS_FORMAT: &str = "MHW";
+
+/// One bone of a MakeHuman skeleton.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MhBone {
+    /// Bone name, e.g. `"upperarm01.L"`.
+    pub name: String,
+    /// Index of the parent bone in [`MhSkeleton::bones`] (always smaller), `None` for the root.
+    pub parent: Option<usize>,
+    /// Name of the joint at the bone's head (a key of [`MhSkeleton::joints`]).
+    pub head: String,
+    /// Name of the joint at the bone's tail.
+    pub tail: String,
+}
+
+/// A parsed `.mhskel` file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MhSkeleton {
+    /// Bones, parents before children.
+    pub bones: Vec<MhBone>,
+    /// Joint name → original `base.obj` vertex indices (0-based) whose mean is the joint.
+    pub joints: HashMap<String, Vec<u32>>,
+}
+
+/// One `(vertex, weight)` entry of a `.mhw` file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MhVertexWeight {
+    /// Original `base.obj` vertex index (0-based).
+    pub vertex: u32,
+    /// Skinning weight (the file's values; a vertex's weights sum to about 1).
+    pub weight: f64,
+}
+
+/// A parsed `.mhw` weights file: bone name → weighted vertices.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MhWeights {
+    /// Bone name → its vertices and weights.
+    pub bones: BTreeMap<String, Vec<MhVertexWeight>>,
+}
+
+#[derive(Deserialize)]
+struct RawBone {
+    head: String,
+    tail: String,
+    parent: Option<String>,
+}
+
+#[derive(Deserialize)]
+struct RawSkeleton {
+    bones: BTreeMap<String, RawBone>,
+    joints: HashMap<String, Vec<u32>>,
+}
+
+#[derive(Deserialize)]
+struct RawWeights {
+    weights: BTreeMap<String, Vec<(u32, f64)>>,
+}
+
+fn json_err(format: &'static str, e: serde_json::Error) -> Error {
+    Error::Parse {
+        format,
+        line: e.line(),
+        message: e.to_string(),
+    }
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+}
+
+/// Parses the JSON text of a `.mhskel` file.
+///
+/// # Errors
+/// [`Error::Parse`] (format `"MHSKEL"`) for malformed JSON, a bone whose parent is missing, a
+/// parent cycle, a bone head/tail naming no joint, or a joint without vertices.
+pub fn parse_mhskel(text: &str) -> Result<MhSkeleton> {
+    let raw: RawSkeleton = serde_json::from_str(text).map_err(|e| json_err(SKEL_FORMAT, e))?;
+    let perr = |message: String| Error::Parse {
+        format: SKEL_FORMAT,
+        line: 0,
+        message,
+    };
+    if raw.bones.is_empty() {
+        return Err(perr("no bones".into()));
+    }
+    for (name, b) in &raw.bones {
+        for j in [&b.head, &b.tail] {
+            match raw.joints.get(j) {
+                None => return Err(perr(format!("bone '{name}' names unknown joint '{j}'"))),
+                Some(v) if v.is_empty() => return Err(perr(format!("joint '{j}' has no vertices"))),
+                Some(_) => {}
+            }
+        }
+        if let Some(p) = &b.parent {
+            if !raw.bones.contains_key(p) {
+                return Err(perr(format!("bone '{name}' has unknown parent '{p}'")));
+            }
+        }
+    }
+    // Topological order: repeatedly emit bones whose parent is already placed.
+    let mut index: HashMap<&str, usize> = HashMap::new();
+    let mut bones: Vec<MhBone> = Vec::with_capacity(raw.bones.len());
+    while bones.len() < raw.bones.len() {
+        let before = bones.len();
+        for (name, b) in &raw.bones {
+            if index.contains_key(name.as_str()) {
+                continue;
+            }
+            let parent = match &b.parent {
+                None => None,
+                Some(p) => match index.get(p.as_str()) {
+                    Some(&i) => Some(i),
+                    None => continue,
+                },
+            };
+            index.insert(name, bones.len());
+            bones.push(MhBone {
+                name: name.clone(),
+                parent,
+                head: b.head.clone(),
+                tail: b.tail.clone(),
+            });
+        }
+        if bones.len() == before {
+            return Err(perr("bone parents form a cycle".into()));
+        }
+    }
+    Ok(MhSkeleton {
+        bones,
+        joints: raw.joints,
+    })
+}
+
+/// Reads a `.mhskel` file.
+///
+/// # Errors
+/// [`Error::Io`] if unreadable; as [`parse_mhskel`].
+pub fn read_mhskel(path: impl AsRef<Path>) -> Result<MhSkeleton> {
+    parse_mhskel(&read_text(path.as_ref())?)
+}
+
+/// Parses the JSON text of a `.mhw` weights file.
+///
+/// # Errors
+/// [`Error::Parse`] (format `"MHW"`) for malformed JSON or a negative or non-finite weight.
+pub fn parse_mhw(text: &str) -> Result<MhWeights> {
+    let raw: RawWeights = serde_json::from_str(text).map_err(|e| json_err(WEIGHTS_FORMAT, e))?;
+    let mut bones = BTreeMap::new();
+    for (name, list) in raw.weights {
+        if let Some((v, w)) = list.iter().find(|(_, w)| !(w.is_finite() && *w >= 0.0)) {
+            return Err(Error::Parse {
+                format: WEIGHTS_FORMAT,
+                line: 0,
+                message: format!("bone '{name}' has invalid weight {w} on vertex {v}"),
+            });
+        }
+        let list = list
+            .into_iter()
+            .map(|(vertex, weight)| MhVertexWeight { vertex, weight })
+            .collect();
+        bones.insert(name, list);
+    }
+    Ok(MhWeights { bones })
+}
+
+/// Reads a `.mhw` file.
+///
+/// # Errors
+/// [`Error::Io`] if unreadable; as [`parse_mhw`].
+pub fn read_mhw(path: impl AsRef<Path>) -> Result<MhWeights> {
+    parse_mhw(&read_text(path.as_ref())?)
+}
+
+impl MhSkeleton {
+    /// Index of the bone called `name`.
+    pub fn bone_index(&self, name: &str) -> Option<usize> {
+        self.bones.iter().position(|b| b.name == name)
+    }
+
+    /// Position of joint `name`: the mean of its vertices taken from `vertices` (the full
+    /// `base.obj` vertex list, original indices), times `metres_per_unit`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] for an unknown joint; [`Error::IndexOutOfRange`] if one of its
+    /// vertices is past `vertices`.
+    pub fn joint_position(&self, name: &str, vertices: &[DVec3], metres_per_unit: f64) -> Result<DVec3> {
+        let list = self.joints.get(name).ok_or_else(|| Error::InvalidParam {
+            name: "joint",
+            reason: format!("the MakeHuman skeleton has no joint '{name}'"),
+        })?;
+        let mut sum = DVec3::ZERO;
+        for &i in list {
+            sum += *vertices.get(i as usize).ok_or(Error::IndexOutOfRange {
+                what: "MakeHuman joint vertex",
+                index: i as usize,
+                len: vertices.len(),
+            })?;
+        }
+        // `parse_mhskel` rejects joints without vertices, so `list` is not empty.
+        Ok(sum / list.len().max(1) as f64 * metres_per_unit)
+    }
+
+    /// For every bone, the index into `kept` of its nearest kept ancestor-or-self, `None` if no
+    /// kept bone lies on its path to the root.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming a kept bone that does not exist.
+    pub fn nearest_kept(&self, kept: &[&str]) -> Result<Vec<Option<usize>>> {
+        let mut kept_of_bone: Vec<Option<usize>> = vec![None; self.bones.len()];
+        for (k, name) in kept.iter().enumerate() {
+            let b = self.bone_index(name).ok_or_else(|| Error::InvalidParam {
+                name: "kept bones",
+                reason: format!("the MakeHuman skeleton has no bone '{name}'"),
+            })?;
+            kept_of_bone[b] = Some(k);
+        }
+        // Parents precede children, so one forward sweep propagates.
+        let mut out = vec![None; self.bones.len()];
+        for (b, bone) in self.bones.iter().enumerate() {
+            out[b] = kept_of_bone[b].or_else(|| bone.parent.and_then(|p| out[p]));
+        }
+        Ok(out)
+    }
+
+    /// Re-targets `weights` onto the kept bones: each dropped bone's weight goes to its nearest
+    /// kept ancestor, then every vertex's weights are normalised to sum 1.
+    ///
+    /// `original_to_local` maps an original `base.obj` vertex index to the performer's vertex
+    /// index (`None` for vertices not in the performer mesh, whose weights are ignored);
+    /// `vertex_count` is the performer's vertex count. Returns, per performer vertex, the
+    /// `(kept index, weight)` pairs sorted by kept index.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming a weighted bone missing from the skeleton or without kept
+    /// ancestor, or a kept bone that does not exist; [`Error::Degenerate`] naming the first
+    /// performer vertex left without weight.
+    pub fn subset_weights(
+        &self,
+        weights: &MhWeights,
+        kept: &[&str],
+        original_to_local: &dyn Fn(u32) -> Option<usize>,
+        vertex_count: usize,
+    ) -> Result<Vec<Vec<(usize, f64)>>> {
+        let nearest = self.nearest_kept(kept)?;
+        let mut acc: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); vertex_count];
+        for (bone, list) in &weights.bones {
+            let b = self.bone_index(bone).ok_or_else(|| Error::InvalidParam {
+                name: "weights",
+                reason: format!("weights name bone '{bone}', which the skeleton lacks"),
+            })?;
+            let k = nearest[b].ok_or_else(|| Error::InvalidParam {
+                name: "kept bones",
+                reason: format!("bone '{bone}' has no kept ancestor; keep the root bone"),
+            })?;
+            for e in list {
+                if let Some(v) = original_to_local(e.vertex).filter(|&v| v < vertex_count) {
+                    *acc[v].entry(k).or_insert(0.0) += e.weight;
+                }
+            }
+        }
+        acc.into_iter()
+            .enumerate()
+            .map(|(v, m)| {
+                let total: f64 = m.values().sum();
+                if total.is_finite() && total > 0.0 {
+                    Ok(m.into_iter().filter(|&(_, w)| w > 0.0).map(|(k, w)| (k, w / total)).collect())
+                } else {
+                    Err(Error::Degenerate {
+                        what: format!("performer vertex {v} has no skin weight"),
+                    })
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) const TINY_SKEL: &str = r#"{"bones": {
+        "root": {"head": "r_h", "tail": "r_t", "parent": null},
+        "leg": {"head": "r_t", "tail": "l_t", "parent": "root"},
+        "toe": {"head": "l_t", "tail": "t_t", "parent": "leg"}},
+      "joints": {"r_h": [0], "r_t": [1, 2], "l_t": [3], "t_t": [3]}}"#;
+
+    #[test]
+    fn parses_and_orders_bones() {
+        let s = parse_mhskel(TINY_SKEL).unwrap();
+        assert_eq!(s.bones.len(), 3);
+        for (i, b) in s.bones.iter().enumerate() {
+            assert!(b.parent.is_none_or(|p| p < i));
+        }
+        let v = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        let p = s.joint_position("r_t", &v, 0.1).unwrap();
+        assert!((p - DVec3::new(0.05, 0.05, 0.0)).length() < 1e-15);
+        assert!(s.joint_position("nope", &v, 0.1).is_err());
+        assert!(matches!(s.joint_position("r_t", &v[..2], 0.1), Err(Error::IndexOutOfRange { .. })));
+    }
+
+    #[test]
+    fn merges_dropped_bones_into_kept_ancestor() {
+        let s = parse_mhskel(TINY_SKEL).unwrap();
+        let w = parse_mhw(r#"{"weights": {"root": [[0, 1.0], [1, 0.25]], "toe": [[1, 0.5], [2, 2.0]]}}"#).unwrap();
+        let out = s.subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 3).unwrap();
+        assert_eq!(out[0], vec![(0, 1.0)]);
+        // Vertex 1: root 0.25 and toe→leg 0.5, normalised.
+        assert!((out[1][0].1 - 1.0 / 3.0).abs() < 1e-12 && out[1][1] == (1, 2.0 / 3.0));
+        assert_eq!(out[2], vec![(1, 1.0)]);
+        // A vertex without weight is an error naming it.
+        let err = s.subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 4).unwrap_err();
+        assert!(err.to_string().contains("vertex 3"), "{err}");
+        // Without the root kept, the root's weight has nowhere to go.
+        assert!(s.subset_weights(&w, &["leg"], &|i| Some(i as usize), 3).is_err());
+        assert!(s.subset_weights(&w, &["femur"], &|i| Some(i as usize), 3).is_err());
+    }
+
+    #[test]
+    fn rejects_malformed_files() {
+        assert!(matches!(parse_mhskel("{"), Err(Error::Parse { format: "MHSKEL", .. })));
+        let cyc = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": "b"},
+                                "b": {"head": "j", "tail": "j", "parent": "a"}}, "joints": {"j": [0]}}"#;
+        assert!(parse_mhskel(cyc).unwrap_err().to_string().contains("cycle"));
+        let missing = r#"{"bones": {"a": {"head": "j", "tail": "k", "parent": null}}, "joints": {"j": [0]}}"#;
+        assert!(parse_mhskel(missing).unwrap_err().to_string().contains("'k'"));
+        let orphan = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": "zz"}}, "joints": {"j": [0]}}"#;
+        assert!(parse_mhskel(orphan).is_err());
+        let empty_joint = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": null}}, "joints": {"j": []}}"#;
+        assert!(parse_mhskel(empty_joint).is_err());
+        assert!(matches!(parse_mhw("[]"), Err(Error::Parse { format: "MHW", .. })));
+        assert!(parse_mhw(r#"{"weights": {"a": [[0, -1.0]]}}"#).is_err());
+        let s = parse_mhskel(TINY_SKEL).unwrap();
+        let w = parse_mhw(r#"{"weights": {"ghost": [[0, 1.0]]}}"#).unwrap();
+        assert!(s.subset_weights(&w, &["root"], &|i| Some(i as usize), 1).unwrap_err().to_string().contains("ghost"));
+    }
+
+    #[test]
+    fn real_rig_files_parse_and_merge() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/makehuman");
+        let dir = if dir.exists() { dir } else { Path::new("/work/shared/data/makehuman").to_path_buf() };
+        let Ok(s) = read_mhskel(dir.join("default.mhskel")) else {
+            eprintln!("MakeHuman data not found; skipping");
+            return;
+        };
+        let w = read_mhw(dir.join("default_weights.mhw")).unwrap();
+        assert_eq!(s.bones.len(), 163);
+        let kept: Vec<&str> = MAKEHUMAN_SUBSET.iter().map(|t| t.1).collect();
+        let out = s.subset_weights(&w, &kept, &|i| (i < 13380).then_some(i as usize), 13380).unwrap();
+        for vw in &out {
+            let sum: f64 = vw.iter().map(|p| p.1).sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+        }
+        for (_, _, j) in MAKEHUMAN_SUBSET {
+            assert!(s.joints.contains_key(j), "{j}");
+        }
+        for (_, j) in MAKEHUMAN_END_SITES {
+            assert!(s.joints.contains_key(j), "{j}");
+        }
+    }
+}

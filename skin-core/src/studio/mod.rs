@@ -1,0 +1,27 @@
+//! The synthetic capture studio: a rigged performer with known non-skinning deformation,
+//! motions (procedural and BVH, retargeted), and (in the rasteriser files) the rendering of
+//! every observation with its ground truth.
+//!
+//! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
+//!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
+//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices.
+//! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
+//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
+//! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
+//!   playback through [`retarget`] with a [`JointMap`].
+
+mod deformation;
+mod makehuman;
+mod performer;
+mod procedural_body;
+
+pub use deformation::{
+    BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
+    DEFAULT_BULGE_M_PER_RAD,
+};
+pub use makehuman::{
+    parse_mhskel, parse_mhw, read_mhskel, read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights,
+    MAKEHUMAN_END_SITES, MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
+};
+pub use performer::{Performer, PosedFrame};
+pub use procedural_body::{procedural_performer, ProceduralBodyParams};
