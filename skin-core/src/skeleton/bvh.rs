@@ -40,7 +40,9 @@ pub struct BvhParams {
 
 impl Default for BvhParams {
     fn default() -> Self {
-        BvhParams { metres_per_unit: 1.0 }
+        BvhParams {
+            metres_per_unit: 1.0,
+        }
     }
 }
 
@@ -102,7 +104,10 @@ impl<'a> Lexer<'a> {
     fn next(&mut self) -> Option<Tok<'a>> {
         loop {
             if let Some(t) = self.current.next() {
-                return Some(Tok { text: t, line: self.line });
+                return Some(Tok {
+                    text: t,
+                    line: self.line,
+                });
             }
             let (i, l) = self.lines.next()?;
             self.line = i + 1;
@@ -112,7 +117,10 @@ impl<'a> Lexer<'a> {
 
     /// Next token on the current line only.
     fn next_on_line(&mut self) -> Option<Tok<'a>> {
-        self.current.next().map(|t| Tok { text: t, line: self.line })
+        self.current.next().map(|t| Tok {
+            text: t,
+            line: self.line,
+        })
     }
 
     fn expect(&mut self, what: &str) -> Result<Tok<'a>> {
@@ -121,7 +129,10 @@ impl<'a> Lexer<'a> {
             .next()
             .ok_or_else(|| perr(line, format!("unexpected end of file, expected '{what}'")))?;
         if t.text != what {
-            return Err(perr(t.line, format!("expected '{what}', found '{}'", t.text)));
+            return Err(perr(
+                t.line,
+                format!("expected '{what}', found '{}'", t.text),
+            ));
         }
         Ok(t)
     }
@@ -131,7 +142,8 @@ impl<'a> Lexer<'a> {
         let t = self
             .next()
             .ok_or_else(|| perr(line, format!("unexpected end of file, expected {what}")))?;
-        parse_finite(t.text).ok_or_else(|| perr(t.line, format!("expected {what}, found '{}'", t.text)))
+        parse_finite(t.text)
+            .ok_or_else(|| perr(t.line, format!("expected {what}, found '{}'", t.text)))
     }
 
     /// Remaining lines after the current one (for the MOTION section).
@@ -189,7 +201,10 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
             return Err(match stack.last() {
                 Some(&j) => perr(
                     line,
-                    format!("unexpected end of file: joint '{}' (line {}) is not closed with '}}'", joints[j].name, joints[j].line),
+                    format!(
+                        "unexpected end of file: joint '{}' (line {}) is not closed with '}}'",
+                        joints[j].name, joints[j].line
+                    ),
                 ),
                 None => perr(line, "unexpected end of file: missing MOTION section"),
             });
@@ -245,7 +260,10 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
                 let o = offset(lx)?;
                 lx.expect("}")?;
                 if joints[j].end_site.replace(o).is_some() {
-                    return Err(perr(t.line, format!("joint '{}' has two End Sites", joints[j].name)));
+                    return Err(perr(
+                        t.line,
+                        format!("joint '{}' has two End Sites", joints[j].name),
+                    ));
                 }
             }
             "OFFSET" => {
@@ -254,7 +272,10 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
                 };
                 let o = offset(lx)?;
                 if joints[j].offset.replace(o).is_some() {
-                    return Err(perr(t.line, format!("joint '{}' has two OFFSETs", joints[j].name)));
+                    return Err(perr(
+                        t.line,
+                        format!("joint '{}' has two OFFSETs", joints[j].name),
+                    ));
                 }
             }
             "CHANNELS" => {
@@ -264,14 +285,18 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
                 let n_tok = lx
                     .next()
                     .ok_or_else(|| perr(t.line, "unexpected end of file after CHANNELS"))?;
-                let n: usize = n_tok
-                    .text
-                    .parse()
-                    .map_err(|_| perr(n_tok.line, format!("expected a channel count, found '{}'", n_tok.text)))?;
+                let n: usize = n_tok.text.parse().map_err(|_| {
+                    perr(
+                        n_tok.line,
+                        format!("expected a channel count, found '{}'", n_tok.text),
+                    )
+                })?;
                 let mut chans = Vec::new();
                 for _ in 0..n {
                     let line = lx.line;
-                    let c = lx.next().ok_or_else(|| perr(line, "unexpected end of file in CHANNELS"))?;
+                    let c = lx
+                        .next()
+                        .ok_or_else(|| perr(line, "unexpected end of file in CHANNELS"))?;
                     let (kind, axis) = channel(c.text).ok_or_else(|| {
                         perr(
                             c.line,
@@ -284,7 +309,10 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
                     chans.push((kind, axis, c.text.to_string()));
                 }
                 if joints[j].channels.replace(chans).is_some() {
-                    return Err(perr(t.line, format!("joint '{}' has two CHANNELS lines", joints[j].name)));
+                    return Err(perr(
+                        t.line,
+                        format!("joint '{}' has two CHANNELS lines", joints[j].name),
+                    ));
                 }
             }
             "}" => {
@@ -292,21 +320,30 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
                     return Err(perr(t.line, "unmatched '}'"));
                 };
                 if joints[j].offset.is_none() {
-                    return Err(perr(t.line, format!("joint '{}' has no OFFSET", joints[j].name)));
+                    return Err(perr(
+                        t.line,
+                        format!("joint '{}' has no OFFSET", joints[j].name),
+                    ));
                 }
             }
             "MOTION" => {
                 if let Some(&j) = stack.last() {
                     return Err(perr(
                         t.line,
-                        format!("MOTION before joint '{}' (line {}) is closed: missing '}}'", joints[j].name, joints[j].line),
+                        format!(
+                            "MOTION before joint '{}' (line {}) is closed: missing '}}'",
+                            joints[j].name, joints[j].line
+                        ),
                     ));
                 }
                 if joints.is_empty() {
                     return Err(perr(t.line, "no ROOT joint before MOTION"));
                 }
                 if let Some(extra) = lx.next_on_line() {
-                    return Err(perr(extra.line, format!("unexpected '{}' after MOTION", extra.text)));
+                    return Err(perr(
+                        extra.line,
+                        format!("unexpected '{}' after MOTION", extra.text),
+                    ));
                 }
                 return Ok(joints);
             }
@@ -316,7 +353,11 @@ fn parse_hierarchy(lx: &mut Lexer) -> Result<Vec<PendingJoint>> {
 }
 
 /// Reads the next non-blank line as `<key>: <value>` (whitespace around the colon free).
-fn header<'a>(lines: &mut impl Iterator<Item = (usize, &'a str)>, key: &str, last_line: usize) -> Result<(usize, &'a str)> {
+fn header<'a>(
+    lines: &mut impl Iterator<Item = (usize, &'a str)>,
+    key: &str,
+    last_line: usize,
+) -> Result<(usize, &'a str)> {
     for (i, l) in lines.by_ref() {
         let t = l.trim();
         if t.is_empty() {
@@ -339,7 +380,10 @@ fn header<'a>(lines: &mut impl Iterator<Item = (usize, &'a str)>, key: &str, las
             .map(|v| (i, v))
             .ok_or_else(|| perr(i, format!("expected '{key}: <value>', found '{t}'")));
     }
-    Err(perr(last_line, format!("unexpected end of file, expected '{key}: <value>'")))
+    Err(perr(
+        last_line,
+        format!("unexpected end of file, expected '{key}: <value>'"),
+    ))
 }
 
 /// Largest frame count accepted for a hierarchy without channels (no data lines to count).
@@ -424,7 +468,12 @@ pub fn parse_bvh(text: &str, params: &BvhParams) -> Result<Bvh> {
     let (tl, time_text) = header(&mut lines, "Frame Time", fl)?;
     let frame_time = parse_finite(time_text)
         .filter(|t| *t > 0.0)
-        .ok_or_else(|| perr(tl, format!("Frame Time must be a positive number, found '{time_text}'")))?;
+        .ok_or_else(|| {
+            perr(
+                tl,
+                format!("Frame Time must be a positive number, found '{time_text}'"),
+            )
+        })?;
 
     let mut data: Vec<f64> = Vec::new();
     let mut count = 0usize;
@@ -436,7 +485,10 @@ pub fn parse_bvh(text: &str, params: &BvhParams) -> Result<Bvh> {
         }
         count += 1;
         if count > n_frames {
-            return Err(perr(i, format!("more frame lines than 'Frames: {n_frames}'")));
+            return Err(perr(
+                i,
+                format!("more frame lines than 'Frames: {n_frames}'"),
+            ));
         }
         let start = data.len();
         data.resize(start + n_ch, 0.0);
@@ -445,7 +497,9 @@ pub fn parse_bvh(text: &str, params: &BvhParams) -> Result<Bvh> {
             if k >= n_ch {
                 return Err(perr(
                     i,
-                    format!("frame {count}: more than the {n_ch} values the HIERARCHY channels require"),
+                    format!(
+                        "frame {count}: more than the {n_ch} values the HIERARCHY channels require"
+                    ),
                 ));
             }
             let v = parse_finite(tok).ok_or_else(|| {
@@ -459,7 +513,11 @@ pub fn parse_bvh(text: &str, params: &BvhParams) -> Result<Bvh> {
                     ),
                 )
             })?;
-            data[start + column_dof[k]] = if column_rot[k] { v.to_radians() } else { v * scale };
+            data[start + column_dof[k]] = if column_rot[k] {
+                v.to_radians()
+            } else {
+                v * scale
+            };
             k += 1;
         }
         if k < n_ch {
@@ -475,11 +533,17 @@ pub fn parse_bvh(text: &str, params: &BvhParams) -> Result<Bvh> {
     }
     if n_ch == 0 {
         if n_frames > MAX_EMPTY_FRAMES {
-            return Err(perr(fl, format!("'Frames: {n_frames}' for a hierarchy without channels")));
+            return Err(perr(
+                fl,
+                format!("'Frames: {n_frames}' for a hierarchy without channels"),
+            ));
         }
         count = n_frames;
     } else if count != n_frames {
-        return Err(perr(last_line, format!("'Frames: {n_frames}' but {count} frame lines")));
+        return Err(perr(
+            last_line,
+            format!("'Frames: {n_frames}' but {count} frame lines"),
+        ));
     }
     let frames = DMatrix::from_vec(n_ch, count, data);
     let motion = Motion::new(frame_time, frames)?;

@@ -55,12 +55,18 @@ pub fn to_bvh_string(skeleton: &Skeleton, motion: &Motion, params: &BvhParams) -
     let mut channel_of_dof: Vec<(usize, f64)> = Vec::with_capacity(skeleton.dof_count());
     for j in joints {
         if !valid_name(&j.name) {
-            return Err(invalid(format!("joint name '{}' cannot be written to BVH", j.name)));
+            return Err(invalid(format!(
+                "joint name '{}' cannot be written to BVH",
+                j.name
+            )));
         }
         let mut seen_rotation = false;
         for d in &j.dofs {
             let (axis, sign) = axis_channel(d.axis).ok_or_else(|| {
-                invalid(format!("DOF '{}' of joint '{}' has axis {} (BVH needs ±X, ±Y or ±Z)", d.name, j.name, d.axis))
+                invalid(format!(
+                    "DOF '{}' of joint '{}' has axis {} (BVH needs ±X, ±Y or ±Z)",
+                    d.name, j.name, d.axis
+                ))
             })?;
             match d.kind {
                 DofKind::Rotation => seen_rotation = true,
@@ -97,19 +103,35 @@ pub fn to_bvh_string(skeleton: &Skeleton, motion: &Motion, params: &BvhParams) -
         }
         order.push(j);
         let joint = &joints[j];
-        let kw = if joint.parent.is_none() { "ROOT" } else { "JOINT" };
+        let kw = if joint.parent.is_none() {
+            "ROOT"
+        } else {
+            "JOINT"
+        };
         let o = joint.offset / scale;
-        let _ = writeln!(out, "{ind}{kw} {}\n{ind}{{\n{ind}\tOFFSET {} {} {}", joint.name, o.x, o.y, o.z);
+        let _ = writeln!(
+            out,
+            "{ind}{kw} {}\n{ind}{{\n{ind}\tOFFSET {} {} {}",
+            joint.name, o.x, o.y, o.z
+        );
         let _ = write!(out, "{ind}\tCHANNELS {}", joint.dofs.len());
         for (k, d) in skeleton.joint_dofs(j).zip(&joint.dofs) {
             let axis = ["X", "Y", "Z"][channel_of_dof[k].0];
-            let kind = if d.kind == DofKind::Rotation { "rotation" } else { "position" };
+            let kind = if d.kind == DofKind::Rotation {
+                "rotation"
+            } else {
+                "position"
+            };
             let _ = write!(out, " {axis}{kind}");
         }
         out.push('\n');
         if let Some(e) = joint.end_site {
             let e = e / scale;
-            let _ = writeln!(out, "{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {} {} {}\n{ind}\t}}", e.x, e.y, e.z);
+            let _ = writeln!(
+                out,
+                "{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {} {} {}\n{ind}\t}}",
+                e.x, e.y, e.z
+            );
         }
         stack.push((j, depth, true));
         for &c in children[j].iter().rev() {
@@ -149,7 +171,12 @@ pub fn to_bvh_string(skeleton: &Skeleton, motion: &Motion, params: &BvhParams) -
 ///
 /// # Errors
 /// As [`to_bvh_string`]; [`Error::Io`] if the file cannot be written.
-pub fn write_bvh(path: impl AsRef<Path>, skeleton: &Skeleton, motion: &Motion, params: &BvhParams) -> Result<()> {
+pub fn write_bvh(
+    path: impl AsRef<Path>,
+    skeleton: &Skeleton,
+    motion: &Motion,
+    params: &BvhParams,
+) -> Result<()> {
     let path = path.as_ref();
     let text = to_bvh_string(skeleton, motion, params)?;
     std::fs::write(path, text).map_err(|e| Error::io(path, e))

@@ -53,7 +53,10 @@ impl ForwardKinematics {
 
     /// World position of every joint origin, metres.
     pub fn joint_positions(&self) -> Vec<DVec3> {
-        self.world_from_joint.iter().map(|t| t.translation).collect()
+        self.world_from_joint
+            .iter()
+            .map(|t| t.translation)
+            .collect()
     }
 
     /// World direction (unit) of every DOF axis, in θ order.
@@ -71,7 +74,9 @@ impl ForwardKinematics {
     /// # Errors
     /// [`Error::IndexOutOfRange`] for a bad joint index.
     pub fn point(&self, point: &AttachedPoint) -> Result<DVec3> {
-        Ok(self.frame_of(point.joint, "attached point joint")?.transform_point3(point.offset))
+        Ok(self
+            .frame_of(point.joint, "attached point joint")?
+            .transform_point3(point.offset))
     }
 
     /// World orientation of an attached frame (`world_from_frame`).
@@ -84,22 +89,48 @@ impl ForwardKinematics {
     }
 
     pub(super) fn frame_of(&self, joint: usize, what: &'static str) -> Result<&DAffine3> {
-        self.world_from_joint.get(joint).ok_or(Error::IndexOutOfRange {
-            what,
-            index: joint,
-            len: self.world_from_joint.len(),
-        })
+        self.world_from_joint
+            .get(joint)
+            .ok_or(Error::IndexOutOfRange {
+                what,
+                index: joint,
+                len: self.world_from_joint.len(),
+            })
     }
 
     pub(super) fn check_size(&self, skeleton: &Skeleton) -> Result<()> {
-        if self.world_from_joint.len() != skeleton.joint_count() || self.dof_axis_world.len() != skeleton.dof_count() {
+        if self.world_from_joint.len() != skeleton.joint_count()
+            || self.dof_axis_world.len() != skeleton.dof_count()
+        {
             return Err(Error::SizeMismatch {
-                what: "ForwardKinematics buffers (build them with ForwardKinematics::new(skeleton))",
+                what:
+                    "ForwardKinematics buffers (build them with ForwardKinematics::new(skeleton))",
                 expected: skeleton.joint_count(),
                 got: self.world_from_joint.len(),
             });
         }
         Ok(())
+    }
+}
+
+/// `rot ← rot · R_{eᵢ}(angle)`, touching only the two columns the rotation mixes.
+#[inline]
+fn rotate_about_basis_axis(rot: &mut DMat3, i: usize, angle: f64) {
+    let (s, c) = angle.sin_cos();
+    let (x, y, z) = (rot.x_axis, rot.y_axis, rot.z_axis);
+    match i {
+        0 => {
+            rot.y_axis = y * c + z * s;
+            rot.z_axis = z * c - y * s;
+        }
+        1 => {
+            rot.z_axis = z * c + x * s;
+            rot.x_axis = x * c - z * s;
+        }
+        _ => {
+            rot.x_axis = x * c + y * s;
+            rot.y_axis = y * c - x * s;
+        }
     }
 }
 
@@ -127,7 +158,9 @@ impl Skeleton {
         fk.check_size(self)?;
         let mut d = 0;
         for (j, joint) in self.joints().iter().enumerate() {
-            let parent = joint.parent.map_or(DAffine3::IDENTITY, |p| fk.world_from_joint[p]);
+            let parent = joint
+                .parent
+                .map_or(DAffine3::IDENTITY, |p| fk.world_from_joint[p]);
             let mut rot: DMat3 = parent.matrix3;
             let mut origin = parent.transform_point3(joint.offset);
             for dof in &joint.dofs {
@@ -135,7 +168,10 @@ impl Skeleton {
                 fk.dof_axis_world[d] = axis_world;
                 fk.dof_origin_world[d] = origin;
                 match dof.kind {
-                    DofKind::Rotation => rot *= DMat3::from_axis_angle(dof.axis, theta[d]),
+                    DofKind::Rotation => match self.fast_axis(d) {
+                        Some((i, sign)) => rotate_about_basis_axis(&mut rot, i, sign * theta[d]),
+                        None => rot *= DMat3::from_axis_angle(dof.axis, theta[d]),
+                    },
                     DofKind::Translation => origin += axis_world * theta[d],
                 }
                 d += 1;
@@ -143,5 +179,31 @@ impl Skeleton {
             fk.world_from_joint[j] = DAffine3::from_mat3_translation(rot, origin);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basis_axis_fast_path_matches_general_rotation() {
+        let base = DMat3::from_axis_angle(DVec3::new(0.3, -0.5, 0.8).normalize(), 0.7);
+        for i in 0..3 {
+            for sign in [1.0, -1.0] {
+                let axis = DVec3::AXES[i] * sign;
+                let mut fast = base;
+                rotate_about_basis_axis(&mut fast, i, sign * 1.1);
+                let general = base * DMat3::from_axis_angle(axis, 1.1);
+                assert!(
+                    (fast - general)
+                        .abs()
+                        .to_cols_array()
+                        .iter()
+                        .all(|v| *v < 1e-15),
+                    "axis {axis}"
+                );
+            }
+        }
     }
 }

@@ -43,7 +43,11 @@ impl Default for HumanParams {
 }
 
 fn rot(joint: &str, dof: &str, axis: DVec3, min_deg: f64, max_deg: f64) -> Dof {
-    Dof::rotation(format!("{joint}.{dof}"), axis, Some(DofLimits::degrees(min_deg, max_deg)))
+    Dof::rotation(
+        format!("{joint}.{dof}"),
+        axis,
+        Some(DofLimits::degrees(min_deg, max_deg)),
+    )
 }
 
 /// The 42-DOF human skeleton (19 joints; leaves carry end sites at head top, hands and toes).
@@ -111,27 +115,52 @@ pub fn human_skeleton(params: &HumanParams) -> Result<Skeleton> {
             ],
         )
     };
-    j.push(trunk("spine", 0, v(0.0, 0.046, -0.006), (-25.0, 50.0), 25.0, 20.0)); // 1
-    j.push(trunk("chest", 1, v(0.0, 0.114, 0.0), (-15.0, 30.0), 15.0, 25.0)); // 2
+    j.push(trunk(
+        "spine",
+        0,
+        v(0.0, 0.046, -0.006),
+        (-25.0, 50.0),
+        25.0,
+        20.0,
+    )); // 1
+    j.push(trunk(
+        "chest",
+        1,
+        v(0.0, 0.114, 0.0),
+        (-15.0, 30.0),
+        15.0,
+        25.0,
+    )); // 2
     j.push(Joint::new(
         "neck",
         Some(2),
         v(0.0, 0.131, 0.0),
-        vec![rot("neck", "flexion", x, -40.0, 45.0), rot("neck", "lateral", -z, -45.0, 45.0)],
+        vec![
+            rot("neck", "flexion", x, -40.0, 45.0),
+            rot("neck", "lateral", -z, -45.0, 45.0),
+        ],
     )); // 3 (C7, 0.845 H)
     j.push(
         Joint::new(
             "head",
             Some(3),
             v(0.0, 0.055, 0.0),
-            vec![rot("head", "flexion", x, -30.0, 20.0), rot("head", "twist", y, -80.0, 80.0)],
+            vec![
+                rot("head", "flexion", x, -30.0, 20.0),
+                rot("head", "twist", y, -80.0, 80.0),
+            ],
         )
         .with_end_site(v(0.0, 0.100, 0.0)), // top of head at 1.000 H
     ); // 4
     for (side, s) in [("l", 1.0), ("r", -1.0)] {
         let chest = 2;
         let clav = j.len();
-        j.push(Joint::new(format!("{side}_clavicle"), Some(chest), v(s * 0.015, 0.103, 0.01), vec![]));
+        j.push(Joint::new(
+            format!("{side}_clavicle"),
+            Some(chest),
+            v(s * 0.015, 0.103, 0.01),
+            vec![],
+        ));
         let sh = j.len();
         let n = format!("{side}_shoulder");
         j.push(Joint::new(
@@ -150,7 +179,10 @@ pub fn human_skeleton(params: &HumanParams) -> Result<Skeleton> {
             n.clone(),
             Some(sh),
             v(0.0, -0.186, 0.0),
-            vec![rot(&n, "flexion", -x, 0.0, 150.0), rot(&n, "pronation", y * -s, -80.0, 80.0)],
+            vec![
+                rot(&n, "flexion", -x, 0.0, 150.0),
+                rot(&n, "pronation", y * -s, -80.0, 80.0),
+            ],
         ));
         let n = format!("{side}_wrist");
         j.push(
@@ -158,7 +190,10 @@ pub fn human_skeleton(params: &HumanParams) -> Result<Skeleton> {
                 n.clone(),
                 Some(el),
                 v(0.0, -0.146, 0.0),
-                vec![rot(&n, "flexion", z * -s, -70.0, 80.0), rot(&n, "deviation", -x, -30.0, 20.0)],
+                vec![
+                    rot(&n, "flexion", z * -s, -70.0, 80.0),
+                    rot(&n, "deviation", -x, -30.0, 20.0),
+                ],
             )
             .with_end_site(v(0.0, -0.108, 0.0)),
         );
@@ -178,14 +213,22 @@ pub fn human_skeleton(params: &HumanParams) -> Result<Skeleton> {
         ));
         let knee = j.len();
         let n = format!("{side}_knee");
-        j.push(Joint::new(n.clone(), Some(hip), v(0.0, -0.245, 0.0), vec![rot(&n, "flexion", x, 0.0, 135.0)]));
+        j.push(Joint::new(
+            n.clone(),
+            Some(hip),
+            v(0.0, -0.245, 0.0),
+            vec![rot(&n, "flexion", x, 0.0, 135.0)],
+        ));
         let n = format!("{side}_ankle");
         j.push(
             Joint::new(
                 n.clone(),
                 Some(knee),
                 v(0.0, -0.246, 0.0),
-                vec![rot(&n, "dorsiflexion", -x, -50.0, 20.0), rot(&n, "inversion", z * -s, -20.0, 35.0)],
+                vec![
+                    rot(&n, "dorsiflexion", -x, -50.0, 20.0),
+                    rot(&n, "inversion", z * -s, -20.0, 35.0),
+                ],
             )
             .with_end_site(v(0.0, -0.039, 0.117)), // toe tip on the floor
         );
@@ -210,11 +253,21 @@ mod tests {
         let top = fk.world_from_joint()[head].transform_point3(s.joints()[head].end_site.unwrap());
         assert!((top.y - 1.75).abs() < 0.01, "head top {top}");
         let ankle = s.joint_index("l_ankle").unwrap();
-        let toe = fk.world_from_joint()[ankle].transform_point3(s.joints()[ankle].end_site.unwrap());
-        assert!(toe.y.abs() < 0.01 && toe.z > 0.1, "toe tip on the floor, forward: {toe}");
-        assert!(p("l_hip").x > 0.05 && p("r_hip").x < -0.05, "+X is the body's left");
+        let toe =
+            fk.world_from_joint()[ankle].transform_point3(s.joints()[ankle].end_site.unwrap());
+        assert!(
+            toe.y.abs() < 0.01 && toe.z > 0.1,
+            "toe tip on the floor, forward: {toe}"
+        );
+        assert!(
+            p("l_hip").x > 0.05 && p("r_hip").x < -0.05,
+            "+X is the body's left"
+        );
         assert!((p("l_shoulder").y - 0.818 * 1.75).abs() < 0.03);
-        assert!((p("l_shoulder").x - p("r_shoulder").x - 0.38).abs() < 0.04, "biacromial width");
+        assert!(
+            (p("l_shoulder").x - p("r_shoulder").x - 0.38).abs() < 0.04,
+            "biacromial width"
+        );
         // All limits contain the rest pose.
         assert!(s.limit_violations(&s.rest_pose()).unwrap().is_empty());
         assert!(human_skeleton(&HumanParams { height_m: f64::NAN }).is_err());
@@ -236,16 +289,24 @@ mod tests {
             theta[s.dof_index(dof).unwrap()] = 0.5;
             let fk = s.forward_kinematics(&theta).unwrap();
             let c = s.joint_index(child).unwrap();
-            let dz = fk.world_from_joint()[c].translation.z - rest.world_from_joint()[c].translation.z;
+            let dz =
+                fk.world_from_joint()[c].translation.z - rest.world_from_joint()[c].translation.z;
             assert!(dz > 0.05, "{dof} should move {child} forward, dz = {dz}");
         }
-        for (dof, child, sign) in [("l_hip.abduction", "l_knee", 1.0), ("r_shoulder.abduction", "r_elbow", -1.0)] {
+        for (dof, child, sign) in [
+            ("l_hip.abduction", "l_knee", 1.0),
+            ("r_shoulder.abduction", "r_elbow", -1.0),
+        ] {
             let mut theta = s.rest_pose();
             theta[s.dof_index(dof).unwrap()] = 0.5;
             let fk = s.forward_kinematics(&theta).unwrap();
             let c = s.joint_index(child).unwrap();
-            let dx = fk.world_from_joint()[c].translation.x - rest.world_from_joint()[c].translation.x;
-            assert!(dx * sign > 0.05, "{dof} should move {child} outward, dx = {dx}");
+            let dx =
+                fk.world_from_joint()[c].translation.x - rest.world_from_joint()[c].translation.x;
+            assert!(
+                dx * sign > 0.05,
+                "{dof} should move {child} outward, dx = {dx}"
+            );
         }
         // Knee flexion moves the ankle backward.
         let mut theta = s.rest_pose();

@@ -159,7 +159,11 @@ fn check_out(what: &'static str, out: &DMatrix<f64>, rows: usize, cols: usize) -
 
 fn check_len(what: &'static str, expected: usize, got: usize) -> Result<()> {
     if expected != got {
-        return Err(Error::SizeMismatch { what, expected, got });
+        return Err(Error::SizeMismatch {
+            what,
+            expected,
+            got,
+        });
     }
     Ok(())
 }
@@ -178,7 +182,12 @@ impl Skeleton {
     ///
     /// # Errors
     /// As [`Skeleton::rates_into`].
-    pub fn rates(&self, theta: &[f64], theta_dot: &[f64], fk: &ForwardKinematics) -> Result<JointRates> {
+    pub fn rates(
+        &self,
+        theta: &[f64],
+        theta_dot: &[f64],
+        fk: &ForwardKinematics,
+    ) -> Result<JointRates> {
         let mut r = JointRates::new(self);
         self.rates_into(theta, theta_dot, fk, &mut r)?;
         Ok(r)
@@ -211,12 +220,18 @@ impl Skeleton {
                     rates.joint_origin_bias[p],
                     fk.world_from_joint[p].translation,
                 ),
-                None => (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO),
+                None => (
+                    DVec3::ZERO,
+                    DVec3::ZERO,
+                    DVec3::ZERO,
+                    DVec3::ZERO,
+                    DVec3::ZERO,
+                ),
             };
             // Rest-offset lever from the parent origin to this joint's origin.
-            let o_first = joint
-                .parent
-                .map_or(joint.offset, |p| fk.world_from_joint[p].transform_point3(joint.offset));
+            let o_first = joint.parent.map_or(joint.offset, |p| {
+                fk.world_from_joint[p].transform_point3(joint.offset)
+            });
             let r = o_first - o_parent;
             if joint.parent.is_some() {
                 v += w.cross(r);
@@ -262,7 +277,12 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         fk.check_size(self)?;
-        check_out("point Jacobian rows x columns", out, 3 * points.len(), self.dof_count())?;
+        check_out(
+            "point Jacobian rows x columns",
+            out,
+            3 * points.len(),
+            self.dof_count(),
+        )?;
         let nrows = out.nrows();
         let data = out.as_mut_slice();
         data.fill(0.0);
@@ -285,7 +305,11 @@ impl Skeleton {
     ///
     /// # Errors
     /// As [`Skeleton::point_jacobians_into`].
-    pub fn point_jacobians(&self, fk: &ForwardKinematics, points: &[AttachedPoint]) -> Result<DMatrix<f64>> {
+    pub fn point_jacobians(
+        &self,
+        fk: &ForwardKinematics,
+        points: &[AttachedPoint],
+    ) -> Result<DMatrix<f64>> {
         let mut out = DMatrix::zeros(3 * points.len(), self.dof_count());
         self.point_jacobians_into(fk, points, &mut out)?;
         Ok(out)
@@ -305,7 +329,12 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         fk.check_size(self)?;
-        check_out("frame Jacobian rows x columns", out, 3 * frames.len(), self.dof_count())?;
+        check_out(
+            "frame Jacobian rows x columns",
+            out,
+            3 * frames.len(),
+            self.dof_count(),
+        )?;
         let nrows = out.nrows();
         let data = out.as_mut_slice();
         data.fill(0.0);
@@ -350,7 +379,12 @@ impl Skeleton {
     ) -> Result<()> {
         fk.check_size(self)?;
         rates.check_size(self)?;
-        check_out("point Jacobian derivative rows x columns", out, 3 * points.len(), self.dof_count())?;
+        check_out(
+            "point Jacobian derivative rows x columns",
+            out,
+            3 * points.len(),
+            self.dof_count(),
+        )?;
         let nrows = out.nrows();
         let data = out.as_mut_slice();
         data.fill(0.0);
@@ -361,7 +395,8 @@ impl Skeleton {
                 let u = fk.dof_axis_world[k];
                 let u_dot = rates.dof_angular_velocity[k].cross(u);
                 let col = if self.is_rotation(k) {
-                    u_dot.cross(p - fk.dof_origin_world[k]) + u.cross(p_dot - rates.dof_origin_velocity[k])
+                    u_dot.cross(p - fk.dof_origin_world[k])
+                        + u.cross(p_dot - rates.dof_origin_velocity[k])
                 } else {
                     u_dot
                 };
@@ -387,7 +422,12 @@ impl Skeleton {
     ) -> Result<()> {
         fk.check_size(self)?;
         rates.check_size(self)?;
-        check_out("frame Jacobian derivative rows x columns", out, 3 * frames.len(), self.dof_count())?;
+        check_out(
+            "frame Jacobian derivative rows x columns",
+            out,
+            3 * frames.len(),
+            self.dof_count(),
+        )?;
         let nrows = out.nrows();
         let data = out.as_mut_slice();
         data.fill(0.0);
@@ -429,7 +469,9 @@ impl Skeleton {
             let r = t.transform_point3(pt.offset) - t.translation;
             let j = pt.joint;
             let w = rates.joint_angular_velocity[j];
-            *o = rates.joint_origin_bias[j] + rates.joint_angular_bias[j].cross(r) + w.cross(w.cross(r));
+            *o = rates.joint_origin_bias[j]
+                + rates.joint_angular_bias[j].cross(r)
+                + w.cross(w.cross(r));
         }
         Ok(())
     }

@@ -44,6 +44,8 @@ mod model;
 mod motion;
 
 #[cfg(test)]
+mod bvh_tests;
+#[cfg(test)]
 mod fd_tests;
 
 pub use bvh::{parse_bvh, read_bvh, Bvh, BvhParams, CMU_METRES_PER_UNIT};

@@ -28,7 +28,12 @@ pub struct Joint {
 
 impl Joint {
     /// A joint without end site.
-    pub fn new(name: impl Into<String>, parent: Option<usize>, offset: DVec3, dofs: Vec<Dof>) -> Self {
+    pub fn new(
+        name: impl Into<String>,
+        parent: Option<usize>,
+        offset: DVec3,
+        dofs: Vec<Dof>,
+    ) -> Self {
         Joint {
             name: name.into(),
             parent,
@@ -71,6 +76,8 @@ pub struct Skeleton {
     dof_joint: Vec<usize>,
     /// For each joint, all DOF indices on the path root → joint (ascending).
     chain_dofs: Vec<Vec<usize>>,
+    /// For each DOF, `Some((i, ±1))` if its axis is exactly `±eᵢ` (fast FK path).
+    dof_fast_axis: Vec<Option<(usize, f64)>>,
 }
 
 impl TryFrom<SkeletonDef> for Skeleton {
@@ -109,12 +116,18 @@ impl Skeleton {
                 if p >= j {
                     return Err(invalid(
                         "joint.parent",
-                        format!("joint {j} '{}' has parent {p}; parents must precede children", joint.name),
+                        format!(
+                            "joint {j} '{}' has parent {p}; parents must precede children",
+                            joint.name
+                        ),
                     ));
                 }
             }
             if !names.insert(joint.name.clone()) {
-                return Err(invalid("joint.name", format!("duplicate joint name '{}'", joint.name)));
+                return Err(invalid(
+                    "joint.name",
+                    format!("duplicate joint name '{}'", joint.name),
+                ));
             }
             if !joint.offset.is_finite() || !joint.end_site.is_none_or(|e| e.is_finite()) {
                 return Err(invalid(
@@ -127,7 +140,10 @@ impl Skeleton {
                 if !len.is_finite() || len < 1e-12 {
                     return Err(invalid(
                         "dof.axis",
-                        format!("DOF '{}' of joint '{}' has a zero or non-finite axis", dof.name, joint.name),
+                        format!(
+                            "DOF '{}' of joint '{}' has a zero or non-finite axis",
+                            dof.name, joint.name
+                        ),
                     ));
                 }
                 dof.axis /= len;
@@ -150,7 +166,9 @@ impl Skeleton {
         let mut next = 0;
         for (j, joint) in joints.iter().enumerate() {
             dof_start.push(next);
-            let mut chain = joint.parent.map_or_else(Vec::new, |p| chain_dofs[p].clone());
+            let mut chain = joint
+                .parent
+                .map_or_else(Vec::new, |p| chain_dofs[p].clone());
             for _ in &joint.dofs {
                 dof_joint.push(j);
                 chain.push(next);
@@ -159,11 +177,29 @@ impl Skeleton {
             chain_dofs.push(chain);
         }
         dof_start.push(next);
+        let dof_fast_axis = joints
+            .iter()
+            .flat_map(|j| j.dofs.iter())
+            .map(|d| {
+                (0..3).find_map(|i| {
+                    let mut e = DVec3::ZERO;
+                    e[i] = 1.0;
+                    if d.axis == e {
+                        Some((i, 1.0))
+                    } else if d.axis == -e {
+                        Some((i, -1.0))
+                    } else {
+                        None
+                    }
+                })
+            })
+            .collect();
         Ok(Skeleton {
             joints,
             dof_start,
             dof_joint,
             chain_dofs,
+            dof_fast_axis,
         })
     }
 
@@ -249,9 +285,9 @@ impl Skeleton {
         if let Some(e) = self.joints[j].end_site {
             return e.length();
         }
-        let (sum, n) = self
-            .children(j)
-            .fold((0.0, 0usize), |(s, n), c| (s + self.joints[c].offset.length(), n + 1));
+        let (sum, n) = self.children(j).fold((0.0, 0usize), |(s, n), c| {
+            (s + self.joints[c].offset.length(), n + 1)
+        });
         if n == 0 {
             0.0
         } else {
@@ -321,6 +357,11 @@ impl Skeleton {
         Ok(())
     }
 
+    /// `Some((i, ±1))` when DOF `d`'s axis is exactly `±eᵢ`.
+    pub(super) fn fast_axis(&self, d: usize) -> Option<(usize, f64)> {
+        self.dof_fast_axis[d]
+    }
+
     /// Whether DOF `d` is a rotation.
     ///
     /// # Panics
@@ -337,12 +378,21 @@ mod tests {
 
     fn two_joints() -> Vec<Joint> {
         vec![
-            Joint::new("a", None, DVec3::ZERO, vec![Dof::rotation("a.x", DVec3::X * 2.0, None)]),
+            Joint::new(
+                "a",
+                None,
+                DVec3::ZERO,
+                vec![Dof::rotation("a.x", DVec3::X * 2.0, None)],
+            ),
             Joint::new(
                 "b",
                 Some(0),
                 DVec3::Y,
-                vec![Dof::rotation("b.z", DVec3::Z, Some(DofLimits::degrees(-10.0, 10.0)))],
+                vec![Dof::rotation(
+                    "b.z",
+                    DVec3::Z,
+                    Some(DofLimits::degrees(-10.0, 10.0)),
+                )],
             )
             .with_end_site(DVec3::Y * 0.5),
         ]
@@ -366,19 +416,49 @@ mod tests {
         assert!(matches!(Skeleton::new(vec![]), Err(Error::Empty { .. })));
         let mut j = two_joints();
         j[1].parent = Some(1);
-        assert!(matches!(Skeleton::new(j), Err(Error::InvalidParam { name: "joint.parent", .. })));
+        assert!(matches!(
+            Skeleton::new(j),
+            Err(Error::InvalidParam {
+                name: "joint.parent",
+                ..
+            })
+        ));
         let mut j = two_joints();
         j[1].name = "a".into();
-        assert!(matches!(Skeleton::new(j), Err(Error::InvalidParam { name: "joint.name", .. })));
+        assert!(matches!(
+            Skeleton::new(j),
+            Err(Error::InvalidParam {
+                name: "joint.name",
+                ..
+            })
+        ));
         let mut j = two_joints();
         j[0].dofs[0].axis = DVec3::ZERO;
-        assert!(matches!(Skeleton::new(j), Err(Error::InvalidParam { name: "dof.axis", .. })));
+        assert!(matches!(
+            Skeleton::new(j),
+            Err(Error::InvalidParam {
+                name: "dof.axis",
+                ..
+            })
+        ));
         let mut j = two_joints();
         j[1].offset.x = f64::NAN;
-        assert!(matches!(Skeleton::new(j), Err(Error::InvalidParam { name: "joint.offset", .. })));
+        assert!(matches!(
+            Skeleton::new(j),
+            Err(Error::InvalidParam {
+                name: "joint.offset",
+                ..
+            })
+        ));
         let mut j = two_joints();
         j[1].dofs[0].limits = Some(DofLimits { min: 1.0, max: 0.0 });
-        assert!(matches!(Skeleton::new(j), Err(Error::InvalidParam { name: "dof.limits", .. })));
+        assert!(matches!(
+            Skeleton::new(j),
+            Err(Error::InvalidParam {
+                name: "dof.limits",
+                ..
+            })
+        ));
     }
 
     #[test]
@@ -386,9 +466,16 @@ mod tests {
         let s = Skeleton::new(two_joints()).unwrap();
         assert!(matches!(
             s.check_pose("theta", &[0.0]),
-            Err(Error::SizeMismatch { expected: 2, got: 1, .. })
+            Err(Error::SizeMismatch {
+                expected: 2,
+                got: 1,
+                ..
+            })
         ));
-        let err = s.check_pose("theta", &[0.0, f64::NAN]).unwrap_err().to_string();
+        let err = s
+            .check_pose("theta", &[0.0, f64::NAN])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("'b'") && err.contains("b.z"), "{err}");
         let mut theta = [0.3, 1.0];
         assert_eq!(s.limit_violations(&theta).unwrap(), vec![1]);

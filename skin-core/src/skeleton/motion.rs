@@ -40,7 +40,10 @@ impl Motion {
             });
         }
         crate::error::ensure_finite("motion frames", frames.iter())?;
-        Ok(Motion { frame_time_s, frames })
+        Ok(Motion {
+            frame_time_s,
+            frames,
+        })
     }
 
     /// Number of frames.
@@ -123,7 +126,11 @@ impl Motion {
             let f = (s - i as f64).clamp(0.0, 1.0);
             let (a, b) = (self.frame(i), self.frame(i + 1));
             for d in 0..n_dof {
-                let delta = if rotation[d] { wrap_angle(b[d] - a[d]) } else { b[d] - a[d] };
+                let delta = if rotation[d] {
+                    wrap_angle(b[d] - a[d])
+                } else {
+                    b[d] - a[d]
+                };
                 out[(d, k)] = a[d] + f * delta;
             }
         }
@@ -142,7 +149,10 @@ mod tests {
             "root",
             None,
             DVec3::ZERO,
-            vec![Dof::translation("tx", DVec3::X, None), Dof::rotation("ry", DVec3::Y, None)],
+            vec![
+                Dof::translation("tx", DVec3::X, None),
+                Dof::rotation("ry", DVec3::Y, None),
+            ],
         )])
         .unwrap()
     }
@@ -160,17 +170,30 @@ mod tests {
     fn resample_linear_and_shortest_arc() {
         let s = skel();
         // Translation 0 → 1; rotation 170° → -170° (a 20° step through 180°).
-        let frames = DMatrix::from_column_slice(2, 2, &[0.0, 170f64.to_radians(), 1.0, (-170f64).to_radians()]);
+        let frames = DMatrix::from_column_slice(
+            2,
+            2,
+            &[0.0, 170f64.to_radians(), 1.0, (-170f64).to_radians()],
+        );
         let m = Motion::new(0.1, frames).unwrap();
         let r = m.resample(&s, 0.025).unwrap();
         assert_eq!(r.frame_count(), 5);
         assert!((r.frame(2)[0] - 0.5).abs() < 1e-12);
-        assert!((r.frame(2)[1] - PI).abs() < 1e-12, "halfway through the short arc is 180°");
+        assert!(
+            (r.frame(2)[1] - PI).abs() < 1e-12,
+            "halfway through the short arc is 180°"
+        );
         assert!((r.frame(4)[0] - 1.0).abs() < 1e-12);
         assert!((wrap_angle(r.frame(4)[1] - (-170f64).to_radians())).abs() < 1e-12);
         // Downsampling of a smooth motion reproduces the samples.
         let n = 121;
-        let frames = DMatrix::from_fn(2, n, |d, k| if d == 0 { k as f64 * 0.01 } else { (k as f64 * 0.05).sin() });
+        let frames = DMatrix::from_fn(2, n, |d, k| {
+            if d == 0 {
+                k as f64 * 0.01
+            } else {
+                (k as f64 * 0.05).sin()
+            }
+        });
         let m = Motion::new(1.0 / 120.0, frames).unwrap();
         let r = m.resample(&s, 1.0 / 30.0).unwrap();
         assert_eq!(r.frame_count(), 31);
@@ -180,7 +203,7 @@ mod tests {
         // Upsampling error of a smooth curve is small (linear interpolation, O(h²)).
         let up = m.resample(&s, 1.0 / 240.0).unwrap();
         assert_eq!(up.frame_count(), 241);
-        let t = 11.0 / 240.0;
+        let t: f64 = 11.0 / 240.0;
         // Bound h²/8·max|f″| with h = 0.05 rad per old frame.
         assert!((up.frame(11)[1] - (t * 120.0 * 0.05).sin()).abs() < 0.05f64.powi(2) / 8.0);
     }
@@ -193,13 +216,23 @@ mod tests {
         assert!(m.resample(&s, f64::NAN).is_err());
         assert!(m.resample(&s, 1e-12).is_err());
         let wrong = Motion::new(0.1, DMatrix::zeros(3, 3)).unwrap();
-        assert!(matches!(wrong.resample(&s, 0.05), Err(Error::SizeMismatch { .. })));
+        assert!(matches!(
+            wrong.resample(&s, 0.05),
+            Err(Error::SizeMismatch { .. })
+        ));
         assert!(Motion::new(0.0, DMatrix::zeros(2, 1)).is_err());
         assert!(Motion::new(0.1, DMatrix::from_element(2, 1, f64::NAN)).is_err());
         let mut nan = m.clone();
         nan.frames[(1, 2)] = f64::NAN;
         let err = nan.check_for(&s).unwrap_err().to_string();
         assert!(err.contains("root") && err.contains("ry"), "{err}");
-        assert_eq!(Motion::new(0.1, DMatrix::zeros(2, 1)).unwrap().resample(&s, 0.05).unwrap().frame_count(), 1);
+        assert_eq!(
+            Motion::new(0.1, DMatrix::zeros(2, 1))
+                .unwrap()
+                .resample(&s, 0.05)
+                .unwrap()
+                .frame_count(),
+            1
+        );
     }
 }
