@@ -1,1 +1,114 @@
-//! Private bridge between nalgebra/nalgebra-sparse and faer (zero-copy views).
+//! Private bridge between the public linear-algebra vocabulary (`nalgebra` dense matrices,
+//! `nalgebra_sparse::CscMatrix`) and `faer` 0.24, which the crate uses internally for sparse
+//! Cholesky and large dense decompositions (DESIGN.md "Two vocabularies").
+//!
+//! Both libraries store column-major data with `usize` indices, so the views below are
+//! zero-copy: no value or index is moved. Only the conversion *back* to a `CscMatrix`
+//! ([`faer_to_csc`]) copies, because a `CscMatrix` owns its buffers.
+
+// Some conversions are only used by tests or by later modules.
+#![allow(dead_code)]
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{MatMut, MatRef};
+use nalgebra::DMatrix;
+use nalgebra_sparse::CscMatrix;
+
+/// Zero-copy faer view of a `CscMatrix`.
+///
+/// nalgebra-sparse guarantees what faer requires of a sorted CSC matrix: `col_offsets` has
+/// `ncols + 1` non-decreasing entries ending at `nnz`, and the row indices of each column
+/// are strictly increasing and `< nrows`. The view is therefore built with faer's unchecked
+/// constructor (the check would cost one pass over the indices per call).
+pub(crate) fn csc_as_faer(m: &CscMatrix<f64>) -> SparseColMatRef<'_, usize, f64> {
+    let (col_ptr, row_idx, values) = (m.col_offsets(), m.row_indices(), m.values());
+    // SAFETY: the CscMatrix invariants listed above are exactly faer's invariants for a
+    // `SymbolicSparseColMatRef` with sorted rows and no explicit column lengths.
+    let symbolic = unsafe {
+        SymbolicSparseColMatRef::new_unchecked(m.nrows(), m.ncols(), col_ptr, None, row_idx)
+    };
+    SparseColMatRef::new(symbolic, values)
+}
+
+/// Zero-copy faer view of a dense nalgebra matrix (both are column-major, contiguous).
+pub(crate) fn dmatrix_as_faer(m: &DMatrix<f64>) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(m.as_slice(), m.nrows(), m.ncols())
+}
+
+/// Zero-copy mutable faer view of a dense nalgebra matrix.
+pub(crate) fn dmatrix_as_faer_mut(m: &mut DMatrix<f64>) -> MatMut<'_, f64> {
+    let (nrows, ncols) = (m.nrows(), m.ncols());
+    MatMut::from_column_major_slice_mut(m.as_mut_slice(), nrows, ncols)
+}
+
+/// Copies a faer dense matrix (any strides) into a nalgebra `DMatrix`.
+pub(crate) fn faer_to_dmatrix(m: MatRef<'_, f64>) -> DMatrix<f64> {
+    DMatrix::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)])
+}
+
+/// Copies a faer sparse column matrix into a `CscMatrix`, sorting the rows of each column
+/// (faer allows unsorted columns and explicit column lengths; nalgebra-sparse does not).
+///
+/// # Panics
+/// Never for matrices produced by faer: the only failure of `try_from_csc_data` is an
+/// invariant violation (duplicate row in a column), which faer's own invariants exclude.
+pub(crate) fn faer_to_csc(m: SparseColMatRef<'_, usize, f64>) -> CscMatrix<f64> {
+    let ncols = m.ncols();
+    let mut col_offsets = Vec::with_capacity(ncols + 1);
+    let mut row_indices = Vec::new();
+    let mut values = Vec::new();
+    col_offsets.push(0);
+    let mut column: Vec<(usize, f64)> = Vec::new();
+    for j in 0..ncols {
+        column.clear();
+        column.extend(m.row_idx_of_col(j).zip(m.val_of_col(j).iter().copied()));
+        column.sort_unstable_by_key(|&(i, _)| i);
+        for &(i, v) in &column {
+            row_indices.push(i);
+            values.push(v);
+        }
+        col_offsets.push(row_indices.len());
+    }
+    CscMatrix::try_from_csc_data(m.nrows(), ncols, col_offsets, row_indices, values)
+        .expect("faer sparse matrices have no duplicate entries in a column")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra_sparse::CooMatrix;
+
+    fn sample() -> CscMatrix<f64> {
+        let mut coo = CooMatrix::new(4, 3);
+        coo.push(0, 0, 1.0);
+        coo.push(3, 0, -2.0);
+        coo.push(1, 1, 3.5);
+        coo.push(2, 2, 4.0);
+        coo.push(0, 2, 0.5);
+        CscMatrix::from(&coo)
+    }
+
+    #[test]
+    fn sparse_view_is_zero_copy_and_round_trips() {
+        let a = sample();
+        let v = csc_as_faer(&a);
+        assert_eq!(v.nrows(), 4);
+        assert_eq!(v.ncols(), 3);
+        assert!(std::ptr::eq(v.val().as_ptr(), a.values().as_ptr()));
+        let back = faer_to_csc(v);
+        assert_eq!(back, a);
+        let dense_a: DMatrix<f64> = DMatrix::from(&a);
+        let dense_v = v.to_dense();
+        assert_eq!(faer_to_dmatrix(dense_v.as_ref()), dense_a);
+    }
+
+    #[test]
+    fn dense_views_share_memory() {
+        let mut m = DMatrix::from_fn(3, 2, |i, j| (i * 10 + j) as f64);
+        let v = dmatrix_as_faer(&m);
+        assert_eq!(v[(2, 1)], 21.0);
+        assert_eq!(faer_to_dmatrix(v), m);
+        dmatrix_as_faer_mut(&mut m)[(1, 0)] = -7.0;
+        assert_eq!(m[(1, 0)], -7.0);
+    }
+}

@@ -17,10 +17,12 @@
 //!   vertex of the band through a damped spring, `m ẍ = −k (x − T) − c (ẋ − Ṫ)` (second-order
 //!   dynamics, integrated with backward Euler substeps, unconditionally stable and
 //!   deterministic). A band vertex moves by the lag `x − T` of the two masses nearest in
-//!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem.
+//!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem, and saturated smoothly at
+//!   [`FlapParams::max_lag_m`].
 //!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
 
 use crate::math::{DAffine3, DVec3};
+use crate::mesh::SkinWeights;
 use crate::skeleton::Skeleton;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -95,6 +97,10 @@ pub struct FlapParams {
     /// weight on them, so hands and arms resting near the hips stay out). Default: pelvis,
     /// spine, both hips.
     pub joints: Vec<String>,
+    /// Largest displacement of the hem, metres: the lag `e` of a mass is shown as
+    /// `e · L tanh(|e|/L) / |e|` (linear for small lags, saturating at `L`), as real fabric
+    /// tethered to the hips cannot swing arbitrarily far. Default: 0.06.
+    pub max_lag_m: f64,
     /// Longest integration substep, seconds. Default: 0.002.
     pub max_substep_s: f64,
 }
@@ -110,18 +116,28 @@ impl Default for FlapParams {
             hem_below_pelvis_m: 0.20,
             fade_m: 0.06,
             joints: ["pelvis", "spine", "l_hip", "r_hip"].map(String::from).to_vec(),
+            max_lag_m: 0.06,
             max_substep_s: 0.002,
         }
     }
 }
 
 /// Parameters of the whole non-skinning deformation.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeformationParams {
     /// Muscle bulge. Default: [`BulgeParams::default`].
     pub bulge: BulgeParams,
     /// Hip flap; `None` disables it. Default: `Some(FlapParams::default())`.
     pub flap: Option<FlapParams>,
+}
+
+impl Default for DeformationParams {
+    fn default() -> Self {
+        DeformationParams {
+            bulge: BulgeParams::default(),
+            flap: Some(FlapParams::default()),
+        }
+    }
 }
 
 impl DeformationParams {
@@ -211,7 +227,7 @@ fn smoothstep(x: f64) -> f64 {
 
 impl DeformationModel {
     /// Precomputes the deformation for a rest template (`rest_vertices`, metres, at θ = 0),
-    /// its skeleton and per-vertex skin weights `(joint, weight)`.
+    /// its skeleton and skin weights (bones = joints).
     ///
     /// # Errors
     /// [`Error::InvalidParam`] for a hinge or flap joint name the skeleton lacks, a flexion
@@ -221,19 +237,19 @@ impl DeformationModel {
         params: &DeformationParams,
         skeleton: &Skeleton,
         rest_vertices: &[DVec3],
-        weights: &[Vec<(usize, f64)>],
+        weights: &SkinWeights,
     ) -> Result<Self> {
-        if weights.len() != rest_vertices.len() {
+        if weights.vertex_count() != rest_vertices.len() {
             return Err(Error::SizeMismatch {
                 what: "skin weights per vertex",
                 expected: rest_vertices.len(),
-                got: weights.len(),
+                got: weights.vertex_count(),
             });
         }
         non_negative("bulge.amplitude_m_per_rad", params.bulge.amplitude_m_per_rad)?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         let frames = rest.world_from_joint();
-        let weight_on = |v: usize, j: usize| weights[v].iter().filter(|p| p.0 == j).map(|p| p.1).sum::<f64>();
+        let weight_on = |v: usize, j: usize| weights.influences(v).filter(|p| p.0 as usize == j).map(|p| p.1).sum::<f64>();
         let mut bulges = Vec::new();
         for h in &params.bulge.hinges {
             let dof = skeleton.dof_index(&h.flexion_dof).ok_or_else(|| Error::InvalidParam {
@@ -355,10 +371,23 @@ impl DeformationModel {
             state.velocities[i] = v;
             state.anchors[i] = t1;
         }
+        let limit = p.max_lag_m;
+        let lags: Vec<DVec3> = state
+            .positions
+            .iter()
+            .zip(&targets)
+            .map(|(x, t)| {
+                let e = *x - *t;
+                let n = e.length();
+                if n > 1e-15 {
+                    e * (limit * (n / limit).tanh() / n)
+                } else {
+                    e
+                }
+            })
+            .collect();
         for &(v, a, b, s, wgt) in &f.vertices {
-            let lag_a = state.positions[a as usize] - targets[a as usize];
-            let lag_b = state.positions[b as usize] - targets[b as usize];
-            out[v as usize] += (lag_a * (1.0 - s) + lag_b * s) * wgt;
+            out[v as usize] += (lags[a as usize] * (1.0 - s) + lags[b as usize] * s) * wgt;
         }
         Ok(())
     }
@@ -382,12 +411,13 @@ fn flap_model(
     skeleton: &Skeleton,
     frames: &[DAffine3],
     rest: &[DVec3],
-    weights: &[Vec<(usize, f64)>],
+    weights: &SkinWeights,
 ) -> Result<Option<FlapModel>> {
     positive("flap.mass_kg", p.mass_kg)?;
     positive("flap.stiffness_n_per_m", p.stiffness_n_per_m)?;
     non_negative("flap.damping_n_s_per_m", p.damping_n_s_per_m)?;
     positive("flap.max_substep_s", p.max_substep_s)?;
+    positive("flap.max_lag_m", p.max_lag_m)?;
     positive("flap.hem_below_pelvis_m + waist_above_pelvis_m", p.hem_below_pelvis_m + p.waist_above_pelvis_m)?;
     non_negative("flap.fade_m", p.fade_m)?;
     if p.masses < 2 {
@@ -409,7 +439,7 @@ fn flap_model(
     let mut vertices = Vec::new();
     let mut best: Vec<Option<(f64, u32)>> = vec![None; p.masses];
     for (v, x) in rest.iter().enumerate() {
-        let share: f64 = weights[v].iter().filter(|q| band_joints.contains(&q.0)).map(|q| q.1).sum();
+        let share: f64 = weights.influences(v).filter(|q| band_joints.contains(&(q.0 as usize))).map(|q| q.1).sum();
         let profile = if x.y >= hem {
             smoothstep((top - x.y) / (top - hem))
         } else if p.fade_m > 0.0 {

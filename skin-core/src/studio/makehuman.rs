@@ -10,7 +10,11 @@
 //! ([`MAKEHUMAN_METRES_PER_UNIT`]); everything this module returns is in metres except the raw
 //! vertex lists.
 
+use super::deformation::DeformationParams;
+use super::performer::Performer;
 use crate::math::DVec3;
+use crate::mesh::{ObjFile, SkinWeights, TriMesh};
+use crate::skeleton::{human_skeleton, HumanParams, Skeleton};
 use crate::{Error, Result};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
@@ -288,7 +292,8 @@ impl MhSkeleton {
     /// `original_to_local` maps an original `base.obj` vertex index to the performer's vertex
     /// index (`None` for vertices not in the performer mesh, whose weights are ignored);
     /// `vertex_count` is the performer's vertex count. Returns, per performer vertex, the
-    /// `(kept index, weight)` pairs sorted by kept index.
+    /// `(kept index, weight)` pairs sorted by kept index (ready for
+    /// [`SkinWeights::from_lists`](crate::mesh::SkinWeights::from_lists)).
     ///
     /// # Errors
     /// [`Error::InvalidParam`] naming a weighted bone missing from the skeleton or without kept
@@ -300,7 +305,7 @@ impl MhSkeleton {
         kept: &[&str],
         original_to_local: &dyn Fn(u32) -> Option<usize>,
         vertex_count: usize,
-    ) -> Result<Vec<Vec<(usize, f64)>>> {
+    ) -> Result<Vec<Vec<(u32, f64)>>> {
         let nearest = self.nearest_kept(kept)?;
         let mut acc: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); vertex_count];
         for (bone, list) in &weights.bones {
@@ -323,7 +328,7 @@ impl MhSkeleton {
             .map(|(v, m)| {
                 let total: f64 = m.values().sum();
                 if total.is_finite() && total > 0.0 {
-                    Ok(m.into_iter().filter(|&(_, w)| w > 0.0).map(|(k, w)| (k, w / total)).collect())
+                    Ok(m.into_iter().filter(|&(_, w)| w > 0.0).map(|(k, w)| (k as u32, w / total)).collect())
                 } else {
                     Err(Error::Degenerate {
                         what: format!("performer vertex {v} has no skin weight"),
@@ -332,6 +337,76 @@ impl MhSkeleton {
             })
             .collect()
     }
+}
+
+/// Loads the MakeHuman performer from a folder holding `base.obj`, `default.mhskel` and
+/// `default_weights.mhw` (e.g. `data/makehuman`); see [`makehuman_performer_from_parts`].
+///
+/// # Errors
+/// [`Error::Io`] for a missing file; as the parsers and [`makehuman_performer_from_parts`].
+pub fn makehuman_performer(dir: impl AsRef<Path>, params: &DeformationParams) -> Result<Performer> {
+    let dir = dir.as_ref();
+    let obj = ObjFile::read(dir.join("base.obj"))?;
+    let skel = read_mhskel(dir.join("default.mhskel"))?;
+    let weights = read_mhw(dir.join("default_weights.mhw"))?;
+    makehuman_performer_from_parts(&obj, &skel, &weights, params)
+}
+
+/// Builds the MakeHuman performer: the `body` group of the base mesh converted to metres
+/// (13,380 vertices for hm08), the skeleton of
+/// [`human_skeleton`](crate::skeleton::human_skeleton) (same joint names, DOFs, axes and
+/// limits) with its joints moved to the MakeHuman joint positions of [`MAKEHUMAN_SUBSET`] and
+/// end sites at [`MAKEHUMAN_END_SITES`], and the `.mhw` weights merged onto the subset.
+///
+/// **Rest pose.** θ = 0 is the base mesh's own pose: the MakeHuman "A-pose" (arms about 45°
+/// from the body, elbows slightly bent). Joint frames stay world-aligned at rest as in
+/// `human_skeleton`, so DOF limits are measured from that pose.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if the OBJ has no `body` group or the rig lacks a subset bone or
+/// joint; [`Error::Degenerate`] for a body vertex without weight; as [`Performer::new`].
+pub fn makehuman_performer_from_parts(
+    obj: &ObjFile,
+    rig: &MhSkeleton,
+    weights: &MhWeights,
+    params: &DeformationParams,
+) -> Result<Performer> {
+    let body = obj.group_mesh("body")?;
+    let s = MAKEHUMAN_METRES_PER_UNIT;
+    let template = TriMesh::new(body.mesh.vertices.iter().map(|v| *v * s).collect(), body.mesh.faces.clone())?;
+    let base = human_skeleton(&HumanParams::default())?;
+    let joint_of = |name: &str| {
+        base.joint_index(name).ok_or_else(|| Error::InvalidParam {
+            name: "MAKEHUMAN_SUBSET",
+            reason: format!("human skeleton has no joint '{name}'"),
+        })
+    };
+    let mut world = vec![DVec3::ZERO; base.joint_count()];
+    let mut joint_of_kept = Vec::with_capacity(MAKEHUMAN_SUBSET.len());
+    for (pj, _, mj) in MAKEHUMAN_SUBSET {
+        let j = joint_of(pj)?;
+        world[j] = rig.joint_position(mj, &obj.vertices, s)?;
+        joint_of_kept.push(j as u32);
+    }
+    let mut joints = base.joints().to_vec();
+    for (j, joint) in joints.iter_mut().enumerate() {
+        joint.offset = joint.parent.map_or(world[j], |p| world[j] - world[p]);
+        joint.end_site = None;
+    }
+    for (pj, mj) in MAKEHUMAN_END_SITES {
+        let j = joint_of(pj)?;
+        joints[j].end_site = Some(rig.joint_position(mj, &obj.vertices, s)? - world[j]);
+    }
+    let skeleton = Skeleton::new(joints)?;
+    let local: HashMap<u32, usize> = body.original_index.iter().enumerate().map(|(i, &o)| (o, i)).collect();
+    let kept: Vec<&str> = MAKEHUMAN_SUBSET.iter().map(|t| t.1).collect();
+    let lists = rig.subset_weights(weights, &kept, &|o| local.get(&o).copied(), template.vertex_count())?;
+    let lists: Vec<Vec<(u32, f64)>> = lists
+        .into_iter()
+        .map(|l| l.into_iter().map(|(k, w)| (joint_of_kept[k as usize], w)).collect())
+        .collect();
+    let weights = SkinWeights::from_lists(&lists, skeleton.joint_count())?;
+    Performer::new("makehuman", template, skeleton, weights, params)
 }
 
 #[cfg(test)]

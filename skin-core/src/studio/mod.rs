@@ -12,16 +12,20 @@
 
 mod deformation;
 mod makehuman;
+mod motion;
 mod performer;
 mod procedural_body;
+#[cfg(test)]
+mod tests;
 
 pub use deformation::{
     BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
     DEFAULT_BULGE_M_PER_RAD,
 };
 pub use makehuman::{
-    parse_mhskel, parse_mhw, read_mhskel, read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights,
+    makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel, read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights,
     MAKEHUMAN_END_SITES, MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
 };
+pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};

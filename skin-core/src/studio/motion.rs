@@ -6,7 +6,7 @@
 use crate::skeleton::{Motion, Skeleton};
 use crate::{Error, Result};
 use nalgebra::DMatrix;
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;

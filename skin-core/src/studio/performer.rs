@@ -6,15 +6,15 @@
 
 use super::deformation::{DeformationModel, DeformationParams, DeformationState};
 use crate::math::{DAffine3, DVec3};
-use crate::mesh::TriMesh;
+use crate::mesh::{skin, SkinWeights, TriMesh};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// A rigged performer with known non-skinning deformation.
 ///
-/// Invariants (checked by [`Performer::new`]): one weight list per template vertex, joint
-/// indices valid, weights finite, non-negative and summing to 1 per vertex (±1e-6).
+/// Invariants (checked by [`Performer::new`]): one weight row per template vertex and one
+/// weight column per joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Performer {
     /// Name (e.g. `"makehuman"`, `"procedural"`).
@@ -23,8 +23,8 @@ pub struct Performer {
     pub template: TriMesh,
     /// The skeleton; θ = 0 is the template's pose.
     pub skeleton: Skeleton,
-    /// Skin weights: per template vertex, `(joint index, weight)` pairs summing to 1.
-    pub weights: Vec<Vec<(usize, f64)>>,
+    /// Skin weights (bones = joints of `skeleton`), rows summing to 1.
+    pub weights: SkinWeights,
     /// The non-skinning deformation.
     pub deformation: DeformationModel,
     /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
@@ -60,52 +60,33 @@ impl Performer {
     /// Builds a performer and precomputes its deformation.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] unless there is one weight list per vertex;
-    /// [`Error::IndexOutOfRange`] for a joint index past the skeleton; [`Error::InvalidParam`]
-    /// naming the first vertex whose weights are negative, non-finite or do not sum to 1; the
-    /// template's own validation errors; as [`DeformationModel::new`].
+    /// [`Error::SizeMismatch`] unless `weights` has one row per vertex and one bone per joint;
+    /// [`Error::Empty`] for a template without vertices; the template's own validation errors;
+    /// as [`DeformationModel::new`].
     pub fn new(
         name: impl Into<String>,
         template: TriMesh,
         skeleton: Skeleton,
-        weights: Vec<Vec<(usize, f64)>>,
+        weights: SkinWeights,
         params: &DeformationParams,
     ) -> Result<Self> {
         template.validate()?;
         if template.vertices.is_empty() {
             return Err(Error::Empty { what: "performer template" });
         }
-        if weights.len() != template.vertex_count() {
+        if weights.vertex_count() != template.vertex_count() {
             return Err(Error::SizeMismatch {
-                what: "skin weights per vertex",
+                what: "skin weight rows vs template vertices",
                 expected: template.vertex_count(),
-                got: weights.len(),
+                got: weights.vertex_count(),
             });
         }
-        for (v, list) in weights.iter().enumerate() {
-            let mut sum = 0.0;
-            for &(j, w) in list {
-                if j >= skeleton.joint_count() {
-                    return Err(Error::IndexOutOfRange {
-                        what: "skin weight joint",
-                        index: j,
-                        len: skeleton.joint_count(),
-                    });
-                }
-                if !(w.is_finite() && w >= 0.0) {
-                    return Err(Error::InvalidParam {
-                        name: "weights",
-                        reason: format!("vertex {v} has weight {w} on joint {j}"),
-                    });
-                }
-                sum += w;
-            }
-            if (sum - 1.0).abs() > 1e-6 {
-                return Err(Error::InvalidParam {
-                    name: "weights",
-                    reason: format!("weights of vertex {v} sum to {sum}, not 1"),
-                });
-            }
+        if weights.bone_count() != skeleton.joint_count() {
+            return Err(Error::SizeMismatch {
+                what: "skin weight bones vs skeleton joints",
+                expected: skeleton.joint_count(),
+                got: weights.bone_count(),
+            });
         }
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
@@ -126,19 +107,15 @@ impl Performer {
     }
 
     /// Linear blend skinning of the template for joint frames `world_from_joint`
-    /// (Vlasic §2.5.1): `v' = Σⱼ wⱼ (world_from_jointⱼ · joint_from_world_restⱼ) v`.
-    fn skin(&self, world_from_joint: &[DAffine3]) -> Vec<DVec3> {
+    /// (Vlasic §2.5.1, [`crate::mesh::skin`]) with `world_from_rest = world_from_joint ·
+    /// joint_from_world_rest`.
+    fn skin(&self, world_from_joint: &[DAffine3]) -> Result<Vec<DVec3>> {
         let m: Vec<DAffine3> = world_from_joint
             .iter()
             .zip(&self.joint_from_world_rest)
             .map(|(w, r)| *w * *r)
             .collect();
-        self.template
-            .vertices
-            .iter()
-            .zip(&self.weights)
-            .map(|(v, list)| list.iter().map(|&(j, w)| m[j].transform_point3(*v) * w).sum())
-            .collect()
+        skin(&self.template.vertices, &self.weights, &m)
     }
 
     /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation.
@@ -153,7 +130,7 @@ impl Performer {
         let mut fk = ForwardKinematics::new(&self.skeleton);
         self.skeleton.forward_kinematics_into(theta, &mut fk)?;
         let world_from_joint = fk.world_from_joint().to_vec();
-        let lbs_vertices = self.skin(&world_from_joint);
+        let lbs_vertices = self.skin(&world_from_joint)?;
         let mut true_vertices = lbs_vertices.clone();
         self.deformation.add_bulge(theta, &world_from_joint, &mut true_vertices);
         self.deformation.add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;

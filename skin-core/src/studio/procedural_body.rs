@@ -16,7 +16,7 @@
 use super::deformation::DeformationParams;
 use super::performer::Performer;
 use crate::math::DVec3;
-use crate::mesh::{marching_cubes, ScalarGrid};
+use crate::mesh::{marching_cubes, ScalarGrid, SkinWeights};
 use crate::skeleton::{human_skeleton, HumanParams, Skeleton};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -171,7 +171,7 @@ pub fn procedural_performer(params: &ProceduralBodyParams) -> Result<Performer> 
     let grid = ScalarGrid::sample(lo, h, dims, field)?;
     let mesh = marching_cubes(&grid, 0.0)?;
     let sigma = params.weight_falloff_m;
-    let weights = mesh
+    let lists: Vec<Vec<(u32, f64)>> = mesh
         .vertices
         .iter()
         .map(|&v| {
@@ -180,17 +180,16 @@ pub fn procedural_performer(params: &ProceduralBodyParams) -> Result<Performer> 
                 per_joint[c.joint] = per_joint[c.joint].min(c.distance(v));
             }
             let d_min = per_joint.iter().copied().fold(f64::INFINITY, f64::min);
-            let mut w: Vec<(usize, f64)> = per_joint
+            per_joint
                 .iter()
                 .enumerate()
                 .filter(|(_, &d)| d - d_min < 4.0 * sigma)
-                .map(|(j, &d)| (j, (-(d - d_min) / sigma).exp()))
-                .collect();
-            let total: f64 = w.iter().map(|p| p.1).sum();
-            w.iter_mut().for_each(|p| p.1 /= total);
-            w
+                .map(|(j, &d)| (j as u32, (-(d - d_min) / sigma).exp()))
+                .collect()
         })
         .collect();
+    // `SkinWeights::from_lists` normalises each row.
+    let weights = SkinWeights::from_lists(&lists, skeleton.joint_count())?;
     Performer::new("procedural", mesh, skeleton, weights, &params.deformation)
 }
 

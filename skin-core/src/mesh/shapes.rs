@@ -1,0 +1,297 @@
+//! Procedural meshes and the deterministic random stream of the peer benchmarks, so tests,
+//! benches and examples can regenerate bit-identical inputs to the Python peers in
+//! `bench/peers/` (see its README, "Deterministic inputs", and `laplacian.py`).
+
+use crate::math::DVec3;
+use crate::mesh::TriMesh;
+use crate::{Error, Result};
+use std::collections::HashMap;
+
+/// The golden-ratio increment of SplitMix64.
+const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
+
+/// Counter-based SplitMix64 stream of the peer benchmarks (`peerlib.py`): the `i`-th output
+/// of the classic sequential SplitMix64 generator whose state starts at `seed`.
+///
+/// `u64(seed, i) = mix(seed + (i + 1)·GOLDEN)` with wrapping arithmetic. Uniform and normal
+/// deviates and "choose m of n" follow `peerlib.py` exactly (uniforms bit-exact, normals to
+/// the last ulp of libm).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SplitMix64 {
+    /// Seed of the stream.
+    pub seed: u64,
+}
+
+impl SplitMix64 {
+    /// The stream with this seed.
+    pub fn new(seed: u64) -> Self {
+        Self { seed }
+    }
+
+    /// The `i`-th 64-bit output.
+    pub fn u64_at(&self, i: u64) -> u64 {
+        let mut z = self
+            .seed
+            .wrapping_add(i.wrapping_add(1).wrapping_mul(GOLDEN));
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// `n` uniforms in `[0, 1)`: `(u64(seed, i) >> 11) · 2⁻⁵³`.
+    pub fn uniform(&self, n: usize) -> Vec<f64> {
+        (0..n as u64)
+            .map(|i| (self.u64_at(i) >> 11) as f64 * (-53f64).exp2())
+            .collect()
+    }
+
+    /// `n` standard normals by Box–Muller (cosine branch only) on `uniform(2n)`:
+    /// `sqrt(−2 ln(1 − U[2i])) · cos(2π U[2i+1])`. Multi-dimensional arrays are filled in
+    /// row-major order.
+    pub fn normal(&self, n: usize) -> Vec<f64> {
+        let u = self.uniform(2 * n);
+        u.chunks_exact(2)
+            .map(|p| (-2.0 * (1.0 - p[0]).ln()).sqrt() * (std::f64::consts::TAU * p[1]).cos())
+            .collect()
+    }
+
+    /// `m` distinct indices of `0..n`: those of the `m` smallest keys of `uniform(n)` (stable
+    /// order on ties, as `np.argsort(kind="stable")[:m]`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] if `m > n`.
+    pub fn choose(&self, n: usize, m: usize) -> Result<Vec<usize>> {
+        if m > n {
+            return Err(Error::InvalidParam {
+                name: "m",
+                reason: format!("cannot choose {m} of {n}"),
+            });
+        }
+        let keys = self.uniform(n);
+        let mut idx: Vec<usize> = (0..n).collect();
+        idx.sort_by(|&a, &b| keys[a].total_cmp(&keys[b]));
+        idx.truncate(m);
+        Ok(idx)
+    }
+}
+
+/// Golden ratio φ.
+const PHI: f64 = 1.618_033_988_749_895;
+
+/// Level-0 icosahedron vertices (before normalisation), as `ICO_V` in `laplacian.py`.
+const ICO_V: [[f64; 3]; 12] = [
+    [-1.0, PHI, 0.0],
+    [1.0, PHI, 0.0],
+    [-1.0, -PHI, 0.0],
+    [1.0, -PHI, 0.0],
+    [0.0, -1.0, PHI],
+    [0.0, 1.0, PHI],
+    [0.0, -1.0, -PHI],
+    [0.0, 1.0, -PHI],
+    [PHI, 0.0, -1.0],
+    [PHI, 0.0, 1.0],
+    [-PHI, 0.0, -1.0],
+    [-PHI, 0.0, 1.0],
+];
+
+/// Level-0 icosahedron faces, as `ICO_F` in `laplacian.py`.
+const ICO_F: [[u32; 3]; 20] = [
+    [0, 11, 5],
+    [0, 5, 1],
+    [0, 1, 7],
+    [0, 7, 10],
+    [0, 10, 11],
+    [1, 5, 9],
+    [5, 11, 4],
+    [11, 10, 2],
+    [10, 7, 6],
+    [7, 1, 8],
+    [3, 9, 4],
+    [3, 4, 2],
+    [3, 2, 6],
+    [3, 6, 8],
+    [3, 8, 9],
+    [4, 9, 5],
+    [2, 4, 11],
+    [6, 2, 10],
+    [8, 6, 7],
+    [9, 8, 1],
+];
+
+/// Largest supported subdivision level (level 9 already has 2.6 M vertices).
+pub const MAX_ICOSPHERE_LEVEL: u32 = 9;
+
+/// Unit icosphere with `level` subdivisions, vertex and face order exactly as `icosphere()` of
+/// the peer benchmark `laplacian.py`: per level, faces are visited in order, edges
+/// `(a,b), (b,c), (c,a)`; a midpoint (normalised to unit length) is appended the first time
+/// an undirected edge is met; face `(a,b,c)` becomes `(a,ab,ca), (b,bc,ab), (c,ca,bc),
+/// (ab,bc,ca)`. Level `l` has `10·4ˡ + 2` vertices and `20·4ˡ` faces, counter-clockwise seen
+/// from outside.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if `level > MAX_ICOSPHERE_LEVEL`.
+pub fn icosphere(level: u32) -> Result<TriMesh> {
+    if level > MAX_ICOSPHERE_LEVEL {
+        return Err(Error::InvalidParam {
+            name: "level",
+            reason: format!("must be <= {MAX_ICOSPHERE_LEVEL}, got {level}"),
+        });
+    }
+    let mut vertices: Vec<DVec3> = ICO_V
+        .iter()
+        .map(|v| DVec3::from_array(*v).normalize())
+        .collect();
+    let mut faces: Vec<[u32; 3]> = ICO_F.to_vec();
+    for _ in 0..level {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::with_capacity(faces.len() * 3 / 2);
+        let mut next = Vec::with_capacity(faces.len() * 4);
+        let mut midpoint = |a: u32, b: u32, vertices: &mut Vec<DVec3>| -> u32 {
+            let key = if a < b { (a, b) } else { (b, a) };
+            *mid.entry(key).or_insert_with(|| {
+                let p = vertices[a as usize] + vertices[b as usize];
+                vertices.push(p / p.length());
+                (vertices.len() - 1) as u32
+            })
+        };
+        for &[a, b, c] in &faces {
+            let ab = midpoint(a, b, &mut vertices);
+            let bc = midpoint(b, c, &mut vertices);
+            let ca = midpoint(c, a, &mut vertices);
+            next.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        faces = next;
+    }
+    Ok(TriMesh { vertices, faces })
+}
+
+/// The peers' "blob": the icosphere deformed by `deform()` of `laplacian.py`,
+/// `r = 1 + 0.2 sin(3x) cos(2y) + 0.1 z²` applied radially, then scaled by `(1.0, 0.8, 0.6)`.
+/// A smooth closed surface with non-uniform triangles, used as the Laplacian benchmark mesh.
+///
+/// # Errors
+/// As [`icosphere`].
+pub fn peer_blob(level: u32) -> Result<TriMesh> {
+    let mut mesh = icosphere(level)?;
+    for v in &mut mesh.vertices {
+        let r = 1.0 + 0.2 * (3.0 * v.x).sin() * (2.0 * v.y).cos() + 0.1 * v.z * v.z;
+        *v = *v * r * DVec3::new(1.0, 0.8, 0.6);
+    }
+    Ok(mesh)
+}
+
+/// An open cylinder around the z axis from `z = 0` to `z = length`, `rings + 1` rings of
+/// `segments` vertices (ring-major order), radius `radius`; faces counter-clockwise seen from
+/// outside. A standard test limb for skinning.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if `segments < 3`, `rings < 1`, or `radius`/`length` are not
+/// positive and finite.
+pub fn cylinder(radius: f64, length: f64, segments: u32, rings: u32) -> Result<TriMesh> {
+    if segments < 3 || rings < 1 {
+        return Err(Error::InvalidParam {
+            name: "segments/rings",
+            reason: format!("need segments >= 3 and rings >= 1, got {segments}, {rings}"),
+        });
+    }
+    if !(radius > 0.0 && radius.is_finite() && length > 0.0 && length.is_finite()) {
+        return Err(Error::InvalidParam {
+            name: "radius/length",
+            reason: "must be positive and finite".into(),
+        });
+    }
+    let mut vertices = Vec::with_capacity(((rings + 1) * segments) as usize);
+    for r in 0..=rings {
+        let z = length * r as f64 / rings as f64;
+        for s in 0..segments {
+            let t = std::f64::consts::TAU * s as f64 / segments as f64;
+            vertices.push(DVec3::new(radius * t.cos(), radius * t.sin(), z));
+        }
+    }
+    let mut faces = Vec::with_capacity((2 * rings * segments) as usize);
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = r * segments + s;
+            let b = r * segments + (s + 1) % segments;
+            let c = a + segments;
+            let d = b + segments;
+            faces.push([a, b, d]);
+            faces.push([a, d, c]);
+        }
+    }
+    Ok(TriMesh { vertices, faces })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splitmix_check_values() {
+        let s = SplitMix64::new(1_234_567);
+        assert_eq!(s.u64_at(0), 6_457_827_717_110_365_317);
+        assert_eq!(s.u64_at(1), 3_203_168_211_198_807_973);
+        assert_eq!(s.u64_at(2), 9_817_491_932_198_370_423);
+        let u = s.uniform(1000);
+        assert!(u.iter().all(|&x| (0.0..1.0).contains(&x)));
+        let n = SplitMix64::new(5).normal(20_000);
+        let mean = n.iter().sum::<f64>() / n.len() as f64;
+        let var = n.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n.len() as f64;
+        assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.05);
+        let c = SplitMix64::new(40).choose(100, 10).unwrap();
+        let keys = SplitMix64::new(40).uniform(100);
+        let max_chosen = c.iter().map(|&i| keys[i]).fold(0.0, f64::max);
+        let unchosen_min = (0..100)
+            .filter(|i| !c.contains(i))
+            .map(|i| keys[i])
+            .fold(1.0, f64::min);
+        assert!(max_chosen < unchosen_min);
+        assert!(SplitMix64::new(1).choose(3, 4).is_err());
+    }
+
+    #[test]
+    fn icosphere_sizes_and_geometry() {
+        for level in 0..4 {
+            let m = icosphere(level).unwrap();
+            let n = 10 * 4usize.pow(level) + 2;
+            assert_eq!(m.vertices.len(), n);
+            assert_eq!(m.faces.len(), 20 * 4usize.pow(level));
+            m.validate().unwrap();
+            assert!(m.vertices.iter().all(|v| (v.length() - 1.0).abs() < 1e-12));
+            // Outward orientation: every face normal points away from the origin.
+            for f in 0..m.faces.len() {
+                let [a, b, c] = m.triangle(f);
+                assert!((b - a).cross(c - a).dot(a + b + c) > 0.0);
+            }
+        }
+        // Level-1 order as in laplacian.py: the first face (0, 11, 5) creates vertices
+        // 12 = mid(0, 11), 13 = mid(11, 5), 14 = mid(5, 0).
+        let m = icosphere(1).unwrap();
+        assert_eq!(m.faces[0], [0, 12, 14]);
+        assert_eq!(m.faces[3], [12, 13, 14]);
+        let v0 = DVec3::from_array(ICO_V[0]).normalize();
+        let v11 = DVec3::from_array(ICO_V[11]).normalize();
+        assert!((m.vertices[12] - (v0 + v11).normalize()).length() < 1e-15);
+        assert!(icosphere(MAX_ICOSPHERE_LEVEL + 1).is_err());
+    }
+
+    #[test]
+    fn blob_and_cylinder() {
+        let b = peer_blob(2).unwrap();
+        let s = icosphere(2).unwrap();
+        let v = s.vertices[7];
+        let r = 1.0 + 0.2 * (3.0 * v.x).sin() * (2.0 * v.y).cos() + 0.1 * v.z * v.z;
+        assert!((b.vertices[7] - v * r * DVec3::new(1.0, 0.8, 0.6)).length() < 1e-15);
+        let c = cylinder(0.1, 1.0, 8, 4).unwrap();
+        assert_eq!(c.vertices.len(), 40);
+        assert_eq!(c.faces.len(), 64);
+        c.validate().unwrap();
+        for f in 0..c.faces.len() {
+            let [a, b, cc] = c.triangle(f);
+            let centre = (a + b + cc) / 3.0;
+            let radial = DVec3::new(centre.x, centre.y, 0.0);
+            assert!((b - a).cross(cc - a).dot(radial) > 0.0);
+        }
+        assert!(cylinder(0.1, 1.0, 2, 4).is_err());
+        assert!(cylinder(f64::NAN, 1.0, 8, 4).is_err());
+    }
+}

@@ -1,0 +1,176 @@
+//! Tests of the performers and their non-skinning deformation.
+
+use super::*;
+use crate::mesh::SkinWeights;
+use crate::skeleton::Motion;
+use crate::Error;
+use nalgebra::DMatrix;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// The shared data folder: `$DYNAMIC_SHAPES_DATA`, else the workspace's `data/`, else the
+/// shared copy; `None` when absent (tests needing it are skipped with a note).
+pub(crate) fn data_dir() -> Option<PathBuf> {
+    let candidates = [
+        std::env::var("DYNAMIC_SHAPES_DATA").ok().map(PathBuf::from),
+        Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data")),
+        Some(PathBuf::from("/work/shared/data")),
+    ];
+    candidates.into_iter().flatten().find(|d| d.join("makehuman/base.obj").exists())
+}
+
+fn procedural() -> &'static Performer {
+    static P: OnceLock<Performer> = OnceLock::new();
+    P.get_or_init(|| {
+        procedural_performer(&ProceduralBodyParams {
+            grid_spacing_m: 0.03,
+            ..Default::default()
+        })
+        .unwrap()
+    })
+}
+
+fn makehuman() -> Option<&'static Performer> {
+    static P: OnceLock<Option<Performer>> = OnceLock::new();
+    P.get_or_init(|| data_dir().map(|d| makehuman_performer(d.join("makehuman"), &DeformationParams::default()).unwrap()))
+        .as_ref()
+}
+
+fn with_dof(p: &Performer, dof: &str, v: f64) -> Vec<f64> {
+    let mut t = p.skeleton.rest_pose();
+    t[p.skeleton.dof_index(dof).unwrap()] = v;
+    t
+}
+
+fn nonskinning_at(p: &Performer, dof: &str, v: f64) -> f64 {
+    p.pose(&with_dof(p, dof, v), &mut DeformationState::default(), 0.0)
+        .unwrap()
+        .max_nonskinning_m()
+}
+
+fn check_bulge(p: &Performer) {
+    for dof in ["l_elbow.flexion", "r_knee.flexion"] {
+        assert_eq!(nonskinning_at(p, dof, 0.0), 0.0, "{dof}: zero at rest");
+        let mut last = 0.0;
+        for v in [0.3, 0.8, 1.5, 2.3] {
+            let d = nonskinning_at(p, dof, v);
+            assert!(d > last, "{dof}: bulge grows with flexion ({v} rad: {d} m after {last} m)");
+            last = d;
+        }
+        // Tens of millimetres at (near) full flexion.
+        assert!((0.01..0.08).contains(&last), "{dof}: {last} m at 2.3 rad");
+        // Extension (negative flexion, if allowed) does not bulge.
+        assert_eq!(nonskinning_at(p, dof, -0.2), 0.0);
+    }
+}
+
+#[test]
+fn procedural_bulge_zero_at_rest_and_grows_with_flexion() {
+    check_bulge(procedural());
+}
+
+#[test]
+fn makehuman_performer_matches_template_and_bulges() {
+    let Some(p) = makehuman() else {
+        eprintln!("data/makehuman not found; skipping");
+        return;
+    };
+    assert_eq!(p.vertex_count(), 13380);
+    assert_eq!(p.skeleton.dof_count(), 42);
+    let f = p.pose(&p.skeleton.rest_pose(), &mut DeformationState::default(), 0.0).unwrap();
+    for (a, b) in f.true_vertices.iter().zip(&p.template.vertices) {
+        assert!(a.distance(*b) < 1e-12, "rest pose equals template");
+    }
+    let top = p.template.vertices.iter().map(|v| v.y).fold(f64::MIN, f64::max);
+    let bottom = p.template.vertices.iter().map(|v| v.y).fold(f64::MAX, f64::min);
+    assert!((top - bottom - 1.67).abs() < 0.03, "metres, 1.67 m tall: {}", top - bottom);
+    // Joints sit inside the body: hips below the pelvis, knees below hips, left is +X.
+    let pos = |n: &str| f.joint_positions[p.skeleton.joint_index(n).unwrap()];
+    assert!(pos("l_hip").x > 0.05 && pos("r_hip").x < -0.05);
+    assert!(pos("l_knee").y < pos("l_hip").y - 0.3 && pos("head").y > pos("neck").y);
+    check_bulge(p);
+    assert!(p.deformation.flap_mass_count() >= 2);
+}
+
+fn root_sway(p: &Performer, frames: usize, dt: f64, stop_after: usize) -> Motion {
+    let tx = p.skeleton.dof_index("pelvis.tx").unwrap();
+    let m = DMatrix::from_fn(p.skeleton.dof_count(), frames, |d, k| {
+        let t = k.min(stop_after) as f64 * dt;
+        if d == tx {
+            0.15 * (std::f64::consts::TAU * 1.5 * t).sin()
+        } else {
+            0.0
+        }
+    });
+    Motion::new(dt, m).unwrap()
+}
+
+#[test]
+fn flap_lags_motion_then_settles_deterministically() {
+    let p = procedural();
+    assert!(p.deformation.flap_mass_count() >= 2);
+    let dt = 1.0 / 60.0;
+    let m = root_sway(p, 240, dt, 60);
+    let mut trace = Vec::new();
+    p.perform(&m, |_, f| {
+        trace.push(f.max_nonskinning_m());
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(trace[0], 0.0, "first frame starts at rest");
+    let peak = trace[..70].iter().copied().fold(0.0, f64::max);
+    assert!(peak > 0.005, "a 1.5 Hz, 15 cm sway drags the flap: {peak} m");
+    assert!(trace[239] < 0.1 * peak, "settles after the body stops: {} vs {peak}", trace[239]);
+    // Pure translation is rigid for LBS: all of that difference is the flap.
+    let mut again = Vec::new();
+    p.perform(&m, |_, f| {
+        again.push(f.max_nonskinning_m());
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(trace, again, "deterministic");
+    // Holding the rest pose never moves the flap.
+    let rest = Motion::new(dt, DMatrix::zeros(p.skeleton.dof_count(), 30)).unwrap();
+    assert_eq!(p.max_nonskinning_m(&rest).unwrap(), 0.0);
+}
+
+#[test]
+fn fast_motion_gives_tens_of_mm() {
+    let p = procedural();
+    let m = fast_motion(&p.skeleton, &FastMotionParams { duration_s: 1.5, ..Default::default() }).unwrap();
+    let d = p.max_nonskinning_m(&m).unwrap();
+    assert!((0.01..0.15).contains(&d), "{d}");
+}
+
+#[test]
+fn pose_rejects_bad_input() {
+    let p = procedural();
+    let mut st = DeformationState::default();
+    let rest = p.skeleton.rest_pose();
+    assert!(matches!(p.pose(&rest[1..], &mut st, 0.1), Err(Error::SizeMismatch { .. })));
+    let mut nan = rest.clone();
+    nan[7] = f64::NAN;
+    assert!(p.pose(&nan, &mut st, 0.1).is_err());
+    p.pose(&rest, &mut st, 0.0).unwrap();
+    assert!(matches!(p.pose(&rest, &mut st, 0.0), Err(Error::InvalidParam { name: "dt_s", .. })));
+    assert!(p.pose(&rest, &mut st, f64::NAN).is_err());
+    let mut wrong = st.clone();
+    wrong.positions.pop();
+    assert!(matches!(p.pose(&rest, &mut wrong, 0.1), Err(Error::SizeMismatch { .. })));
+    // Performer construction checks sizes and names.
+    let w = SkinWeights::from_lists(&vec![vec![(0, 1.0)]; 3], p.skeleton.joint_count()).unwrap();
+    let r = Performer::new("x", p.template.clone(), p.skeleton.clone(), w, &DeformationParams::none());
+    assert!(matches!(r, Err(Error::SizeMismatch { .. })));
+    let mut params = DeformationParams::default();
+    params.bulge.hinges[0].muscle_joint = "l_humerus".into();
+    let r = Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &params);
+    assert!(r.unwrap_err().to_string().contains("l_humerus"));
+    let mut params = DeformationParams::default();
+    if let Some(f) = params.flap.as_mut() {
+        f.stiffness_n_per_m = -1.0;
+    }
+    assert!(Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &params).is_err());
+    // Without deformation, truth equals LBS.
+    let plain = Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &DeformationParams::none()).unwrap();
+    assert_eq!(nonskinning_at(&plain, "l_elbow.flexion", 2.0), 0.0);
+}
