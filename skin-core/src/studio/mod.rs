@@ -15,6 +15,7 @@ mod makehuman;
 mod motion;
 mod performer;
 mod procedural_body;
+mod retarget;
 #[cfg(test)]
 mod tests;
 
@@ -29,3 +30,4 @@ pub use makehuman::{
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
+pub use retarget::{retarget, JointMap, JointPair, RetargetParams, Retargeted};
