@@ -34,8 +34,16 @@ impl ScalarGrid {
     ///
     /// # Errors
     /// As [`ScalarGrid::validate`].
-    pub fn sample(origin: DVec3, spacing_m: f64, dims: [usize; 3], field: impl Fn(DVec3) -> f64) -> Result<Self> {
-        let n = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).filter(|&n| n <= 1 << 31);
+    pub fn sample(
+        origin: DVec3,
+        spacing_m: f64,
+        dims: [usize; 3],
+        field: impl Fn(DVec3) -> f64,
+    ) -> Result<Self> {
+        let n = dims
+            .iter()
+            .try_fold(1usize, |a, &d| a.checked_mul(d))
+            .filter(|&n| n <= 1 << 31);
         let Some(n) = n else {
             return Err(Error::InvalidParam {
                 name: "dims",
@@ -46,7 +54,9 @@ impl ScalarGrid {
         for k in 0..dims[2] {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    values.push(field(origin + DVec3::new(i as f64, j as f64, k as f64) * spacing_m));
+                    values.push(field(
+                        origin + DVec3::new(i as f64, j as f64, k as f64) * spacing_m,
+                    ));
                 }
             }
         }
@@ -67,10 +77,13 @@ impl ScalarGrid {
     /// a dimension below 2; [`Error::SizeMismatch`] if `values` does not hold one value per
     /// node; [`Error::NonFinite`] for NaN/inf values.
     pub fn validate(&self) -> Result<()> {
-        if !(self.spacing_m.is_finite() && self.spacing_m > 0.0) || !self.origin.is_finite() {
+        if !(self.spacing_m.is_finite() && self.spacing_m > 0.0 && self.origin.is_finite()) {
             return Err(Error::InvalidParam {
                 name: "spacing_m",
-                reason: format!("spacing {} and origin {} must be finite, spacing positive", self.spacing_m, self.origin),
+                reason: format!(
+                    "spacing {} and origin {} must be finite, spacing positive",
+                    self.spacing_m, self.origin
+                ),
             });
         }
         if self.dims.iter().any(|&d| d < 2) {
@@ -79,7 +92,11 @@ impl ScalarGrid {
                 reason: format!("every dimension must be at least 2, got {:?}", self.dims),
             });
         }
-        let n = self.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).unwrap_or(usize::MAX);
+        let n = self
+            .dims
+            .iter()
+            .try_fold(1usize, |a, &d| a.checked_mul(d))
+            .unwrap_or(usize::MAX);
         if self.values.len() != n {
             return Err(Error::SizeMismatch {
                 what: "grid values",
@@ -155,8 +172,9 @@ pub fn marching_cubes(grid: &ScalarGrid, iso: f64) -> Result<TriMesh> {
     for k in 0..nz - 1 {
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
-                let corner: [usize; 8] =
-                    std::array::from_fn(|c| grid.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)));
+                let corner: [usize; 8] = std::array::from_fn(|c| {
+                    grid.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
+                });
                 let inside: [bool; 8] = std::array::from_fn(|c| grid.values[corner[c]] < iso);
                 if inside.iter().all(|&b| b) || inside.iter().all(|&b| !b) {
                     continue;
@@ -177,17 +195,26 @@ pub fn marching_cubes(grid: &ScalarGrid, iso: f64) -> Result<TriMesh> {
                     };
                     // Mean position of the inside corners minus that of the outside ones points
                     // inwards; triangles must face the other way.
-                    let centroid = |qs: &[usize]| qs.iter().map(|&q| grid.node(n[q])).sum::<DVec3>() / qs.len() as f64;
+                    let centroid = |qs: &[usize]| {
+                        qs.iter().map(|&q| grid.node(n[q])).sum::<DVec3>() / qs.len() as f64
+                    };
                     let outward = centroid(&outs) - centroid(&ins);
                     for poly in polys {
-                        let ids: Vec<u32> = poly.iter().map(|&(a, b)| vertex_on(n[a], n[b], &mut vertices)).collect();
+                        let ids: Vec<u32> = poly
+                            .iter()
+                            .map(|&(a, b)| vertex_on(n[a], n[b], &mut vertices))
+                            .collect();
                         let [p, q, r] = [ids[0], ids[1], ids[2]];
                         if p == q || q == r || p == r {
                             continue;
                         }
                         let normal = (vertices[q as usize] - vertices[p as usize])
                             .cross(vertices[r as usize] - vertices[p as usize]);
-                        faces.push(if normal.dot(outward) >= 0.0 { [p, q, r] } else { [p, r, q] });
+                        faces.push(if normal.dot(outward) >= 0.0 {
+                            [p, q, r]
+                        } else {
+                            [p, r, q]
+                        });
                     }
                 }
             }
@@ -227,13 +254,22 @@ mod tests {
     fn sphere_area_volume_and_closed() {
         let r = 0.5;
         let h = 0.025;
-        let g = ScalarGrid::sample(DVec3::splat(-0.6) + DVec3::new(0.0031, 0.0017, 0.0023), h, [49; 3], |p| p.length() - r).unwrap();
+        let g = ScalarGrid::sample(
+            DVec3::splat(-0.6) + DVec3::new(0.0031, 0.0017, 0.0023),
+            h,
+            [49; 3],
+            |p| p.length() - r,
+        )
+        .unwrap();
         let m = marching_cubes(&g, 0.0).unwrap();
         let (a, v) = area_volume(&m);
         let a_true = 4.0 * std::f64::consts::PI * r * r;
         let v_true = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
         assert!((a - a_true).abs() / a_true < 0.01, "area {a} vs {a_true}");
-        assert!((v - v_true).abs() / v_true < 0.01, "volume {v} vs {v_true} (positive = outward orientation)");
+        assert!(
+            (v - v_true).abs() / v_true < 0.01,
+            "volume {v} vs {v_true} (positive = outward orientation)"
+        );
         let mut uses: HashMap<(u32, u32), usize> = HashMap::new();
         for f in &m.faces {
             for c in 0..3 {
@@ -241,8 +277,14 @@ mod tests {
                 *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
             }
         }
-        assert!(uses.values().all(|&u| u == 2), "every edge in exactly two triangles");
-        assert!(edge_uses(&m).values().all(|&s| s == 0), "consistent orientation");
+        assert!(
+            uses.values().all(|&u| u == 2),
+            "every edge in exactly two triangles"
+        );
+        assert!(
+            edge_uses(&m).values().all(|&s| s == 0),
+            "consistent orientation"
+        );
         for p in &m.vertices {
             assert!((p.length() - r).abs() < 0.1 * h * h / r + 1e-3);
         }
@@ -270,10 +312,16 @@ mod tests {
         assert!(marching_cubes(&ok, f64::NAN).is_err());
         let mut g = ok.clone();
         g.values.pop();
-        assert!(matches!(marching_cubes(&g, 0.0), Err(Error::SizeMismatch { .. })));
+        assert!(matches!(
+            marching_cubes(&g, 0.0),
+            Err(Error::SizeMismatch { .. })
+        ));
         let mut g = ok.clone();
         g.values[3] = f64::NAN;
-        assert!(matches!(marching_cubes(&g, 0.0), Err(Error::NonFinite { .. })));
+        assert!(matches!(
+            marching_cubes(&g, 0.0),
+            Err(Error::NonFinite { .. })
+        ));
         let mut g = ok.clone();
         g.spacing_m = 0.0;
         assert!(marching_cubes(&g, 0.0).is_err());

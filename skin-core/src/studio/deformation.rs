@@ -115,7 +115,9 @@ impl Default for FlapParams {
             waist_above_pelvis_m: 0.02,
             hem_below_pelvis_m: 0.20,
             fade_m: 0.06,
-            joints: ["pelvis", "spine", "l_hip", "r_hip"].map(String::from).to_vec(),
+            joints: ["pelvis", "spine", "l_hip", "r_hip"]
+                .map(String::from)
+                .to_vec(),
             max_lag_m: 0.06,
             max_substep_s: 0.002,
         }
@@ -214,10 +216,12 @@ fn non_negative(name: &'static str, v: f64) -> Result<()> {
 }
 
 fn joint_named(skeleton: &Skeleton, name: &str, what: &'static str) -> Result<usize> {
-    skeleton.joint_index(name).ok_or_else(|| Error::InvalidParam {
-        name: what,
-        reason: format!("the skeleton has no joint '{name}'"),
-    })
+    skeleton
+        .joint_index(name)
+        .ok_or_else(|| Error::InvalidParam {
+            name: what,
+            reason: format!("the skeleton has no joint '{name}'"),
+        })
 }
 
 fn smoothstep(x: f64) -> f64 {
@@ -246,16 +250,27 @@ impl DeformationModel {
                 got: weights.vertex_count(),
             });
         }
-        non_negative("bulge.amplitude_m_per_rad", params.bulge.amplitude_m_per_rad)?;
+        non_negative(
+            "bulge.amplitude_m_per_rad",
+            params.bulge.amplitude_m_per_rad,
+        )?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         let frames = rest.world_from_joint();
-        let weight_on = |v: usize, j: usize| weights.influences(v).filter(|p| p.0 as usize == j).map(|p| p.1).sum::<f64>();
+        let weight_on = |v: usize, j: usize| {
+            weights
+                .influences(v)
+                .filter(|p| p.0 as usize == j)
+                .map(|p| p.1)
+                .sum::<f64>()
+        };
         let mut bulges = Vec::new();
         for h in &params.bulge.hinges {
-            let dof = skeleton.dof_index(&h.flexion_dof).ok_or_else(|| Error::InvalidParam {
-                name: "bulge.hinges",
-                reason: format!("the skeleton has no DOF '{}'", h.flexion_dof),
-            })?;
+            let dof = skeleton
+                .dof_index(&h.flexion_dof)
+                .ok_or_else(|| Error::InvalidParam {
+                    name: "bulge.hinges",
+                    reason: format!("the skeleton has no DOF '{}'", h.flexion_dof),
+                })?;
             if !skeleton.is_rotation(dof) {
                 return Err(Error::InvalidParam {
                     name: "bulge.hinges",
@@ -315,7 +330,12 @@ impl DeformationModel {
 
     /// Adds the bulge to `out` (already holding the LBS positions) for pose θ with joint
     /// frames `world_from_joint`.
-    pub(super) fn add_bulge(&self, theta: &[f64], world_from_joint: &[DAffine3], out: &mut [DVec3]) {
+    pub(super) fn add_bulge(
+        &self,
+        theta: &[f64],
+        world_from_joint: &[DAffine3],
+        out: &mut [DVec3],
+    ) {
         for b in &self.bulges {
             let flex = theta[b.dof].max(0.0);
             if flex == 0.0 {
@@ -335,7 +355,13 @@ impl DeformationModel {
     /// # Errors
     /// [`Error::InvalidParam`] for a non-positive or non-finite `dt_s` after the first frame;
     /// [`Error::SizeMismatch`] for a state built for another performer.
-    pub(super) fn add_flap(&self, lbs: &[DVec3], state: &mut DeformationState, dt_s: f64, out: &mut [DVec3]) -> Result<()> {
+    pub(super) fn add_flap(
+        &self,
+        lbs: &[DVec3],
+        state: &mut DeformationState,
+        dt_s: f64,
+        out: &mut [DVec3],
+    ) -> Result<()> {
         let Some(f) = &self.flap else { return Ok(()) };
         let targets: Vec<DVec3> = f.anchors.iter().map(|&a| lbs[a as usize]).collect();
         if state.positions.is_empty() {
@@ -344,7 +370,10 @@ impl DeformationModel {
             state.anchors = targets;
             return Ok(());
         }
-        if state.positions.len() != targets.len() || state.velocities.len() != targets.len() || state.anchors.len() != targets.len() {
+        if state.positions.len() != targets.len()
+            || state.velocities.len() != targets.len()
+            || state.anchors.len() != targets.len()
+        {
             return Err(Error::SizeMismatch {
                 what: "deformation state (flap masses)",
                 expected: targets.len(),
@@ -356,8 +385,8 @@ impl DeformationModel {
         let steps = (dt_s / p.max_substep_s).ceil().max(1.0);
         let h = dt_s / steps;
         let (m, k, c) = (p.mass_kg, p.stiffness_n_per_m, p.damping_n_s_per_m);
-        for i in 0..targets.len() {
-            let (t0, t1) = (state.anchors[i], targets[i]);
+        for (i, &t1) in targets.iter().enumerate() {
+            let t0 = state.anchors[i];
             let t_dot = (t1 - t0) / dt_s;
             let (mut x, mut v) = (state.positions[i], state.velocities[i]);
             for s in 1..=steps as usize {
@@ -402,7 +431,11 @@ fn distal_tip(skeleton: &Skeleton, frames: &[DAffine3], j: usize) -> DVec3 {
     if children.is_empty() {
         frames[j].translation
     } else {
-        children.iter().map(|&c| frames[c].translation).sum::<DVec3>() / children.len() as f64
+        children
+            .iter()
+            .map(|&c| frames[c].translation)
+            .sum::<DVec3>()
+            / children.len() as f64
     }
 }
 
@@ -418,7 +451,10 @@ fn flap_model(
     non_negative("flap.damping_n_s_per_m", p.damping_n_s_per_m)?;
     positive("flap.max_substep_s", p.max_substep_s)?;
     positive("flap.max_lag_m", p.max_lag_m)?;
-    positive("flap.hem_below_pelvis_m + waist_above_pelvis_m", p.hem_below_pelvis_m + p.waist_above_pelvis_m)?;
+    positive(
+        "flap.hem_below_pelvis_m + waist_above_pelvis_m",
+        p.hem_below_pelvis_m + p.waist_above_pelvis_m,
+    )?;
     non_negative("flap.fade_m", p.fade_m)?;
     if p.masses < 2 {
         return Err(Error::InvalidParam {
@@ -439,7 +475,11 @@ fn flap_model(
     let mut vertices = Vec::new();
     let mut best: Vec<Option<(f64, u32)>> = vec![None; p.masses];
     for (v, x) in rest.iter().enumerate() {
-        let share: f64 = weights.influences(v).filter(|q| band_joints.contains(&(q.0 as usize))).map(|q| q.1).sum();
+        let share: f64 = weights
+            .influences(v)
+            .filter(|q| band_joints.contains(&(q.0 as usize)))
+            .map(|q| q.1)
+            .sum();
         let profile = if x.y >= hem {
             smoothstep((top - x.y) / (top - hem))
         } else if p.fade_m > 0.0 {

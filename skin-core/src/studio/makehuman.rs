@@ -151,7 +151,9 @@ pub fn parse_mhskel(text: &str) -> Result<MhSkeleton> {
         for j in [&b.head, &b.tail] {
             match raw.joints.get(j) {
                 None => return Err(perr(format!("bone '{name}' names unknown joint '{j}'"))),
-                Some(v) if v.is_empty() => return Err(perr(format!("joint '{j}' has no vertices"))),
+                Some(v) if v.is_empty() => {
+                    return Err(perr(format!("joint '{j}' has no vertices")))
+                }
                 Some(_) => {}
             }
         }
@@ -247,7 +249,12 @@ impl MhSkeleton {
     /// # Errors
     /// [`Error::InvalidParam`] for an unknown joint; [`Error::IndexOutOfRange`] if one of its
     /// vertices is past `vertices`.
-    pub fn joint_position(&self, name: &str, vertices: &[DVec3], metres_per_unit: f64) -> Result<DVec3> {
+    pub fn joint_position(
+        &self,
+        name: &str,
+        vertices: &[DVec3],
+        metres_per_unit: f64,
+    ) -> Result<DVec3> {
         let list = self.joints.get(name).ok_or_else(|| Error::InvalidParam {
             name: "joint",
             reason: format!("the MakeHuman skeleton has no joint '{name}'"),
@@ -328,7 +335,10 @@ impl MhSkeleton {
             .map(|(v, m)| {
                 let total: f64 = m.values().sum();
                 if total.is_finite() && total > 0.0 {
-                    Ok(m.into_iter().filter(|&(_, w)| w > 0.0).map(|(k, w)| (k as u32, w / total)).collect())
+                    Ok(m.into_iter()
+                        .filter(|&(_, w)| w > 0.0)
+                        .map(|(k, w)| (k as u32, w / total))
+                        .collect())
                 } else {
                     Err(Error::Degenerate {
                         what: format!("performer vertex {v} has no skin weight"),
@@ -373,7 +383,10 @@ pub fn makehuman_performer_from_parts(
 ) -> Result<Performer> {
     let body = obj.group_mesh("body")?;
     let s = MAKEHUMAN_METRES_PER_UNIT;
-    let template = TriMesh::new(body.mesh.vertices.iter().map(|v| *v * s).collect(), body.mesh.faces.clone())?;
+    let template = TriMesh::new(
+        body.mesh.vertices.iter().map(|v| *v * s).collect(),
+        body.mesh.faces.clone(),
+    )?;
     let base = human_skeleton(&HumanParams::default())?;
     let joint_of = |name: &str| {
         base.joint_index(name).ok_or_else(|| Error::InvalidParam {
@@ -398,12 +411,26 @@ pub fn makehuman_performer_from_parts(
         joints[j].end_site = Some(rig.joint_position(mj, &obj.vertices, s)? - world[j]);
     }
     let skeleton = Skeleton::new(joints)?;
-    let local: HashMap<u32, usize> = body.original_index.iter().enumerate().map(|(i, &o)| (o, i)).collect();
+    let local: HashMap<u32, usize> = body
+        .original_index
+        .iter()
+        .enumerate()
+        .map(|(i, &o)| (o, i))
+        .collect();
     let kept: Vec<&str> = MAKEHUMAN_SUBSET.iter().map(|t| t.1).collect();
-    let lists = rig.subset_weights(weights, &kept, &|o| local.get(&o).copied(), template.vertex_count())?;
+    let lists = rig.subset_weights(
+        weights,
+        &kept,
+        &|o| local.get(&o).copied(),
+        template.vertex_count(),
+    )?;
     let lists: Vec<Vec<(u32, f64)>> = lists
         .into_iter()
-        .map(|l| l.into_iter().map(|(k, w)| (joint_of_kept[k as usize], w)).collect())
+        .map(|l| {
+            l.into_iter()
+                .map(|(k, w)| (joint_of_kept[k as usize], w))
+                .collect()
+        })
         .collect();
     let weights = SkinWeights::from_lists(&lists, skeleton.joint_count())?;
     Performer::new("makehuman", template, skeleton, weights, params)
@@ -430,49 +457,86 @@ mod tests {
         let p = s.joint_position("r_t", &v, 0.1).unwrap();
         assert!((p - DVec3::new(0.05, 0.05, 0.0)).length() < 1e-15);
         assert!(s.joint_position("nope", &v, 0.1).is_err());
-        assert!(matches!(s.joint_position("r_t", &v[..2], 0.1), Err(Error::IndexOutOfRange { .. })));
+        assert!(matches!(
+            s.joint_position("r_t", &v[..2], 0.1),
+            Err(Error::IndexOutOfRange { .. })
+        ));
     }
 
     #[test]
     fn merges_dropped_bones_into_kept_ancestor() {
         let s = parse_mhskel(TINY_SKEL).unwrap();
-        let w = parse_mhw(r#"{"weights": {"root": [[0, 1.0], [1, 0.25]], "toe": [[1, 0.5], [2, 2.0]]}}"#).unwrap();
-        let out = s.subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 3).unwrap();
+        let w = parse_mhw(
+            r#"{"weights": {"root": [[0, 1.0], [1, 0.25]], "toe": [[1, 0.5], [2, 2.0]]}}"#,
+        )
+        .unwrap();
+        let out = s
+            .subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 3)
+            .unwrap();
         assert_eq!(out[0], vec![(0, 1.0)]);
         // Vertex 1: root 0.25 and toe→leg 0.5, normalised.
         assert!((out[1][0].1 - 1.0 / 3.0).abs() < 1e-12 && out[1][1] == (1, 2.0 / 3.0));
         assert_eq!(out[2], vec![(1, 1.0)]);
         // A vertex without weight is an error naming it.
-        let err = s.subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 4).unwrap_err();
+        let err = s
+            .subset_weights(&w, &["root", "leg"], &|i| Some(i as usize), 4)
+            .unwrap_err();
         assert!(err.to_string().contains("vertex 3"), "{err}");
         // Without the root kept, the root's weight has nowhere to go.
-        assert!(s.subset_weights(&w, &["leg"], &|i| Some(i as usize), 3).is_err());
-        assert!(s.subset_weights(&w, &["femur"], &|i| Some(i as usize), 3).is_err());
+        assert!(s
+            .subset_weights(&w, &["leg"], &|i| Some(i as usize), 3)
+            .is_err());
+        assert!(s
+            .subset_weights(&w, &["femur"], &|i| Some(i as usize), 3)
+            .is_err());
     }
 
     #[test]
     fn rejects_malformed_files() {
-        assert!(matches!(parse_mhskel("{"), Err(Error::Parse { format: "MHSKEL", .. })));
+        assert!(matches!(
+            parse_mhskel("{"),
+            Err(Error::Parse {
+                format: "MHSKEL",
+                ..
+            })
+        ));
         let cyc = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": "b"},
                                 "b": {"head": "j", "tail": "j", "parent": "a"}}, "joints": {"j": [0]}}"#;
         assert!(parse_mhskel(cyc).unwrap_err().to_string().contains("cycle"));
-        let missing = r#"{"bones": {"a": {"head": "j", "tail": "k", "parent": null}}, "joints": {"j": [0]}}"#;
-        assert!(parse_mhskel(missing).unwrap_err().to_string().contains("'k'"));
-        let orphan = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": "zz"}}, "joints": {"j": [0]}}"#;
+        let missing =
+            r#"{"bones": {"a": {"head": "j", "tail": "k", "parent": null}}, "joints": {"j": [0]}}"#;
+        assert!(parse_mhskel(missing)
+            .unwrap_err()
+            .to_string()
+            .contains("'k'"));
+        let orphan =
+            r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": "zz"}}, "joints": {"j": [0]}}"#;
         assert!(parse_mhskel(orphan).is_err());
-        let empty_joint = r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": null}}, "joints": {"j": []}}"#;
+        let empty_joint =
+            r#"{"bones": {"a": {"head": "j", "tail": "j", "parent": null}}, "joints": {"j": []}}"#;
         assert!(parse_mhskel(empty_joint).is_err());
-        assert!(matches!(parse_mhw("[]"), Err(Error::Parse { format: "MHW", .. })));
+        assert!(matches!(
+            parse_mhw("[]"),
+            Err(Error::Parse { format: "MHW", .. })
+        ));
         assert!(parse_mhw(r#"{"weights": {"a": [[0, -1.0]]}}"#).is_err());
         let s = parse_mhskel(TINY_SKEL).unwrap();
         let w = parse_mhw(r#"{"weights": {"ghost": [[0, 1.0]]}}"#).unwrap();
-        assert!(s.subset_weights(&w, &["root"], &|i| Some(i as usize), 1).unwrap_err().to_string().contains("ghost"));
+        assert!(s
+            .subset_weights(&w, &["root"], &|i| Some(i as usize), 1)
+            .unwrap_err()
+            .to_string()
+            .contains("ghost"));
     }
 
     #[test]
     fn real_rig_files_parse_and_merge() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/makehuman");
-        let dir = if dir.exists() { dir } else { Path::new("/work/shared/data/makehuman").to_path_buf() };
+        let dir = if dir.exists() {
+            dir
+        } else {
+            Path::new("/work/shared/data/makehuman").to_path_buf()
+        };
         let Ok(s) = read_mhskel(dir.join("default.mhskel")) else {
             eprintln!("MakeHuman data not found; skipping");
             return;
@@ -480,7 +544,9 @@ mod tests {
         let w = read_mhw(dir.join("default_weights.mhw")).unwrap();
         assert_eq!(s.bones.len(), 163);
         let kept: Vec<&str> = MAKEHUMAN_SUBSET.iter().map(|t| t.1).collect();
-        let out = s.subset_weights(&w, &kept, &|i| (i < 13380).then_some(i as usize), 13380).unwrap();
+        let out = s
+            .subset_weights(&w, &kept, &|i| (i < 13380).then_some(i as usize), 13380)
+            .unwrap();
         for vw in &out {
             let sum: f64 = vw.iter().map(|p| p.1).sum();
             assert!((sum - 1.0).abs() < 1e-12);

@@ -24,8 +24,9 @@ pub use deformation::{
     DEFAULT_BULGE_M_PER_RAD,
 };
 pub use makehuman::{
-    makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel, read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights,
-    MAKEHUMAN_END_SITES, MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
+    makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
+    read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,
+    MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
 };
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};

@@ -77,7 +77,12 @@ fn positive(name: &'static str, v: f64) -> Result<()> {
     }
 }
 
-fn frames_for(name: &'static str, duration_s: f64, frame_time_s: f64, dofs: usize) -> Result<usize> {
+fn frames_for(
+    name: &'static str,
+    duration_s: f64,
+    frame_time_s: f64,
+    dofs: usize,
+) -> Result<usize> {
     let n = (duration_s / frame_time_s).round() + 1.0;
     if n * dofs as f64 > 1e8 {
         return Err(Error::InvalidParam {
@@ -116,7 +121,12 @@ pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Res
         });
     }
     let per = params.seconds_per_dof;
-    let n = frames_for("seconds_per_dof", per * limited.len() as f64, params.frame_time_s, skeleton.dof_count())?;
+    let n = frames_for(
+        "seconds_per_dof",
+        per * limited.len() as f64,
+        params.frame_time_s,
+        skeleton.dof_count(),
+    )?;
     let mut frames = DMatrix::zeros(skeleton.dof_count(), n);
     for k in 0..n {
         let t = k as f64 * params.frame_time_s;
@@ -124,7 +134,9 @@ pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Res
         let u = ((t - seg as f64 * per) / per).clamp(0.0, 1.0);
         let d = limited[seg];
         // `limited` holds only DOFs with limits.
-        let Some(l) = skeleton.dof(d).limits else { continue };
+        let Some(l) = skeleton.dof(d).limits else {
+            continue;
+        };
         let (lo, hi) = (l.min.min(0.0), l.max.max(0.0));
         let s = (TAU * u).sin();
         let v = if s > 0.0 { s * hi } else { -s * lo };
@@ -149,7 +161,10 @@ pub fn fast_motion(skeleton: &Skeleton, params: &FastMotionParams) -> Result<Mot
     let (f0, f1) = params.frequency_hz;
     positive("frequency_hz", f0)?;
     positive("frequency_hz", f1)?;
-    if f1 < f0 || !(params.amplitude > 0.0 && params.amplitude <= 1.0) || !params.bounce_m.is_finite() {
+    if f1 < f0
+        || !(params.amplitude > 0.0 && params.amplitude <= 1.0)
+        || !params.bounce_m.is_finite()
+    {
         return Err(Error::InvalidParam {
             name: "fast motion",
             reason: format!(
@@ -158,7 +173,12 @@ pub fn fast_motion(skeleton: &Skeleton, params: &FastMotionParams) -> Result<Mot
             ),
         });
     }
-    let n = frames_for("duration_s", params.duration_s, params.frame_time_s, skeleton.dof_count())?;
+    let n = frames_for(
+        "duration_s",
+        params.duration_s,
+        params.frame_time_s,
+        skeleton.dof_count(),
+    )?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let nd = skeleton.dof_count();
     // (centre, half-amplitude, frequency, phase) per DOF.
@@ -173,7 +193,9 @@ pub fn fast_motion(skeleton: &Skeleton, params: &FastMotionParams) -> Result<Mot
                 let centre = (0.5 * (l.min + l.max)).clamp(l.min + half, l.max - half);
                 (centre, half, freq, phase)
             }
-            (true, None) if d == skeleton.dof_index("pelvis.yaw").unwrap_or(usize::MAX) => (0.0, 0.6, 0.5 * f0, phase),
+            (true, None) if d == skeleton.dof_index("pelvis.yaw").unwrap_or(usize::MAX) => {
+                (0.0, 0.6, 0.5 * f0, phase)
+            }
             (false, None) if dof.axis.y.abs() > 0.9 => (0.0, params.bounce_m, 2.0 * f0, 0.0),
             _ => (0.0, 0.0, 0.0, 0.0),
         };
@@ -215,12 +237,20 @@ mod tests {
                     let min = row.iter().copied().fold(f64::MAX, f64::min);
                     assert!(max <= l.max + 1e-12 && min >= l.min - 1e-12);
                     let tol = (l.max - l.min) * h * h;
-                    assert!(max >= l.max.max(0.0) - tol && min <= l.min.min(0.0) + tol, "{}: {min}..{max}", s.dof(d).name);
+                    assert!(
+                        max >= l.max.max(0.0) - tol && min <= l.min.min(0.0) + tol,
+                        "{}: {min}..{max}",
+                        s.dof(d).name
+                    );
                 }
                 _ => assert!(row.iter().all(|&v| v == 0.0)),
             }
         }
-        assert!(m.frame(0).iter().chain(m.frame(m.frame_count() - 1)).all(|v| v.abs() < 1e-9));
+        assert!(m
+            .frame(0)
+            .iter()
+            .chain(m.frame(m.frame_count() - 1))
+            .all(|v| v.abs() < 1e-9));
     }
 
     #[test]
@@ -248,15 +278,63 @@ mod tests {
     fn rejects_bad_params() {
         let s = human_skeleton(&HumanParams::default()).unwrap();
         let r = RangeOfMotionParams::default();
-        assert!(range_of_motion(&s, &RangeOfMotionParams { frame_time_s: 0.0, ..r }).is_err());
+        assert!(range_of_motion(
+            &s,
+            &RangeOfMotionParams {
+                frame_time_s: 0.0,
+                ..r
+            }
+        )
+        .is_err());
         assert!(range_of_motion(&s, &RangeOfMotionParams { reach: 1.5, ..r }).is_err());
-        assert!(range_of_motion(&s, &RangeOfMotionParams { seconds_per_dof: f64::NAN, ..r }).is_err());
-        assert!(range_of_motion(&s, &RangeOfMotionParams { frame_time_s: 1e-12, ..r }).is_err());
+        assert!(range_of_motion(
+            &s,
+            &RangeOfMotionParams {
+                seconds_per_dof: f64::NAN,
+                ..r
+            }
+        )
+        .is_err());
+        assert!(range_of_motion(
+            &s,
+            &RangeOfMotionParams {
+                frame_time_s: 1e-12,
+                ..r
+            }
+        )
+        .is_err());
         let f = FastMotionParams::default();
-        assert!(fast_motion(&s, &FastMotionParams { amplitude: 0.0, ..f }).is_err());
-        assert!(fast_motion(&s, &FastMotionParams { frequency_hz: (3.0, 1.0), ..f }).is_err());
-        assert!(fast_motion(&s, &FastMotionParams { duration_s: -1.0, ..f }).is_err());
-        let free = Skeleton::new(vec![crate::skeleton::Joint::new("a", None, crate::math::DVec3::ZERO, vec![])]).unwrap();
+        assert!(fast_motion(
+            &s,
+            &FastMotionParams {
+                amplitude: 0.0,
+                ..f
+            }
+        )
+        .is_err());
+        assert!(fast_motion(
+            &s,
+            &FastMotionParams {
+                frequency_hz: (3.0, 1.0),
+                ..f
+            }
+        )
+        .is_err());
+        assert!(fast_motion(
+            &s,
+            &FastMotionParams {
+                duration_s: -1.0,
+                ..f
+            }
+        )
+        .is_err());
+        let free = Skeleton::new(vec![crate::skeleton::Joint::new(
+            "a",
+            None,
+            crate::math::DVec3::ZERO,
+            vec![],
+        )])
+        .unwrap();
         assert!(range_of_motion(&free, &r).is_err());
     }
 }

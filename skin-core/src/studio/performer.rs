@@ -72,7 +72,9 @@ impl Performer {
     ) -> Result<Self> {
         template.validate()?;
         if template.vertices.is_empty() {
-            return Err(Error::Empty { what: "performer template" });
+            return Err(Error::Empty {
+                what: "performer template",
+            });
         }
         if weights.vertex_count() != template.vertex_count() {
             return Err(Error::SizeMismatch {
@@ -90,7 +92,11 @@ impl Performer {
         }
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
-        let joint_from_world_rest = rest.world_from_joint().iter().map(|t| t.inverse()).collect();
+        let joint_from_world_rest = rest
+            .world_from_joint()
+            .iter()
+            .map(|t| t.inverse())
+            .collect();
         Ok(Performer {
             name: name.into(),
             template,
@@ -126,14 +132,21 @@ impl Performer {
     /// # Errors
     /// As [`Skeleton::check_pose`]; [`Error::InvalidParam`] for a bad `dt_s` after the first
     /// frame; [`Error::SizeMismatch`] for a state of another performer.
-    pub fn pose(&self, theta: &[f64], state: &mut DeformationState, dt_s: f64) -> Result<PosedFrame> {
+    pub fn pose(
+        &self,
+        theta: &[f64],
+        state: &mut DeformationState,
+        dt_s: f64,
+    ) -> Result<PosedFrame> {
         let mut fk = ForwardKinematics::new(&self.skeleton);
         self.skeleton.forward_kinematics_into(theta, &mut fk)?;
         let world_from_joint = fk.world_from_joint().to_vec();
         let lbs_vertices = self.skin(&world_from_joint)?;
         let mut true_vertices = lbs_vertices.clone();
-        self.deformation.add_bulge(theta, &world_from_joint, &mut true_vertices);
-        self.deformation.add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;
+        self.deformation
+            .add_bulge(theta, &world_from_joint, &mut true_vertices);
+        self.deformation
+            .add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;
         Ok(PosedFrame {
             joint_positions: fk.joint_positions(),
             world_from_joint,
@@ -147,7 +160,11 @@ impl Performer {
     ///
     /// # Errors
     /// As [`Motion::check_for`] and [`Performer::pose`]; any error `each` returns.
-    pub fn perform(&self, motion: &Motion, mut each: impl FnMut(usize, &PosedFrame) -> Result<()>) -> Result<()> {
+    pub fn perform(
+        &self,
+        motion: &Motion,
+        mut each: impl FnMut(usize, &PosedFrame) -> Result<()>,
+    ) -> Result<()> {
         motion.check_for(&self.skeleton)?;
         let mut state = DeformationState::default();
         for k in 0..motion.frame_count() {

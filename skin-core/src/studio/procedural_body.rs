@@ -102,21 +102,69 @@ fn capsules(s: &Skeleton, height_m: f64) -> Result<Vec<Capsule>> {
     };
     let up = DVec3::Y * k;
     let mut c = vec![
-        cap("pelvis", p("l_hip")? + up * 0.03, p("r_hip")? + up * 0.03, 0.085, 0.085)?,
+        cap(
+            "pelvis",
+            p("l_hip")? + up * 0.03,
+            p("r_hip")? + up * 0.03,
+            0.085,
+            0.085,
+        )?,
         cap("spine", p("spine")?, p("chest")?, 0.105, 0.10)?,
         cap("chest", p("chest")?, p("neck")? - up * 0.06, 0.11, 0.10)?,
-        cap("chest", p("l_shoulder")? - up * 0.02, p("r_shoulder")? - up * 0.02, 0.055, 0.055)?,
+        cap(
+            "chest",
+            p("l_shoulder")? - up * 0.02,
+            p("r_shoulder")? - up * 0.02,
+            0.055,
+            0.055,
+        )?,
         cap("neck", p("neck")?, p("head")?, 0.05, 0.05)?,
-        cap("head", p("head")? + up * 0.07, tip("head")? - up * 0.09, 0.095, 0.085)?,
+        cap(
+            "head",
+            p("head")? + up * 0.07,
+            tip("head")? - up * 0.09,
+            0.095,
+            0.085,
+        )?,
     ];
     for side in ["l", "r"] {
         let n = |b: &str| format!("{side}_{b}");
-        c.push(cap(&n("shoulder"), p(&n("shoulder"))?, p(&n("elbow"))?, 0.048, 0.038)?);
-        c.push(cap(&n("elbow"), p(&n("elbow"))?, p(&n("wrist"))?, 0.036, 0.027)?);
-        c.push(cap(&n("wrist"), p(&n("wrist"))?, tip(&n("wrist"))?, 0.028, 0.02)?);
+        c.push(cap(
+            &n("shoulder"),
+            p(&n("shoulder"))?,
+            p(&n("elbow"))?,
+            0.048,
+            0.038,
+        )?);
+        c.push(cap(
+            &n("elbow"),
+            p(&n("elbow"))?,
+            p(&n("wrist"))?,
+            0.036,
+            0.027,
+        )?);
+        c.push(cap(
+            &n("wrist"),
+            p(&n("wrist"))?,
+            tip(&n("wrist"))?,
+            0.028,
+            0.02,
+        )?);
         c.push(cap(&n("hip"), p(&n("hip"))?, p(&n("knee"))?, 0.075, 0.05)?);
-        c.push(cap(&n("knee"), p(&n("knee"))?, p(&n("ankle"))?, 0.05, 0.035)?);
-        c.push(cap(&n("ankle"), p(&n("ankle"))?, tip(&n("ankle"))? + up * 0.02, 0.035, 0.022)?);
+        c.push(cap(
+            &n("knee"),
+            p(&n("knee"))?,
+            p(&n("ankle"))?,
+            0.05,
+            0.035,
+        )?);
+        c.push(cap(
+            &n("ankle"),
+            p(&n("ankle"))?,
+            tip(&n("ankle"))? + up * 0.02,
+            0.035,
+            0.022,
+        )?);
     }
     Ok(c)
 }
@@ -157,7 +205,11 @@ pub fn procedural_performer(params: &ProceduralBodyParams) -> Result<Performer> 
         height_m: params.height_m,
     })?;
     let caps = capsules(&skeleton, params.height_m)?;
-    let field = |p: DVec3| caps.iter().fold(f64::INFINITY, |acc, c| smin(acc, c.distance(p), params.blend_m));
+    let field = |p: DVec3| {
+        caps.iter().fold(f64::INFINITY, |acc, c| {
+            smin(acc, c.distance(p), params.blend_m)
+        })
+    };
     let h = params.grid_spacing_m;
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for c in &caps {
@@ -221,9 +273,18 @@ mod tests {
         assert!(uses.values().all(|&u| u == 2), "watertight");
         let top = m.vertices.iter().map(|v| v.y).fold(f64::MIN, f64::max);
         let bottom = m.vertices.iter().map(|v| v.y).fold(f64::MAX, f64::min);
-        assert!((top - 1.75).abs() < 0.05 && bottom.abs() < 0.05, "{bottom}..{top}");
+        assert!(
+            (top - 1.75).abs() < 0.05 && bottom.abs() < 0.05,
+            "{bottom}..{top}"
+        );
         // At rest the performer equals its template.
-        let f = p.pose(&p.skeleton.rest_pose(), &mut DeformationState::default(), 1.0 / 30.0).unwrap();
+        let f = p
+            .pose(
+                &p.skeleton.rest_pose(),
+                &mut DeformationState::default(),
+                1.0 / 30.0,
+            )
+            .unwrap();
         for (a, b) in f.true_vertices.iter().zip(&m.vertices) {
             assert!(a.distance(*b) < 1e-12);
         }
@@ -233,12 +294,27 @@ mod tests {
     #[test]
     fn rejects_bad_params() {
         for p in [
-            ProceduralBodyParams { height_m: -1.0, ..Default::default() },
-            ProceduralBodyParams { grid_spacing_m: f64::NAN, ..Default::default() },
-            ProceduralBodyParams { blend_m: -0.1, ..Default::default() },
-            ProceduralBodyParams { weight_falloff_m: 0.0, ..Default::default() },
+            ProceduralBodyParams {
+                height_m: -1.0,
+                ..Default::default()
+            },
+            ProceduralBodyParams {
+                grid_spacing_m: f64::NAN,
+                ..Default::default()
+            },
+            ProceduralBodyParams {
+                blend_m: -0.1,
+                ..Default::default()
+            },
+            ProceduralBodyParams {
+                weight_falloff_m: 0.0,
+                ..Default::default()
+            },
         ] {
-            assert!(matches!(procedural_performer(&p), Err(Error::InvalidParam { .. })));
+            assert!(matches!(
+                procedural_performer(&p),
+                Err(Error::InvalidParam { .. })
+            ));
         }
     }
 }

@@ -169,7 +169,12 @@ impl JointMap {
     /// # Errors
     /// [`Error::InvalidParam`] naming, for the closest preset, the joints `source` lacks.
     pub fn detect(source: &Skeleton) -> Result<Self> {
-        let presets = [Self::cmu(), Self::motionbuilder(), Self::makehuman_bvh(), Self::makehuman_rig()];
+        let presets = [
+            Self::cmu(),
+            Self::motionbuilder(),
+            Self::makehuman_bvh(),
+            Self::makehuman_rig(),
+        ];
         let missing = |m: &JointMap| -> Vec<String> {
             m.pairs
                 .iter()
@@ -278,7 +283,11 @@ fn decompose(l: DMat3, axes: &[DVec3]) -> Option<Vec<f64>> {
             Some(vec![t])
         }
         2 | 3 => {
-            let a2 = if axes.len() == 3 { axes[2] } else { axes[0].cross(axes[1]) };
+            let a2 = if axes.len() == 3 {
+                axes[2]
+            } else {
+                axes[0].cross(axes[1])
+            };
             let (a0, a1) = (axes[0], axes[1]);
             if a0.dot(a1).abs() > 1e-9 || a0.dot(a2).abs() > 1e-9 || a1.dot(a2).abs() > 1e-9 {
                 return None;
@@ -375,9 +384,11 @@ pub fn retarget(
     // Scale: leg lengths of the mapped sides.
     let mut ratios = Vec::new();
     for side in ["l", "r"] {
-        let (Ok((h_t, h_s)), Ok((k_t, k_s)), Ok((a_t, a_s))) =
-            (need(&format!("{side}_hip")), need(&format!("{side}_knee")), need(&format!("{side}_ankle")))
-        else {
+        let (Ok((h_t, h_s)), Ok((k_t, k_s)), Ok((a_t, a_s))) = (
+            need(&format!("{side}_hip")),
+            need(&format!("{side}_knee")),
+            need(&format!("{side}_ankle")),
+        ) else {
             continue;
         };
         let lt = tp[h_t].distance(tp[k_t]) + tp[k_t].distance(tp[a_t]);
@@ -418,7 +429,10 @@ pub fn retarget(
         if decompose(DMat3::IDENTITY, &axes).is_none() {
             return Err(Error::InvalidParam {
                 name: "target skeleton",
-                reason: format!("joint '{}': retargeting needs at most 3 orthogonal rotation axes", joint.name),
+                reason: format!(
+                    "joint '{}': retargeting needs at most 3 orthogonal rotation axes",
+                    joint.name
+                ),
             });
         }
         rot_dofs.push(rots);
@@ -453,14 +467,17 @@ pub fn retarget(
         let w = src_fk.world_from_joint();
         let mut theta = vec![0.0; target.dof_count()];
         for j in 0..target.joint_count() {
-            let parent = target.joints()[j].parent.map_or(DMat3::IDENTITY, |p| achieved[p]);
+            let parent = target.joints()[j]
+                .parent
+                .map_or(DMat3::IDENTITY, |p| achieved[p]);
             let desired = match src_of[j] {
                 Some(s) => g * w[s].matrix3 * g.transpose() * correction[j],
                 None => parent,
             };
             let axes: Vec<DVec3> = rot_dofs[j].iter().map(|&d| target.dof(d).axis).collect();
             // Axes were validated above, so the decomposition exists.
-            let angles = decompose(parent.transpose() * desired, &axes).unwrap_or_else(|| vec![0.0; axes.len()]);
+            let angles = decompose(parent.transpose() * desired, &axes)
+                .unwrap_or_else(|| vec![0.0; axes.len()]);
             let mut rot = parent;
             for ((&d, &a), axis) in rot_dofs[j].iter().zip(&angles).zip(&axes) {
                 let a = match (params.clamp_to_limits, target.dof(d).limits) {

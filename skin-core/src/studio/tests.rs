@@ -16,7 +16,10 @@ pub(crate) fn data_dir() -> Option<PathBuf> {
         Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data")),
         Some(PathBuf::from("/work/shared/data")),
     ];
-    candidates.into_iter().flatten().find(|d| d.join("makehuman/base.obj").exists())
+    candidates
+        .into_iter()
+        .flatten()
+        .find(|d| d.join("makehuman/base.obj").exists())
 }
 
 fn procedural() -> &'static Performer {
@@ -32,8 +35,12 @@ fn procedural() -> &'static Performer {
 
 fn makehuman() -> Option<&'static Performer> {
     static P: OnceLock<Option<Performer>> = OnceLock::new();
-    P.get_or_init(|| data_dir().map(|d| makehuman_performer(d.join("makehuman"), &DeformationParams::default()).unwrap()))
-        .as_ref()
+    P.get_or_init(|| {
+        data_dir().map(|d| {
+            makehuman_performer(d.join("makehuman"), &DeformationParams::default()).unwrap()
+        })
+    })
+    .as_ref()
 }
 
 fn with_dof(p: &Performer, dof: &str, v: f64) -> Vec<f64> {
@@ -54,7 +61,10 @@ fn check_bulge(p: &Performer) {
         let mut last = 0.0;
         for v in [0.3, 0.8, 1.5, 2.3] {
             let d = nonskinning_at(p, dof, v);
-            assert!(d > last, "{dof}: bulge grows with flexion ({v} rad: {d} m after {last} m)");
+            assert!(
+                d > last,
+                "{dof}: bulge grows with flexion ({v} rad: {d} m after {last} m)"
+            );
             last = d;
         }
         // Tens of millimetres at (near) full flexion.
@@ -77,13 +87,33 @@ fn makehuman_performer_matches_template_and_bulges() {
     };
     assert_eq!(p.vertex_count(), 13380);
     assert_eq!(p.skeleton.dof_count(), 42);
-    let f = p.pose(&p.skeleton.rest_pose(), &mut DeformationState::default(), 0.0).unwrap();
+    let f = p
+        .pose(
+            &p.skeleton.rest_pose(),
+            &mut DeformationState::default(),
+            0.0,
+        )
+        .unwrap();
     for (a, b) in f.true_vertices.iter().zip(&p.template.vertices) {
         assert!(a.distance(*b) < 1e-12, "rest pose equals template");
     }
-    let top = p.template.vertices.iter().map(|v| v.y).fold(f64::MIN, f64::max);
-    let bottom = p.template.vertices.iter().map(|v| v.y).fold(f64::MAX, f64::min);
-    assert!((top - bottom - 1.67).abs() < 0.03, "metres, 1.67 m tall: {}", top - bottom);
+    let top = p
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::MIN, f64::max);
+    let bottom = p
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::MAX, f64::min);
+    assert!(
+        (top - bottom - 1.67).abs() < 0.03,
+        "metres, 1.67 m tall: {}",
+        top - bottom
+    );
     // Joints sit inside the body: hips below the pelvis, knees below hips, left is +X.
     let pos = |n: &str| f.joint_positions[p.skeleton.joint_index(n).unwrap()];
     assert!(pos("l_hip").x > 0.05 && pos("r_hip").x < -0.05);
@@ -119,8 +149,15 @@ fn flap_lags_motion_then_settles_deterministically() {
     .unwrap();
     assert_eq!(trace[0], 0.0, "first frame starts at rest");
     let peak = trace[..70].iter().copied().fold(0.0, f64::max);
-    assert!(peak > 0.005, "a 1.5 Hz, 15 cm sway drags the flap: {peak} m");
-    assert!(trace[239] < 0.1 * peak, "settles after the body stops: {} vs {peak}", trace[239]);
+    assert!(
+        peak > 0.005,
+        "a 1.5 Hz, 15 cm sway drags the flap: {peak} m"
+    );
+    assert!(
+        trace[239] < 0.1 * peak,
+        "settles after the body stops: {} vs {peak}",
+        trace[239]
+    );
     // Pure translation is rigid for LBS: all of that difference is the flap.
     let mut again = Vec::new();
     p.perform(&m, |_, f| {
@@ -137,7 +174,14 @@ fn flap_lags_motion_then_settles_deterministically() {
 #[test]
 fn fast_motion_gives_tens_of_mm() {
     let p = procedural();
-    let m = fast_motion(&p.skeleton, &FastMotionParams { duration_s: 1.5, ..Default::default() }).unwrap();
+    let m = fast_motion(
+        &p.skeleton,
+        &FastMotionParams {
+            duration_s: 1.5,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let d = p.max_nonskinning_m(&m).unwrap();
     assert!((0.01..0.15).contains(&d), "{d}");
 }
@@ -147,30 +191,65 @@ fn pose_rejects_bad_input() {
     let p = procedural();
     let mut st = DeformationState::default();
     let rest = p.skeleton.rest_pose();
-    assert!(matches!(p.pose(&rest[1..], &mut st, 0.1), Err(Error::SizeMismatch { .. })));
+    assert!(matches!(
+        p.pose(&rest[1..], &mut st, 0.1),
+        Err(Error::SizeMismatch { .. })
+    ));
     let mut nan = rest.clone();
     nan[7] = f64::NAN;
     assert!(p.pose(&nan, &mut st, 0.1).is_err());
     p.pose(&rest, &mut st, 0.0).unwrap();
-    assert!(matches!(p.pose(&rest, &mut st, 0.0), Err(Error::InvalidParam { name: "dt_s", .. })));
+    assert!(matches!(
+        p.pose(&rest, &mut st, 0.0),
+        Err(Error::InvalidParam { name: "dt_s", .. })
+    ));
     assert!(p.pose(&rest, &mut st, f64::NAN).is_err());
     let mut wrong = st.clone();
     wrong.positions.pop();
-    assert!(matches!(p.pose(&rest, &mut wrong, 0.1), Err(Error::SizeMismatch { .. })));
+    assert!(matches!(
+        p.pose(&rest, &mut wrong, 0.1),
+        Err(Error::SizeMismatch { .. })
+    ));
     // Performer construction checks sizes and names.
     let w = SkinWeights::from_lists(&vec![vec![(0, 1.0)]; 3], p.skeleton.joint_count()).unwrap();
-    let r = Performer::new("x", p.template.clone(), p.skeleton.clone(), w, &DeformationParams::none());
+    let r = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        w,
+        &DeformationParams::none(),
+    );
     assert!(matches!(r, Err(Error::SizeMismatch { .. })));
     let mut params = DeformationParams::default();
     params.bulge.hinges[0].muscle_joint = "l_humerus".into();
-    let r = Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &params);
+    let r = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &params,
+    );
     assert!(r.unwrap_err().to_string().contains("l_humerus"));
     let mut params = DeformationParams::default();
     if let Some(f) = params.flap.as_mut() {
         f.stiffness_n_per_m = -1.0;
     }
-    assert!(Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &params).is_err());
+    assert!(Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &params
+    )
+    .is_err());
     // Without deformation, truth equals LBS.
-    let plain = Performer::new("x", p.template.clone(), p.skeleton.clone(), p.weights.clone(), &DeformationParams::none()).unwrap();
+    let plain = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &DeformationParams::none(),
+    )
+    .unwrap();
     assert_eq!(nonskinning_at(&plain, "l_elbow.flexion", 2.0), 0.0);
 }
