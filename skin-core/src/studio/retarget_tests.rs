@@ -367,3 +367,18 @@ fn decompose_inverts_composition() {
     )
     .is_none());
 }
+
+proptest::proptest! {
+    /// Euler decomposition onto signed orthonormal axes inverts composition (|middle| < π/2).
+    #[test]
+    fn decompose_round_trip(a in -3.0f64..3.0, b in -1.5f64..1.5, c in -3.0f64..3.0, perm in 0usize..6, flip in 0usize..8) {
+        let base = [DVec3::X, DVec3::Y, DVec3::Z];
+        let order = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]][perm];
+        let axes: Vec<DVec3> = (0..3).map(|i| base[order[i]] * if flip >> i & 1 == 1 { -1.0 } else { 1.0 }).collect();
+        let l = DMat3::from_axis_angle(axes[0], a) * DMat3::from_axis_angle(axes[1], b) * DMat3::from_axis_angle(axes[2], c);
+        let got = decompose(l, &axes).unwrap();
+        let back = DMat3::from_axis_angle(axes[0], got[0]) * DMat3::from_axis_angle(axes[1], got[1]) * DMat3::from_axis_angle(axes[2], got[2]);
+        proptest::prop_assert!((back - l).abs_diff_eq(DMat3::ZERO, 1e-9));
+        proptest::prop_assert!((got[1] - b).abs() < 1e-9);
+    }
+}

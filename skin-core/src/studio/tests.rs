@@ -253,3 +253,78 @@ fn pose_rejects_bad_input() {
     .unwrap();
     assert_eq!(nonskinning_at(&plain, "l_elbow.flexion", 2.0), 0.0);
 }
+
+/// Figures for the report: `cargo test --release --lib studio::tests::figures -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore = "measurement, prints figures"]
+fn figures() {
+    use crate::skeleton::{read_bvh, BvhParams, CMU_METRES_PER_UNIT};
+    let Some(p) = makehuman() else { return };
+    let dir = data_dir().unwrap();
+    let rom = range_of_motion(&p.skeleton, &RangeOfMotionParams::default()).unwrap();
+    let fast = fast_motion(&p.skeleton, &FastMotionParams::default()).unwrap();
+    let t = std::time::Instant::now();
+    let d_rom = p.max_nonskinning_m(&rom).unwrap();
+    let per_frame_ms = t.elapsed().as_secs_f64() * 1e3 / rom.frame_count() as f64;
+    let d_fast = p.max_nonskinning_m(&fast).unwrap();
+    eprintln!("makehuman: {} vertices; ROM {} frames max_nonskinning_mm {:.1} ({per_frame_ms:.2} ms/frame); fast {:.1}", p.vertex_count(), rom.frame_count(), d_rom * 1e3, d_fast * 1e3);
+    for (file, unit) in [
+        ("mocap-cmu/131_01.bvh", CMU_METRES_PER_UNIT),
+        ("makehuman/walk1.bvh", 0.1),
+    ] {
+        let bvh = read_bvh(
+            dir.join(file),
+            &BvhParams {
+                metres_per_unit: unit,
+            },
+        )
+        .unwrap();
+        let map = JointMap::detect(&bvh.skeleton).unwrap();
+        let r = retarget(
+            &bvh.skeleton,
+            &bvh.motion,
+            &p.skeleton,
+            &map,
+            &RetargetParams::default(),
+        )
+        .unwrap();
+        let m = r.motion.resample(&p.skeleton, 1.0 / 30.0).unwrap();
+        eprintln!(
+            "{file}: scale {:.3}, {} frames at 30 Hz, max_nonskinning_mm {:.1}",
+            r.scale,
+            m.frame_count(),
+            p.max_nonskinning_m(&m).unwrap() * 1e3
+        );
+    }
+    let q = procedural();
+    eprintln!(
+        "procedural (3 cm grid): {} vertices; ROM max_nonskinning_mm {:.1}",
+        q.vertex_count(),
+        q.max_nonskinning_m(
+            &range_of_motion(&q.skeleton, &RangeOfMotionParams::default()).unwrap()
+        )
+        .unwrap()
+            * 1e3
+    );
+    let t = std::time::Instant::now();
+    let d = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+    eprintln!(
+        "procedural (default 2 cm grid): {} vertices, built in {:.2} s",
+        d.vertex_count(),
+        t.elapsed().as_secs_f64()
+    );
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+    /// The bulge is linear in flexion: twice the angle, twice the displacement.
+    #[test]
+    fn bulge_is_linear_in_flexion(v in 0.05f64..1.2) {
+        let p = procedural();
+        let d1 = nonskinning_at(p, "l_elbow.flexion", v);
+        let d2 = nonskinning_at(p, "l_elbow.flexion", 2.0 * v);
+        proptest::prop_assert!(d1 > 0.0);
+        proptest::prop_assert!((d2 - 2.0 * d1).abs() < 1e-9 * (1.0 + d2));
+    }
+}
