@@ -12,7 +12,7 @@
 
 use super::deformation::DeformationParams;
 use super::performer::Performer;
-use crate::math::DVec3;
+use crate::math::{DQuat, DVec3};
 use crate::mesh::{ObjFile, SkinWeights, TriMesh};
 use crate::skeleton::{human_skeleton, HumanParams, Skeleton};
 use crate::{Error, Result};
@@ -410,6 +410,7 @@ pub fn makehuman_performer_from_parts(
         let j = joint_of(pj)?;
         joints[j].end_site = Some(rig.joint_position(mj, &obj.vertices, s)? - world[j]);
     }
+    align_dof_axes(&base, &mut joints)?;
     let skeleton = Skeleton::new(joints)?;
     let local: HashMap<u32, usize> = body
         .original_index
@@ -434,6 +435,69 @@ pub fn makehuman_performer_from_parts(
         .collect();
     let weights = SkinWeights::from_lists(&lists, skeleton.joint_count())?;
     Performer::new("makehuman", template, skeleton, weights, params)
+}
+
+/// Minimum |sin| of the rest bend for a hinge's plane to be well defined (10°).
+const MIN_HINGE_BEND_SIN: f64 = 0.17;
+
+/// Rest direction of joint `j`'s bone (to its first child, else its end site; zero if none).
+fn bone_direction(joints: &[crate::skeleton::Joint], j: usize) -> DVec3 {
+    joints
+        .iter()
+        .find(|c| c.parent == Some(j))
+        .map(|c| c.offset)
+        .or(joints[j].end_site)
+        .unwrap_or(DVec3::ZERO)
+        .normalize_or_zero()
+}
+
+/// Adapts the DOF axes of `human_skeleton` (`base`, bones along the world axes) to the
+/// MakeHuman rest pose in `joints`: every non-root joint's axes are rotated by the shortest
+/// arc taking the canonical bone direction onto the MakeHuman one (so flexion stays
+/// perpendicular to the bone, e.g. for the 45°-abducted A-pose arms). For the elbows and
+/// knees, the axes are further twisted about the bone so that flexion is about the normal of
+/// the plane of the two segments, and the flexion limits are shifted by the rest bend (the
+/// MakeHuman elbows are bent ≈ 45° at rest), keeping the anatomical range about the straight
+/// limb. Axes stay orthonormal, as retargeting requires.
+fn align_dof_axes(base: &Skeleton, joints: &mut [crate::skeleton::Joint]) -> Result<()> {
+    for j in 0..joints.len() {
+        if joints[j].parent.is_none() || joints[j].dofs.is_empty() {
+            continue;
+        }
+        let canon = bone_direction(base.joints(), j);
+        let mh = bone_direction(joints, j);
+        if canon == DVec3::ZERO || mh == DVec3::ZERO {
+            continue;
+        }
+        let r = DQuat::from_rotation_arc(canon, mh);
+        for d in &mut joints[j].dofs {
+            d.axis = r * d.axis;
+        }
+        let name = joints[j].name.clone();
+        if !(name.ends_with("_elbow") || name.ends_with("_knee")) {
+            continue;
+        }
+        let Some(p) = joints[j].parent else { continue };
+        let upper = bone_direction(joints, p);
+        let n = upper.cross(mh);
+        if n.length() < MIN_HINGE_BEND_SIN {
+            continue;
+        }
+        let a = joints[j].dofs[0].axis;
+        let t = n.normalize() * n.dot(a).signum();
+        let twist = DQuat::from_rotation_arc(a, t);
+        for d in &mut joints[j].dofs {
+            d.axis = (twist * d.axis).normalize();
+        }
+        let bend = upper.angle_between(mh);
+        let flexed = (DQuat::from_axis_angle(t, bend) * upper).distance(mh) < 1e-6;
+        let shift = if flexed { bend } else { -bend };
+        if let Some(l) = joints[j].dofs[0].limits.as_mut() {
+            l.min = (l.min - shift).min(0.0);
+            l.max -= shift;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -120,6 +120,32 @@ fn makehuman_performer_matches_template_and_bulges() {
     assert!(pos("l_knee").y < pos("l_hip").y - 0.3 && pos("head").y > pos("neck").y);
     check_bulge(p);
     assert!(p.deformation.flap_mass_count() >= 2);
+    // DOF axes follow the A-pose: rest inside the limits, elbow flexion about the arm plane's
+    // normal, and its limit at the anatomical 150° bend from the straight arm.
+    assert!(p
+        .skeleton
+        .limit_violations(&p.skeleton.rest_pose())
+        .unwrap()
+        .is_empty());
+    let d = p.skeleton.dof_index("l_elbow.flexion").unwrap();
+    let max = p.skeleton.dof(d).limits.unwrap().max;
+    let mut theta = p.skeleton.rest_pose();
+    theta[d] = max;
+    let q = p
+        .skeleton
+        .forward_kinematics(&theta)
+        .unwrap()
+        .joint_positions();
+    let at = |n: &str| q[p.skeleton.joint_index(n).unwrap()];
+    let upper = at("l_elbow") - at("l_shoulder");
+    let fore = at("l_wrist") - at("l_elbow");
+    let bend = upper.angle_between(fore).to_degrees();
+    assert!(
+        (bend - 150.0).abs() < 1.0,
+        "full elbow flexion bends {bend}°"
+    );
+    let axis = p.skeleton.dof(d).axis;
+    assert!(axis.dot(upper.normalize()).abs() < 1e-9);
 }
 
 fn root_sway(p: &Performer, frames: usize, dt: f64, stop_after: usize) -> Motion {
