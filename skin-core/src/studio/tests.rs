@@ -354,3 +354,64 @@ proptest::proptest! {
         proptest::prop_assert!((d2 - 2.0 * d1).abs() < 1e-9 * (1.0 + d2));
     }
 }
+
+/// Visual check: `cargo test --release --lib studio::tests::picture -- --ignored`; writes
+/// `target/studio_check.png` (front and side views, red = non-skinning displacement).
+#[test]
+#[ignore = "writes a picture for visual inspection"]
+fn picture() {
+    let Some(p) = makehuman() else { return };
+    let mut theta = p.skeleton.rest_pose();
+    for (n, v) in [
+        ("l_elbow.flexion", 2.0),
+        ("r_knee.flexion", 1.5),
+        ("r_hip.flexion", 0.8),
+        ("l_shoulder.flexion", 0.6),
+    ] {
+        theta[p.skeleton.dof_index(n).unwrap()] = v;
+    }
+    let mut st = DeformationState::default();
+    if std::env::var("STUDIO_CHECK_FLAP").is_ok() {
+        p.pose(&p.skeleton.rest_pose(), &mut st, 0.0).unwrap();
+    }
+    let f = p.pose(&theta, &mut st, 0.05).unwrap();
+    let (i, d) = f
+        .lbs_vertices
+        .iter()
+        .zip(&f.true_vertices)
+        .map(|(a, b)| a.distance(*b))
+        .enumerate()
+        .fold((0, 0.0), |m, (i, d)| if d > m.1 { (i, d) } else { m });
+    let big = f
+        .lbs_vertices
+        .iter()
+        .zip(&f.true_vertices)
+        .filter(|(a, b)| a.distance(**b) > 0.01)
+        .count();
+    eprintln!(
+        "max non-skinning {d} m at vertex {i}, {:?}; {big} vertices above 10 mm",
+        f.true_vertices[i]
+    );
+    let (w, h) = (800u32, 500u32);
+    let mut img = image::RgbImage::new(w, h);
+    for (a, b) in f.lbs_vertices.iter().zip(&f.true_vertices) {
+        let d = (a.distance(*b) / 0.03).min(1.0);
+        let c = image::Rgb([
+            (80.0 + 175.0 * d) as u8,
+            (200.0 * (1.0 - d)) as u8,
+            (200.0 * (1.0 - d)) as u8,
+        ]);
+        for (u0, x) in [(200.0, b.x), (600.0, b.z)] {
+            let u = (u0 + x * 250.0) as u32;
+            let v = (250.0 - b.y * 250.0) as u32;
+            if u < w && v < h {
+                img.put_pixel(u, v, c);
+            }
+        }
+    }
+    img.save(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../target/studio_check.png"
+    ))
+    .unwrap();
+}
