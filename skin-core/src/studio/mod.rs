@@ -8,7 +8,8 @@
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
 //!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
-//!   playback through [`retarget`] with a [`JointMap`].
+//!   playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads, maps, retargets
+//!   and resamples in one call).
 
 mod deformation;
 mod makehuman;
@@ -31,4 +32,4 @@ pub use makehuman::{
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
-pub use retarget::{retarget, JointMap, JointPair, RetargetParams, Retargeted};
+pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};

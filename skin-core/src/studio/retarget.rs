@@ -503,6 +503,26 @@ pub fn retarget(
     })
 }
 
+/// Reads a BVH file, picks its joint map with [`JointMap::detect`], retargets it onto
+/// `target` and resamples it to `frame_time_s` — BVH playback in one call.
+///
+/// # Errors
+/// As [`read_bvh`](crate::skeleton::read_bvh), [`JointMap::detect`] (naming the joints that
+/// do not map), [`retarget`] and [`Motion::resample`].
+pub fn play_bvh(
+    path: impl AsRef<std::path::Path>,
+    bvh_params: &crate::skeleton::BvhParams,
+    target: &Skeleton,
+    frame_time_s: f64,
+    params: &RetargetParams,
+) -> Result<Retargeted> {
+    let bvh = crate::skeleton::read_bvh(path, bvh_params)?;
+    let map = JointMap::detect(&bvh.skeleton)?;
+    let mut out = retarget(&bvh.skeleton, &bvh.motion, target, &map, params)?;
+    out.motion = out.motion.resample(target, frame_time_s)?;
+    Ok(out)
+}
+
 #[cfg(test)]
 #[path = "retarget_tests.rs"]
 mod tests;

@@ -225,6 +225,25 @@ fn cmu_walk_retargets_with_matching_limb_directions() {
     }
     let r = out.motion.resample(&target, 1.0 / 30.0).unwrap();
     assert!((r.frame_count() as f64 - bvh.motion.duration_s() * 30.0).abs() < 2.0);
+    let played = play_bvh(
+        data("mocap-cmu/131_01.bvh").unwrap(),
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+        &target,
+        1.0 / 30.0,
+        &RetargetParams::default(),
+    )
+    .unwrap();
+    assert_eq!(played.motion, r);
+    assert!(play_bvh(
+        "/nonexistent.bvh",
+        &BvhParams::default(),
+        &target,
+        0.1,
+        &RetargetParams::default()
+    )
+    .is_err());
 }
 
 #[test]
