@@ -6,6 +6,7 @@
 
 mod heat_weights;
 mod laplacian;
+mod marching_cubes;
 mod metrics;
 mod normals;
 mod obj;
@@ -25,6 +26,7 @@ pub use laplacian::{
     cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
     MassKind, DEFAULT_DEGENERATE_TOL,
 };
+pub use marching_cubes::{marching_cubes, ScalarGrid};
 pub use metrics::{
     mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
     OneSidedDistance,

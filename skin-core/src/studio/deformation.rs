@@ -1,0 +1,521 @@
+//! The performer's known **non-skinning** deformation: what linear blend skinning (LBS) cannot
+//! produce, so that ground truth differs from any skinned template and the methods (Vlasic
+//! §2.4–2.5 molding, Sand 2003 needles) have something real to recover.
+//!
+//! Two effects are added to the LBS surface:
+//!
+//! * **Muscle bulge.** For each hinge (elbow, knee) the proximal segment swells on its flexor
+//!   side in proportion to the flexion angle: vertex `v` moves by
+//!   `A · max(θ_flex, 0) · w_bone(v) · sin²(π s_v) · max(0, r̂_v · f̂) · r̂_v`, expressed in the
+//!   proximal bone's frame, where `s_v ∈ [0, 1]` is the position along the bone, `r̂_v` the
+//!   radial direction from the bone axis, `f̂` the direction the distal segment swings to
+//!   under positive flexion and `w_bone` the vertex's skin weight on the bone. The displacement
+//!   depends on the *child* joint's angle, which LBS of the parent bone cannot express. It is
+//!   exactly zero at θ_flex ≤ 0 and grows linearly with flexion.
+//! * **Hip flap.** A loose cloth-like band around the hips lags behind the body: `K` point
+//!   masses spaced in azimuth around the pelvis each follow the skinned position of an anchor
+//!   vertex of the band through a damped spring, `m ẍ = −k (x − T) − c (ẋ − Ṫ)` (second-order
+//!   dynamics, integrated with backward Euler substeps, unconditionally stable and
+//!   deterministic). A band vertex moves by the lag `x − T` of the two masses nearest in
+//!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem, and saturated smoothly at
+//!   [`FlapParams::max_lag_m`].
+//!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
+
+use crate::math::{DAffine3, DVec3};
+use crate::mesh::SkinWeights;
+use crate::skeleton::Skeleton;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::{PI, TAU};
+
+/// Default bulge amplitude, metres of radial swelling per radian of flexion: 12 mm/rad gives
+/// ≈ 31 mm at full elbow flexion (150°) and ≈ 28 mm at full knee flexion (135°), the order of
+/// the biceps thickening seen when a flexed arm contracts. A synthetic but plausible size.
+pub const DEFAULT_BULGE_M_PER_RAD: f64 = 0.012;
+
+/// One hinge whose flexion makes the proximal segment bulge.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HingeBulge {
+    /// Name of the flexion DOF (e.g. `"l_elbow.flexion"`); its joint is the distal joint.
+    pub flexion_dof: String,
+    /// Name of the joint whose bone bulges (the parent of the DOF's joint, e.g. `"l_shoulder"`
+    /// for the upper arm).
+    pub muscle_joint: String,
+}
+
+/// Parameters of the muscle bulge.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BulgeParams {
+    /// Radial swelling per radian of flexion at the centre of the flexor side, metres/radian.
+    /// Default: [`DEFAULT_BULGE_M_PER_RAD`] (0.012).
+    pub amplitude_m_per_rad: f64,
+    /// The hinges. Default: both elbows (upper arm bulges, biceps) and both knees (thigh
+    /// bulges, hamstrings), with the joint names of
+    /// [`human_skeleton`](crate::skeleton::human_skeleton).
+    pub hinges: Vec<HingeBulge>,
+}
+
+impl Default for BulgeParams {
+    fn default() -> Self {
+        let h = |d: &str, m: &str| HingeBulge {
+            flexion_dof: d.into(),
+            muscle_joint: m.into(),
+        };
+        BulgeParams {
+            amplitude_m_per_rad: DEFAULT_BULGE_M_PER_RAD,
+            hinges: vec![
+                h("l_elbow.flexion", "l_shoulder"),
+                h("r_elbow.flexion", "r_shoulder"),
+                h("l_knee.flexion", "l_hip"),
+                h("r_knee.flexion", "r_hip"),
+            ],
+        }
+    }
+}
+
+/// Parameters of the hip flap's dynamics and extent.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FlapParams {
+    /// Mass of each flap point, kg. Default: 0.2 (a fold of a skirt or coat tail).
+    pub mass_kg: f64,
+    /// Spring stiffness pulling each mass to its anchor, N/m. Default: 40 (with the default
+    /// mass: natural frequency 14 rad/s ≈ 2.3 Hz, a loose fabric sway).
+    pub stiffness_n_per_m: f64,
+    /// Damping on the velocity relative to the anchor, N·s/m. Default: 1.0 (damping ratio
+    /// ≈ 0.18: the flap visibly overshoots and settles in about a second).
+    pub damping_n_s_per_m: f64,
+    /// Number of masses around the hips. Default: 8.
+    pub masses: usize,
+    /// Height of the waist line (top of the band, no lag) above the pelvis joint at rest,
+    /// metres. Default: 0.02.
+    pub waist_above_pelvis_m: f64,
+    /// Depth of the hem (full lag) below the pelvis joint at rest, metres. Default: 0.20.
+    pub hem_below_pelvis_m: f64,
+    /// Distance below the hem over which the lag fades to zero, metres. Default: 0.06.
+    pub fade_m: f64,
+    /// Joints whose skin weight makes a vertex part of the band (a vertex's share is its summed
+    /// weight on them, so hands and arms resting near the hips stay out). Default: pelvis,
+    /// spine, both hips.
+    pub joints: Vec<String>,
+    /// Largest displacement of the hem, metres: the lag `e` of a mass is shown as
+    /// `e · L tanh(|e|/L) / |e|` (linear for small lags, saturating at `L`), as real fabric
+    /// tethered to the hips cannot swing arbitrarily far. Default: 0.06.
+    pub max_lag_m: f64,
+    /// Longest integration substep, seconds. Default: 0.002.
+    pub max_substep_s: f64,
+}
+
+impl Default for FlapParams {
+    fn default() -> Self {
+        FlapParams {
+            mass_kg: 0.2,
+            stiffness_n_per_m: 40.0,
+            damping_n_s_per_m: 1.0,
+            masses: 8,
+            waist_above_pelvis_m: 0.02,
+            hem_below_pelvis_m: 0.20,
+            fade_m: 0.06,
+            joints: ["pelvis", "spine", "l_hip", "r_hip"]
+                .map(String::from)
+                .to_vec(),
+            max_lag_m: 0.06,
+            max_substep_s: 0.002,
+        }
+    }
+}
+
+/// Parameters of the whole non-skinning deformation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeformationParams {
+    /// Muscle bulge. Default: [`BulgeParams::default`].
+    pub bulge: BulgeParams,
+    /// Hip flap; `None` disables it. Default: `Some(FlapParams::default())`.
+    pub flap: Option<FlapParams>,
+}
+
+impl Default for DeformationParams {
+    fn default() -> Self {
+        DeformationParams {
+            bulge: BulgeParams::default(),
+            flap: Some(FlapParams::default()),
+        }
+    }
+}
+
+impl DeformationParams {
+    /// No non-skinning deformation at all (ground truth equals LBS).
+    pub fn none() -> Self {
+        DeformationParams {
+            bulge: BulgeParams {
+                amplitude_m_per_rad: 0.0,
+                hinges: vec![],
+            },
+            flap: None,
+        }
+    }
+}
+
+/// Precomputed bulge of one hinge.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct BulgeModel {
+    dof: usize,
+    muscle_joint: usize,
+    /// (vertex, displacement per radian in the muscle joint's frame, metres/radian).
+    vertices: Vec<(u32, DVec3)>,
+}
+
+/// Precomputed hip flap.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct FlapModel {
+    params: FlapParams,
+    /// Anchor vertex of each mass.
+    anchors: Vec<u32>,
+    /// (vertex, mass a, mass b, blend towards b, profile weight).
+    vertices: Vec<(u32, u32, u32, f64, f64)>,
+}
+
+/// The performer's non-skinning deformation, precomputed for one template and skeleton.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeformationModel {
+    bulges: Vec<BulgeModel>,
+    flap: Option<FlapModel>,
+}
+
+/// State of the deformation's dynamics across frames (the flap masses). Start from
+/// `DeformationState::default()`: the first posed frame puts every mass at rest on its anchor.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct DeformationState {
+    /// World position of each flap mass, metres (empty before the first frame).
+    pub positions: Vec<DVec3>,
+    /// World velocity of each flap mass, m/s.
+    pub velocities: Vec<DVec3>,
+    /// Anchor positions at the previous frame, metres.
+    pub anchors: Vec<DVec3>,
+}
+
+fn positive(name: &'static str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParam {
+            name,
+            reason: format!("must be finite and positive, got {v}"),
+        })
+    }
+}
+
+fn non_negative(name: &'static str, v: f64) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParam {
+            name,
+            reason: format!("must be finite and non-negative, got {v}"),
+        })
+    }
+}
+
+fn joint_named(skeleton: &Skeleton, name: &str, what: &'static str) -> Result<usize> {
+    skeleton
+        .joint_index(name)
+        .ok_or_else(|| Error::InvalidParam {
+            name: what,
+            reason: format!("the skeleton has no joint '{name}'"),
+        })
+}
+
+fn smoothstep(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+impl DeformationModel {
+    /// Precomputes the deformation for a rest template (`rest_vertices`, metres, at θ = 0),
+    /// its skeleton and skin weights (bones = joints).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] for a hinge or flap joint name the skeleton lacks, a flexion
+    /// DOF that is not a rotation, or a non-positive/non-finite parameter;
+    /// [`Error::SizeMismatch`] if `weights` and `rest_vertices` differ in length.
+    pub fn new(
+        params: &DeformationParams,
+        skeleton: &Skeleton,
+        rest_vertices: &[DVec3],
+        weights: &SkinWeights,
+    ) -> Result<Self> {
+        if weights.vertex_count() != rest_vertices.len() {
+            return Err(Error::SizeMismatch {
+                what: "skin weights per vertex",
+                expected: rest_vertices.len(),
+                got: weights.vertex_count(),
+            });
+        }
+        non_negative(
+            "bulge.amplitude_m_per_rad",
+            params.bulge.amplitude_m_per_rad,
+        )?;
+        let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
+        let frames = rest.world_from_joint();
+        let weight_on = |v: usize, j: usize| {
+            weights
+                .influences(v)
+                .filter(|p| p.0 as usize == j)
+                .map(|p| p.1)
+                .sum::<f64>()
+        };
+        let mut bulges = Vec::new();
+        for h in &params.bulge.hinges {
+            let dof = skeleton
+                .dof_index(&h.flexion_dof)
+                .ok_or_else(|| Error::InvalidParam {
+                    name: "bulge.hinges",
+                    reason: format!("the skeleton has no DOF '{}'", h.flexion_dof),
+                })?;
+            if !skeleton.is_rotation(dof) {
+                return Err(Error::InvalidParam {
+                    name: "bulge.hinges",
+                    reason: format!("DOF '{}' is not a rotation", h.flexion_dof),
+                });
+            }
+            let m = joint_named(skeleton, &h.muscle_joint, "bulge.hinges")?;
+            let hinge_joint = skeleton.dof_joint(dof);
+            let a = frames[m].translation;
+            let b = frames[hinge_joint].translation;
+            let axis = b - a;
+            let len2 = axis.length_squared();
+            if len2 < 1e-12 {
+                return Err(Error::Degenerate {
+                    what: format!("bone of '{}' has zero length", h.muscle_joint),
+                });
+            }
+            // Flexor side: where the distal segment's far end moves under positive flexion.
+            let tip = distal_tip(skeleton, frames, hinge_joint);
+            let swing = rest.dof_axes_world()[dof].cross(tip - rest.dof_origins_world()[dof]);
+            let flexor = (swing - axis * swing.dot(axis) / len2).normalize_or_zero();
+            let joint_from_world = frames[m].inverse();
+            let mut verts = Vec::new();
+            for (v, p) in rest_vertices.iter().enumerate() {
+                let w = weight_on(v, m);
+                if w <= 0.0 {
+                    continue;
+                }
+                let s = (*p - a).dot(axis) / len2;
+                if !(0.0..=1.0).contains(&s) {
+                    continue;
+                }
+                let radial = (*p - a - axis * s).normalize_or_zero();
+                let side = radial.dot(flexor).max(0.0);
+                let c = params.bulge.amplitude_m_per_rad * w * (PI * s).sin().powi(2) * side;
+                if c > 0.0 {
+                    verts.push((v as u32, joint_from_world.transform_vector3(radial) * c));
+                }
+            }
+            bulges.push(BulgeModel {
+                dof,
+                muscle_joint: m,
+                vertices: verts,
+            });
+        }
+        let flap = match &params.flap {
+            None => None,
+            Some(fp) => flap_model(fp, skeleton, frames, rest_vertices, weights)?,
+        };
+        Ok(DeformationModel { bulges, flap })
+    }
+
+    /// Number of flap masses (0 when the flap is disabled or the template has no band).
+    pub fn flap_mass_count(&self) -> usize {
+        self.flap.as_ref().map_or(0, |f| f.anchors.len())
+    }
+
+    /// Adds the bulge to `out` (already holding the LBS positions) for pose θ with joint
+    /// frames `world_from_joint`.
+    pub(super) fn add_bulge(
+        &self,
+        theta: &[f64],
+        world_from_joint: &[DAffine3],
+        out: &mut [DVec3],
+    ) {
+        for b in &self.bulges {
+            let flex = theta[b.dof].max(0.0);
+            if flex == 0.0 {
+                continue;
+            }
+            let r = world_from_joint[b.muscle_joint].matrix3;
+            for &(v, d) in &b.vertices {
+                out[v as usize] += r * (d * flex);
+            }
+        }
+    }
+
+    /// Advances the flap dynamics to the current frame (anchors read from the LBS positions
+    /// `lbs`) and adds the flap to `out`. `dt_s` is the time since the previous frame; it is
+    /// ignored on the first frame (empty `state`), which starts the masses at rest.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] for a non-positive or non-finite `dt_s` after the first frame;
+    /// [`Error::SizeMismatch`] for a state built for another performer.
+    pub(super) fn add_flap(
+        &self,
+        lbs: &[DVec3],
+        state: &mut DeformationState,
+        dt_s: f64,
+        out: &mut [DVec3],
+    ) -> Result<()> {
+        let Some(f) = &self.flap else { return Ok(()) };
+        let targets: Vec<DVec3> = f.anchors.iter().map(|&a| lbs[a as usize]).collect();
+        if state.positions.is_empty() {
+            state.positions = targets.clone();
+            state.velocities = vec![DVec3::ZERO; targets.len()];
+            state.anchors = targets;
+            return Ok(());
+        }
+        if state.positions.len() != targets.len()
+            || state.velocities.len() != targets.len()
+            || state.anchors.len() != targets.len()
+        {
+            return Err(Error::SizeMismatch {
+                what: "deformation state (flap masses)",
+                expected: targets.len(),
+                got: state.positions.len(),
+            });
+        }
+        positive("dt_s", dt_s)?;
+        let p = &f.params;
+        let steps = (dt_s / p.max_substep_s).ceil().max(1.0);
+        let h = dt_s / steps;
+        let (m, k, c) = (p.mass_kg, p.stiffness_n_per_m, p.damping_n_s_per_m);
+        for (i, &t1) in targets.iter().enumerate() {
+            let t0 = state.anchors[i];
+            let t_dot = (t1 - t0) / dt_s;
+            let (mut x, mut v) = (state.positions[i], state.velocities[i]);
+            for s in 1..=steps as usize {
+                let t = t0 + (t1 - t0) * (s as f64 / steps);
+                // Backward Euler: v' (1 + h c/m + h² k/m) = v + h/m (−k (x − T') + c Ṫ).
+                let denom = 1.0 + h * c / m + h * h * k / m;
+                v = (v + (h / m) * (-k * (x - t) + c * t_dot)) / denom;
+                x += h * v;
+            }
+            state.positions[i] = x;
+            state.velocities[i] = v;
+            state.anchors[i] = t1;
+        }
+        let limit = p.max_lag_m;
+        let lags: Vec<DVec3> = state
+            .positions
+            .iter()
+            .zip(&targets)
+            .map(|(x, t)| {
+                let e = *x - *t;
+                let n = e.length();
+                if n > 1e-15 {
+                    e * (limit * (n / limit).tanh() / n)
+                } else {
+                    e
+                }
+            })
+            .collect();
+        for &(v, a, b, s, wgt) in &f.vertices {
+            out[v as usize] += (lags[a as usize] * (1.0 - s) + lags[b as usize] * s) * wgt;
+        }
+        Ok(())
+    }
+}
+
+/// Far end of a joint's distal segment at rest: its end site, else the mean of its children.
+fn distal_tip(skeleton: &Skeleton, frames: &[DAffine3], j: usize) -> DVec3 {
+    if let Some(e) = skeleton.joints()[j].end_site {
+        return frames[j].transform_point3(e);
+    }
+    let children: Vec<usize> = skeleton.children(j).collect();
+    if children.is_empty() {
+        frames[j].translation
+    } else {
+        children
+            .iter()
+            .map(|&c| frames[c].translation)
+            .sum::<DVec3>()
+            / children.len() as f64
+    }
+}
+
+fn flap_model(
+    p: &FlapParams,
+    skeleton: &Skeleton,
+    frames: &[DAffine3],
+    rest: &[DVec3],
+    weights: &SkinWeights,
+) -> Result<Option<FlapModel>> {
+    positive("flap.mass_kg", p.mass_kg)?;
+    positive("flap.stiffness_n_per_m", p.stiffness_n_per_m)?;
+    non_negative("flap.damping_n_s_per_m", p.damping_n_s_per_m)?;
+    positive("flap.max_substep_s", p.max_substep_s)?;
+    positive("flap.max_lag_m", p.max_lag_m)?;
+    positive(
+        "flap.hem_below_pelvis_m + waist_above_pelvis_m",
+        p.hem_below_pelvis_m + p.waist_above_pelvis_m,
+    )?;
+    non_negative("flap.fade_m", p.fade_m)?;
+    if p.masses < 2 {
+        return Err(Error::InvalidParam {
+            name: "flap.masses",
+            reason: format!("need at least 2 masses, got {}", p.masses),
+        });
+    }
+    let root = skeleton.joint_index("pelvis").unwrap_or(0);
+    let band_joints: Vec<usize> = p
+        .joints
+        .iter()
+        .map(|n| joint_named(skeleton, n, "flap.joints"))
+        .collect::<Result<_>>()?;
+    let centre = frames[root].translation;
+    let top = centre.y + p.waist_above_pelvis_m;
+    let hem = centre.y - p.hem_below_pelvis_m;
+    let sector = TAU / p.masses as f64;
+    let mut vertices = Vec::new();
+    let mut best: Vec<Option<(f64, u32)>> = vec![None; p.masses];
+    for (v, x) in rest.iter().enumerate() {
+        let share: f64 = weights
+            .influences(v)
+            .filter(|q| band_joints.contains(&(q.0 as usize)))
+            .map(|q| q.1)
+            .sum();
+        let profile = if x.y >= hem {
+            smoothstep((top - x.y) / (top - hem))
+        } else if p.fade_m > 0.0 {
+            1.0 - smoothstep((hem - x.y) / p.fade_m)
+        } else {
+            0.0
+        };
+        let wgt = share * profile;
+        if wgt <= 1e-6 {
+            continue;
+        }
+        let az = (x.x - centre.x).atan2(x.z - centre.z).rem_euclid(TAU);
+        let pos = az / sector;
+        let a = (pos.floor() as usize).min(p.masses - 1);
+        let b = (a + 1) % p.masses;
+        vertices.push((v as u32, a as u32, b as u32, pos - a as f64, wgt));
+        // Anchor of mass k: the strongest band vertex closest in azimuth (score favours lag).
+        for (k, slot) in best.iter_mut().enumerate() {
+            let d = (az - k as f64 * sector).abs();
+            let d = d.min(TAU - d);
+            if d < 0.5 * sector {
+                let score = wgt - d / sector;
+                if slot.is_none_or(|(s, _)| score > s) {
+                    *slot = Some((score, v as u32));
+                }
+            }
+        }
+    }
+    if vertices.is_empty() || best.iter().any(Option::is_none) {
+        log::warn!("template has no complete band around the hips; flap disabled");
+        return Ok(None);
+    }
+    let anchors = best.into_iter().flatten().map(|(_, v)| v).collect();
+    Ok(Some(FlapModel {
+        params: p.clone(),
+        anchors,
+        vertices,
+    }))
+}

@@ -1,0 +1,35 @@
+//! The synthetic capture studio: a rigged performer with known non-skinning deformation,
+//! motions (procedural and BVH, retargeted), and (in the rasteriser files) the rendering of
+//! every observation with its ground truth.
+//!
+//! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
+//!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
+//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices.
+//! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
+//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
+//! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
+//!   playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads, maps, retargets
+//!   and resamples in one call).
+
+mod deformation;
+mod makehuman;
+mod motion;
+mod performer;
+mod procedural_body;
+mod retarget;
+#[cfg(test)]
+mod tests;
+
+pub use deformation::{
+    BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
+    DEFAULT_BULGE_M_PER_RAD,
+};
+pub use makehuman::{
+    makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
+    read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,
+    MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
+};
+pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
+pub use performer::{Performer, PosedFrame};
+pub use procedural_body::{procedural_performer, ProceduralBodyParams};
+pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};

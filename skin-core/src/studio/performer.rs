@@ -1,0 +1,190 @@
+//! The studio's performer: a rigged template (mesh in metres, skeleton, skin weights) plus a
+//! known non-skinning deformation ([`DeformationModel`]). Posing gives both the linear blend
+//! skinning surface (Vlasic thesis §2.5.1: `v' = Σⱼ wⱼ Mⱼ v`, the model every method assumes)
+//! and the ground-truth surface (LBS plus bulge and flap), so a method's error against truth
+//! can be split into what skinning cannot explain and what the method got wrong.
+
+use super::deformation::{DeformationModel, DeformationParams, DeformationState};
+use crate::math::{DAffine3, DVec3};
+use crate::mesh::{skin, SkinWeights, TriMesh};
+use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// A rigged performer with known non-skinning deformation.
+///
+/// Invariants (checked by [`Performer::new`]): one weight row per template vertex and one
+/// weight column per joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Performer {
+    /// Name (e.g. `"makehuman"`, `"procedural"`).
+    pub name: String,
+    /// Template mesh at rest pose θ = 0, metres, world frame (+Y up, +Z forward, +X left).
+    pub template: TriMesh,
+    /// The skeleton; θ = 0 is the template's pose.
+    pub skeleton: Skeleton,
+    /// Skin weights (bones = joints of `skeleton`), rows summing to 1.
+    pub weights: SkinWeights,
+    /// The non-skinning deformation.
+    pub deformation: DeformationModel,
+    /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
+    joint_from_world_rest: Vec<DAffine3>,
+}
+
+/// One posed frame: skinned and true surfaces and the skeleton's state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PosedFrame {
+    /// Joint frames `world_from_joint`, metres.
+    pub world_from_joint: Vec<DAffine3>,
+    /// World position of every joint origin, metres.
+    pub joint_positions: Vec<DVec3>,
+    /// Linear-blend-skinned template vertices, metres (what a skinning method can reach).
+    pub lbs_vertices: Vec<DVec3>,
+    /// Ground-truth vertices: LBS plus the non-skinning deformation, metres.
+    pub true_vertices: Vec<DVec3>,
+}
+
+impl PosedFrame {
+    /// Largest distance between a true vertex and its LBS position, metres: the size of the
+    /// non-skinning deformation in this frame.
+    pub fn max_nonskinning_m(&self) -> f64 {
+        self.lbs_vertices
+            .iter()
+            .zip(&self.true_vertices)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max)
+    }
+}
+
+impl Performer {
+    /// Builds a performer and precomputes its deformation.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] unless `weights` has one row per vertex and one bone per joint;
+    /// [`Error::Empty`] for a template without vertices; the template's own validation errors;
+    /// as [`DeformationModel::new`].
+    pub fn new(
+        name: impl Into<String>,
+        template: TriMesh,
+        skeleton: Skeleton,
+        weights: SkinWeights,
+        params: &DeformationParams,
+    ) -> Result<Self> {
+        template.validate()?;
+        if template.vertices.is_empty() {
+            return Err(Error::Empty {
+                what: "performer template",
+            });
+        }
+        if weights.vertex_count() != template.vertex_count() {
+            return Err(Error::SizeMismatch {
+                what: "skin weight rows vs template vertices",
+                expected: template.vertex_count(),
+                got: weights.vertex_count(),
+            });
+        }
+        if weights.bone_count() != skeleton.joint_count() {
+            return Err(Error::SizeMismatch {
+                what: "skin weight bones vs skeleton joints",
+                expected: skeleton.joint_count(),
+                got: weights.bone_count(),
+            });
+        }
+        let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
+        let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
+        let joint_from_world_rest = rest
+            .world_from_joint()
+            .iter()
+            .map(|t| t.inverse())
+            .collect();
+        Ok(Performer {
+            name: name.into(),
+            template,
+            skeleton,
+            weights,
+            deformation,
+            joint_from_world_rest,
+        })
+    }
+
+    /// Number of template vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.template.vertex_count()
+    }
+
+    /// Linear blend skinning of the template for joint frames `world_from_joint`
+    /// (Vlasic §2.5.1, [`crate::mesh::skin`]) with `world_from_rest = world_from_joint ·
+    /// joint_from_world_rest`.
+    fn skin(&self, world_from_joint: &[DAffine3]) -> Result<Vec<DVec3>> {
+        let m: Vec<DAffine3> = world_from_joint
+            .iter()
+            .zip(&self.joint_from_world_rest)
+            .map(|(w, r)| *w * *r)
+            .collect();
+        skin(&self.template.vertices, &self.weights, &m)
+    }
+
+    /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation.
+    /// `state` carries the flap's dynamics from frame to frame (start with
+    /// `DeformationState::default()`); `dt_s` is the time since the previous call (ignored on
+    /// the first).
+    ///
+    /// # Errors
+    /// As [`Skeleton::check_pose`]; [`Error::InvalidParam`] for a bad `dt_s` after the first
+    /// frame; [`Error::SizeMismatch`] for a state of another performer.
+    pub fn pose(
+        &self,
+        theta: &[f64],
+        state: &mut DeformationState,
+        dt_s: f64,
+    ) -> Result<PosedFrame> {
+        let mut fk = ForwardKinematics::new(&self.skeleton);
+        self.skeleton.forward_kinematics_into(theta, &mut fk)?;
+        let world_from_joint = fk.world_from_joint().to_vec();
+        let lbs_vertices = self.skin(&world_from_joint)?;
+        let mut true_vertices = lbs_vertices.clone();
+        self.deformation
+            .add_bulge(theta, &world_from_joint, &mut true_vertices);
+        self.deformation
+            .add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;
+        Ok(PosedFrame {
+            joint_positions: fk.joint_positions(),
+            world_from_joint,
+            lbs_vertices,
+            true_vertices,
+        })
+    }
+
+    /// Plays a whole motion from a fresh [`DeformationState`], calling `each(frame_index,
+    /// &frame)` in order (frames are not kept, so long motions need no memory).
+    ///
+    /// # Errors
+    /// As [`Motion::check_for`] and [`Performer::pose`]; any error `each` returns.
+    pub fn perform(
+        &self,
+        motion: &Motion,
+        mut each: impl FnMut(usize, &PosedFrame) -> Result<()>,
+    ) -> Result<()> {
+        motion.check_for(&self.skeleton)?;
+        let mut state = DeformationState::default();
+        for k in 0..motion.frame_count() {
+            let frame = self.pose(motion.frame(k), &mut state, motion.frame_time_s)?;
+            each(k, &frame)?;
+        }
+        Ok(())
+    }
+
+    /// Largest distance between truth and LBS over a motion, metres (the studio's
+    /// `max_nonskinning_mm` / 1000).
+    ///
+    /// # Errors
+    /// As [`Performer::perform`].
+    pub fn max_nonskinning_m(&self, motion: &Motion) -> Result<f64> {
+        let mut worst: f64 = 0.0;
+        self.perform(motion, |_, f| {
+            worst = worst.max(f.max_nonskinning_m());
+            Ok(())
+        })?;
+        Ok(worst)
+    }
+}

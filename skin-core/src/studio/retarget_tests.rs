@@ -1,0 +1,403 @@
+//! Tests of BVH retargeting.
+
+use super::*;
+use crate::skeleton::{
+    human_skeleton, read_bvh, BvhParams, Dof, HumanParams, Joint, CMU_METRES_PER_UNIT,
+};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A BVH-like copy of `s`: names prefixed `src_`, offsets `r0 · k · offset`, every joint with
+/// Z, Y, X rotation channels, the root also with X, Y, Z translations.
+fn bvh_like(s: &Skeleton, r0: DMat3, k: f64) -> Skeleton {
+    let joints = s
+        .joints()
+        .iter()
+        .map(|j| {
+            let mut dofs = Vec::new();
+            if j.parent.is_none() {
+                dofs.extend(
+                    ["Xposition", "Yposition", "Zposition"]
+                        .iter()
+                        .zip([DVec3::X, DVec3::Y, DVec3::Z])
+                        .map(|(n, a)| Dof::translation(*n, a, None)),
+                );
+            }
+            dofs.extend(
+                ["Zrotation", "Yrotation", "Xrotation"]
+                    .iter()
+                    .zip([DVec3::Z, DVec3::Y, DVec3::X])
+                    .map(|(n, a)| Dof::rotation(*n, a, None)),
+            );
+            let mut out = Joint::new(format!("src_{}", j.name), j.parent, r0 * j.offset * k, dofs);
+            out.end_site = j.end_site.map(|e| r0 * e * k);
+            out
+        })
+        .collect();
+    Skeleton::new(joints).unwrap()
+}
+
+fn identity_map(s: &Skeleton) -> JointMap {
+    JointMap {
+        name: "test".into(),
+        pairs: s
+            .joints()
+            .iter()
+            .map(|j| JointPair {
+                source: format!("src_{}", j.name),
+                target: j.name.clone(),
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn retargeted_positions_match_source_within_scale() {
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    // Source: Z-up (rotated 90° about X), half size.
+    let r0 = DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2);
+    let k = 0.5;
+    let source = bvh_like(&target, r0, k);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let n = 12;
+    let mut truth = Vec::new();
+    let mut src_frames = DMatrix::zeros(source.dof_count(), n);
+    for f in 0..n {
+        let mut theta = target.rest_pose();
+        for (d, v) in theta.iter_mut().enumerate() {
+            let dof = target.dof(d);
+            *v = match (dof.kind, dof.limits) {
+                (_, Some(l)) => {
+                    let (lo, hi) = (l.min.max(-1.2), l.max.min(1.2));
+                    lo + (hi - lo) * rng.random::<f64>()
+                }
+                (DofKind::Rotation, None) => rng.random::<f64>() - 0.5,
+                (DofKind::Translation, None) => 2.0 * rng.random::<f64>() - 1.0,
+            };
+        }
+        let fk = target.forward_kinematics(&theta).unwrap();
+        // Source pose with the same world rotations (conjugated by r0) and positions.
+        let mut src_theta = source.rest_pose();
+        for j in 0..target.joint_count() {
+            let q = |i: usize| r0 * fk.world_from_joint()[i].matrix3 * r0.transpose();
+            let parent = target.joints()[j].parent.map_or(DMat3::IDENTITY, q);
+            let angles =
+                decompose(parent.transpose() * q(j), &[DVec3::Z, DVec3::Y, DVec3::X]).unwrap();
+            let dofs: Vec<usize> = source.joint_dofs(j).collect();
+            let rot = &dofs[dofs.len() - 3..];
+            for (d, a) in rot.iter().zip(angles) {
+                src_theta[*d] = a;
+            }
+        }
+        let root = r0 * fk.world_from_joint()[0].translation * k - source.joints()[0].offset;
+        src_theta[0..3].copy_from_slice(&root.to_array());
+        src_frames.column_mut(f).copy_from_slice(&src_theta);
+        truth.push(fk.joint_positions());
+    }
+    let motion = Motion::new(0.01, src_frames).unwrap();
+    let out = retarget(
+        &source,
+        &motion,
+        &target,
+        &identity_map(&target),
+        &RetargetParams::default(),
+    )
+    .unwrap();
+    assert!((out.scale - 1.0 / k).abs() < 1e-12);
+    let g = DMat3::from_quat(out.performer_from_source);
+    assert!((g * r0 - DMat3::IDENTITY).abs_diff_eq(DMat3::ZERO, 1e-12));
+    for (f, truth_f) in truth.iter().enumerate() {
+        let got = target
+            .forward_kinematics(out.motion.frame(f))
+            .unwrap()
+            .joint_positions();
+        let src = source
+            .forward_kinematics(motion.frame(f))
+            .unwrap()
+            .joint_positions();
+        for j in 0..target.joint_count() {
+            let want = g * src[j] * out.scale;
+            assert!(
+                got[j].distance(want) < 1e-9,
+                "frame {f} joint {}: {} vs {want}",
+                target.joints()[j].name,
+                got[j]
+            );
+            assert!(got[j].distance(truth_f[j]) < 1e-9);
+        }
+    }
+}
+
+fn data(rel: &str) -> Option<std::path::PathBuf> {
+    super::super::tests::data_dir()
+        .map(|d| d.join(rel))
+        .filter(|p| p.exists())
+}
+
+/// Angle between the performer's and the (G-rotated) source bone directions, radians.
+fn bone_angles(
+    src: &Skeleton,
+    m: &Motion,
+    tgt: &Skeleton,
+    out: &Retargeted,
+    bones: [(&str, &str, &str, &str); 1],
+) -> Vec<f64> {
+    let g = DMat3::from_quat(out.performer_from_source);
+    let mut res = Vec::new();
+    for f in 0..m.frame_count() {
+        let sp = src
+            .forward_kinematics(m.frame(f))
+            .unwrap()
+            .joint_positions();
+        let tp = tgt
+            .forward_kinematics(out.motion.frame(f))
+            .unwrap()
+            .joint_positions();
+        for (sa, sb, ta, tb) in bones {
+            let ds = g * (sp[src.joint_index(sb).unwrap()] - sp[src.joint_index(sa).unwrap()]);
+            let dt = tp[tgt.joint_index(tb).unwrap()] - tp[tgt.joint_index(ta).unwrap()];
+            res.push(ds.angle_between(dt));
+        }
+    }
+    res
+}
+
+#[test]
+fn cmu_walk_retargets_with_matching_limb_directions() {
+    let Some(path) = data("mocap-cmu/131_01.bvh") else {
+        eprintln!("CMU data not found; skipping");
+        return;
+    };
+    let bvh = read_bvh(
+        path,
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+    )
+    .unwrap();
+    let map = JointMap::detect(&bvh.skeleton).unwrap();
+    assert_eq!(map.name, "cmu");
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let out = retarget(
+        &bvh.skeleton,
+        &bvh.motion,
+        &target,
+        &map,
+        &RetargetParams::default(),
+    )
+    .unwrap();
+    assert!((0.5..2.0).contains(&out.scale), "scale {}", out.scale);
+    // Joints with three DOFs reproduce the source bone direction exactly.
+    for bones in [
+        [("LeftHip", "LeftKnee", "l_hip", "l_knee")],
+        [("RightShoulder", "RightElbow", "r_shoulder", "r_elbow")],
+    ] {
+        let worst = bone_angles(&bvh.skeleton, &bvh.motion, &target, &out, bones)
+            .into_iter()
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{bones:?}: {worst} rad");
+    }
+    // The 1-DOF knee follows the shin closely (swing–twist projection).
+    let shin = bone_angles(
+        &bvh.skeleton,
+        &bvh.motion,
+        &target,
+        &out,
+        [("LeftKnee", "LeftAnkle", "l_knee", "l_ankle")],
+    );
+    let mean = shin.iter().sum::<f64>() / shin.len() as f64;
+    assert!(mean < 0.15, "mean shin direction error {mean} rad");
+    // The pelvis height is the source's scaled (131_01 dips to 0.65 m) and the motion
+    // resamples to 30 Hz.
+    let pelvis = target.joint_index("pelvis").unwrap();
+    for f in 0..out.motion.frame_count() {
+        let y = target
+            .forward_kinematics(out.motion.frame(f))
+            .unwrap()
+            .joint_positions()[pelvis]
+            .y;
+        let src_y = bvh.motion.frame(f)[1];
+        assert!(
+            (y - out.scale * src_y).abs() < 1e-9,
+            "pelvis height {y} at frame {f}, source {src_y}"
+        );
+        assert!((0.5..1.3).contains(&y), "pelvis height {y} at frame {f}");
+    }
+    let r = out.motion.resample(&target, 1.0 / 30.0).unwrap();
+    assert!((r.frame_count() as f64 - bvh.motion.duration_s() * 30.0).abs() < 2.0);
+    let played = play_bvh(
+        data("mocap-cmu/131_01.bvh").unwrap(),
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+        &target,
+        1.0 / 30.0,
+        &RetargetParams::default(),
+    )
+    .unwrap();
+    assert_eq!(played.motion, r);
+    assert!(play_bvh(
+        "/nonexistent.bvh",
+        &BvhParams::default(),
+        &target,
+        0.1,
+        &RetargetParams::default()
+    )
+    .is_err());
+}
+
+#[test]
+fn makehuman_bvhs_retarget_and_bad_maps_are_named() {
+    let (Some(walk), Some(dance)) = (data("makehuman/walk1.bvh"), data("makehuman/dance1.bvh"))
+    else {
+        eprintln!("MakeHuman data not found; skipping");
+        return;
+    };
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    for path in [walk, dance] {
+        let bvh = read_bvh(
+            &path,
+            &BvhParams {
+                metres_per_unit: 0.1,
+            },
+        )
+        .unwrap();
+        let map = JointMap::detect(&bvh.skeleton).unwrap();
+        assert_eq!(map.name, "makehuman_bvh");
+        let out = retarget(
+            &bvh.skeleton,
+            &bvh.motion,
+            &target,
+            &map,
+            &RetargetParams::default(),
+        )
+        .unwrap();
+        let worst = bone_angles(
+            &bvh.skeleton,
+            &bvh.motion,
+            &target,
+            &out,
+            [("UpLeg_L", "LoLeg_L", "l_hip", "l_knee")],
+        )
+        .into_iter()
+        .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{path:?}: thigh {worst} rad");
+        // The wrong map: a clear error naming the joints that do not map.
+        let err = retarget(
+            &bvh.skeleton,
+            &bvh.motion,
+            &target,
+            &JointMap::cmu(),
+            &RetargetParams::default(),
+        )
+        .unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("LeftHip") && msg.contains("lowerback"),
+            "{msg}"
+        );
+    }
+}
+
+#[test]
+fn unmappable_skeletons_are_rejected_with_names() {
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let odd = Skeleton::new(vec![
+        Joint::new(
+            "torso",
+            None,
+            DVec3::ZERO,
+            vec![Dof::rotation("r", DVec3::Y, None)],
+        ),
+        Joint::new("tail", Some(0), DVec3::Y, vec![]),
+    ])
+    .unwrap();
+    let err = JointMap::detect(&odd).unwrap_err().to_string();
+    assert!(err.contains("lacks source joints"), "{err}");
+    let motion = Motion::new(0.1, DMatrix::zeros(1, 2)).unwrap();
+    let err = retarget(
+        &odd,
+        &motion,
+        &target,
+        &JointMap::cmu(),
+        &RetargetParams::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("Hips"), "{err}");
+    // A map naming a joint the performer lacks.
+    let mut map = identity_map(&target);
+    map.pairs[3].target = "collarbone".into();
+    let src = bvh_like(&target, DMat3::IDENTITY, 1.0);
+    let m = Motion::new(0.1, DMatrix::zeros(src.dof_count(), 1)).unwrap();
+    let err = retarget(&src, &m, &target, &map, &RetargetParams::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("collarbone"), "{err}");
+    // Wrong motion size.
+    let bad = Motion::new(0.1, DMatrix::zeros(3, 1)).unwrap();
+    assert!(retarget(
+        &src,
+        &bad,
+        &target,
+        &identity_map(&target),
+        &RetargetParams::default()
+    )
+    .is_err());
+    // Clamping keeps every frame inside the limits.
+    let wild = Motion::new(0.1, DMatrix::from_element(src.dof_count(), 2, 2.5)).unwrap();
+    let out = retarget(
+        &src,
+        &wild,
+        &target,
+        &identity_map(&target),
+        &RetargetParams {
+            clamp_to_limits: true,
+        },
+    )
+    .unwrap();
+    for f in 0..2 {
+        assert!(target
+            .limit_violations(out.motion.frame(f))
+            .unwrap()
+            .is_empty());
+    }
+}
+
+#[test]
+fn decompose_inverts_composition() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let axes = [-DVec3::X, DVec3::Z, -DVec3::Y];
+    for _ in 0..50 {
+        let a: Vec<f64> = (0..3).map(|_| 2.0 * rng.random::<f64>() - 1.0).collect();
+        let l = DMat3::from_axis_angle(axes[0], a[0])
+            * DMat3::from_axis_angle(axes[1], a[1])
+            * DMat3::from_axis_angle(axes[2], a[2]);
+        let got = decompose(l, &axes).unwrap();
+        for (x, y) in got.iter().zip(&a) {
+            assert!((x - y).abs() < 1e-12);
+        }
+        let one = decompose(DMat3::from_axis_angle(axes[1], a[1]), &axes[1..2]).unwrap();
+        assert!((one[0] - a[1]).abs() < 1e-12);
+    }
+    assert!(decompose(
+        DMat3::IDENTITY,
+        &[DVec3::X, DVec3::new(1.0, 1.0, 0.0).normalize()]
+    )
+    .is_none());
+}
+
+proptest::proptest! {
+    /// Euler decomposition onto signed orthonormal axes inverts composition (|middle| < π/2).
+    #[test]
+    fn decompose_round_trip(a in -3.0f64..3.0, b in -1.5f64..1.5, c in -3.0f64..3.0, perm in 0usize..6, flip in 0usize..8) {
+        let base = [DVec3::X, DVec3::Y, DVec3::Z];
+        let order = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]][perm];
+        let axes: Vec<DVec3> = (0..3).map(|i| base[order[i]] * if flip >> i & 1 == 1 { -1.0 } else { 1.0 }).collect();
+        let l = DMat3::from_axis_angle(axes[0], a) * DMat3::from_axis_angle(axes[1], b) * DMat3::from_axis_angle(axes[2], c);
+        let got = decompose(l, &axes).unwrap();
+        let back = DMat3::from_axis_angle(axes[0], got[0]) * DMat3::from_axis_angle(axes[1], got[1]) * DMat3::from_axis_angle(axes[2], got[2]);
+        proptest::prop_assert!((back - l).abs_diff_eq(DMat3::ZERO, 1e-9));
+        proptest::prop_assert!((got[1] - b).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,417 @@
+//! Tests of the performers and their non-skinning deformation.
+
+use super::*;
+use crate::mesh::SkinWeights;
+use crate::skeleton::Motion;
+use crate::Error;
+use nalgebra::DMatrix;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// The shared data folder: `$DYNAMIC_SHAPES_DATA`, else the workspace's `data/`, else the
+/// shared copy; `None` when absent (tests needing it are skipped with a note).
+pub(crate) fn data_dir() -> Option<PathBuf> {
+    let candidates = [
+        std::env::var("DYNAMIC_SHAPES_DATA").ok().map(PathBuf::from),
+        Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data")),
+        Some(PathBuf::from("/work/shared/data")),
+    ];
+    candidates
+        .into_iter()
+        .flatten()
+        .find(|d| d.join("makehuman/base.obj").exists())
+}
+
+fn procedural() -> &'static Performer {
+    static P: OnceLock<Performer> = OnceLock::new();
+    P.get_or_init(|| {
+        procedural_performer(&ProceduralBodyParams {
+            grid_spacing_m: 0.03,
+            ..Default::default()
+        })
+        .unwrap()
+    })
+}
+
+fn makehuman() -> Option<&'static Performer> {
+    static P: OnceLock<Option<Performer>> = OnceLock::new();
+    P.get_or_init(|| {
+        data_dir().map(|d| {
+            makehuman_performer(d.join("makehuman"), &DeformationParams::default()).unwrap()
+        })
+    })
+    .as_ref()
+}
+
+fn with_dof(p: &Performer, dof: &str, v: f64) -> Vec<f64> {
+    let mut t = p.skeleton.rest_pose();
+    t[p.skeleton.dof_index(dof).unwrap()] = v;
+    t
+}
+
+fn nonskinning_at(p: &Performer, dof: &str, v: f64) -> f64 {
+    p.pose(&with_dof(p, dof, v), &mut DeformationState::default(), 0.0)
+        .unwrap()
+        .max_nonskinning_m()
+}
+
+fn check_bulge(p: &Performer) {
+    for dof in ["l_elbow.flexion", "r_knee.flexion"] {
+        assert_eq!(nonskinning_at(p, dof, 0.0), 0.0, "{dof}: zero at rest");
+        let mut last = 0.0;
+        for v in [0.3, 0.8, 1.5, 2.3] {
+            let d = nonskinning_at(p, dof, v);
+            assert!(
+                d > last,
+                "{dof}: bulge grows with flexion ({v} rad: {d} m after {last} m)"
+            );
+            last = d;
+        }
+        // Tens of millimetres at (near) full flexion.
+        assert!((0.01..0.08).contains(&last), "{dof}: {last} m at 2.3 rad");
+        // Extension (negative flexion, if allowed) does not bulge.
+        assert_eq!(nonskinning_at(p, dof, -0.2), 0.0);
+    }
+}
+
+#[test]
+fn procedural_bulge_zero_at_rest_and_grows_with_flexion() {
+    check_bulge(procedural());
+}
+
+#[test]
+fn makehuman_performer_matches_template_and_bulges() {
+    let Some(p) = makehuman() else {
+        eprintln!("data/makehuman not found; skipping");
+        return;
+    };
+    assert_eq!(p.vertex_count(), 13380);
+    assert_eq!(p.skeleton.dof_count(), 42);
+    let f = p
+        .pose(
+            &p.skeleton.rest_pose(),
+            &mut DeformationState::default(),
+            0.0,
+        )
+        .unwrap();
+    for (a, b) in f.true_vertices.iter().zip(&p.template.vertices) {
+        assert!(a.distance(*b) < 1e-12, "rest pose equals template");
+    }
+    let top = p
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::MIN, f64::max);
+    let bottom = p
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::MAX, f64::min);
+    assert!(
+        (top - bottom - 1.67).abs() < 0.03,
+        "metres, 1.67 m tall: {}",
+        top - bottom
+    );
+    // Joints sit inside the body: hips below the pelvis, knees below hips, left is +X.
+    let pos = |n: &str| f.joint_positions[p.skeleton.joint_index(n).unwrap()];
+    assert!(pos("l_hip").x > 0.05 && pos("r_hip").x < -0.05);
+    assert!(pos("l_knee").y < pos("l_hip").y - 0.3 && pos("head").y > pos("neck").y);
+    check_bulge(p);
+    assert!(p.deformation.flap_mass_count() >= 2);
+    // DOF axes follow the A-pose: rest inside the limits, elbow flexion about the arm plane's
+    // normal, and its limit at the anatomical 150° bend from the straight arm.
+    assert!(p
+        .skeleton
+        .limit_violations(&p.skeleton.rest_pose())
+        .unwrap()
+        .is_empty());
+    let d = p.skeleton.dof_index("l_elbow.flexion").unwrap();
+    let max = p.skeleton.dof(d).limits.unwrap().max;
+    let mut theta = p.skeleton.rest_pose();
+    theta[d] = max;
+    let q = p
+        .skeleton
+        .forward_kinematics(&theta)
+        .unwrap()
+        .joint_positions();
+    let at = |n: &str| q[p.skeleton.joint_index(n).unwrap()];
+    let upper = at("l_elbow") - at("l_shoulder");
+    let fore = at("l_wrist") - at("l_elbow");
+    let bend = upper.angle_between(fore).to_degrees();
+    assert!(
+        (bend - 150.0).abs() < 1.0,
+        "full elbow flexion bends {bend}°"
+    );
+    let axis = p.skeleton.dof(d).axis;
+    assert!(axis.dot(upper.normalize()).abs() < 1e-9);
+}
+
+fn root_sway(p: &Performer, frames: usize, dt: f64, stop_after: usize) -> Motion {
+    let tx = p.skeleton.dof_index("pelvis.tx").unwrap();
+    let m = DMatrix::from_fn(p.skeleton.dof_count(), frames, |d, k| {
+        let t = k.min(stop_after) as f64 * dt;
+        if d == tx {
+            0.15 * (std::f64::consts::TAU * 1.5 * t).sin()
+        } else {
+            0.0
+        }
+    });
+    Motion::new(dt, m).unwrap()
+}
+
+#[test]
+fn flap_lags_motion_then_settles_deterministically() {
+    let p = procedural();
+    assert!(p.deformation.flap_mass_count() >= 2);
+    let dt = 1.0 / 60.0;
+    let m = root_sway(p, 240, dt, 60);
+    let mut trace = Vec::new();
+    p.perform(&m, |_, f| {
+        trace.push(f.max_nonskinning_m());
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(trace[0], 0.0, "first frame starts at rest");
+    let peak = trace[..70].iter().copied().fold(0.0, f64::max);
+    assert!(
+        peak > 0.005,
+        "a 1.5 Hz, 15 cm sway drags the flap: {peak} m"
+    );
+    assert!(
+        trace[239] < 0.1 * peak,
+        "settles after the body stops: {} vs {peak}",
+        trace[239]
+    );
+    // Pure translation is rigid for LBS: all of that difference is the flap.
+    let mut again = Vec::new();
+    p.perform(&m, |_, f| {
+        again.push(f.max_nonskinning_m());
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(trace, again, "deterministic");
+    // Holding the rest pose never moves the flap.
+    let rest = Motion::new(dt, DMatrix::zeros(p.skeleton.dof_count(), 30)).unwrap();
+    assert_eq!(p.max_nonskinning_m(&rest).unwrap(), 0.0);
+}
+
+#[test]
+fn fast_motion_gives_tens_of_mm() {
+    let p = procedural();
+    let m = fast_motion(
+        &p.skeleton,
+        &FastMotionParams {
+            duration_s: 1.5,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let d = p.max_nonskinning_m(&m).unwrap();
+    assert!((0.01..0.15).contains(&d), "{d}");
+}
+
+#[test]
+fn pose_rejects_bad_input() {
+    let p = procedural();
+    let mut st = DeformationState::default();
+    let rest = p.skeleton.rest_pose();
+    assert!(matches!(
+        p.pose(&rest[1..], &mut st, 0.1),
+        Err(Error::SizeMismatch { .. })
+    ));
+    let mut nan = rest.clone();
+    nan[7] = f64::NAN;
+    assert!(p.pose(&nan, &mut st, 0.1).is_err());
+    p.pose(&rest, &mut st, 0.0).unwrap();
+    assert!(matches!(
+        p.pose(&rest, &mut st, 0.0),
+        Err(Error::InvalidParam { name: "dt_s", .. })
+    ));
+    assert!(p.pose(&rest, &mut st, f64::NAN).is_err());
+    let mut wrong = st.clone();
+    wrong.positions.pop();
+    assert!(matches!(
+        p.pose(&rest, &mut wrong, 0.1),
+        Err(Error::SizeMismatch { .. })
+    ));
+    // Performer construction checks sizes and names.
+    let w = SkinWeights::from_lists(&vec![vec![(0, 1.0)]; 3], p.skeleton.joint_count()).unwrap();
+    let r = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        w,
+        &DeformationParams::none(),
+    );
+    assert!(matches!(r, Err(Error::SizeMismatch { .. })));
+    let mut params = DeformationParams::default();
+    params.bulge.hinges[0].muscle_joint = "l_humerus".into();
+    let r = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &params,
+    );
+    assert!(r.unwrap_err().to_string().contains("l_humerus"));
+    let mut params = DeformationParams::default();
+    if let Some(f) = params.flap.as_mut() {
+        f.stiffness_n_per_m = -1.0;
+    }
+    assert!(Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &params
+    )
+    .is_err());
+    // Without deformation, truth equals LBS.
+    let plain = Performer::new(
+        "x",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &DeformationParams::none(),
+    )
+    .unwrap();
+    assert_eq!(nonskinning_at(&plain, "l_elbow.flexion", 2.0), 0.0);
+}
+
+/// Figures for the report: `cargo test --release --lib studio::tests::figures -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore = "measurement, prints figures"]
+fn figures() {
+    use crate::skeleton::{read_bvh, BvhParams, CMU_METRES_PER_UNIT};
+    let Some(p) = makehuman() else { return };
+    let dir = data_dir().unwrap();
+    let rom = range_of_motion(&p.skeleton, &RangeOfMotionParams::default()).unwrap();
+    let fast = fast_motion(&p.skeleton, &FastMotionParams::default()).unwrap();
+    let t = std::time::Instant::now();
+    let d_rom = p.max_nonskinning_m(&rom).unwrap();
+    let per_frame_ms = t.elapsed().as_secs_f64() * 1e3 / rom.frame_count() as f64;
+    let d_fast = p.max_nonskinning_m(&fast).unwrap();
+    eprintln!("makehuman: {} vertices; ROM {} frames max_nonskinning_mm {:.1} ({per_frame_ms:.2} ms/frame); fast {:.1}", p.vertex_count(), rom.frame_count(), d_rom * 1e3, d_fast * 1e3);
+    for (file, unit) in [
+        ("mocap-cmu/131_01.bvh", CMU_METRES_PER_UNIT),
+        ("makehuman/walk1.bvh", 0.1),
+    ] {
+        let bvh = read_bvh(
+            dir.join(file),
+            &BvhParams {
+                metres_per_unit: unit,
+            },
+        )
+        .unwrap();
+        let map = JointMap::detect(&bvh.skeleton).unwrap();
+        let r = retarget(
+            &bvh.skeleton,
+            &bvh.motion,
+            &p.skeleton,
+            &map,
+            &RetargetParams::default(),
+        )
+        .unwrap();
+        let m = r.motion.resample(&p.skeleton, 1.0 / 30.0).unwrap();
+        eprintln!(
+            "{file}: scale {:.3}, {} frames at 30 Hz, max_nonskinning_mm {:.1}",
+            r.scale,
+            m.frame_count(),
+            p.max_nonskinning_m(&m).unwrap() * 1e3
+        );
+    }
+    let q = procedural();
+    eprintln!(
+        "procedural (3 cm grid): {} vertices; ROM max_nonskinning_mm {:.1}",
+        q.vertex_count(),
+        q.max_nonskinning_m(
+            &range_of_motion(&q.skeleton, &RangeOfMotionParams::default()).unwrap()
+        )
+        .unwrap()
+            * 1e3
+    );
+    let t = std::time::Instant::now();
+    let d = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+    eprintln!(
+        "procedural (default 2 cm grid): {} vertices, built in {:.2} s",
+        d.vertex_count(),
+        t.elapsed().as_secs_f64()
+    );
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+    /// The bulge is linear in flexion: twice the angle, twice the displacement.
+    #[test]
+    fn bulge_is_linear_in_flexion(v in 0.05f64..1.2) {
+        let p = procedural();
+        let d1 = nonskinning_at(p, "l_elbow.flexion", v);
+        let d2 = nonskinning_at(p, "l_elbow.flexion", 2.0 * v);
+        proptest::prop_assert!(d1 > 0.0);
+        proptest::prop_assert!((d2 - 2.0 * d1).abs() < 1e-9 * (1.0 + d2));
+    }
+}
+
+/// Visual check: `cargo test --release --lib studio::tests::picture -- --ignored`; writes
+/// `target/studio_check.png` (front and side views, red = non-skinning displacement).
+#[test]
+#[ignore = "writes a picture for visual inspection"]
+fn picture() {
+    let Some(p) = makehuman() else { return };
+    let mut theta = p.skeleton.rest_pose();
+    for (n, v) in [
+        ("l_elbow.flexion", 2.0),
+        ("r_knee.flexion", 1.5),
+        ("r_hip.flexion", 0.8),
+        ("l_shoulder.flexion", 0.6),
+    ] {
+        theta[p.skeleton.dof_index(n).unwrap()] = v;
+    }
+    let mut st = DeformationState::default();
+    if std::env::var("STUDIO_CHECK_FLAP").is_ok() {
+        p.pose(&p.skeleton.rest_pose(), &mut st, 0.0).unwrap();
+    }
+    let f = p.pose(&theta, &mut st, 0.05).unwrap();
+    let (i, d) = f
+        .lbs_vertices
+        .iter()
+        .zip(&f.true_vertices)
+        .map(|(a, b)| a.distance(*b))
+        .enumerate()
+        .fold((0, 0.0), |m, (i, d)| if d > m.1 { (i, d) } else { m });
+    let big = f
+        .lbs_vertices
+        .iter()
+        .zip(&f.true_vertices)
+        .filter(|(a, b)| a.distance(**b) > 0.01)
+        .count();
+    eprintln!(
+        "max non-skinning {d} m at vertex {i}, {:?}; {big} vertices above 10 mm",
+        f.true_vertices[i]
+    );
+    let (w, h) = (800u32, 500u32);
+    let mut img = image::RgbImage::new(w, h);
+    for (a, b) in f.lbs_vertices.iter().zip(&f.true_vertices) {
+        let d = (a.distance(*b) / 0.03).min(1.0);
+        let c = image::Rgb([
+            (80.0 + 175.0 * d) as u8,
+            (200.0 * (1.0 - d)) as u8,
+            (200.0 * (1.0 - d)) as u8,
+        ]);
+        for (u0, x) in [(200.0, b.x), (600.0, b.z)] {
+            let u = (u0 + x * 250.0) as u32;
+            let v = (250.0 - b.y * 250.0) as u32;
+            if u < w && v < h {
+                img.put_pixel(u, v, c);
+            }
+        }
+    }
+    img.save(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../target/studio_check.png"
+    ))
+    .unwrap();
+}
