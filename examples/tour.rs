@@ -35,7 +35,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut outcomes = Vec::new();
     for name in &names {
-        eprintln!("tour: running example {name}{}", if full { "" } else { " --quick" });
+        eprintln!(
+            "tour: running example {name}{}",
+            if full { "" } else { " --quick" }
+        );
         let start = Instant::now();
         let mut cmd = Command::new(&cargo);
         cmd.current_dir(root)
@@ -55,7 +58,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .and_then(|v| v.as_object().cloned());
         let pictures = list_pictures(&root.join("out").join(name));
         let ok = output.status.success() && figures.is_some();
-        eprintln!("tour: {name} {} in {seconds:.1} s", if ok { "ok" } else { "FAILED" });
+        eprintln!(
+            "tour: {name} {} in {seconds:.1} s",
+            if ok { "ok" } else { "FAILED" }
+        );
         outcomes.push(Outcome {
             name: name.clone(),
             ok,
@@ -67,7 +73,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let out_dir = root.join("out").join("tour");
     std::fs::create_dir_all(&out_dir)?;
-    std::fs::write(out_dir.join("index.html"), render_html(&outcomes, &root.join("out")))?;
+    std::fs::write(
+        out_dir.join("index.html"),
+        render_html(&outcomes, &root.join("out")),
+    )?;
 
     let summary: serde_json::Map<String, serde_json::Value> = outcomes
         .iter()
@@ -141,7 +150,11 @@ fn render_html(outcomes: &[Outcome], out_root: &Path) -> String {
          <table><tr><th>example</th><th>status</th><th>figure</th><th>value</th></tr>",
     );
     for o in outcomes {
-        let status = if o.ok { "ok" } else { "<span class=\"fail\">failed</span>" };
+        let status = if o.ok {
+            "ok"
+        } else {
+            "<span class=\"fail\">failed</span>"
+        };
         match &o.figures {
             Some(map) if !map.is_empty() => {
                 for (i, (k, v)) in map.iter().enumerate() {
@@ -155,16 +168,18 @@ fn render_html(outcomes: &[Outcome], out_root: &Path) -> String {
                     } else {
                         String::new()
                     };
-                    html += &format!("<tr>{head}<td>{}</td><td>{}</td></tr>", escape(k), escape(&v.to_string()));
+                    html += &format!(
+                        "<tr>{head}<td>{}</td><td>{}</td></tr>",
+                        escape(k),
+                        escape(&v.to_string())
+                    );
                 }
             }
-            _ => {
-                html += &format!(
-                    "<tr><td>{}</td><td>{status}</td><td colspan=\"2\">no figures ({:.1} s)</td></tr>",
-                    escape(&o.name),
-                    o.seconds
-                )
-            }
+            _ => html += &format!(
+                "<tr><td>{}</td><td>{status}</td><td colspan=\"2\">no figures ({:.1} s)</td></tr>",
+                escape(&o.name),
+                o.seconds
+            ),
         }
     }
     html += "</table>";
@@ -174,7 +189,10 @@ fn render_html(outcomes: &[Outcome], out_root: &Path) -> String {
             // Pictures live under out/<example>/; the page is out/tour/index.html.
             let rel = Path::new("..").join(p.strip_prefix(out_root).unwrap_or(p));
             let rel = rel.to_string_lossy();
-            html += &format!("<a href=\"{0}\"><img src=\"{0}\" alt=\"{0}\"></a>", escape(&rel));
+            html += &format!(
+                "<a href=\"{0}\"><img src=\"{0}\" alt=\"{0}\"></a>",
+                escape(&rel)
+            );
         }
     }
     html += "</body></html>\n";

@@ -110,7 +110,10 @@ impl Error {
 }
 
 /// Returns [`Error::NonFinite`] unless every value is finite.
-pub fn ensure_finite<'a>(what: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<()> {
+pub fn ensure_finite<'a>(
+    what: &'static str,
+    values: impl IntoIterator<Item = &'a f64>,
+) -> Result<()> {
     if values.into_iter().all(|v| v.is_finite()) {
         Ok(())
     } else {

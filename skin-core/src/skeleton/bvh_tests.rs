@@ -33,12 +33,12 @@ Frame Time: .0083333
 
 ";
 
+/// A shared data file (see [`crate::data`]); the tests fail, rather than skip, without it.
 fn data_file(rel: &str) -> Option<PathBuf> {
-    let local = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../data")
-        .join(rel);
-    let shared = PathBuf::from("/work/shared/data").join(rel);
-    [local, shared].into_iter().find(|p| p.exists())
+    match crate::data::shared_data_path(rel) {
+        Ok(p) => Some(p),
+        Err(e) => panic!("{e}"),
+    }
 }
 
 fn parse(text: &str) -> crate::Result<Bvh> {

@@ -595,12 +595,7 @@ mod tests {
 
     #[test]
     fn real_rig_files_parse_and_merge() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/makehuman");
-        let dir = if dir.exists() {
-            dir
-        } else {
-            Path::new("/work/shared/data/makehuman").to_path_buf()
-        };
+        let dir = crate::data::shared_data_path("makehuman").unwrap();
         let Ok(s) = read_mhskel(dir.join("default.mhskel")) else {
             eprintln!("MakeHuman data not found; skipping");
             return;

@@ -8,18 +8,13 @@ use nalgebra::DMatrix;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-/// The shared data folder: `$DYNAMIC_SHAPES_DATA`, else the workspace's `data/`, else the
-/// shared copy; `None` when absent (tests needing it are skipped with a note).
+/// The shared data folder (see [`crate::data`]). The tests need it: a missing folder fails
+/// them with a message naming `DYNAMIC_SHAPES_DATA` rather than skipping silently.
 pub(crate) fn data_dir() -> Option<PathBuf> {
-    let candidates = [
-        std::env::var("DYNAMIC_SHAPES_DATA").ok().map(PathBuf::from),
-        Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data")),
-        Some(PathBuf::from("/work/shared/data")),
-    ];
-    candidates
-        .into_iter()
-        .flatten()
-        .find(|d| d.join("makehuman/base.obj").exists())
+    if let Err(e) = crate::data::shared_data_path("makehuman/base.obj") {
+        panic!("{e}");
+    }
+    Some(crate::data::shared_data_dir())
 }
 
 fn procedural() -> &'static Performer {
