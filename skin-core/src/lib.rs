@@ -23,6 +23,7 @@ pub mod math;
 pub mod mesh;
 pub mod optim;
 pub mod skeleton;
+pub mod studio;
 
 mod faer_bridge;
 
