@@ -9,4 +9,4 @@
 pub mod raster;
 pub mod shading;
 
-pub use raster::{Buffers, RenderParams, RenderedView, Rasterizer, NO_TRIANGLE};
+pub use raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};

@@ -166,10 +166,11 @@ impl Rasterizer {
                 mask_only,
                 bands,
             ),
-            SampleGrid::Table { width, dirs } => raster(
+            SampleGrid::Table { width, nx, ny } => raster(
                 &TableDirs {
                     width: *width,
-                    dirs,
+                    nx,
+                    ny,
                 },
                 w,
                 &tris,

@@ -75,14 +75,15 @@ fn edge(e: &[f32; 3], d: [f32; 2]) -> f32 {
     e[0] * d[0] + e[1] * d[1] + e[2]
 }
 
+/// Branch-free coverage test (fill rule in the module docs of `setup`).
 #[inline(always)]
 fn inside(t: &TriSetup, d: [f32; 2]) -> bool {
-    let mut ok = true;
-    for k in 0..3 {
-        let v = edge(&t.e[k], d);
-        ok &= v > 0.0 || (v == 0.0 && t.top_left[k]);
-    }
-    ok
+    let v0 = edge(&t.e[0], d);
+    let v1 = edge(&t.e[1], d);
+    let v2 = edge(&t.e[2], d);
+    ((v0 > 0.0) | ((v0 == 0.0) & t.top_left[0]))
+        & ((v1 > 0.0) | ((v1 == 0.0) & t.top_left[1]))
+        & ((v2 > 0.0) | ((v2 == 0.0) & t.top_left[2]))
 }
 
 /// Per-worker scratch: inverse depth and winning set-up index per band pixel.
@@ -113,12 +114,13 @@ pub(crate) fn mask_band<D: Dirs>(
     let (y0, y1) = (out.y0, out.y0 + rows - 1);
     for &i in ids {
         let t = &tris[i as usize];
+        let (x0, x1) = (t.x0 as usize, t.x1 as usize);
         for y in (t.y0 as usize).max(y0)..=(t.y1 as usize).min(y1) {
-            let row = &mut out.mask[(y - y0) * width..(y - y0 + 1) * width];
-            for x in t.x0 as usize..=t.x1 as usize {
-                if inside(t, dirs.dir(x, y)) {
-                    row[x] = 1;
-                }
+            let base = (y - y0) * width;
+            let row = &mut out.mask[base + x0..=base + x1];
+            let (nxs, nys) = dirs.span(y, x0, x1);
+            for ((m, &nx), ny) in row.iter_mut().zip(nxs).zip(nys) {
+                *m |= inside(t, [nx, ny]) as u8;
             }
         }
     }
@@ -144,78 +146,92 @@ pub(crate) fn full_band<D: Dirs>(
     let (y0, y1) = (out.y0, out.y0 + rows - 1);
     for &i in ids {
         let t = &tris[i as usize];
+        let (x0, x1) = (t.x0 as usize, t.x1 as usize);
         for y in (t.y0 as usize).max(y0)..=(t.y1 as usize).min(y1) {
             let base = (y - y0) * width;
-            for x in t.x0 as usize..=t.x1 as usize {
-                let d = dirs.dir(x, y);
-                if inside(t, d) {
-                    let w = edge(&t.w, d);
-                    if w > zb[base + x] {
-                        zb[base + x] = w;
-                        idb[base + x] = i;
-                    }
-                }
+            let (nxs, nys) = dirs.span(y, x0, x1);
+            let zrow = &mut zb[base + x0..=base + x1];
+            let irow = &mut idb[base + x0..=base + x1];
+            for (((z, id), &nx), ny) in zrow.iter_mut().zip(irow.iter_mut()).zip(nxs).zip(nys) {
+                let d = [nx, ny];
+                let w = edge(&t.w, d);
+                let win = inside(t, d) & (w > *z);
+                *z = if win { w } else { *z };
+                *id = if win { i } else { *id };
             }
         }
     }
+    fill_background(out);
     let mut covered = 0;
-    for j in 0..n {
-        let (x, y) = (j % width, y0 + j / width);
-        let id = idb[j];
-        if id == NO_TRIANGLE {
-            write_background(out, j);
-            continue;
-        }
-        covered += 1;
-        let t = &tris[id as usize];
-        let d = dirs.dir(x, y);
-        let ev = [edge(&t.e[0], d), edge(&t.e[1], d), edge(&t.e[2], d)];
-        let sum = ev[0] + ev[1] + ev[2];
-        let lam = ev.map(|v| (v / sum).max(0.0));
-        let z = 1.0 / zb[j];
-        if !out.mask.is_empty() {
-            out.mask[j] = 1;
-        }
-        if !out.depth.is_empty() {
-            out.depth[j] = z * (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
-        }
-        if !out.camera_z.is_empty() {
-            out.camera_z[j] = z;
-        }
-        if !out.triangle.is_empty() {
-            out.triangle[j] = t.face;
-            out.bary[j] = [lam[1], lam[2]];
-        }
-        if !out.normal.is_empty() {
-            out.normal[j] = pixel_normal(ctx, t.face, lam);
+    for yy in 0..rows {
+        let y = y0 + yy;
+        for x in 0..width {
+            let j = yy * width + x;
+            let id = idb[j];
+            if id == NO_TRIANGLE {
+                continue;
+            }
+            covered += 1;
+            let t = &tris[id as usize];
+            let d = dirs.dir(x, y);
+            let (lam, z) = resolve_hit(ctx, t.face, d, zb[j]);
+            if !out.mask.is_empty() {
+                out.mask[j] = 1;
+            }
+            if !out.depth.is_empty() {
+                out.depth[j] = z * (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
+            }
+            if !out.camera_z.is_empty() {
+                out.camera_z[j] = z;
+            }
+            if !out.triangle.is_empty() {
+                out.triangle[j] = t.face;
+                out.bary[j] = [lam[1], lam[2]];
+            }
+            if !out.normal.is_empty() {
+                out.normal[j] = pixel_normal(ctx, t.face, lam);
+            }
         }
     }
     covered
 }
 
-fn write_background(out: &mut BandOut<'_>, j: usize) {
-    if !out.mask.is_empty() {
-        out.mask[j] = 0;
+/// Perspective-correct barycentrics and camera z of the hit of ray `(nx, ny, 1)` with `face`,
+/// recomputed in f64 from the camera-frame corners (the f32 edge values of the coverage test
+/// lose relative precision near a grazing silhouette). `w32` is the f32 inverse depth of the
+/// z-test, used only if the f64 solve degenerates.
+fn resolve_hit(ctx: &ResolveCtx<'_>, face: u32, d: [f32; 2], w32: f32) -> ([f32; 3], f32) {
+    let [a, b, c] = ctx.faces[face as usize].map(|i| ctx.pos[i as usize]);
+    let r = crate::math::DVec3::new(d[0] as f64, d[1] as f64, 1.0);
+    let e = [r.dot(b.cross(c)), r.dot(c.cross(a)), r.dot(a.cross(b))];
+    let sum = e[0] + e[1] + e[2];
+    let z = (b - a).cross(c - a).dot(a) / sum;
+    if !(z.is_finite() && z > 0.0 && sum != 0.0) {
+        let third = 1.0 / 3.0;
+        return ([third; 3], 1.0 / w32);
     }
-    if !out.depth.is_empty() {
-        out.depth[j] = f32::INFINITY;
-    }
-    if !out.camera_z.is_empty() {
-        out.camera_z[j] = f32::INFINITY;
-    }
-    if !out.triangle.is_empty() {
-        out.triangle[j] = NO_TRIANGLE;
-        out.bary[j] = [0.0; 2];
-    }
-    if !out.normal.is_empty() {
-        out.normal[j] = [0.0; 3];
-    }
+    (e.map(|v| (v / sum).max(0.0) as f32), z as f32)
+}
+
+/// Sets every requested buffer of the band to its background value (empty slices are no-ops).
+fn fill_background(out: &mut BandOut<'_>) {
+    out.mask.fill(0);
+    out.depth.fill(f32::INFINITY);
+    out.camera_z.fill(f32::INFINITY);
+    out.triangle.fill(NO_TRIANGLE);
+    // Flattened so the zero fills compile to memset.
+    out.bary.as_flattened_mut().fill(0.0);
+    out.normal.as_flattened_mut().fill(0.0);
 }
 
 fn pixel_normal(ctx: &ResolveCtx<'_>, face: u32, lam: [f32; 3]) -> [f32; 3] {
     let [a, b, c] = ctx.faces[face as usize].map(|i| i as usize);
     if ctx.normals == NormalMode::Smooth {
-        let n = [ctx.vertex_normals[a], ctx.vertex_normals[b], ctx.vertex_normals[c]];
+        let n = [
+            ctx.vertex_normals[a],
+            ctx.vertex_normals[b],
+            ctx.vertex_normals[c],
+        ];
         let mut s = [0.0f32; 3];
         for k in 0..3 {
             s[k] = lam[0] * n[0][k] + lam[1] * n[1][k] + lam[2] * n[2][k];
@@ -277,9 +293,6 @@ where
 {
     bands
         .into_par_iter()
-        .map_init(
-            || Scratch::new(scratch_len),
-            |s, mut band| f(s, &mut band),
-        )
+        .map_init(|| Scratch::new(scratch_len), |s, mut band| f(s, &mut band))
         .sum()
 }

@@ -17,9 +17,13 @@ use crate::math::DVec2;
 pub(crate) enum SampleGrid {
     /// Undistorted camera: `nx` per column, `ny` per row.
     Pinhole { col_nx: Vec<f32>, row_ny: Vec<f32> },
-    /// Distorted camera: one direction per pixel, row-major; NaN for pixels outside the range
-    /// of a barrel model (never covered).
-    Table { width: usize, dirs: Vec<[f32; 2]> },
+    /// Distorted camera: one direction per pixel, row-major, as separate `nx` and `ny`
+    /// tables; NaN for pixels outside the range of a barrel model (never covered).
+    Table {
+        width: usize,
+        nx: Vec<f32>,
+        ny: Vec<f32>,
+    },
 }
 
 impl SampleGrid {
@@ -45,13 +49,20 @@ impl SampleGrid {
                 };
             }
         });
-        SampleGrid::Table { width: w, dirs }
+        let (nx, ny) = dirs.into_iter().map(|[a, b]| (a, b)).unzip();
+        SampleGrid::Table { width: w, nx, ny }
     }
 }
 
 /// Sample directions as the inner loops read them; one implementation per grid kind so each
-/// loop is compiled without a branch on the kind.
+/// loop is compiled without a branch on the kind and vectorises.
 pub(crate) trait Dirs: Sync {
+    /// Iterator over the `ny` of a row span.
+    type Ny<'a>: Iterator<Item = f32>
+    where
+        Self: 'a;
+    /// `nx` and `ny` of pixels `x0..=x1` of row `y`.
+    fn span(&self, y: usize, x0: usize, x1: usize) -> (&[f32], Self::Ny<'_>);
     /// Direction `(nx, ny)` of pixel `(x, y)`.
     fn dir(&self, x: usize, y: usize) -> [f32; 2];
 }
@@ -63,6 +74,14 @@ pub(crate) struct PinholeDirs<'a> {
 }
 
 impl Dirs for PinholeDirs<'_> {
+    type Ny<'b>
+        = std::iter::Repeat<f32>
+    where
+        Self: 'b;
+    #[inline(always)]
+    fn span(&self, y: usize, x0: usize, x1: usize) -> (&[f32], Self::Ny<'_>) {
+        (&self.col_nx[x0..=x1], std::iter::repeat(self.row_ny[y]))
+    }
     #[inline(always)]
     fn dir(&self, x: usize, y: usize) -> [f32; 2] {
         [self.col_nx[x], self.row_ny[y]]
@@ -72,12 +91,26 @@ impl Dirs for PinholeDirs<'_> {
 /// [`SampleGrid::Table`] as [`Dirs`].
 pub(crate) struct TableDirs<'a> {
     pub(crate) width: usize,
-    pub(crate) dirs: &'a [[f32; 2]],
+    pub(crate) nx: &'a [f32],
+    pub(crate) ny: &'a [f32],
 }
 
 impl Dirs for TableDirs<'_> {
+    type Ny<'b>
+        = std::iter::Copied<std::slice::Iter<'b, f32>>
+    where
+        Self: 'b;
+    #[inline(always)]
+    fn span(&self, y: usize, x0: usize, x1: usize) -> (&[f32], Self::Ny<'_>) {
+        let r = y * self.width;
+        (
+            &self.nx[r + x0..=r + x1],
+            self.ny[r + x0..=r + x1].iter().copied(),
+        )
+    }
     #[inline(always)]
     fn dir(&self, x: usize, y: usize) -> [f32; 2] {
-        self.dirs[y * self.width + x]
+        let i = y * self.width + x;
+        [self.nx[i], self.ny[i]]
     }
 }

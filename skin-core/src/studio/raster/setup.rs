@@ -205,8 +205,6 @@ pub(crate) fn vertex_normals_camera(camera: &Camera, mesh: &TriMesh) -> Vec<[f32
     }
     let rot = camera.camera_from_world();
     acc.into_iter()
-        .map(|n| {
-            to_f32(rot.transform_vector3(n).normalize_or_zero())
-        })
+        .map(|n| to_f32(rot.transform_vector3(n).normalize_or_zero()))
         .collect()
 }

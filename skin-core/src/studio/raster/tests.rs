@@ -12,8 +12,7 @@ pub(crate) fn uv_sphere(centre: DVec3, radius: f64, n_lat: usize, n_lon: usize) 
         for j in 0..n_lon {
             let ph = std::f64::consts::TAU * j as f64 / n_lon as f64;
             v.push(
-                centre
-                    + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radius,
+                centre + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radius,
             );
         }
     }
@@ -58,8 +57,15 @@ pub(crate) fn brute_hit(mesh: &TriMesh, o: DVec3, d: DVec3) -> Option<(f64, usiz
 }
 
 fn camera(w: u32, h: u32, eye: DVec3, k1: f64) -> Camera {
-    let k = Intrinsics::new(0.9 * w as f64, 0.92 * w as f64, 0.5 * w as f64 + 1.3, 0.5 * h as f64 - 0.7, w, h)
-        .unwrap();
+    let k = Intrinsics::new(
+        0.9 * w as f64,
+        0.92 * w as f64,
+        0.5 * w as f64 + 1.3,
+        0.5 * h as f64 - 0.7,
+        w,
+        h,
+    )
+    .unwrap();
     Camera::look_at(k, eye, DVec3::new(0.05, -0.03, 0.0), DVec3::Y)
         .unwrap()
         .with_distortion(RadialDistortion::new(
@@ -70,7 +76,11 @@ fn camera(w: u32, h: u32, eye: DVec3, k1: f64) -> Camera {
 
 /// Reference mask of the brute-force ray caster and, per pixel, whether it is stable under
 /// perturbing the pixel by `eps` px in each axis direction.
-fn reference(cam: &Camera, mesh: &TriMesh, eps: f64) -> (Vec<u8>, Vec<bool>, Vec<Option<(f64, usize)>>) {
+fn reference(
+    cam: &Camera,
+    mesh: &TriMesh,
+    eps: f64,
+) -> (Vec<u8>, Vec<bool>, Vec<Option<(f64, usize)>>) {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut mask = Vec::new();
     let mut stable = Vec::new();
@@ -109,11 +119,18 @@ fn silhouette_and_depth_match_ray_casting_under_distortion() {
         for i in 0..mask.len() {
             if mask[i] != view.mask[i] {
                 // Only rays passing within 1e-3 px of a silhouette edge may disagree.
-                assert!(!stable[i], "k1 {k1}: pixel {i} differs away from the boundary");
+                assert!(
+                    !stable[i],
+                    "k1 {k1}: pixel {i} differs away from the boundary"
+                );
                 mismatched += 1;
             }
             if let (Some((t, f)), 1) = (hits[i], view.mask[i]) {
-                assert!((view.depth_m[i] as f64 - t).abs() < 2e-6 * t, "depth {} vs {t}", view.depth_m[i]);
+                assert!(
+                    (view.depth_m[i] as f64 - t).abs() < 2e-6 * t,
+                    "depth {} vs {t}",
+                    view.depth_m[i]
+                );
                 let _ = f;
             }
         }
@@ -138,7 +155,10 @@ fn large_triangle_edges_curve_exactly_under_distortion() {
     .unwrap();
     let cam = camera(40, 30, DVec3::new(0.0, 0.0, -2.0), -0.3);
     let view = Rasterizer::new(&cam)
-        .render(&mesh, &RenderParams::default().with_buffers(Buffers::MASK_ONLY))
+        .render(
+            &mesh,
+            &RenderParams::default().with_buffers(Buffers::MASK_ONLY),
+        )
         .unwrap();
     let (mask, stable, _) = reference(&cam, &mesh, 1e-3);
     for i in 0..mask.len() {
@@ -148,9 +168,14 @@ fn large_triangle_edges_curve_exactly_under_distortion() {
     // would disagree with the reference somewhere.
     let corner = |p: DVec3| cam.project(p).unwrap();
     let (a, b) = (corner(mesh.vertices[0]), corner(mesh.vertices[1]));
-    let mid = cam.project((mesh.vertices[0] + mesh.vertices[1]) * 0.5).unwrap();
+    let mid = cam
+        .project((mesh.vertices[0] + mesh.vertices[1]) * 0.5)
+        .unwrap();
     let chord = (a + b) * 0.5;
-    assert!((mid - chord).length() > 0.5, "test geometry is not distorted enough");
+    assert!(
+        (mid - chord).length() > 0.5,
+        "test geometry is not distorted enough"
+    );
 }
 
 #[test]
@@ -163,14 +188,23 @@ fn closed_mesh_has_no_cracks_and_split_quad_is_exact_union() {
         .with_buffers(Buffers::ALL);
     let view = Rasterizer::new(&cam).render(&mesh, &params).unwrap();
     assert_eq!(view.covered_pixels, 64 * 48);
-    assert!(view.normal_camera.iter().all(|n| n[2] > 0.0), "inside faces face away");
+    assert!(
+        view.normal_camera.iter().all(|n| n[2] > 0.0),
+        "inside faces face away"
+    );
     // A quad whose diagonal and corners pass exactly through pixel centres (ties everywhere).
     // Dyadic focal length, centre and coordinates keep every edge value exact in f32.
     let k = Intrinsics::new(8.0, 8.0, 8.0, 8.0, 17, 17).unwrap();
     let cam = Camera::look_at(k, DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::NEG_Y).unwrap();
     // Camera x = world x, camera y = world y with up = -Y; pixel = 8·(x, y) + 8.
     let p = |u: f64, v: f64| DVec3::new((u - 8.0) / 8.0, (v - 8.0) / 8.0, 0.0);
-    let verts = vec![p(2.0, 2.0), p(14.0, 2.0), p(14.0, 14.0), p(2.0, 14.0), p(8.0, 8.0)];
+    let verts = vec![
+        p(2.0, 2.0),
+        p(14.0, 2.0),
+        p(14.0, 14.0),
+        p(2.0, 14.0),
+        p(8.0, 8.0),
+    ];
     let fans = [[0u32, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
     let render = |faces: Vec<[u32; 3]>| {
         Rasterizer::new(&cam)
@@ -259,8 +293,14 @@ fn sphere_normals_depth_and_barycentrics_are_analytic() {
             assert!((p - c).length() < r + 1e-6 && (p - c).length() > r * 0.998);
         }
     }
-    assert!(worst_smooth < 0.3, "smooth normals off by {worst_smooth} deg");
-    assert!(worst_flat < 3.0 && worst_flat > worst_smooth, "flat {worst_flat}");
+    assert!(
+        worst_smooth < 0.3,
+        "smooth normals off by {worst_smooth} deg"
+    );
+    assert!(
+        worst_flat < 3.0 && worst_flat > worst_smooth,
+        "flat {worst_flat}"
+    );
 }
 
 #[test]
@@ -270,7 +310,10 @@ fn mask_only_fast_path_equals_full_mask_and_culling_is_exact_for_closed_meshes()
     let ras = Rasterizer::new(&cam);
     let full = ras.render(&mesh, &RenderParams::default()).unwrap();
     let fast = ras
-        .render(&mesh, &RenderParams::default().with_buffers(Buffers::MASK_ONLY))
+        .render(
+            &mesh,
+            &RenderParams::default().with_buffers(Buffers::MASK_ONLY),
+        )
         .unwrap();
     let no_cull = ras
         .render(&mesh, &RenderParams::default().with_cull_back_faces(false))
@@ -289,7 +332,10 @@ fn mask_only_fast_path_equals_full_mask_and_culling_is_exact_for_closed_meshes()
     let moved = uv_sphere(DVec3::new(0.3, 0.0, 0.0), 0.3, 16, 24);
     ras.render_into(&moved, &RenderParams::default(), &mut reused)
         .unwrap();
-    assert_eq!(reused, ras.render(&moved, &RenderParams::default()).unwrap());
+    assert_eq!(
+        reused,
+        ras.render(&moved, &RenderParams::default()).unwrap()
+    );
 }
 
 #[test]
@@ -336,10 +382,16 @@ fn bad_inputs_and_empty_views() {
     ));
     // Behind the camera.
     let behind = uv_sphere(DVec3::new(0.0, 0.0, -4.0), 0.5, 8, 8);
-    assert!(matches!(ras.render(&behind, &p), Err(Error::NotVisible { .. })));
+    assert!(matches!(
+        ras.render(&behind, &p),
+        Err(Error::NotVisible { .. })
+    ));
     // Outside the field of view.
     let aside = uv_sphere(DVec3::new(30.0, 0.0, 0.0), 0.5, 8, 8);
-    assert!(matches!(ras.render(&aside, &p), Err(Error::NotVisible { .. })));
+    assert!(matches!(
+        ras.render(&aside, &p),
+        Err(Error::NotVisible { .. })
+    ));
     let empty = ras.render(&behind, &p.with_allow_empty(true)).unwrap();
     assert_eq!(empty.covered_pixels, 0);
     assert!(empty.mask.iter().all(|&m| m == 0));
@@ -349,7 +401,10 @@ fn bad_inputs_and_empty_views() {
     assert!(matches!(ras.render(&nan, &p), Err(Error::NonFinite { .. })));
     let mut bad = uv_sphere(DVec3::ZERO, 0.5, 8, 8);
     bad.faces[0][1] = 10_000;
-    assert!(matches!(ras.render(&bad, &p), Err(Error::IndexOutOfRange { .. })));
+    assert!(matches!(
+        ras.render(&bad, &p),
+        Err(Error::IndexOutOfRange { .. })
+    ));
     let nothing = Buffers {
         mask: false,
         depth: false,
@@ -364,5 +419,8 @@ fn bad_inputs_and_empty_views() {
     ));
     // Degenerate faces only: nothing to see.
     let flat = TriMesh::new(vec![DVec3::ZERO, DVec3::X, DVec3::X * 2.0], vec![[0, 1, 2]]).unwrap();
-    assert!(matches!(ras.render(&flat, &p), Err(Error::NotVisible { .. })));
+    assert!(matches!(
+        ras.render(&flat, &p),
+        Err(Error::NotVisible { .. })
+    ));
 }

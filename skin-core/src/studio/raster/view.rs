@@ -60,7 +60,11 @@ impl RenderedView {
         if self.mask.is_empty() {
             return Err(missing("mask buffer (enable Buffers::mask)"));
         }
-        let data = self.mask.iter().map(|&m| if m != 0 { 255 } else { 0 }).collect();
+        let data = self
+            .mask
+            .iter()
+            .map(|&m| if m != 0 { 255 } else { 0 })
+            .collect();
         GrayImage::from_raw(self.width, self.height, data)
             .ok_or_else(|| missing("mask buffer of the view's size"))
     }
