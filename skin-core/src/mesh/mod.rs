@@ -4,6 +4,34 @@
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
 //! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics.
 
+mod metrics;
+mod normals;
+mod obj;
+mod ply;
+mod query;
+mod surface_point;
+mod topology;
 mod trimesh;
 
-pub use trimesh::TriMesh;
+pub use metrics::{
+    mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
+    OneSidedDistance,
+};
+pub use normals::{
+    face_areas, face_normals, triangle_area, triangle_normal, vertex_normals, NormalWeighting,
+    DEGENERATE_REL_TOL,
+};
+pub use obj::{
+    read_obj, read_obj_from_reader, read_obj_from_str, read_obj_group, read_obj_group_with_map,
+    write_obj, write_obj_to, ObjFile, ObjGroupMesh, DEFAULT_GROUP,
+};
+pub use ply::{read_ply, read_ply_from_reader, write_ply, write_ply_to, PlyEncoding};
+pub use query::{ClosestPoint, MeshQuery, Ray, RayHit};
+pub use surface_point::{
+    closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,
+};
+pub use topology::{
+    boundary_edges, is_closed, unique_edges, vertex_faces, vertex_neighbors, Adjacency,
+    EdgeTopology,
+};
+pub use trimesh::{BoundingBox, TriMesh};

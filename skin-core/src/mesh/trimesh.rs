@@ -4,6 +4,32 @@ use crate::math::DVec3;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 
+/// Axis-aligned bounding box of a point set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoundingBox {
+    /// Component-wise minimum corner (mesh units).
+    pub min: DVec3,
+    /// Component-wise maximum corner (mesh units).
+    pub max: DVec3,
+}
+
+impl BoundingBox {
+    /// Edge lengths `max - min`.
+    pub fn extent(&self) -> DVec3 {
+        self.max - self.min
+    }
+
+    /// Centre `(min + max) / 2`.
+    pub fn center(&self) -> DVec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Length of the diagonal, a natural scale for tolerances.
+    pub fn diagonal(&self) -> f64 {
+        self.extent().length()
+    }
+}
+
 /// An indexed triangle mesh.
 ///
 /// Invariants (checked by [`TriMesh::new`]): every coordinate is finite and every face index
@@ -64,6 +90,37 @@ impl TriMesh {
         self.faces.len()
     }
 
+    /// Axis-aligned bounding box of all vertices (referenced or not).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] when there are no vertices, [`Error::NonFinite`] for NaN/inf coordinates.
+    pub fn bounding_box(&self) -> Result<BoundingBox> {
+        let first = *self.vertices.first().ok_or(Error::Empty {
+            what: "mesh vertices (bounding box)",
+        })?;
+        if !self.vertices.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "mesh vertices",
+            });
+        }
+        let (min, max) = self
+            .vertices
+            .iter()
+            .fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        Ok(BoundingBox { min, max })
+    }
+
+    /// Total surface area (sum of triangle areas, mesh units squared; 0 for no faces).
+    ///
+    /// # Errors
+    /// As [`TriMesh::validate`].
+    pub fn surface_area(&self) -> Result<f64> {
+        self.validate()?;
+        Ok((0..self.face_count())
+            .map(|f| super::normals::triangle_area(self.triangle(f)))
+            .sum())
+    }
+
     /// The three corner positions of face `f`.
     ///
     /// # Panics
@@ -96,5 +153,28 @@ mod tests {
             TriMesh::new(bad, vec![[0, 1, 2]]),
             Err(Error::NonFinite { .. })
         ));
+    }
+
+    #[test]
+    fn bounding_box_and_area() {
+        let m = TriMesh::new(
+            vec![
+                DVec3::new(-1.0, 2.0, 0.5),
+                DVec3::new(3.0, -2.0, 0.5),
+                DVec3::new(-1.0, -2.0, 0.5),
+            ],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let b = m.bounding_box().unwrap();
+        assert_eq!(b.min, DVec3::new(-1.0, -2.0, 0.5));
+        assert_eq!(b.max, DVec3::new(3.0, 2.0, 0.5));
+        assert_eq!(b.center(), DVec3::new(1.0, 0.0, 0.5));
+        assert!((m.surface_area().unwrap() - 8.0).abs() < 1e-12);
+        assert!(matches!(
+            TriMesh::default().bounding_box(),
+            Err(Error::Empty { .. })
+        ));
+        assert_eq!(TriMesh::default().surface_area().unwrap(), 0.0);
     }
 }

@@ -1,0 +1,129 @@
+//! Speed of mesh IO and BVH queries on the MakeHuman body (13,380 vertices, 26,756 triangles)
+//! or, when the data set is absent, a UV sphere of similar size.
+//!
+//! Run: `cargo bench -p skin-core --bench mesh_query`.
+
+#![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use skin_core::math::DVec3;
+use skin_core::mesh::{
+    mesh_distance, read_obj_group, vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh,
+};
+use std::hint::black_box;
+use std::path::PathBuf;
+
+fn body_path() -> Option<PathBuf> {
+    [
+        std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
+        Some(PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../data"
+        ))),
+        Some(PathBuf::from("/work/shared/data")),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|d| d.join("makehuman/base.obj"))
+    .find(|p| p.exists())
+}
+
+fn uv_sphere(n_lon: usize, n_lat: usize) -> TriMesh {
+    use std::f64::consts::PI;
+    let mut v = vec![DVec3::Z];
+    for i in 1..n_lat {
+        let th = PI * i as f64 / n_lat as f64;
+        for j in 0..n_lon {
+            let ph = 2.0 * PI * j as f64 / n_lon as f64;
+            v.push(DVec3::new(
+                th.sin() * ph.cos(),
+                th.sin() * ph.sin(),
+                th.cos(),
+            ));
+        }
+    }
+    v.push(DVec3::NEG_Z);
+    let s = (v.len() - 1) as u32;
+    let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
+    let mut f = Vec::new();
+    for j in 0..n_lon {
+        f.push([0, ring(1, j), ring(1, j + 1)]);
+        f.push([s, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)]);
+    }
+    for i in 1..n_lat - 1 {
+        for j in 0..n_lon {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+            );
+            f.push([a, c, d]);
+            f.push([a, d, b]);
+        }
+    }
+    TriMesh::new(v, f).expect("valid sphere")
+}
+
+fn bench(c: &mut Criterion) {
+    let path = body_path();
+    let mesh = match &path {
+        Some(p) => read_obj_group(p, "body").expect("MakeHuman body group"),
+        None => uv_sphere(160, 84),
+    };
+    let bb = mesh.bounding_box().expect("non-empty mesh");
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let n = 10_000;
+    let points: Vec<DVec3> = (0..n)
+        .map(|_| {
+            let u = DVec3::new(rng.random(), rng.random(), rng.random());
+            bb.min + u * bb.extent()
+        })
+        .collect();
+    let rays: Vec<Ray> = points
+        .iter()
+        .map(|&p| {
+            Ray::new(
+                bb.center() + 2.0 * bb.diagonal() * (p - bb.center()).normalize(),
+                bb.center() - p,
+            )
+        })
+        .collect();
+
+    let mut g = c.benchmark_group("mesh");
+    g.sample_size(10);
+    if let Some(p) = &path {
+        g.bench_function("read_obj_group body", |b| {
+            b.iter(|| read_obj_group(black_box(p), "body").expect("read"))
+        });
+    }
+    g.bench_function("MeshQuery::new", |b| {
+        b.iter(|| MeshQuery::new(black_box(&mesh)).expect("query"))
+    });
+    g.bench_function("vertex_normals angle", |b| {
+        b.iter(|| vertex_normals(black_box(&mesh), NormalWeighting::Angle).expect("normals"))
+    });
+    let q = MeshQuery::new(&mesh).expect("query");
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_with_input(BenchmarkId::new("closest_points", n), &points, |b, pts| {
+        b.iter(|| q.closest_points(black_box(pts)).expect("closest"))
+    });
+    g.bench_with_input(BenchmarkId::new("cast_rays", n), &rays, |b, rays| {
+        b.iter(|| q.cast_rays(black_box(rays), f64::INFINITY).expect("rays"))
+    });
+    let mut offset = mesh.clone();
+    offset
+        .vertices
+        .iter_mut()
+        .for_each(|v| *v += DVec3::splat(0.01));
+    g.throughput(Throughput::Elements(2 * mesh.vertex_count() as u64));
+    g.bench_function("mesh_distance body vs offset", |b| {
+        b.iter(|| mesh_distance(black_box(&mesh), black_box(&offset)).expect("distance"))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

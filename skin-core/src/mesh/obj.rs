@@ -1,0 +1,769 @@
+//! Wavefront OBJ reading and writing, with group selection.
+//!
+//! Template meshes (the MakeHuman base mesh the methods of Sand 2003 and Vlasic 2008 are tested
+//! on) and every mesh the examples write go through OBJ. Only geometry is read: `v` positions
+//! and `f` polygons with their `g`/`o` group membership; texture coordinates, normals,
+//! materials, lines and free-form directives are skipped.
+//!
+//! **Why a hand parser, not `tobj`:** `tobj` 4 reports errors without line numbers
+//! (`LoadError::FaceParseError`), reads positions as `f32` unless a crate feature is enabled,
+//! and splits a file into one model per group occurrence with its own compacted vertex buffer
+//! and no map back to the file's vertex indices. We need errors that name the line, exact `f64`
+//! round trips, groups that occur several times (the MakeHuman file repeats
+//! `g helper-l-eyelashes-2`), and the compacted-to-original vertex map, because MakeHuman's
+//! skin weights (`default_weights.mhw`) refer to the original vertex numbers.
+//!
+//! **Groups:** a face belongs to every name on the last `g` line (`g a b` puts it in both `a`
+//! and `b`; a bare `g` means `default`) and to the name of the last `o` line. Faces before any
+//! `g` are in `default`, as the OBJ specification says.
+//!
+//! Lines may end in `\n` or `\r\n`; `#` starts a comment; line continuations (`\`) are not
+//! supported and are reported as errors.
+//!
+//! **Triangulation:** polygons are fanned from their first corner, `(0, i, i+1)`. This is exact
+//! for the planar convex polygons OBJ exporters write (the MakeHuman quads) and keeps the
+//! corner order, hence the outward orientation.
+
+use crate::math::DVec3;
+use crate::mesh::TriMesh;
+use crate::{Error, Result};
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Group name given to faces that precede any `g` line, and to a bare `g` line.
+pub const DEFAULT_GROUP: &str = "default";
+
+/// A parsed OBJ file: all vertices and all polygons with their group membership.
+///
+/// Parse once with [`ObjFile::parse`] / [`ObjFile::read`], then take the whole mesh
+/// ([`ObjFile::to_mesh`]) or one group ([`ObjFile::group_mesh`]).
+#[derive(Debug, Clone)]
+pub struct ObjFile {
+    /// Every `v` position in file order (file index `i + 1` is `vertices[i]`).
+    pub vertices: Vec<DVec3>,
+    /// Zero-based vertex indices of all polygons, concatenated.
+    corners: Vec<u32>,
+    /// Polygon `p` owns `corners[offsets[p]..offsets[p + 1]]`.
+    offsets: Vec<usize>,
+    /// Index into `group_sets` for each polygon.
+    polygon_groups: Vec<u32>,
+    /// Interned sets of group-name ids.
+    group_sets: Vec<Vec<u32>>,
+    /// Group names by id, in order of first appearance.
+    group_names: Vec<String>,
+}
+
+/// One group of an OBJ file as a compact mesh, with the map back to the file's vertices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjGroupMesh {
+    /// The group's triangles over only the vertices they use, re-indexed from 0.
+    pub mesh: TriMesh,
+    /// `original_index[i]` is the zero-based file vertex index (OBJ index minus one) of
+    /// `mesh.vertices[i]`. Increasing, so the compacted order follows the file order.
+    pub original_index: Vec<u32>,
+}
+
+fn parse_error(line: usize, message: impl Into<String>) -> Error {
+    Error::Parse {
+        format: "OBJ",
+        line,
+        message: message.into(),
+    }
+}
+
+/// Prefixes the path to a parse error so messages say which file is broken.
+fn with_path(err: Error, path: &Path) -> Error {
+    match err {
+        Error::Parse {
+            format,
+            line,
+            message,
+        } => Error::Parse {
+            format,
+            line,
+            message: format!("{}: {message}", path.display()),
+        },
+        other => other,
+    }
+}
+
+/// The path recorded in I/O errors raised while reading from an anonymous reader.
+fn reader_path() -> PathBuf {
+    PathBuf::from("<reader>")
+}
+
+/// Group-tracking state of the parser.
+#[derive(Default)]
+struct GroupState {
+    name_ids: HashMap<String, u32>,
+    set_ids: HashMap<Vec<u32>, u32>,
+    g: Vec<u32>,
+    o: Option<u32>,
+    current: Option<u32>,
+}
+
+impl GroupState {
+    fn name_id(&mut self, name: &str, names: &mut Vec<String>) -> u32 {
+        if let Some(&id) = self.name_ids.get(name) {
+            return id;
+        }
+        let id = names.len() as u32;
+        names.push(name.to_owned());
+        self.name_ids.insert(name.to_owned(), id);
+        id
+    }
+
+    /// The interned group set the next face belongs to.
+    fn current_set(&mut self, sets: &mut Vec<Vec<u32>>, names: &mut Vec<String>) -> u32 {
+        if let Some(id) = self.current {
+            return id;
+        }
+        if self.g.is_empty() {
+            let d = self.name_id(DEFAULT_GROUP, names);
+            self.g.push(d);
+        }
+        let mut set = self.g.clone();
+        set.extend(self.o);
+        set.sort_unstable();
+        set.dedup();
+        let id = match self.set_ids.get(&set) {
+            Some(&id) => id,
+            None => {
+                let id = sets.len() as u32;
+                sets.push(set.clone());
+                self.set_ids.insert(set, id);
+                id
+            }
+        };
+        self.current = Some(id);
+        id
+    }
+}
+
+/// Parses one vertex reference of an `f` line (`v`, `v/vt`, `v//vn`, `v/vt/vn`) into a
+/// zero-based index. Relative (negative) indices resolve against `n_vertices` read so far;
+/// positive indices are checked against the final count after the whole file is read.
+fn parse_corner(token: &str, n_vertices: usize, line: usize) -> Result<(u32, bool)> {
+    let v = token.split('/').next().unwrap_or("");
+    let idx: i64 = v
+        .parse()
+        .map_err(|_| parse_error(line, format!("bad vertex index '{token}' in face")))?;
+    if idx == 0 {
+        return Err(parse_error(
+            line,
+            "vertex index 0 in face (OBJ indices start at 1)",
+        ));
+    }
+    if idx < 0 {
+        let resolved = n_vertices as i64 + idx;
+        if resolved < 0 {
+            return Err(parse_error(
+                line,
+                format!("relative vertex index {idx} reaches before the first vertex ({n_vertices} defined so far)"),
+            ));
+        }
+        return Ok((resolved as u32, true));
+    }
+    let zero_based = u32::try_from(idx - 1)
+        .map_err(|_| parse_error(line, format!("vertex index {idx} is too large")))?;
+    Ok((zero_based, false))
+}
+
+impl ObjFile {
+    /// Parses OBJ text from a buffered reader.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] (with the 1-based line) for a `v` line with fewer than three numbers or
+    /// an unparsable or non-finite coordinate, a face with fewer than three corners, a bad,
+    /// zero, or out-of-range vertex index (relative indices are resolved where they appear);
+    /// [`Error::Io`] if reading fails.
+    pub fn parse<R: BufRead>(mut reader: R) -> Result<ObjFile> {
+        let mut obj = ObjFile {
+            vertices: Vec::new(),
+            corners: Vec::new(),
+            offsets: vec![0],
+            polygon_groups: Vec::new(),
+            group_sets: Vec::new(),
+            group_names: Vec::new(),
+        };
+        let mut state = GroupState::default();
+        // Line of each polygon with a forward (positive) index, for the final range check.
+        let mut positive_refs: Vec<(usize, usize)> = Vec::new(); // (polygon, line)
+        let mut buf = Vec::new();
+        let mut line_no = 0usize;
+        loop {
+            buf.clear();
+            let n = reader
+                .read_until(b'\n', &mut buf)
+                .map_err(|e| Error::io(reader_path(), e))?;
+            if n == 0 {
+                break;
+            }
+            line_no += 1;
+            let text = String::from_utf8_lossy(&buf);
+            let content = text.split('#').next().unwrap_or("");
+            let mut tokens = content.split_whitespace();
+            let Some(keyword) = tokens.next() else {
+                continue;
+            };
+            match keyword {
+                "v" => {
+                    let mut xyz = [0.0f64; 3];
+                    for (k, slot) in xyz.iter_mut().enumerate() {
+                        let tok = tokens.next().ok_or_else(|| {
+                            parse_error(
+                                line_no,
+                                format!("vertex has {k} coordinates, expected at least 3"),
+                            )
+                        })?;
+                        *slot = tok.parse().map_err(|_| {
+                            parse_error(line_no, format!("bad vertex coordinate '{tok}'"))
+                        })?;
+                        if !slot.is_finite() {
+                            return Err(parse_error(
+                                line_no,
+                                format!("non-finite vertex coordinate '{tok}'"),
+                            ));
+                        }
+                    }
+                    if obj.vertices.len() >= u32::MAX as usize {
+                        return Err(parse_error(line_no, "more than 2^32 - 1 vertices"));
+                    }
+                    obj.vertices.push(DVec3::from_array(xyz));
+                }
+                "f" => {
+                    let start = obj.corners.len();
+                    let mut has_positive = false;
+                    for tok in tokens {
+                        let (idx, relative) = parse_corner(tok, obj.vertices.len(), line_no)?;
+                        has_positive |= !relative;
+                        obj.corners.push(idx);
+                    }
+                    let count = obj.corners.len() - start;
+                    if count < 3 {
+                        return Err(parse_error(
+                            line_no,
+                            format!("face has {count} corners, expected at least 3"),
+                        ));
+                    }
+                    if has_positive {
+                        positive_refs.push((obj.offsets.len() - 1, line_no));
+                    }
+                    obj.offsets.push(obj.corners.len());
+                    let set = state.current_set(&mut obj.group_sets, &mut obj.group_names);
+                    obj.polygon_groups.push(set);
+                }
+                "g" => {
+                    state.g.clear();
+                    for name in tokens {
+                        let id = state.name_id(name, &mut obj.group_names);
+                        state.g.push(id);
+                    }
+                    state.current = None;
+                }
+                "o" => {
+                    let name: Vec<&str> = tokens.collect();
+                    state.o = if name.is_empty() {
+                        None
+                    } else {
+                        Some(state.name_id(&name.join(" "), &mut obj.group_names))
+                    };
+                    state.current = None;
+                }
+                // vt, vn, vp, s, usemtl, mtllib, l, p and free-form directives: not geometry
+                // we use. Skipped rather than rejected, so files from any exporter load.
+                _ => {}
+            }
+        }
+        let n = obj.vertices.len();
+        for (p, line) in positive_refs {
+            if let Some(&bad) = obj.polygon(p).iter().find(|&&i| i as usize >= n) {
+                return Err(parse_error(
+                    line,
+                    format!(
+                        "vertex index {} out of range (file has {n} vertices)",
+                        bad as u64 + 1
+                    ),
+                ));
+            }
+        }
+        Ok(obj)
+    }
+
+    /// Parses OBJ text held in a string.
+    ///
+    /// # Errors
+    /// As [`ObjFile::parse`].
+    pub fn parse_str(text: &str) -> Result<ObjFile> {
+        Self::parse(text.as_bytes())
+    }
+
+    /// Reads and parses an OBJ file.
+    ///
+    /// # Errors
+    /// [`Error::Io`] if the file cannot be opened or read; otherwise as [`ObjFile::parse`],
+    /// with the path prefixed to the message.
+    pub fn read(path: impl AsRef<Path>) -> Result<ObjFile> {
+        let path = path.as_ref();
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(BufReader::new(file)).map_err(|e| match e {
+            Error::Io { source, .. } => Error::io(path, source),
+            other => with_path(other, path),
+        })
+    }
+
+    /// Number of polygons (before triangulation).
+    pub fn polygon_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// Zero-based vertex indices of polygon `p`.
+    ///
+    /// # Panics
+    /// If `p >= self.polygon_count()` (a caller indexing error).
+    pub fn polygon(&self, p: usize) -> &[u32] {
+        &self.corners[self.offsets[p]..self.offsets[p + 1]]
+    }
+
+    /// Names of the groups (`g` and `o`) that own at least one face, in order of first
+    /// appearance, each once.
+    pub fn group_names(&self) -> Vec<&str> {
+        let mut used = vec![false; self.group_names.len()];
+        for &s in &self.polygon_groups {
+            for &g in &self.group_sets[s as usize] {
+                used[g as usize] = true;
+            }
+        }
+        self.group_names
+            .iter()
+            .zip(used)
+            .filter(|(_, u)| *u)
+            .map(|(n, _)| n.as_str())
+            .collect()
+    }
+
+    fn push_triangles(poly: &[u32], out: &mut Vec<[u32; 3]>, map: impl Fn(u32) -> u32) {
+        for i in 1..poly.len() - 1 {
+            out.push([map(poly[0]), map(poly[i]), map(poly[i + 1])]);
+        }
+    }
+
+    /// All polygons, fan-triangulated, over all file vertices (indices equal the file's
+    /// vertex numbers minus one, unreferenced vertices kept).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] when the file has no faces.
+    pub fn to_mesh(&self) -> Result<TriMesh> {
+        if self.polygon_count() == 0 {
+            return Err(Error::Empty {
+                what: "OBJ faces (the file has no 'f' lines)",
+            });
+        }
+        let mut faces = Vec::with_capacity(self.corners.len());
+        for p in 0..self.polygon_count() {
+            Self::push_triangles(self.polygon(p), &mut faces, |i| i);
+        }
+        TriMesh::new(self.vertices.clone(), faces)
+    }
+
+    /// The faces of group `name` (from `g` or `o` lines), fan-triangulated, over only the
+    /// vertices they use, with the map back to the file's vertex indices.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] listing the available groups when no face belongs to `name`.
+    pub fn group_mesh(&self, name: &str) -> Result<ObjGroupMesh> {
+        let id = self
+            .group_names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| i as u32);
+        let in_group: Vec<bool> = self
+            .group_sets
+            .iter()
+            .map(|set| id.is_some_and(|id| set.contains(&id)))
+            .collect();
+        let polygons: Vec<usize> = (0..self.polygon_count())
+            .filter(|&p| in_group[self.polygon_groups[p] as usize])
+            .collect();
+        if polygons.is_empty() {
+            return Err(Error::InvalidParam {
+                name: "group",
+                reason: format!(
+                    "no faces in OBJ group '{name}'; groups with faces: [{}]",
+                    self.group_names().join(", ")
+                ),
+            });
+        }
+        let mut used = vec![false; self.vertices.len()];
+        for &p in &polygons {
+            for &i in self.polygon(p) {
+                used[i as usize] = true;
+            }
+        }
+        let mut new_index = vec![u32::MAX; self.vertices.len()];
+        let mut original_index = Vec::new();
+        let mut vertices = Vec::new();
+        for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
+            new_index[i] = original_index.len() as u32;
+            original_index.push(i as u32);
+            vertices.push(self.vertices[i]);
+        }
+        let mut faces = Vec::new();
+        for &p in &polygons {
+            Self::push_triangles(self.polygon(p), &mut faces, |i| new_index[i as usize]);
+        }
+        Ok(ObjGroupMesh {
+            mesh: TriMesh::new(vertices, faces)?,
+            original_index,
+        })
+    }
+}
+
+/// Reads an OBJ file as one triangle mesh over all its vertices (see [`ObjFile::to_mesh`]).
+///
+/// # Errors
+/// As [`ObjFile::read`] and [`ObjFile::to_mesh`].
+pub fn read_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
+    ObjFile::read(path)?.to_mesh()
+}
+
+/// Reads OBJ text from a reader as one triangle mesh (see [`ObjFile::to_mesh`]).
+///
+/// # Errors
+/// As [`ObjFile::parse`] and [`ObjFile::to_mesh`].
+pub fn read_obj_from_reader<R: BufRead>(reader: R) -> Result<TriMesh> {
+    ObjFile::parse(reader)?.to_mesh()
+}
+
+/// Parses OBJ text as one triangle mesh (see [`ObjFile::to_mesh`]).
+///
+/// # Errors
+/// As [`ObjFile::parse`] and [`ObjFile::to_mesh`].
+///
+/// # Example
+/// ```
+/// let mesh = skin_core::mesh::read_obj_from_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")?;
+/// assert_eq!(mesh.faces, vec![[0, 1, 2], [0, 2, 3]]);
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+pub fn read_obj_from_str(text: &str) -> Result<TriMesh> {
+    ObjFile::parse_str(text)?.to_mesh()
+}
+
+/// Reads the faces of one group of an OBJ file, vertices compacted and re-indexed.
+///
+/// Use [`read_obj_group_with_map`] when you also need the original vertex numbers (e.g. to
+/// apply MakeHuman skin weights, which refer to them).
+///
+/// # Errors
+/// As [`ObjFile::read`]; [`Error::InvalidParam`] listing the available groups when `group` has
+/// no faces.
+///
+/// # Example
+/// ```no_run
+/// let body = skin_core::mesh::read_obj_group("data/makehuman/base.obj", "body")?;
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+pub fn read_obj_group(path: impl AsRef<Path>, group: &str) -> Result<TriMesh> {
+    Ok(read_obj_group_with_map(path, group)?.mesh)
+}
+
+/// As [`read_obj_group`], also returning the compacted-to-original vertex index map.
+///
+/// # Errors
+/// As [`read_obj_group`].
+pub fn read_obj_group_with_map(path: impl AsRef<Path>, group: &str) -> Result<ObjGroupMesh> {
+    ObjFile::read(path)?.group_mesh(group)
+}
+
+/// Writes `mesh` as OBJ text (`v` and `f` lines, 1-based indices) to `writer`.
+///
+/// Coordinates are written in Rust's shortest round-trip form, so reading the file back gives
+/// bit-identical positions.
+///
+/// # Errors
+/// As [`TriMesh::validate`]; [`Error::Io`] if writing fails.
+pub fn write_obj_to<W: Write>(mut writer: W, mesh: &TriMesh) -> Result<()> {
+    mesh.validate()?;
+    let io = |e| Error::io("<writer>", e);
+    writeln!(writer, "# written by dynamic-shapes skin-core").map_err(io)?;
+    writeln!(
+        writer,
+        "# {} vertices, {} triangles",
+        mesh.vertex_count(),
+        mesh.face_count()
+    )
+    .map_err(io)?;
+    for v in &mesh.vertices {
+        writeln!(writer, "v {:?} {:?} {:?}", v.x, v.y, v.z).map_err(io)?;
+    }
+    for f in &mesh.faces {
+        writeln!(writer, "f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1).map_err(io)?;
+    }
+    writer.flush().map_err(io)
+}
+
+/// Writes `mesh` to an OBJ file (see [`write_obj_to`]).
+///
+/// # Errors
+/// As [`write_obj_to`]; I/O errors carry `path`.
+pub fn write_obj(path: impl AsRef<Path>, mesh: &TriMesh) -> Result<()> {
+    let path = path.as_ref();
+    mesh.validate()?;
+    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    write_obj_to(BufWriter::new(file), mesh).map_err(|e| match e {
+        Error::Io { source, .. } => Error::io(path, source),
+        other => other,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn parse_err_line(r: Result<TriMesh>) -> (usize, String) {
+        match r {
+            Err(Error::Parse { line, message, .. }) => (line, message),
+            other => panic!("expected parse error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn triangulates_polygons_and_skips_other_directives() {
+        let text = "# comment\nmtllib x.mtl\nv 0 0 0\nv 1 0 0 1.0\nv 1 1 0 0.5 0.5 0.5\nv 0 1 0\n\
+                    vt 0 0\nvn 0 0 1\ns off\nusemtl skin\nf 1/1/1 2//1 3/1 4 # quad\nl 1 2\n";
+        let m = read_obj_from_str(text).unwrap();
+        assert_eq!(m.vertex_count(), 4);
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
+        let m = read_obj_from_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nf 1 2 3 4 5\n")
+            .unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+        // Windows line endings and tabs.
+        let m =
+            read_obj_from_str("v\t0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng  body \r\nf 1 2 3\r\n").unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2]]);
+        let g =
+            ObjFile::parse_str("v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\ng body\r\nf 1 2 3\r\n").unwrap();
+        assert_eq!(g.group_names(), vec!["body"]);
+    }
+
+    #[test]
+    fn relative_indices_resolve_where_they_appear() {
+        let m = read_obj_from_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nf -4 -3 -1\n")
+            .unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 1, 3]]);
+        let (line, msg) = parse_err_line(read_obj_from_str("v 0 0 0\nv 1 0 0\nf -1 -2 -3\n"));
+        assert_eq!(line, 3);
+        assert!(msg.contains("-3"), "{msg}");
+    }
+
+    #[test]
+    fn malformed_input_gives_line_numbers() {
+        let cases: [(&str, usize, &str); 9] = [
+            ("v 0 0 0\nv 1 x 0\n", 2, "coordinate"),
+            ("v 0 0\n", 1, "2 coordinates"),
+            ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 1, "non-finite"),
+            ("v 0 0 inf\n", 1, "non-finite"),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n", 5, "2 corners"),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", 4, "out of range"),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "index 0"),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n",
+                4,
+                "bad vertex index",
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999\n",
+                4,
+                "too large",
+            ),
+        ];
+        for (text, want_line, want_msg) in cases {
+            let (line, msg) = parse_err_line(read_obj_from_str(text));
+            assert_eq!(line, want_line, "{text:?}: {msg}");
+            assert!(msg.contains(want_msg), "{text:?}: {msg}");
+        }
+    }
+
+    #[test]
+    fn truncated_and_empty_files_are_errors() {
+        // A file cut in the middle of a face line: the last face refers to a missing vertex.
+        let full = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n";
+        let cut = &full[..full.len() - 3]; // "f 1 " : too few corners
+        assert!(matches!(
+            read_obj_from_str(cut),
+            Err(Error::Parse { line: 6, .. })
+        ));
+        // Faces that reference vertices a truncated file never defines.
+        assert!(matches!(
+            read_obj_from_str("f 1 2 3\nv 0 0 0\n"),
+            Err(Error::Parse { line: 1, .. })
+        ));
+        assert!(matches!(read_obj_from_str(""), Err(Error::Empty { .. })));
+        assert!(matches!(
+            read_obj_from_str("v 0 0 0\nv 1 0 0\n"),
+            Err(Error::Empty { .. })
+        ));
+        // Binary garbage never panics.
+        let garbage: Vec<u8> = (0..2000u32).map(|i| (i * 7919 % 251) as u8).collect();
+        let _ = read_obj_from_reader(&garbage[..]);
+    }
+
+    #[test]
+    fn groups_select_compact_and_map_back() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\nv 1 1 0\nv 2 2 2\n\
+                    f 1 2 3\ng body\nf 2 5 3\ng hair\nf 4 6 1\ng body extra\nf 1 2 5\n\
+                    o thing\ng hair\nf 6 5 4\n";
+        let obj = ObjFile::parse_str(text).unwrap();
+        assert_eq!(
+            obj.group_names(),
+            vec!["default", "body", "hair", "extra", "thing"]
+        );
+        let body = obj.group_mesh("body").unwrap();
+        // Repeated group occurrences are merged; the compacted vertices keep file order.
+        assert_eq!(body.original_index, vec![0, 1, 2, 4]);
+        assert_eq!(body.mesh.faces, vec![[1, 3, 2], [0, 1, 3]]);
+        for (i, &o) in body.original_index.iter().enumerate() {
+            assert_eq!(body.mesh.vertices[i], obj.vertices[o as usize]);
+        }
+        let hair = obj.group_mesh("hair").unwrap();
+        assert_eq!(hair.original_index, vec![0, 3, 4, 5]);
+        assert_eq!(hair.mesh.face_count(), 2);
+        let thing = obj.group_mesh("thing").unwrap();
+        assert_eq!(thing.mesh.face_count(), 1);
+        assert_eq!(obj.group_mesh("default").unwrap().mesh.face_count(), 1);
+        match obj.group_mesh("skin") {
+            Err(Error::InvalidParam { reason, .. }) => {
+                assert!(
+                    reason.contains("'skin'") && reason.contains("body, hair"),
+                    "{reason}"
+                )
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn missing_file_is_io_error_with_path() {
+        match read_obj("/nonexistent/dir/x.obj") {
+            Err(Error::Io { path, .. }) => assert!(path.ends_with("x.obj")),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn write_rejects_invalid_mesh() {
+        let m = TriMesh {
+            vertices: vec![DVec3::ZERO, DVec3::X, DVec3::new(f64::NAN, 0.0, 0.0)],
+            faces: vec![[0, 1, 2]],
+        };
+        assert!(matches!(
+            write_obj_to(Vec::new(), &m),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+
+    /// The MakeHuman base mesh, group `body` (see data/makehuman/SOURCE.md).
+    #[test]
+    fn makehuman_body_group() {
+        // `$DYNAMIC_SHAPES_DATA`, the workspace `data/`, or the shared data directory.
+        let candidates = [
+            std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
+            Some(PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../data"
+            ))),
+            Some(PathBuf::from("/work/shared/data")),
+        ];
+        let Some(path) = candidates
+            .into_iter()
+            .flatten()
+            .map(|d| d.join("makehuman/base.obj"))
+            .find(|p| p.exists())
+        else {
+            eprintln!("skipping: MakeHuman base.obj not found");
+            return;
+        };
+        let obj = ObjFile::read(&path).unwrap();
+        assert_eq!(obj.vertices.len(), 19_158);
+        assert_eq!(obj.polygon_count(), 18_486);
+        let names = obj.group_names();
+        assert!(names.contains(&"body") && names.contains(&"helper-tights"));
+        let body = obj.group_mesh("body").unwrap();
+        // SOURCE.md: 13,380 vertices are referenced by `body` faces (all quads).
+        assert_eq!(body.mesh.vertex_count(), 13_380);
+        assert_eq!(body.original_index.len(), 13_380);
+        assert_eq!(body.mesh.face_count() % 2, 0);
+        eprintln!(
+            "MakeHuman body: {} vertices, {} triangles",
+            body.mesh.vertex_count(),
+            body.mesh.face_count()
+        );
+        let bb = body.mesh.bounding_box().unwrap();
+        // Decimetres: body spans y = -8.17 .. 8.49.
+        assert!(
+            (bb.min.y + 8.17).abs() < 0.01 && (bb.max.y - 8.49).abs() < 0.01,
+            "{bb:?}"
+        );
+        let direct = read_obj_group(&path, "body").unwrap();
+        assert_eq!(direct, body.mesh);
+        assert!(matches!(
+            read_obj_group(&path, "no-such-group"),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    fn arb_mesh() -> impl Strategy<Value = TriMesh> {
+        (3usize..40).prop_flat_map(|n| {
+            let v = prop::collection::vec(
+                (
+                    -1e6f64..1e6,
+                    -1e-6f64..1e-6,
+                    any::<f64>().prop_filter("finite", |x| x.is_finite()),
+                ),
+                n,
+            );
+            let f = prop::collection::vec(
+                (0..n as u32, 0..n as u32, 0..n as u32).prop_map(|(a, b, c)| [a, b, c]),
+                1..60,
+            );
+            (v, f).prop_map(|(v, f)| TriMesh {
+                vertices: v.into_iter().map(|(x, y, z)| DVec3::new(x, y, z)).collect(),
+                faces: f,
+            })
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn obj_round_trip_is_exact(mesh in arb_mesh()) {
+            let mut buf = Vec::new();
+            write_obj_to(&mut buf, &mesh).unwrap();
+            let back = read_obj_from_reader(&buf[..]).unwrap();
+            prop_assert_eq!(back, mesh);
+        }
+
+        #[test]
+        fn arbitrary_text_never_panics(s in "[vfgo0-9 ./#\\-\nae]{0,200}") {
+            let _ = read_obj_from_str(&s);
+        }
+    }
+
+    #[test]
+    fn file_round_trip() {
+        let dir = std::env::temp_dir().join(format!("skin_core_obj_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("tri.obj");
+        let m = TriMesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(0.1, 0.7, -3.0)],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        write_obj(&path, &m).unwrap();
+        assert_eq!(read_obj(&path).unwrap(), m);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
