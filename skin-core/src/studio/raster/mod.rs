@@ -224,4 +224,4 @@ fn resize<T: Clone>(v: &mut Vec<T>, wanted: bool, n: usize, fill: T) {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
