@@ -146,16 +146,7 @@ impl Rasterizer {
             vertex_normals: &vertex_normals,
             normals: params.normals,
         };
-        let bands = split_bands(
-            w,
-            h,
-            &mut view.mask,
-            &mut view.depth_m,
-            &mut view.camera_z_m,
-            &mut view.normal_camera,
-            &mut view.triangle,
-            &mut view.bary,
-        );
+        let bands = split_bands(w, h, view);
         let covered = match &self.grid {
             SampleGrid::Pinhole { col_nx, row_ny } => raster(
                 &PinholeDirs { col_nx, row_ny },

@@ -244,16 +244,12 @@ fn pixel_normal(ctx: &ResolveCtx<'_>, face: u32, lam: [f32; 3]) -> [f32; 3] {
     face_normal([ctx.pos[a], ctx.pos[b], ctx.pos[c]])
 }
 
-/// Splits the requested output buffers into bands.
+/// Splits the requested output buffers of `view` into bands (empty buffers give empty
+/// slices).
 pub(crate) fn split_bands<'a>(
     width: usize,
     height: usize,
-    mask: &'a mut [u8],
-    depth: &'a mut [f32],
-    camera_z: &'a mut [f32],
-    normal: &'a mut [[f32; 3]],
-    triangle: &'a mut [u32],
-    bary: &'a mut [[f32; 2]],
+    view: &'a mut super::view::RenderedView,
 ) -> Vec<BandOut<'a>> {
     let chunk = BAND_ROWS * width;
     let n_bands = height.div_ceil(BAND_ROWS);
@@ -264,12 +260,12 @@ pub(crate) fn split_bands<'a>(
             s.chunks_mut(chunk).collect()
         }
     }
-    let mut m = parts(mask, chunk, n_bands).into_iter();
-    let mut d = parts(depth, chunk, n_bands).into_iter();
-    let mut z = parts(camera_z, chunk, n_bands).into_iter();
-    let mut nn = parts(normal, chunk, n_bands).into_iter();
-    let mut t = parts(triangle, chunk, n_bands).into_iter();
-    let mut b = parts(bary, chunk, n_bands).into_iter();
+    let mut m = parts(&mut view.mask, chunk, n_bands).into_iter();
+    let mut d = parts(&mut view.depth_m, chunk, n_bands).into_iter();
+    let mut z = parts(&mut view.camera_z_m, chunk, n_bands).into_iter();
+    let mut nn = parts(&mut view.normal_camera, chunk, n_bands).into_iter();
+    let mut t = parts(&mut view.triangle, chunk, n_bands).into_iter();
+    let mut b = parts(&mut view.bary, chunk, n_bands).into_iter();
     (0..n_bands)
         .map(|i| BandOut {
             y0: i * BAND_ROWS,

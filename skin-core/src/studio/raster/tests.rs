@@ -74,13 +74,12 @@ fn camera(w: u32, h: u32, eye: DVec3, k1: f64) -> Camera {
         ))
 }
 
+/// Reference mask, boundary stability and nearest hit `(t, face)` per pixel.
+type Reference = (Vec<u8>, Vec<bool>, Vec<Option<(f64, usize)>>);
+
 /// Reference mask of the brute-force ray caster and, per pixel, whether it is stable under
 /// perturbing the pixel by `eps` px in each axis direction.
-fn reference(
-    cam: &Camera,
-    mesh: &TriMesh,
-    eps: f64,
-) -> (Vec<u8>, Vec<bool>, Vec<Option<(f64, usize)>>) {
+fn reference(cam: &Camera, mesh: &TriMesh, eps: f64) -> Reference {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut mask = Vec::new();
     let mut stable = Vec::new();

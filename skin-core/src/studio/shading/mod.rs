@@ -26,4 +26,4 @@ mod visibility;
 pub use dome::{dome_lights, DomeParams};
 pub use lights::Light;
 pub use shade::{shade, Albedo, ShadedView, Shadows};
-pub use visibility::{check_lights_outside, LightVisibility, DEFAULT_SHADOW_BIAS_M};
+pub use visibility::{check_lights_outside, vertices_seen, LightVisibility, DEFAULT_SHADOW_BIAS_M};

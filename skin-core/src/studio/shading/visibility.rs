@@ -14,6 +14,7 @@ use rayon::prelude::*;
 use super::lights::Light;
 use crate::math::DVec3;
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh};
+use crate::studio::raster::{RenderedView, NO_TRIANGLE};
 use crate::{Error, Result};
 
 /// Offset of shadow-ray origins along the surface normal, m: 0.1 mm, far above the f64
@@ -45,7 +46,33 @@ impl LightVisibility {
         lights: &[Light],
         bias_m: f64,
     ) -> Result<Self> {
+        Self::compute_for(mesh, query, lights, bias_m, None)
+    }
+
+    /// As [`LightVisibility::compute`], casting rays only from the vertices with
+    /// `needed[v] = true` (e.g. [`vertices_seen`] of the views to shade); the others are
+    /// reported as seeing no light. One view needs about half the rays of the whole mesh.
+    ///
+    /// # Errors
+    /// As [`LightVisibility::compute`]; [`Error::SizeMismatch`] if `needed` does not have one
+    /// entry per vertex.
+    pub fn compute_for(
+        mesh: &TriMesh,
+        query: &MeshQuery,
+        lights: &[Light],
+        bias_m: f64,
+        needed: Option<&[bool]>,
+    ) -> Result<Self> {
         check_bias(bias_m)?;
+        if let Some(n) = needed {
+            if n.len() != mesh.vertex_count() {
+                return Err(Error::SizeMismatch {
+                    what: "needed-vertex flags",
+                    expected: mesh.vertex_count(),
+                    got: n.len(),
+                });
+            }
+        }
         if query.face_count() != mesh.face_count() {
             return Err(Error::SizeMismatch {
                 what: "mesh faces vs MeshQuery faces",
@@ -60,7 +87,11 @@ impl LightVisibility {
         let mut bits = vec![0u64; words * mesh.vertex_count()];
         bits.par_chunks_mut(words)
             .zip(mesh.vertices.par_iter().zip(normals.par_iter()))
-            .for_each(|(row, (&p, &n))| {
+            .enumerate()
+            .for_each(|(v, (row, (&p, &n)))| {
+                if needed.is_some_and(|nd| !nd[v]) {
+                    return;
+                }
                 for (l, light) in lights.iter().enumerate() {
                     if light.irradiance(p, n) > 0.0 && unoccluded(query, p, n, light, bias_m) {
                         row[l / 64] |= 1 << (l % 64);
@@ -103,6 +134,43 @@ impl LightVisibility {
             .map(|b| b.count_ones() as usize)
             .sum()
     }
+}
+
+/// Flags of the vertices whose faces are visible in any of `views` (rendered from `mesh` with
+/// [`crate::studio::Buffers`] `triangle` on): the vertices shading those views reads.
+///
+/// # Errors
+/// [`Error::Empty`] if a view has no triangle buffer; [`Error::IndexOutOfRange`] for a
+/// triangle id outside `mesh`.
+pub fn vertices_seen(mesh: &TriMesh, views: &[&RenderedView]) -> Result<Vec<bool>> {
+    let mut seen = vec![false; mesh.vertex_count()];
+    for view in views {
+        if view.triangle.is_empty() {
+            return Err(Error::Empty {
+                what: "triangle buffer of the view (render with Buffers::triangle)",
+            });
+        }
+        let mut last = NO_TRIANGLE;
+        for &t in &view.triangle {
+            if t == NO_TRIANGLE || t == last {
+                continue;
+            }
+            last = t;
+            let face = mesh.faces.get(t as usize).ok_or(Error::IndexOutOfRange {
+                what: "view triangle id",
+                index: t as usize,
+                len: mesh.face_count(),
+            })?;
+            for &i in face {
+                // Face indices were validated against the vertex count when `mesh` was built
+                // or rendered; `get_mut` keeps a corrupt mesh from panicking here.
+                if let Some(s) = seen.get_mut(i as usize) {
+                    *s = true;
+                }
+            }
+        }
+    }
+    Ok(seen)
 }
 
 fn check_bias(bias_m: f64) -> Result<()> {

@@ -3,7 +3,7 @@ use crate::camera::{Camera, Intrinsics};
 use crate::math::DVec3;
 use crate::studio::raster::tests::uv_sphere;
 use crate::studio::raster::{Buffers, Rasterizer, RenderParams};
-use crate::studio::shading::{dome_lights, DomeParams, DEFAULT_SHADOW_BIAS_M};
+use crate::studio::shading::{dome_lights, vertices_seen, DomeParams, DEFAULT_SHADOW_BIAS_M};
 
 /// A square floor grid in the y = 0 plane, normals +Y, `n × n` cells of side `2·half / n`.
 fn floor_grid(half: f64, n: usize) -> TriMesh {
@@ -77,12 +77,9 @@ fn point_light_follows_inverse_square_and_lambert() {
         let r2 = h * h + off * off;
         let cos = h / r2.sqrt();
         let expect = 3.0 * cos / r2 / std::f64::consts::PI;
-        for ch in 0..3 {
-            let got = s.radiance[c][ch] as f64;
-            assert!(
-                (got - rho[ch] as f64 * expect).abs() < 1e-5 * expect,
-                "{got} vs {expect}"
-            );
+        for (&got, &r) in s.radiance[c].iter().zip(&rho) {
+            let (got, want) = (got as f64, r as f64 * expect);
+            assert!((got - want).abs() < 1e-5 * expect, "{got} vs {want}");
         }
         assert_eq!(s.radiance[0], [0.0; 3], "background stays black");
     }
@@ -221,6 +218,17 @@ fn cast_shadows_match_analytic_sphere_shadow() {
         }
     }
     assert!(dark > 50 && lit > 500, "dark {dark} lit {lit}");
+    // Rays from the vertices the view sees only: fewer rays, identical shading.
+    let seen = vertices_seen(&scene, &[&view]).unwrap();
+    assert!(seen.iter().filter(|&&s| s).count() < scene.vertex_count());
+    let part =
+        LightVisibility::compute_for(&scene, &query, &lights, DEFAULT_SHADOW_BIAS_M, Some(&seen))
+            .unwrap();
+    assert_eq!(
+        shade(&view, &scene, &lights, &alb, &Shadows::PerVertex(&part)).unwrap(),
+        per_vertex
+    );
+    assert!(LightVisibility::compute_for(&scene, &query, &lights, 1e-4, Some(&seen[1..])).is_err());
     // Deterministic across thread counts.
     let run = |t: usize| {
         rayon::ThreadPoolBuilder::new()
