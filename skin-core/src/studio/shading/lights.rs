@@ -82,6 +82,73 @@ impl Light {
     /// Unshadowed irradiance at `p` on a surface with unit normal `n` (W/m²; module docs).
     /// Zero when the light is below the surface's tangent plane (or `p` behind an area light).
     pub fn irradiance(&self, p: DVec3, n: DVec3) -> f64 {
+        PreparedLight::new(self).irradiance(p, n)
+    }
+}
+
+/// A light with its constants folded for the per-pixel loop.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PreparedLight {
+    position: DVec3,
+    /// Unit emitting direction (area lights), zero for point lights.
+    normal: DVec3,
+    /// Intensity (point) or radiance × area (area).
+    power: f64,
+    area: bool,
+}
+
+impl PreparedLight {
+    pub(crate) fn new(light: &Light) -> Self {
+        match *light {
+            Light::Point {
+                position,
+                intensity,
+            } => Self {
+                position,
+                normal: DVec3::ZERO,
+                power: intensity,
+                area: false,
+            },
+            Light::Area {
+                position,
+                normal,
+                area_m2,
+                radiance,
+            } => Self {
+                position,
+                normal: normal.normalize_or_zero(),
+                power: radiance * area_m2,
+                area: true,
+            },
+        }
+    }
+
+    /// As [`Light::irradiance`].
+    #[inline]
+    pub(crate) fn irradiance(&self, p: DVec3, n: DVec3) -> f64 {
+        let d = self.position - p;
+        let cos_s = n.dot(d);
+        if cos_s <= 0.0 {
+            return 0.0;
+        }
+        let r2 = d.length_squared();
+        let r = r2.sqrt();
+        let mut e = self.power * cos_s / (r2 * r);
+        if self.area {
+            let cos_l = -self.normal.dot(d);
+            if cos_l <= 0.0 {
+                return 0.0;
+            }
+            e *= cos_l / r;
+        }
+        e
+    }
+}
+
+#[cfg(test)]
+impl Light {
+    /// The formulas of the module docs written out directly (test oracle for the folded form).
+    fn irradiance_reference(&self, p: DVec3, n: DVec3) -> f64 {
         let d = self.position() - p;
         let r2 = d.length_squared();
         if r2 == 0.0 {
@@ -109,5 +176,60 @@ impl Light {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn folded_irradiance_matches_reference(
+            lx in -3.0f64..3.0, ly in -3.0f64..3.0, lz in -3.0f64..3.0,
+            nx in -1.0f64..1.0, ny in -1.0f64..1.0, nz in 0.1f64..1.0,
+            px in -1.0f64..1.0, area in prop::bool::ANY,
+        ) {
+            let pos = DVec3::new(lx, ly, lz);
+            let light = if area {
+                Light::Area { position: pos, normal: DVec3::new(ny, nx, -nz) * 2.0, area_m2: 0.02, radiance: 3.0 }
+            } else {
+                Light::Point { position: pos, intensity: 2.5 }
+            };
+            let n = DVec3::new(nx, nz, ny).normalize();
+            let p = DVec3::new(px, 0.2, -px);
+            let (a, b) = (light.irradiance(p, n), light.irradiance_reference(p, n));
+            prop_assert!((a - b).abs() <= 1e-12 * b.abs().max(1e-12), "{a} vs {b}");
+            prop_assert!(a >= 0.0);
+        }
+    }
+
+    #[test]
+    fn validation() {
+        let ok = Light::Point {
+            position: DVec3::ONE,
+            intensity: 1.0,
+        };
+        assert!(ok.validate().is_ok());
+        let neg = Light::Point {
+            position: DVec3::ONE,
+            intensity: -1.0,
+        };
+        assert!(matches!(neg.validate(), Err(Error::InvalidParam { .. })));
+        let flat = Light::Area {
+            position: DVec3::ONE,
+            normal: DVec3::Y,
+            area_m2: 0.0,
+            radiance: 1.0,
+        };
+        assert!(matches!(flat.validate(), Err(Error::InvalidParam { .. })));
+        let nan = Light::Area {
+            position: DVec3::ONE,
+            normal: DVec3::NAN,
+            area_m2: 1.0,
+            radiance: 1.0,
+        };
+        assert!(matches!(nan.validate(), Err(Error::NonFinite { .. })));
     }
 }

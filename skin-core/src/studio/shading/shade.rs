@@ -5,7 +5,7 @@ use image::{Rgb, Rgb32FImage, RgbImage};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::lights::Light;
+use super::lights::{Light, PreparedLight};
 use super::visibility::{check_lights_outside, unoccluded, LightVisibility};
 use crate::math::DVec3;
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
@@ -188,6 +188,7 @@ pub fn shade(
     }
     mesh.validate()?;
     let normals = vertex_normals(mesh, NormalWeighting::Area)?;
+    let prepared: Vec<PreparedLight> = lights.iter().map(PreparedLight::new).collect();
     let w = view.width as usize;
     let mut radiance = vec![[0.0f32; 3]; n];
     radiance
@@ -222,8 +223,8 @@ pub fn shade(
                     } => texture(interp(rest_positions)),
                 };
                 let mut e = 0.0f64;
-                for (l, light) in lights.iter().enumerate() {
-                    let el = light.irradiance(p, nrm);
+                for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
+                    let el = prep.irradiance(p, nrm);
                     if el <= 0.0 {
                         continue;
                     }
