@@ -13,6 +13,7 @@ use super::params::NormalMode;
 use super::samples::Dirs;
 use super::setup::{face_normal, TriSetup};
 use super::view::NO_TRIANGLE;
+use crate::math::DVec3;
 
 /// Rows per band (one parallel task). 16 rows × 1600 px keeps the band's z and id buffers
 /// (200 KB) in L2.
@@ -33,7 +34,7 @@ pub(crate) struct BandOut<'a> {
 /// What the resolve step needs besides the triangle set-ups.
 pub(crate) struct ResolveCtx<'a> {
     pub(crate) faces: &'a [[u32; 3]],
-    pub(crate) pos: &'a [crate::math::DVec3],
+    pub(crate) pos: &'a [DVec3],
     /// Camera-frame vertex normals (smooth mode) or empty (flat mode).
     pub(crate) vertex_normals: &'a [[f32; 3]],
     pub(crate) normals: NormalMode,
@@ -162,6 +163,7 @@ pub(crate) fn full_band<D: Dirs>(
         }
     }
     fill_background(out);
+    let mut cache = FaceCache::new();
     let mut covered = 0;
     for yy in 0..rows {
         let y = y0 + yy;
@@ -174,7 +176,7 @@ pub(crate) fn full_band<D: Dirs>(
             covered += 1;
             let t = &tris[id as usize];
             let d = dirs.dir(x, y);
-            let (lam, z) = resolve_hit(ctx, t.face, d, zb[j]);
+            let (lam, z) = cache.resolve(ctx, t.face, d, zb[j]);
             if !out.mask.is_empty() {
                 out.mask[j] = 1;
             }
@@ -196,21 +198,51 @@ pub(crate) fn full_band<D: Dirs>(
     covered
 }
 
-/// Perspective-correct barycentrics and camera z of the hit of ray `(nx, ny, 1)` with `face`,
-/// recomputed in f64 from the camera-frame corners (the f32 edge values of the coverage test
-/// lose relative precision near a grazing silhouette). `w32` is the f32 inverse depth of the
-/// z-test, used only if the f64 solve degenerates.
-fn resolve_hit(ctx: &ResolveCtx<'_>, face: u32, d: [f32; 2], w32: f32) -> ([f32; 3], f32) {
-    let [a, b, c] = ctx.faces[face as usize].map(|i| ctx.pos[i as usize]);
-    let r = crate::math::DVec3::new(d[0] as f64, d[1] as f64, 1.0);
-    let e = [r.dot(b.cross(c)), r.dot(c.cross(a)), r.dot(a.cross(b))];
-    let sum = e[0] + e[1] + e[2];
-    let z = (b - a).cross(c - a).dot(a) / sum;
-    if !(z.is_finite() && z > 0.0 && sum != 0.0) {
-        let third = 1.0 / 3.0;
-        return ([third; 3], 1.0 / w32);
+/// The f64 quantities of one face that [`FaceCache::resolve`] needs, cached across the run of
+/// pixels that see the same face.
+pub(crate) struct FaceCache {
+    face: u32,
+    /// `v₁×v₂, v₂×v₀, v₀×v₁` (camera frame).
+    e: [DVec3; 3],
+    /// `((v₁−v₀)×(v₂−v₀))·v₀`.
+    det: f64,
+}
+
+impl FaceCache {
+    pub(crate) fn new() -> Self {
+        Self {
+            face: NO_TRIANGLE,
+            e: [DVec3::ZERO; 3],
+            det: 0.0,
+        }
     }
-    (e.map(|v| (v / sum).max(0.0) as f32), z as f32)
+
+    /// Perspective-correct barycentrics and camera z of the hit of ray `(nx, ny, 1)` with
+    /// `face`, recomputed in f64 from the camera-frame corners (the f32 edge values of the
+    /// coverage test lose relative precision near a grazing silhouette). `w32` is the f32
+    /// inverse depth of the z-test, used only if the f64 solve degenerates.
+    fn resolve(
+        &mut self,
+        ctx: &ResolveCtx<'_>,
+        face: u32,
+        d: [f32; 2],
+        w32: f32,
+    ) -> ([f32; 3], f32) {
+        if face != self.face {
+            let [a, b, c] = ctx.faces[face as usize].map(|i| ctx.pos[i as usize]);
+            self.face = face;
+            self.e = [b.cross(c), c.cross(a), a.cross(b)];
+            self.det = (b - a).cross(c - a).dot(a);
+        }
+        let r = DVec3::new(d[0] as f64, d[1] as f64, 1.0);
+        let ev = self.e.map(|e| r.dot(e));
+        let sum = ev[0] + ev[1] + ev[2];
+        let z = self.det / sum;
+        if !(z.is_finite() && z > 0.0) {
+            return ([1.0 / 3.0; 3], 1.0 / w32);
+        }
+        (ev.map(|v| (v / sum).max(0.0) as f32), z as f32)
+    }
 }
 
 /// Sets every requested buffer of the band to its background value (empty slices are no-ops).

@@ -222,6 +222,10 @@ pub fn shade(
                         texture,
                     } => texture(interp(rest_positions)),
                 };
+                let rows = match shadows {
+                    Shadows::PerVertex(vis) => f.map(|v| vis.row(v)),
+                    _ => [&[][..]; 3],
+                };
                 let mut e = 0.0f64;
                 for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
                     let el = prep.irradiance(p, nrm);
@@ -230,9 +234,16 @@ pub fn shade(
                     }
                     let v = match shadows {
                         Shadows::None => 1.0,
-                        Shadows::PerVertex(vis) => (0..3)
-                            .map(|k| if vis.visible(f[k], l) { lam[k] } else { 0.0 })
-                            .sum(),
+                        Shadows::PerVertex(_) => {
+                            let (word, bit) = (l / 64, l % 64);
+                            let mut v = 0.0;
+                            for (k, row) in rows.iter().enumerate() {
+                                if row[word] >> bit & 1 == 1 {
+                                    v += lam[k];
+                                }
+                            }
+                            v
+                        }
                         Shadows::PerPixel { query, bias_m } => {
                             if unoccluded(query, p, nrm, light, *bias_m) {
                                 1.0

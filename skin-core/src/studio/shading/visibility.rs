@@ -123,6 +123,13 @@ impl LightVisibility {
             && self.bits[v * self.words_per_vertex + l / 64] >> (l % 64) & 1 == 1
     }
 
+    /// The visibility words of vertex `v` (bit `l % 64` of word `l / 64`); `v` must be in range
+    /// (checked by the caller against [`LightVisibility::vertex_count`]).
+    pub(crate) fn row(&self, v: usize) -> &[u64] {
+        let w = self.words_per_vertex;
+        &self.bits[v * w..(v + 1) * w]
+    }
+
     /// Number of lights vertex `v` sees.
     pub fn visible_count(&self, v: usize) -> usize {
         if v >= self.n_vertices {
