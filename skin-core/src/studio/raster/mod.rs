@@ -64,10 +64,24 @@ use setup::{setup_triangles, vertex_normals_camera, VertexSetup};
 /// assert!((view.depth_m[centre] - 3.0).abs() < 0.01);
 /// # Ok::<(), skin_core::Error>(())
 /// ```
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct Rasterizer {
     camera: Camera,
     grid: SampleGrid,
+}
+
+impl std::fmt::Debug for Rasterizer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // The per-pixel sample table is megabytes; show only its kind.
+        let kind = match self.grid {
+            SampleGrid::Pinhole { .. } => "pinhole (separable)",
+            SampleGrid::Table { .. } => "per-pixel inverse distortion table",
+        };
+        f.debug_struct("Rasterizer")
+            .field("camera", &self.camera)
+            .field("samples", &kind)
+            .finish()
+    }
 }
 
 impl Rasterizer {

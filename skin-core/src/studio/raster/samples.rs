@@ -13,7 +13,7 @@ use crate::camera::Camera;
 use crate::math::DVec2;
 
 /// Camera-frame sample directions `(nx, ny)` (third component 1) of every pixel.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub(crate) enum SampleGrid {
     /// Undistorted camera: `nx` per column, `ny` per row.
     Pinhole { col_nx: Vec<f32>, row_ny: Vec<f32> },
