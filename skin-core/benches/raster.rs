@@ -150,9 +150,10 @@ fn bench_shade(c: &mut Criterion) {
                 .expect("lights outside")
         })
     });
-    let vis = LightVisibility::compute(&mesh, &query, &lights, DEFAULT_SHADOW_BIAS_M)
-        .expect("lights outside");
     g.bench_function("shade_per_vertex_shadows", |b| {
+        // Visibility is computed once per frame and shared by every camera.
+        let vis = LightVisibility::compute(&mesh, &query, &lights, DEFAULT_SHADOW_BIAS_M)
+            .expect("lights outside");
         b.iter(|| shade(&view, &mesh, &lights, &alb, &Shadows::PerVertex(&vis)).expect("ok"))
     });
     g.bench_function("shade_unshadowed", |b| {
