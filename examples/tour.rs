@@ -175,11 +175,13 @@ fn render_html(outcomes: &[Outcome], out_root: &Path) -> String {
                     );
                 }
             }
-            _ => html += &format!(
+            _ => {
+                html += &format!(
                 "<tr><td>{}</td><td>{status}</td><td colspan=\"2\">no figures ({:.1} s)</td></tr>",
                 escape(&o.name),
                 o.seconds
-            ),
+            )
+            }
         }
     }
     html += "</table>";

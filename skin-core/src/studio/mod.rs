@@ -1,6 +1,6 @@
 //! The synthetic capture studio: a rigged performer with known non-skinning deformation,
-//! motions (procedural and BVH, retargeted), and (in the rasteriser files) the rendering of
-//! every observation with its ground truth.
+//! motions, a rasteriser and lighting that render ground truth for every method of
+//! `dynamic-shapes`.
 //!
 //! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
 //!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
@@ -10,6 +10,14 @@
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
 //!   playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads, maps, retargets
 //!   and resamples in one call).
+//! * [`raster`]: CPU rasteriser: silhouette masks, depth along the ray, camera-space normals,
+//!   triangle ids and perspective-correct barycentrics, exact under the camera's radial
+//!   distortion.
+//! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
+//!   Lambertian shading with albedo, cast shadows by ray casts.
+
+pub mod raster;
+pub mod shading;
 
 mod deformation;
 mod makehuman;
@@ -32,4 +40,5 @@ pub use makehuman::{
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
+pub use raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};

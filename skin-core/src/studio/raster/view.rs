@@ -1,0 +1,138 @@
+//! The rendered buffers of one view and their conversion to `image` buffers.
+
+use image::{GrayImage, ImageBuffer, Luma, Rgb, Rgb32FImage, RgbImage};
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// Triangle id of a pixel that sees no surface.
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// The ground-truth buffers of one camera view, row-major (`index = y·width + x`), pixel
+/// centres at integer coordinates (the [`crate::camera::Intrinsics`] convention). A buffer that
+/// was not requested in [`super::Buffers`] is empty.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RenderedView {
+    /// Image width, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
+    /// Silhouette: 1 where the pixel ray hits the mesh, 0 elsewhere.
+    pub mask: Vec<u8>,
+    /// Distance from the camera centre to the visible surface along the pixel ray, m;
+    /// `f32::INFINITY` on background.
+    pub depth_m: Vec<f32>,
+    /// Camera-frame z (depth along the optical axis) of the visible surface, m;
+    /// `f32::INFINITY` on background.
+    pub camera_z_m: Vec<f32>,
+    /// Unit outward surface normal in the camera frame (x right, y down, z forward), not flipped
+    /// towards the camera (a visible back face of an open mesh has `z > 0`); zero on background.
+    pub normal_camera: Vec<[f32; 3]>,
+    /// Visible mesh face, [`NO_TRIANGLE`] on background.
+    pub triangle: Vec<u32>,
+    /// Perspective-correct barycentric weights `(λ₁, λ₂)` of face corners 1 and 2 (corner 0 has
+    /// `1 − λ₁ − λ₂`) of the visible point; zero on background.
+    pub bary: Vec<[f32; 2]>,
+    /// Number of pixels that see the mesh.
+    pub covered_pixels: usize,
+}
+
+fn missing(what: &'static str) -> Error {
+    Error::Empty { what }
+}
+
+impl RenderedView {
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Row-major index of pixel `(x, y)`.
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.width as usize + x as usize
+    }
+
+    /// The silhouette as an 8-bit image (255 inside, 0 outside), ready for PNG.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if the mask was not rendered.
+    pub fn mask_image(&self) -> Result<GrayImage> {
+        if self.mask.is_empty() {
+            return Err(missing("mask buffer (enable Buffers::mask)"));
+        }
+        let data = self
+            .mask
+            .iter()
+            .map(|&m| if m != 0 { 255 } else { 0 })
+            .collect();
+        GrayImage::from_raw(self.width, self.height, data)
+            .ok_or_else(|| missing("mask buffer of the view's size"))
+    }
+
+    /// Depth along the ray as a float image (background `+∞`).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if depth was not rendered.
+    pub fn depth_image(&self) -> Result<ImageBuffer<Luma<f32>, Vec<f32>>> {
+        if self.depth_m.is_empty() {
+            return Err(missing("depth buffer (enable Buffers::depth)"));
+        }
+        ImageBuffer::from_raw(self.width, self.height, self.depth_m.clone())
+            .ok_or_else(|| missing("depth buffer of the view's size"))
+    }
+
+    /// Depth along the ray in millimetres as a 16-bit image (0 on background and beyond
+    /// 65.535 m), the usual depth-camera PNG format.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if depth was not rendered.
+    pub fn depth_mm_u16_image(&self) -> Result<ImageBuffer<Luma<u16>, Vec<u16>>> {
+        if self.depth_m.is_empty() {
+            return Err(missing("depth buffer (enable Buffers::depth)"));
+        }
+        let data = self
+            .depth_m
+            .iter()
+            .map(|&d| {
+                let mm = (d * 1000.0).round();
+                if mm.is_finite() && (1.0..=65535.0).contains(&mm) {
+                    mm as u16
+                } else {
+                    0
+                }
+            })
+            .collect();
+        ImageBuffer::from_raw(self.width, self.height, data)
+            .ok_or_else(|| missing("depth buffer of the view's size"))
+    }
+
+    /// Camera-frame normals as a float RGB image (x, y, z).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if normals were not rendered.
+    pub fn normal_image(&self) -> Result<Rgb32FImage> {
+        if self.normal_camera.is_empty() {
+            return Err(missing("normal buffer (enable Buffers::normal)"));
+        }
+        let data = self.normal_camera.iter().flatten().copied().collect();
+        Rgb32FImage::from_raw(self.width, self.height, data)
+            .ok_or_else(|| missing("normal buffer of the view's size"))
+    }
+
+    /// Normals mapped to 8-bit colour, `(n + 1)/2 · 255` (background black), for PNG.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if normals were not rendered.
+    pub fn normal_rgb8_image(&self) -> Result<RgbImage> {
+        if self.normal_camera.is_empty() {
+            return Err(missing("normal buffer (enable Buffers::normal)"));
+        }
+        let mut img = RgbImage::new(self.width, self.height);
+        for (p, n) in img.pixels_mut().zip(&self.normal_camera) {
+            if *n != [0.0; 3] {
+                *p = Rgb(n.map(|c| ((c + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8));
+            }
+        }
+        Ok(img)
+    }
+}

@@ -1,0 +1,269 @@
+//! Per-pixel Lambertian shading of a rendered view (radiometry in the module docs of
+//! [`super`]).
+
+use image::{Rgb, Rgb32FImage, RgbImage};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::lights::{Light, PreparedLight};
+use super::visibility::{check_lights_outside, unoccluded, LightVisibility};
+use crate::math::DVec3;
+use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
+use crate::studio::raster::{RenderedView, NO_TRIANGLE};
+use crate::{Error, Result};
+
+/// Surface reflectance `ρ` (linear RGB, each in `[0, 1]` for a physical surface), evaluated per
+/// pixel at the visible surface point.
+#[derive(Clone, Copy)]
+pub enum Albedo<'a> {
+    /// One albedo everywhere.
+    Uniform([f32; 3]),
+    /// One albedo per mesh vertex, interpolated with the perspective-correct barycentrics.
+    PerVertex(&'a [[f32; 3]]),
+    /// A texture evaluated per pixel at the rest-pose position of the visible point: the
+    /// barycentric interpolation of `rest_positions` (one per vertex, the performer's rest
+    /// pose). The texture then moves with the skin, as real skin texture does, which is what
+    /// optical flow and photometric matching need.
+    Procedural {
+        /// Rest-pose position of every vertex, m.
+        rest_positions: &'a [DVec3],
+        /// Albedo at a rest-pose position.
+        texture: &'a (dyn Fn(DVec3) -> [f32; 3] + Sync),
+    },
+}
+
+impl std::fmt::Debug for Albedo<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Albedo::Uniform(a) => f.debug_tuple("Uniform").field(a).finish(),
+            Albedo::PerVertex(a) => write!(f, "PerVertex({} vertices)", a.len()),
+            Albedo::Procedural { rest_positions, .. } => {
+                write!(f, "Procedural({} rest positions)", rest_positions.len())
+            }
+        }
+    }
+}
+
+/// How cast shadows are computed.
+#[derive(Debug, Clone, Copy)]
+pub enum Shadows<'a> {
+    /// No cast shadows (attached shadows — lights below the tangent plane — remain).
+    None,
+    /// Per-vertex visibility (computed once per frame, shared by all cameras), interpolated
+    /// with the barycentrics: soft shadow edges at mesh resolution.
+    PerVertex(&'a LightVisibility),
+    /// One shadow ray per pixel and light above its tangent plane: exact, slow (hundreds of
+    /// millions of rays for a megapixel view under the 1,200-light dome).
+    PerPixel {
+        /// BVH of the posed mesh.
+        query: &'a MeshQuery,
+        /// Ray origin offset along the normal, m (e.g. [`super::DEFAULT_SHADOW_BIAS_M`]).
+        bias_m: f64,
+    },
+}
+
+/// Reflected radiance per pixel of one view.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ShadedView {
+    /// Image width, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
+    /// Linear RGB radiance towards the camera, row-major; zero on background.
+    pub radiance: Vec<[f32; 3]>,
+}
+
+impl ShadedView {
+    /// The radiance as a float image.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if the buffer does not match the size.
+    pub fn to_image(&self) -> Result<Rgb32FImage> {
+        let data = self.radiance.iter().flatten().copied().collect::<Vec<_>>();
+        let len = data.len();
+        Rgb32FImage::from_raw(self.width, self.height, data).ok_or(Error::SizeMismatch {
+            what: "shaded radiance buffer",
+            expected: 3 * self.width as usize * self.height as usize,
+            got: len,
+        })
+    }
+
+    /// 8-bit sRGB image of `radiance · exposure` (clamped to `[0, 1]`), for PNG.
+    pub fn to_srgb8(&self, exposure: f32) -> RgbImage {
+        let mut img = RgbImage::new(self.width, self.height);
+        for (p, c) in img.pixels_mut().zip(&self.radiance) {
+            *p = Rgb(c.map(|v| {
+                let v = (v * exposure).clamp(0.0, 1.0);
+                let s = if v <= 0.003_130_8 {
+                    12.92 * v
+                } else {
+                    1.055 * v.powf(1.0 / 2.4) - 0.055
+                };
+                (s * 255.0).round() as u8
+            }));
+        }
+        img
+    }
+}
+
+/// Shades every covered pixel of `view` (rendered from `mesh` with [`crate::studio::Buffers`]
+/// `triangle` on): `L_o = ρ/π Σ_l V_l E_l` at the visible point, with the smooth (area-weighted
+/// vertex) normal interpolated by the barycentrics. Parallel over rows; identical for any
+/// thread count.
+///
+/// # Errors
+/// [`Error::Empty`] if the view has no triangle buffer or there are no lights;
+/// [`Error::SizeMismatch`] for per-vertex data, a visibility table or a view that does not
+/// match `mesh`/`lights`; [`Error::IndexOutOfRange`] for a triangle id outside `mesh`; errors of
+/// [`Light::validate`]; with [`Shadows::PerPixel`], a light inside the mesh
+/// ([`check_lights_outside`]).
+pub fn shade(
+    view: &RenderedView,
+    mesh: &TriMesh,
+    lights: &[Light],
+    albedo: &Albedo<'_>,
+    shadows: &Shadows<'_>,
+) -> Result<ShadedView> {
+    let n = view.pixel_count();
+    if view.triangle.len() != n || view.bary.len() != n || n == 0 {
+        return Err(Error::Empty {
+            what: "triangle/barycentric buffers of the view (render with Buffers::triangle)",
+        });
+    }
+    if lights.is_empty() {
+        return Err(Error::Empty { what: "lights" });
+    }
+    for l in lights {
+        l.validate()?;
+    }
+    let nv = mesh.vertex_count();
+    let size = |what, got: usize| {
+        if got == nv {
+            Ok(())
+        } else {
+            Err(Error::SizeMismatch {
+                what,
+                expected: nv,
+                got,
+            })
+        }
+    };
+    match albedo {
+        Albedo::Uniform(_) => {}
+        Albedo::PerVertex(a) => size("per-vertex albedo", a.len())?,
+        Albedo::Procedural { rest_positions, .. } => size("rest positions", rest_positions.len())?,
+    }
+    match shadows {
+        Shadows::None => {}
+        Shadows::PerVertex(vis) => {
+            size("visibility vertices", vis.vertex_count())?;
+            if vis.light_count() != lights.len() {
+                return Err(Error::SizeMismatch {
+                    what: "visibility lights",
+                    expected: lights.len(),
+                    got: vis.light_count(),
+                });
+            }
+        }
+        Shadows::PerPixel { query, bias_m } => {
+            if !(bias_m.is_finite() && *bias_m >= 0.0) {
+                return Err(Error::InvalidParam {
+                    name: "shadow bias_m",
+                    reason: format!("must be finite and >= 0, got {bias_m}"),
+                });
+            }
+            check_lights_outside(query, lights)?;
+        }
+    }
+    if let Some(&t) = view
+        .triangle
+        .iter()
+        .find(|&&t| t != NO_TRIANGLE && t as usize >= mesh.face_count())
+    {
+        return Err(Error::IndexOutOfRange {
+            what: "view triangle id",
+            index: t as usize,
+            len: mesh.face_count(),
+        });
+    }
+    mesh.validate()?;
+    let normals = vertex_normals(mesh, NormalWeighting::Area)?;
+    let prepared: Vec<PreparedLight> = lights.iter().map(PreparedLight::new).collect();
+    let w = view.width as usize;
+    let mut radiance = vec![[0.0f32; 3]; n];
+    radiance
+        .par_chunks_mut(w)
+        .zip(view.triangle.par_chunks(w).zip(view.bary.par_chunks(w)))
+        .for_each(|(out, (tri, bary))| {
+            for ((o, &t), b) in out.iter_mut().zip(tri).zip(bary) {
+                if t == NO_TRIANGLE {
+                    continue;
+                }
+                let f = mesh.faces[t as usize].map(|i| i as usize);
+                let lam = [1.0 - b[0] as f64 - b[1] as f64, b[0] as f64, b[1] as f64];
+                let interp = |a: &[DVec3]| a[f[0]] * lam[0] + a[f[1]] * lam[1] + a[f[2]] * lam[2];
+                let p = interp(&mesh.vertices);
+                let Some(nrm) = interp(&normals).try_normalize() else {
+                    continue;
+                };
+                let rho = match albedo {
+                    Albedo::Uniform(a) => *a,
+                    Albedo::PerVertex(a) => {
+                        let mut s = [0.0f32; 3];
+                        for (k, &fk) in f.iter().enumerate() {
+                            for c in 0..3 {
+                                s[c] += lam[k] as f32 * a[fk][c];
+                            }
+                        }
+                        s
+                    }
+                    Albedo::Procedural {
+                        rest_positions,
+                        texture,
+                    } => texture(interp(rest_positions)),
+                };
+                let rows = match shadows {
+                    Shadows::PerVertex(vis) => f.map(|v| vis.row(v)),
+                    _ => [&[][..]; 3],
+                };
+                let mut e = 0.0f64;
+                for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
+                    let el = prep.irradiance(p, nrm);
+                    if el <= 0.0 {
+                        continue;
+                    }
+                    let v = match shadows {
+                        Shadows::None => 1.0,
+                        Shadows::PerVertex(_) => {
+                            let (word, bit) = (l / 64, l % 64);
+                            let mut v = 0.0;
+                            for (k, row) in rows.iter().enumerate() {
+                                if row[word] >> bit & 1 == 1 {
+                                    v += lam[k];
+                                }
+                            }
+                            v
+                        }
+                        Shadows::PerPixel { query, bias_m } => {
+                            if unoccluded(query, p, nrm, light, *bias_m) {
+                                1.0
+                            } else {
+                                0.0
+                            }
+                        }
+                    };
+                    e += v * el;
+                }
+                let k = (e * std::f64::consts::FRAC_1_PI) as f32;
+                *o = rho.map(|r| r * k);
+            }
+        });
+    Ok(ShadedView {
+        width: view.width,
+        height: view.height,
+        radiance,
+    })
+}
+
+#[cfg(test)]
+mod tests;

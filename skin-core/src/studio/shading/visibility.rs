@@ -1,0 +1,247 @@
+//! Cast shadows by ray casting through the mesh BVH ([`MeshQuery`]), and the check that no
+//! light is inside the body.
+//!
+//! Visibility is computed per vertex and per light, once per frame (it does not depend on the
+//! camera), and interpolated per pixel with the barycentrics in [`super::shade`]: the standard
+//! trade-off of light-stage renderers. Shadow edges are then resolved to the mesh resolution
+//! (~1–2 cm on a 13k-vertex body) instead of the pixel; [`super::Shadows::PerPixel`] casts
+//! one ray per pixel and light instead, exactly and far more slowly. Lights below a vertex's
+//! tangent plane are culled before any ray is cast (they contribute nothing), which halves
+//! the rays of a surrounding dome.
+
+use rayon::prelude::*;
+
+use super::lights::Light;
+use crate::math::DVec3;
+use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh};
+use crate::studio::raster::{RenderedView, NO_TRIANGLE};
+use crate::{Error, Result};
+
+/// Offset of shadow-ray origins along the surface normal, m: 0.1 mm, far above the f64
+/// rounding of body-sized meshes and far below the size of any feature that casts a shadow.
+pub const DEFAULT_SHADOW_BIAS_M: f64 = 1e-4;
+
+/// Which lights each vertex sees: bit `l` of vertex `v` is set when light `l` is above the
+/// vertex's tangent plane and the segment to it is unoccluded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightVisibility {
+    n_vertices: usize,
+    n_lights: usize,
+    words_per_vertex: usize,
+    bits: Vec<u64>,
+}
+
+impl LightVisibility {
+    /// Casts shadow rays from every vertex of `mesh` (posed, world frame) to every light above
+    /// its tangent plane, in parallel over vertices (identical for any thread count). Rays
+    /// start `bias_m` off the surface along the area-weighted vertex normal.
+    ///
+    /// # Errors
+    /// Errors of [`Light::validate`]; [`Error::SizeMismatch`] if `query` was built from a mesh
+    /// with a different face count; [`Error::InvalidParam`] for a negative or non-finite bias
+    /// or a light inside the mesh (see [`check_lights_outside`]).
+    pub fn compute(
+        mesh: &TriMesh,
+        query: &MeshQuery,
+        lights: &[Light],
+        bias_m: f64,
+    ) -> Result<Self> {
+        Self::compute_for(mesh, query, lights, bias_m, None)
+    }
+
+    /// As [`LightVisibility::compute`], casting rays only from the vertices with
+    /// `needed[v] = true` (e.g. [`vertices_seen`] of the views to shade); the others are
+    /// reported as seeing no light. One view needs about half the rays of the whole mesh.
+    ///
+    /// # Errors
+    /// As [`LightVisibility::compute`]; [`Error::SizeMismatch`] if `needed` does not have one
+    /// entry per vertex.
+    pub fn compute_for(
+        mesh: &TriMesh,
+        query: &MeshQuery,
+        lights: &[Light],
+        bias_m: f64,
+        needed: Option<&[bool]>,
+    ) -> Result<Self> {
+        check_bias(bias_m)?;
+        if let Some(n) = needed {
+            if n.len() != mesh.vertex_count() {
+                return Err(Error::SizeMismatch {
+                    what: "needed-vertex flags",
+                    expected: mesh.vertex_count(),
+                    got: n.len(),
+                });
+            }
+        }
+        if query.face_count() != mesh.face_count() {
+            return Err(Error::SizeMismatch {
+                what: "mesh faces vs MeshQuery faces",
+                expected: mesh.face_count(),
+                got: query.face_count(),
+            });
+        }
+        check_lights_outside(query, lights)?;
+        let normals = vertex_normals(mesh, NormalWeighting::Area)?;
+        let n_lights = lights.len();
+        let words = n_lights.div_ceil(64).max(1);
+        let mut bits = vec![0u64; words * mesh.vertex_count()];
+        bits.par_chunks_mut(words)
+            .zip(mesh.vertices.par_iter().zip(normals.par_iter()))
+            .enumerate()
+            .for_each(|(v, (row, (&p, &n)))| {
+                if needed.is_some_and(|nd| !nd[v]) {
+                    return;
+                }
+                for (l, light) in lights.iter().enumerate() {
+                    if light.irradiance(p, n) > 0.0 && unoccluded(query, p, n, light, bias_m) {
+                        row[l / 64] |= 1 << (l % 64);
+                    }
+                }
+            });
+        Ok(Self {
+            n_vertices: mesh.vertex_count(),
+            n_lights,
+            words_per_vertex: words,
+            bits,
+        })
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.n_vertices
+    }
+
+    /// Number of lights.
+    pub fn light_count(&self) -> usize {
+        self.n_lights
+    }
+
+    /// True when vertex `v` sees light `l` (false for out-of-range indices).
+    pub fn visible(&self, v: usize, l: usize) -> bool {
+        v < self.n_vertices
+            && l < self.n_lights
+            && self.bits[v * self.words_per_vertex + l / 64] >> (l % 64) & 1 == 1
+    }
+
+    /// The visibility words of vertex `v` (bit `l % 64` of word `l / 64`); `v` must be in range
+    /// (checked by the caller against [`LightVisibility::vertex_count`]).
+    pub(crate) fn row(&self, v: usize) -> &[u64] {
+        let w = self.words_per_vertex;
+        &self.bits[v * w..(v + 1) * w]
+    }
+
+    /// Number of lights vertex `v` sees.
+    pub fn visible_count(&self, v: usize) -> usize {
+        if v >= self.n_vertices {
+            return 0;
+        }
+        let w = self.words_per_vertex;
+        self.bits[v * w..(v + 1) * w]
+            .iter()
+            .map(|b| b.count_ones() as usize)
+            .sum()
+    }
+}
+
+/// Flags of the vertices whose faces are visible in any of `views` (rendered from `mesh` with
+/// [`crate::studio::Buffers`] `triangle` on): the vertices shading those views reads.
+///
+/// # Errors
+/// [`Error::Empty`] if a view has no triangle buffer; [`Error::IndexOutOfRange`] for a
+/// triangle id outside `mesh`.
+pub fn vertices_seen(mesh: &TriMesh, views: &[&RenderedView]) -> Result<Vec<bool>> {
+    let mut seen = vec![false; mesh.vertex_count()];
+    for view in views {
+        if view.triangle.is_empty() {
+            return Err(Error::Empty {
+                what: "triangle buffer of the view (render with Buffers::triangle)",
+            });
+        }
+        let mut last = NO_TRIANGLE;
+        for &t in &view.triangle {
+            if t == NO_TRIANGLE || t == last {
+                continue;
+            }
+            last = t;
+            let face = mesh.faces.get(t as usize).ok_or(Error::IndexOutOfRange {
+                what: "view triangle id",
+                index: t as usize,
+                len: mesh.face_count(),
+            })?;
+            for &i in face {
+                // Face indices were validated against the vertex count when `mesh` was built
+                // or rendered; `get_mut` keeps a corrupt mesh from panicking here.
+                if let Some(s) = seen.get_mut(i as usize) {
+                    *s = true;
+                }
+            }
+        }
+    }
+    Ok(seen)
+}
+
+fn check_bias(bias_m: f64) -> Result<()> {
+    if !(bias_m.is_finite() && bias_m >= 0.0) {
+        return Err(Error::InvalidParam {
+            name: "shadow bias_m",
+            reason: format!("must be finite and >= 0, got {bias_m}"),
+        });
+    }
+    Ok(())
+}
+
+/// True when the segment from `p` (offset by `bias_m` along `n`) to the light is free.
+pub(crate) fn unoccluded(
+    query: &MeshQuery,
+    p: DVec3,
+    n: DVec3,
+    light: &Light,
+    bias_m: f64,
+) -> bool {
+    let o = p + n * bias_m;
+    let d = light.position() - o;
+    let dist = d.length();
+    if dist <= bias_m {
+        return true;
+    }
+    // Inputs are finite and the direction non-zero, so `cast_ray` cannot fail; treat a failure
+    // as unoccluded rather than panic.
+    !matches!(query.cast_ray(Ray::new(o, d), dist - bias_m), Ok(Some(_)))
+}
+
+/// Directions of the parity rays of [`check_lights_outside`]: irrational-ish, so they avoid
+/// the axis-aligned edges and vertices of typical meshes.
+const PROBE_DIRECTIONS: [[f64; 3]; 3] = [
+    [0.267_261_2, 0.534_522_5, 0.801_783_7],
+    [-0.723_102_3, 0.106_339_8, -0.682_496_1],
+    [0.154_303_3, -0.925_820_1, 0.345_032_8],
+];
+
+/// Checks that no light is inside the (closed, outward-oriented) mesh: from each light, three
+/// rays in fixed directions; the light is inside when most of them first hit the back of a
+/// face (a ray leaving a closed surface meets it from inside).
+///
+/// # Errors
+/// Errors of [`Light::validate`]; [`Error::InvalidParam`] naming the first light inside.
+pub fn check_lights_outside(query: &MeshQuery, lights: &[Light]) -> Result<()> {
+    for (i, light) in lights.iter().enumerate() {
+        light.validate()?;
+        let p = light.position();
+        let inside_votes = PROBE_DIRECTIONS
+            .iter()
+            .filter(|d| {
+                matches!(
+                    query.cast_ray(Ray::new(p, DVec3::from(**d)), f64::INFINITY),
+                    Ok(Some(hit)) if !hit.front_face
+                )
+            })
+            .count();
+        if inside_votes >= 2 {
+            return Err(Error::InvalidParam {
+                name: "lights",
+                reason: format!("light {i} at {p} is inside the mesh; move it outside the body"),
+            });
+        }
+    }
+    Ok(())
+}
