@@ -6,3 +6,6 @@
 
 #[doc(inline)]
 pub use skin_core as core;
+
+#[doc(inline)]
+pub use needle_model as needle;
