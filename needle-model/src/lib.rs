@@ -12,6 +12,9 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod config;
+pub mod observe;
+pub mod primitive;
 pub mod store;
 
 pub use error::{Error, Result};
