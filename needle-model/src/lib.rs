@@ -11,8 +11,8 @@
 //! prototype poses then predicts every needle's length for any new pose (§5).
 #![warn(missing_docs)]
 
-pub mod error;
 pub mod config;
+pub mod error;
 pub mod observe;
 pub mod primitive;
 pub mod store;

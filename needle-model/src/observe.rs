@@ -75,8 +75,7 @@ impl Default for ObserveParams {
 
 impl ObserveParams {
     fn validate(&self) -> Result<()> {
-        if !(self.min_ray_angle_deg.is_finite() && (0.0..90.0).contains(&self.min_ray_angle_deg))
-        {
+        if !(self.min_ray_angle_deg.is_finite() && (0.0..90.0).contains(&self.min_ray_angle_deg)) {
             return Err(Error::InvalidParam {
                 name: "min_ray_angle_deg",
                 reason: format!("must be in [0, 90), got {}", self.min_ray_angle_deg),
@@ -478,7 +477,13 @@ enum Traverse {
 /// Grid traversal (Amanatides & Woo 1987) of the segment `p → q` starting in `cell` (which is
 /// foreground); pixel `(x, y)` is the cell `[x−½, x+½] × [y−½, y+½]`. On `Through`, `cell`
 /// is the cell containing `q`.
-fn traverse(mask: &Mask, (w, h): (i64, i64), cell: &mut (i64, i64), p: DVec2, q: DVec2) -> Traverse {
+fn traverse(
+    mask: &Mask,
+    (w, h): (i64, i64),
+    cell: &mut (i64, i64),
+    p: DVec2,
+    q: DVec2,
+) -> Traverse {
     let d = q - p;
     let step_x: i64 = if d.x > 0.0 { 1 } else { -1 };
     let step_y: i64 = if d.y > 0.0 { 1 } else { -1 };

@@ -381,7 +381,11 @@ impl NeedleBody {
 /// made perpendicular, or +x if the axis is nearly along z — so needle 0 of each ring points
 /// the same way in every primitive.
 fn perpendicular_basis(axis: DVec3) -> (DVec3, DVec3) {
-    let reference = if axis.z.abs() < 0.9 { DVec3::Z } else { DVec3::X };
+    let reference = if axis.z.abs() < 0.9 {
+        DVec3::Z
+    } else {
+        DVec3::X
+    };
     let u = (reference - axis * reference.dot(axis)).normalize();
     (u, axis.cross(u))
 }
