@@ -16,5 +16,6 @@ pub mod error;
 pub mod observe;
 pub mod primitive;
 pub mod store;
+pub mod sync;
 
 pub use error::{Error, Result};

@@ -534,4 +534,4 @@ fn traverse(
 
 #[cfg(test)]
 #[path = "observe_tests.rs"]
-mod tests;
+pub(crate) mod tests;
