@@ -398,7 +398,8 @@ fn walk_needle(
 ) -> Walk {
     let view = origin - camera.centre();
     let view_len = view.length();
-    if !(view_len > 0.0) {
+    // Also catches NaN (a non-finite needle).
+    if view_len.is_nan() || view_len <= 0.0 {
         return Walk::Discarded(Discard::BehindCamera);
     }
     if dir.cross(view / view_len).length() < sin_min_angle {

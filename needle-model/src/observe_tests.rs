@@ -41,6 +41,11 @@ pub(crate) fn cameras(width: u32, height: u32) -> Vec<Camera> {
 /// 3 cameras at 720×480, `n` frames of fast motion of the procedural performer.
 pub(crate) fn scene(n: usize, frame_stride: usize) -> Scene {
     let performer = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+    scene_of(performer, n, frame_stride)
+}
+
+/// 3 cameras at 720×480, `n` frames (every `frame_stride`-th) of fast motion of `performer`.
+pub(crate) fn scene_of(performer: Performer, n: usize, frame_stride: usize) -> Scene {
     let motion: Motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();
     let cameras = cameras(720, 480);
     let mut state = DeformationState::default();
@@ -82,8 +87,23 @@ fn quantile(v: &mut [f64], q: f64) -> f64 {
 
 #[test]
 fn silhouette_lengths_bound_the_true_mesh() {
-    let sc = scene(2, 30);
-    let obs = observer(&sc);
+    check_against_truth(&scene(2, 30));
+}
+
+/// The same check on the MakeHuman performer (skipped when the shared data are absent; set
+/// `DYNAMIC_SHAPES_DATA`).
+#[test]
+fn silhouette_lengths_bound_the_true_makehuman_mesh() {
+    let Ok(dir) = skin_core::data::shared_data_path("makehuman") else {
+        eprintln!("MakeHuman data not found: skipped");
+        return;
+    };
+    let performer = skin_core::studio::makehuman_performer(dir, &Default::default()).unwrap();
+    check_against_truth(&scene_of(performer, 2, 30));
+}
+
+fn check_against_truth(sc: &Scene) {
+    let obs = observer(sc);
     let mut under_px = vec![];
     let mut err_mm = vec![]; // observed − true, all exits // (truth − observed) / m_per_px, over all exits
     let mut rim_err_m = vec![];
@@ -341,6 +361,45 @@ fn disc_walk_matches_analytic_length() {
             // Needle along the optical axis: discarded.
             let w = obs.walk(&cam, &mask, DVec3::ZERO, DVec3::Z, 0.3);
             assert_eq!(w, Walk::Discarded(Discard::AlongRay));
+        }
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// Exit lengths lie in [0, max]; growing the silhouette never shortens a walk (the walk
+    /// measures the silhouette's extent along the needle, an upper bound, §4.3).
+    #[test]
+    fn walk_is_bounded_and_monotone_in_the_silhouette(
+        blobs in proptest::collection::vec((16.0f64..48.0, 12.0f64..36.0, 2.0f64..10.0), 0..6),
+        phi in 0.0f64..std::f64::consts::TAU,
+        tilt in -0.8f64..0.8,
+        k1 in -0.2f64..0.1,
+    ) {
+        let (obs, _, _) = small_scene_observer();
+        let k = Intrinsics::new(60.0, 60.0, 32.0, 24.0, 64, 48).unwrap();
+        let cam = Camera::look_at(k, DVec3::new(0.0, 0.0, -2.0), DVec3::ZERO, DVec3::Y)
+            .unwrap()
+            .with_distortion(RadialDistortion::new(k1, DVec2::new(30.0, 25.0)));
+        let inside = |x: u32, y: u32, grow: f64| {
+            (x as f64 - 32.0).powi(2) + (y as f64 - 24.0).powi(2) <= 4.0
+                || blobs.iter().any(|&(bx, by, r)| {
+                    (x as f64 - bx).powi(2) + (y as f64 - by).powi(2) <= (r + grow).powi(2)
+                })
+        };
+        let small = Mask::from_fn(64, 48, |x, y| inside(x, y, 0.0));
+        let big = Mask::from_fn(64, 48, |x, y| inside(x, y, 3.0));
+        let dir = DVec3::new(phi.cos(), phi.sin(), tilt).normalize();
+        let a = obs.walk(&cam, &small, DVec3::ZERO, dir, 0.6);
+        let b = obs.walk(&cam, &big, DVec3::ZERO, dir, 0.6);
+        if let Walk::Exit { length_m, m_per_px } = a {
+            proptest::prop_assert!((0.0..=0.6).contains(&length_m));
+            proptest::prop_assert!(m_per_px > 0.0);
+            if let Walk::Exit { length_m: lb, .. } = b {
+                proptest::prop_assert!(lb >= length_m - 1e-12, "{lb} < {length_m}");
+            } else {
+                proptest::prop_assert!(matches!(b, Walk::Discarded(Discard::TooLong | Discard::LeftImage)), "{b:?}");
+            }
         }
     }
 }

@@ -283,7 +283,7 @@ impl NeedleBody {
                     name: "carrier",
                     reason: format!("no joint named {:?} (primitive {})", s.carrier, s.name),
                 })?;
-            let n = s.radial.checked_mul(s.axial).unwrap_or(usize::MAX);
+            let n = s.radial.saturating_mul(s.axial);
             if s.radial == 0 || s.axial == 0 || n > usize::from(u16::MAX) + 1 {
                 return Err(Error::InvalidParam {
                     name: "radial/axial",
@@ -296,9 +296,8 @@ impl NeedleBody {
                     reason: format!("{}: must be finite and > 0", s.name),
                 });
             }
-            if !(s.extend_start >= 0.0 && s.extend_end >= 0.0)
-                || !(s.extend_start.is_finite() && s.extend_end.is_finite())
-            {
+            let ext_ok = |e: f64| e.is_finite() && e >= 0.0;
+            if !(ext_ok(s.extend_start) && ext_ok(s.extend_end)) {
                 return Err(Error::InvalidParam {
                     name: "extend_start/extend_end",
                     reason: format!("{}: must be finite and ≥ 0", s.name),
