@@ -99,7 +99,7 @@ impl BodyLayout {
     ///
     /// Each marker is the far end of the bone it stands for, so it moves in the carrier frame
     /// exactly when the joint between them bends (the thesis's "marker coordinates", §3.3).
-    /// Hips start 10 % below the hip centres to cover the buttocks; limbs overlap their
+    /// Hips start half an axis length below the hip centres to cover the buttocks; limbs overlap their
     /// neighbours by 5–10 % (junction unions, §3.2).
     pub fn table_3_1() -> Self {
         let mut p = vec![
@@ -119,7 +119,7 @@ impl BodyLayout {
                 "pelvis",
                 &["l_hip", "r_hip"],
                 &["spine"],
-                (0.8, 0.1),
+                (0.5, 0.1),
                 30,
                 30,
                 0.30,
