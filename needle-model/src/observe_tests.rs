@@ -90,14 +90,10 @@ fn silhouette_lengths_bound_the_true_mesh() {
     check_against_truth(&scene(2, 30));
 }
 
-/// The same check on the MakeHuman performer (skipped when the shared data are absent; set
-/// `DYNAMIC_SHAPES_DATA`).
+/// The same check on the MakeHuman performer (needs the shared data, see `skin_core::data`).
 #[test]
 fn silhouette_lengths_bound_the_true_makehuman_mesh() {
-    let Ok(dir) = skin_core::data::shared_data_path("makehuman") else {
-        eprintln!("MakeHuman data not found: skipped");
-        return;
-    };
+    let dir = skin_core::data::shared_data_path("makehuman").unwrap();
     let performer = skin_core::studio::makehuman_performer(dir, &Default::default()).unwrap();
     check_against_truth(&scene_of(performer, 2, 30));
 }
