@@ -44,9 +44,9 @@ use serde_json::json;
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
 const OUT_DIR: &str = "out/studio";
-/// Capture frame rate, Hz (the 30 Hz video of Vlasic thesis Ch. 2).
-const FRAME_RATE_HZ: f64 = 30.0;
-/// Cameras in the ring (Vlasic thesis Ch. 2 uses eight).
+/// Capture frame rate, Hz (Vlasic thesis §2.5.1: 25 FPS).
+const FRAME_RATE_HZ: f64 = 25.0;
+/// Cameras in the ring (Vlasic thesis §2.5.1: "a ring of eight cameras").
 const CAMERAS: usize = 8;
 /// Ring radius and camera height, m: a 1.8 m body fills ~75 % of the image height from 3 m
 /// with the focal length below.

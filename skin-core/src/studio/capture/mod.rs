@@ -2,8 +2,8 @@
 //! → per-frame observations (silhouettes and, under lights, shaded images of every camera)
 //! plus ground truth (pose θ, joint frames and positions, true and skinned vertices, per-pixel
 //! depth and normals) — the synthetic counterpart of the multi-view captures of Vlasic thesis
-//! Ch. 2 (eight cameras around the subject, silhouettes per frame) and §3.2 (the light-stage
-//! dome), and of the video of Sand 2003 §4.
+//! §2.5.1 ("a ring of eight cameras looking down at the performer", 1600×1200 at 25 FPS) and
+//! §3.2 (the light-stage dome), and of the silhouette video of Sand 2003 §4.
 //!
 //! **Streaming.** [`Capture::frames`] is an iterator: one [`CaptureFrame`] at a time, nothing
 //! kept, so a long capture needs the memory of one frame. The flap of the non-skinning

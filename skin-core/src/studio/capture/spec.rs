@@ -60,8 +60,10 @@ impl Default for PixelNoise {
     }
 }
 
-/// Frame rate of [`CaptureSpec::default`], Hz: the 30 Hz video of Vlasic thesis Ch. 2.
-pub const DEFAULT_FRAME_RATE_HZ: f64 = 30.0;
+/// Frame rate of [`CaptureSpec::new`], Hz: Vlasic thesis §2.5.1 captures "video at 1600 by
+/// 1200 resolution also at 25 FPS" with "a ring of eight cameras" (Sand et al. 2003 §6.1 record
+/// 30 frames per second).
+pub const DEFAULT_FRAME_RATE_HZ: f64 = 25.0;
 
 /// Everything that defines a capture besides the performer and the motion.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
