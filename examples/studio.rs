@@ -5,7 +5,7 @@
 //! shadows) and the distance between the true surface and linear blend skinning coloured on
 //! the mesh (the part of the deformation no skinning method can reach).
 //!
-//! Writes under `out/studio/`: `contact_sheet.png` (rows: silhouette, depth, normals, shaded,
+//! Writes under `out/studio/`: `contact_sheet.png` (each camera cropped to its silhouette; rows: silhouette, depth, normals, shaded,
 //! LBS-vs-truth; one column per camera) and full-size `cam0_*.png` pictures (the depth as a
 //! 16-bit PNG in mm). Timings (medians after a warm-up): `raster_ms_per_view` (silhouette +
 //! depth + normals of the posed performer at 1600×1200, over the 8 views),
@@ -48,14 +48,14 @@ const OUT_DIR: &str = "out/studio";
 const FRAME_RATE_HZ: f64 = 25.0;
 /// Cameras in the ring (Vlasic thesis §2.5.1: "a ring of eight cameras").
 const CAMERAS: usize = 8;
-/// Ring radius and camera height, m: a 1.8 m body fills ~75 % of the image height from 3 m
-/// with the focal length below.
+/// Ring radius, m: a 1.8 m body fills ~75 % of the image height from 3 m with the focal length
+/// below.
 const RING_RADIUS_M: f64 = 3.0;
-const RING_HEIGHT_M: f64 = 1.1;
+/// Height of the cameras above the centre of the body's bounding box (they look slightly
+/// down, as in Vlasic thesis §2.5.1), m.
+const RING_HEIGHT_ABOVE_M: f64 = 0.3;
 /// Focal length of the full-size 1600×1200 cameras, px.
 const FOCAL_PX: f64 = 1500.0;
-/// Height of the ring's look-at point above the floor, m.
-const LOOK_AT_HEIGHT_M: f64 = 0.9;
 /// Tile size of the contact sheet, px.
 const TILE: (u32, u32) = (240, 180);
 /// Frames of the walk in `--quick` mode.
@@ -119,11 +119,17 @@ fn main() -> AnyResult<()> {
     );
 
     // The non-skinning deformation over the motion, and the frame where it is largest.
-    let (mut worst_m, mut worst_frame, mut root) = (0.0f64, 0, DVec3::ZERO);
+    let (mut worst_m, mut worst_frame, mut centre) = (0.0f64, 0, DVec3::ZERO);
     performer.perform(&motion, |k, f| {
         let d = f.max_nonskinning_m();
         if d > worst_m {
-            (worst_m, worst_frame, root) = (d, k, f.joint_positions[0]);
+            let (lo, hi) = f
+                .true_vertices
+                .iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(*v), hi.max(*v))
+                });
+            (worst_m, worst_frame, centre) = (d, k, (lo + hi) / 2.0);
         }
         Ok(())
     })?;
@@ -132,7 +138,7 @@ fn main() -> AnyResult<()> {
         worst_m * 1e3
     );
 
-    // The ring, centred on the performer at that frame.
+    // The ring, centred on the body's bounding box at that frame.
     let (scale, (w, h)) = if quick {
         (0.25, (400, 300))
     } else {
@@ -140,11 +146,18 @@ fn main() -> AnyResult<()> {
     };
     let f = FOCAL_PX * scale;
     let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0, w, h)?;
-    let look_at = DVec3::new(root.x, LOOK_AT_HEIGHT_M, root.z);
+    let look_at = centre;
     // Rig::ring centres the circle on the look-at point's vertical.
-    let rig = Rig::ring(CAMERAS, RING_RADIUS_M, RING_HEIGHT_M, look_at, DVec3::Y, k)?;
+    let rig = Rig::ring(
+        CAMERAS,
+        RING_RADIUS_M,
+        centre.y + RING_HEIGHT_ABOVE_M,
+        look_at,
+        DVec3::Y,
+        k,
+    )?;
     let lights = dome_lights(&DomeParams {
-        floor_centre: DVec3::new(root.x, 0.0, root.z),
+        floor_centre: DVec3::new(centre.x, 0.0, centre.z),
         ..Default::default()
     })?;
     let spec = CaptureSpec::new(rig)
@@ -358,6 +371,29 @@ fn exposure(views: &[&ShadedView], masks: &[&[u8]]) -> f32 {
     }
 }
 
+/// The silhouette's bounding box, padded by 10 % and widened to the tile's aspect ratio,
+/// clipped to the image: `(x, y, width, height)` (the whole image for an empty mask).
+fn crop_box(mask: &[u8], w: u32, h: u32) -> (u32, u32, u32, u32) {
+    let (mut lo, mut hi) = ((w, h), (0u32, 0u32));
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m == 1) {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        lo = (lo.0.min(x), lo.1.min(y));
+        hi = (hi.0.max(x), hi.1.max(y));
+    }
+    if hi.0 < lo.0 {
+        return (0, 0, w, h);
+    }
+    let aspect = f64::from(TILE.0) / f64::from(TILE.1);
+    let (cx, cy) = (f64::from(lo.0 + hi.0) / 2.0, f64::from(lo.1 + hi.1) / 2.0);
+    let mut bh = f64::from(hi.1 - lo.1 + 1) * 1.2;
+    let bw = (f64::from(hi.0 - lo.0 + 1) * 1.2).max(bh * aspect);
+    bh = bw / aspect;
+    let (bw, bh) = (bw.min(f64::from(w)), bh.min(f64::from(h)));
+    let x0 = (cx - bw / 2.0).clamp(0.0, f64::from(w) - bw);
+    let y0 = (cy - bh / 2.0).clamp(0.0, f64::from(h) - bh);
+    (x0 as u32, y0 as u32, (bw as u32).max(1), (bh as u32).max(1))
+}
+
 /// Writes the contact sheet and camera 0's full-size pictures; returns the frame's largest
 /// |truth − LBS|, mm.
 fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> AnyResult<f64> {
@@ -399,8 +435,10 @@ fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> An
             shaded[c].to_srgb8(exp),
             difference_picture(v, faces, &dist_mm, max_mm),
         ];
+        let (x0, y0, cw, ch) = crop_box(&o.mask, o.width, o.height);
         for (row, pic) in pictures.iter().enumerate() {
-            let tile = resize(pic, TILE.0, TILE.1, FilterType::Triangle);
+            let cropped = image::imageops::crop_imm(pic, x0, y0, cw, ch).to_image();
+            let tile = resize(&cropped, TILE.0, TILE.1, FilterType::Triangle);
             image::imageops::replace(
                 &mut sheet,
                 &tile,
