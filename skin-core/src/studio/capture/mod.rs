@@ -46,6 +46,32 @@ use crate::{Error, Result};
 
 /// A capture ready to run: the performer, its motion resampled to the capture's frame rate,
 /// and one rasteriser per camera (their per-pixel rays are computed once, in [`Capture::new`]).
+///
+/// # Example
+/// ```
+/// use skin_core::camera::{Intrinsics, Rig};
+/// use skin_core::math::DVec3;
+/// use skin_core::studio::{
+///     fast_motion, procedural_performer, Capture, CaptureSpec, FastMotionParams,
+///     ProceduralBodyParams,
+/// };
+/// let body = ProceduralBodyParams { grid_spacing_m: 0.05, ..Default::default() };
+/// let performer = procedural_performer(&body)?;
+/// let motion = fast_motion(
+///     &performer.skeleton,
+///     &FastMotionParams { duration_s: 0.2, ..Default::default() },
+/// )?;
+/// let k = Intrinsics::from_horizontal_fov(0.7, 48, 64)?;
+/// let rig = Rig::ring(4, 3.5, 1.0, DVec3::new(0.0, 0.9, 0.0), DVec3::Y, k)?;
+/// let capture = Capture::new(&performer, &motion, CaptureSpec::new(rig).with_seed(7))?;
+/// for frame in capture.frames() {
+///     let frame = frame?;
+///     assert_eq!(frame.observations.len(), 4);
+///     assert!(frame.observations[0].mask.contains(&1));
+///     assert_eq!(frame.truth.posed.true_vertices.len(), performer.vertex_count());
+/// }
+/// # Ok::<(), skin_core::Error>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct Capture<'a> {
     performer: &'a Performer,
