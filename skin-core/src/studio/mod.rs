@@ -15,7 +15,10 @@
 //!   distortion.
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
+//! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
+//!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 
+pub mod capture;
 pub mod raster;
 pub mod shading;
 
@@ -28,6 +31,10 @@ mod retarget;
 #[cfg(test)]
 mod tests;
 
+pub use capture::{
+    CameraObservation, Capture, CaptureFrame, CaptureFrames, CaptureLighting, CaptureSpec,
+    FrameTruth, PixelNoise,
+};
 pub use deformation::{
     BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
     DEFAULT_BULGE_M_PER_RAD,

@@ -1,0 +1,465 @@
+//! The synthetic capture studio end to end: the MakeHuman performer walks the CMU walk
+//! (`mocap-cmu/131_01.bvh`, retargeted), an 8-camera ring at 1600×1200 captures the frame of
+//! largest non-skinning deformation under the 1,200-light dome of Vlasic thesis §3.2.1, and a
+//! contact sheet shows for every camera: silhouette, depth, normals, shading (with cast
+//! shadows) and the distance between the true surface and linear blend skinning coloured on
+//! the mesh (the part of the deformation no skinning method can reach).
+//!
+//! Writes under `out/studio/`: `contact_sheet.png` (each camera cropped to its silhouette; rows: silhouette, depth, normals, shaded,
+//! LBS-vs-truth; one column per camera) and full-size `cam0_*.png` pictures (the depth as a
+//! 16-bit PNG in mm). Timings (medians after a warm-up): `raster_ms_per_view` (silhouette +
+//! depth + normals of the posed performer at 1600×1200, over the 8 views),
+//! `shade_ms_per_view_shadowed` (dome with per-vertex shadows at 1024×1024, visibility
+//! excluded: it is computed once per frame for all cameras; the shadow rays of the
+//! vertices one view sees are reported as `visibility_ms_per_view`), `fk_jacobian_us` (FK +
+//! positional Jacobians of the 42-DOF skeleton with 18 attached points).
+//!
+//! `cargo run --release --example studio [-- --quick]` (`--quick`: 400×300 views, the first
+//! 90 frames of the walk, fewer repetitions). Last stdout line: one JSON object of figures.
+
+use std::path::Path;
+use std::time::Instant;
+
+use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
+use dynamic_shapes::core::data::shared_data_path;
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::mesh::{MeshQuery, TriMesh};
+use dynamic_shapes::core::skeleton::{
+    AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
+};
+use dynamic_shapes::core::studio::raster::{Buffers, RenderParams, RenderedView, NO_TRIANGLE};
+use dynamic_shapes::core::studio::shading::{
+    dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, ShadedView, Shadows,
+    DEFAULT_SHADOW_BIAS_M,
+};
+use dynamic_shapes::core::studio::{
+    makehuman_performer, play_bvh, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
+    DeformationParams, Performer, RetargetParams,
+};
+use image::imageops::{resize, FilterType};
+use image::{GrayImage, Rgb, RgbImage};
+use nalgebra::DMatrix;
+use serde_json::json;
+
+type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
+
+const OUT_DIR: &str = "out/studio";
+/// Capture frame rate, Hz (Vlasic thesis §2.5.1: 25 FPS).
+const FRAME_RATE_HZ: f64 = 25.0;
+/// Cameras in the ring (Vlasic thesis §2.5.1: "a ring of eight cameras").
+const CAMERAS: usize = 8;
+/// Ring radius, m: a 1.8 m body fills ~75 % of the image height from 3 m with the focal length
+/// below.
+const RING_RADIUS_M: f64 = 3.0;
+/// Height of the cameras above the centre of the body's bounding box (they look slightly
+/// down, as in Vlasic thesis §2.5.1), m.
+const RING_HEIGHT_ABOVE_M: f64 = 0.3;
+/// Focal length of the full-size 1600×1200 cameras, px.
+const FOCAL_PX: f64 = 1500.0;
+/// Tile size of the contact sheet, px.
+const TILE: (u32, u32) = (240, 180);
+/// Frames of the walk in `--quick` mode.
+const QUICK_FRAMES: usize = 90;
+/// Attached points of the Jacobian timing (the sensor count of Vlasic thesis §4.2).
+const JACOBIAN_POINTS: usize = 18;
+
+/// Median of the wall times (ms) of `reps` runs of `f` after one warm-up.
+fn median_ms(reps: usize, mut f: impl FnMut() -> AnyResult<()>) -> AnyResult<f64> {
+    f()?;
+    let mut t = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        let s = Instant::now();
+        f()?;
+        t.push(s.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok(median(t))
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> AnyResult<()> {
+    let start = Instant::now();
+    let quick = std::env::args().any(|a| a == "--quick");
+    let out = Path::new(OUT_DIR);
+    std::fs::create_dir_all(out)?;
+
+    let mh = shared_data_path("makehuman/base.obj")?;
+    let performer = makehuman_performer(
+        mh.parent().ok_or("data path has a parent")?,
+        &DeformationParams::default(),
+    )?;
+    eprintln!(
+        "studio: MakeHuman performer, {} vertices, {} DOFs",
+        performer.vertex_count(),
+        performer.skeleton.dof_count()
+    );
+    let walk = play_bvh(
+        shared_data_path("mocap-cmu/131_01.bvh")?,
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+        &performer.skeleton,
+        1.0 / FRAME_RATE_HZ,
+        &RetargetParams::default(),
+    )?;
+    let mut motion = walk.motion;
+    if quick && motion.frame_count() > QUICK_FRAMES {
+        motion = Motion::new(
+            motion.frame_time_s,
+            motion.frames.columns(0, QUICK_FRAMES).into_owned(),
+        )?;
+    }
+    eprintln!(
+        "studio: CMU 131_01 retargeted (scale {:.3}), {} frames at {FRAME_RATE_HZ} Hz",
+        walk.scale,
+        motion.frame_count()
+    );
+
+    // The non-skinning deformation over the motion, and the frame where it is largest.
+    let (mut worst_m, mut worst_frame, mut centre) = (0.0f64, 0, DVec3::ZERO);
+    performer.perform(&motion, |k, f| {
+        let d = f.max_nonskinning_m();
+        if d > worst_m {
+            let (lo, hi) = f
+                .true_vertices
+                .iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(*v), hi.max(*v))
+                });
+            (worst_m, worst_frame, centre) = (d, k, (lo + hi) / 2.0);
+        }
+        Ok(())
+    })?;
+    eprintln!(
+        "studio: max non-skinning {:.1} mm (frame {worst_frame})",
+        worst_m * 1e3
+    );
+
+    // The ring, centred on the body's bounding box at that frame.
+    let (scale, (w, h)) = if quick {
+        (0.25, (400, 300))
+    } else {
+        (1.0, (1600, 1200))
+    };
+    let f = FOCAL_PX * scale;
+    let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0, w, h)?;
+    let look_at = centre;
+    // Rig::ring centres the circle on the look-at point's vertical.
+    let rig = Rig::ring(
+        CAMERAS,
+        RING_RADIUS_M,
+        centre.y + RING_HEIGHT_ABOVE_M,
+        look_at,
+        DVec3::Y,
+        k,
+    )?;
+    let lights = dome_lights(&DomeParams {
+        floor_centre: DVec3::new(centre.x, 0.0, centre.z),
+        ..Default::default()
+    })?;
+    let spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(FRAME_RATE_HZ)
+        .with_seed(131)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_lighting(CaptureLighting::new(lights.clone()));
+    let capture = Capture::new(&performer, &motion, spec)?;
+    let t = Instant::now();
+    let frame = capture
+        .frames_in(worst_frame..worst_frame + 1)
+        .next()
+        .ok_or("the chosen frame is in the motion")??;
+    let capture_frame_s = t.elapsed().as_secs_f64();
+    eprintln!("studio: frame {worst_frame} captured from {CAMERAS} cameras at {w}x{h} under {} lights in {capture_frame_s:.2} s", lights.len());
+
+    // Rasteriser speed: silhouette + depth + normals of the posed body, median over the views.
+    let mesh = frame.truth.true_mesh(&performer);
+    let params = RenderParams::default();
+    let reps = if quick { 3 } else { 5 };
+    let mut per_view = Vec::new();
+    let mut scratch = RenderedView::default();
+    for r in capture.rasterizers() {
+        per_view.push(median_ms(reps, || {
+            r.render_into(&mesh, &params, &mut scratch)?;
+            Ok(())
+        })?);
+    }
+    let raster_ms = median(per_view);
+    eprintln!("studio: raster {raster_ms:.2} ms per {w}x{h} view (mask + depth + normals)");
+
+    let (shade_ms, visibility_ms) =
+        shade_timing(&mesh, &lights, look_at, if quick { 1 } else { 3 })?;
+    eprintln!("studio: dome shading {shade_ms:.1} ms per 1024x1024 view, shadow visibility of its vertices {visibility_ms:.0} ms");
+    let fk_us = fk_jacobian_us(&performer.skeleton, if quick { 2_000 } else { 20_000 })?;
+    eprintln!("studio: FK + Jacobians of {JACOBIAN_POINTS} points: {fk_us:.2} us");
+
+    let diff_max_mm = write_pictures(&performer, &frame, out)?;
+
+    println!(
+        "{}",
+        json!({
+            "raster_ms_per_view": raster_ms,
+            "shade_ms_per_view_shadowed": shade_ms,
+            "visibility_ms_per_view": visibility_ms,
+            "fk_jacobian_us": fk_us,
+            "performer_vertices": performer.vertex_count(),
+            "max_nonskinning_mm": worst_m * 1e3,
+            "frame_nonskinning_mm": diff_max_mm,
+            "frame_index": worst_frame,
+            "motion_frames": motion.frame_count(),
+            "capture_frame_s": capture_frame_s,
+            "width": w,
+            "height": h,
+            "quick": quick,
+            "seconds": start.elapsed().as_secs_f64(),
+        })
+    );
+    Ok(())
+}
+
+/// Median ms of shading one 1024×1024 view under the dome with per-vertex shadows, and ms of
+/// the shadow visibility of the vertices that view sees (once).
+fn shade_timing(
+    mesh: &TriMesh,
+    lights: &[dynamic_shapes::core::studio::shading::Light],
+    look_at: DVec3,
+    reps: usize,
+) -> AnyResult<(f64, f64)> {
+    let k = Intrinsics::new(1400.0, 1400.0, 511.5, 511.5, 1024, 1024)?;
+    let cam = Camera::look_at(k, look_at + DVec3::new(0.5, 0.8, 3.0), look_at, DVec3::Y)?;
+    let view = dynamic_shapes::core::studio::Rasterizer::new(&cam)
+        .render(mesh, &RenderParams::default().with_buffers(Buffers::ALL))?;
+    let query = MeshQuery::new(mesh)?;
+    // Visibility is per frame and shared by all cameras; one view needs only the vertices it
+    // sees (about half the mesh).
+    let seen = vertices_seen(mesh, &[&view])?;
+    let t = Instant::now();
+    let vis =
+        LightVisibility::compute_for(mesh, &query, lights, DEFAULT_SHADOW_BIAS_M, Some(&seen))?;
+    let visibility_ms = t.elapsed().as_secs_f64() * 1e3;
+    let alb = Albedo::Uniform([0.8, 0.6, 0.5]);
+    let shade_ms = median_ms(reps, || {
+        shade(&view, mesh, lights, &alb, &Shadows::PerVertex(&vis))?;
+        Ok(())
+    })?;
+    Ok((shade_ms, visibility_ms))
+}
+
+/// Median µs of FK + the 54×42 positional Jacobian of 18 points attached mid-bone.
+fn fk_jacobian_us(s: &Skeleton, reps: usize) -> AnyResult<f64> {
+    let mut points: Vec<AttachedPoint> = (0..s.joint_count())
+        .filter(|&j| !s.joints()[j].dofs.is_empty())
+        .map(|j| AttachedPoint {
+            joint: j,
+            offset: s.joints()[j]
+                .end_site
+                .or_else(|| s.children(j).next().map(|c| s.joints()[c].offset))
+                .unwrap_or(DVec3::ZERO)
+                * 0.5
+                + DVec3::new(0.0, 0.0, 0.05),
+        })
+        .collect();
+    while points.len() < JACOBIAN_POINTS {
+        points.push(AttachedPoint {
+            joint: points.len() % s.joint_count(),
+            offset: DVec3::new(0.0, 0.1, 0.12),
+        });
+    }
+    points.truncate(JACOBIAN_POINTS);
+    let n = s.dof_count();
+    let theta: Vec<f64> = (0..n)
+        .map(|d| 0.3 * ((d * 7 % 11) as f64 / 11.0 - 0.5))
+        .collect();
+    let mut fk = ForwardKinematics::new(s);
+    let mut jp = DMatrix::zeros(3 * points.len(), n);
+    const BATCH: usize = 100;
+    let mut times = Vec::new();
+    for _ in 0..reps / BATCH + 1 {
+        let t = Instant::now();
+        for _ in 0..BATCH {
+            s.forward_kinematics_into(std::hint::black_box(&theta), &mut fk)?;
+            s.point_jacobians_into(&fk, &points, &mut jp)?;
+            std::hint::black_box(&jp);
+        }
+        times.push(t.elapsed().as_secs_f64() * 1e6 / BATCH as f64);
+    }
+    Ok(median(times))
+}
+
+/// A false-colour ramp (dark blue → cyan → yellow → red) of `t ∈ [0, 1]`.
+fn ramp(t: f64) -> [f64; 3] {
+    let stops = [
+        [0.05, 0.05, 0.5],
+        [0.0, 0.7, 0.9],
+        [0.95, 0.9, 0.1],
+        [0.9, 0.1, 0.05],
+    ];
+    let x = t.clamp(0.0, 1.0) * (stops.len() - 1) as f64;
+    let i = (x.floor() as usize).min(stops.len() - 2);
+    let f = x - i as f64;
+    std::array::from_fn(|c| stops[i][c] * (1.0 - f) + stops[i + 1][c] * f)
+}
+
+/// Depth as grey (near bright), scaled over the covered pixels of the view.
+fn depth_picture(v: &RenderedView) -> RgbImage {
+    let covered = v.depth_m.iter().filter(|d| d.is_finite());
+    let (lo, hi) = covered.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &d| {
+        (a.min(d), b.max(d))
+    });
+    let mut img = RgbImage::new(v.width, v.height);
+    for (p, &d) in img.pixels_mut().zip(&v.depth_m) {
+        if d.is_finite() {
+            let g = (255.0 * (1.0 - 0.8 * (d - lo) / (hi - lo).max(1e-6))) as u8;
+            *p = Rgb([g, g, g]);
+        }
+    }
+    img
+}
+
+/// Per-pixel |truth − LBS| (mm) interpolated from the vertices with the barycentrics, coloured
+/// on a false-colour scale from 0 to `max_mm` and shaded by the normal for shape.
+fn difference_picture(
+    v: &RenderedView,
+    faces: &[[u32; 3]],
+    dist_mm: &[f64],
+    max_mm: f64,
+) -> RgbImage {
+    let mut img = RgbImage::new(v.width, v.height);
+    for (i, p) in img.pixels_mut().enumerate() {
+        let t = v.triangle[i];
+        if t == NO_TRIANGLE {
+            continue;
+        }
+        let f = faces[t as usize];
+        let [b1, b2] = v.bary[i].map(f64::from);
+        let d = dist_mm[f[0] as usize] * (1.0 - b1 - b2)
+            + dist_mm[f[1] as usize] * b1
+            + dist_mm[f[2] as usize] * b2;
+        let light = 0.45 + 0.55 * f64::from(-v.normal_camera[i][2]).clamp(0.0, 1.0);
+        *p = Rgb(ramp(d / max_mm).map(|c| (255.0 * c * light) as u8));
+    }
+    img
+}
+
+/// Exposure mapping the 99th percentile of the covered radiance to 0.9.
+fn exposure(views: &[&ShadedView], masks: &[&[u8]]) -> f32 {
+    let mut lum: Vec<f32> = views
+        .iter()
+        .zip(masks)
+        .flat_map(|(s, m)| {
+            s.radiance
+                .iter()
+                .zip(m.iter())
+                .filter(|(_, &m)| m == 1)
+                .map(|(r, _)| r[0].max(r[1]).max(r[2]))
+        })
+        .collect();
+    if lum.is_empty() {
+        return 1.0;
+    }
+    lum.sort_by(f32::total_cmp);
+    let p99 = lum[lum.len() * 99 / 100];
+    if p99 > 0.0 {
+        0.9 / p99
+    } else {
+        1.0
+    }
+}
+
+/// The silhouette's bounding box, padded by 10 % and widened to the tile's aspect ratio,
+/// clipped to the image: `(x, y, width, height)` (the whole image for an empty mask).
+fn crop_box(mask: &[u8], w: u32, h: u32) -> (u32, u32, u32, u32) {
+    let (mut lo, mut hi) = ((w, h), (0u32, 0u32));
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m == 1) {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        lo = (lo.0.min(x), lo.1.min(y));
+        hi = (hi.0.max(x), hi.1.max(y));
+    }
+    if hi.0 < lo.0 {
+        return (0, 0, w, h);
+    }
+    let aspect = f64::from(TILE.0) / f64::from(TILE.1);
+    let (cx, cy) = (f64::from(lo.0 + hi.0) / 2.0, f64::from(lo.1 + hi.1) / 2.0);
+    let mut bh = f64::from(hi.1 - lo.1 + 1) * 1.2;
+    let bw = (f64::from(hi.0 - lo.0 + 1) * 1.2).max(bh * aspect);
+    bh = bw / aspect;
+    let (bw, bh) = (bw.min(f64::from(w)), bh.min(f64::from(h)));
+    let x0 = (cx - bw / 2.0).clamp(0.0, f64::from(w) - bw);
+    let y0 = (cy - bh / 2.0).clamp(0.0, f64::from(h) - bh);
+    (x0 as u32, y0 as u32, (bw as u32).max(1), (bh as u32).max(1))
+}
+
+/// Writes the contact sheet and camera 0's full-size pictures; returns the frame's largest
+/// |truth − LBS|, mm.
+fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> AnyResult<f64> {
+    let dist_mm: Vec<f64> = frame
+        .truth
+        .nonskinning_m()
+        .iter()
+        .map(|d| d * 1e3)
+        .collect();
+    let max_mm = dist_mm.iter().copied().fold(0.0, f64::max).max(1e-3);
+    let faces = &performer.template.faces;
+    let shaded: Vec<&ShadedView> = frame
+        .observations
+        .iter()
+        .map(|o| o.shaded.as_ref().ok_or("the spec has lighting"))
+        .collect::<Result<_, _>>()?;
+    let masks: Vec<&[u8]> = frame
+        .observations
+        .iter()
+        .map(|o| o.mask.as_slice())
+        .collect();
+    let exp = exposure(&shaded, &masks);
+    let n = frame.observations.len() as u32;
+    let mut sheet = RgbImage::new(TILE.0 * n, TILE.1 * 5);
+    for (c, (o, v)) in frame
+        .observations
+        .iter()
+        .zip(&frame.truth.views)
+        .enumerate()
+    {
+        let mask =
+            GrayImage::from_raw(o.width, o.height, o.mask.iter().map(|&m| m * 255).collect())
+                .ok_or("mask of the view's size")?;
+        let mask_rgb = image::DynamicImage::ImageLuma8(mask).to_rgb8();
+        let pictures = [
+            mask_rgb,
+            depth_picture(v),
+            v.normal_rgb8_image()?,
+            shaded[c].to_srgb8(exp),
+            difference_picture(v, faces, &dist_mm, max_mm),
+        ];
+        let (x0, y0, cw, ch) = crop_box(&o.mask, o.width, o.height);
+        for (row, pic) in pictures.iter().enumerate() {
+            let cropped = image::imageops::crop_imm(pic, x0, y0, cw, ch).to_image();
+            let tile = resize(&cropped, TILE.0, TILE.1, FilterType::Triangle);
+            image::imageops::replace(
+                &mut sheet,
+                &tile,
+                (c as u32 * TILE.0).into(),
+                (row as u32 * TILE.1).into(),
+            );
+        }
+        if c == 0 {
+            v.mask_image()?.save(out.join("cam0_silhouette.png"))?;
+            v.depth_mm_u16_image()?
+                .save(out.join("cam0_depth_mm.png"))?;
+            pictures[1].save(out.join("cam0_depth_grey.png"))?;
+            pictures[2].save(out.join("cam0_normals.png"))?;
+            pictures[3].save(out.join("cam0_shaded.png"))?;
+            pictures[4].save(out.join("cam0_lbs_vs_truth.png"))?;
+        }
+    }
+    sheet.save(out.join("contact_sheet.png"))?;
+    eprintln!(
+        "studio: wrote {}/contact_sheet.png (rows: silhouette, depth, normals, shaded, |truth - LBS| 0..{max_mm:.1} mm)",
+        out.display()
+    );
+    Ok(max_mm)
+}

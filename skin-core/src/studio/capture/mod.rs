@@ -1,0 +1,327 @@
+//! The capture builder of the synthetic studio: a rig × a performer × a motion × a frame rate
+//! → per-frame observations (silhouettes and, under lights, shaded images of every camera)
+//! plus ground truth (pose θ, joint frames and positions, true and skinned vertices, per-pixel
+//! depth and normals) — the synthetic counterpart of the multi-view captures of Vlasic thesis
+//! §2.5.1 ("a ring of eight cameras looking down at the performer", 1600×1200 at 25 FPS) and
+//! §3.2 (the light-stage dome), and of the silhouette video of Sand 2003 §4.
+//!
+//! **Streaming.** [`Capture::frames`] is an iterator: one [`CaptureFrame`] at a time, nothing
+//! kept, so a long capture needs the memory of one frame. The flap of the non-skinning
+//! deformation ([`crate::studio::DeformationModel`]) has dynamics, so frame `k`'s truth
+//! depends on every earlier pose: frames are produced in order, and
+//! [`Capture::frames_in`] poses (without rendering) the frames before its range to carry the
+//! dynamics exactly. The result of any range is therefore identical to the same frames of a
+//! full run.
+//!
+//! **Determinism.** Cameras of a frame are rendered in parallel with rayon; each camera's
+//! output depends only on the frame and its index (pixel noise is keyed by `(seed, frame,
+//! camera, pixel)`, see [`PixelNoise`]), so frames are bit-identical for any thread count.
+//!
+//! **Checks per frame.** A camera centre inside the performer's body (parity rays through the
+//! posed mesh) is an [`Error::InvalidParam`] naming the camera and frame; a camera that sees
+//! none of the body is an [`Error::NotVisible`] naming them (unless
+//! [`crate::studio::RenderParams::allow_empty`]); lights inside the body are rejected as in
+//! [`crate::studio::shading::check_lights_outside`].
+
+mod frame;
+mod noise;
+mod spec;
+#[cfg(test)]
+mod tests;
+
+pub use frame::{CameraObservation, CaptureFrame, FrameTruth};
+pub use spec::{CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ};
+
+use rayon::prelude::*;
+
+use crate::math::DVec3;
+use crate::mesh::{MeshQuery, Ray, TriMesh};
+use crate::skeleton::Motion;
+use crate::studio::raster::{Rasterizer, RenderParams, RenderedView};
+use crate::studio::shading::{
+    check_lights_outside, shade, vertices_seen, Albedo, LightVisibility, Shadows,
+};
+use crate::studio::{DeformationState, Performer, PosedFrame};
+use crate::{Error, Result};
+
+/// A capture ready to run: the performer, its motion resampled to the capture's frame rate,
+/// and one rasteriser per camera (their per-pixel rays are computed once, in [`Capture::new`]).
+///
+/// # Example
+/// ```
+/// use skin_core::camera::{Intrinsics, Rig};
+/// use skin_core::math::DVec3;
+/// use skin_core::studio::{
+///     fast_motion, procedural_performer, Capture, CaptureSpec, FastMotionParams,
+///     ProceduralBodyParams,
+/// };
+/// let body = ProceduralBodyParams { grid_spacing_m: 0.05, ..Default::default() };
+/// let performer = procedural_performer(&body)?;
+/// let motion = fast_motion(
+///     &performer.skeleton,
+///     &FastMotionParams { duration_s: 0.2, ..Default::default() },
+/// )?;
+/// let k = Intrinsics::from_horizontal_fov(0.7, 48, 64)?;
+/// let rig = Rig::ring(4, 3.5, 1.0, DVec3::new(0.0, 0.9, 0.0), DVec3::Y, k)?;
+/// let capture = Capture::new(&performer, &motion, CaptureSpec::new(rig).with_seed(7))?;
+/// for frame in capture.frames() {
+///     let frame = frame?;
+///     assert_eq!(frame.observations.len(), 4);
+///     assert!(frame.observations[0].mask.contains(&1));
+///     assert_eq!(frame.truth.posed.true_vertices.len(), performer.vertex_count());
+/// }
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Capture<'a> {
+    performer: &'a Performer,
+    motion: Motion,
+    spec: CaptureSpec,
+    render: RenderParams,
+    rasterizers: Vec<Rasterizer>,
+}
+
+impl<'a> Capture<'a> {
+    /// Prepares a capture of `performer` playing `motion` (any frame rate; resampled to
+    /// `spec.frame_rate_hz`).
+    ///
+    /// # Errors
+    /// As [`CaptureSpec::validate`]; as [`Motion::check_for`] / [`Motion::resample`] for a
+    /// motion of another skeleton; [`Error::Empty`] for a motion without frames.
+    pub fn new(performer: &'a Performer, motion: &Motion, spec: CaptureSpec) -> Result<Self> {
+        spec.validate()?;
+        motion.check_for(&performer.skeleton)?;
+        if motion.frame_count() == 0 {
+            return Err(Error::Empty {
+                what: "motion frames",
+            });
+        }
+        let motion = motion.resample(&performer.skeleton, 1.0 / spec.frame_rate_hz)?;
+        let rasterizers = spec.rig.cameras.par_iter().map(Rasterizer::new).collect();
+        Ok(Self {
+            performer,
+            motion,
+            render: spec.effective_render(),
+            spec,
+            rasterizers,
+        })
+    }
+
+    /// The performer.
+    pub fn performer(&self) -> &Performer {
+        self.performer
+    }
+
+    /// The motion at the capture's frame rate.
+    pub fn motion(&self) -> &Motion {
+        &self.motion
+    }
+
+    /// The spec.
+    pub fn spec(&self) -> &CaptureSpec {
+        &self.spec
+    }
+
+    /// The rasteriser of every camera (rig order).
+    pub fn rasterizers(&self) -> &[Rasterizer] {
+        &self.rasterizers
+    }
+
+    /// Number of frames.
+    pub fn frame_count(&self) -> usize {
+        self.motion.frame_count()
+    }
+
+    /// Every frame, in order, one at a time.
+    pub fn frames(&self) -> CaptureFrames<'_, 'a> {
+        self.frames_in(0..self.frame_count())
+    }
+
+    /// The frames of `range` (clipped to the capture), in order. Earlier frames are posed but
+    /// not rendered, so the deformation's dynamics match a full run exactly.
+    pub fn frames_in(&self, range: std::ops::Range<usize>) -> CaptureFrames<'_, 'a> {
+        let end = range.end.min(self.frame_count());
+        CaptureFrames {
+            capture: self,
+            state: DeformationState::default(),
+            next_pose: 0,
+            next: range.start.min(end),
+            end,
+            failed: false,
+        }
+    }
+
+    /// Calls `each` on every frame in order (the callback form of [`Capture::frames`]),
+    /// stopping at the first error.
+    ///
+    /// # Errors
+    /// As [`CaptureFrames`] yields; any error of `each`.
+    pub fn for_each_frame(&self, mut each: impl FnMut(CaptureFrame) -> Result<()>) -> Result<()> {
+        for f in self.frames() {
+            each(f?)?;
+        }
+        Ok(())
+    }
+
+    /// Renders frame `index` from its posed surfaces (observations and per-camera truth).
+    fn render_frame(&self, index: usize, posed: PosedFrame) -> Result<CaptureFrame> {
+        let mesh = TriMesh {
+            vertices: posed.true_vertices.clone(),
+            faces: self.performer.template.faces.clone(),
+        };
+        let query = MeshQuery::new(&mesh)?;
+        for (i, cam) in self.spec.rig.cameras.iter().enumerate() {
+            if point_inside(&query, cam.centre()) {
+                return Err(Error::InvalidParam {
+                    name: "rig",
+                    reason: format!(
+                        "camera {i} at {} is inside the performer's body at frame {index}; \
+                         move it outside the capture volume",
+                        cam.centre()
+                    ),
+                });
+            }
+        }
+        let views = self
+            .rasterizers
+            .par_iter()
+            .enumerate()
+            .map(|(i, r)| {
+                r.render(&mesh, &self.render).map_err(|e| match e {
+                    Error::NotVisible { what } => Error::NotVisible {
+                        what: format!("camera {i} at frame {index}: {what}"),
+                    },
+                    e => e,
+                })
+            })
+            .collect::<Result<Vec<RenderedView>>>()?;
+        let shaded = match &self.spec.lighting {
+            None => vec![None; views.len()],
+            Some(lighting) => {
+                check_lights_outside(&query, &lighting.lights)?;
+                let vis = if lighting.shadows {
+                    let refs: Vec<&RenderedView> = views.iter().collect();
+                    let needed = vertices_seen(&mesh, &refs)?;
+                    Some(LightVisibility::compute_for(
+                        &mesh,
+                        &query,
+                        &lighting.lights,
+                        lighting.shadow_bias_m,
+                        Some(&needed),
+                    )?)
+                } else {
+                    None
+                };
+                let shadows = vis.as_ref().map_or(Shadows::None, Shadows::PerVertex);
+                let albedo = Albedo::Uniform(lighting.albedo);
+                views
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, v)| {
+                        let mut s = shade(v, &mesh, &lighting.lights, &albedo, &shadows)?;
+                        if let Some(n) = &self.spec.noise {
+                            noise::add(&mut s, n, self.spec.seed, index, i);
+                        }
+                        Ok(Some(s))
+                    })
+                    .collect::<Result<Vec<_>>>()?
+            }
+        };
+        let observations = views
+            .iter()
+            .zip(shaded)
+            .enumerate()
+            .map(|(camera, (v, shaded))| CameraObservation {
+                camera,
+                width: v.width,
+                height: v.height,
+                mask: v.mask.clone(),
+                shaded,
+            })
+            .collect();
+        Ok(CaptureFrame {
+            index,
+            time_s: index as f64 * self.motion.frame_time_s,
+            observations,
+            truth: FrameTruth {
+                theta: self.motion.frame(index).to_vec(),
+                posed,
+                views,
+            },
+        })
+    }
+}
+
+/// The iterator of [`Capture::frames`]: yields `Result<CaptureFrame>` in order and stops after
+/// the first error.
+#[derive(Debug)]
+pub struct CaptureFrames<'c, 'a> {
+    capture: &'c Capture<'a>,
+    state: DeformationState,
+    next_pose: usize,
+    next: usize,
+    end: usize,
+    failed: bool,
+}
+
+impl CaptureFrames<'_, '_> {
+    fn pose_next(&mut self) -> Result<PosedFrame> {
+        let c = self.capture;
+        let k = self.next_pose;
+        self.next_pose += 1;
+        c.performer
+            .pose(c.motion.frame(k), &mut self.state, c.motion.frame_time_s)
+    }
+
+    fn produce(&mut self) -> Result<CaptureFrame> {
+        while self.next_pose < self.next {
+            self.pose_next()?;
+        }
+        let posed = self.pose_next()?;
+        let index = self.next;
+        self.next += 1;
+        self.capture.render_frame(index, posed)
+    }
+}
+
+impl Iterator for CaptureFrames<'_, '_> {
+    type Item = Result<CaptureFrame>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed || self.next >= self.end {
+            return None;
+        }
+        let r = self.produce();
+        self.failed = r.is_err();
+        Some(r)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = if self.failed { 0 } else { self.end - self.next };
+        (0, Some(n))
+    }
+}
+
+/// Directions of the parity rays of [`point_inside`]: far from the axes and from each other, so
+/// they avoid the axis-aligned edges and vertices of typical meshes.
+const PROBE_DIRECTIONS: [[f64; 3]; 3] = [
+    [0.267_261_2, 0.534_522_5, 0.801_783_7],
+    [-0.723_102_3, 0.106_339_8, -0.682_496_1],
+    [0.154_303_3, -0.925_820_1, 0.345_032_8],
+];
+
+/// True when `p` is inside the closed, outward-oriented mesh of `query`: most of three rays
+/// from `p` first hit the back of a face (a ray leaving a closed surface meets it from
+/// inside). A majority vote makes one ray grazing an edge harmless.
+fn point_inside(query: &MeshQuery, p: DVec3) -> bool {
+    let votes = PROBE_DIRECTIONS
+        .iter()
+        .filter(|d| {
+            matches!(
+                query.cast_ray(Ray::new(p, DVec3::from(**d)), f64::INFINITY),
+                Ok(Some(hit)) if !hit.front_face
+            )
+        })
+        .count();
+    votes >= 2
+}

@@ -1,0 +1,193 @@
+//! What a capture records: the rig, the frame rate, the seed and the rendering options.
+
+use serde::{Deserialize, Serialize};
+
+use crate::camera::Rig;
+use crate::error::{Error, Result};
+use crate::studio::raster::RenderParams;
+use crate::studio::shading::{Light, DEFAULT_SHADOW_BIAS_M};
+
+/// Lighting of the shaded observations: Lambertian shading ([`crate::studio::shading::shade`])
+/// of a uniform albedo under a set of lights, optionally with cast shadows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaptureLighting {
+    /// The lights, world frame (e.g. [`crate::studio::shading::dome_lights`]).
+    pub lights: Vec<Light>,
+    /// Uniform linear-RGB albedo of the skin, each in `[0, 1]` (NaN rejected). Default: `[0.8, 0.6, 0.5]`
+    /// (a light skin tone; any value works, the methods only need it known).
+    pub albedo: [f32; 3],
+    /// Cast shadows by per-vertex visibility ([`crate::studio::shading::LightVisibility`],
+    /// computed once per frame for the vertices any camera sees). Default: true.
+    pub shadows: bool,
+    /// Offset of shadow-ray origins along the normal, m. Default:
+    /// [`DEFAULT_SHADOW_BIAS_M`].
+    pub shadow_bias_m: f64,
+}
+
+impl CaptureLighting {
+    /// Shadowed lighting with the default albedo.
+    pub fn new(lights: Vec<Light>) -> Self {
+        Self {
+            lights,
+            albedo: [0.8, 0.6, 0.5],
+            shadows: true,
+            shadow_bias_m: DEFAULT_SHADOW_BIAS_M,
+        }
+    }
+
+    /// Returns the lighting with shadows on or off.
+    pub fn with_shadows(mut self, shadows: bool) -> Self {
+        self.shadows = shadows;
+        self
+    }
+}
+
+/// Sensor noise added to the shaded observations: zero-mean Gaussian per pixel and channel
+/// with standard deviation `sigma` (linear radiance units), drawn from a counter-based stream
+/// keyed by `(seed, frame, camera, pixel)` — so any frame or camera can be re-rendered alone
+/// and gets the same noise, whatever order or thread count produced it. Background pixels get
+/// noise too (a real sensor is noisy everywhere); radiance is not clamped.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PixelNoise {
+    /// Standard deviation of the radiance noise per channel. Default: 0.005 (about 1 % of the
+    /// dome's lit radiance ≈ 1/π · 0.8, a good machine-vision camera).
+    pub sigma: f32,
+}
+
+impl Default for PixelNoise {
+    fn default() -> Self {
+        Self { sigma: 0.005 }
+    }
+}
+
+/// Frame rate of [`CaptureSpec::new`], Hz: Vlasic thesis §2.5.1 captures "video at 1600 by
+/// 1200 resolution also at 25 FPS" with "a ring of eight cameras" (Sand et al. 2003 §6.1 record
+/// 30 frames per second).
+pub const DEFAULT_FRAME_RATE_HZ: f64 = 25.0;
+
+/// Everything that defines a capture besides the performer and the motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaptureSpec {
+    /// The cameras. Must not be empty.
+    pub rig: Rig,
+    /// Frame rate of the capture, Hz; the motion is resampled to it
+    /// ([`crate::skeleton::Motion::resample`]). Default: [`DEFAULT_FRAME_RATE_HZ`].
+    pub frame_rate_hz: f64,
+    /// Seed of everything random in the capture (pixel noise). Default: 0.
+    pub seed: u64,
+    /// Rasteriser options. The mask is always rendered (it is the observation) and the
+    /// triangle buffer too when `lighting` is set (shading needs it); other buffers as
+    /// requested. Default: [`RenderParams::default`] (mask, depth along the ray, normals).
+    pub render: RenderParams,
+    /// Lighting of the shaded observations; `None` renders no shaded images. Default: `None`.
+    pub lighting: Option<CaptureLighting>,
+    /// Noise on the shaded observations; ignored without `lighting`. Default: `None`.
+    pub noise: Option<PixelNoise>,
+}
+
+impl CaptureSpec {
+    /// A spec for `rig` with the defaults of every other field.
+    pub fn new(rig: Rig) -> Self {
+        Self {
+            rig,
+            frame_rate_hz: DEFAULT_FRAME_RATE_HZ,
+            seed: 0,
+            render: RenderParams::default(),
+            lighting: None,
+            noise: None,
+        }
+    }
+
+    /// Returns the spec with the given frame rate, Hz.
+    pub fn with_frame_rate_hz(mut self, hz: f64) -> Self {
+        self.frame_rate_hz = hz;
+        self
+    }
+
+    /// Returns the spec with the given seed.
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Returns the spec with the given render params.
+    pub fn with_render(mut self, render: RenderParams) -> Self {
+        self.render = render;
+        self
+    }
+
+    /// Returns the spec with shaded observations under `lighting`.
+    pub fn with_lighting(mut self, lighting: CaptureLighting) -> Self {
+        self.lighting = Some(lighting);
+        self
+    }
+
+    /// Returns the spec with pixel noise on the shaded observations.
+    pub fn with_noise(mut self, noise: PixelNoise) -> Self {
+        self.noise = Some(noise);
+        self
+    }
+
+    /// The render params actually used: `render` with the mask (and, with lighting, the
+    /// triangle buffer) switched on.
+    pub fn effective_render(&self) -> RenderParams {
+        let mut r = self.render;
+        r.buffers.mask = true;
+        if self.lighting.is_some() {
+            r.buffers.triangle = true;
+        }
+        r
+    }
+
+    /// Checks the spec.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for a rig without cameras or lighting without lights;
+    /// [`Error::InvalidParam`] for a non-positive or non-finite frame rate, a negative or
+    /// non-finite noise sigma, an albedo outside `[0, 1]` or a bad shadow bias; errors of
+    /// [`Light::validate`].
+    pub fn validate(&self) -> Result<()> {
+        if self.rig.is_empty() {
+            return Err(Error::Empty {
+                what: "capture rig cameras",
+            });
+        }
+        if !(self.frame_rate_hz.is_finite() && self.frame_rate_hz > 0.0) {
+            return Err(Error::InvalidParam {
+                name: "frame_rate_hz",
+                reason: format!("must be finite and positive, got {}", self.frame_rate_hz),
+            });
+        }
+        if let Some(l) = &self.lighting {
+            if l.lights.is_empty() {
+                return Err(Error::Empty {
+                    what: "capture lights",
+                });
+            }
+            for light in &l.lights {
+                light.validate()?;
+            }
+            if l.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
+                return Err(Error::InvalidParam {
+                    name: "albedo",
+                    reason: format!("each channel must be in [0, 1], got {:?}", l.albedo),
+                });
+            }
+            if !(l.shadow_bias_m.is_finite() && l.shadow_bias_m >= 0.0) {
+                return Err(Error::InvalidParam {
+                    name: "shadow_bias_m",
+                    reason: format!("must be finite and >= 0, got {}", l.shadow_bias_m),
+                });
+            }
+        }
+        if let Some(n) = &self.noise {
+            if !(n.sigma.is_finite() && n.sigma >= 0.0) {
+                return Err(Error::InvalidParam {
+                    name: "noise sigma",
+                    reason: format!("must be finite and >= 0, got {}", n.sigma),
+                });
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,410 @@
+//! Tests of the capture builder: consistency with the performer and rasteriser, streaming,
+//! determinism across thread counts and seeds, and bad input.
+
+use super::*;
+use crate::camera::{Camera, Intrinsics, Rig};
+use crate::math::DVec3;
+use crate::studio::shading::Light;
+use crate::studio::{fast_motion, procedural_performer, FastMotionParams, ProceduralBodyParams};
+use std::sync::OnceLock;
+
+fn performer() -> &'static Performer {
+    static P: OnceLock<Performer> = OnceLock::new();
+    P.get_or_init(|| {
+        procedural_performer(&ProceduralBodyParams {
+            grid_spacing_m: 0.04,
+            ..Default::default()
+        })
+        .unwrap()
+    })
+}
+
+/// Six frames of brisk motion at 60 Hz (the flap's dynamics are active from frame 1).
+fn motion() -> Motion {
+    fast_motion(
+        &performer().skeleton,
+        &FastMotionParams {
+            duration_s: 0.5,
+            ramp_s: 0.05,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+fn intrinsics() -> Intrinsics {
+    Intrinsics::from_horizontal_fov(0.7, 96, 128).unwrap()
+}
+
+fn rig(n: usize) -> Rig {
+    Rig::ring(
+        n,
+        3.5,
+        1.0,
+        DVec3::new(0.0, 0.9, 0.0),
+        DVec3::Y,
+        intrinsics(),
+    )
+    .unwrap()
+}
+
+fn point_lights() -> Vec<Light> {
+    [
+        DVec3::new(2.0, 3.0, 2.0),
+        DVec3::new(-2.5, 1.0, 1.0),
+        DVec3::new(0.0, 2.0, -3.0),
+    ]
+    .map(|position| Light::Point {
+        position,
+        intensity: 10.0,
+    })
+    .to_vec()
+}
+
+fn shaded_spec(seed: u64) -> CaptureSpec {
+    CaptureSpec::new(rig(3))
+        .with_frame_rate_hz(60.0)
+        .with_seed(seed)
+        .with_lighting(CaptureLighting::new(point_lights()))
+        .with_noise(PixelNoise { sigma: 0.01 })
+}
+
+fn collect(c: &Capture<'_>, range: std::ops::Range<usize>) -> Vec<CaptureFrame> {
+    c.frames_in(range).collect::<Result<Vec<_>>>().unwrap()
+}
+
+#[test]
+fn truth_matches_performer_and_observations_match_truth() {
+    let p = performer();
+    let m = motion();
+    let c = Capture::new(p, &m, CaptureSpec::new(rig(4)).with_frame_rate_hz(60.0)).unwrap();
+    assert_eq!(c.frame_count(), m.frame_count());
+    let cm = c.motion().clone();
+    let mut state = DeformationState::default();
+    let mut n = 0;
+    c.for_each_frame(|f| {
+        assert_eq!(f.index, n);
+        assert!((f.time_s - n as f64 / 60.0).abs() < 1e-12);
+        let posed = p.pose(cm.frame(n), &mut state, cm.frame_time_s)?;
+        assert_eq!(
+            f.truth.posed, posed,
+            "frame {n}: truth is the performer's pose"
+        );
+        assert_eq!(f.truth.theta, cm.frame(n));
+        // Resampling at the motion's own rate keeps the poses (to rounding).
+        for (a, b) in cm.frame(n).iter().zip(m.frame(n)) {
+            assert!((a - b).abs() < 1e-9, "frame {n}: {a} vs {b}");
+        }
+        assert_eq!(f.observations.len(), 4);
+        let mesh = f.truth.true_mesh(p);
+        for (i, (o, v)) in f.observations.iter().zip(&f.truth.views).enumerate() {
+            assert_eq!(o.camera, i);
+            assert_eq!((o.width, o.height), (96, 128));
+            assert_eq!(o.mask, v.mask, "observed silhouette is the true one");
+            assert!(o.shaded.is_none());
+            assert_eq!(v.depth_m.len(), 96 * 128, "truth has depth");
+            assert_eq!(v.normal_camera.len(), 96 * 128, "truth has normals");
+            assert!(
+                v.covered_pixels > 300,
+                "camera {i} sees the body: {}",
+                v.covered_pixels
+            );
+            // The truth views are the rasteriser's render of the true mesh.
+            let direct = c.rasterizers()[i].render(&mesh, &c.spec().effective_render())?;
+            assert_eq!(&direct, v);
+        }
+        n += 1;
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(n, m.frame_count());
+}
+
+#[test]
+fn resamples_the_motion_to_the_frame_rate() {
+    let m = motion();
+    let c = Capture::new(
+        performer(),
+        &m,
+        CaptureSpec::new(rig(1)).with_frame_rate_hz(30.0),
+    )
+    .unwrap();
+    assert!((c.motion().frame_time_s - 1.0 / 30.0).abs() < 1e-15);
+    assert_eq!(
+        c.frame_count(),
+        (m.duration_s() * 30.0).floor() as usize + 1
+    );
+}
+
+#[test]
+fn identical_frames_for_one_and_two_threads() {
+    let p = performer();
+    let m = motion();
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let c = Capture::new(p, &m, shaded_spec(11)).unwrap();
+                collect(&c, 0..3)
+            })
+    };
+    let one = run(1);
+    let two = run(2);
+    assert_eq!(one.len(), 3);
+    assert!(one[2].observations[0].shaded.is_some());
+    assert_eq!(one, two);
+}
+
+#[test]
+fn any_range_streams_the_same_frames_as_a_full_run() {
+    let p = performer();
+    let m = motion();
+    let c = Capture::new(p, &m, shaded_spec(5)).unwrap();
+    let full = collect(&c, 0..c.frame_count());
+    assert_eq!(full.len(), c.frame_count());
+    let part = collect(&c, 3..5);
+    assert_eq!(part.len(), 2);
+    assert_eq!(part[0], full[3]);
+    assert_eq!(part[1], full[4]);
+    // The flap's dynamics are part of the truth: frame 4 posed from a fresh state differs.
+    let fresh = p
+        .pose(m.frame(4), &mut DeformationState::default(), m.frame_time_s)
+        .unwrap();
+    assert_ne!(fresh.true_vertices, full[4].truth.posed.true_vertices);
+    // Ranges past the end are clipped.
+    assert_eq!(c.frames_in(4..1000).count(), c.frame_count() - 4);
+    assert_eq!(c.frames_in(1000..2000).count(), 0);
+}
+
+#[test]
+fn noise_is_seeded_zero_mean_with_the_requested_sigma() {
+    let p = performer();
+    let m = motion();
+    let frame = |spec: CaptureSpec| {
+        let c = Capture::new(p, &m, spec).unwrap();
+        c.frames_in(2..3).next().unwrap().unwrap()
+    };
+    let clean = {
+        let mut s = shaded_spec(1);
+        s.noise = None;
+        frame(s)
+    };
+    let a = frame(shaded_spec(1));
+    let b = frame(shaded_spec(1));
+    let other = frame(shaded_spec(2));
+    assert_eq!(a, b, "same seed, same frame");
+    for cam in 0..3 {
+        let img = |f: &CaptureFrame| f.observations[cam].shaded.clone().unwrap().radiance;
+        let (c0, a0, o0) = (img(&clean), img(&a), img(&other));
+        assert_ne!(a0, o0, "another seed, other noise");
+        let d: Vec<f64> = a0
+            .iter()
+            .zip(&c0)
+            .flat_map(|(x, y)| (0..3).map(move |k| f64::from(x[k] - y[k])))
+            .collect();
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n;
+        let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+        // 36,864 deviates: the mean is within 5 standard errors, the sd within 3 %.
+        assert!(
+            mean.abs() < 5.0 * 0.01 / n.sqrt(),
+            "camera {cam}: mean {mean}"
+        );
+        assert!((sd / 0.01 - 1.0).abs() < 0.03, "camera {cam}: sd {sd}");
+        // Different cameras of one frame get unrelated noise.
+        if cam > 0 {
+            let prev = a.observations[cam - 1].shaded.as_ref().unwrap();
+            let prev_clean = clean.observations[cam - 1].shaded.as_ref().unwrap();
+            let e0 = a0[0][0] - c0[0][0];
+            let e1 = prev.radiance[0][0] - prev_clean.radiance[0][0];
+            assert_ne!(e0, e1);
+        }
+    }
+}
+
+#[test]
+fn shaded_images_are_lit_on_the_body_only() {
+    let p = performer();
+    let m = motion();
+    let mut spec = shaded_spec(0);
+    spec.noise = None;
+    let c = Capture::new(p, &m, spec).unwrap();
+    let f = c.frames().next().unwrap().unwrap();
+    for o in &f.observations {
+        let s = o.shaded.as_ref().unwrap();
+        let lit = s
+            .radiance
+            .iter()
+            .zip(&o.mask)
+            .filter(|(r, &m)| m == 1 && r[0] > 0.0)
+            .count();
+        let covered = o.mask.iter().filter(|&&m| m == 1).count();
+        assert!(
+            lit * 2 > covered,
+            "most of the body is lit: {lit} of {covered}"
+        );
+        assert!(s
+            .radiance
+            .iter()
+            .zip(&o.mask)
+            .all(|(r, &m)| m == 1 || *r == [0.0; 3]));
+    }
+}
+
+fn err_of(spec: CaptureSpec) -> Error {
+    let m = motion();
+    match Capture::new(performer(), &m, spec) {
+        Err(e) => e,
+        Ok(c) => c
+            .frames()
+            .find_map(|f| f.err())
+            .expect("the capture should fail"),
+    }
+}
+
+#[test]
+fn camera_inside_the_body_is_named() {
+    let mut r = rig(3);
+    // Inside the torso, looking forward.
+    r.cameras[1] = Camera::look_at(
+        intrinsics(),
+        DVec3::new(0.0, 1.2, 0.0),
+        DVec3::new(0.0, 1.2, 1.0),
+        DVec3::Y,
+    )
+    .unwrap();
+    let e = err_of(CaptureSpec::new(r));
+    match &e {
+        Error::InvalidParam {
+            name: "rig",
+            reason,
+        } => {
+            assert!(
+                reason.contains("camera 1") && reason.contains("inside"),
+                "{e}"
+            )
+        }
+        _ => panic!("unexpected error {e}"),
+    }
+    // The iterator stops after the error.
+    let mut r = rig(2);
+    r.cameras[0] = Camera::look_at(
+        intrinsics(),
+        DVec3::new(0.0, 1.2, 0.0),
+        DVec3::new(0.0, 1.2, 1.0),
+        DVec3::Y,
+    )
+    .unwrap();
+    let m = motion();
+    let c = Capture::new(performer(), &m, CaptureSpec::new(r)).unwrap();
+    let mut it = c.frames();
+    assert!(it.next().unwrap().is_err());
+    assert!(it.next().is_none());
+}
+
+#[test]
+fn camera_seeing_nothing_is_named() {
+    let mut r = rig(3);
+    // Outside, looking away from the performer.
+    r.cameras[2] = Camera::look_at(
+        intrinsics(),
+        DVec3::new(0.0, 1.0, 4.0),
+        DVec3::new(0.0, 1.0, 8.0),
+        DVec3::Y,
+    )
+    .unwrap();
+    let e = err_of(CaptureSpec::new(r.clone()));
+    match &e {
+        Error::NotVisible { what } => {
+            assert!(what.contains("camera 2") && what.contains("frame 0"), "{e}")
+        }
+        _ => panic!("unexpected error {e}"),
+    }
+    // Accepted when empty views are allowed.
+    let m = motion();
+    let spec = CaptureSpec::new(r).with_render(RenderParams::default().with_allow_empty(true));
+    let c = Capture::new(performer(), &m, spec).unwrap();
+    let f = c.frames().next().unwrap().unwrap();
+    assert!(f.observations[2].mask.iter().all(|&v| v == 0));
+}
+
+#[test]
+fn light_inside_the_body_is_rejected() {
+    let mut lights = point_lights();
+    lights.push(Light::Point {
+        position: DVec3::new(0.0, 1.2, 0.0),
+        intensity: 1.0,
+    });
+    let e = err_of(CaptureSpec::new(rig(2)).with_lighting(CaptureLighting::new(lights)));
+    assert!(
+        matches!(&e, Error::InvalidParam { name: "lights", reason } if reason.contains("light 3")),
+        "{e}"
+    );
+}
+
+#[test]
+fn bad_specs_and_motions_are_errors() {
+    let p = performer();
+    let m = motion();
+    let e = |spec: CaptureSpec| Capture::new(p, &m, spec).unwrap_err();
+    assert!(matches!(
+        e(CaptureSpec::new(Rig::default())),
+        Error::Empty { .. }
+    ));
+    for hz in [0.0, -30.0, f64::NAN, f64::INFINITY] {
+        assert!(matches!(
+            e(CaptureSpec::new(rig(1)).with_frame_rate_hz(hz)),
+            Error::InvalidParam {
+                name: "frame_rate_hz",
+                ..
+            }
+        ));
+    }
+    assert!(matches!(
+        e(CaptureSpec::new(rig(1)).with_lighting(CaptureLighting::new(vec![]))),
+        Error::Empty { .. }
+    ));
+    let mut l = CaptureLighting::new(point_lights());
+    l.albedo = [0.5, f32::NAN, 0.5];
+    assert!(matches!(
+        e(CaptureSpec::new(rig(1)).with_lighting(l)),
+        Error::InvalidParam { name: "albedo", .. }
+    ));
+    let mut l = CaptureLighting::new(point_lights());
+    l.shadow_bias_m = -1.0;
+    assert!(matches!(
+        e(CaptureSpec::new(rig(1)).with_lighting(l)),
+        Error::InvalidParam { .. }
+    ));
+    assert!(matches!(
+        e(CaptureSpec::new(rig(1)).with_noise(PixelNoise { sigma: -0.1 })),
+        Error::InvalidParam { .. }
+    ));
+    let bad_light = Light::Point {
+        position: DVec3::new(f64::NAN, 0.0, 0.0),
+        intensity: 1.0,
+    };
+    assert!(Capture::new(
+        p,
+        &m,
+        CaptureSpec::new(rig(1)).with_lighting(CaptureLighting::new(vec![bad_light]))
+    )
+    .is_err());
+    // A motion of another skeleton.
+    let wrong = Motion::new(1.0 / 30.0, nalgebra::DMatrix::zeros(3, 4)).unwrap();
+    assert!(matches!(
+        Capture::new(p, &wrong, CaptureSpec::new(rig(1))).unwrap_err(),
+        Error::SizeMismatch { .. }
+    ));
+    let empty = Motion::new(
+        1.0 / 30.0,
+        nalgebra::DMatrix::zeros(p.skeleton.dof_count(), 0),
+    )
+    .unwrap();
+    assert!(matches!(
+        Capture::new(p, &empty, CaptureSpec::new(rig(1))).unwrap_err(),
+        Error::Empty { .. }
+    ));
+}
