@@ -14,3 +14,10 @@
 pub mod error;
 
 pub use error::{Error, Result};
+pub mod nrbf;
+pub mod params;
+pub mod prototypes;
+
+pub use nrbf::{Nrbf, NrbfFit};
+pub use params::ReconstructionParams;
+pub use prototypes::{NeedleObservations, PrototypeLocations, PrototypeShapes};

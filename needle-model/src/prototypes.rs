@@ -1,0 +1,545 @@
+//! Prototype locations and shapes: Sand, McMillan and Popović 2003 §5.2–5.3 (thesis §5.2–5.3).
+//!
+//! * **Locations (§5.2).** The first prototype is a random observed configuration point; each
+//!   further prototype is the observed point farthest (Euclidean) from all prototypes chosen so
+//!   far ([`farthest_point_prototypes`]). Unlike clustering or random sampling this also places
+//!   prototypes where the data is sparse.
+//! * **Shapes (§5.3).** For needle `j` with `m_j` observations and prototype `k`, take the
+//!   `n = F_near · m_j` observations of that needle whose configuration points are nearest to
+//!   `p_k`, and use their `F_min` percentile length as `v_jk` (the "robust minimum":
+//!   silhouettes only overestimate, §5). Selecting a fraction rather than a radius borrows from
+//!   other poses where data is sparse — the paper's hole filling across configuration space.
+//!   Needles that have *no* observation at all are filled from neighbouring needles on the
+//!   primitive ([`prototype_shapes`]); see its docs.
+//!
+//! Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
+//! sample), observations are grouped per needle in [`NeedleObservations`].
+
+use std::num::NonZeroUsize;
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rand::{Rng, RngExt};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::params::ReconstructionParams;
+use crate::{Error, Result};
+
+/// Largest configuration-space dimension supported by the kd-tree search (Sand's Table 1 has
+/// at most 9).
+pub const MAX_CONFIG_DIM: usize = 16;
+
+/// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
+/// non-empty, all finite. Returns the number of samples.
+pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
+    if dim == 0 || dim > MAX_CONFIG_DIM {
+        return Err(Error::InvalidParam {
+            name: "dim",
+            reason: format!("configuration dimension must be in 1..={MAX_CONFIG_DIM}, got {dim}"),
+        });
+    }
+    if samples.is_empty() {
+        return Err(Error::Empty {
+            what: "configuration samples",
+        });
+    }
+    if samples.len() % dim != 0 {
+        return Err(Error::SizeMismatch {
+            what: "configuration samples (length must be a multiple of dim)",
+            expected: samples.len().div_ceil(dim) * dim,
+            got: samples.len(),
+        });
+    }
+    if samples.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "configuration samples",
+        });
+    }
+    Ok(samples.len() / dim)
+}
+
+#[inline]
+fn dist2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// Prototype locations chosen by farthest-point selection (§5.2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PrototypeLocations {
+    /// Indices of the chosen samples, in selection order (the first is the random start).
+    pub sample_indices: Vec<usize>,
+    /// Chosen configuration points, row-major `sample_indices.len() × dim`.
+    pub points: Vec<f32>,
+    /// Configuration-space dimension.
+    pub dim: usize,
+    /// Covering radius: the largest distance from any sample to its nearest prototype
+    /// (configuration-space units). Zero when every distinct sample is a prototype.
+    pub covering_radius: f32,
+}
+
+/// Farthest-point prototype selection (Sand 2003 §5.2): exact, `O(n · S · dim)`, parallel over
+/// samples. Ties go to the lowest sample index, so the result does not depend on the thread
+/// count.
+///
+/// `samples` holds `S` configuration points as rows of length `dim`. Selection stops early
+/// (with fewer than `n` prototypes) when every sample coincides with a prototype.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for `dim ∉ 1..=16` or `n = 0`; [`Error::Empty`] for no samples;
+/// [`Error::SizeMismatch`] if `samples.len()` is not a multiple of `dim`;
+/// [`Error::NonFinite`] for NaN/∞ coordinates.
+///
+/// # Example
+/// ```
+/// use needle_model::prototypes::farthest_point_prototypes;
+/// use rand::SeedableRng;
+/// let samples = [0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+/// let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+/// let protos = farthest_point_prototypes(&samples, 2, 4, &mut rng)?;
+/// assert_eq!(protos.sample_indices.len(), 4);
+/// assert_eq!(protos.covering_radius, 0.0);
+/// # Ok::<(), needle_model::Error>(())
+/// ```
+pub fn farthest_point_prototypes<R: Rng + ?Sized>(
+    samples: &[f32],
+    dim: usize,
+    n: usize,
+    rng: &mut R,
+) -> Result<PrototypeLocations> {
+    let count = check_samples(samples, dim)?;
+    if n == 0 {
+        return Err(Error::InvalidParam {
+            name: "prototype_count_n",
+            reason: "must be at least 1".into(),
+        });
+    }
+    let first = rng.random_range(0..count);
+    let mut chosen = vec![first];
+    let mut min_d2: Vec<f32> = vec![f32::INFINITY; count];
+    const CHUNK: usize = 4096;
+    loop {
+        let last = *chosen.last().expect("chosen starts non-empty"); // pushed above
+        let p = &samples[last * dim..(last + 1) * dim];
+        // Update distances to the newest prototype and find the farthest sample (lowest
+        // index on ties) in one parallel pass.
+        let (best_d2, best_i) = min_d2
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, chunk)| {
+                let mut best = (-1.0f32, usize::MAX);
+                for (o, d) in chunk.iter_mut().enumerate() {
+                    let i = c * CHUNK + o;
+                    let nd = dist2(&samples[i * dim..(i + 1) * dim], p);
+                    if nd < *d {
+                        *d = nd;
+                    }
+                    if *d > best.0 {
+                        best = (*d, i);
+                    }
+                }
+                best
+            })
+            .reduce(
+                || (-1.0f32, usize::MAX),
+                |a, b| {
+                    if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
+                        b
+                    } else {
+                        a
+                    }
+                },
+            );
+        if chosen.len() == n || best_d2 <= 0.0 {
+            let covering_radius = best_d2.max(0.0).sqrt();
+            let points = chosen
+                .iter()
+                .flat_map(|&i| samples[i * dim..(i + 1) * dim].iter().copied())
+                .collect();
+            return Ok(PrototypeLocations {
+                sample_indices: chosen,
+                points,
+                dim,
+                covering_radius,
+            });
+        }
+        chosen.push(best_i);
+    }
+}
+
+/// Needle observations of one primitive grouped by needle (compressed rows): for needle `j`,
+/// the sample (row of the configuration array) each length was observed in, and the length.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct NeedleObservations {
+    offsets: Vec<usize>,
+    samples: Vec<u32>,
+    lengths: Vec<f32>,
+}
+
+impl NeedleObservations {
+    /// Builds from one list of `(sample index, length)` per needle.
+    pub fn from_per_needle(per_needle: &[Vec<(u32, f32)>]) -> Self {
+        let mut offsets = Vec::with_capacity(per_needle.len() + 1);
+        offsets.push(0);
+        let total: usize = per_needle.iter().map(Vec::len).sum();
+        let mut samples = Vec::with_capacity(total);
+        let mut lengths = Vec::with_capacity(total);
+        for list in per_needle {
+            for &(s, l) in list {
+                samples.push(s);
+                lengths.push(l);
+            }
+            offsets.push(samples.len());
+        }
+        Self {
+            offsets,
+            samples,
+            lengths,
+        }
+    }
+
+    /// Builds from `(sample, needle, length)` triplets in any order (e.g. an observation
+    /// store grouped by sample) with a two-pass counting sort; the iterator is walked twice.
+    /// Within a needle the order of the input is kept.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if a needle index is `≥ num_needles`.
+    pub fn from_triplets<I>(num_needles: usize, triplets: I) -> Result<Self>
+    where
+        I: IntoIterator<Item = (u32, u16, f32)> + Clone,
+    {
+        let mut counts = vec![0usize; num_needles + 1];
+        for (_, j, _) in triplets.clone() {
+            let j = j as usize;
+            if j >= num_needles {
+                return Err(Error::SizeMismatch {
+                    what: "needle index in observations (must be < number of needles)",
+                    expected: num_needles,
+                    got: j,
+                });
+            }
+            counts[j + 1] += 1;
+        }
+        for j in 0..num_needles {
+            counts[j + 1] += counts[j];
+        }
+        let total = counts[num_needles];
+        let mut cursor = counts.clone();
+        let mut samples = vec![0u32; total];
+        let mut lengths = vec![0f32; total];
+        for (s, j, l) in triplets {
+            let c = &mut cursor[j as usize];
+            samples[*c] = s;
+            lengths[*c] = l;
+            *c += 1;
+        }
+        Ok(Self {
+            offsets: counts,
+            samples,
+            lengths,
+        })
+    }
+
+    /// Number of needles.
+    pub fn num_needles(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// Total number of observations.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// True if there is no observation at all.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// Sample indices and lengths of needle `j` (empty slices if `j` is out of range).
+    pub fn needle(&self, j: usize) -> (&[u32], &[f32]) {
+        if j + 1 >= self.offsets.len() {
+            return (&[], &[]);
+        }
+        let r = self.offsets[j]..self.offsets[j + 1];
+        (&self.samples[r.clone()], &self.lengths[r])
+    }
+}
+
+/// Prototype shapes `v_jk` (§5.3) of one primitive.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PrototypeShapes {
+    /// Number of needles `J`.
+    pub num_needles: usize,
+    /// Number of prototypes `N`.
+    pub num_prototypes: usize,
+    /// Lengths, prototype-major: `lengths[k * J + j]` is needle `j` in prototype `k`
+    /// (same unit as the observed lengths).
+    pub lengths: Vec<f32>,
+    /// Needles that had no observation and were filled from neighbouring needles.
+    pub filled_needles: Vec<u32>,
+}
+
+impl PrototypeShapes {
+    /// The needle lengths of prototype `k` (panics if `k ≥ num_prototypes`, like slicing).
+    pub fn shape(&self, k: usize) -> &[f32] {
+        &self.lengths[k * self.num_needles..(k + 1) * self.num_needles]
+    }
+}
+
+/// Number of nearest observations used for a needle with `m` observations (§5.3):
+/// `n = round(F_near · m)` clamped to `1..=m`.
+pub fn near_count(m: usize, f_near: f64) -> usize {
+    ((f_near * m as f64).round() as usize).clamp(1, m.max(1))
+}
+
+/// Index of the `F_min` percentile in `n` sorted values: `round(F_min · (n − 1))`.
+pub fn percentile_index(n: usize, f_min: f64) -> usize {
+    ((f_min * (n.saturating_sub(1)) as f64).round() as usize).min(n.saturating_sub(1))
+}
+
+/// `F_min` percentile of `values` (reordered in place); `values` must be non-empty.
+fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
+    let idx = percentile_index(values.len(), f_min);
+    *values.select_nth_unstable_by(idx, f32::total_cmp).1
+}
+
+/// Prototype shapes by the robust minimum of nearby observations (Sand 2003 §5.3).
+///
+/// * `samples`: configuration points, `S × dim` row-major.
+/// * `observations`: per-needle observations indexing rows of `samples`.
+/// * `prototype_points`: prototype locations `N × dim` (e.g. [`PrototypeLocations::points`]).
+/// * `adjacency`: neighbouring needles of each needle on the primitive (ring and axial grid),
+///   used only to fill needles without any observation; must have one entry per needle.
+///
+/// For each observed needle a kd-tree (kiddo) over its observations' configuration points
+/// answers one `F_near·m`-nearest query per prototype; the `F_min` percentile is found with
+/// `select_nth_unstable`. Needles run in parallel. Cost `O(Σ_j m_j log m_j + N·J·(log m + n))`.
+///
+/// **Hole filling for unobserved needles.** The paper's fraction rule fills holes in
+/// configuration space, but a needle that was never observed (e.g. always perpendicular to
+/// the image plane) has nothing to borrow. We fill it per prototype with the mean of its
+/// already-known neighbours' lengths, in breadth-first rounds (each round uses only needles
+/// known before the round, so the result does not depend on order): neighbouring needles
+/// describe nearby surface, and the mean is the smooth choice for a surface that is already
+/// a robust-minimum estimate.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for invalid `params` or `dim`; [`Error::SizeMismatch`] for a
+/// `prototype_points` length not a multiple of `dim`, an adjacency of wrong length, or an
+/// out-of-range sample/needle index; [`Error::NonFinite`] for NaN/∞ coordinates or lengths;
+/// [`Error::Empty`] for no samples or prototypes; [`Error::NoObservations`] when a needle has
+/// no observation and no observed needle is reachable through `adjacency`.
+pub fn prototype_shapes(
+    samples: &[f32],
+    dim: usize,
+    observations: &NeedleObservations,
+    prototype_points: &[f32],
+    adjacency: &[Vec<u16>],
+    params: &ReconstructionParams,
+) -> Result<PrototypeShapes> {
+    params.validate()?;
+    let count = check_samples(samples, dim)?;
+    if prototype_points.is_empty() {
+        return Err(Error::Empty {
+            what: "prototype locations",
+        });
+    }
+    if prototype_points.len() % dim != 0 {
+        return Err(Error::SizeMismatch {
+            what: "prototype locations (length must be a multiple of dim)",
+            expected: prototype_points.len().div_ceil(dim) * dim,
+            got: prototype_points.len(),
+        });
+    }
+    if prototype_points.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "prototype locations",
+        });
+    }
+    let num_needles = observations.num_needles();
+    if num_needles == 0 {
+        return Err(Error::Empty { what: "needles" });
+    }
+    if adjacency.len() != num_needles {
+        return Err(Error::SizeMismatch {
+            what: "needle adjacency (one list per needle)",
+            expected: num_needles,
+            got: adjacency.len(),
+        });
+    }
+    if let Some(&bad) = adjacency.iter().flatten().find(|&&n| n as usize >= num_needles) {
+        return Err(Error::SizeMismatch {
+            what: "neighbour index in needle adjacency (must be < number of needles)",
+            expected: num_needles,
+            got: bad as usize,
+        });
+    }
+    if let Some(&bad) = observations.samples.iter().find(|&&s| s as usize >= count) {
+        return Err(Error::SizeMismatch {
+            what: "sample index in observations (must be < number of samples)",
+            expected: count,
+            got: bad as usize,
+        });
+    }
+    if observations.lengths.iter().any(|l| !l.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "observed needle lengths",
+        });
+    }
+    let num_protos = prototype_points.len() / dim;
+
+    // Per needle: Some(N lengths) or None when unobserved.
+    let per_needle: Vec<Option<Vec<f32>>> = (0..num_needles)
+        .into_par_iter()
+        .map(|j| {
+            let (s, l) = observations.needle(j);
+            if s.is_empty() {
+                None
+            } else {
+                Some(needle_prototype_lengths(
+                    samples,
+                    dim,
+                    s,
+                    l,
+                    prototype_points,
+                    params,
+                ))
+            }
+        })
+        .collect();
+
+    let mut lengths = vec![0f32; num_protos * num_needles];
+    let mut known = vec![false; num_needles];
+    for (j, v) in per_needle.iter().enumerate() {
+        if let Some(v) = v {
+            known[j] = true;
+            for (k, &x) in v.iter().enumerate() {
+                lengths[k * num_needles + j] = x;
+            }
+        }
+    }
+    let mut filled_needles = Vec::new();
+    loop {
+        let round: Vec<usize> = (0..num_needles)
+            .filter(|&j| !known[j] && adjacency[j].iter().any(|&n| known[n as usize]))
+            .collect();
+        if round.is_empty() {
+            break;
+        }
+        let mut updates = Vec::with_capacity(round.len());
+        for &j in &round {
+            let nbrs: Vec<usize> = adjacency[j]
+                .iter()
+                .map(|&n| n as usize)
+                .filter(|&n| known[n])
+                .collect();
+            let inv = 1.0 / nbrs.len() as f32;
+            let vals: Vec<f32> = (0..num_protos)
+                .map(|k| nbrs.iter().map(|&n| lengths[k * num_needles + n]).sum::<f32>() * inv)
+                .collect();
+            updates.push((j, vals));
+        }
+        for (j, vals) in updates {
+            for (k, x) in vals.into_iter().enumerate() {
+                lengths[k * num_needles + j] = x;
+            }
+            known[j] = true;
+            filled_needles.push(j as u32);
+        }
+    }
+    if let Some(j) = known.iter().position(|&k| !k) {
+        return Err(Error::NoObservations {
+            what: format!(
+                "needle {j}: never observed and no observed needle reachable through the adjacency"
+            ),
+        });
+    }
+    filled_needles.sort_unstable();
+    Ok(PrototypeShapes {
+        num_needles,
+        num_prototypes: num_protos,
+        lengths,
+        filled_needles,
+    })
+}
+
+/// §5.3 for one needle: the `F_min` percentile of its `F_near` nearest observations, for each
+/// prototype. Dispatches to a kd-tree of the smallest supported const dimension ≥ `dim`
+/// (zero padding keeps Euclidean distances exact).
+fn needle_prototype_lengths(
+    samples: &[f32],
+    dim: usize,
+    sample_idx: &[u32],
+    lengths: &[f32],
+    prototype_points: &[f32],
+    params: &ReconstructionParams,
+) -> Vec<f32> {
+    let m = sample_idx.len();
+    let num_protos = prototype_points.len() / dim;
+    let n = near_count(m, params.f_near);
+    if n == m {
+        // Every observation is "near" every prototype: a static estimate.
+        let mut buf = lengths.to_vec();
+        return vec![robust_minimum(&mut buf, params.f_min); num_protos];
+    }
+    macro_rules! dispatch {
+        ($($k:literal),*) => {
+            $(if dim <= $k {
+                return lengths_kd::<$k>(samples, dim, sample_idx, lengths, prototype_points, n, params.f_min);
+            })*
+        };
+    }
+    dispatch!(1, 2, 3, 4, 6, 9, 12, 16);
+    unreachable!("dim ≤ MAX_CONFIG_DIM was checked by the caller")
+}
+
+fn pad<const K: usize>(row: &[f32]) -> [f32; K] {
+    let mut p = [0f32; K];
+    p[..row.len()].copy_from_slice(row);
+    p
+}
+
+fn lengths_kd<const K: usize>(
+    samples: &[f32],
+    dim: usize,
+    sample_idx: &[u32],
+    lengths: &[f32],
+    prototype_points: &[f32],
+    n: usize,
+    f_min: f64,
+) -> Vec<f32> {
+    let pts: Vec<[f32; K]> = sample_idx
+        .iter()
+        .map(|&s| pad::<K>(&samples[s as usize * dim..(s as usize + 1) * dim]))
+        .collect();
+    let mut buf = Vec::with_capacity(n);
+    // Tree construction only fails for more than u32::MAX points or non-finite values, both
+    // excluded by the caller (observations are indexed by u32 samples and checked finite);
+    // fall back to an exact linear scan anyway rather than panic.
+    let tree: Option<ImmutableKdTree<f32, K>> = ImmutableKdTree::new_from_slice(&pts).ok();
+    let nz = NonZeroUsize::new(n).unwrap_or(NonZeroUsize::MIN);
+    let mut dists: Vec<(f32, u32)> = Vec::new();
+    prototype_points
+        .chunks_exact(dim)
+        .map(|p| {
+            let q = pad::<K>(p);
+            buf.clear();
+            match &tree {
+                Some(tree) => {
+                    let res = tree
+                        .query(&q)
+                        .nearest_n::<SquaredEuclidean<f32>>(nz)
+                        .unsorted()
+                        .execute();
+                    buf.extend(res.iter().map(|r| lengths[r.item as usize]));
+                }
+                None => {
+                    dists.clear();
+                    dists.extend(pts.iter().enumerate().map(|(i, x)| (dist2(x, &q), i as u32)));
+                    dists.select_nth_unstable_by(n - 1, |a, b| a.0.total_cmp(&b.0));
+                    buf.extend(dists[..n].iter().map(|&(_, i)| lengths[i as usize]));
+                }
+            }
+            robust_minimum(&mut buf, f_min)
+        })
+        .collect()
+}
