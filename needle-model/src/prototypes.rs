@@ -543,3 +543,254 @@ fn lengths_kd<const K: usize>(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
+        (0..count * dim)
+            .map(|_| rng.random_range(-1.0f32..1.0))
+            .collect()
+    }
+
+    fn covering_radius(samples: &[f32], dim: usize, chosen: &[usize]) -> f32 {
+        samples
+            .chunks_exact(dim)
+            .map(|x| {
+                chosen
+                    .iter()
+                    .map(|&c| dist2(x, &samples[c * dim..(c + 1) * dim]))
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .fold(0.0, f32::max)
+            .sqrt()
+    }
+
+    #[test]
+    fn farthest_point_is_greedy_and_spreads_better_than_random() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // Clustered data: a dense blob plus a sparse shell, as in Sand's Figure 7.
+        let dim = 3;
+        let mut samples = uniform_points(&mut rng, 3000, dim);
+        samples.iter_mut().for_each(|v| *v *= 0.2);
+        samples.extend(uniform_points(&mut rng, 300, dim));
+        let n = 40;
+        let locs = farthest_point_prototypes(&samples, dim, n, &mut rng).unwrap();
+        assert_eq!(locs.sample_indices.len(), n);
+        assert_eq!(locs.points.len(), n * dim);
+        let mut sorted = locs.sample_indices.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), n, "prototypes must be distinct samples");
+        // Greedy property: each new prototype maximises the distance to the previous ones.
+        for k in 1..n {
+            let prev = &locs.sample_indices[..k];
+            let r = covering_radius(&samples, dim, prev);
+            let i = locs.sample_indices[k];
+            let di = prev
+                .iter()
+                .map(|&c| dist2(&samples[i * dim..(i + 1) * dim], &samples[c * dim..(c + 1) * dim]))
+                .fold(f32::INFINITY, f32::min)
+                .sqrt();
+            assert!((di - r).abs() <= 1e-5 * r.max(1.0), "step {k}: {di} vs {r}");
+        }
+        let exact = covering_radius(&samples, dim, &locs.sample_indices);
+        assert!((exact - locs.covering_radius).abs() < 1e-5);
+        // Random selection of the same size covers worse (mean over several draws).
+        let mut random_mean = 0.0;
+        for _ in 0..10 {
+            let idx: Vec<usize> = (0..n).map(|_| rng.random_range(0..3300)).collect();
+            random_mean += covering_radius(&samples, dim, &idx) / 10.0;
+        }
+        assert!(
+            locs.covering_radius < 0.7 * random_mean,
+            "farthest point {} vs random {}",
+            locs.covering_radius,
+            random_mean
+        );
+    }
+
+    #[test]
+    fn farthest_point_stops_when_all_samples_are_prototypes() {
+        let samples = [0.0f32, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0];
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let locs = farthest_point_prototypes(&samples, 2, 10, &mut rng).unwrap();
+        assert_eq!(locs.sample_indices.len(), 2);
+        assert_eq!(locs.covering_radius, 0.0);
+    }
+
+    #[test]
+    fn farthest_point_rejects_bad_input() {
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let f = |s: &[f32], d, n, rng: &mut ChaCha8Rng| farthest_point_prototypes(s, d, n, rng);
+        assert!(matches!(f(&[], 2, 3, &mut rng), Err(Error::Empty { .. })));
+        assert!(matches!(
+            f(&[1.0, 2.0, 3.0], 2, 3, &mut rng),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, f32::NAN], 2, 3, &mut rng),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, 2.0], 0, 3, &mut rng),
+            Err(Error::InvalidParam { name: "dim", .. })
+        ));
+        assert!(matches!(
+            f(&[0.0; 17], 17, 3, &mut rng),
+            Err(Error::InvalidParam { name: "dim", .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, 2.0], 2, 0, &mut rng),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    #[test]
+    fn triplets_and_per_needle_agree() {
+        let per_needle = vec![vec![(0u32, 1.0f32), (2, 1.5)], vec![], vec![(1, 2.0)]];
+        let a = NeedleObservations::from_per_needle(&per_needle);
+        let trip = [(0u32, 0u16, 1.0f32), (1, 2, 2.0), (2, 0, 1.5)];
+        let b = NeedleObservations::from_triplets(3, trip.iter().copied()).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.len(), 3);
+        assert_eq!(a.needle(1), (&[][..], &[][..]));
+        assert_eq!(a.needle(7), (&[][..], &[][..]));
+        assert!(matches!(
+            NeedleObservations::from_triplets(2, trip.iter().copied()),
+            Err(Error::SizeMismatch { .. })
+        ));
+    }
+
+    /// Brute force §5.3 for one needle and prototype.
+    fn brute(samples: &[f32], dim: usize, s: &[u32], l: &[f32], p: &[f32], pr: &ReconstructionParams) -> f32 {
+        let mut d: Vec<(f32, f32)> = s
+            .iter()
+            .zip(l)
+            .map(|(&i, &len)| (dist2(&samples[i as usize * dim..(i as usize + 1) * dim], p), len))
+            .collect();
+        d.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = near_count(s.len(), pr.f_near);
+        let mut near: Vec<f32> = d[..n].iter().map(|x| x.1).collect();
+        near.sort_by(f32::total_cmp);
+        near[percentile_index(n, pr.f_min)]
+    }
+
+    #[test]
+    fn shapes_match_brute_force_in_every_dispatched_dimension() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for dim in [1usize, 2, 3, 5, 6, 9, 11, 16] {
+            let count = 600;
+            let samples = uniform_points(&mut rng, count, dim);
+            let per_needle: Vec<Vec<(u32, f32)>> = (0..4)
+                .map(|_| {
+                    let mut v = Vec::new();
+                    for s in 0..count as u32 {
+                        if rng.random_range(0.0f32..1.0) < 0.6 {
+                            v.push((s, rng.random_range(0.5f32..2.0)));
+                        }
+                    }
+                    v
+                })
+                .collect();
+            let obs = NeedleObservations::from_per_needle(&per_needle);
+            let params = ReconstructionParams::default().with_f_near(0.05).with_f_min(0.2);
+            let locs = farthest_point_prototypes(&samples, dim, 7, &mut rng).unwrap();
+            let adj = vec![vec![]; 4];
+            let shapes = prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
+            for k in 0..7 {
+                for j in 0..4 {
+                    let (s, l) = obs.needle(j);
+                    let p = &locs.points[k * dim..(k + 1) * dim];
+                    assert_eq!(shapes.shape(k)[j], brute(&samples, dim, s, l, p, &params), "dim {dim}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn unobserved_needles_are_filled_from_neighbours() {
+        // A ring of 6 needles; needles 2 and 3 are never observed.
+        let samples = [0.0f32, 1.0, 2.0, 3.0];
+        let per_needle: Vec<Vec<(u32, f32)>> = (0..6)
+            .map(|j| {
+                if j == 2 || j == 3 {
+                    vec![]
+                } else {
+                    (0..4u32).map(|s| (s, j as f32 + 1.0)).collect()
+                }
+            })
+            .collect();
+        let obs = NeedleObservations::from_per_needle(&per_needle);
+        let adj: Vec<Vec<u16>> = (0..6u16).map(|j| vec![(j + 5) % 6, (j + 1) % 6]).collect();
+        let params = ReconstructionParams::default().with_f_near(0.5).with_f_min(0.0);
+        let shapes = prototype_shapes(&samples, 1, &obs, &[0.0, 3.0], &adj, &params).unwrap();
+        assert_eq!(shapes.filled_needles, vec![2, 3]);
+        for k in 0..2 {
+            let s = shapes.shape(k);
+            assert_eq!(s[2], 2.0, "needle 2 = its observed neighbour 1 (length 2)");
+            assert_eq!(s[3], 5.0, "needle 3 = its observed neighbour 4 (length 5)");
+        }
+        // With needles 2..=4 unobserved, needle 3 is filled in a second round from 2 and 4.
+        let mut per2 = per_needle.clone();
+        per2[4].clear();
+        let obs2 = NeedleObservations::from_per_needle(&per2);
+        let shapes = prototype_shapes(&samples, 1, &obs2, &[0.0], &adj, &params).unwrap();
+        assert_eq!(shapes.shape(0)[2], 2.0);
+        assert_eq!(shapes.shape(0)[4], 6.0);
+        assert_eq!(shapes.shape(0)[3], 4.0);
+        // No neighbours: a clear error.
+        let no_adj = vec![vec![]; 6];
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &obs, &[0.0], &no_adj, &params),
+            Err(Error::NoObservations { .. })
+        ));
+    }
+
+    #[test]
+    fn shapes_reject_bad_input() {
+        let samples = [0.0f32, 1.0];
+        let p = ReconstructionParams::default();
+        let ok = NeedleObservations::from_per_needle(&[vec![(0, 1.0)]]);
+        let adj = vec![vec![]];
+        let bad_idx = NeedleObservations::from_per_needle(&[vec![(5, 1.0)]]);
+        let nan = NeedleObservations::from_per_needle(&[vec![(0, f32::NAN)]]);
+        assert!(prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p).is_ok());
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &bad_idx, &[0.0], &adj, &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &nan, &[0.0], &adj, &p),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[f32::NAN], &adj, &p),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[], &adj, &p),
+            Err(Error::Empty { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &[], &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &[vec![3]], &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p.with_f_near(2.0)),
+            Err(Error::InvalidParam { name: "f_near", .. })
+        ));
+        let none = NeedleObservations::from_per_needle(&[]);
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &none, &[0.0], &[], &p),
+            Err(Error::Empty { .. })
+        ));
+    }
+}
