@@ -159,12 +159,17 @@ mod tests {
         }
         // Boundaries that are valid.
         d.with_f_near(1.0).with_f_min(0.0).validate().unwrap();
-        d.with_f_min(1.0).with_prototype_count_n(1).validate().unwrap();
+        d.with_f_min(1.0)
+            .with_prototype_count_n(1)
+            .validate()
+            .unwrap();
     }
 
     #[test]
     fn serde_round_trip() {
-        let p = ReconstructionParams::default().with_f_near(0.05).with_seed(9);
+        let p = ReconstructionParams::default()
+            .with_f_near(0.05)
+            .with_seed(9);
         let s = serde_json::to_string(&p).unwrap();
         let q: ReconstructionParams = serde_json::from_str(&s).unwrap();
         assert_eq!(p, q);

@@ -43,7 +43,7 @@ pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
             what: "configuration samples",
         });
     }
-    if samples.len() % dim != 0 {
+    if !samples.len().is_multiple_of(dim) {
         return Err(Error::SizeMismatch {
             what: "configuration samples (length must be a multiple of dim)",
             expected: samples.len().div_ceil(dim) * dim,
@@ -343,7 +343,7 @@ pub fn prototype_shapes(
             what: "prototype locations",
         });
     }
-    if prototype_points.len() % dim != 0 {
+    if !prototype_points.len().is_multiple_of(dim) {
         return Err(Error::SizeMismatch {
             what: "prototype locations (length must be a multiple of dim)",
             expected: prototype_points.len().div_ceil(dim) * dim,
@@ -366,7 +366,11 @@ pub fn prototype_shapes(
             got: adjacency.len(),
         });
     }
-    if let Some(&bad) = adjacency.iter().flatten().find(|&&n| n as usize >= num_needles) {
+    if let Some(&bad) = adjacency
+        .iter()
+        .flatten()
+        .find(|&&n| n as usize >= num_needles)
+    {
         return Err(Error::SizeMismatch {
             what: "neighbour index in needle adjacency (must be < number of needles)",
             expected: num_needles,
@@ -434,7 +438,12 @@ pub fn prototype_shapes(
                 .collect();
             let inv = 1.0 / nbrs.len() as f32;
             let vals: Vec<f32> = (0..num_protos)
-                .map(|k| nbrs.iter().map(|&n| lengths[k * num_needles + n]).sum::<f32>() * inv)
+                .map(|k| {
+                    nbrs.iter()
+                        .map(|&n| lengths[k * num_needles + n])
+                        .sum::<f32>()
+                        * inv
+                })
                 .collect();
             updates.push((j, vals));
         }
@@ -534,7 +543,11 @@ fn lengths_kd<const K: usize>(
                 }
                 None => {
                     dists.clear();
-                    dists.extend(pts.iter().enumerate().map(|(i, x)| (dist2(x, &q), i as u32)));
+                    dists.extend(
+                        pts.iter()
+                            .enumerate()
+                            .map(|(i, x)| (dist2(x, &q), i as u32)),
+                    );
                     dists.select_nth_unstable_by(n - 1, |a, b| a.0.total_cmp(&b.0));
                     buf.extend(dists[..n].iter().map(|&(_, i)| lengths[i as usize]));
                 }
@@ -592,7 +605,12 @@ mod tests {
             let i = locs.sample_indices[k];
             let di = prev
                 .iter()
-                .map(|&c| dist2(&samples[i * dim..(i + 1) * dim], &samples[c * dim..(c + 1) * dim]))
+                .map(|&c| {
+                    dist2(
+                        &samples[i * dim..(i + 1) * dim],
+                        &samples[c * dim..(c + 1) * dim],
+                    )
+                })
                 .fold(f32::INFINITY, f32::min)
                 .sqrt();
             assert!((di - r).abs() <= 1e-5 * r.max(1.0), "step {k}: {di} vs {r}");
@@ -666,11 +684,23 @@ mod tests {
     }
 
     /// Brute force §5.3 for one needle and prototype.
-    fn brute(samples: &[f32], dim: usize, s: &[u32], l: &[f32], p: &[f32], pr: &ReconstructionParams) -> f32 {
+    fn brute(
+        samples: &[f32],
+        dim: usize,
+        s: &[u32],
+        l: &[f32],
+        p: &[f32],
+        pr: &ReconstructionParams,
+    ) -> f32 {
         let mut d: Vec<(f32, f32)> = s
             .iter()
             .zip(l)
-            .map(|(&i, &len)| (dist2(&samples[i as usize * dim..(i as usize + 1) * dim], p), len))
+            .map(|(&i, &len)| {
+                (
+                    dist2(&samples[i as usize * dim..(i as usize + 1) * dim], p),
+                    len,
+                )
+            })
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
         let n = near_count(s.len(), pr.f_near);
@@ -697,15 +727,22 @@ mod tests {
                 })
                 .collect();
             let obs = NeedleObservations::from_per_needle(&per_needle);
-            let params = ReconstructionParams::default().with_f_near(0.05).with_f_min(0.2);
+            let params = ReconstructionParams::default()
+                .with_f_near(0.05)
+                .with_f_min(0.2);
             let locs = farthest_point_prototypes(&samples, dim, 7, &mut rng).unwrap();
             let adj = vec![vec![]; 4];
-            let shapes = prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
+            let shapes =
+                prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
             for k in 0..7 {
                 for j in 0..4 {
                     let (s, l) = obs.needle(j);
                     let p = &locs.points[k * dim..(k + 1) * dim];
-                    assert_eq!(shapes.shape(k)[j], brute(&samples, dim, s, l, p, &params), "dim {dim}");
+                    assert_eq!(
+                        shapes.shape(k)[j],
+                        brute(&samples, dim, s, l, p, &params),
+                        "dim {dim}"
+                    );
                 }
             }
         }
@@ -726,7 +763,9 @@ mod tests {
             .collect();
         let obs = NeedleObservations::from_per_needle(&per_needle);
         let adj: Vec<Vec<u16>> = (0..6u16).map(|j| vec![(j + 5) % 6, (j + 1) % 6]).collect();
-        let params = ReconstructionParams::default().with_f_near(0.5).with_f_min(0.0);
+        let params = ReconstructionParams::default()
+            .with_f_near(0.5)
+            .with_f_min(0.0);
         let shapes = prototype_shapes(&samples, 1, &obs, &[0.0, 3.0], &adj, &params).unwrap();
         assert_eq!(shapes.filled_needles, vec![2, 3]);
         for k in 0..2 {
