@@ -15,9 +15,6 @@
 //! Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
 //! sample), observations are grouped per needle in [`NeedleObservations`].
 
-use std::num::NonZeroUsize;
-
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -25,8 +22,8 @@ use serde::{Deserialize, Serialize};
 use crate::params::ReconstructionParams;
 use crate::{Error, Result};
 
-/// Largest configuration-space dimension supported by the kd-tree search (Sand's Table 1 has
-/// at most 9).
+/// Largest configuration-space dimension accepted (Sand's Table 1 has at most 9; in much
+/// higher dimensions nearest-neighbour neighbourhoods stop being local).
 pub const MAX_CONFIG_DIM: usize = 16;
 
 /// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
@@ -310,9 +307,14 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 /// * `adjacency`: neighbouring needles of each needle on the primitive (ring and axial grid),
 ///   used only to fill needles without any observation; must have one entry per needle.
 ///
-/// For each observed needle a kd-tree (kiddo) over its observations' configuration points
-/// answers one `F_near·m`-nearest query per prototype; the `F_min` percentile is found with
-/// `select_nth_unstable`. Needles run in parallel. Cost `O(Σ_j m_j log m_j + N·J·(log m + n))`.
+/// All needles of a primitive share its samples, so instead of one kd-tree per needle we sort
+/// the `S` samples by distance to each prototype once (`O(N·S log S)`, parallel over
+/// prototypes); then for needle `j` and prototype `k` the samples are walked in that order,
+/// collecting needle `j`'s observations until `n = F_near·m_j` are found, and the `F_min`
+/// percentile is taken with `select_nth_unstable`. This is exact (ties by sample index) and
+/// costs about `F_near·S` steps per (needle, prototype) whatever the configuration dimension,
+/// where a kd-tree `n`-nearest query in 6–9 dimensions visits far more points. Needles run
+/// in parallel. Total `O(N·S log S + J·S + N·J·F_near·S)`.
 ///
 /// **Hole filling for unobserved needles.** The paper's fraction rule fills holes in
 /// configuration space, but a needle that was never observed (e.g. always perpendicular to
@@ -391,21 +393,30 @@ pub fn prototype_shapes(
     }
     let num_protos = prototype_points.len() / dim;
 
+    // Every sample, in order of distance to each prototype (ties by index): O(N·S log S).
+    let order: Vec<Vec<u32>> = prototype_points
+        .par_chunks_exact(dim)
+        .map(|p| {
+            let mut d: Vec<(f32, u32)> = samples
+                .chunks_exact(dim)
+                .enumerate()
+                .map(|(i, x)| (dist2(x, p), i as u32))
+                .collect();
+            d.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            d.into_iter().map(|(_, i)| i).collect()
+        })
+        .collect();
+
     // Per needle: Some(N lengths) or None when unobserved.
     let per_needle: Vec<Option<Vec<f32>>> = (0..num_needles)
         .into_par_iter()
-        .map(|j| {
+        .map_init(Scratch::default, |scratch, j| {
             let (s, l) = observations.needle(j);
             if s.is_empty() {
                 None
             } else {
                 Some(needle_prototype_lengths(
-                    samples,
-                    dim,
-                    s,
-                    l,
-                    prototype_points,
-                    params,
+                    &order, count, s, l, params, scratch,
                 ))
             }
         })
@@ -471,88 +482,72 @@ pub fn prototype_shapes(
     })
 }
 
-/// §5.3 for one needle: the `F_min` percentile of its `F_near` nearest observations, for each
-/// prototype. Dispatches to a kd-tree of the smallest supported const dimension ≥ `dim`
-/// (zero padding keeps Euclidean distances exact).
+/// Per-thread scratch of [`needle_prototype_lengths`].
+#[derive(Default)]
+struct Scratch {
+    /// Counting-sort ends: after filling, observations of sample `s` are
+    /// `vals[ends[s-1]..ends[s]]` (`ends[-1] = 0`).
+    ends: Vec<u32>,
+    vals: Vec<f32>,
+    buf: Vec<f32>,
+}
+
+/// §5.3 for one needle: the `F_min` percentile of its `F_near·m` nearest observations, for
+/// each prototype, given every prototype's samples in order of increasing distance.
+///
+/// The needle's observations are bucketed by sample (counting sort), then for prototype `k`
+/// the samples are walked in distance order collecting this needle's observations until `n`
+/// are found. This is exactly the `n` nearest observations (ties by sample index). Expected
+/// walk length is `F_near·S` samples when the needle's visibility does not depend on pose,
+/// and at most `S`.
 fn needle_prototype_lengths(
-    samples: &[f32],
-    dim: usize,
+    order: &[Vec<u32>],
+    count: usize,
     sample_idx: &[u32],
     lengths: &[f32],
-    prototype_points: &[f32],
     params: &ReconstructionParams,
+    scratch: &mut Scratch,
 ) -> Vec<f32> {
     let m = sample_idx.len();
-    let num_protos = prototype_points.len() / dim;
     let n = near_count(m, params.f_near);
     if n == m {
         // Every observation is "near" every prototype: a static estimate.
-        let mut buf = lengths.to_vec();
-        return vec![robust_minimum(&mut buf, params.f_min); num_protos];
+        scratch.buf.clear();
+        scratch.buf.extend_from_slice(lengths);
+        return vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()];
     }
-    macro_rules! dispatch {
-        ($($k:literal),*) => {
-            $(if dim <= $k {
-                return lengths_kd::<$k>(samples, dim, sample_idx, lengths, prototype_points, n, params.f_min);
-            })*
-        };
+    let Scratch { ends, vals, buf } = scratch;
+    ends.clear();
+    ends.resize(count + 1, 0);
+    for &s in sample_idx {
+        ends[s as usize + 1] += 1;
     }
-    dispatch!(1, 2, 3, 4, 6, 9, 12, 16);
-    unreachable!("dim ≤ MAX_CONFIG_DIM was checked by the caller")
-}
-
-fn pad<const K: usize>(row: &[f32]) -> [f32; K] {
-    let mut p = [0f32; K];
-    p[..row.len()].copy_from_slice(row);
-    p
-}
-
-fn lengths_kd<const K: usize>(
-    samples: &[f32],
-    dim: usize,
-    sample_idx: &[u32],
-    lengths: &[f32],
-    prototype_points: &[f32],
-    n: usize,
-    f_min: f64,
-) -> Vec<f32> {
-    let pts: Vec<[f32; K]> = sample_idx
+    for s in 0..count {
+        ends[s + 1] += ends[s];
+    }
+    // ends[s] is now the start of sample s; filling advances it to the end of sample s.
+    vals.clear();
+    vals.resize(m, 0.0);
+    for (&s, &l) in sample_idx.iter().zip(lengths) {
+        let c = &mut ends[s as usize];
+        vals[*c as usize] = l;
+        *c += 1;
+    }
+    order
         .iter()
-        .map(|&s| pad::<K>(&samples[s as usize * dim..(s as usize + 1) * dim]))
-        .collect();
-    let mut buf = Vec::with_capacity(n);
-    // Tree construction only fails for more than u32::MAX points or non-finite values, both
-    // excluded by the caller (observations are indexed by u32 samples and checked finite);
-    // fall back to an exact linear scan anyway rather than panic.
-    let tree: Option<ImmutableKdTree<f32, K>> = ImmutableKdTree::new_from_slice(&pts).ok();
-    let nz = NonZeroUsize::new(n).unwrap_or(NonZeroUsize::MIN);
-    let mut dists: Vec<(f32, u32)> = Vec::new();
-    prototype_points
-        .chunks_exact(dim)
-        .map(|p| {
-            let q = pad::<K>(p);
+        .map(|ord| {
             buf.clear();
-            match &tree {
-                Some(tree) => {
-                    let res = tree
-                        .query(&q)
-                        .nearest_n::<SquaredEuclidean<f32>>(nz)
-                        .unsorted()
-                        .execute();
-                    buf.extend(res.iter().map(|r| lengths[r.item as usize]));
-                }
-                None => {
-                    dists.clear();
-                    dists.extend(
-                        pts.iter()
-                            .enumerate()
-                            .map(|(i, x)| (dist2(x, &q), i as u32)),
-                    );
-                    dists.select_nth_unstable_by(n - 1, |a, b| a.0.total_cmp(&b.0));
-                    buf.extend(dists[..n].iter().map(|&(_, i)| lengths[i as usize]));
+            'walk: for &s in ord {
+                let s = s as usize;
+                let start = if s == 0 { 0 } else { ends[s - 1] as usize };
+                for &v in &vals[start..ends[s] as usize] {
+                    buf.push(v);
+                    if buf.len() == n {
+                        break 'walk;
+                    }
                 }
             }
-            robust_minimum(&mut buf, f_min)
+            robust_minimum(buf, params.f_min)
         })
         .collect()
 }
@@ -710,16 +705,25 @@ mod tests {
     }
 
     #[test]
-    fn shapes_match_brute_force_in_every_dispatched_dimension() {
+    fn shapes_match_brute_force_in_any_dimension() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for dim in [1usize, 2, 3, 5, 6, 9, 11, 16] {
             let count = 600;
-            let samples = uniform_points(&mut rng, count, dim);
+            // Every configuration is shared by 3 "cameras" (exact distance ties).
+            let frames = uniform_points(&mut rng, count / 3, dim);
+            let samples: Vec<f32> = frames
+                .chunks_exact(dim)
+                .flat_map(|r| r.iter().chain(r).chain(r).copied())
+                .collect();
             let per_needle: Vec<Vec<(u32, f32)>> = (0..4)
                 .map(|_| {
                     let mut v = Vec::new();
                     for s in 0..count as u32 {
                         if rng.random_range(0.0f32..1.0) < 0.6 {
+                            v.push((s, rng.random_range(0.5f32..2.0)));
+                        }
+                        if rng.random_range(0.0f32..1.0) < 0.1 {
+                            // A second observation in the same sample.
                             v.push((s, rng.random_range(0.5f32..2.0)));
                         }
                     }
