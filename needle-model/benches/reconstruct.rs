@@ -1,0 +1,183 @@
+//! Prototype reconstruction speed (Sand 2003 §5.2–5.3, §5.5) on synthetic observation sets
+//! of the paper's size: 8 min × 30 fps × 3 cameras = 43,200 camera-frames, the 12 primitives
+//! of Sand's Table 1 (6,600 needles, configuration spaces of 3, 6 and 9 dimensions), each
+//! needle seen in 5–60 % of the camera-frames with one-sided (overestimating) noise.
+//!
+//! * `cargo bench -p needle-model --bench reconstruct` — criterion: farthest-point selection,
+//!   one full-size forearm fit (3-D, 400 needles) and batch NRBF evaluation.
+//! * `NEEDLE_FULL=1 cargo bench -p needle-model --bench reconstruct` — additionally times the
+//!   whole body once (figure `reconstruct_s_24min`, target ≤ 60 s on 2 cores) and prints one
+//!   JSON line to stdout before criterion runs.
+#![allow(missing_docs)] // criterion_group! generates an undocumented public function
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use needle_model::prototypes::{farthest_point_prototypes, NeedleObservations};
+use needle_model::{Nrbf, ReconstructionParams};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const FRAMES: usize = 14_400; // 8 min at 30 fps
+const CAMERAS: usize = 3;
+
+/// (configuration dimension, radial needles, axial needles) per primitive, Sand Table 1.
+const TABLE_1: [(usize, usize, usize); 12] = [
+    (9, 30, 30), // torso
+    (9, 30, 30), // hips
+    (6, 20, 20), // right upper arm
+    (6, 20, 20), // left upper arm
+    (3, 20, 20), // right forearm
+    (3, 20, 20), // left forearm
+    (6, 20, 30), // right thigh
+    (6, 20, 30), // left thigh
+    (6, 20, 30), // right calf
+    (6, 20, 30), // left calf
+    (3, 20, 20), // right foot
+    (3, 20, 20), // left foot
+];
+
+struct Primitive {
+    dim: usize,
+    samples: Vec<f32>,
+    observations: NeedleObservations,
+    adjacency: Vec<Vec<u16>>,
+}
+
+/// A synthetic primitive: configuration points follow a smooth multi-frequency motion (in cm,
+/// like marker coordinates in the bone frame), shared by the 3 cameras of a frame; needle
+/// lengths are a smooth function of the configuration plus one-sided noise.
+fn synthetic_primitive(dim: usize, radial: usize, axial: usize, seed: u64) -> Primitive {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let omega: Vec<f32> = (0..dim).map(|_| rng.random_range(0.2f32..1.5)).collect();
+    let phase: Vec<f32> = (0..dim).map(|_| rng.random_range(0.0f32..6.0)).collect();
+    let mut samples = Vec::with_capacity(FRAMES * CAMERAS * dim);
+    for f in 0..FRAMES {
+        let t = f as f32 / 30.0;
+        let row: Vec<f32> = (0..dim)
+            .map(|d| 10.0 * (omega[d] * t + phase[d]).sin() + rng.random_range(-0.3f32..0.3))
+            .collect();
+        for _ in 0..CAMERAS {
+            samples.extend_from_slice(&row);
+        }
+    }
+    let count = FRAMES * CAMERAS;
+    let needles = radial * axial;
+    let per_needle: Vec<Vec<(u32, f32)>> = (0..needles)
+        .map(|_| {
+            let visible = rng.random_range(0.05f32..0.6);
+            let a: Vec<f32> = (0..dim).map(|_| rng.random_range(-0.1f32..0.1)).collect();
+            let base = rng.random_range(4.0f32..8.0);
+            let mut list = Vec::with_capacity((count as f32 * visible) as usize + 16);
+            for (s, x) in samples.chunks_exact(dim).enumerate() {
+                if rng.random_range(0.0f32..1.0) < visible {
+                    let arg: f32 = x.iter().zip(&a).map(|(x, a)| x * a).sum();
+                    let u: f32 = rng.random_range(f32::EPSILON..1.0);
+                    let mut l = base + arg.sin() - 0.1 * u.ln();
+                    if rng.random_range(0.0f32..1.0) < 0.15 {
+                        l += rng.random_range(0.0f32..5.0);
+                    }
+                    list.push((s as u32, l));
+                }
+            }
+            list
+        })
+        .collect();
+    // Ring/axial grid adjacency: ring neighbours wrap, axial neighbours do not.
+    let adjacency = (0..needles)
+        .map(|j| {
+            let (ax, r) = (j / radial, j % radial);
+            let mut n = vec![
+                (ax * radial + (r + 1) % radial) as u16,
+                (ax * radial + (r + radial - 1) % radial) as u16,
+            ];
+            if ax > 0 {
+                n.push(((ax - 1) * radial + r) as u16);
+            }
+            if ax + 1 < axial {
+                n.push(((ax + 1) * radial + r) as u16);
+            }
+            n
+        })
+        .collect();
+    Primitive {
+        dim,
+        samples,
+        observations: NeedleObservations::from_per_needle(&per_needle),
+        adjacency,
+    }
+}
+
+/// Times the whole body once (generation excluded) and prints the JSON figure.
+fn full_body() {
+    let params = ReconstructionParams::default();
+    let (mut fit_s, mut obs, mut needles) = (0.0f64, 0usize, 0usize);
+    let wall = Instant::now();
+    for (i, &(dim, radial, axial)) in TABLE_1.iter().enumerate() {
+        let p = synthetic_primitive(dim, radial, axial, 100 + i as u64);
+        let t = Instant::now();
+        let fit = Nrbf::fit(&p.samples, p.dim, &p.observations, &p.adjacency, &params)
+            .expect("synthetic primitive fits");
+        let s = t.elapsed().as_secs_f64();
+        fit_s += s;
+        obs += p.observations.len();
+        needles += fit.model.num_needles();
+        eprintln!(
+            "primitive {i}: dim {dim}, {} needles, {} observations, fit {s:.2} s",
+            fit.model.num_needles(),
+            p.observations.len()
+        );
+    }
+    println!(
+        "{{\"reconstruct_s_24min\": {fit_s:.2}, \"samples\": {}, \"needles\": {needles}, \"observations\": {obs}, \"threads\": {}, \"seconds\": {:.2}}}",
+        FRAMES * CAMERAS,
+        rayon::current_num_threads(),
+        wall.elapsed().as_secs_f64()
+    );
+}
+
+fn bench(c: &mut Criterion) {
+    if std::env::var_os("NEEDLE_FULL").is_some() {
+        full_body();
+    }
+    let forearm = synthetic_primitive(3, 20, 20, 7);
+    let params = ReconstructionParams::default();
+    let mut g = c.benchmark_group("reconstruct");
+    g.sample_size(10);
+    g.bench_function("farthest_point_n100_s43200_d9", |b| {
+        let p9 = synthetic_primitive(9, 2, 2, 8);
+        b.iter(|| {
+            let mut rng = ChaCha8Rng::seed_from_u64(1);
+            farthest_point_prototypes(black_box(&p9.samples), 9, 100, &mut rng)
+        })
+    });
+    g.bench_function("fit_forearm_s43200_j400_d3", |b| {
+        b.iter(|| {
+            Nrbf::fit(
+                black_box(&forearm.samples),
+                3,
+                &forearm.observations,
+                &forearm.adjacency,
+                &params,
+            )
+        })
+    });
+    let model = Nrbf::fit(
+        &forearm.samples,
+        3,
+        &forearm.observations,
+        &forearm.adjacency,
+        &params,
+    )
+    .expect("forearm fits")
+    .model;
+    let points = &forearm.samples[..1000 * 3];
+    g.bench_function("evaluate_batch_1000_j400_n100", |b| {
+        b.iter(|| model.evaluate_batch(black_box(points)))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
