@@ -14,7 +14,10 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use needle_model::prototypes::{farthest_point_prototypes, NeedleObservations};
+use needle_model::prototypes::{
+    farthest_point_prototypes, grid_adjacency, observations_from_lists,
+};
+use needle_model::NeedleObservations;
 use needle_model::{Nrbf, ReconstructionParams};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -104,27 +107,11 @@ fn synthetic_primitive(
             list
         })
         .collect();
-    // Ring/axial grid adjacency: ring neighbours wrap, axial neighbours do not.
-    let adjacency = (0..needles)
-        .map(|j| {
-            let (ax, r) = (j / radial, j % radial);
-            let mut n = vec![
-                (ax * radial + (r + 1) % radial) as u16,
-                (ax * radial + (r + radial - 1) % radial) as u16,
-            ];
-            if ax > 0 {
-                n.push(((ax - 1) * radial + r) as u16);
-            }
-            if ax + 1 < axial {
-                n.push(((ax + 1) * radial + r) as u16);
-            }
-            n
-        })
-        .collect();
+    let adjacency = grid_adjacency(radial, axial).expect("Table 1 grids are small");
     Primitive {
         dim,
         samples,
-        observations: NeedleObservations::from_per_needle(&per_needle),
+        observations: observations_from_lists(&per_needle).unwrap(),
         adjacency,
     }
 }
@@ -140,12 +127,12 @@ fn full_body(pose_dependent: bool) -> (f64, usize) {
             .expect("synthetic primitive fits");
         let s = t.elapsed().as_secs_f64();
         fit_s += s;
-        obs += p.observations.len();
+        obs += p.observations.sample.len();
         needles += fit.model.num_needles();
         eprintln!(
             "primitive {i} (pose-dependent visibility {pose_dependent}): dim {dim}, {} needles, {} observations, fit {s:.2} s",
             fit.model.num_needles(),
-            p.observations.len()
+            p.observations.sample.len()
         );
     }
     assert_eq!(needles, 6_600);

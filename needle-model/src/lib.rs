@@ -9,15 +9,41 @@
 //! until it leaves the silhouette; the resulting length is an observation tied to the pose of
 //! the bones the primitive depends on (§3.3, §4.3). A normalised radial basis function over
 //! prototype poses then predicts every needle's length for any new pose (§5).
+//!
+//! Stages, one module each: [`primitive`] (needles in rings, Table 3.1 layout), [`config`]
+//! (configuration spaces, §3.3), [`sync`] (video/mocap time offset, §4.2), [`observe`]
+//! (silhouette walks, §4.3) and [`store`] (compact observation storage).
+//!
+//! ```no_run
+//! use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
+//! # fn run(skeleton: skin_core::skeleton::Skeleton, cameras: Vec<skin_core::camera::Camera>,
+//! #        theta: Vec<f64>, masks: Vec<skin_core::image::Mask>) -> needle_model::Result<()> {
+//! let body = NeedleBody::new(&skeleton, &BodyLayout::table_3_1())?; // 6 600 needles
+//! let observer = Observer::new(body, skeleton, cameras, ObserveParams::default())?;
+//! let acc = observer.accumulate(&[FrameInput { theta: &theta, masks: &masks }])?;
+//! println!("{} observations", acc.store.total_observations());
+//! # Ok(()) }
+//! ```
 #![warn(missing_docs)]
 
+pub mod config;
 pub mod error;
-
-pub use error::{Error, Result};
 pub mod nrbf;
+pub mod observe;
 pub mod params;
+pub mod primitive;
 pub mod prototypes;
+pub mod reconstruct;
+pub mod store;
+pub mod sync;
 
+pub use config::ConfigSpace;
+pub use error::{Error, Result};
 pub use nrbf::{Nrbf, NrbfFit};
+pub use observe::{Accumulation, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
 pub use params::ReconstructionParams;
-pub use prototypes::{NeedleObservations, PrototypeLocations, PrototypeShapes};
+pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
+pub use prototypes::{PrototypeLocations, PrototypeShapes};
+pub use reconstruct::{NeedleModel, Reconstruction};
+pub use store::{NeedleObservations, Observation, ObservationStore, PrimitiveShape};
+pub use sync::{estimate_sync_offset, SyncParams, SyncResult, VideoFrame};

@@ -44,8 +44,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::params::ReconstructionParams;
 use crate::prototypes::{
-    check_samples, farthest_point_prototypes, prototype_shapes, NeedleObservations, PrototypeShapes,
+    check_samples, farthest_point_prototypes, prototype_shapes, PrototypeShapes,
 };
+use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
 /// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
@@ -356,6 +357,7 @@ impl Nrbf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::prototypes::observations_from_lists;
     use rand::RngExt;
 
     const DIM: usize = 3;
@@ -412,7 +414,7 @@ mod tests {
                     }
                 }
             }
-            (samples, NeedleObservations::from_per_needle(&per_needle))
+            (samples, observations_from_lists(&per_needle).unwrap())
         }
 
         /// RMS error over held-out interior points.
@@ -663,7 +665,7 @@ mod tests {
             Nrbf::new(1, vec![0.0], nan_shape, 1.0, 7.0),
             Err(Error::NonFinite { .. })
         ));
-        let obs = NeedleObservations::from_per_needle(&[vec![(0, 1.0)]]);
+        let obs = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
         assert!(matches!(
             Nrbf::fit(
                 &[0.0],

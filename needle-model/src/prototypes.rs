@@ -20,6 +20,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::params::ReconstructionParams;
+use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
 /// Largest configuration-space dimension accepted (Sand's Table 1 has at most 9; in much
@@ -163,102 +164,76 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
     }
 }
 
-/// Needle observations of one primitive grouped by needle (compressed rows): for needle `j`,
-/// the sample (row of the configuration array) each length was observed in, and the length.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct NeedleObservations {
-    offsets: Vec<usize>,
-    samples: Vec<u32>,
-    lengths: Vec<f32>,
+/// Builds the per-needle observation table ([`NeedleObservations`], the form
+/// [`crate::ObservationStore::by_needle`] returns) from one list of `(sample index, length)`
+/// per needle, e.g. for synthetic data or other sources than the store.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if there are more than `u32::MAX` observations.
+pub fn observations_from_lists(per_needle: &[Vec<(u32, f32)>]) -> Result<NeedleObservations> {
+    let total: usize = per_needle.iter().map(Vec::len).sum();
+    if u32::try_from(total).is_err() {
+        return Err(Error::SizeMismatch {
+            what: "observations of one primitive (at most u32::MAX)",
+            expected: u32::MAX as usize,
+            got: total,
+        });
+    }
+    let mut start = Vec::with_capacity(per_needle.len() + 1);
+    start.push(0u32);
+    let mut sample = Vec::with_capacity(total);
+    let mut length_m = Vec::with_capacity(total);
+    for list in per_needle {
+        for &(s, l) in list {
+            sample.push(s);
+            length_m.push(l);
+        }
+        start.push(sample.len() as u32); // ≤ total ≤ u32::MAX, checked above
+    }
+    Ok(NeedleObservations {
+        start,
+        sample,
+        length_m,
+    })
 }
 
-impl NeedleObservations {
-    /// Builds from one list of `(sample index, length)` per needle.
-    pub fn from_per_needle(per_needle: &[Vec<(u32, f32)>]) -> Self {
-        let mut offsets = Vec::with_capacity(per_needle.len() + 1);
-        offsets.push(0);
-        let total: usize = per_needle.iter().map(Vec::len).sum();
-        let mut samples = Vec::with_capacity(total);
-        let mut lengths = Vec::with_capacity(total);
-        for list in per_needle {
-            for &(s, l) in list {
-                samples.push(s);
-                lengths.push(l);
-            }
-            offsets.push(samples.len());
-        }
-        Self {
-            offsets,
-            samples,
-            lengths,
-        }
+/// Ring/axial grid adjacency of a primitive's needles in ring-major order
+/// (`j = ring · radial + k`, the layout of [`crate::primitive`]): the two ring neighbours
+/// (wrapping around) and the needles at the same angle in the previous and next ring.
+/// Used by [`prototype_shapes`] to fill never-observed needles.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if `radial · axial` is 0 or exceeds 65 536.
+pub fn grid_adjacency(radial: usize, axial: usize) -> Result<Vec<Vec<u16>>> {
+    let n = radial.saturating_mul(axial);
+    if n == 0 || n > usize::from(u16::MAX) + 1 {
+        return Err(Error::InvalidParam {
+            name: "radial × axial",
+            reason: format!("needle count must be in 1..=65536, got {radial} × {axial}"),
+        });
     }
-
-    /// Builds from `(sample, needle, length)` triplets in any order (e.g. an observation
-    /// store grouped by sample) with a two-pass counting sort; the iterator is walked twice.
-    /// Within a needle the order of the input is kept.
-    ///
-    /// # Errors
-    /// [`Error::SizeMismatch`] if a needle index is `≥ num_needles`.
-    pub fn from_triplets<I>(num_needles: usize, triplets: I) -> Result<Self>
-    where
-        I: IntoIterator<Item = (u32, u16, f32)> + Clone,
-    {
-        let mut counts = vec![0usize; num_needles + 1];
-        for (_, j, _) in triplets.clone() {
-            let j = j as usize;
-            if j >= num_needles {
-                return Err(Error::SizeMismatch {
-                    what: "needle index in observations (must be < number of needles)",
-                    expected: num_needles,
-                    got: j,
-                });
+    Ok((0..n)
+        .map(|j| {
+            let (ring, k) = (j / radial, j % radial);
+            let mut nb = Vec::with_capacity(4);
+            if radial > 1 {
+                nb.push(ring * radial + (k + 1) % radial);
+                nb.push(ring * radial + (k + radial - 1) % radial);
             }
-            counts[j + 1] += 1;
-        }
-        for j in 0..num_needles {
-            counts[j + 1] += counts[j];
-        }
-        let total = counts[num_needles];
-        let mut cursor = counts.clone();
-        let mut samples = vec![0u32; total];
-        let mut lengths = vec![0f32; total];
-        for (s, j, l) in triplets {
-            let c = &mut cursor[j as usize];
-            samples[*c] = s;
-            lengths[*c] = l;
-            *c += 1;
-        }
-        Ok(Self {
-            offsets: counts,
-            samples,
-            lengths,
+            if ring > 0 {
+                nb.push((ring - 1) * radial + k);
+            }
+            if ring + 1 < axial {
+                nb.push((ring + 1) * radial + k);
+            }
+            nb.sort_unstable();
+            nb.dedup();
+            nb.into_iter()
+                .filter(|&x| x != j)
+                .map(|x| x as u16)
+                .collect() // < 65536
         })
-    }
-
-    /// Number of needles.
-    pub fn num_needles(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
-    }
-
-    /// Total number of observations.
-    pub fn len(&self) -> usize {
-        self.samples.len()
-    }
-
-    /// True if there is no observation at all.
-    pub fn is_empty(&self) -> bool {
-        self.samples.is_empty()
-    }
-
-    /// Sample indices and lengths of needle `j` (empty slices if `j` is out of range).
-    pub fn needle(&self, j: usize) -> (&[u32], &[f32]) {
-        if j + 1 >= self.offsets.len() {
-            return (&[], &[]);
-        }
-        let r = self.offsets[j]..self.offsets[j + 1];
-        (&self.samples[r.clone()], &self.lengths[r])
-    }
+        .collect())
 }
 
 /// Prototype shapes `v_jk` (§5.3) of one primitive.
@@ -357,7 +332,17 @@ pub fn prototype_shapes(
             what: "prototype locations",
         });
     }
-    let num_needles = observations.num_needles();
+    let num_needles = observations.start.len().saturating_sub(1);
+    if observations.sample.len() != observations.length_m.len()
+        || observations.start.last().map_or(0, |&e| e as usize) != observations.sample.len()
+        || observations.start.windows(2).any(|w| w[0] > w[1])
+    {
+        return Err(Error::SizeMismatch {
+            what: "per-needle observation table (start offsets vs sample and length arrays)",
+            expected: observations.sample.len(),
+            got: observations.length_m.len(),
+        });
+    }
     if num_needles == 0 {
         return Err(Error::Empty { what: "needles" });
     }
@@ -379,14 +364,14 @@ pub fn prototype_shapes(
             got: bad as usize,
         });
     }
-    if let Some(&bad) = observations.samples.iter().find(|&&s| s as usize >= count) {
+    if let Some(&bad) = observations.sample.iter().find(|&&s| s as usize >= count) {
         return Err(Error::SizeMismatch {
             what: "sample index in observations (must be < number of samples)",
             expected: count,
             got: bad as usize,
         });
     }
-    if observations.lengths.iter().any(|l| !l.is_finite()) {
+    if observations.length_m.iter().any(|l| !l.is_finite()) {
         return Err(Error::NonFinite {
             what: "observed needle lengths",
         });
@@ -663,18 +648,34 @@ mod tests {
     }
 
     #[test]
-    fn triplets_and_per_needle_agree() {
+    fn lists_build_the_store_layout() {
         let per_needle = vec![vec![(0u32, 1.0f32), (2, 1.5)], vec![], vec![(1, 2.0)]];
-        let a = NeedleObservations::from_per_needle(&per_needle);
-        let trip = [(0u32, 0u16, 1.0f32), (1, 2, 2.0), (2, 0, 1.5)];
-        let b = NeedleObservations::from_triplets(3, trip.iter().copied()).unwrap();
-        assert_eq!(a, b);
-        assert_eq!(a.len(), 3);
+        let a = observations_from_lists(&per_needle).unwrap();
+        assert_eq!(a.start, vec![0, 2, 2, 3]);
+        assert_eq!(a.needle(0), (&[0u32, 2][..], &[1.0f32, 1.5][..]));
         assert_eq!(a.needle(1), (&[][..], &[][..]));
         assert_eq!(a.needle(7), (&[][..], &[][..]));
+    }
+
+    #[test]
+    fn grid_adjacency_is_symmetric_ring_and_axial() {
+        let adj = grid_adjacency(4, 3).unwrap();
+        assert_eq!(adj.len(), 12);
+        assert_eq!(adj[0], vec![1, 3, 4]);
+        assert_eq!(adj[5], vec![1, 4, 6, 9]);
+        for (j, nb) in adj.iter().enumerate() {
+            for &n in nb {
+                assert!(adj[n as usize].contains(&(j as u16)));
+            }
+        }
+        assert!(grid_adjacency(1, 1).unwrap()[0].is_empty());
         assert!(matches!(
-            NeedleObservations::from_triplets(2, trip.iter().copied()),
-            Err(Error::SizeMismatch { .. })
+            grid_adjacency(0, 3),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            grid_adjacency(300, 300),
+            Err(Error::InvalidParam { .. })
         ));
     }
 
@@ -730,7 +731,7 @@ mod tests {
                     v
                 })
                 .collect();
-            let obs = NeedleObservations::from_per_needle(&per_needle);
+            let obs = observations_from_lists(&per_needle).unwrap();
             let params = ReconstructionParams::default()
                 .with_f_near(0.05)
                 .with_f_min(0.2);
@@ -765,7 +766,7 @@ mod tests {
                 }
             })
             .collect();
-        let obs = NeedleObservations::from_per_needle(&per_needle);
+        let obs = observations_from_lists(&per_needle).unwrap();
         let adj: Vec<Vec<u16>> = (0..6u16).map(|j| vec![(j + 5) % 6, (j + 1) % 6]).collect();
         let params = ReconstructionParams::default()
             .with_f_near(0.5)
@@ -780,7 +781,7 @@ mod tests {
         // With needles 2..=4 unobserved, needle 3 is filled in a second round from 2 and 4.
         let mut per2 = per_needle.clone();
         per2[4].clear();
-        let obs2 = NeedleObservations::from_per_needle(&per2);
+        let obs2 = observations_from_lists(&per2).unwrap();
         let shapes = prototype_shapes(&samples, 1, &obs2, &[0.0], &adj, &params).unwrap();
         assert_eq!(shapes.shape(0)[2], 2.0);
         assert_eq!(shapes.shape(0)[4], 6.0);
@@ -797,10 +798,10 @@ mod tests {
     fn shapes_reject_bad_input() {
         let samples = [0.0f32, 1.0];
         let p = ReconstructionParams::default();
-        let ok = NeedleObservations::from_per_needle(&[vec![(0, 1.0)]]);
+        let ok = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
         let adj = vec![vec![]];
-        let bad_idx = NeedleObservations::from_per_needle(&[vec![(5, 1.0)]]);
-        let nan = NeedleObservations::from_per_needle(&[vec![(0, f32::NAN)]]);
+        let bad_idx = observations_from_lists(&[vec![(5, 1.0)]]).unwrap();
+        let nan = observations_from_lists(&[vec![(0, f32::NAN)]]).unwrap();
         assert!(prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p).is_ok());
         assert!(matches!(
             prototype_shapes(&samples, 1, &bad_idx, &[0.0], &adj, &p),
@@ -830,7 +831,13 @@ mod tests {
             prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p.with_f_near(2.0)),
             Err(Error::InvalidParam { name: "f_near", .. })
         ));
-        let none = NeedleObservations::from_per_needle(&[]);
+        let none = observations_from_lists(&[]).unwrap();
+        let mut broken = ok.clone();
+        broken.start = vec![0, 3];
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &broken, &[0.0], &adj, &p),
+            Err(Error::SizeMismatch { .. })
+        ));
         assert!(matches!(
             prototype_shapes(&samples, 1, &none, &[0.0], &[], &p),
             Err(Error::Empty { .. })

@@ -1,0 +1,543 @@
+//! Compact storage of needle-length observations (Sand 2003 §4.3).
+//!
+//! "For each needle length observation, we also record the bone's current position in
+//! configuration space" (§4.3). Eight minutes of three-camera video give tens of millions of
+//! observations, so the store keeps them compact:
+//!
+//! * the configuration point of a primitive is stored **once per sample** — one sample is one
+//!   (frame, camera) pair in which the primitive produced at least one observation — as a
+//!   row of `config_dim` `f32` values (row-major);
+//! * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
+//!   length quantised to `u16` with a per-primitive scale
+//!   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
+//!   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
+//! * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
+//!   index of an observation is implicit.
+//!
+//! Samples are appended in a deterministic order (frame-major, then camera), so a store built
+//! in parallel and merged in frame order is bit-identical to one built serially.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// Number of quantisation steps of a needle length (`u16::MAX`).
+const LENGTH_STEPS: f32 = u16::MAX as f32;
+
+/// One packed observation: needle index within the primitive and quantised length.
+///
+/// Exactly 4 bytes; the sample it belongs to is implicit in its position in the store.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[repr(C)]
+pub struct PackedObservation {
+    /// Needle index within the primitive (ring-major order, see `primitive` module).
+    pub needle: u16,
+    /// Length in units of the primitive's [`ObservationStore::length_step_m`].
+    pub length_q: u16,
+}
+
+/// One decoded observation, as yielded by [`ObservationStore::observations`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// Index of the sample (row of [`ObservationStore::samples`]) the observation belongs to.
+    pub sample: u32,
+    /// Needle index within the primitive.
+    pub needle: u16,
+    /// Observed needle length, metres from the bone axis (dequantised).
+    pub length_m: f32,
+}
+
+/// Shape of one primitive's observation table: what the store needs to know up front.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PrimitiveShape {
+    /// Dimension `d` of the primitive's configuration space (§3.3, Table 3.1 "Dim.").
+    pub config_dim: usize,
+    /// Number of needles of the primitive (radial × axial, Table 3.1); at most 65 536.
+    pub needle_count: usize,
+    /// Maximum needle length, metres (Table 3.1); sets the quantisation step.
+    pub max_length_m: f64,
+}
+
+/// Observations of one primitive.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct PrimitiveTable {
+    config_dim: usize,
+    needle_count: usize,
+    length_step_m: f32,
+    /// Row-major `sample_count × config_dim` configuration points.
+    samples: Vec<f32>,
+    /// CSR offsets into `obs`; `sample_count + 1` entries, first is 0.
+    sample_start: Vec<u32>,
+    obs: Vec<PackedObservation>,
+}
+
+impl PrimitiveTable {
+    fn sample_count(&self) -> usize {
+        self.sample_start.len() - 1
+    }
+}
+
+/// Per-needle view of one primitive's observations, in CSR form
+/// (see [`ObservationStore::by_needle`]).
+///
+/// Observations of needle `j` are `sample[start[j]..start[j+1]]` and
+/// `length_m[start[j]..start[j+1]]`, in increasing sample order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NeedleObservations {
+    /// CSR offsets, `needle_count + 1` entries.
+    pub start: Vec<u32>,
+    /// Sample index (row of [`ObservationStore::samples`]) of each observation.
+    pub sample: Vec<u32>,
+    /// Observed length of each observation, metres.
+    pub length_m: Vec<f32>,
+}
+
+impl NeedleObservations {
+    /// Sample indices and lengths of needle `j` (empty slices if `j` is out of range).
+    pub fn needle(&self, j: usize) -> (&[u32], &[f32]) {
+        if j + 1 >= self.start.len() {
+            return (&[], &[]);
+        }
+        let r = self.start[j] as usize..self.start[j + 1] as usize;
+        (&self.sample[r.clone()], &self.length_m[r])
+    }
+}
+
+/// All needle observations of a body, compact (4 bytes per observation plus one configuration
+/// row and one offset per sample). See the module docs for the layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObservationStore {
+    primitives: Vec<PrimitiveTable>,
+}
+
+impl ObservationStore {
+    /// An empty store for primitives of the given shapes.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] if a primitive has `config_dim == 0`, more than 65 536 needles,
+    /// or a maximum length that is not finite and positive.
+    pub fn new(shapes: &[PrimitiveShape]) -> Result<Self> {
+        let mut primitives = Vec::with_capacity(shapes.len());
+        for s in shapes {
+            if s.config_dim == 0 {
+                return Err(Error::InvalidParam {
+                    name: "config_dim",
+                    reason: "must be at least 1".into(),
+                });
+            }
+            if s.needle_count == 0 || s.needle_count > usize::from(u16::MAX) + 1 {
+                return Err(Error::InvalidParam {
+                    name: "needle_count",
+                    reason: format!("must be in 1..=65536, got {}", s.needle_count),
+                });
+            }
+            if !(s.max_length_m.is_finite() && s.max_length_m > 0.0) {
+                return Err(Error::InvalidParam {
+                    name: "max_length_m",
+                    reason: format!("must be finite and > 0, got {}", s.max_length_m),
+                });
+            }
+            primitives.push(PrimitiveTable {
+                config_dim: s.config_dim,
+                needle_count: s.needle_count,
+                length_step_m: (s.max_length_m as f32) / LENGTH_STEPS,
+                samples: Vec::new(),
+                sample_start: vec![0],
+                obs: Vec::new(),
+            });
+        }
+        Ok(Self { primitives })
+    }
+
+    /// Number of primitives.
+    pub fn primitive_count(&self) -> usize {
+        self.primitives.len()
+    }
+
+    fn table(&self, p: usize) -> Result<&PrimitiveTable> {
+        self.primitives.get(p).ok_or(Error::SizeMismatch {
+            what: "primitive index",
+            expected: self.primitives.len(),
+            got: p,
+        })
+    }
+
+    /// Dimension of primitive `p`'s configuration space (0 if `p` is out of range).
+    pub fn config_dim(&self, p: usize) -> usize {
+        self.primitives.get(p).map_or(0, |t| t.config_dim)
+    }
+
+    /// Number of needles of primitive `p` (0 if `p` is out of range).
+    pub fn needle_count(&self, p: usize) -> usize {
+        self.primitives.get(p).map_or(0, |t| t.needle_count)
+    }
+
+    /// Quantisation step of primitive `p`'s lengths, metres: `max_length_m / 65535`
+    /// (0 if `p` is out of range). Stored lengths are within half a step of the input.
+    pub fn length_step_m(&self, p: usize) -> f32 {
+        self.primitives.get(p).map_or(0.0, |t| t.length_step_m)
+    }
+
+    /// Number of samples (configuration rows) of primitive `p` (0 if out of range).
+    pub fn sample_count(&self, p: usize) -> usize {
+        self.primitives.get(p).map_or(0, |t| t.sample_count())
+    }
+
+    /// Configuration points of primitive `p`: row-major, `sample_count(p) × config_dim(p)`
+    /// (empty if `p` is out of range).
+    pub fn samples(&self, p: usize) -> &[f32] {
+        self.primitives.get(p).map_or(&[], |t| &t.samples)
+    }
+
+    /// Configuration point of sample `s` of primitive `p` (empty if out of range).
+    pub fn sample(&self, p: usize, s: usize) -> &[f32] {
+        match self.primitives.get(p) {
+            Some(t) if s < t.sample_count() => &t.samples[s * t.config_dim..(s + 1) * t.config_dim],
+            _ => &[],
+        }
+    }
+
+    /// Packed observations of primitive `p`, grouped by sample (empty if out of range).
+    pub fn packed(&self, p: usize) -> &[PackedObservation] {
+        self.primitives.get(p).map_or(&[], |t| &t.obs)
+    }
+
+    /// CSR offsets of primitive `p`'s samples into [`Self::packed`]: `sample_count(p) + 1`
+    /// entries (empty if out of range).
+    pub fn sample_offsets(&self, p: usize) -> &[u32] {
+        self.primitives.get(p).map_or(&[], |t| &t.sample_start)
+    }
+
+    /// Number of observations of primitive `p` (0 if out of range).
+    pub fn observation_count(&self, p: usize) -> usize {
+        self.primitives.get(p).map_or(0, |t| t.obs.len())
+    }
+
+    /// Total number of observations.
+    pub fn total_observations(&self) -> usize {
+        self.primitives.iter().map(|t| t.obs.len()).sum()
+    }
+
+    /// Decoded observations of primitive `p`, in storage order (sample-major)
+    /// (empty if `p` is out of range).
+    pub fn observations(&self, p: usize) -> impl Iterator<Item = Observation> + '_ {
+        let table = self.primitives.get(p);
+        let step = table.map_or(0.0, |t| t.length_step_m);
+        let offsets: &[u32] = table.map_or(&[], |t| &t.sample_start);
+        let obs: &[PackedObservation] = table.map_or(&[], |t| &t.obs);
+        offsets.windows(2).enumerate().flat_map(move |(s, w)| {
+            obs[w[0] as usize..w[1] as usize]
+                .iter()
+                .map(move |o| Observation {
+                    sample: s as u32,
+                    needle: o.needle,
+                    length_m: f32::from(o.length_q) * step,
+                })
+        })
+    }
+
+    /// Observations of primitive `p` regrouped per needle (what prototype shape estimation,
+    /// §5.3, consumes). Within a needle, observations are in increasing sample order.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if `p` is out of range.
+    pub fn by_needle(&self, p: usize) -> Result<NeedleObservations> {
+        let t = self.table(p)?;
+        let mut start = vec![0u32; t.needle_count + 1];
+        for o in &t.obs {
+            start[usize::from(o.needle) + 1] += 1;
+        }
+        for j in 0..t.needle_count {
+            start[j + 1] += start[j];
+        }
+        let n = t.obs.len();
+        let mut sample = vec![0u32; n];
+        let mut length_m = vec![0f32; n];
+        let mut cursor: Vec<u32> = start[..t.needle_count].to_vec();
+        for (s, w) in t.sample_start.windows(2).enumerate() {
+            for o in &t.obs[w[0] as usize..w[1] as usize] {
+                let c = &mut cursor[usize::from(o.needle)];
+                sample[*c as usize] = s as u32;
+                length_m[*c as usize] = f32::from(o.length_q) * t.length_step_m;
+                *c += 1;
+            }
+        }
+        Ok(NeedleObservations {
+            start,
+            sample,
+            length_m,
+        })
+    }
+
+    /// Bytes stored per observation, amortised over the whole store: packed observations plus
+    /// configuration rows and sample offsets, divided by the number of observations
+    /// (`size_of::<PackedObservation>()` = 4 if the store is empty).
+    pub fn bytes_per_observation(&self) -> f64 {
+        let n = self.total_observations();
+        let per_obs = std::mem::size_of::<PackedObservation>();
+        if n == 0 {
+            return per_obs as f64;
+        }
+        let bytes: usize = self
+            .primitives
+            .iter()
+            .map(|t| t.obs.len() * per_obs + t.samples.len() * 4 + t.sample_start.len() * 4)
+            .sum();
+        bytes as f64 / n as f64
+    }
+
+    /// Append one sample of primitive `p`: its configuration point and its observations
+    /// `(needle, length_m)`. A sample without observations is not stored (returns `Ok(false)`);
+    /// otherwise returns `Ok(true)`.
+    ///
+    /// # Errors
+    /// * [`Error::SizeMismatch`] if `p` is out of range or `config.len() != config_dim(p)`,
+    ///   or a needle index is `>= needle_count(p)`;
+    /// * [`Error::NonFinite`] if the configuration or a length is NaN/infinite;
+    /// * [`Error::InvalidParam`] if a length is negative or above the primitive's maximum
+    ///   (by more than half a quantisation step).
+    ///
+    /// Nothing is appended when an error is returned.
+    pub fn push_sample(&mut self, p: usize, config: &[f64], obs: &[(u16, f32)]) -> Result<bool> {
+        let n_prim = self.primitives.len();
+        let t = self.primitives.get_mut(p).ok_or(Error::SizeMismatch {
+            what: "primitive index",
+            expected: n_prim,
+            got: p,
+        })?;
+        if config.len() != t.config_dim {
+            return Err(Error::SizeMismatch {
+                what: "configuration point",
+                expected: t.config_dim,
+                got: config.len(),
+            });
+        }
+        if config.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "configuration point",
+            });
+        }
+        if obs.is_empty() {
+            return Ok(false);
+        }
+        let mut packed = Vec::with_capacity(obs.len());
+        for &(needle, length_m) in obs {
+            if usize::from(needle) >= t.needle_count {
+                return Err(Error::SizeMismatch {
+                    what: "needle index",
+                    expected: t.needle_count,
+                    got: usize::from(needle),
+                });
+            }
+            if !length_m.is_finite() {
+                return Err(Error::NonFinite {
+                    what: "needle length",
+                });
+            }
+            let q = (length_m / t.length_step_m).round();
+            if !(0.0..=LENGTH_STEPS).contains(&q) {
+                return Err(Error::InvalidParam {
+                    name: "length_m",
+                    reason: format!(
+                        "{length_m} m outside [0, {} m]",
+                        t.length_step_m * LENGTH_STEPS
+                    ),
+                });
+            }
+            // In range 0..=65535 by the check above.
+            packed.push(PackedObservation {
+                needle,
+                length_q: q as u16,
+            });
+        }
+        let end = t.obs.len() + packed.len();
+        let end = u32::try_from(end).map_err(|_| Error::InvalidParam {
+            name: "observation count",
+            reason: "more than u32::MAX observations in one primitive".into(),
+        })?;
+        t.samples.extend(config.iter().map(|&v| v as f32));
+        t.obs.extend_from_slice(&packed);
+        t.sample_start.push(end);
+        Ok(true)
+    }
+
+    /// Append all samples of `other` after this store's samples (used to merge per-frame
+    /// stores built in parallel, in frame order).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] / [`Error::InvalidParam`] if the two stores do not have the
+    /// same primitive shapes.
+    pub fn append(&mut self, other: &ObservationStore) -> Result<()> {
+        if other.primitives.len() != self.primitives.len() {
+            return Err(Error::SizeMismatch {
+                what: "primitive count of appended store",
+                expected: self.primitives.len(),
+                got: other.primitives.len(),
+            });
+        }
+        for (a, b) in self.primitives.iter().zip(&other.primitives) {
+            if a.config_dim != b.config_dim
+                || a.needle_count != b.needle_count
+                || a.length_step_m.to_bits() != b.length_step_m.to_bits()
+            {
+                return Err(Error::InvalidParam {
+                    name: "appended store",
+                    reason: "primitive shapes differ".into(),
+                });
+            }
+            if u32::try_from(a.obs.len() + b.obs.len()).is_err() {
+                return Err(Error::InvalidParam {
+                    name: "observation count",
+                    reason: "more than u32::MAX observations in one primitive".into(),
+                });
+            }
+        }
+        for (a, b) in self.primitives.iter_mut().zip(&other.primitives) {
+            let base = a.obs.len() as u32;
+            a.samples.extend_from_slice(&b.samples);
+            a.obs.extend_from_slice(&b.obs);
+            a.sample_start
+                .extend(b.sample_start[1..].iter().map(|&o| o + base));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn shapes() -> Vec<PrimitiveShape> {
+        vec![
+            PrimitiveShape {
+                config_dim: 3,
+                needle_count: 400,
+                max_length_m: 0.10,
+            },
+            PrimitiveShape {
+                config_dim: 9,
+                needle_count: 900,
+                max_length_m: 0.30,
+            },
+        ]
+    }
+
+    #[test]
+    fn packed_observation_is_four_bytes() {
+        assert_eq!(std::mem::size_of::<PackedObservation>(), 4);
+    }
+
+    #[test]
+    fn push_and_read_back() {
+        let mut st = ObservationStore::new(&shapes()).unwrap();
+        assert!(st
+            .push_sample(0, &[0.1, 0.2, 0.3], &[(5, 0.05), (7, 0.0999)])
+            .unwrap());
+        assert!(!st.push_sample(0, &[0.0, 0.0, 0.0], &[]).unwrap());
+        assert!(st.push_sample(0, &[1.0, 2.0, 3.0], &[(5, 0.02)]).unwrap());
+        assert_eq!(st.primitive_count(), 2);
+        assert_eq!(st.config_dim(1), 9);
+        assert_eq!(st.sample_count(0), 2);
+        assert_eq!(st.samples(0), &[0.1f32, 0.2, 0.3, 1.0, 2.0, 3.0]);
+        let obs: Vec<_> = st.observations(0).collect();
+        assert_eq!(obs.len(), 3);
+        assert_eq!((obs[2].sample, obs[2].needle), (1, 5));
+        let step = st.length_step_m(0);
+        assert!((obs[1].length_m - 0.0999).abs() <= step * 0.51);
+        let bn = st.by_needle(0).unwrap();
+        let (s, l) = bn.needle(5);
+        assert_eq!(s, &[0, 1]);
+        assert!((l[1] - 0.02).abs() <= step * 0.51);
+        assert_eq!(bn.needle(6).0.len(), 0);
+        assert_eq!(st.observations(7).count(), 0);
+    }
+
+    #[test]
+    fn bad_input_is_rejected_without_side_effects() {
+        let mut st = ObservationStore::new(&shapes()).unwrap();
+        assert!(matches!(
+            st.push_sample(0, &[0.0; 2], &[(0, 0.01)]),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(0, &[f64::NAN, 0.0, 0.0], &[(0, 0.01)]),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(0, &[0.0; 3], &[(0, 0.01), (400, 0.01)]),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(0, &[0.0; 3], &[(0, 0.2)]),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(0, &[0.0; 3], &[(0, -0.01)]),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(0, &[0.0; 3], &[(0, f32::NAN)]),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            st.push_sample(2, &[0.0; 3], &[(0, 0.01)]),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert_eq!(st.total_observations(), 0);
+        assert_eq!(st.sample_count(0), 0);
+        for bad in [
+            PrimitiveShape {
+                config_dim: 0,
+                needle_count: 1,
+                max_length_m: 0.1,
+            },
+            PrimitiveShape {
+                config_dim: 1,
+                needle_count: 70_000,
+                max_length_m: 0.1,
+            },
+            PrimitiveShape {
+                config_dim: 1,
+                needle_count: 1,
+                max_length_m: f64::NAN,
+            },
+        ] {
+            assert!(ObservationStore::new(&[bad]).is_err());
+        }
+    }
+
+    #[test]
+    fn append_mismatched_shapes_fails() {
+        let mut a = ObservationStore::new(&shapes()).unwrap();
+        let b = ObservationStore::new(&shapes()[..1]).unwrap();
+        assert!(a.append(&b).is_err());
+    }
+
+    proptest! {
+        /// Quantisation error is at most half a step; serde and append round-trip exactly.
+        #[test]
+        fn roundtrip(lengths in proptest::collection::vec((0u16..400, 0.0f32..0.1), 1..60),
+                     split in 0usize..60) {
+            let mut whole = ObservationStore::new(&shapes()).unwrap();
+            let mut a = ObservationStore::new(&shapes()).unwrap();
+            let mut b = ObservationStore::new(&shapes()).unwrap();
+            for (k, chunk) in lengths.chunks(7).enumerate() {
+                let cfg = [k as f64, 0.5, -1.0];
+                whole.push_sample(0, &cfg, chunk).unwrap();
+                let target = if k * 7 < split { &mut a } else { &mut b };
+                target.push_sample(0, &cfg, chunk).unwrap();
+            }
+            a.append(&b).unwrap();
+            prop_assert_eq!(&a, &whole);
+            let step = whole.length_step_m(0);
+            for (o, &(n, l)) in whole.observations(0).zip(&lengths) {
+                prop_assert_eq!(o.needle, n);
+                prop_assert!((o.length_m - l).abs() <= 0.5 * step + 1e-7);
+            }
+            let json = serde_json::to_string(&whole).unwrap();
+            let back: ObservationStore = serde_json::from_str(&json).unwrap();
+            prop_assert_eq!(back, whole);
+        }
+    }
+}
