@@ -12,7 +12,10 @@
 //!
 //! Stages, one module each: [`primitive`] (needles in rings, Table 3.1 layout), [`config`]
 //! (configuration spaces, §3.3), [`sync`] (video/mocap time offset, §4.2), [`observe`]
-//! (silhouette walks, §4.3) and [`store`] (compact observation storage).
+//! (silhouette walks, §4.3), [`store`] (compact observation storage), [`params`]
+//! (reconstruction parameters, §6.3), [`prototypes`] (prototype locations and robust-minimum
+//! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1) and [`reconstruct`] (the whole body,
+//! §5.3–5.4).
 //!
 //! ```no_run
 //! use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};

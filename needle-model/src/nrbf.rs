@@ -686,3 +686,56 @@ mod tests {
         assert_eq!(config_scale(&[2.0, 2.0], 1).unwrap(), 1.0);
     }
 }
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use crate::prototypes::observations_from_lists;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// The NRBF is a convex combination (§5.1): weights sum to 1, every predicted length
+        /// lies between the needle's smallest and largest prototype length, and every
+        /// prototype length is one of the needle's observations (a percentile, §5.3).
+        #[test]
+        fn predictions_are_convex_combinations_of_observations(
+            seed in 0u64..1_000,
+            f_near in 0.01f64..1.0,
+            f_min in 0.0f64..1.0,
+            w in 0.1f64..50.0,
+            x in prop::array::uniform2(-3.0f32..3.0),
+        ) {
+            use rand::RngExt;
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let samples: Vec<f32> = (0..400).map(|_| rng.random_range(-1.0f32..1.0)).collect();
+            let per_needle: Vec<Vec<(u32, f32)>> = (0..3)
+                .map(|_| (0..200u32).map(|s| (s, rng.random_range(0.1f32..1.0))).collect())
+                .collect();
+            let obs = observations_from_lists(&per_needle).unwrap();
+            let params = ReconstructionParams::default()
+                .with_f_near(f_near)
+                .with_f_min(f_min)
+                .with_kernel_width_w(w)
+                .with_prototype_count_n(12)
+                .with_seed(seed);
+            let fit = Nrbf::fit(&samples, 2, &obs, &[vec![], vec![], vec![]], &params).unwrap();
+            let m = &fit.model;
+            let wts = m.weights(&x).unwrap();
+            prop_assert!((wts.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+            let l = m.evaluate(&x).unwrap();
+            for j in 0..3 {
+                let col: Vec<f32> = (0..m.num_prototypes())
+                    .map(|k| m.shapes()[k * 3 + j])
+                    .collect();
+                let lo = col.iter().copied().fold(f32::INFINITY, f32::min);
+                let hi = col.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                prop_assert!(l[j] >= lo - 1e-5 && l[j] <= hi + 1e-5);
+                for v in col {
+                    prop_assert!(per_needle[j].iter().any(|&(_, o)| o == v));
+                }
+            }
+        }
+    }
+}
