@@ -12,7 +12,10 @@
 //!
 //! Stages, one module each: [`primitive`] (needles in rings, Table 3.1 layout), [`config`]
 //! (configuration spaces, §3.3), [`sync`] (video/mocap time offset, §4.2), [`observe`]
-//! (silhouette walks, §4.3) and [`store`] (compact observation storage).
+//! (silhouette walks, §4.3), [`store`] (compact observation storage), [`params`]
+//! (reconstruction parameters, §6.3), [`prototypes`] (prototype locations and robust-minimum
+//! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1) and [`reconstruct`] (the whole body,
+//! §5.3–5.4).
 //!
 //! ```no_run
 //! use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
@@ -28,14 +31,22 @@
 
 pub mod config;
 pub mod error;
+pub mod nrbf;
 pub mod observe;
+pub mod params;
 pub mod primitive;
+pub mod prototypes;
+pub mod reconstruct;
 pub mod store;
 pub mod sync;
 
 pub use config::ConfigSpace;
 pub use error::{Error, Result};
+pub use nrbf::{Nrbf, NrbfFit};
 pub use observe::{Accumulation, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
+pub use params::ReconstructionParams;
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
+pub use prototypes::{PrototypeLocations, PrototypeShapes};
+pub use reconstruct::{NeedleModel, Reconstruction};
 pub use store::{NeedleObservations, Observation, ObservationStore, PrimitiveShape};
 pub use sync::{estimate_sync_offset, SyncParams, SyncResult, VideoFrame};

@@ -1,0 +1,177 @@
+//! Reconstruction parameters of Sand, McMillan and Popović 2003, §6.3 (thesis §5.5).
+//!
+//! The prototype estimation algorithm (§5.2–5.3) has four free parameters: the fraction of
+//! nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
+//! kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
+//! paper selects them by minimising the silhouette error (§6.2) and reports
+//! `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here.
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// Default `F_near`: fraction of a needle's observations used for each prototype.
+/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+pub const DEFAULT_F_NEAR: f64 = 0.022;
+/// Default `F_min`: percentile (as a fraction) taken as the robust minimum.
+/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+pub const DEFAULT_F_MIN: f64 = 0.10;
+/// Default kernel width `W` of the NRBF Gaussian (see [`crate::nrbf`] for its exact meaning).
+/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+pub const DEFAULT_KERNEL_WIDTH_W: f64 = 7.0;
+/// Default number of prototypes per deformable primitive `N`. Sand 2003 §6.3.
+pub const DEFAULT_PROTOTYPE_COUNT_N: usize = 100;
+/// Default seed of the random first prototype location (§5.2 picks it "at random").
+pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
+
+/// Parameters of prototype reconstruction (Sand 2003 §5.2–5.3) and NRBF evaluation (§5.1).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReconstructionParams {
+    /// Fraction of a needle's observations, nearest in configuration space to a prototype
+    /// location, from which the prototype's needle length is estimated (§5.3). Dimensionless,
+    /// in (0, 1]; `1` uses every observation and so yields a static (pose-independent) model
+    /// (thesis Figure 6-2c). Source: Sand 2003 §6.3. Default: 0.022.
+    pub f_near: f64,
+    /// Percentile of the selected lengths taken as the robust minimum (§5.3): `0` is the
+    /// minimum, `1` the maximum. Dimensionless, in [0, 1]. Silhouette lengths only overestimate
+    /// the true surface (visual-hull argument, §5), so a low percentile finds the maximal
+    /// consistent geometry while ignoring a few outliers. Source: Sand 2003 §6.3. Default: 0.10.
+    pub f_min: f64,
+    /// Gaussian kernel parameter `W` of the NRBF (§5.1). Dimensionless: configuration-space
+    /// distances are measured in units of the training data's RMS radius `s`, and the kernel
+    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::nrbf`]). Larger `W` means a
+    /// sharper, more local kernel. Must be > 0. Source: Sand 2003 §6.3. Default: 7.
+    pub kernel_width_w: f64,
+    /// Number of prototypes per deformable primitive (§5.2). Must be ≥ 1. If a primitive has
+    /// fewer distinct configuration points, fewer prototypes are placed.
+    /// Source: Sand 2003 §6.3. Default: 100.
+    pub prototype_count_n: usize,
+    /// Seed of the RNG that picks the first prototype location (§5.2). Default: 0x5a4d_2003.
+    pub seed: u64,
+}
+
+impl Default for ReconstructionParams {
+    fn default() -> Self {
+        Self {
+            f_near: DEFAULT_F_NEAR,
+            f_min: DEFAULT_F_MIN,
+            kernel_width_w: DEFAULT_KERNEL_WIDTH_W,
+            prototype_count_n: DEFAULT_PROTOTYPE_COUNT_N,
+            seed: DEFAULT_SEED,
+        }
+    }
+}
+
+impl ReconstructionParams {
+    /// Sets `f_near`.
+    pub fn with_f_near(mut self, f_near: f64) -> Self {
+        self.f_near = f_near;
+        self
+    }
+    /// Sets `f_min`.
+    pub fn with_f_min(mut self, f_min: f64) -> Self {
+        self.f_min = f_min;
+        self
+    }
+    /// Sets `kernel_width_w`.
+    pub fn with_kernel_width_w(mut self, w: f64) -> Self {
+        self.kernel_width_w = w;
+        self
+    }
+    /// Sets `prototype_count_n`.
+    pub fn with_prototype_count_n(mut self, n: usize) -> Self {
+        self.prototype_count_n = n;
+        self
+    }
+    /// Sets `seed`.
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Checks every field's range.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming the field when `f_near ∉ (0, 1]`, `f_min ∉ [0, 1]`,
+    /// `kernel_width_w ≤ 0`, `prototype_count_n = 0`, or any value is NaN / infinite.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.f_near.is_finite() && self.f_near > 0.0 && self.f_near <= 1.0) {
+            return Err(Error::InvalidParam {
+                name: "f_near",
+                reason: format!("must be in (0, 1], got {}", self.f_near),
+            });
+        }
+        if !(self.f_min.is_finite() && (0.0..=1.0).contains(&self.f_min)) {
+            return Err(Error::InvalidParam {
+                name: "f_min",
+                reason: format!("must be in [0, 1], got {}", self.f_min),
+            });
+        }
+        if !(self.kernel_width_w.is_finite() && self.kernel_width_w > 0.0) {
+            return Err(Error::InvalidParam {
+                name: "kernel_width_w",
+                reason: format!("must be finite and > 0, got {}", self.kernel_width_w),
+            });
+        }
+        if self.prototype_count_n == 0 {
+            return Err(Error::InvalidParam {
+                name: "prototype_count_n",
+                reason: "must be at least 1".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_papers_and_valid() {
+        let p = ReconstructionParams::default();
+        assert_eq!(p.f_near, 0.022);
+        assert_eq!(p.f_min, 0.10);
+        assert_eq!(p.kernel_width_w, 7.0);
+        assert_eq!(p.prototype_count_n, 100);
+        p.validate().unwrap();
+    }
+
+    #[test]
+    fn bad_values_name_the_field() {
+        let d = ReconstructionParams::default();
+        let cases = [
+            (d.with_f_near(0.0), "f_near"),
+            (d.with_f_near(1.5), "f_near"),
+            (d.with_f_near(f64::NAN), "f_near"),
+            (d.with_f_min(-0.1), "f_min"),
+            (d.with_f_min(1.01), "f_min"),
+            (d.with_f_min(f64::NAN), "f_min"),
+            (d.with_kernel_width_w(0.0), "kernel_width_w"),
+            (d.with_kernel_width_w(f64::INFINITY), "kernel_width_w"),
+            (d.with_prototype_count_n(0), "prototype_count_n"),
+        ];
+        for (p, field) in cases {
+            match p.validate() {
+                Err(Error::InvalidParam { name, .. }) => assert_eq!(name, field),
+                other => panic!("{field}: expected InvalidParam, got {other:?}"),
+            }
+        }
+        // Boundaries that are valid.
+        d.with_f_near(1.0).with_f_min(0.0).validate().unwrap();
+        d.with_f_min(1.0)
+            .with_prototype_count_n(1)
+            .validate()
+            .unwrap();
+    }
+
+    #[test]
+    fn serde_round_trip() {
+        let p = ReconstructionParams::default()
+            .with_f_near(0.05)
+            .with_seed(9);
+        let s = serde_json::to_string(&p).unwrap();
+        let q: ReconstructionParams = serde_json::from_str(&s).unwrap();
+        assert_eq!(p, q);
+    }
+}

@@ -1,0 +1,846 @@
+//! Prototype locations and shapes: Sand, McMillan and Popović 2003 §5.2–5.3 (thesis §5.2–5.3).
+//!
+//! * **Locations (§5.2).** The first prototype is a random observed configuration point; each
+//!   further prototype is the observed point farthest (Euclidean) from all prototypes chosen so
+//!   far ([`farthest_point_prototypes`]). Unlike clustering or random sampling this also places
+//!   prototypes where the data is sparse.
+//! * **Shapes (§5.3).** For needle `j` with `m_j` observations and prototype `k`, take the
+//!   `n = F_near · m_j` observations of that needle whose configuration points are nearest to
+//!   `p_k`, and use their `F_min` percentile length as `v_jk` (the "robust minimum":
+//!   silhouettes only overestimate, §5). Selecting a fraction rather than a radius borrows from
+//!   other poses where data is sparse — the paper's hole filling across configuration space.
+//!   Needles that have *no* observation at all are filled from neighbouring needles on the
+//!   primitive ([`prototype_shapes`]); see its docs.
+//!
+//! Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
+//! sample), observations are grouped per needle in [`NeedleObservations`].
+
+use rand::{Rng, RngExt};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::params::ReconstructionParams;
+use crate::store::NeedleObservations;
+use crate::{Error, Result};
+
+/// Largest configuration-space dimension accepted (Sand's Table 1 has at most 9; in much
+/// higher dimensions nearest-neighbour neighbourhoods stop being local).
+pub const MAX_CONFIG_DIM: usize = 16;
+
+/// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
+/// non-empty, all finite. Returns the number of samples.
+pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
+    if dim == 0 || dim > MAX_CONFIG_DIM {
+        return Err(Error::InvalidParam {
+            name: "dim",
+            reason: format!("configuration dimension must be in 1..={MAX_CONFIG_DIM}, got {dim}"),
+        });
+    }
+    if samples.is_empty() {
+        return Err(Error::Empty {
+            what: "configuration samples",
+        });
+    }
+    if !samples.len().is_multiple_of(dim) {
+        return Err(Error::SizeMismatch {
+            what: "configuration samples (length must be a multiple of dim)",
+            expected: samples.len().div_ceil(dim) * dim,
+            got: samples.len(),
+        });
+    }
+    if samples.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "configuration samples",
+        });
+    }
+    Ok(samples.len() / dim)
+}
+
+#[inline]
+fn dist2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// Prototype locations chosen by farthest-point selection (§5.2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PrototypeLocations {
+    /// Indices of the chosen samples, in selection order (the first is the random start).
+    pub sample_indices: Vec<usize>,
+    /// Chosen configuration points, row-major `sample_indices.len() × dim`.
+    pub points: Vec<f32>,
+    /// Configuration-space dimension.
+    pub dim: usize,
+    /// Covering radius: the largest distance from any sample to its nearest prototype
+    /// (configuration-space units). Zero when every distinct sample is a prototype.
+    pub covering_radius: f32,
+}
+
+/// Farthest-point prototype selection (Sand 2003 §5.2): exact, `O(n · S · dim)`, parallel over
+/// samples. Ties go to the lowest sample index, so the result does not depend on the thread
+/// count.
+///
+/// `samples` holds `S` configuration points as rows of length `dim`. Selection stops early
+/// (with fewer than `n` prototypes) when every sample coincides with a prototype.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for `dim ∉ 1..=16` or `n = 0`; [`Error::Empty`] for no samples;
+/// [`Error::SizeMismatch`] if `samples.len()` is not a multiple of `dim`;
+/// [`Error::NonFinite`] for NaN/∞ coordinates.
+///
+/// # Example
+/// ```
+/// use needle_model::prototypes::farthest_point_prototypes;
+/// use rand::SeedableRng;
+/// let samples = [0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+/// let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+/// let protos = farthest_point_prototypes(&samples, 2, 4, &mut rng)?;
+/// assert_eq!(protos.sample_indices.len(), 4);
+/// assert_eq!(protos.covering_radius, 0.0);
+/// # Ok::<(), needle_model::Error>(())
+/// ```
+pub fn farthest_point_prototypes<R: Rng + ?Sized>(
+    samples: &[f32],
+    dim: usize,
+    n: usize,
+    rng: &mut R,
+) -> Result<PrototypeLocations> {
+    let count = check_samples(samples, dim)?;
+    if n == 0 {
+        return Err(Error::InvalidParam {
+            name: "prototype_count_n",
+            reason: "must be at least 1".into(),
+        });
+    }
+    let first = rng.random_range(0..count);
+    let mut chosen = vec![first];
+    let mut min_d2: Vec<f32> = vec![f32::INFINITY; count];
+    const CHUNK: usize = 4096;
+    loop {
+        let last = *chosen.last().expect("chosen starts non-empty"); // pushed above
+        let p = &samples[last * dim..(last + 1) * dim];
+        // Update distances to the newest prototype and find the farthest sample (lowest
+        // index on ties) in one parallel pass.
+        let (best_d2, best_i) = min_d2
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, chunk)| {
+                let mut best = (-1.0f32, usize::MAX);
+                for (o, d) in chunk.iter_mut().enumerate() {
+                    let i = c * CHUNK + o;
+                    let nd = dist2(&samples[i * dim..(i + 1) * dim], p);
+                    if nd < *d {
+                        *d = nd;
+                    }
+                    if *d > best.0 {
+                        best = (*d, i);
+                    }
+                }
+                best
+            })
+            .reduce(
+                || (-1.0f32, usize::MAX),
+                |a, b| {
+                    if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
+                        b
+                    } else {
+                        a
+                    }
+                },
+            );
+        if chosen.len() == n || best_d2 <= 0.0 {
+            let covering_radius = best_d2.max(0.0).sqrt();
+            let points = chosen
+                .iter()
+                .flat_map(|&i| samples[i * dim..(i + 1) * dim].iter().copied())
+                .collect();
+            return Ok(PrototypeLocations {
+                sample_indices: chosen,
+                points,
+                dim,
+                covering_radius,
+            });
+        }
+        chosen.push(best_i);
+    }
+}
+
+/// Builds the per-needle observation table ([`NeedleObservations`], the form
+/// [`crate::ObservationStore::by_needle`] returns) from one list of `(sample index, length)`
+/// per needle, e.g. for synthetic data or other sources than the store.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if there are more than `u32::MAX` observations.
+pub fn observations_from_lists(per_needle: &[Vec<(u32, f32)>]) -> Result<NeedleObservations> {
+    let total: usize = per_needle.iter().map(Vec::len).sum();
+    if u32::try_from(total).is_err() {
+        return Err(Error::SizeMismatch {
+            what: "observations of one primitive (at most u32::MAX)",
+            expected: u32::MAX as usize,
+            got: total,
+        });
+    }
+    let mut start = Vec::with_capacity(per_needle.len() + 1);
+    start.push(0u32);
+    let mut sample = Vec::with_capacity(total);
+    let mut length_m = Vec::with_capacity(total);
+    for list in per_needle {
+        for &(s, l) in list {
+            sample.push(s);
+            length_m.push(l);
+        }
+        start.push(sample.len() as u32); // ≤ total ≤ u32::MAX, checked above
+    }
+    Ok(NeedleObservations {
+        start,
+        sample,
+        length_m,
+    })
+}
+
+/// Ring/axial grid adjacency of a primitive's needles in ring-major order
+/// (`j = ring · radial + k`, the layout of [`crate::primitive`]): the two ring neighbours
+/// (wrapping around) and the needles at the same angle in the previous and next ring.
+/// Used by [`prototype_shapes`] to fill never-observed needles.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if `radial · axial` is 0 or exceeds 65 536.
+pub fn grid_adjacency(radial: usize, axial: usize) -> Result<Vec<Vec<u16>>> {
+    let n = radial.saturating_mul(axial);
+    if n == 0 || n > usize::from(u16::MAX) + 1 {
+        return Err(Error::InvalidParam {
+            name: "radial × axial",
+            reason: format!("needle count must be in 1..=65536, got {radial} × {axial}"),
+        });
+    }
+    Ok((0..n)
+        .map(|j| {
+            let (ring, k) = (j / radial, j % radial);
+            let mut nb = Vec::with_capacity(4);
+            if radial > 1 {
+                nb.push(ring * radial + (k + 1) % radial);
+                nb.push(ring * radial + (k + radial - 1) % radial);
+            }
+            if ring > 0 {
+                nb.push((ring - 1) * radial + k);
+            }
+            if ring + 1 < axial {
+                nb.push((ring + 1) * radial + k);
+            }
+            nb.sort_unstable();
+            nb.dedup();
+            nb.into_iter()
+                .filter(|&x| x != j)
+                .map(|x| x as u16)
+                .collect() // < 65536
+        })
+        .collect())
+}
+
+/// Prototype shapes `v_jk` (§5.3) of one primitive.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PrototypeShapes {
+    /// Number of needles `J`.
+    pub num_needles: usize,
+    /// Number of prototypes `N`.
+    pub num_prototypes: usize,
+    /// Lengths, prototype-major: `lengths[k * J + j]` is needle `j` in prototype `k`
+    /// (same unit as the observed lengths).
+    pub lengths: Vec<f32>,
+    /// Needles that had no observation and were filled from neighbouring needles.
+    pub filled_needles: Vec<u32>,
+}
+
+impl PrototypeShapes {
+    /// The needle lengths of prototype `k` (panics if `k ≥ num_prototypes`, like slicing).
+    pub fn shape(&self, k: usize) -> &[f32] {
+        &self.lengths[k * self.num_needles..(k + 1) * self.num_needles]
+    }
+}
+
+/// Number of nearest observations used for a needle with `m` observations (§5.3):
+/// `n = round(F_near · m)` clamped to `1..=m`.
+pub fn near_count(m: usize, f_near: f64) -> usize {
+    ((f_near * m as f64).round() as usize).clamp(1, m.max(1))
+}
+
+/// Index of the `F_min` percentile in `n` sorted values: `round(F_min · (n − 1))`.
+pub fn percentile_index(n: usize, f_min: f64) -> usize {
+    ((f_min * (n.saturating_sub(1)) as f64).round() as usize).min(n.saturating_sub(1))
+}
+
+/// `F_min` percentile of `values` (reordered in place); `values` must be non-empty.
+fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
+    let idx = percentile_index(values.len(), f_min);
+    *values.select_nth_unstable_by(idx, f32::total_cmp).1
+}
+
+/// Prototype shapes by the robust minimum of nearby observations (Sand 2003 §5.3).
+///
+/// * `samples`: configuration points, `S × dim` row-major.
+/// * `observations`: per-needle observations indexing rows of `samples`.
+/// * `prototype_points`: prototype locations `N × dim` (e.g. [`PrototypeLocations::points`]).
+/// * `adjacency`: neighbouring needles of each needle on the primitive (ring and axial grid),
+///   used only to fill needles without any observation; must have one entry per needle.
+///
+/// All needles of a primitive share its samples, so instead of one kd-tree per needle we sort
+/// the `S` samples by distance to each prototype once (`O(N·S log S)`, parallel over
+/// prototypes); then for needle `j` and prototype `k` the samples are walked in that order,
+/// collecting needle `j`'s observations until `n = F_near·m_j` are found, and the `F_min`
+/// percentile is taken with `select_nth_unstable`. This is exact (ties by sample index) and
+/// costs about `F_near·S` steps per (needle, prototype) whatever the configuration dimension,
+/// where a kd-tree `n`-nearest query in 6–9 dimensions visits far more points. Needles run
+/// in parallel. Total `O(N·S log S + J·S + N·J·F_near·S)`.
+///
+/// **Hole filling for unobserved needles.** The paper's fraction rule fills holes in
+/// configuration space, but a needle that was never observed (e.g. always perpendicular to
+/// the image plane) has nothing to borrow. We fill it per prototype with the mean of its
+/// already-known neighbours' lengths, in breadth-first rounds (each round uses only needles
+/// known before the round, so the result does not depend on order): neighbouring needles
+/// describe nearby surface, and the mean is the smooth choice for a surface that is already
+/// a robust-minimum estimate.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for invalid `params` or `dim`; [`Error::SizeMismatch`] for a
+/// `prototype_points` length not a multiple of `dim`, an adjacency of wrong length, or an
+/// out-of-range sample/needle index; [`Error::NonFinite`] for NaN/∞ coordinates or lengths;
+/// [`Error::Empty`] for no samples or prototypes; [`Error::NoObservations`] when a needle has
+/// no observation and no observed needle is reachable through `adjacency`.
+pub fn prototype_shapes(
+    samples: &[f32],
+    dim: usize,
+    observations: &NeedleObservations,
+    prototype_points: &[f32],
+    adjacency: &[Vec<u16>],
+    params: &ReconstructionParams,
+) -> Result<PrototypeShapes> {
+    params.validate()?;
+    let count = check_samples(samples, dim)?;
+    if prototype_points.is_empty() {
+        return Err(Error::Empty {
+            what: "prototype locations",
+        });
+    }
+    if !prototype_points.len().is_multiple_of(dim) {
+        return Err(Error::SizeMismatch {
+            what: "prototype locations (length must be a multiple of dim)",
+            expected: prototype_points.len().div_ceil(dim) * dim,
+            got: prototype_points.len(),
+        });
+    }
+    if prototype_points.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "prototype locations",
+        });
+    }
+    let num_needles = observations.start.len().saturating_sub(1);
+    if observations.sample.len() != observations.length_m.len()
+        || observations.start.last().map_or(0, |&e| e as usize) != observations.sample.len()
+        || observations.start.windows(2).any(|w| w[0] > w[1])
+    {
+        return Err(Error::SizeMismatch {
+            what: "per-needle observation table (start offsets vs sample and length arrays)",
+            expected: observations.sample.len(),
+            got: observations.length_m.len(),
+        });
+    }
+    if num_needles == 0 {
+        return Err(Error::Empty { what: "needles" });
+    }
+    if adjacency.len() != num_needles {
+        return Err(Error::SizeMismatch {
+            what: "needle adjacency (one list per needle)",
+            expected: num_needles,
+            got: adjacency.len(),
+        });
+    }
+    if let Some(&bad) = adjacency
+        .iter()
+        .flatten()
+        .find(|&&n| n as usize >= num_needles)
+    {
+        return Err(Error::SizeMismatch {
+            what: "neighbour index in needle adjacency (must be < number of needles)",
+            expected: num_needles,
+            got: bad as usize,
+        });
+    }
+    if let Some(&bad) = observations.sample.iter().find(|&&s| s as usize >= count) {
+        return Err(Error::SizeMismatch {
+            what: "sample index in observations (must be < number of samples)",
+            expected: count,
+            got: bad as usize,
+        });
+    }
+    if observations.length_m.iter().any(|l| !l.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "observed needle lengths",
+        });
+    }
+    let num_protos = prototype_points.len() / dim;
+
+    // Every sample, in order of distance to each prototype (ties by index): O(N·S log S).
+    let order: Vec<Vec<u32>> = prototype_points
+        .par_chunks_exact(dim)
+        .map(|p| {
+            let mut d: Vec<(f32, u32)> = samples
+                .chunks_exact(dim)
+                .enumerate()
+                .map(|(i, x)| (dist2(x, p), i as u32))
+                .collect();
+            d.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            d.into_iter().map(|(_, i)| i).collect()
+        })
+        .collect();
+
+    // Per needle: Some(N lengths) or None when unobserved.
+    let per_needle: Vec<Option<Vec<f32>>> = (0..num_needles)
+        .into_par_iter()
+        .map_init(Scratch::default, |scratch, j| {
+            let (s, l) = observations.needle(j);
+            if s.is_empty() {
+                None
+            } else {
+                Some(needle_prototype_lengths(
+                    &order, count, s, l, params, scratch,
+                ))
+            }
+        })
+        .collect();
+
+    let mut lengths = vec![0f32; num_protos * num_needles];
+    let mut known = vec![false; num_needles];
+    for (j, v) in per_needle.iter().enumerate() {
+        if let Some(v) = v {
+            known[j] = true;
+            for (k, &x) in v.iter().enumerate() {
+                lengths[k * num_needles + j] = x;
+            }
+        }
+    }
+    let mut filled_needles = Vec::new();
+    loop {
+        let round: Vec<usize> = (0..num_needles)
+            .filter(|&j| !known[j] && adjacency[j].iter().any(|&n| known[n as usize]))
+            .collect();
+        if round.is_empty() {
+            break;
+        }
+        let mut updates = Vec::with_capacity(round.len());
+        for &j in &round {
+            let nbrs: Vec<usize> = adjacency[j]
+                .iter()
+                .map(|&n| n as usize)
+                .filter(|&n| known[n])
+                .collect();
+            let inv = 1.0 / nbrs.len() as f32;
+            let vals: Vec<f32> = (0..num_protos)
+                .map(|k| {
+                    nbrs.iter()
+                        .map(|&n| lengths[k * num_needles + n])
+                        .sum::<f32>()
+                        * inv
+                })
+                .collect();
+            updates.push((j, vals));
+        }
+        for (j, vals) in updates {
+            for (k, x) in vals.into_iter().enumerate() {
+                lengths[k * num_needles + j] = x;
+            }
+            known[j] = true;
+            filled_needles.push(j as u32);
+        }
+    }
+    if let Some(j) = known.iter().position(|&k| !k) {
+        return Err(Error::NoObservations {
+            what: format!(
+                "needle {j}: never observed and no observed needle reachable through the adjacency"
+            ),
+        });
+    }
+    filled_needles.sort_unstable();
+    Ok(PrototypeShapes {
+        num_needles,
+        num_prototypes: num_protos,
+        lengths,
+        filled_needles,
+    })
+}
+
+/// Per-thread scratch of [`needle_prototype_lengths`].
+#[derive(Default)]
+struct Scratch {
+    /// Counting-sort ends: after filling, observations of sample `s` are
+    /// `vals[ends[s-1]..ends[s]]` (`ends[-1] = 0`).
+    ends: Vec<u32>,
+    vals: Vec<f32>,
+    buf: Vec<f32>,
+}
+
+/// §5.3 for one needle: the `F_min` percentile of its `F_near·m` nearest observations, for
+/// each prototype, given every prototype's samples in order of increasing distance.
+///
+/// The needle's observations are bucketed by sample (counting sort), then for prototype `k`
+/// the samples are walked in distance order collecting this needle's observations until `n`
+/// are found. This is exactly the `n` nearest observations (ties by sample index). Expected
+/// walk length is `F_near·S` samples when the needle's visibility does not depend on pose,
+/// and at most `S`.
+fn needle_prototype_lengths(
+    order: &[Vec<u32>],
+    count: usize,
+    sample_idx: &[u32],
+    lengths: &[f32],
+    params: &ReconstructionParams,
+    scratch: &mut Scratch,
+) -> Vec<f32> {
+    let m = sample_idx.len();
+    let n = near_count(m, params.f_near);
+    if n == m {
+        // Every observation is "near" every prototype: a static estimate.
+        scratch.buf.clear();
+        scratch.buf.extend_from_slice(lengths);
+        return vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()];
+    }
+    let Scratch { ends, vals, buf } = scratch;
+    ends.clear();
+    ends.resize(count + 1, 0);
+    for &s in sample_idx {
+        ends[s as usize + 1] += 1;
+    }
+    for s in 0..count {
+        ends[s + 1] += ends[s];
+    }
+    // ends[s] is now the start of sample s; filling advances it to the end of sample s.
+    vals.clear();
+    vals.resize(m, 0.0);
+    for (&s, &l) in sample_idx.iter().zip(lengths) {
+        let c = &mut ends[s as usize];
+        vals[*c as usize] = l;
+        *c += 1;
+    }
+    order
+        .iter()
+        .map(|ord| {
+            buf.clear();
+            'walk: for &s in ord {
+                let s = s as usize;
+                let start = if s == 0 { 0 } else { ends[s - 1] as usize };
+                for &v in &vals[start..ends[s] as usize] {
+                    buf.push(v);
+                    if buf.len() == n {
+                        break 'walk;
+                    }
+                }
+            }
+            robust_minimum(buf, params.f_min)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
+        (0..count * dim)
+            .map(|_| rng.random_range(-1.0f32..1.0))
+            .collect()
+    }
+
+    fn covering_radius(samples: &[f32], dim: usize, chosen: &[usize]) -> f32 {
+        samples
+            .chunks_exact(dim)
+            .map(|x| {
+                chosen
+                    .iter()
+                    .map(|&c| dist2(x, &samples[c * dim..(c + 1) * dim]))
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .fold(0.0, f32::max)
+            .sqrt()
+    }
+
+    #[test]
+    fn farthest_point_is_greedy_and_spreads_better_than_random() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // Clustered data: a dense blob plus a sparse shell, as in Sand's Figure 7.
+        let dim = 3;
+        let mut samples = uniform_points(&mut rng, 3000, dim);
+        samples.iter_mut().for_each(|v| *v *= 0.2);
+        samples.extend(uniform_points(&mut rng, 300, dim));
+        let n = 40;
+        let locs = farthest_point_prototypes(&samples, dim, n, &mut rng).unwrap();
+        assert_eq!(locs.sample_indices.len(), n);
+        assert_eq!(locs.points.len(), n * dim);
+        let mut sorted = locs.sample_indices.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), n, "prototypes must be distinct samples");
+        // Greedy property: each new prototype maximises the distance to the previous ones.
+        for k in 1..n {
+            let prev = &locs.sample_indices[..k];
+            let r = covering_radius(&samples, dim, prev);
+            let i = locs.sample_indices[k];
+            let di = prev
+                .iter()
+                .map(|&c| {
+                    dist2(
+                        &samples[i * dim..(i + 1) * dim],
+                        &samples[c * dim..(c + 1) * dim],
+                    )
+                })
+                .fold(f32::INFINITY, f32::min)
+                .sqrt();
+            assert!((di - r).abs() <= 1e-5 * r.max(1.0), "step {k}: {di} vs {r}");
+        }
+        let exact = covering_radius(&samples, dim, &locs.sample_indices);
+        assert!((exact - locs.covering_radius).abs() < 1e-5);
+        // Random selection of the same size covers worse (mean over several draws).
+        let mut random_mean = 0.0;
+        for _ in 0..10 {
+            let idx: Vec<usize> = (0..n).map(|_| rng.random_range(0..3300)).collect();
+            random_mean += covering_radius(&samples, dim, &idx) / 10.0;
+        }
+        assert!(
+            locs.covering_radius < 0.7 * random_mean,
+            "farthest point {} vs random {}",
+            locs.covering_radius,
+            random_mean
+        );
+    }
+
+    #[test]
+    fn farthest_point_stops_when_all_samples_are_prototypes() {
+        let samples = [0.0f32, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0];
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let locs = farthest_point_prototypes(&samples, 2, 10, &mut rng).unwrap();
+        assert_eq!(locs.sample_indices.len(), 2);
+        assert_eq!(locs.covering_radius, 0.0);
+    }
+
+    #[test]
+    fn farthest_point_rejects_bad_input() {
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let f = |s: &[f32], d, n, rng: &mut ChaCha8Rng| farthest_point_prototypes(s, d, n, rng);
+        assert!(matches!(f(&[], 2, 3, &mut rng), Err(Error::Empty { .. })));
+        assert!(matches!(
+            f(&[1.0, 2.0, 3.0], 2, 3, &mut rng),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, f32::NAN], 2, 3, &mut rng),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, 2.0], 0, 3, &mut rng),
+            Err(Error::InvalidParam { name: "dim", .. })
+        ));
+        assert!(matches!(
+            f(&[0.0; 17], 17, 3, &mut rng),
+            Err(Error::InvalidParam { name: "dim", .. })
+        ));
+        assert!(matches!(
+            f(&[1.0, 2.0], 2, 0, &mut rng),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    #[test]
+    fn lists_build_the_store_layout() {
+        let per_needle = vec![vec![(0u32, 1.0f32), (2, 1.5)], vec![], vec![(1, 2.0)]];
+        let a = observations_from_lists(&per_needle).unwrap();
+        assert_eq!(a.start, vec![0, 2, 2, 3]);
+        assert_eq!(a.needle(0), (&[0u32, 2][..], &[1.0f32, 1.5][..]));
+        assert_eq!(a.needle(1), (&[][..], &[][..]));
+        assert_eq!(a.needle(7), (&[][..], &[][..]));
+    }
+
+    #[test]
+    fn grid_adjacency_is_symmetric_ring_and_axial() {
+        let adj = grid_adjacency(4, 3).unwrap();
+        assert_eq!(adj.len(), 12);
+        assert_eq!(adj[0], vec![1, 3, 4]);
+        assert_eq!(adj[5], vec![1, 4, 6, 9]);
+        for (j, nb) in adj.iter().enumerate() {
+            for &n in nb {
+                assert!(adj[n as usize].contains(&(j as u16)));
+            }
+        }
+        assert!(grid_adjacency(1, 1).unwrap()[0].is_empty());
+        assert!(matches!(
+            grid_adjacency(0, 3),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            grid_adjacency(300, 300),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    /// Brute force §5.3 for one needle and prototype.
+    fn brute(
+        samples: &[f32],
+        dim: usize,
+        s: &[u32],
+        l: &[f32],
+        p: &[f32],
+        pr: &ReconstructionParams,
+    ) -> f32 {
+        let mut d: Vec<(f32, f32)> = s
+            .iter()
+            .zip(l)
+            .map(|(&i, &len)| {
+                (
+                    dist2(&samples[i as usize * dim..(i as usize + 1) * dim], p),
+                    len,
+                )
+            })
+            .collect();
+        d.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = near_count(s.len(), pr.f_near);
+        let mut near: Vec<f32> = d[..n].iter().map(|x| x.1).collect();
+        near.sort_by(f32::total_cmp);
+        near[percentile_index(n, pr.f_min)]
+    }
+
+    #[test]
+    fn shapes_match_brute_force_in_any_dimension() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for dim in [1usize, 2, 3, 5, 6, 9, 11, 16] {
+            let count = 600;
+            // Every configuration is shared by 3 "cameras" (exact distance ties).
+            let frames = uniform_points(&mut rng, count / 3, dim);
+            let samples: Vec<f32> = frames
+                .chunks_exact(dim)
+                .flat_map(|r| r.iter().chain(r).chain(r).copied())
+                .collect();
+            let per_needle: Vec<Vec<(u32, f32)>> = (0..4)
+                .map(|_| {
+                    let mut v = Vec::new();
+                    for s in 0..count as u32 {
+                        if rng.random_range(0.0f32..1.0) < 0.6 {
+                            v.push((s, rng.random_range(0.5f32..2.0)));
+                        }
+                        if rng.random_range(0.0f32..1.0) < 0.1 {
+                            // A second observation in the same sample.
+                            v.push((s, rng.random_range(0.5f32..2.0)));
+                        }
+                    }
+                    v
+                })
+                .collect();
+            let obs = observations_from_lists(&per_needle).unwrap();
+            let params = ReconstructionParams::default()
+                .with_f_near(0.05)
+                .with_f_min(0.2);
+            let locs = farthest_point_prototypes(&samples, dim, 7, &mut rng).unwrap();
+            let adj = vec![vec![]; 4];
+            let shapes =
+                prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
+            for k in 0..7 {
+                for j in 0..4 {
+                    let (s, l) = obs.needle(j);
+                    let p = &locs.points[k * dim..(k + 1) * dim];
+                    assert_eq!(
+                        shapes.shape(k)[j],
+                        brute(&samples, dim, s, l, p, &params),
+                        "dim {dim}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn unobserved_needles_are_filled_from_neighbours() {
+        // A ring of 6 needles; needles 2 and 3 are never observed.
+        let samples = [0.0f32, 1.0, 2.0, 3.0];
+        let per_needle: Vec<Vec<(u32, f32)>> = (0..6)
+            .map(|j| {
+                if j == 2 || j == 3 {
+                    vec![]
+                } else {
+                    (0..4u32).map(|s| (s, j as f32 + 1.0)).collect()
+                }
+            })
+            .collect();
+        let obs = observations_from_lists(&per_needle).unwrap();
+        let adj: Vec<Vec<u16>> = (0..6u16).map(|j| vec![(j + 5) % 6, (j + 1) % 6]).collect();
+        let params = ReconstructionParams::default()
+            .with_f_near(0.5)
+            .with_f_min(0.0);
+        let shapes = prototype_shapes(&samples, 1, &obs, &[0.0, 3.0], &adj, &params).unwrap();
+        assert_eq!(shapes.filled_needles, vec![2, 3]);
+        for k in 0..2 {
+            let s = shapes.shape(k);
+            assert_eq!(s[2], 2.0, "needle 2 = its observed neighbour 1 (length 2)");
+            assert_eq!(s[3], 5.0, "needle 3 = its observed neighbour 4 (length 5)");
+        }
+        // With needles 2..=4 unobserved, needle 3 is filled in a second round from 2 and 4.
+        let mut per2 = per_needle.clone();
+        per2[4].clear();
+        let obs2 = observations_from_lists(&per2).unwrap();
+        let shapes = prototype_shapes(&samples, 1, &obs2, &[0.0], &adj, &params).unwrap();
+        assert_eq!(shapes.shape(0)[2], 2.0);
+        assert_eq!(shapes.shape(0)[4], 6.0);
+        assert_eq!(shapes.shape(0)[3], 4.0);
+        // No neighbours: a clear error.
+        let no_adj = vec![vec![]; 6];
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &obs, &[0.0], &no_adj, &params),
+            Err(Error::NoObservations { .. })
+        ));
+    }
+
+    #[test]
+    fn shapes_reject_bad_input() {
+        let samples = [0.0f32, 1.0];
+        let p = ReconstructionParams::default();
+        let ok = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
+        let adj = vec![vec![]];
+        let bad_idx = observations_from_lists(&[vec![(5, 1.0)]]).unwrap();
+        let nan = observations_from_lists(&[vec![(0, f32::NAN)]]).unwrap();
+        assert!(prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p).is_ok());
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &bad_idx, &[0.0], &adj, &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &nan, &[0.0], &adj, &p),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[f32::NAN], &adj, &p),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[], &adj, &p),
+            Err(Error::Empty { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &[], &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &[vec![3]], &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p.with_f_near(2.0)),
+            Err(Error::InvalidParam { name: "f_near", .. })
+        ));
+        let none = observations_from_lists(&[]).unwrap();
+        let mut broken = ok.clone();
+        broken.start = vec![0, 3];
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &broken, &[0.0], &adj, &p),
+            Err(Error::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            prototype_shapes(&samples, 1, &none, &[0.0], &[], &p),
+            Err(Error::Empty { .. })
+        ));
+    }
+}
