@@ -29,6 +29,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod animate;
 pub mod config;
 pub mod error;
 pub mod nrbf;
@@ -37,9 +38,13 @@ pub mod params;
 pub mod primitive;
 pub mod prototypes;
 pub mod reconstruct;
+pub mod select;
+pub mod silhouette_error;
 pub mod store;
+pub mod surface;
 pub mod sync;
 
+pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
 pub use config::ConfigSpace;
 pub use error::{Error, Result};
 pub use nrbf::{Nrbf, NrbfFit};
