@@ -29,6 +29,8 @@ pub struct AnimatedPrimitive {
     pub axis_end: DVec3,
     /// Needle origins, world frame, m (ring-major, `radial · axial` entries).
     pub origins: Vec<DVec3>,
+    /// Unit needle directions, world frame (perpendicular to the axis).
+    pub directions: Vec<DVec3>,
     /// Needle endpoints (surface points), world frame, m: origin + direction · length.
     pub endpoints: Vec<DVec3>,
     /// Predicted needle lengths, m (§5.4).
@@ -96,10 +98,12 @@ pub fn animate(
         let lengths: Vec<f64> = lengths32.iter().map(|&l| f64::from(l)).collect();
         let mut origins = Vec::with_capacity(lengths.len());
         let mut endpoints = Vec::with_capacity(lengths.len());
+        let mut directions = Vec::with_capacity(lengths.len());
         for (j, &l) in lengths.iter().enumerate() {
             let (o, d) = prim.needle_world(frame, j);
             origins.push(o);
             endpoints.push(o + d * l);
+            directions.push(d);
         }
         primitives.push(AnimatedPrimitive {
             radial: prim.radial,
@@ -107,6 +111,7 @@ pub fn animate(
             axis_start: frame.transform_point3(prim.axis_start),
             axis_end: frame.transform_point3(prim.axis_end),
             origins,
+            directions,
             endpoints,
             lengths,
         });
