@@ -420,3 +420,64 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use proptest::prelude::*;
+    use skin_core::math::DQuat;
+    use skin_core::mesh::EdgeTopology;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// For any needle lengths and any axis placement: the primitive mesh is closed, and
+        /// every needle endpoint lies on the zero set of the primitive's implicit function
+        /// (the union surface interpolates the needles exactly).
+        #[test]
+        fn endpoints_are_on_the_implicit_surface(
+            radial in 3usize..10,
+            axial in 1usize..6,
+            lengths in proptest::collection::vec(0.01f64..0.2, 60),
+            rot in proptest::array::uniform3(-3.0f64..3.0),
+            shift in proptest::array::uniform3(-1.0f64..1.0),
+        ) {
+            let q = DQuat::from_scaled_axis(DVec3::from_array(rot));
+            let t = DVec3::from_array(shift);
+            let len = 0.4;
+            let (mut origins, mut directions, mut endpoints, mut ls) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            for r in 0..axial {
+                let z = len * (r as f64 + 0.5) / axial as f64;
+                for k in 0..radial {
+                    let phi = std::f64::consts::TAU * k as f64 / radial as f64;
+                    let o = q * DVec3::new(0.0, 0.0, z) + t;
+                    let d = q * DVec3::new(phi.cos(), phi.sin(), 0.0);
+                    let l = lengths[r * radial + k];
+                    origins.push(o);
+                    directions.push(d);
+                    endpoints.push(o + d * l);
+                    ls.push(l);
+                }
+            }
+            let p = AnimatedPrimitive {
+                radial,
+                axial,
+                axis_start: t,
+                axis_end: q * DVec3::new(0.0, 0.0, len) + t,
+                origins,
+                directions,
+                endpoints,
+                lengths: ls,
+            };
+            let mesh = primitive_mesh(&p).unwrap();
+            prop_assert!(EdgeTopology::new(&mesh).unwrap().is_closed());
+            for e in &p.endpoints {
+                prop_assert!(primitive_implicit(&p, *e).abs() < 1e-9);
+            }
+            // Points on the axis are inside, far points outside.
+            prop_assert!(primitive_implicit(&p, p.origins[0]) < 0.0);
+            prop_assert!(primitive_implicit(&p, p.axis_end + (p.axis_end - t)) > 0.0);
+        }
+    }
+}
