@@ -15,7 +15,7 @@
 //! (silhouette walks, §4.3), [`store`] (compact observation storage), [`params`]
 //! (reconstruction parameters, §6.3), [`prototypes`] (prototype locations and robust-minimum
 //! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1), [`reconstruct`] (the whole body,
-//! §5.3–5.4), [`animate`] (posed needle endpoints, §5.4), [`surface`] (primitive meshes and the
+//! §5.3–5.4), [`animate`](mod@animate) (posed needle endpoints, §5.4), [`surface`] (primitive meshes and the
 //! watertight union body, §3.2), [`silhouette_error`] (§6.2) and [`select`] (automatic
 //! parameter selection, §6.3).
 //!
