@@ -14,8 +14,10 @@
 //! (configuration spaces, §3.3), [`sync`] (video/mocap time offset, §4.2), [`observe`]
 //! (silhouette walks, §4.3), [`store`] (compact observation storage), [`params`]
 //! (reconstruction parameters, §6.3), [`prototypes`] (prototype locations and robust-minimum
-//! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1) and [`reconstruct`] (the whole body,
-//! §5.3–5.4).
+//! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1), [`reconstruct`] (the whole body,
+//! §5.3–5.4), [`animate`](mod@animate) (posed needle endpoints, §5.4), [`surface`] (primitive meshes and the
+//! watertight union body, §3.2), [`silhouette_error`] (§6.2) and [`select`] (automatic
+//! parameter selection, §6.3).
 //!
 //! ```no_run
 //! use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
@@ -29,6 +31,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod animate;
 pub mod config;
 pub mod error;
 pub mod nrbf;
@@ -37,9 +40,13 @@ pub mod params;
 pub mod primitive;
 pub mod prototypes;
 pub mod reconstruct;
+pub mod select;
+pub mod silhouette_error;
 pub mod store;
+pub mod surface;
 pub mod sync;
 
+pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
 pub use config::ConfigSpace;
 pub use error::{Error, Result};
 pub use nrbf::{Nrbf, NrbfFit};
@@ -48,5 +55,15 @@ pub use params::ReconstructionParams;
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototypes::{PrototypeLocations, PrototypeShapes};
 pub use reconstruct::{NeedleModel, Reconstruction};
+pub use select::{
+    select_params, validation_error, Parameter, ParameterCurve, Selection, SelectionParams,
+    ValidationFrame,
+};
+pub use silhouette_error::{
+    FrameSilhouetteError, SilhouetteError, SilhouetteErrorParams, SilhouetteScorer,
+};
 pub use store::{NeedleObservations, Observation, ObservationStore, PrimitiveShape};
+pub use surface::{
+    merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,
+};
 pub use sync::{estimate_sync_offset, SyncParams, SyncResult, VideoFrame};
