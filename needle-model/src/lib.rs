@@ -39,6 +39,7 @@ pub mod prototypes;
 pub mod reconstruct;
 pub mod store;
 pub mod sync;
+pub mod truth;
 
 pub use config::ConfigSpace;
 pub use error::{Error, Result};
