@@ -208,6 +208,10 @@ fn main() -> Res<()> {
         "static_median_near_joints_mm": median(&mut st.near_joints_mm),
         "lbs_median_mm": median(&mut lbs.all_mm),
         "lbs_median_near_joints_mm": median(&mut lbs.near_joints_mm),
+        "test_median_deforming_mm": median(&mut m.deforming_mm),
+        "static_median_deforming_mm": median(&mut st.deforming_mm),
+        "lbs_median_deforming_mm": median(&mut lbs.deforming_mm),
+        "deforming_needles": m.deforming_mm.len(),
         "near_joint_needles": m.near_joints_mm.len(),
         "scored_needles": scored,
     });
