@@ -4,7 +4,8 @@
 //! then tests on a fast motion the model never saw, against ground truth from the performer's
 //! true posed mesh (see `needle_model::truth`). Baselines on the same test needles: a static
 //! model (`f_near = 1`, thesis Figure 6-2c) and the rest shape skinned with LBS. Figures of
-//! §6: error vs prototype count N (10, 30, 100, 300) and short (30 s) vs long (3 min)
+//! §6: error vs prototype count N (10, 30, 100, 300) and a short (30 s, every DOF compressed)
+//! vs long (3 min) range-of-motion
 //! training.
 //!
 //! Writes under `out/needle_capture/`: `error_vs_n.png` (median error vs N: all needles in
@@ -103,7 +104,6 @@ fn main() -> Res<()> {
     // --- Training capture, streamed in chunks (masks are not kept). ---
     let train = training_motion(&performer, s.train_s)?;
     let n_train = train.frame_count();
-    let short_frames = (s.short_s / train.frame_time_s).round() as usize;
     eprintln!(
         "training: range of motion, {n_train} frames ({:.1} s) at {:.0} fps, {} needles, 3 cameras {}×{}",
         train.duration_s(),
@@ -112,47 +112,17 @@ fn main() -> Res<()> {
         s.width,
         s.height
     );
-    let mut store = observer.empty_store()?;
-    let mut short_store: Option<ObservationStore> = None;
-    let (mut acc_s, mut render_s) = (0.0, 0.0);
-    let chunk = 48usize;
-    let mut pending: Vec<(Vec<f64>, TriMesh)> = vec![];
-    let mut state = dynamic_shapes::core::studio::DeformationState::default();
-    for k in 0..n_train {
-        let theta = train.frame(k).to_vec();
-        let posed = performer.pose(&theta, &mut state, train.frame_time_s)?;
-        let mesh = TriMesh {
-            vertices: posed.true_vertices,
-            faces: performer.template.faces.clone(),
-        };
-        pending.push((theta, mesh));
-        if pending.len() == chunk || k + 1 == n_train || k + 1 == short_frames {
-            let tr = Instant::now();
-            let masks: Vec<_> = pending
-                .par_iter()
-                .map(|(_, m)| truth::render_masks(&cameras, m))
-                .collect::<Result<_, _>>()?;
-            render_s += tr.elapsed().as_secs_f64();
-            let frames: Vec<FrameInput> = pending
-                .iter()
-                .zip(&masks)
-                .map(|((t, _), m)| FrameInput { theta: t, masks: m })
-                .collect();
-            let ta = Instant::now();
-            let acc = observer.accumulate(&frames)?;
-            acc_s += ta.elapsed().as_secs_f64();
-            store.append(&acc.store)?;
-            pending.clear();
-            if k + 1 == short_frames {
-                short_store = Some(store.clone());
-            }
-            eprint!(
-                "\r  frame {}/{n_train}, {} observations",
-                k + 1,
-                store.total_observations()
-            );
-        }
-    }
+    let long = capture(&performer, &observer, &cameras, &train)?;
+    let store = long.store;
+    let (acc_s, render_s) = (long.accumulate_s, long.render_s);
+    // Short training: a separate range of motion over every DOF, compressed into `short_s`.
+    let short_motion = training_motion(&performer, s.short_s)?;
+    eprintln!(
+        "short training: range of motion, {} frames ({:.1} s)",
+        short_motion.frame_count(),
+        short_motion.duration_s()
+    );
+    let short_store = Some(capture(&performer, &observer, &cameras, &short_motion)?.store);
     eprintln!();
     let accumulate_fps = n_train as f64 / acc_s;
     let bpo = store.bytes_per_observation();
@@ -293,6 +263,67 @@ fn main() -> Res<()> {
     )?;
     println!("{out}");
     Ok(())
+}
+
+/// Result of [`capture`].
+struct Captured {
+    store: ObservationStore,
+    accumulate_s: f64,
+    render_s: f64,
+}
+
+/// Poses the performer along `motion`, renders the true mesh's silhouettes and accumulates
+/// the observations, streamed in chunks of 48 frames (masks are not kept).
+fn capture(
+    performer: &Performer,
+    observer: &Observer,
+    cameras: &[dynamic_shapes::core::camera::Camera],
+    motion: &Motion,
+) -> Res<Captured> {
+    let n = motion.frame_count();
+    let mut store = observer.empty_store()?;
+    let (mut accumulate_s, mut render_s) = (0.0, 0.0);
+    let chunk = 48usize;
+    let mut pending: Vec<(Vec<f64>, TriMesh)> = vec![];
+    let mut state = dynamic_shapes::core::studio::DeformationState::default();
+    for k in 0..n {
+        let theta = motion.frame(k).to_vec();
+        let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
+        let mesh = TriMesh {
+            vertices: posed.true_vertices,
+            faces: performer.template.faces.clone(),
+        };
+        pending.push((theta, mesh));
+        if pending.len() == chunk || k + 1 == n {
+            let tr = Instant::now();
+            let masks: Vec<_> = pending
+                .par_iter()
+                .map(|(_, m)| truth::render_masks(cameras, m))
+                .collect::<Result<_, _>>()?;
+            render_s += tr.elapsed().as_secs_f64();
+            let frames: Vec<FrameInput> = pending
+                .iter()
+                .zip(&masks)
+                .map(|((t, _), m)| FrameInput { theta: t, masks: m })
+                .collect();
+            let ta = Instant::now();
+            let acc = observer.accumulate(&frames)?;
+            accumulate_s += ta.elapsed().as_secs_f64();
+            store.append(&acc.store)?;
+            pending.clear();
+            eprint!(
+                "\r  frame {}/{n}, {} observations",
+                k + 1,
+                store.total_observations()
+            );
+        }
+    }
+    eprintln!();
+    Ok(Captured {
+        store,
+        accumulate_s,
+        render_s,
+    })
 }
 
 /// Median error vs log N as two polylines, baselines as horizontal dashes.
