@@ -45,6 +45,7 @@ pub mod silhouette_error;
 pub mod store;
 pub mod surface;
 pub mod sync;
+pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
 pub use config::ConfigSpace;

@@ -1,0 +1,287 @@
+//! Ground truth for validating the needle model on the synthetic studio (Sand, McMillan and
+//! Popović 2003 §6, "Results": reconstruction error against a known surface).
+//!
+//! The studio's performer gives the TRUE posed surface (linear-blend skinning plus the
+//! non-skinning bulge and flap) and the LBS-only surface. A needle's true length is the
+//! distance from its origin along its direction to where the ray leaves the true mesh; the
+//! LBS baseline's length is the same ray against the LBS-skinned rest shape, which is what a
+//! skinning-only model predicts. [`TestSet`] precomputes both for a sequence of test poses so
+//! that any number of models can be scored cheaply with [`TestSet::errors`].
+
+use glam::DVec3;
+use skin_core::camera::{Camera, Intrinsics, Rig};
+use skin_core::image::Mask;
+use skin_core::mesh::{MeshQuery, Ray, TriMesh};
+use skin_core::studio::{Buffers, DeformationState, Performer, Rasterizer, RenderParams};
+
+use crate::primitive::NeedleBody;
+use crate::reconstruct::NeedleModel;
+use crate::{Error, Result};
+
+/// Distance from a needle endpoint to an elbow or knee joint below which the needle counts as
+/// "near a joint", metres. The deformation the model must capture (bulges, creases) is
+/// concentrated there. Default of the validation: 0.10 m (the 10 cm).
+pub const NEAR_JOINT_M: f64 = 0.10;
+
+/// Difference between the true and the LBS length above which a needle counts as
+/// "deforming" (it sees non-skinning deformation), metres. Where the performer has no
+/// non-skinning deformation the LBS baseline is exact, so errors over all needles favour it;
+/// errors over deforming needles measure what the method adds. Default: 0.002 m.
+pub const DEFORMING_M: f64 = 0.002;
+
+/// `n` cameras on a ring of radius 3.5 m at height 1.1 m looking at (0, 0.95, 0) with a
+/// 55° horizontal field of view: the studio rig of the observation tests.
+///
+/// # Errors
+/// As [`Intrinsics::from_horizontal_fov`] and [`Rig::ring`] (zero sizes or counts).
+pub fn ring_cameras(n: usize, width: u32, height: u32) -> Result<Vec<Camera>> {
+    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), width, height)?;
+    Ok(Rig::ring(n, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)?.cameras)
+}
+
+/// Binary silhouette of `mesh` in every camera (empty masks allowed).
+///
+/// # Errors
+/// As [`Rasterizer::render`] (degenerate mesh).
+pub fn render_masks(cameras: &[Camera], mesh: &TriMesh) -> Result<Vec<Mask>> {
+    let params = RenderParams::default()
+        .with_buffers(Buffers::MASK_ONLY)
+        .with_allow_empty(true);
+    cameras
+        .iter()
+        .map(|c| {
+            let v = Rasterizer::new(c).render(mesh, &params)?;
+            Ok(Mask::from_fn(v.width, v.height, |x, y| {
+                v.mask[v.index(x, y)] != 0
+            }))
+        })
+        .collect()
+}
+
+/// Length of the needle `origin + t·dir`, `t ∈ [0, max_m]`, inside `query`'s closed mesh:
+/// the distance to the first hit if that hit is a back face (the ray leaves the body there).
+/// `None` when the origin is outside the mesh (first hit is a front face) or nothing is hit.
+///
+/// # Errors
+/// As [`MeshQuery::cast_ray`] (non-finite ray).
+pub fn exit_length(
+    query: &MeshQuery,
+    origin: DVec3,
+    dir: DVec3,
+    max_m: f64,
+) -> Result<Option<f64>> {
+    Ok(query
+        .cast_ray(Ray::new(origin, dir), max_m)?
+        .filter(|h| !h.front_face)
+        .map(|h| h.t))
+}
+
+/// One scored needle in one test frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeedleTruth {
+    /// Primitive index.
+    pub primitive: u32,
+    /// Needle index within the primitive.
+    pub needle: u32,
+    /// True length (ray exit from the true posed mesh), metres.
+    pub true_m: f64,
+    /// LBS-baseline length (ray exit from the LBS-skinned rest shape; 0 if the origin lies
+    /// outside it), metres.
+    pub lbs_m: f64,
+    /// Whether the true endpoint lies within [`NEAR_JOINT_M`] of an elbow or knee.
+    pub near_joint: bool,
+}
+
+/// Ground truth of one test frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestFrame {
+    /// Configuration point of every primitive (the model's input, §3.3).
+    pub config: Vec<Vec<f32>>,
+    /// Needles whose origin lies inside the true mesh and whose ray leaves it.
+    pub needles: Vec<NeedleTruth>,
+}
+
+/// Ground truth for a sequence of test poses.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct TestSet {
+    /// One entry per scored frame.
+    pub frames: Vec<TestFrame>,
+}
+
+/// Absolute needle-length errors of one predictor over a [`TestSet`], millimetres.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Errors {
+    /// Every scored needle.
+    pub all_mm: Vec<f64>,
+    /// Needles near an elbow or knee.
+    pub near_joints_mm: Vec<f64>,
+    /// Needles whose true and LBS lengths differ by more than [`DEFORMING_M`].
+    pub deforming_mm: Vec<f64>,
+}
+
+/// Median of `v` (NaN for an empty slice); `v` is sorted in place.
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Mean of `v` (NaN for an empty slice).
+pub fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+impl TestSet {
+    /// Records the truth of one posed frame: `theta` the pose, `true_vertices` and
+    /// `lbs_vertices` the performer's surfaces at that pose.
+    ///
+    /// # Errors
+    /// As forward kinematics, [`MeshQuery::new`] and the configuration points;
+    /// [`Error::SizeMismatch`] if the vertex counts differ from the template's.
+    pub fn push_frame(
+        &mut self,
+        body: &NeedleBody,
+        performer: &Performer,
+        theta: &[f64],
+        true_vertices: &[DVec3],
+        lbs_vertices: &[DVec3],
+    ) -> Result<()> {
+        let nv = performer.template.vertices.len();
+        for (what, v) in [
+            ("true vertices", true_vertices),
+            ("lbs vertices", lbs_vertices),
+        ] {
+            if v.len() != nv {
+                return Err(Error::SizeMismatch {
+                    what,
+                    expected: nv,
+                    got: v.len(),
+                });
+            }
+        }
+        let mesh = |v: &[DVec3]| TriMesh {
+            vertices: v.to_vec(),
+            faces: performer.template.faces.clone(),
+        };
+        let true_q = MeshQuery::new(&mesh(true_vertices))?;
+        let lbs_q = MeshQuery::new(&mesh(lbs_vertices))?;
+        let fk = performer.skeleton.forward_kinematics(theta)?;
+        let joints = fk.joint_positions();
+        let near: Vec<DVec3> = ["l_elbow", "r_elbow", "l_knee", "r_knee"]
+            .iter()
+            .filter_map(|n| performer.skeleton.joint_index(n))
+            .map(|j| joints[j])
+            .collect();
+        let mut frame = TestFrame {
+            config: Vec::with_capacity(body.primitives.len()),
+            needles: vec![],
+        };
+        for (p, prim) in body.primitives.iter().enumerate() {
+            let cfg = prim.config.point(&fk)?;
+            frame.config.push(cfg.iter().map(|&x| x as f32).collect());
+            let t = fk.world_from_joint()[prim.carrier];
+            for j in 0..prim.needle_count() {
+                let (o, d) = prim.needle_world(&t, j);
+                let Some(true_m) = exit_length(&true_q, o, d, prim.max_length_m)? else {
+                    continue;
+                };
+                let lbs_m = exit_length(&lbs_q, o, d, 2.0 * prim.max_length_m)?.unwrap_or(0.0);
+                let end = o + d * true_m;
+                frame.needles.push(NeedleTruth {
+                    primitive: p as u32,
+                    needle: j as u32,
+                    true_m,
+                    lbs_m,
+                    near_joint: near.iter().any(|&c| c.distance(end) <= NEAR_JOINT_M),
+                });
+            }
+        }
+        self.frames.push(frame);
+        Ok(())
+    }
+
+    /// Errors of a reconstructed model.
+    ///
+    /// # Errors
+    /// As [`NeedleModel::needle_lengths`] (model of another body).
+    pub fn errors(&self, model: &NeedleModel) -> Result<Errors> {
+        let mut out = Errors::default();
+        for f in &self.frames {
+            let pred: Vec<Vec<f32>> = f
+                .config
+                .iter()
+                .enumerate()
+                .map(|(p, c)| model.needle_lengths(p, c))
+                .collect::<Result<_>>()?;
+            for n in &f.needles {
+                let l = pred[n.primitive as usize]
+                    .get(n.needle as usize)
+                    .copied()
+                    .ok_or(Error::SizeMismatch {
+                        what: "model needle count",
+                        expected: n.needle as usize + 1,
+                        got: pred[n.primitive as usize].len(),
+                    })?;
+                out.push(n, (l as f64 - n.true_m).abs() * 1e3);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Errors of the LBS baseline (the skinned rest shape).
+    pub fn lbs_errors(&self) -> Errors {
+        let mut out = Errors::default();
+        for n in self.frames.iter().flat_map(|f| &f.needles) {
+            out.push(n, (n.lbs_m - n.true_m).abs() * 1e3);
+        }
+        out
+    }
+}
+
+impl Errors {
+    fn push(&mut self, n: &NeedleTruth, e_mm: f64) {
+        self.all_mm.push(e_mm);
+        if n.near_joint {
+            self.near_joints_mm.push(e_mm);
+        }
+        if (n.true_m - n.lbs_m).abs() > DEFORMING_M {
+            self.deforming_mm.push(e_mm);
+        }
+    }
+}
+
+/// Poses `performer` along `motion_frames` (consecutive frames, `dt_s` apart, so the flap's
+/// dynamics run) and calls `visit(k, theta, true_vertices, lbs_vertices)` for every
+/// `stride`-th frame.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for `stride == 0`; errors of [`Performer::pose`] and of `visit`.
+pub fn for_each_posed<'a>(
+    performer: &Performer,
+    motion_frames: impl IntoIterator<Item = &'a [f64]>,
+    dt_s: f64,
+    stride: usize,
+    mut visit: impl FnMut(usize, &[f64], &[DVec3], &[DVec3]) -> Result<()>,
+) -> Result<()> {
+    if stride == 0 {
+        return Err(Error::InvalidParam {
+            name: "stride",
+            reason: "must be ≥ 1".into(),
+        });
+    }
+    let mut state = DeformationState::default();
+    for (k, theta) in motion_frames.into_iter().enumerate() {
+        let posed = performer.pose(theta, &mut state, dt_s)?;
+        if k % stride == 0 {
+            visit(k, theta, &posed.true_vertices, &posed.lbs_vertices)?;
+        }
+    }
+    Ok(())
+}
