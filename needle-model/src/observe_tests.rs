@@ -6,8 +6,8 @@ use skin_core::camera::{Intrinsics, RadialDistortion, Rig};
 use skin_core::mesh::{MeshQuery, Ray as MeshRay, TriMesh};
 use skin_core::skeleton::Motion;
 use skin_core::studio::{
-    fast_motion, procedural_performer, Buffers, DeformationState, FastMotionParams, Performer,
-    ProceduralBodyParams, Rasterizer, RenderParams,
+    fast_motion, procedural_performer, DeformationState, FastMotionParams, Performer,
+    ProceduralBodyParams,
 };
 
 pub(crate) struct Scene {
@@ -16,19 +16,6 @@ pub(crate) struct Scene {
     pub thetas: Vec<Vec<f64>>,
     pub meshes: Vec<TriMesh>,
     pub masks: Vec<Vec<Mask>>,
-}
-
-pub(crate) fn render_masks(cameras: &[Camera], mesh: &TriMesh) -> Vec<Mask> {
-    let params = RenderParams::default()
-        .with_buffers(Buffers::MASK_ONLY)
-        .with_allow_empty(true);
-    cameras
-        .iter()
-        .map(|c| {
-            let v = Rasterizer::new(c).render(mesh, &params).unwrap();
-            Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0)
-        })
-        .collect()
 }
 
 pub(crate) fn cameras(width: u32, height: u32) -> Vec<Camera> {
@@ -60,7 +47,7 @@ pub(crate) fn scene_of(performer: Performer, n: usize, frame_stride: usize) -> S
                 vertices: posed.true_vertices.clone(),
                 faces: performer.template.faces.clone(),
             };
-            masks.push(render_masks(&cameras, &mesh));
+            masks.push(crate::truth::render_masks(&cameras, &mesh).unwrap());
             meshes.push(mesh);
             thetas.push(theta);
         }

@@ -270,7 +270,7 @@ pub fn estimate_sync_offset(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::observe::tests::{cameras, render_masks};
+    use crate::observe::tests::cameras;
     use skin_core::mesh::TriMesh;
     use skin_core::studio::{
         fast_motion, procedural_performer, DeformationState, FastMotionParams, ProceduralBodyParams,
@@ -298,7 +298,7 @@ mod tests {
                 vertices: posed.true_vertices,
                 faces: performer.template.faces.clone(),
             };
-            masks.push(render_masks(&cams, &mesh));
+            masks.push(crate::truth::render_masks(&cams, &mesh).unwrap());
         }
         let frames: Vec<VideoFrame> = times
             .iter()

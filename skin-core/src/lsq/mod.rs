@@ -34,3 +34,6 @@ mod problem;
 
 pub use cholesky::{CholeskyParams, CholeskyStats, FactorKind, FillOrdering, SparseCholesky};
 pub use problem::{LsqDiagnostics, LsqParams, LsqProblem, LsqSolver, LsqStats};
+
+#[cfg(test)]
+mod test_util;

@@ -164,21 +164,10 @@ impl NormalPattern {
 mod tests {
     use super::*;
     use nalgebra::DMatrix;
-    use nalgebra_sparse::CooMatrix;
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
-    fn random_sparse(rng: &mut ChaCha8Rng, m: usize, n: usize, density: f64) -> CscMatrix<f64> {
-        let mut coo = CooMatrix::new(m, n);
-        for i in 0..m {
-            for j in 0..n {
-                if rng.random_range(0.0..1.0) < density {
-                    coo.push(i, j, rng.random_range(-1.0..1.0));
-                }
-            }
-        }
-        CscMatrix::from(&coo)
-    }
+    use crate::lsq::test_util::random_sparse;
 
     #[test]
     fn assembled_values_match_dense_products() {

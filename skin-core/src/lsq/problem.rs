@@ -430,17 +430,7 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    fn random_sparse(rng: &mut ChaCha8Rng, m: usize, n: usize, density: f64) -> CscMatrix<f64> {
-        let mut coo = CooMatrix::new(m, n);
-        for i in 0..m {
-            for j in 0..n {
-                if rng.random_range(0.0..1.0) < density {
-                    coo.push(i, j, rng.random_range(-1.0..1.0));
-                }
-            }
-        }
-        CscMatrix::from(&coo)
-    }
+    use crate::lsq::test_util::random_sparse;
 
     fn random_dense(rng: &mut ChaCha8Rng, m: usize, k: usize) -> DMatrix<f64> {
         DMatrix::from_fn(m, k, |_, _| rng.random_range(-1.0..1.0))
