@@ -7,7 +7,7 @@
 //!    after one warm-up, as the peers measure them.
 //! 2. MakeHuman body: pin the feet and the body outside the left arm, pull the left hand up
 //!    and forward, write the edited mesh
-//!    as OBJ and a before/after orthographic render as PNG under `out/laplacian_edit/`.
+//!    as OBJ and a before/after render (studio rasteriser) as PNG under `out/laplacian_edit/`.
 //!
 //! `cargo run --release --example laplacian_edit [-- --quick] [-- --par]`
 //! (`--quick`: level-4 icosphere, 3 repetitions; `--par`: rayon inside the factorisation).
@@ -16,11 +16,13 @@
 use std::path::Path;
 use std::time::Instant;
 
+use dynamic_shapes::core::camera::{Camera, Intrinsics};
 use dynamic_shapes::core::lsq::{CholeskyParams, LsqParams, LsqProblem};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{
     cotangent_laplacian, read_obj_group, shapes, write_obj, LaplacianParams, TriMesh,
 };
+use dynamic_shapes::core::studio::{Rasterizer, RenderParams};
 use image::{Rgb, RgbImage};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
@@ -126,8 +128,9 @@ fn peer(level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Va
     }))
 }
 
-/// Orthographic front view (x right, y up, looking down −z) of several meshes side by side,
-/// splatting vertices with a z-buffer and shading by depth.
+/// Front views of several meshes side by side, rendered by the studio rasteriser
+/// (`skin_core::studio::Rasterizer`) from a camera on the +z axis, shaded by the camera-space
+/// normal (headlight Lambert).
 fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
     const SIZE: u32 = 480;
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -137,30 +140,30 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
             hi = hi.max(*v);
         }
     }
-    let extent = (hi - lo).x.max((hi - lo).y) * 1.05;
+    let extent = (hi - lo).x.max((hi - lo).y) * 1.1;
     let centre = (lo + hi) * 0.5;
+    // A long lens far away: nearly orthographic, the whole body in view.
+    let distance = 10.0 * extent;
+    let focal_px = SIZE as f64 * distance / extent;
+    let half = (SIZE as f64 - 1.0) / 2.0;
+    let intrinsics = Intrinsics::new(focal_px, focal_px, half, half, SIZE, SIZE)?;
+    let eye = centre + DVec3::Z * (distance + (hi.z - centre.z));
+    let camera = Camera::look_at(intrinsics, eye, centre, DVec3::Y)?;
+    let rasterizer = Rasterizer::new(&camera);
     let width = SIZE * meshes.len() as u32;
     let mut img = RgbImage::from_pixel(width, SIZE, Rgb([255, 255, 255]));
-    let mut depth = vec![f64::NEG_INFINITY; (width * SIZE) as usize];
     for (panel, (m, colour)) in meshes.iter().enumerate() {
-        for v in &m.vertices {
-            let px = ((v.x - centre.x) / extent + 0.5) * SIZE as f64;
-            let py = (0.5 - (v.y - centre.y) / extent) * SIZE as f64;
-            let shade = 0.35 + 0.65 * ((v.z - lo.z) / (hi.z - lo.z).max(1e-12));
-            for dy in -2i64..=2 {
-                for dx in -2i64..=2 {
-                    let (x, y) = (px as i64 + dx, py as i64 + dy);
-                    if x < 0 || y < 0 || x >= SIZE as i64 || y >= SIZE as i64 {
-                        continue;
-                    }
-                    let gx = x as u32 + panel as u32 * SIZE;
-                    let k = (y as u32 * width + gx) as usize;
-                    if v.z > depth[k] {
-                        depth[k] = v.z;
-                        let c = colour.map(|c| (c as f64 * shade) as u8);
-                        img.put_pixel(gx, y as u32, Rgb(c));
-                    }
+        let view = rasterizer.render(m, &RenderParams::default())?;
+        for y in 0..SIZE {
+            for x in 0..SIZE {
+                let k = view.index(x, y);
+                if view.mask[k] == 0 {
+                    continue;
                 }
+                let n = view.normal_camera[k];
+                let shade = 0.25 + 0.75 * f64::from(-n[2]).max(0.0);
+                let c = colour.map(|c| (c as f64 * shade) as u8);
+                img.put_pixel(x + panel as u32 * SIZE, y, Rgb(c));
             }
         }
     }
