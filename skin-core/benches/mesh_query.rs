@@ -20,40 +20,7 @@ fn body_path() -> Option<PathBuf> {
 }
 
 fn uv_sphere(n_lon: usize, n_lat: usize) -> TriMesh {
-    use std::f64::consts::PI;
-    let mut v = vec![DVec3::Z];
-    for i in 1..n_lat {
-        let th = PI * i as f64 / n_lat as f64;
-        for j in 0..n_lon {
-            let ph = 2.0 * PI * j as f64 / n_lon as f64;
-            v.push(DVec3::new(
-                th.sin() * ph.cos(),
-                th.sin() * ph.sin(),
-                th.cos(),
-            ));
-        }
-    }
-    v.push(DVec3::NEG_Z);
-    let s = (v.len() - 1) as u32;
-    let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
-    let mut f = Vec::new();
-    for j in 0..n_lon {
-        f.push([0, ring(1, j), ring(1, j + 1)]);
-        f.push([s, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)]);
-    }
-    for i in 1..n_lat - 1 {
-        for j in 0..n_lon {
-            let (a, b, c, d) = (
-                ring(i, j),
-                ring(i, j + 1),
-                ring(i + 1, j),
-                ring(i + 1, j + 1),
-            );
-            f.push([a, c, d]);
-            f.push([a, d, b]);
-        }
-    }
-    TriMesh::new(v, f).expect("valid sphere")
+    skin_core::mesh::shapes::uv_sphere(DVec3::ZERO, 1.0, n_lat, n_lon).expect("valid sphere")
 }
 
 fn bench(c: &mut Criterion) {

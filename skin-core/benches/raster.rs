@@ -56,28 +56,7 @@ fn body_blob(n_lat: usize, n_lon: usize) -> TriMesh {
         let bump = 1.0 + 0.08 * (5.0 * th).sin() * (3.0 * ph).cos() + 0.03 * (17.0 * ph).sin();
         centre + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radii * bump
     };
-    let mut v = vec![point(0.0, 0.0)];
-    for i in 1..n_lat {
-        let th = std::f64::consts::PI * i as f64 / n_lat as f64;
-        for j in 0..n_lon {
-            v.push(point(th, std::f64::consts::TAU * j as f64 / n_lon as f64));
-        }
-    }
-    v.push(point(std::f64::consts::PI, 0.0));
-    let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
-    let south = (v.len() - 1) as u32;
-    let mut f = Vec::new();
-    for j in 0..n_lon {
-        f.push([0, ring(1, j + 1), ring(1, j)]);
-        f.push([south, ring(n_lat - 1, j), ring(n_lat - 1, j + 1)]);
-    }
-    for i in 1..n_lat - 1 {
-        for j in 0..n_lon {
-            f.push([ring(i, j), ring(i, j + 1), ring(i + 1, j + 1)]);
-            f.push([ring(i, j), ring(i + 1, j + 1), ring(i + 1, j)]);
-        }
-    }
-    TriMesh::new(v, f).expect("valid by construction")
+    skin_core::mesh::shapes::lat_long_surface(n_lat, n_lon, point).expect("valid by construction")
 }
 
 fn camera(k1: f64) -> Camera {

@@ -303,39 +303,10 @@ pub(crate) mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-    use std::f64::consts::PI;
 
     /// Closed latitude/longitude sphere of radius `r` centred at the origin, outward faces.
     pub(crate) fn uv_sphere(r: f64, n_lon: usize, n_lat: usize) -> TriMesh {
-        let mut v = vec![DVec3::new(0.0, 0.0, r)];
-        for i in 1..n_lat {
-            let th = PI * i as f64 / n_lat as f64;
-            for j in 0..n_lon {
-                let ph = 2.0 * PI * j as f64 / n_lon as f64;
-                v.push(r * DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
-            }
-        }
-        v.push(DVec3::new(0.0, 0.0, -r));
-        let south = (v.len() - 1) as u32;
-        let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
-        let mut f = Vec::new();
-        for j in 0..n_lon {
-            f.push([0, ring(1, j), ring(1, j + 1)]);
-            f.push([south, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)]);
-        }
-        for i in 1..n_lat - 1 {
-            for j in 0..n_lon {
-                let (a, b, c, d) = (
-                    ring(i, j),
-                    ring(i, j + 1),
-                    ring(i + 1, j),
-                    ring(i + 1, j + 1),
-                );
-                f.push([a, c, d]);
-                f.push([a, d, b]);
-            }
-        }
-        TriMesh::new(v, f).unwrap()
+        crate::mesh::shapes::uv_sphere(DVec3::ZERO, r, n_lat, n_lon).unwrap()
     }
 
     fn brute_force(mesh: &TriMesh, p: DVec3) -> f64 {

@@ -221,9 +221,83 @@ pub fn cylinder(radius: f64, length: f64, segments: u32, rings: u32) -> Result<T
     Ok(TriMesh { vertices, faces })
 }
 
+/// A closed latitude/longitude surface: vertices `point(θ, φ)` for polar angle θ ∈ [0, π] in
+/// `n_lat` bands and azimuth φ ∈ [0, 2π) in `n_lon` segments, with one vertex at each pole
+/// (θ = 0 first, θ = π last). Faces are counter-clockwise seen from outside when the
+/// parametrisation is oriented like [`uv_sphere`]'s (pole on +y, φ turning from +x to +z);
+/// star-shaped bodies such as bumpy ellipsoids are built by scaling that one.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if `n_lat < 2` or `n_lon < 3`; [`Error::NonFinite`] if `point`
+/// returns NaN or infinity.
+pub fn lat_long_surface(
+    n_lat: usize,
+    n_lon: usize,
+    point: impl Fn(f64, f64) -> DVec3,
+) -> Result<TriMesh> {
+    if n_lat < 2 || n_lon < 3 {
+        return Err(Error::InvalidParam {
+            name: "n_lat/n_lon",
+            reason: format!("need n_lat >= 2 and n_lon >= 3, got {n_lat}, {n_lon}"),
+        });
+    }
+    let mut vertices = Vec::with_capacity((n_lat - 1) * n_lon + 2);
+    vertices.push(point(0.0, 0.0));
+    for i in 1..n_lat {
+        let th = std::f64::consts::PI * i as f64 / n_lat as f64;
+        for j in 0..n_lon {
+            vertices.push(point(th, std::f64::consts::TAU * j as f64 / n_lon as f64));
+        }
+    }
+    vertices.push(point(std::f64::consts::PI, 0.0));
+    let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
+    let south = (vertices.len() - 1) as u32;
+    let mut faces = Vec::with_capacity(2 * n_lat * n_lon);
+    for j in 0..n_lon {
+        faces.push([0, ring(1, j + 1), ring(1, j)]);
+        faces.push([south, ring(n_lat - 1, j), ring(n_lat - 1, j + 1)]);
+    }
+    for i in 1..n_lat - 1 {
+        for j in 0..n_lon {
+            faces.push([ring(i, j), ring(i, j + 1), ring(i + 1, j + 1)]);
+            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i + 1, j)]);
+        }
+    }
+    TriMesh::new(vertices, faces)
+}
+
+/// A closed UV sphere of `radius` about `centre`, pole on the +y axis, faces counter-clockwise
+/// seen from outside (see [`lat_long_surface`]).
+///
+/// # Errors
+/// As [`lat_long_surface`]; [`Error::NonFinite`] for a non-finite centre or radius.
+pub fn uv_sphere(centre: DVec3, radius: f64, n_lat: usize, n_lon: usize) -> Result<TriMesh> {
+    lat_long_surface(n_lat, n_lon, |th, ph| {
+        centre + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radius
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn uv_sphere_is_closed_outward_and_checks_its_sizes() {
+        let m = uv_sphere(DVec3::new(0.1, 0.2, 0.3), 0.5, 6, 8).unwrap();
+        assert_eq!(m.vertex_count(), 5 * 8 + 2);
+        assert!(crate::mesh::EdgeTopology::new(&m).unwrap().is_closed());
+        let c = DVec3::new(0.1, 0.2, 0.3);
+        for f in 0..m.face_count() {
+            let [a, b, d] = m.triangle(f);
+            assert!(
+                (b - a).cross(d - a).dot(a - c) > 0.0,
+                "face {f} faces inward"
+            );
+        }
+        assert!(uv_sphere(DVec3::ZERO, 1.0, 1, 8).is_err());
+        assert!(uv_sphere(DVec3::ZERO, 1.0, 4, 2).is_err());
+        assert!(uv_sphere(DVec3::ZERO, f64::NAN, 4, 8).is_err());
+    }
 
     #[test]
     fn splitmix_check_values() {

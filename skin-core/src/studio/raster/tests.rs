@@ -4,33 +4,9 @@ use super::*;
 use crate::camera::{Intrinsics, RadialDistortion};
 use crate::math::{DVec2, DVec3};
 
-/// A closed UV sphere, counter-clockwise seen from outside.
+/// A closed UV sphere, counter-clockwise seen from outside ([`crate::mesh::shapes::uv_sphere`]).
 pub(crate) fn uv_sphere(centre: DVec3, radius: f64, n_lat: usize, n_lon: usize) -> TriMesh {
-    let mut v = vec![centre + DVec3::new(0.0, radius, 0.0)];
-    for i in 1..n_lat {
-        let th = std::f64::consts::PI * i as f64 / n_lat as f64;
-        for j in 0..n_lon {
-            let ph = std::f64::consts::TAU * j as f64 / n_lon as f64;
-            v.push(
-                centre + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radius,
-            );
-        }
-    }
-    v.push(centre - DVec3::new(0.0, radius, 0.0));
-    let ring = |i: usize, j: usize| (1 + (i - 1) * n_lon + j % n_lon) as u32;
-    let south = (v.len() - 1) as u32;
-    let mut f = Vec::new();
-    for j in 0..n_lon {
-        f.push([0, ring(1, j + 1), ring(1, j)]);
-        f.push([south, ring(n_lat - 1, j), ring(n_lat - 1, j + 1)]);
-    }
-    for i in 1..n_lat - 1 {
-        for j in 0..n_lon {
-            f.push([ring(i, j), ring(i, j + 1), ring(i + 1, j + 1)]);
-            f.push([ring(i, j), ring(i + 1, j + 1), ring(i + 1, j)]);
-        }
-    }
-    TriMesh::new(v, f).unwrap()
+    crate::mesh::shapes::uv_sphere(centre, radius, n_lat, n_lon).unwrap()
 }
 
 /// Nearest hit `(t, face, front_facing)` of a ray with any face (both sides), f64.
