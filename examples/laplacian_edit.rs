@@ -16,14 +16,12 @@
 use std::path::Path;
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Camera, Intrinsics};
 use dynamic_shapes::core::lsq::{CholeskyParams, LsqParams, LsqProblem};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{
     cotangent_laplacian, read_obj_group, shapes, write_obj, LaplacianParams, TriMesh,
 };
-use dynamic_shapes::core::studio::{Rasterizer, RenderParams};
-use image::{Rgb, RgbImage};
+use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
 use serde_json::json;
@@ -128,46 +126,17 @@ fn peer(level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Va
     }))
 }
 
-/// Front views of several meshes side by side, rendered by the studio rasteriser
-/// (`skin_core::studio::Rasterizer`) from a camera on the +z axis, shaded by the camera-space
-/// normal (headlight Lambert).
+/// Front views of several meshes side by side ([`preview`], studio rasteriser, headlight
+/// shading), written to `path`.
 fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
-    const SIZE: u32 = 480;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for (m, _) in meshes {
-        for v in &m.vertices {
-            lo = lo.min(*v);
-            hi = hi.max(*v);
-        }
-    }
-    let extent = (hi - lo).x.max((hi - lo).y) * 1.1;
-    let centre = (lo + hi) * 0.5;
-    // A long lens far away: nearly orthographic, the whole body in view.
-    let distance = 10.0 * extent;
-    let focal_px = SIZE as f64 * distance / extent;
-    let half = (SIZE as f64 - 1.0) / 2.0;
-    let intrinsics = Intrinsics::new(focal_px, focal_px, half, half, SIZE, SIZE)?;
-    let eye = centre + DVec3::Z * (distance + (hi.z - centre.z));
-    let camera = Camera::look_at(intrinsics, eye, centre, DVec3::Y)?;
-    let rasterizer = Rasterizer::new(&camera);
-    let width = SIZE * meshes.len() as u32;
-    let mut img = RgbImage::from_pixel(width, SIZE, Rgb([255, 255, 255]));
-    for (panel, (m, colour)) in meshes.iter().enumerate() {
-        let view = rasterizer.render(m, &RenderParams::default())?;
-        for y in 0..SIZE {
-            for x in 0..SIZE {
-                let k = view.index(x, y);
-                if view.mask[k] == 0 {
-                    continue;
-                }
-                let n = view.normal_camera[k];
-                let shade = 0.25 + 0.75 * f64::from(-n[2]).max(0.0);
-                let c = colour.map(|c| (c as f64 * shade) as u8);
-                img.put_pixel(x + panel as u32 * SIZE, y, Rgb(c));
-            }
-        }
-    }
-    img.save(path)?;
+    let panels: Vec<PreviewPanel> = meshes
+        .iter()
+        .map(|&(mesh, c)| PreviewPanel {
+            mesh,
+            paint: Paint::Flat(c),
+        })
+        .collect();
+    preview(&panels, 480)?.save(path)?;
     Ok(())
 }
 

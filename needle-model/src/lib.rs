@@ -32,6 +32,7 @@
 #![warn(missing_docs)]
 
 pub mod animate;
+pub mod baseline;
 pub mod config;
 pub mod error;
 pub mod nrbf;
@@ -48,6 +49,7 @@ pub mod sync;
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
+pub use baseline::SkinnedShape;
 pub use config::ConfigSpace;
 pub use error::{Error, Result};
 pub use nrbf::{Nrbf, NrbfFit};

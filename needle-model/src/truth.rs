@@ -95,6 +95,8 @@ pub struct NeedleTruth {
 /// Ground truth of one test frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TestFrame {
+    /// The pose θ.
+    pub theta: Vec<f64>,
     /// Configuration point of every primitive (the model's input, §3.3).
     pub config: Vec<Vec<f32>>,
     /// Needles whose origin lies inside the true mesh and whose ray leaves it.
@@ -180,6 +182,7 @@ impl TestSet {
             .map(|j| joints[j])
             .collect();
         let mut frame = TestFrame {
+            theta: theta.to_vec(),
             config: Vec::with_capacity(body.primitives.len()),
             needles: vec![],
         };
@@ -230,6 +233,48 @@ impl TestSet {
                         got: pred[n.primitive as usize].len(),
                     })?;
                 out.push(n, (l as f64 - n.true_m).abs() * 1e3);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Errors of any surface predictor: `surface(θ)` is its closed surface at the test pose θ
+    /// (e.g. [`crate::baseline::SkinnedShape::pose`]), and a needle's predicted length is
+    /// where its ray leaves that surface, as for the truth (0 when the origin lies outside).
+    ///
+    /// # Errors
+    /// As forward kinematics, [`MeshQuery::new`] and `surface`;
+    /// [`Error::SizeMismatch`] for a test set of another body.
+    pub fn surface_errors(
+        &self,
+        body: &NeedleBody,
+        skeleton: &skin_core::skeleton::Skeleton,
+        mut surface: impl FnMut(&[f64]) -> Result<TriMesh>,
+    ) -> Result<Errors> {
+        let mut out = Errors::default();
+        for f in &self.frames {
+            let query = MeshQuery::new(&surface(&f.theta)?)?;
+            let fk = skeleton.forward_kinematics(&f.theta)?;
+            for n in &f.needles {
+                let prim =
+                    body.primitives
+                        .get(n.primitive as usize)
+                        .ok_or(Error::SizeMismatch {
+                            what: "body primitives vs test set",
+                            expected: n.primitive as usize + 1,
+                            got: body.primitives.len(),
+                        })?;
+                if n.needle as usize >= prim.needle_count() {
+                    return Err(Error::SizeMismatch {
+                        what: "primitive needles vs test set",
+                        expected: n.needle as usize + 1,
+                        got: prim.needle_count(),
+                    });
+                }
+                let t = fk.world_from_joint()[prim.carrier];
+                let (o, d) = prim.needle_world(&t, n.needle as usize);
+                let l = exit_length(&query, o, d, 2.0 * prim.max_length_m)?.unwrap_or(0.0);
+                out.push(n, (l - n.true_m).abs() * 1e3);
             }
         }
         Ok(out)

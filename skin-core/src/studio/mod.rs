@@ -15,10 +15,13 @@
 //!   distortion.
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
+//! * [`preview`]: front-view preview pictures of meshes side by side (flat or per-vertex
+//!   colours), for looking at results by eye.
 //! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 
 pub mod capture;
+pub mod preview;
 pub mod raster;
 pub mod shading;
 
@@ -46,6 +49,7 @@ pub use makehuman::{
 };
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
 pub use performer::{Performer, PosedFrame};
+pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
 pub use raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};

@@ -20,6 +20,14 @@ pub struct RangeOfMotionParams {
     pub seconds_per_dof: f64,
     /// Fraction of each limit reached (1 = the limit itself). Default: 1.0.
     pub reach: f64,
+    /// Rate at which the performer turns on the spot (root yaw, `pelvis.yaw`), degrees per
+    /// second, while exercising its DOFs. Default: 0 (faces the same way throughout).
+    ///
+    /// Silhouette methods need it: a body that never turns shows each surface patch to fixed
+    /// cameras from the same few directions only, so a visual-hull bound never tightens
+    /// (Sand 2003 §1: "when the subject moves, many observations of the same local geometries
+    /// allow the construction of a complete model").
+    pub turn_deg_per_s: f64,
 }
 
 impl Default for RangeOfMotionParams {
@@ -28,8 +36,16 @@ impl Default for RangeOfMotionParams {
             frame_time_s: 1.0 / 30.0,
             seconds_per_dof: 2.0,
             reach: 1.0,
+            turn_deg_per_s: 0.0,
         }
     }
+}
+
+/// The root's unlimited yaw DOF (`pelvis.yaw` of [`crate::skeleton::human_skeleton`]).
+fn root_yaw(skeleton: &Skeleton) -> Option<usize> {
+    skeleton
+        .dof_index("pelvis.yaw")
+        .filter(|&d| skeleton.is_rotation(d) && skeleton.dof(d).limits.is_none())
 }
 
 /// Parameters of [`fast_motion`].
@@ -97,10 +113,12 @@ fn frames_for(
 /// order, going smoothly from rest to `reach × max`, back, to `reach × min` and back
 /// (`θ = s·max` while `s = sin(2πu) > 0`, `θ = −s·min` otherwise, `u ∈ [0, 1]` over
 /// `seconds_per_dof`); all other DOFs stay at 0. Limits that exclude 0 are approached from the
-/// nearest bound. The sequence starts and ends at rest.
+/// nearest bound. The sequence starts at rest and ends with every limited DOF at rest; with
+/// `turn_deg_per_s ≠ 0` the root yaw turns at that constant rate throughout.
 ///
 /// # Errors
 /// [`Error::InvalidParam`] for non-positive or non-finite times, `reach` outside (0, 1], a
+/// non-finite turn rate, a turn rate on a skeleton without an unlimited `pelvis.yaw`, a
 /// skeleton without limited rotation DOFs, or more than 10⁸ values.
 pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Result<Motion> {
     positive("frame_time_s", params.frame_time_s)?;
@@ -111,6 +129,18 @@ pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Res
             reason: format!("must be in (0, 1], got {}", params.reach),
         });
     }
+    let turn = match (params.turn_deg_per_s, root_yaw(skeleton)) {
+        (r, _) if r == 0.0 => None,
+        (r, Some(d)) if r.is_finite() => Some((d, r.to_radians())),
+        (r, _) => {
+            return Err(Error::InvalidParam {
+                name: "turn_deg_per_s",
+                reason: format!(
+                    "must be finite, and non-zero only with an unlimited pelvis.yaw; got {r}"
+                ),
+            })
+        }
+    };
     let limited: Vec<usize> = (0..skeleton.dof_count())
         .filter(|&d| skeleton.is_rotation(d) && skeleton.dof(d).limits.is_some())
         .collect();
@@ -130,6 +160,9 @@ pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Res
     let mut frames = DMatrix::zeros(skeleton.dof_count(), n);
     for k in 0..n {
         let t = k as f64 * params.frame_time_s;
+        if let Some((yaw, rate)) = turn {
+            frames[(yaw, k)] = rate * t;
+        }
         let seg = ((t / per).floor() as usize).min(limited.len() - 1);
         let u = ((t - seg as f64 * per) / per).clamp(0.0, 1.0);
         let d = limited[seg];
@@ -193,9 +226,7 @@ pub fn fast_motion(skeleton: &Skeleton, params: &FastMotionParams) -> Result<Mot
                 let centre = (0.5 * (l.min + l.max)).clamp(l.min + half, l.max - half);
                 (centre, half, freq, phase)
             }
-            (true, None) if d == skeleton.dof_index("pelvis.yaw").unwrap_or(usize::MAX) => {
-                (0.0, 0.6, 0.5 * f0, phase)
-            }
+            (true, None) if Some(d) == root_yaw(skeleton) => (0.0, 0.6, 0.5 * f0, phase),
             (false, None) if dof.axis.y.abs() > 0.9 => (0.0, params.bounce_m, 2.0 * f0, 0.0),
             _ => (0.0, 0.0, 0.0, 0.0),
         };
@@ -251,6 +282,33 @@ mod tests {
             .iter()
             .chain(m.frame(m.frame_count() - 1))
             .all(|v| v.abs() < 1e-9));
+    }
+
+    #[test]
+    fn rom_can_turn_on_the_spot() {
+        let s = human_skeleton(&HumanParams::default()).unwrap();
+        let p = RangeOfMotionParams {
+            turn_deg_per_s: 60.0,
+            ..Default::default()
+        };
+        let m = range_of_motion(&s, &p).unwrap();
+        let still = range_of_motion(&s, &RangeOfMotionParams::default()).unwrap();
+        let yaw = s.dof_index("pelvis.yaw").unwrap();
+        for k in [0, 1, 100, m.frame_count() - 1] {
+            let t = k as f64 * p.frame_time_s;
+            assert!((m.frame(k)[yaw] - 60f64.to_radians() * t).abs() < 1e-12);
+            // Everything else is the still range of motion.
+            for d in (0..s.dof_count()).filter(|&d| d != yaw) {
+                assert_eq!(m.frame(k)[d], still.frame(k)[d]);
+            }
+        }
+        for bad in [f64::NAN, f64::INFINITY] {
+            let p = RangeOfMotionParams {
+                turn_deg_per_s: bad,
+                ..Default::default()
+            };
+            assert!(range_of_motion(&s, &p).is_err());
+        }
     }
 
     #[test]

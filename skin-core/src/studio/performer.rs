@@ -116,12 +116,24 @@ impl Performer {
     /// (Vlasic §2.5.1, [`crate::mesh::skin`]) with `world_from_rest = world_from_joint ·
     /// joint_from_world_rest`.
     fn skin(&self, world_from_joint: &[DAffine3]) -> Result<Vec<DVec3>> {
-        let m: Vec<DAffine3> = world_from_joint
+        skin(
+            &self.template.vertices,
+            &self.weights,
+            &self.world_from_rest(world_from_joint),
+        )
+    }
+
+    /// The skinning transforms `world_from_rest[j] = world_from_joint[j] ·
+    /// joint_from_world_rest[j]` that map rest-pose (template) coordinates to the pose whose
+    /// joint frames are `world_from_joint` — what [`crate::mesh::skin`] takes to pose any
+    /// surface attached to this performer's rest pose. Extra or missing frames are ignored
+    /// (the result has `min(len, joint count)` entries).
+    pub fn world_from_rest(&self, world_from_joint: &[DAffine3]) -> Vec<DAffine3> {
+        world_from_joint
             .iter()
             .zip(&self.joint_from_world_rest)
             .map(|(w, r)| *w * *r)
-            .collect();
-        skin(&self.template.vertices, &self.weights, &m)
+            .collect()
     }
 
     /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation.

@@ -1,0 +1,142 @@
+//! The skinning baseline of the validation (Sand, McMillan and Popović 2003 §6 compare the
+//! needle model with "the standard skinning approach"): a rest shape posed by linear blend
+//! skinning.
+//!
+//! A skinning pipeline has no exact rest shape either; it must capture one. [`SkinnedShape`]
+//! takes any rest-pose surface — in `needle_capture`, the needle model's own surface at the
+//! rest pose, captured from the same silhouettes — attaches it to the performer's skeleton
+//! with the performer's skinning weights transferred to it, and poses it by LBS. Comparing
+//! the needle model against it isolates what the pose-dependent NRBF adds over skinning the
+//! same captured shape. (The studio's own `lbs_vertices` skin the EXACT rest shape, an oracle
+//! no capture method has; [`crate::truth::TestSet::lbs_errors`] reports it too.)
+//!
+//! Weight transfer: each vertex takes the performer's weights interpolated barycentrically at
+//! its closest point on the rest-pose template — the standard way to carry skinning weights
+//! between two meshes of the same body in the same pose.
+
+use glam::DVec3;
+use skin_core::math::DAffine3;
+use skin_core::mesh::{skin, MeshQuery, SkinWeights, TriMesh};
+use skin_core::studio::Performer;
+
+use crate::{Error, Result};
+
+/// A rest-pose surface attached to a performer's skeleton by transferred LBS weights.
+#[derive(Debug, Clone)]
+pub struct SkinnedShape {
+    rest: TriMesh,
+    weights: SkinWeights,
+}
+
+impl SkinnedShape {
+    /// Attaches `rest` (a closed surface in the performer's rest pose, world frame) to
+    /// `performer` by transferring its weights (module docs).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for a mesh without vertices; [`Error::NonFinite`] for NaN/∞
+    /// vertices; the template's query errors (degenerate template).
+    pub fn transfer(performer: &Performer, rest: TriMesh) -> Result<Self> {
+        if rest.vertices.is_empty() {
+            return Err(Error::Empty {
+                what: "rest shape vertices",
+            });
+        }
+        if rest.vertices.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "rest shape vertices",
+            });
+        }
+        let template = &performer.template;
+        let query = MeshQuery::new(template)?;
+        let closest = query.closest_points(&rest.vertices)?;
+        let lists: Vec<Vec<(u32, f64)>> = closest
+            .iter()
+            .map(|c| {
+                let face = template.faces[c.point.face as usize];
+                let mut acc: Vec<(u32, f64)> = Vec::with_capacity(8);
+                for (&v, &b) in face.iter().zip(&c.point.bary) {
+                    for (bone, w) in performer.weights.influences(v as usize) {
+                        match acc.iter_mut().find(|(j, _)| *j == bone) {
+                            Some(e) => e.1 += b * w,
+                            None => acc.push((bone, b * w)),
+                        }
+                    }
+                }
+                acc.retain(|&(_, w)| w > 0.0);
+                acc
+            })
+            .collect();
+        let weights = SkinWeights::from_lists(&lists, performer.weights.bone_count())?;
+        Ok(Self { rest, weights })
+    }
+
+    /// The rest-pose surface.
+    pub fn rest(&self) -> &TriMesh {
+        &self.rest
+    }
+
+    /// The surface posed by LBS for joint frames `world_from_joint` (from forward kinematics
+    /// of `performer`'s skeleton).
+    ///
+    /// # Errors
+    /// [`Error::Core`] (size mismatch) if `world_from_joint` is not one frame per joint;
+    /// non-finite transforms.
+    pub fn pose(&self, performer: &Performer, world_from_joint: &[DAffine3]) -> Result<TriMesh> {
+        let vertices: Vec<DVec3> = skin(
+            &self.rest.vertices,
+            &self.weights,
+            &performer.world_from_rest(world_from_joint),
+        )?;
+        Ok(TriMesh {
+            vertices,
+            faces: self.rest.faces.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skin_core::studio::{procedural_performer, ProceduralBodyParams};
+
+    #[test]
+    fn the_template_itself_reproduces_the_performers_lbs() {
+        let p = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+        let shape = SkinnedShape::transfer(&p, p.template.clone()).unwrap();
+        let mut theta = p.skeleton.rest_pose();
+        for (d, v) in theta.iter_mut().enumerate() {
+            if p.skeleton.is_rotation(d) && p.skeleton.dof(d).limits.is_some() {
+                *v = p.skeleton.dof(d).limits.unwrap().clamp(0.3);
+            }
+        }
+        let mut state = Default::default();
+        let posed = p.pose(&theta, &mut state, 1.0 / 30.0).unwrap();
+        let mesh = shape.pose(&p, &posed.world_from_joint).unwrap();
+        let worst = mesh
+            .vertices
+            .iter()
+            .zip(&posed.lbs_vertices)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "{worst}");
+    }
+
+    #[test]
+    fn bad_rest_shapes_are_refused() {
+        let p = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+        let empty = TriMesh {
+            vertices: vec![],
+            faces: vec![],
+        };
+        assert!(matches!(
+            SkinnedShape::transfer(&p, empty),
+            Err(Error::Empty { .. })
+        ));
+        let mut nan = p.template.clone();
+        nan.vertices[0].x = f64::NAN;
+        assert!(matches!(
+            SkinnedShape::transfer(&p, nan),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+}
