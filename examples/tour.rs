@@ -2,7 +2,7 @@
 //! JSON figures each prints as its last line, and writes `out/tour/index.html` with a table of
 //! all figures and links to every picture the examples wrote.
 //!
-//! Run with `cargo run --release --example tour`. Examples are discovered from `examples/*.rs`
+//! Run with `cargo run --release --example tour`. Examples are discovered from `examples/*.rs` and `examples/*/main.rs`
 //! so a new example joins the tour by existing. Pass `--full` to run them at full size.
 
 use std::path::{Path, PathBuf};
@@ -24,7 +24,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .filter_map(|e| e.ok())
         .filter_map(|e| {
             let p = e.path();
-            (p.extension()? == "rs")
+            // `name.rs`, or a directory `name/` with a `main.rs` (multi-file examples).
+            let is_example =
+                p.extension().is_some_and(|x| x == "rs") || p.join("main.rs").is_file();
+            is_example
                 .then(|| p.file_stem()?.to_str().map(str::to_owned))
                 .flatten()
         })

@@ -297,9 +297,12 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 /// those frames are equal to float precision. Cutting such a tie by sample index keeps the
 /// first `n` in time, i.e. the few views of a short stretch of the capture, and their
 /// robust minimum stays far above the surface (on the studio this made the calves' median
-/// error 10 mm instead of 1 mm). We therefore take every observation whose sample lies
-/// within [`TIE_RADIUS`] × the data's RMS radius of the `n`-th nearest one: all
-/// observations of the same pose are equally near.
+/// error 10 mm instead of 1 mm). Samples within [`TIE_RADIUS`] × the data's RMS radius of
+/// the one that completes the `n` nearest are equally near and are all taken: a pose held
+/// for a thousand frames gives its prototype every one of those views. So that this costs
+/// no more than the plain walk, groups of more than [`LARGE_TIE_SAMPLES`] bit-identical
+/// configurations keep one sorted list of each needle's observations, taken in one step,
+/// and the percentile is found by merging the sorted lists (`O(F_min · n)`).
 ///
 /// **Hole filling for unobserved needles.** The paper's fraction rule fills holes in
 /// configuration space, but a needle that was never observed (e.g. always perpendicular to
@@ -325,6 +328,12 @@ pub fn prototype_shapes(
 ) -> Result<PrototypeShapes> {
     params.validate()?;
     let count = check_samples(samples, dim)?;
+    if count >= PoseGroups::GROUP as usize {
+        return Err(Error::InvalidParam {
+            name: "samples",
+            reason: format!("{count} configuration samples; at most 2^31 − 1 are supported"),
+        });
+    }
     if prototype_points.is_empty() {
         return Err(Error::Empty {
             what: "prototype locations",
@@ -389,19 +398,30 @@ pub fn prototype_shapes(
     let num_protos = prototype_points.len() / dim;
 
     // Every sample with its distance, in order of distance to each prototype: O(N·S log S).
+    // A large group of identical configurations is one entry, `GROUP | g`.
+    let tie = TIE_RADIUS * crate::nrbf::config_scale(samples, dim)?;
+    let pose_groups = PoseGroups::new(samples, dim);
     let order: Vec<Vec<(f32, u32)>> = prototype_points
         .par_chunks_exact(dim)
         .map(|p| {
             let mut d: Vec<(f32, u32)> = samples
                 .chunks_exact(dim)
                 .enumerate()
-                .map(|(i, x)| (dist2(x, p).sqrt(), i as u32))
+                .filter_map(|(i, x)| {
+                    let entry = match pose_groups.group_of[i] {
+                        PoseGroups::NONE => i as u32,
+                        g if pose_groups.members[g as usize][0] == i as u32 => {
+                            PoseGroups::GROUP | g
+                        }
+                        _ => return None,
+                    };
+                    Some((dist2(x, p).sqrt(), entry))
+                })
                 .collect();
             d.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             d
         })
         .collect();
-    let tie = TIE_RADIUS * crate::nrbf::config_scale(samples, dim)?;
 
     // Per needle: Some(N lengths) or None when unobserved.
     let per_needle: Vec<Option<Vec<f32>>> = (0..num_needles)
@@ -412,7 +432,13 @@ pub fn prototype_shapes(
                 None
             } else {
                 Some(needle_prototype_lengths(
-                    &order, tie, count, s, l, params, scratch,
+                    &order,
+                    tie,
+                    &pose_groups,
+                    s,
+                    l,
+                    params,
+                    scratch,
                 ))
             }
         })
@@ -481,6 +507,48 @@ pub fn prototype_shapes(
 /// Samples whose configurations lie within this fraction of the data's RMS radius of the
 /// `n`-th nearest one count as equally near (see [`prototype_shapes`]).
 pub const TIE_RADIUS: f32 = 1e-3;
+/// Groups of more samples than this with bit-identical configurations are taken through a
+/// pre-sorted list per needle (an optimisation with the same result, see
+/// [`prototype_shapes`]).
+pub const LARGE_TIE_SAMPLES: usize = 64;
+
+/// Large groups of samples with bit-identical configurations (a pose held for a while):
+/// [`needle_prototype_lengths`] takes such a group whole through one pre-sorted list per
+/// needle instead of walking its samples for every prototype.
+struct PoseGroups {
+    /// Group of each sample, or [`PoseGroups::NONE`].
+    group_of: Vec<u32>,
+    /// Samples of each group.
+    members: Vec<Vec<u32>>,
+}
+
+impl PoseGroups {
+    const NONE: u32 = u32::MAX;
+    /// Flag of a group entry in the distance order (sample indices stay below it).
+    const GROUP: u32 = 1 << 31;
+
+    fn new(samples: &[f32], dim: usize) -> Self {
+        let mut by_row: std::collections::HashMap<Vec<u32>, Vec<u32>> = Default::default();
+        for (i, row) in samples.chunks_exact(dim).enumerate() {
+            by_row
+                .entry(row.iter().map(|v| v.to_bits()).collect())
+                .or_default()
+                .push(i as u32);
+        }
+        let mut members: Vec<Vec<u32>> = by_row
+            .into_values()
+            .filter(|m| m.len() > LARGE_TIE_SAMPLES)
+            .collect();
+        members.sort_unstable();
+        let mut group_of = vec![Self::NONE; samples.len() / dim.max(1)];
+        for (g, m) in members.iter().enumerate() {
+            for &s in m {
+                group_of[s as usize] = g as u32;
+            }
+        }
+        Self { group_of, members }
+    }
+}
 
 /// Per-thread scratch of [`needle_prototype_lengths`].
 #[derive(Default)]
@@ -490,6 +558,10 @@ struct Scratch {
     ends: Vec<u32>,
     vals: Vec<f32>,
     buf: Vec<f32>,
+    /// This needle's observations in each large pose group, sorted.
+    group_vals: Vec<Vec<f32>>,
+    /// Large pose groups taken by the current prototype (each is one entry of the order).
+    taken: Vec<u32>,
 }
 
 /// §5.3 for one needle: the `F_min` percentile of its `F_near·m` nearest observations, for
@@ -503,7 +575,7 @@ struct Scratch {
 fn needle_prototype_lengths(
     order: &[Vec<(f32, u32)>],
     tie: f32,
-    count: usize,
+    groups: &PoseGroups,
     sample_idx: &[u32],
     lengths: &[f32],
     params: &ReconstructionParams,
@@ -517,7 +589,14 @@ fn needle_prototype_lengths(
         scratch.buf.extend_from_slice(lengths);
         return vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()];
     }
-    let Scratch { ends, vals, buf } = scratch;
+    let count = groups.group_of.len();
+    let Scratch {
+        ends,
+        vals,
+        buf,
+        group_vals,
+        taken,
+    } = scratch;
     ends.clear();
     ends.resize(count + 1, 0);
     for &s in sample_idx {
@@ -534,25 +613,71 @@ fn needle_prototype_lengths(
         vals[*c as usize] = l;
         *c += 1;
     }
+    let obs_of = |s: u32| {
+        let s = s as usize;
+        let start = if s == 0 { 0 } else { ends[s - 1] as usize };
+        start..ends[s] as usize
+    };
+    group_vals.resize_with(groups.members.len(), Vec::new);
+    for (g, members) in group_vals.iter_mut().zip(&groups.members) {
+        g.clear();
+        for &s in members {
+            g.extend_from_slice(&vals[obs_of(s)]);
+        }
+        g.sort_unstable_by(f32::total_cmp);
+    }
     order
         .iter()
         .map(|ord| {
             buf.clear();
+            taken.clear();
+            let mut total = 0;
             let mut reach = f32::INFINITY;
             for &(d, s) in ord {
                 if d > reach {
                     break;
                 }
-                let s = s as usize;
-                let start = if s == 0 { 0 } else { ends[s - 1] as usize };
-                buf.extend_from_slice(&vals[start..ends[s] as usize]);
-                if buf.len() >= n && reach.is_infinite() {
+                if s & PoseGroups::GROUP == 0 {
+                    let r = obs_of(s);
+                    total += r.len();
+                    buf.extend_from_slice(&vals[r]);
+                } else {
+                    let g = s & !PoseGroups::GROUP;
+                    taken.push(g);
+                    total += group_vals[g as usize].len();
+                }
+                if total >= n && reach.is_infinite() {
                     reach = d + tie;
                 }
             }
-            robust_minimum(buf, params.f_min)
+            let k = percentile_index(total, params.f_min);
+            if taken.is_empty() {
+                *buf.select_nth_unstable_by(k, f32::total_cmp).1
+            } else {
+                buf.sort_unstable_by(f32::total_cmp);
+                let mut lists: Vec<&[f32]> = vec![&buf[..]];
+                lists.extend(taken.iter().map(|&g| group_vals[g as usize].as_slice()));
+                kth_of_sorted(&mut lists, k)
+            }
         })
         .collect()
+}
+
+/// The `k`-th smallest (0-based) of the union of sorted lists; `k` must be below their total
+/// length. Merges from the front: `O(k · lists)`.
+fn kth_of_sorted(lists: &mut [&[f32]], k: usize) -> f32 {
+    let mut last = f32::NAN;
+    for _ in 0..=k {
+        let Some(i) = (0..lists.len())
+            .filter(|&i| !lists[i].is_empty())
+            .min_by(|&a, &b| lists[a][0].total_cmp(&lists[b][0]))
+        else {
+            break;
+        };
+        last = lists[i][0];
+        lists[i] = &lists[i][1..];
+    }
+    last
 }
 
 #[cfg(test)]
@@ -774,6 +899,58 @@ mod tests {
     }
 
     #[test]
+    fn large_pose_groups_match_brute_force() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let dim = 4;
+        // Two poses held for 150 and 90 samples among 300 distinct ones, interleaved in time.
+        let distinct = uniform_points(&mut rng, 300, dim);
+        let mut samples = vec![];
+        for (i, row) in distinct.chunks_exact(dim).enumerate() {
+            samples.extend_from_slice(row);
+            if i % 2 == 0 {
+                samples.extend_from_slice(&distinct[..dim]);
+            }
+            if i % 3 == 0 {
+                samples.extend_from_slice(&distinct[dim..2 * dim]);
+            }
+        }
+        let count = samples.len() / dim;
+        let per_needle: Vec<Vec<(u32, f32)>> = (0..3)
+            .map(|_| {
+                let mut v = vec![];
+                for s in 0..count as u32 {
+                    if rng.random_range(0.0f32..1.0) < 0.7 {
+                        v.push((s, rng.random_range(0.5f32..2.0)));
+                    }
+                }
+                v
+            })
+            .collect();
+        let obs = observations_from_lists(&per_needle).unwrap();
+        let locs = farthest_point_prototypes(&samples, dim, 9, &mut rng).unwrap();
+        let mut points = locs.points.clone();
+        // Prototypes at the held poses themselves, too.
+        points.extend_from_slice(&distinct[..2 * dim]);
+        for f_near in [0.01, 0.05, 0.3] {
+            let params = ReconstructionParams::default()
+                .with_f_near(f_near)
+                .with_f_min(0.2);
+            let shapes =
+                prototype_shapes(&samples, dim, &obs, &points, &vec![vec![]; 3], &params).unwrap();
+            for (k, p) in points.chunks_exact(dim).enumerate() {
+                for j in 0..3 {
+                    let (s, l) = obs.needle(j);
+                    assert_eq!(
+                        shapes.shape(k)[j],
+                        brute(&samples, dim, s, l, p, &params),
+                        "f_near {f_near}, prototype {k}, needle {j}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn tied_configurations_are_all_near_not_the_first_in_time() {
         // 1000 frames at one rest configuration, then 100 elsewhere. Lengths at rest fall with
         // time (later views are tighter), so a tie cut by sample index would keep the
@@ -790,12 +967,18 @@ mod tests {
             .with_f_min(0.1);
         let rest = [0.25f32; 3];
         let shapes = prototype_shapes(&samples, dim, &obs, &rest, &[vec![]], &params).unwrap();
-        // Every one of the 1000 rest observations is used: their 10th percentile.
+        // Every one of the 1000 rest observations is used: their 10th percentile. The first
+        // 22 in time would have given 1.98.
         let mut rest_lengths: Vec<f32> = (0..1000).map(|s| 2.0 - s as f32 * 1e-3).collect();
-        let expected = robust_minimum(&mut rest_lengths, 0.1);
-        assert_eq!(shapes.shape(0)[0], expected);
-        // The first 22 in time would have given about 1.998.
-        assert!(expected < 1.2);
+        assert_eq!(shapes.shape(0)[0], robust_minimum(&mut rest_lengths, 0.1));
+        // The same when the tie is too small for the pre-sorted path.
+        let mut small = samples.clone();
+        small[..dim * (1000 - LARGE_TIE_SAMPLES)].fill(0.3);
+        let shapes = prototype_shapes(&small, dim, &obs, &rest, &[vec![]], &params).unwrap();
+        let mut tied: Vec<f32> = (1000 - LARGE_TIE_SAMPLES as u32..1000)
+            .map(|s| 2.0 - s as f32 * 1e-3)
+            .collect();
+        assert_eq!(shapes.shape(0)[0], robust_minimum(&mut tied, 0.1));
     }
 
     #[test]

@@ -130,7 +130,7 @@ pub fn range_of_motion(skeleton: &Skeleton, params: &RangeOfMotionParams) -> Res
         });
     }
     let turn = match (params.turn_deg_per_s, root_yaw(skeleton)) {
-        (r, _) if r == 0.0 => None,
+        (0.0, _) => None,
         (r, Some(d)) if r.is_finite() => Some((d, r.to_radians())),
         (r, _) => {
             return Err(Error::InvalidParam {

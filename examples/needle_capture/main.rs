@@ -1,0 +1,708 @@
+//! Validation of the needle model (Sand, McMillan and Popović 2003) on the synthetic studio.
+//!
+//! **Training**: a range of motion (every limited DOF in turn to both limits) while the
+//! performer turns on the spot at 60°/s, 3 minutes at 30 fps, seen by 3 cameras at 720×480
+//! (thesis §1: "when the subject moves, many observations of the same local geometries allow
+//! the construction of a complete model"). **Test**, never seen in training: the real CMU
+//! motion capture 131_01 ("start, walk, stop", retargeted) and, as a stress test, the studio's
+//! fast motion (every DOF at 1.5–3 Hz). Ground truth is the performer's true posed mesh
+//! (`needle_model::truth`).
+//!
+//! Compared on the same needles: the model with the paper's parameters (§6.3), the model with
+//! parameters selected automatically by silhouette error (§6.3, Figure 11), a **static** model
+//! (`F_near = 1`, thesis Figure 6-2c), **LBS** of the model's own rest shape captured from the
+//! same silhouettes with automatic bone-heat weights (`needle_model::baseline`; `lbs_*`), the
+//! same shape with the performer's own weights (`lbs_true_weights_*`, the weights that
+//! generated the truth), and LBS of the performer's EXACT rest shape (`lbs_exact_rest_*`, an
+//! oracle no capture has). Figures of §6: error against N (10, 30, 100, 300), 30 s against 3
+//! minutes of training.
+//!
+//! Writes under `out/needle_capture/`:
+//! * `error_vs_n.png`: median error against log N — blue all needles, red near elbows and
+//!   knees; dashed: static (grey), captured-rest LBS (orange), each at its all-needle median.
+//! * `silhouette_error_vs_params.png`: silhouette error against F_near, F_min, W and N (log x),
+//!   one panel each, from the last coordinate-descent sweep (like Sand 2003 Figure 11).
+//! * `test_poses.png`: three walk poses, top row the true body (grey), bottom row the model's
+//!   watertight union surface (blue).
+//! * `error_map.png`: the model's per-primitive surfaces at one walk pose, coloured by needle
+//!   error (blue 0 → red ≥ 20 mm; grey: needle not scored).
+//! * `figures.json`; progress on stderr; last stdout line one JSON object.
+//!
+//! `cargo run --release --example needle_capture [-- --quick]` (`--quick`: procedural
+//! performer, 360×240 views, 24 s of training, small grids; under a minute).
+
+mod pictures;
+
+use std::time::Instant;
+
+use dynamic_shapes::core::camera::Camera;
+use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::studio::{
+    fast_motion, makehuman_performer, play_bvh, preview, procedural_performer, range_of_motion,
+    DeformationState, FastMotionParams, Paint, Performer, PreviewPanel, ProceduralBodyParams,
+    RangeOfMotionParams, RetargetParams,
+};
+use dynamic_shapes::needle::truth::{self, mean, median, Errors, TestSet};
+use dynamic_shapes::needle::{
+    animate, merged_mesh, primitive_meshes, select_params, union_mesh, BodyLayout, FrameInput,
+    NeedleBody, NeedleModel, ObservationStore, ObserveParams, Observer, Parameter,
+    ReconstructionParams, SelectionParams, SilhouetteErrorParams, SilhouetteScorer, SkinnedShape,
+    SurfaceParams, ValidationFrame,
+};
+use pictures::{error_colour, side_by_side, Plot, Series};
+use rayon::prelude::*;
+use serde_json::{json, Map, Value};
+
+const OUT_DIR: &str = "out/needle_capture";
+/// The performer turns on the spot at this rate during training, degrees per second.
+const TURN_DEG_PER_S: f64 = 60.0;
+
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+struct Setup {
+    quick: bool,
+    width: u32,
+    height: u32,
+    train_s: f64,
+    short_s: f64,
+    test_stride: usize,
+    fast_s: f64,
+    validation_frames: usize,
+    selection: SelectionParams,
+}
+
+impl Setup {
+    fn new(quick: bool) -> Self {
+        let full_grid = SelectionParams::default();
+        if quick {
+            Setup {
+                quick,
+                width: 360,
+                height: 240,
+                train_s: 24.0,
+                short_s: 6.0,
+                test_stride: 16,
+                fast_s: 2.0,
+                validation_frames: 4,
+                selection: SelectionParams {
+                    f_near_grid: vec![0.01, 0.022, 0.1],
+                    f_min_grid: vec![0.05, 0.1, 0.2],
+                    kernel_width_w_grid: vec![2.0, 7.0, 15.0],
+                    prototype_count_n_grid: vec![10, 30, 100],
+                    rounds: 1,
+                    ..full_grid
+                },
+            }
+        } else {
+            Setup {
+                quick,
+                width: 720,
+                height: 480,
+                train_s: 180.0,
+                short_s: 30.0,
+                test_stride: 4,
+                fast_s: 4.0,
+                validation_frames: 12,
+                selection: full_grid,
+            }
+        }
+    }
+}
+
+fn performer(quick: bool) -> Res<Performer> {
+    if !quick {
+        if let Ok(dir) = dynamic_shapes::core::data::shared_data_path("makehuman") {
+            eprintln!("performer: MakeHuman");
+            return Ok(makehuman_performer(dir, &Default::default())?);
+        }
+    }
+    eprintln!("performer: procedural");
+    Ok(procedural_performer(&ProceduralBodyParams::default())?)
+}
+
+/// Turning range of motion stretched so it lasts at least `seconds`.
+fn training_motion(p: &Performer, seconds: f64) -> Res<Motion> {
+    let base = RangeOfMotionParams {
+        turn_deg_per_s: TURN_DEG_PER_S,
+        ..Default::default()
+    };
+    let d = range_of_motion(&p.skeleton, &base)?.duration_s();
+    let params = RangeOfMotionParams {
+        seconds_per_dof: base.seconds_per_dof * (seconds / d).max(0.05) * 1.001,
+        ..base
+    };
+    Ok(range_of_motion(&p.skeleton, &params)?)
+}
+
+/// A test motion's truth, plus the true silhouettes of its scored frames.
+struct Test {
+    set: TestSet,
+    masks: Vec<Vec<Mask>>,
+}
+
+fn test_set(
+    p: &Performer,
+    body: &NeedleBody,
+    cameras: &[Camera],
+    motion: &Motion,
+    stride: usize,
+) -> Res<Test> {
+    let mut set = TestSet::default();
+    let mut masks = vec![];
+    let frames: Vec<&[f64]> = (0..motion.frame_count()).map(|k| motion.frame(k)).collect();
+    truth::for_each_posed(p, frames, motion.frame_time_s, stride, |_, th, tv, lv| {
+        let mesh = TriMesh {
+            vertices: tv.to_vec(),
+            faces: p.template.faces.clone(),
+        };
+        masks.push(truth::render_masks(cameras, &mesh)?);
+        set.push_frame(body, p, th, tv, lv)
+    })?;
+    Ok(Test { set, masks })
+}
+
+/// Medians and tail of one predictor's errors, as JSON fields `{prefix}_…`.
+fn summary(prefix: &str, e: &mut Errors, out: &mut Map<String, Value>) {
+    let p90 = |v: &mut [f64]| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() * 9 / 10).copied().unwrap_or(f64::NAN)
+    };
+    out.insert(format!("{prefix}_mean_mm"), json!(mean(&e.all_mm)));
+    out.insert(format!("{prefix}_median_mm"), json!(median(&mut e.all_mm)));
+    out.insert(
+        format!("{prefix}_median_near_joints_mm"),
+        json!(median(&mut e.near_joints_mm)),
+    );
+    out.insert(
+        format!("{prefix}_mean_near_joints_mm"),
+        json!(mean(&e.near_joints_mm)),
+    );
+    out.insert(
+        format!("{prefix}_p90_near_joints_mm"),
+        json!(p90(&mut e.near_joints_mm)),
+    );
+    out.insert(
+        format!("{prefix}_median_deforming_mm"),
+        json!(median(&mut e.deforming_mm)),
+    );
+}
+
+fn main() -> Res<()> {
+    let t0 = Instant::now();
+    let s = Setup::new(std::env::args().any(|a| a == "--quick"));
+    std::fs::create_dir_all(OUT_DIR)?;
+    let performer = performer(s.quick)?;
+    let sk = performer.skeleton.clone();
+    let body = NeedleBody::new(&sk, &BodyLayout::table_3_1())?;
+    let cameras = truth::ring_cameras(3, s.width, s.height)?;
+    let observer = Observer::new(
+        body.clone(),
+        sk.clone(),
+        cameras.clone(),
+        ObserveParams::default(),
+    )?;
+    let mut out = Map::new();
+
+    // --- Training captures, streamed in chunks (masks are not kept). ---
+    let train = training_motion(&performer, s.train_s)?;
+    let n_train = train.frame_count();
+    eprintln!(
+        "training: turning range of motion, {n_train} frames ({:.1} s) at {:.0} fps, {} needles, 3 cameras {}×{}",
+        train.duration_s(),
+        1.0 / train.frame_time_s,
+        body.needle_count(),
+        s.width,
+        s.height
+    );
+    let long = capture(&performer, &observer, &cameras, &train)?;
+    let store = long.store;
+    let short_motion = training_motion(&performer, s.short_s)?;
+    eprintln!(
+        "short training: turning range of motion, {} frames ({:.1} s)",
+        short_motion.frame_count(),
+        short_motion.duration_s()
+    );
+    let short_store = capture(&performer, &observer, &cameras, &short_motion)?.store;
+    let accumulate_fps = n_train as f64 / long.accumulate_s;
+    eprintln!(
+        "accumulate {accumulate_fps:.1} camera-frame triples/s (render {:.1}), {} observations, {:.2} B/observation",
+        n_train as f64 / long.render_s,
+        store.total_observations(),
+        store.bytes_per_observation()
+    );
+
+    // --- Test truth: motions never seen in training. ---
+    let walk_motion = play_bvh(
+        dynamic_shapes::core::data::shared_data_path("mocap-cmu/131_01.bvh")?,
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+        &sk,
+        train.frame_time_s,
+        &RetargetParams::default(),
+    )?
+    .motion;
+    let walk = test_set(&performer, &body, &cameras, &walk_motion, s.test_stride)?;
+    let fast_motion = fast_motion(
+        &sk,
+        &FastMotionParams {
+            duration_s: s.fast_s,
+            seed: 11,
+            ..Default::default()
+        },
+    )?;
+    let fast = test_set(&performer, &body, &cameras, &fast_motion, s.test_stride)?;
+    let scored = |t: &Test| t.set.frames.iter().map(|f| f.needles.len()).sum::<usize>();
+    eprintln!(
+        "test: CMU 131_01 walk {} frames ({} needles), fast motion {} frames ({} needles)",
+        walk.set.frames.len(),
+        scored(&walk),
+        fast.set.frames.len(),
+        scored(&fast)
+    );
+
+    // --- Reconstructions and baselines. ---
+    let base = ReconstructionParams::default();
+    let tr = Instant::now();
+    let main = NeedleModel::reconstruct(&store, &body, &base)?.model;
+    let reconstruct_s = tr.elapsed().as_secs_f64();
+    eprintln!("reconstruct (N = 100): {reconstruct_s:.2} s");
+    let stat = NeedleModel::reconstruct(&store, &body, &base.with_f_near(1.0))?.model;
+    let rest = animate(&body, &main, &sk, &sk.rest_pose())?;
+    let rest_mesh = union_mesh(&rest, &SurfaceParams::default())?;
+    let lbs_heat = SkinnedShape::heat(&sk, rest_mesh.clone())?;
+    let lbs_true = SkinnedShape::transfer(&performer, rest_mesh)?;
+    let surface = |shape: &SkinnedShape, theta: &[f64]| {
+        let fk = sk.forward_kinematics(theta)?;
+        shape.pose(&performer, fk.world_from_joint())
+    };
+    for (name, t) in [("test", &walk), ("fast", &fast)] {
+        let pre = |p: &str| {
+            if name == "test" {
+                p.to_string()
+            } else {
+                format!("fast_{p}")
+            }
+        };
+        summary(&pre("test"), &mut t.set.errors(&main)?, &mut out);
+        summary(&pre("static"), &mut t.set.errors(&stat)?, &mut out);
+        summary(
+            &pre("lbs"),
+            &mut t
+                .set
+                .surface_errors(&body, &sk, |th| surface(&lbs_heat, th))?,
+            &mut out,
+        );
+        summary(
+            &pre("lbs_true_weights"),
+            &mut t
+                .set
+                .surface_errors(&body, &sk, |th| surface(&lbs_true, th))?,
+            &mut out,
+        );
+        summary(&pre("lbs_exact_rest"), &mut t.set.lbs_errors(), &mut out);
+    }
+    out.insert(
+        "test_silhouette_error".into(),
+        json!(silhouette_error(&body, &main, &sk, &cameras, &walk)?),
+    );
+    out.insert(
+        "static_silhouette_error".into(),
+        json!(silhouette_error(&body, &stat, &sk, &cameras, &walk)?),
+    );
+    for k in [
+        "test_median_mm",
+        "test_median_near_joints_mm",
+        "static_median_mm",
+        "static_median_near_joints_mm",
+        "lbs_median_mm",
+        "lbs_median_near_joints_mm",
+        "lbs_true_weights_median_mm",
+        "lbs_true_weights_median_near_joints_mm",
+        "lbs_exact_rest_median_mm",
+    ] {
+        eprintln!("  {k}: {:.2}", out[k].as_f64().unwrap_or(f64::NAN));
+    }
+
+    // --- Error vs N, and short vs long training (walk test). ---
+    let mut sweep = vec![];
+    for n in [10usize, 30, 100, 300] {
+        let mut e = walk.set.errors(
+            &NeedleModel::reconstruct(&store, &body, &base.with_prototype_count_n(n))?.model,
+        )?;
+        let (a, b) = (median(&mut e.all_mm), median(&mut e.near_joints_mm));
+        eprintln!("N = {n}: median {a:.2} mm, near joints {b:.2} mm");
+        sweep.push((n, a, b));
+    }
+    out.insert(
+        "median_vs_n".into(),
+        json!(sweep
+            .iter()
+            .map(|&(n, a, b)| json!({"n": n, "median_mm": a, "near_joints_mm": b}))
+            .collect::<Vec<_>>()),
+    );
+    // A primitive never observed in the short capture makes its reconstruction fail:
+    // reported, not fatal.
+    match NeedleModel::reconstruct(&short_store, &body, &base)
+        .and_then(|r| walk.set.errors(&r.model))
+    {
+        Ok(mut e) => {
+            out.insert("short_train_median_mm".into(), json!(median(&mut e.all_mm)));
+            out.insert(
+                "short_train_median_near_joints_mm".into(),
+                json!(median(&mut e.near_joints_mm)),
+            );
+        }
+        Err(e) => {
+            out.insert("short_train_error".into(), json!(e.to_string()));
+        }
+    }
+
+    // --- Automatic parameter selection by silhouette error (§6.3, Figure 11). ---
+    let selection = select(&s, &performer, &body, &cameras, &train, &store)?;
+    let chosen = selection.params;
+    eprintln!(
+        "selected F_near {} F_min {} W {} N {} (silhouette error {:.4} → {:.4}, {} reconstructions)",
+        chosen.f_near,
+        chosen.f_min,
+        chosen.kernel_width_w,
+        chosen.prototype_count_n,
+        selection.start_error,
+        selection.error,
+        selection.evaluations
+    );
+    let selected = NeedleModel::reconstruct(&store, &body, &chosen)?.model;
+    summary("selected", &mut walk.set.errors(&selected)?, &mut out);
+    out.insert("selected_params".into(), json!(chosen));
+    out.insert("selection_evaluations".into(), json!(selection.evaluations));
+    plot_selection(&selection.curves)?;
+
+    // --- Animation speed: NRBF + per-primitive meshes, and the watertight union. ---
+    let poses: Vec<&[f64]> = walk.set.frames.iter().map(|f| f.theta.as_slice()).collect();
+    let ta = Instant::now();
+    for th in &poses {
+        let posed = animate(&body, &main, &sk, th)?;
+        std::hint::black_box(primitive_meshes(&posed)?);
+    }
+    let animate_fps = poses.len() as f64 / ta.elapsed().as_secs_f64();
+    let union_poses = &poses[..poses.len().min(4)];
+    let tu = Instant::now();
+    for th in union_poses {
+        let posed = animate(&body, &main, &sk, th)?;
+        std::hint::black_box(union_mesh(&posed, &SurfaceParams::default())?);
+    }
+    let union_fps = union_poses.len() as f64 / tu.elapsed().as_secs_f64();
+    eprintln!("animate {animate_fps:.0} fps (per-primitive surfaces), union {union_fps:.2} fps");
+
+    // --- Pictures. ---
+    plot_error_vs_n(&sweep, &out)?;
+    render_test_poses(&performer, &body, &main, &walk)?;
+    render_error_map(&body, &main, &sk, &walk)?;
+
+    for (k, v) in [
+        ("quick", json!(s.quick)),
+        ("performer", json!(performer.name)),
+        ("train_s", json!(train.duration_s())),
+        ("train_frames", json!(n_train)),
+        ("turn_deg_per_s", json!(TURN_DEG_PER_S)),
+        ("short_train_s", json!(short_motion.duration_s())),
+        ("test_frames", json!(walk.set.frames.len())),
+        ("test_needles", json!(scored(&walk))),
+        ("fast_test_frames", json!(fast.set.frames.len())),
+        ("accumulate_frames_per_s", json!(accumulate_fps)),
+        ("render_frames_per_s", json!(n_train as f64 / long.render_s)),
+        ("reconstruct_s", json!(reconstruct_s)),
+        (
+            "reconstruct_s_24min",
+            json!(reconstruct_s * 43_200.0 / (3.0 * n_train as f64)),
+        ),
+        ("animate_fps", json!(animate_fps)),
+        ("union_fps", json!(union_fps)),
+        (
+            "bytes_per_observation",
+            json!(store.bytes_per_observation()),
+        ),
+        ("observations", json!(store.total_observations())),
+        ("seconds", json!(t0.elapsed().as_secs_f64())),
+    ] {
+        out.insert(k.into(), v);
+    }
+    let out = Value::Object(out);
+    std::fs::write(
+        format!("{OUT_DIR}/figures.json"),
+        serde_json::to_string_pretty(&out)?,
+    )?;
+    println!("{out}");
+    Ok(())
+}
+
+/// Mean silhouette error (§6.2) of `model`'s surface over the test frames.
+fn silhouette_error(
+    body: &NeedleBody,
+    model: &NeedleModel,
+    sk: &dynamic_shapes::core::skeleton::Skeleton,
+    cameras: &[Camera],
+    t: &Test,
+) -> Res<f64> {
+    let scorer = SilhouetteScorer::new(cameras, SilhouetteErrorParams::default())?;
+    let meshes: Vec<TriMesh> = t
+        .set
+        .frames
+        .iter()
+        .map(|f| merged_mesh(&animate(body, model, sk, &f.theta)?))
+        .collect::<Result<_, _>>()?;
+    Ok(scorer.sequence_error(&meshes, &t.masks)?.mean)
+}
+
+/// Coordinate descent on the silhouette error of training frames spread over the capture.
+fn select(
+    s: &Setup,
+    performer: &Performer,
+    body: &NeedleBody,
+    cameras: &[Camera],
+    train: &Motion,
+    store: &ObservationStore,
+) -> Res<dynamic_shapes::needle::Selection> {
+    let stride = (train.frame_count() / s.validation_frames).max(1);
+    let mut thetas = vec![];
+    let mut masks = vec![];
+    let frames: Vec<&[f64]> = (0..train.frame_count()).map(|k| train.frame(k)).collect();
+    truth::for_each_posed(
+        performer,
+        frames,
+        train.frame_time_s,
+        stride,
+        |_, th, tv, _| {
+            let mesh = TriMesh {
+                vertices: tv.to_vec(),
+                faces: performer.template.faces.clone(),
+            };
+            masks.push(truth::render_masks(cameras, &mesh)?);
+            thetas.push(th.to_vec());
+            Ok(())
+        },
+    )?;
+    let frames: Vec<ValidationFrame> = thetas
+        .iter()
+        .zip(&masks)
+        .map(|(theta, masks)| ValidationFrame { theta, masks })
+        .collect();
+    let scorer = SilhouetteScorer::new(cameras, SilhouetteErrorParams::default())?;
+    Ok(select_params(
+        store,
+        body,
+        &performer.skeleton,
+        &scorer,
+        &frames,
+        ReconstructionParams::default(),
+        &s.selection,
+    )?)
+}
+
+/// Result of [`capture`].
+struct Captured {
+    store: ObservationStore,
+    accumulate_s: f64,
+    render_s: f64,
+}
+
+/// Poses the performer along `motion`, renders the true mesh's silhouettes and accumulates
+/// the observations, streamed in chunks of 48 frames (masks are not kept).
+fn capture(
+    performer: &Performer,
+    observer: &Observer,
+    cameras: &[Camera],
+    motion: &Motion,
+) -> Res<Captured> {
+    let n = motion.frame_count();
+    let mut store = observer.empty_store()?;
+    let (mut accumulate_s, mut render_s) = (0.0, 0.0);
+    let chunk = 48usize;
+    let mut pending: Vec<(Vec<f64>, TriMesh)> = vec![];
+    let mut state = DeformationState::default();
+    for k in 0..n {
+        let theta = motion.frame(k).to_vec();
+        let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
+        let mesh = TriMesh {
+            vertices: posed.true_vertices,
+            faces: performer.template.faces.clone(),
+        };
+        pending.push((theta, mesh));
+        if pending.len() == chunk || k + 1 == n {
+            let tr = Instant::now();
+            let masks: Vec<_> = pending
+                .par_iter()
+                .map(|(_, m)| truth::render_masks(cameras, m))
+                .collect::<Result<_, _>>()?;
+            render_s += tr.elapsed().as_secs_f64();
+            let frames: Vec<FrameInput> = pending
+                .iter()
+                .zip(&masks)
+                .map(|((t, _), m)| FrameInput { theta: t, masks: m })
+                .collect();
+            let ta = Instant::now();
+            let acc = observer.accumulate(&frames)?;
+            accumulate_s += ta.elapsed().as_secs_f64();
+            store.append(&acc.store)?;
+            pending.clear();
+            eprint!(
+                "\r  frame {}/{n}, {} observations",
+                k + 1,
+                store.total_observations()
+            );
+        }
+    }
+    eprintln!();
+    Ok(Captured {
+        store,
+        accumulate_s,
+        render_s,
+    })
+}
+
+/// `error_vs_n.png` (see the module docs).
+fn plot_error_vs_n(sweep: &[(usize, f64, f64)], fig: &Map<String, Value>) -> Res<()> {
+    let xs = || sweep.iter().map(|&(n, _, _)| n as f64);
+    let baseline = |k: &str, colour| Series {
+        points: xs()
+            .map(|x| (x, fig[k].as_f64().unwrap_or(f64::NAN)))
+            .collect(),
+        colour,
+        dashed: true,
+    };
+    Plot {
+        width: 480,
+        height: 320,
+        log_x: true,
+        series: vec![
+            Series {
+                points: sweep.iter().map(|&(n, a, _)| (n as f64, a)).collect(),
+                colour: [0, 60, 220],
+                dashed: false,
+            },
+            Series {
+                points: sweep.iter().map(|&(n, _, b)| (n as f64, b)).collect(),
+                colour: [220, 0, 0],
+                dashed: false,
+            },
+            baseline("static_median_mm", [128, 128, 128]),
+            baseline("lbs_median_mm", [230, 140, 0]),
+        ],
+    }
+    .draw()
+    .save(format!("{OUT_DIR}/error_vs_n.png"))?;
+    Ok(())
+}
+
+/// `silhouette_error_vs_params.png`: one panel per parameter, F_near, F_min, W, N.
+fn plot_selection(curves: &[dynamic_shapes::needle::ParameterCurve]) -> Res<()> {
+    let panels: Vec<_> = curves
+        .iter()
+        .map(|c| {
+            Plot {
+                width: 240,
+                height: 200,
+                log_x: matches!(c.parameter, Parameter::FNear | Parameter::PrototypeCountN),
+                series: vec![Series {
+                    points: c
+                        .values
+                        .iter()
+                        .copied()
+                        .zip(c.errors.iter().copied())
+                        .collect(),
+                    colour: [0, 60, 220],
+                    dashed: false,
+                }],
+            }
+            .draw()
+        })
+        .collect();
+    side_by_side(&panels)?.save(format!("{OUT_DIR}/silhouette_error_vs_params.png"))?;
+    Ok(())
+}
+
+/// `test_poses.png`: three walk poses, truth above, the model's union surface below.
+fn render_test_poses(
+    performer: &Performer,
+    body: &NeedleBody,
+    model: &NeedleModel,
+    walk: &Test,
+) -> Res<()> {
+    let n = walk.set.frames.len();
+    let picks = [n / 6, n / 2, 5 * n / 6];
+    let mut rows = vec![];
+    for truth_row in [true, false] {
+        let mut meshes = vec![];
+        for &k in &picks {
+            let theta = &walk.set.frames[k].theta;
+            meshes.push(if truth_row {
+                let posed = performer.pose(theta, &mut DeformationState::default(), 1.0)?;
+                TriMesh {
+                    vertices: posed.true_vertices,
+                    faces: performer.template.faces.clone(),
+                }
+            } else {
+                let posed = animate(body, model, &performer.skeleton, theta)?;
+                union_mesh(&posed, &SurfaceParams::default())?
+            });
+        }
+        let colour = if truth_row {
+            [150, 150, 150]
+        } else {
+            [90, 120, 200]
+        };
+        let panels: Vec<PreviewPanel> = meshes
+            .iter()
+            .map(|mesh| PreviewPanel {
+                mesh,
+                paint: Paint::Flat(colour),
+            })
+            .collect();
+        rows.push(preview(&panels, 320)?);
+    }
+    let (w, h) = (rows[0].width(), rows[0].height());
+    let mut img = image::RgbImage::new(w, 2 * h);
+    image::imageops::overlay(&mut img, &rows[0], 0, 0);
+    image::imageops::overlay(&mut img, &rows[1], 0, h as i64);
+    img.save(format!("{OUT_DIR}/test_poses.png"))?;
+    Ok(())
+}
+
+/// `error_map.png`: per-primitive surfaces at the middle walk pose coloured by needle error.
+fn render_error_map(
+    body: &NeedleBody,
+    model: &NeedleModel,
+    sk: &dynamic_shapes::core::skeleton::Skeleton,
+    walk: &Test,
+) -> Res<()> {
+    let frame = &walk.set.frames[walk.set.frames.len() / 2];
+    let posed = animate(body, model, sk, &frame.theta)?;
+    let mut err: Vec<Vec<Option<f64>>> = posed
+        .primitives
+        .iter()
+        .map(|p| vec![None; p.endpoints.len()])
+        .collect();
+    for n in &frame.needles {
+        let (p, j) = (n.primitive as usize, n.needle as usize);
+        err[p][j] = Some((posed.primitives[p].lengths[j] - n.true_m).abs() * 1e3);
+    }
+    let meshes = primitive_meshes(&posed)?;
+    let mut colours = vec![];
+    for (m, e) in meshes.iter().zip(&err) {
+        // Needle endpoints come first in each primitive mesh; cap centres are unscored.
+        colours
+            .extend((0..m.vertices.len()).map(|v| error_colour(e.get(v).copied().flatten(), 20.0)));
+    }
+    let mesh = merged_mesh(&posed)?;
+    preview(
+        &[PreviewPanel {
+            mesh: &mesh,
+            paint: Paint::PerVertex(&colours),
+        }],
+        640,
+    )?
+    .save(format!("{OUT_DIR}/error_map.png"))?;
+    Ok(())
+}
