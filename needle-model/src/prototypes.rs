@@ -258,9 +258,12 @@ impl PrototypeShapes {
 }
 
 /// Number of nearest observations used for a needle with `m` observations (§5.3):
-/// `n = round(F_near · m)` clamped to `1..=m`.
-pub fn near_count(m: usize, f_near: f64) -> usize {
-    ((f_near * m as f64).round() as usize).clamp(1, m.max(1))
+/// `n = round(F_near · m)`, raised to `min_near` (see [`ReconstructionParams::min_near`]) and
+/// clamped to `1..=m`.
+pub fn near_count(m: usize, f_near: f64, min_near: usize) -> usize {
+    ((f_near * m as f64).round() as usize)
+        .max(min_near)
+        .clamp(1, m.max(1))
 }
 
 /// Index of the `F_min` percentile in `n` sorted values: `round(F_min · (n − 1))`.
@@ -582,7 +585,7 @@ fn needle_prototype_lengths(
     scratch: &mut Scratch,
 ) -> Vec<f32> {
     let m = sample_idx.len();
-    let n = near_count(m, params.f_near);
+    let n = near_count(m, params.f_near, params.min_near);
     if n == m {
         // Every observation is "near" every prototype: a static estimate.
         scratch.buf.clear();
@@ -842,7 +845,7 @@ mod tests {
             })
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let n = near_count(s.len(), pr.f_near);
+        let n = near_count(s.len(), pr.f_near, pr.min_near);
         let reach = d[n - 1].0 + TIE_RADIUS * crate::nrbf::config_scale(samples, dim).unwrap();
         let mut near: Vec<f32> = d.iter().filter(|x| x.0 <= reach).map(|x| x.1).collect();
         let n = near.len();
