@@ -184,4 +184,21 @@ fn truth_rejects_bad_input() {
     assert!(n
         .iter()
         .all(|t| t.true_m > 0.0 && t.true_m <= body.primitives[t.primitive as usize].max_length_m));
+    // Scoring a surface: the template itself at rest is the truth; a body of another layout
+    // or a failing surface is an error, not a panic.
+    let template = |_: &[f64]| Ok(performer.template.clone());
+    let mut e = test
+        .surface_errors(&body, &performer.skeleton, template)
+        .unwrap();
+    assert!(median(&mut e.all_mm) < 1e-6);
+    let full = NeedleBody::new(&performer.skeleton, &BodyLayout::table_3_1()).unwrap();
+    let mut big = TestSet::default();
+    big.push_frame(&full, &performer, &theta, &v, &v).unwrap();
+    assert!(big
+        .surface_errors(&body, &performer.skeleton, template)
+        .is_err());
+    let failing = |_: &[f64]| Err(dynamic_shapes::needle::Error::Empty { what: "surface" });
+    assert!(test
+        .surface_errors(&body, &performer.skeleton, failing)
+        .is_err());
 }
