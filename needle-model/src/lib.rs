@@ -34,6 +34,7 @@
 pub mod animate;
 pub mod baseline;
 pub mod config;
+pub mod device;
 pub mod error;
 pub mod nrbf;
 pub mod observe;
@@ -51,6 +52,7 @@ pub mod truth;
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
 pub use baseline::SkinnedShape;
 pub use config::ConfigSpace;
+pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};
 pub use error::{Error, Result};
 pub use nrbf::{Nrbf, NrbfFit};
 pub use observe::{Accumulation, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
