@@ -654,6 +654,8 @@ fn render_test_poses(
         for &k in &picks {
             let theta = &walk.set.frames[k].theta;
             meshes.push(if truth_row {
+                // A fresh flap state: the picture shows the pose, not the flap's lag (the
+                // scoring in `test_set` runs the dynamics over every frame).
                 let posed = performer.pose(theta, &mut DeformationState::default(), 1.0)?;
                 TriMesh {
                     vertices: posed.true_vertices,
