@@ -15,7 +15,7 @@
 //!   distortion.
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
-//! * [`preview`]: front-view preview pictures of meshes side by side (flat or per-vertex
+//! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
 //! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
