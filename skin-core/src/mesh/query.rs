@@ -296,6 +296,30 @@ impl MeshQuery {
         }
         rays.par_iter().map(|&r| self.cast_ray(r, max_t)).collect()
     }
+
+    /// Whether `p` lies inside the mesh, taken as closed and outward-oriented: most of three
+    /// rays from `p` in fixed directions first hit the back of a face (a ray leaving a closed
+    /// surface meets it from inside). The majority vote makes one ray grazing an edge
+    /// harmless; the directions are far from the axes and from each other, so they avoid
+    /// the axis-aligned edges and vertices of typical meshes.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for a non-finite `p`.
+    pub fn contains(&self, p: DVec3) -> Result<bool> {
+        const PROBE_DIRECTIONS: [DVec3; 3] = [
+            DVec3::new(0.267_261_2, 0.534_522_5, 0.801_783_7),
+            DVec3::new(-0.723_102_3, 0.106_339_8, -0.682_496_1),
+            DVec3::new(0.154_303_3, -0.925_820_1, 0.345_032_8),
+        ];
+        let mut votes = 0;
+        for d in PROBE_DIRECTIONS {
+            if matches!(self.cast_ray(Ray::new(p, d), f64::INFINITY)?, Some(hit) if !hit.front_face)
+            {
+                votes += 1;
+            }
+        }
+        Ok(votes >= 2)
+    }
 }
 
 #[cfg(test)]
@@ -377,6 +401,25 @@ pub(crate) mod tests {
 
     /// The polyhedral sphere lies in the shell `r_min ≤ |x| ≤ r`, so the first hit of a ray from
     /// outside lies between its entry into the outer and the inner analytic spheres.
+    #[test]
+    fn contains_tells_inside_from_outside() {
+        let q = MeshQuery::new(&uv_sphere(1.0, 24, 12)).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..200 {
+            let p = random_point(&mut rng, 1.5);
+            let r = p.length();
+            // Facets lie up to 1 − cos(π/12) ≈ 0.034 inside the sphere.
+            if (r - 1.0).abs() > 0.05 {
+                assert_eq!(q.contains(p).unwrap(), r < 1.0, "{p}");
+            }
+        }
+        assert!(q.contains(DVec3::ZERO).unwrap());
+        assert!(matches!(
+            q.contains(DVec3::new(f64::NAN, 0.0, 0.0)),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+
     #[test]
     fn ray_hits_match_analytic_sphere() {
         let r = 2.0;

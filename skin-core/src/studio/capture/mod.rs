@@ -34,8 +34,7 @@ pub use spec::{CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ};
 
 use rayon::prelude::*;
 
-use crate::math::DVec3;
-use crate::mesh::{MeshQuery, Ray, TriMesh};
+use crate::mesh::{MeshQuery, TriMesh};
 use crate::skeleton::Motion;
 use crate::studio::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::studio::shading::{
@@ -171,7 +170,7 @@ impl<'a> Capture<'a> {
         };
         let query = MeshQuery::new(&mesh)?;
         for (i, cam) in self.spec.rig.cameras.iter().enumerate() {
-            if point_inside(&query, cam.centre()) {
+            if query.contains(cam.centre())? {
                 return Err(Error::InvalidParam {
                     name: "rig",
                     reason: format!(
@@ -300,28 +299,4 @@ impl Iterator for CaptureFrames<'_, '_> {
         let n = if self.failed { 0 } else { self.end - self.next };
         (0, Some(n))
     }
-}
-
-/// Directions of the parity rays of [`point_inside`]: far from the axes and from each other, so
-/// they avoid the axis-aligned edges and vertices of typical meshes.
-const PROBE_DIRECTIONS: [[f64; 3]; 3] = [
-    [0.267_261_2, 0.534_522_5, 0.801_783_7],
-    [-0.723_102_3, 0.106_339_8, -0.682_496_1],
-    [0.154_303_3, -0.925_820_1, 0.345_032_8],
-];
-
-/// True when `p` is inside the closed, outward-oriented mesh of `query`: most of three rays
-/// from `p` first hit the back of a face (a ray leaving a closed surface meets it from
-/// inside). A majority vote makes one ray grazing an edge harmless.
-fn point_inside(query: &MeshQuery, p: DVec3) -> bool {
-    let votes = PROBE_DIRECTIONS
-        .iter()
-        .filter(|d| {
-            matches!(
-                query.cast_ray(Ray::new(p, DVec3::from(**d)), f64::INFINITY),
-                Ok(Some(hit)) if !hit.front_face
-            )
-        })
-        .count();
-    votes >= 2
 }

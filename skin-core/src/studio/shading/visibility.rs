@@ -209,17 +209,8 @@ pub(crate) fn unoccluded(
     !matches!(query.cast_ray(Ray::new(o, d), dist - bias_m), Ok(Some(_)))
 }
 
-/// Directions of the parity rays of [`check_lights_outside`]: irrational-ish, so they avoid
-/// the axis-aligned edges and vertices of typical meshes.
-const PROBE_DIRECTIONS: [[f64; 3]; 3] = [
-    [0.267_261_2, 0.534_522_5, 0.801_783_7],
-    [-0.723_102_3, 0.106_339_8, -0.682_496_1],
-    [0.154_303_3, -0.925_820_1, 0.345_032_8],
-];
-
-/// Checks that no light is inside the (closed, outward-oriented) mesh: from each light, three
-/// rays in fixed directions; the light is inside when most of them first hit the back of a
-/// face (a ray leaving a closed surface meets it from inside).
+/// Checks that no light is inside the (closed, outward-oriented) mesh
+/// ([`MeshQuery::contains`]).
 ///
 /// # Errors
 /// Errors of [`Light::validate`]; [`Error::InvalidParam`] naming the first light inside.
@@ -227,16 +218,7 @@ pub fn check_lights_outside(query: &MeshQuery, lights: &[Light]) -> Result<()> {
     for (i, light) in lights.iter().enumerate() {
         light.validate()?;
         let p = light.position();
-        let inside_votes = PROBE_DIRECTIONS
-            .iter()
-            .filter(|d| {
-                matches!(
-                    query.cast_ray(Ray::new(p, DVec3::from(**d)), f64::INFINITY),
-                    Ok(Some(hit)) if !hit.front_face
-                )
-            })
-            .count();
-        if inside_votes >= 2 {
+        if query.contains(p)? {
             return Err(Error::InvalidParam {
                 name: "lights",
                 reason: format!("light {i} at {p} is inside the mesh; move it outside the body"),
