@@ -120,3 +120,15 @@ pub fn ensure_finite<'a>(
         Err(Error::NonFinite { what })
     }
 }
+
+/// Returns [`Error::InvalidParam`] naming `name` unless `v` is finite and > 0.
+pub(crate) fn ensure_positive(name: &'static str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParam {
+            name,
+            reason: format!("must be finite and positive, got {v}"),
+        })
+    }
+}

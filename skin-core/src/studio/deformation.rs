@@ -21,6 +21,7 @@
 //!   [`FlapParams::max_lag_m`].
 //!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
 
+use crate::error::ensure_positive as positive;
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::SkinWeights;
 use crate::skeleton::Skeleton;
@@ -191,17 +192,6 @@ pub struct DeformationState {
     pub velocities: Vec<DVec3>,
     /// Anchor positions at the previous frame, metres.
     pub anchors: Vec<DVec3>,
-}
-
-fn positive(name: &'static str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParam {
-            name,
-            reason: format!("must be finite and positive, got {v}"),
-        })
-    }
 }
 
 fn non_negative(name: &'static str, v: f64) -> Result<()> {

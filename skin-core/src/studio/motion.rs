@@ -3,6 +3,7 @@
 //! dynamics. Both return a [`Motion`] (resample with [`Motion::resample`]); BVH playback is in
 //! [`retarget`](super::retarget).
 
+use crate::error::ensure_positive as positive;
 use crate::skeleton::{Motion, Skeleton};
 use crate::{Error, Result};
 use nalgebra::DMatrix;
@@ -79,17 +80,6 @@ impl Default for FastMotionParams {
             ramp_s: 0.3,
             seed: 7,
         }
-    }
-}
-
-fn positive(name: &'static str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParam {
-            name,
-            reason: format!("must be finite and positive, got {v}"),
-        })
     }
 }
 
