@@ -414,19 +414,7 @@ impl BackgroundModel {
     /// [`Error::SizeMismatch`] if `region` has another size; [`Error::InvalidParam`] if
     /// `factor` is negative or not finite.
     pub fn scale_thresholds_in(&mut self, region: &Mask, factor: f32) -> Result<()> {
-        self.check_region(region)?;
-        if !(factor.is_finite() && factor >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "factor",
-                reason: format!("must be finite and >= 0, got {factor}"),
-            });
-        }
-        for (t, inside) in self.threshold.iter_mut().zip(region.iter()) {
-            if inside {
-                *t *= factor;
-            }
-        }
-        Ok(())
+        self.update_thresholds_in(region, "factor", factor, |t| t * factor)
     }
 
     /// Sets the threshold of every pixel in `region` to `threshold` (`[0, 1]` units).
@@ -435,16 +423,28 @@ impl BackgroundModel {
     /// [`Error::SizeMismatch`] if `region` has another size; [`Error::InvalidParam`] if
     /// `threshold` is negative or not finite.
     pub fn set_thresholds_in(&mut self, region: &Mask, threshold: f32) -> Result<()> {
+        self.update_thresholds_in(region, "threshold", threshold, |_| threshold)
+    }
+
+    /// Replaces the threshold `t` of every pixel in `region` by `update(t)`, after checking
+    /// the region's size and that the parameter `name = value` is finite and ≥ 0.
+    fn update_thresholds_in(
+        &mut self,
+        region: &Mask,
+        name: &'static str,
+        value: f32,
+        update: impl Fn(f32) -> f32,
+    ) -> Result<()> {
         self.check_region(region)?;
-        if !(threshold.is_finite() && threshold >= 0.0) {
+        if !(value.is_finite() && value >= 0.0) {
             return Err(Error::InvalidParam {
-                name: "threshold",
-                reason: format!("must be finite and >= 0, got {threshold}"),
+                name,
+                reason: format!("must be finite and >= 0, got {value}"),
             });
         }
         for (t, inside) in self.threshold.iter_mut().zip(region.iter()) {
             if inside {
-                *t = threshold;
+                *t = update(*t);
             }
         }
         Ok(())
