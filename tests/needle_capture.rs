@@ -2,7 +2,6 @@
 //! `examples/needle_capture`): train on a turning range of motion, test on real motion
 //! capture it never saw (CMU 131_01, retargeted) against the performer's true posed mesh.
 
-use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::skeleton::{BvhParams, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::studio::{
     play_bvh, procedural_performer, range_of_motion, DeformationState, ProceduralBodyParams,
@@ -45,10 +44,7 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
         let theta = rom.frame(k);
         let posed = performer.pose(theta, &mut state, rom.frame_time_s).unwrap();
         if k % 2 == 0 {
-            let mesh = TriMesh {
-                vertices: posed.true_vertices,
-                faces: performer.template.faces.clone(),
-            };
+            let mesh = performer.mesh(posed.true_vertices);
             masks.push(truth::render_masks(&cameras, &mesh).unwrap());
             thetas.push(theta.to_vec());
         }

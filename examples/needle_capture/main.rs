@@ -153,10 +153,7 @@ fn test_set(
     let mut masks = vec![];
     let frames: Vec<&[f64]> = (0..motion.frame_count()).map(|k| motion.frame(k)).collect();
     truth::for_each_posed(p, frames, motion.frame_time_s, stride, |_, th, tv, lv| {
-        let mesh = TriMesh {
-            vertices: tv.to_vec(),
-            faces: p.template.faces.clone(),
-        };
+        let mesh = p.mesh(tv.to_vec());
         masks.push(truth::render_masks(cameras, &mesh)?);
         set.push_frame(body, p, th, tv, lv)
     })?;
@@ -491,10 +488,7 @@ fn select(
         train.frame_time_s,
         stride,
         |_, th, tv, _| {
-            let mesh = TriMesh {
-                vertices: tv.to_vec(),
-                faces: performer.template.faces.clone(),
-            };
+            let mesh = performer.mesh(tv.to_vec());
             masks.push(truth::render_masks(cameras, &mesh)?);
             thetas.push(th.to_vec());
             Ok(())
@@ -541,10 +535,7 @@ fn capture(
     for k in 0..n {
         let theta = motion.frame(k).to_vec();
         let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
-        let mesh = TriMesh {
-            vertices: posed.true_vertices,
-            faces: performer.template.faces.clone(),
-        };
+        let mesh = performer.mesh(posed.true_vertices);
         pending.push((theta, mesh));
         if pending.len() == chunk || k + 1 == n {
             let tr = Instant::now();
@@ -657,10 +648,7 @@ fn render_test_poses(
                 // A fresh flap state: the picture shows the pose, not the flap's lag (the
                 // scoring in `test_set` runs the dynamics over every frame).
                 let posed = performer.pose(theta, &mut DeformationState::default(), 1.0)?;
-                TriMesh {
-                    vertices: posed.true_vertices,
-                    faces: performer.template.faces.clone(),
-                }
+                performer.mesh(posed.true_vertices)
             } else {
                 let posed = animate(body, model, &performer.skeleton, theta)?;
                 union_mesh(&posed, &SurfaceParams::default())?

@@ -14,7 +14,6 @@ use needle_model::primitive::{BodyLayout, NeedleBody};
 use skin_core::camera::{Intrinsics, Rig};
 use skin_core::image::Mask;
 use skin_core::math::DVec3;
-use skin_core::mesh::TriMesh;
 use skin_core::studio::{
     fast_motion, procedural_performer, Buffers, DeformationState, FastMotionParams,
     ProceduralBodyParams, Rasterizer, RenderParams,
@@ -41,10 +40,7 @@ fn bench(c: &mut Criterion) {
         if f % 15 != 0 {
             continue;
         }
-        let mesh = TriMesh {
-            vertices: posed.true_vertices,
-            faces: performer.template.faces.clone(),
-        };
+        let mesh = performer.mesh(posed.true_vertices);
         masks.push(
             cameras
                 .iter()

@@ -43,10 +43,7 @@ pub(crate) fn scene_of(performer: Performer, n: usize, frame_stride: usize) -> S
             .pose(&theta, &mut state, motion.frame_time_s)
             .unwrap();
         if k % frame_stride == 0 {
-            let mesh = TriMesh {
-                vertices: posed.true_vertices.clone(),
-                faces: performer.template.faces.clone(),
-            };
+            let mesh = performer.mesh(posed.true_vertices.clone());
             masks.push(crate::truth::render_masks(&cameras, &mesh).unwrap());
             meshes.push(mesh);
             thetas.push(theta);

@@ -271,7 +271,6 @@ pub fn estimate_sync_offset(
 mod tests {
     use super::*;
     use crate::observe::tests::cameras;
-    use skin_core::mesh::TriMesh;
     use skin_core::studio::{
         fast_motion, procedural_performer, DeformationState, FastMotionParams, ProceduralBodyParams,
     };
@@ -294,10 +293,7 @@ mod tests {
             let posed = performer
                 .pose(&theta, &mut DeformationState::default(), 0.0)
                 .unwrap();
-            let mesh = TriMesh {
-                vertices: posed.true_vertices,
-                faces: performer.template.faces.clone(),
-            };
+            let mesh = performer.mesh(posed.true_vertices);
             masks.push(crate::truth::render_masks(&cams, &mesh).unwrap());
         }
         let frames: Vec<VideoFrame> = times

@@ -168,10 +168,7 @@ impl TestSet {
                 });
             }
         }
-        let mesh = |v: &[DVec3]| TriMesh {
-            vertices: v.to_vec(),
-            faces: performer.template.faces.clone(),
-        };
+        let mesh = |v: &[DVec3]| performer.mesh(v.to_vec());
         let true_q = MeshQuery::new(&mesh(true_vertices))?;
         let lbs_q = MeshQuery::new(&mesh(lbs_vertices))?;
         let fk = performer.skeleton.forward_kinematics(theta)?;

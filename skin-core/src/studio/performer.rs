@@ -107,6 +107,15 @@ impl Performer {
         })
     }
 
+    /// The template's faces with `vertices` (e.g. [`PosedFrame::true_vertices`]): the posed
+    /// surface as a mesh.
+    pub fn mesh(&self, vertices: Vec<DVec3>) -> TriMesh {
+        TriMesh {
+            vertices,
+            faces: self.template.faces.clone(),
+        }
+    }
+
     /// Number of template vertices.
     pub fn vertex_count(&self) -> usize {
         self.template.vertex_count()

@@ -35,10 +35,7 @@ pub struct FrameTruth {
 impl FrameTruth {
     /// The true posed mesh (true vertices with the performer's faces).
     pub fn true_mesh(&self, performer: &Performer) -> TriMesh {
-        TriMesh {
-            vertices: self.posed.true_vertices.clone(),
-            faces: performer.template.faces.clone(),
-        }
+        performer.mesh(self.posed.true_vertices.clone())
     }
 
     /// Distance between each true vertex and its LBS position, m (the non-skinning

@@ -34,7 +34,7 @@ pub use spec::{CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ};
 
 use rayon::prelude::*;
 
-use crate::mesh::{MeshQuery, TriMesh};
+use crate::mesh::MeshQuery;
 use crate::skeleton::Motion;
 use crate::studio::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::studio::shading::{
@@ -164,10 +164,7 @@ impl<'a> Capture<'a> {
 
     /// Renders frame `index` from its posed surfaces (observations and per-camera truth).
     fn render_frame(&self, index: usize, posed: PosedFrame) -> Result<CaptureFrame> {
-        let mesh = TriMesh {
-            vertices: posed.true_vertices.clone(),
-            faces: self.performer.template.faces.clone(),
-        };
+        let mesh = self.performer.mesh(posed.true_vertices.clone());
         let query = MeshQuery::new(&mesh)?;
         for (i, cam) in self.spec.rig.cameras.iter().enumerate() {
             if query.contains(cam.centre())? {
