@@ -344,9 +344,14 @@ fn main() -> Res<()> {
     // --- Error vs N, and short vs long training (walk test). ---
     let mut sweep = vec![];
     for n in [10usize, 30, 100, 300] {
-        let mut e = walk.set.errors(
-            &NeedleModel::reconstruct(&store, &body, &base.with_prototype_count_n(n))?.model,
-        )?;
+        // N = 100 is the main model, already reconstructed and scored.
+        let mut e = if n == base.prototype_count_n {
+            walk.set.errors(&main)?
+        } else {
+            walk.set.errors(
+                &NeedleModel::reconstruct(&store, &body, &base.with_prototype_count_n(n))?.model,
+            )?
+        };
         let (a, b) = (median(&mut e.all_mm), median(&mut e.near_joints_mm));
         eprintln!("N = {n}: median {a:.2} mm, near joints {b:.2} mm");
         sweep.push((n, a, b));
