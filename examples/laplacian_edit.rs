@@ -141,8 +141,7 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
 }
 
 fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
-    // `DYNAMIC_SHAPES_DATA` overrides the data folder (see `skin_core::data`).
-    let path = dynamic_shapes::core::data::shared_data_path("makehuman/base.obj")?;
+    let path = example_kit::data_path("makehuman/base.obj")?;
     let mesh = read_obj_group(&path, "body")?;
     let n = mesh.vertices.len();
     eprintln!(

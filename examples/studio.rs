@@ -21,13 +21,12 @@ use std::path::Path;
 use std::time::Instant;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
-use dynamic_shapes::core::data::shared_data_path;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{MeshQuery, TriMesh};
+use dynamic_shapes::core::raster::{Buffers, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::skeleton::{
     AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
 };
-use dynamic_shapes::core::studio::raster::{Buffers, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::studio::shading::{
     dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, ShadedView, Shadows,
     DEFAULT_SHADOW_BIAS_M,
@@ -36,6 +35,7 @@ use dynamic_shapes::core::studio::{
     makehuman_performer, play_bvh, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
     DeformationParams, Performer, RetargetParams,
 };
+use example_kit::data_path;
 use image::imageops::{resize, FilterType};
 use image::{GrayImage, Rgb, RgbImage};
 use nalgebra::DMatrix;
@@ -86,7 +86,7 @@ fn main() -> AnyResult<()> {
     let out = Path::new(OUT_DIR);
     std::fs::create_dir_all(out)?;
 
-    let mh = shared_data_path("makehuman/base.obj")?;
+    let mh = data_path("makehuman/base.obj")?;
     let performer = makehuman_performer(
         mh.parent().ok_or("data path has a parent")?,
         &DeformationParams::default(),
@@ -97,7 +97,7 @@ fn main() -> AnyResult<()> {
         performer.skeleton.dof_count()
     );
     let walk = play_bvh(
-        shared_data_path("mocap-cmu/131_01.bvh")?,
+        data_path("mocap-cmu/131_01.bvh")?,
         &BvhParams {
             metres_per_unit: CMU_METRES_PER_UNIT,
         },
@@ -232,7 +232,7 @@ fn shade_timing(
 ) -> AnyResult<(f64, f64)> {
     let k = Intrinsics::new(1400.0, 1400.0, 511.5, 511.5, 1024, 1024)?;
     let cam = Camera::look_at(k, look_at + DVec3::new(0.5, 0.8, 3.0), look_at, DVec3::Y)?;
-    let view = dynamic_shapes::core::studio::Rasterizer::new(&cam)
+    let view = dynamic_shapes::core::raster::Rasterizer::new(&cam)
         .render(mesh, &RenderParams::default().with_buffers(Buffers::ALL))?;
     let query = MeshQuery::new(mesh)?;
     // Visibility is per frame and shared by all cameras; one view needs only the vertices it

@@ -58,7 +58,7 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
 
     // Test: real motion capture, every 20th frame of the walk at 30 fps.
     let walk = play_bvh(
-        dynamic_shapes::core::data::shared_data_path("mocap-cmu/131_01.bvh").unwrap(),
+        example_kit::data_path("mocap-cmu/131_01.bvh").unwrap(),
         &BvhParams {
             metres_per_unit: CMU_METRES_PER_UNIT,
         },

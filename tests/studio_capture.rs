@@ -5,25 +5,25 @@
 //! skeleton's forward kinematics, and the skinned surface against the performer.
 
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
-use dynamic_shapes::core::data::shared_data_path;
 use dynamic_shapes::core::math::{DVec2, DVec3};
 use dynamic_shapes::core::mesh::MeshQuery;
+use dynamic_shapes::core::raster::{Buffers, RenderParams};
 use dynamic_shapes::core::skeleton::{BvhParams, CMU_METRES_PER_UNIT};
-use dynamic_shapes::core::studio::raster::{Buffers, RenderParams};
 use dynamic_shapes::core::studio::{
     makehuman_performer, play_bvh, Capture, CaptureSpec, DeformationParams, RetargetParams,
 };
+use example_kit::data_path;
 
 #[test]
 fn cmu_walk_capture_truth_is_consistent() {
-    let dir = shared_data_path("makehuman/base.obj").expect("shared data (DYNAMIC_SHAPES_DATA)");
+    let dir = data_path("makehuman/base.obj").expect("data/makehuman");
     let performer = makehuman_performer(
         dir.parent().expect("file in a folder"),
         &DeformationParams::default(),
     )
     .expect("MakeHuman performer");
     let walk = play_bvh(
-        shared_data_path("mocap-cmu/131_01.bvh").expect("CMU walk"),
+        data_path("mocap-cmu/131_01.bvh").expect("CMU walk"),
         &BvhParams {
             metres_per_unit: CMU_METRES_PER_UNIT,
         },

@@ -113,10 +113,9 @@ impl Setup {
 
 fn performer(quick: bool) -> Res<Performer> {
     if !quick {
-        if let Ok(dir) = dynamic_shapes::core::data::shared_data_path("makehuman") {
-            eprintln!("performer: MakeHuman");
-            return Ok(makehuman_performer(dir, &Default::default())?);
-        }
+        eprintln!("performer: MakeHuman");
+        let dir = example_kit::data_path("makehuman")?;
+        return Ok(makehuman_performer(dir, &Default::default())?);
     }
     eprintln!("performer: procedural");
     Ok(procedural_performer(&ProceduralBodyParams::default())?)
@@ -234,7 +233,7 @@ fn main() -> Res<()> {
 
     // --- Test truth: motions never seen in training. ---
     let walk_motion = play_bvh(
-        dynamic_shapes::core::data::shared_data_path("mocap-cmu/131_01.bvh")?,
+        example_kit::data_path("mocap-cmu/131_01.bvh")?,
         &BvhParams {
             metres_per_unit: CMU_METRES_PER_UNIT,
         },

@@ -14,9 +14,9 @@ use needle_model::primitive::{BodyLayout, NeedleBody};
 use skin_core::camera::{Intrinsics, Rig};
 use skin_core::image::Mask;
 use skin_core::math::DVec3;
+use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 use skin_core::studio::{
-    fast_motion, procedural_performer, Buffers, DeformationState, FastMotionParams,
-    ProceduralBodyParams, Rasterizer, RenderParams,
+    fast_motion, procedural_performer, DeformationState, FastMotionParams, ProceduralBodyParams,
 };
 
 const FRAMES: usize = 4;

@@ -32,6 +32,7 @@
 #![warn(missing_docs)]
 
 pub mod animate;
+#[cfg(feature = "validation")]
 pub mod baseline;
 pub mod config;
 pub mod device;
@@ -47,9 +48,11 @@ pub mod silhouette_error;
 pub mod store;
 pub mod surface;
 pub mod sync;
+#[cfg(feature = "validation")]
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
+#[cfg(feature = "validation")]
 pub use baseline::SkinnedShape;
 pub use config::ConfigSpace;
 pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};

@@ -77,7 +77,7 @@ fn silhouette_lengths_bound_the_true_mesh() {
 /// The same check on the MakeHuman performer (needs the shared data, see `skin_core::data`).
 #[test]
 fn silhouette_lengths_bound_the_true_makehuman_mesh() {
-    let dir = skin_core::data::shared_data_path("makehuman").unwrap();
+    let dir = example_kit::data_path("makehuman").unwrap();
     let performer = skin_core::studio::makehuman_performer(dir, &Default::default()).unwrap();
     check_against_truth(&scene_of(performer, 2, 30));
 }

@@ -8,7 +8,7 @@
 //! silhouette do not match" (§6.2).
 //!
 //! Here the predicted body mesh is rendered mask-only by one
-//! [`skin_core::studio::raster::Rasterizer`] per camera; the comparison region is
+//! [`skin_core::raster::Rasterizer`] per camera; the comparison region is
 //! [`Mask::boundary_band`] of the *predicted* silhouette (as in the paper: unmodelled observed
 //! geometry away from the predicted boundary is ignored), and the error of a frame is the
 //! pooled fraction `Σ_cameras mismatched / Σ_cameras band pixels`. The sequence error is the
@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
 use skin_core::mesh::TriMesh;
-use skin_core::studio::raster::{Buffers, Rasterizer, RenderParams};
+use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 
 use crate::{Error, Result};
 

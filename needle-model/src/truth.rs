@@ -12,7 +12,8 @@ use glam::DVec3;
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::image::Mask;
 use skin_core::mesh::{MeshQuery, Ray, TriMesh};
-use skin_core::studio::{Buffers, DeformationState, Performer, Rasterizer, RenderParams};
+use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+use skin_core::studio::{DeformationState, Performer};
 
 use crate::primitive::NeedleBody;
 use crate::reconstruct::NeedleModel;

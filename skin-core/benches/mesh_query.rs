@@ -10,25 +10,13 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skin_core::math::DVec3;
 use skin_core::mesh::{
-    mesh_distance, read_obj_group, vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh,
+    mesh_distance, read_obj_group, vertex_normals, MeshQuery, NormalWeighting, Ray,
 };
 use std::hint::black_box;
-use std::path::PathBuf;
-
-fn body_path() -> Option<PathBuf> {
-    skin_core::data::shared_data_path("makehuman/base.obj").ok()
-}
-
-fn uv_sphere(n_lon: usize, n_lat: usize) -> TriMesh {
-    skin_core::mesh::shapes::uv_sphere(DVec3::ZERO, 1.0, n_lat, n_lon).expect("valid sphere")
-}
 
 fn bench(c: &mut Criterion) {
-    let path = body_path();
-    let mesh = match &path {
-        Some(p) => read_obj_group(p, "body").expect("MakeHuman body group"),
-        None => uv_sphere(160, 84),
-    };
+    let path = example_kit::data_path("makehuman/base.obj").expect("data/makehuman/base.obj");
+    let mesh = read_obj_group(&path, "body").expect("MakeHuman body group");
     let bb = mesh.bounding_box().expect("non-empty mesh");
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let n = 10_000;
@@ -50,11 +38,9 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("mesh");
     g.sample_size(10);
-    if let Some(p) = &path {
-        g.bench_function("read_obj_group body", |b| {
-            b.iter(|| read_obj_group(black_box(p), "body").expect("read"))
-        });
-    }
+    g.bench_function("read_obj_group body", |b| {
+        b.iter(|| read_obj_group(black_box(&path), "body").expect("read"))
+    });
     g.bench_function("MeshQuery::new", |b| {
         b.iter(|| MeshQuery::new(black_box(&mesh)).expect("query"))
     });

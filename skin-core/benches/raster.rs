@@ -10,28 +10,16 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use skin_core::camera::{Camera, Intrinsics, RadialDistortion};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::{read_obj_group, MeshQuery, TriMesh};
-use skin_core::studio::raster::{Buffers, Rasterizer, RenderParams};
+use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 use skin_core::studio::shading::{
     dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
     DEFAULT_SHADOW_BIAS_M,
 };
-use std::path::PathBuf;
 
-/// The MakeHuman skin surface in metres with the feet at y = 0, if the data set is present.
-fn makehuman_body() -> Option<TriMesh> {
-    let path = [
-        std::env::var_os("DYNAMIC_SHAPES_DATA").map(PathBuf::from),
-        Some(PathBuf::from(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../data"
-        ))),
-        Some(PathBuf::from("/work/shared/data")),
-    ]
-    .into_iter()
-    .flatten()
-    .map(|d| d.join("makehuman/base.obj"))
-    .find(|p| p.exists())?;
-    let mut mesh = read_obj_group(path, "body").ok()?;
+/// The MakeHuman skin surface in metres with the feet at y = 0 (the repository's data).
+fn makehuman_body() -> TriMesh {
+    let path = example_kit::data_path("makehuman/base.obj").expect("data/makehuman/base.obj");
+    let mut mesh = read_obj_group(path, "body").expect("MakeHuman body group");
     let min_y = mesh
         .vertices
         .iter()
@@ -41,24 +29,10 @@ fn makehuman_body() -> Option<TriMesh> {
         // Decimetres to metres, feet on the floor.
         *v = DVec3::new(v.x, v.y - min_y, v.z) * 0.1;
     }
-    Some(mesh)
-}
-
-fn body() -> TriMesh {
-    makehuman_body().unwrap_or_else(|| body_blob(100, 130))
+    mesh
 }
 
 /// A closed, bumpy, person-sized ellipsoid (1.8 m tall) with `(n_lat − 1)·n_lon + 2` vertices.
-fn body_blob(n_lat: usize, n_lon: usize) -> TriMesh {
-    let radii = DVec3::new(0.25, 0.9, 0.15);
-    let centre = DVec3::new(0.0, 0.9, 0.0);
-    let point = |th: f64, ph: f64| {
-        let bump = 1.0 + 0.08 * (5.0 * th).sin() * (3.0 * ph).cos() + 0.03 * (17.0 * ph).sin();
-        centre + DVec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()) * radii * bump
-    };
-    skin_core::mesh::shapes::lat_long_surface(n_lat, n_lon, point).expect("valid by construction")
-}
-
 fn camera(k1: f64) -> Camera {
     // 1.8 m body filling ~75% of the 1200-px height from 3 m.
     let k = Intrinsics::new(1500.0, 1500.0, 799.5, 599.5, 1600, 1200).expect("valid");
@@ -74,7 +48,7 @@ fn camera(k1: f64) -> Camera {
 
 /// Rasteriser benchmarks: pinhole and distorted cameras, three buffer sets.
 fn bench_raster(c: &mut Criterion) {
-    let mesh = body();
+    let mesh = makehuman_body();
     eprintln!(
         "body: {} vertices, {} faces",
         mesh.vertex_count(),
@@ -105,7 +79,7 @@ fn bench_raster(c: &mut Criterion) {
 
 /// Dome shading: per-vertex shadow rays (once per frame) and per-pixel shading of one view.
 fn bench_shade(c: &mut Criterion) {
-    let mesh = body();
+    let mesh = makehuman_body();
     let k = Intrinsics::new(1400.0, 1400.0, 511.5, 511.5, 1024, 1024).expect("valid");
     let cam = Camera::look_at(
         k,

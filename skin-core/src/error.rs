@@ -94,41 +94,78 @@ pub enum Error {
     /// An image could not be encoded or decoded.
     #[error("image error: {0}")]
     Image(#[from] ::image::ImageError),
+    /// An error that happened while handling one element (a frame, a camera, a vertex...);
+    /// nested contexts read outside in, e.g. "frame 12: camera 3: nothing visible: ...".
+    #[error("{at}: {source}")]
+    At {
+        /// Which element was being handled.
+        at: Context,
+        /// What went wrong there.
+        #[source]
+        source: Box<Error>,
+    },
+}
+
+/// The element an [`Error::At`] happened in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Context {
+    /// A frame of a sequence (capture, motion), by index.
+    Frame(usize),
+    /// A camera of a rig, by index.
+    Camera(usize),
+    /// A vertex of a mesh, by index.
+    Vertex(usize),
+    /// A face (triangle) of a mesh, by index.
+    Face(usize),
+    /// A joint of a skeleton, by index.
+    Joint(usize),
+}
+
+impl std::fmt::Display for Context {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Context::Frame(i) => write!(f, "frame {i}"),
+            Context::Camera(i) => write!(f, "camera {i}"),
+            Context::Vertex(i) => write!(f, "vertex {i}"),
+            Context::Face(i) => write!(f, "face {i}"),
+            Context::Joint(i) => write!(f, "joint {i}"),
+        }
+    }
+}
+
+/// Attaches a [`Context`] to the error of a [`Result`]: `render(cam).at(Context::Camera(i))?`.
+pub trait ResultExt<T> {
+    /// Wraps an error in [`Error::At`] with `at`; passes `Ok` through.
+    fn at(self, at: Context) -> Result<T>;
+}
+
+impl<T, E: Into<Error>> ResultExt<T> for std::result::Result<T, E> {
+    fn at(self, at: Context) -> Result<T> {
+        self.map_err(|e| Error::At {
+            at,
+            source: Box::new(e.into()),
+        })
+    }
 }
 
 /// Result type of `skin-core`.
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
+    /// The innermost error, below every [`Error::At`] context.
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::At { source, .. } => source.root(),
+            e => e,
+        }
+    }
+
     /// Wraps an I/O error with the path it concerns.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
             source,
         }
-    }
-}
-
-/// Returns [`Error::NonFinite`] unless every value is finite.
-pub fn ensure_finite<'a>(
-    what: &'static str,
-    values: impl IntoIterator<Item = &'a f64>,
-) -> Result<()> {
-    if values.into_iter().all(|v| v.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::NonFinite { what })
-    }
-}
-
-/// Returns [`Error::InvalidParam`] naming `name` unless `v` is finite and > 0.
-pub(crate) fn ensure_positive(name: &'static str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParam {
-            name,
-            reason: format!("must be finite and positive, got {v}"),
-        })
     }
 }

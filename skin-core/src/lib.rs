@@ -12,20 +12,23 @@
 //! | [`mesh`] | triangle meshes, OBJ/PLY IO, normals, adjacency, Laplacians, closest point and ray queries, skinning, distance metrics | Vlasic §2.4.1, §2.5.1 |
 //! | [`image`] | masks, background subtraction, contours with normals, distance transforms, PNG IO | Sand §4.2 |
 //! | [`lsq`] | sparse least squares with several right-hand sides and symbolic reuse | Vlasic Eq. 2.1, 2.2, 3.3, 3.4 |
+//! | [`raster`] | CPU rasteriser: silhouette masks, depth along the ray, camera-space normals, triangle ids and barycentrics, exact under radial distortion | Sand §6.2 (silhouette error) |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
 #![warn(missing_docs)]
 
 pub mod camera;
-pub mod data;
+pub mod check;
 pub mod error;
 pub mod image;
 pub mod lsq;
 pub mod math;
 pub mod mesh;
 pub mod optim;
+pub mod raster;
 pub mod skeleton;
+#[cfg(feature = "studio")]
 pub mod studio;
 
 mod faer_bridge;
 
-pub use error::{Error, Result};
+pub use error::{Context, Error, Result, ResultExt};

@@ -8,7 +8,8 @@ use serde::{Deserialize, Serialize};
 use super::distortion::RadialDistortion;
 use super::intrinsics::Intrinsics;
 use super::model::Camera;
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 use crate::math::{DAffine3, DMat3, DVec2, DVec3};
 
 /// Fewest correspondences the DLT accepts: 11 unknowns, two equations per point.
@@ -68,11 +69,11 @@ pub fn validate_correspondences(
             ),
         });
     }
-    ensure_finite(
+    all_finite(
         "calibration world points",
         world.iter().flat_map(|p| p.as_ref().iter()),
     )?;
-    ensure_finite(
+    all_finite(
         "calibration pixels",
         pixels.iter().flat_map(|p| p.as_ref().iter()),
     )?;
@@ -131,7 +132,7 @@ fn normalisation<const D: usize>(
 /// [`Error::NonFinite`] for non-finite entries; [`Error::Singular`] if the left 3×3 block is
 /// singular (a camera at infinity).
 pub fn decompose_projection(p: &Matrix3x4<f64>) -> Result<ProjectionDecomposition> {
-    ensure_finite("projection matrix", p.iter())?;
+    all_finite("projection matrix", p.iter())?;
     let mut p = *p;
     let m: Matrix3<f64> = p.fixed_view::<3, 3>(0, 0).into_owned();
     let det = m.determinant();

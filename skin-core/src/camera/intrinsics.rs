@@ -3,7 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 use crate::math::{DMat3, DVec2, DVec3};
 
 /// Pinhole intrinsics. Pixel coordinates `(u, v)` run right and down with integer values at
@@ -72,7 +73,7 @@ impl Intrinsics {
     /// # Errors
     /// As [`Intrinsics::new`].
     pub fn validate(&self) -> Result<()> {
-        ensure_finite("intrinsics", [&self.fx, &self.fy, &self.cx, &self.cy])?;
+        all_finite("intrinsics", [&self.fx, &self.fy, &self.cx, &self.cy])?;
         if self.fx <= 0.0 || self.fy <= 0.0 {
             return Err(Error::InvalidParam {
                 name: "focal length",

@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 
 use super::distortion::RadialDistortion;
 use super::intrinsics::Intrinsics;
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 use crate::math::{DAffine3, DMat3, DVec2, DVec3};
 
 /// Points closer to the camera plane than this (m, camera z) are treated as behind the camera:
@@ -90,7 +91,7 @@ impl From<Camera> for CameraRepr {
 }
 
 fn check_rigid(what: &'static str, t: &DAffine3) -> Result<()> {
-    ensure_finite(what, t.to_cols_array().iter())?;
+    all_finite(what, t.to_cols_array().iter())?;
     let r = t.matrix3;
     let off = (r.transpose() * r - DMat3::IDENTITY)
         .to_cols_array()
@@ -117,7 +118,7 @@ impl Camera {
         world_from_camera: DAffine3,
     ) -> Result<Self> {
         intrinsics.validate()?;
-        ensure_finite(
+        all_finite(
             "distortion",
             [&distortion.k1, &distortion.centre.x, &distortion.centre.y],
         )?;
@@ -150,7 +151,7 @@ impl Camera {
     /// [`Error::Degenerate`] if `eye == target` or the viewing direction is parallel to `up`;
     /// errors of [`Camera::new`].
     pub fn look_at(intrinsics: Intrinsics, eye: DVec3, target: DVec3, up: DVec3) -> Result<Self> {
-        ensure_finite(
+        all_finite(
             "look_at input",
             [eye, target, up].iter().flat_map(|v| v.as_ref().iter()),
         )?;

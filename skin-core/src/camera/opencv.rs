@@ -23,7 +23,8 @@ use super::distortion::RadialDistortion;
 use super::intrinsics::Intrinsics;
 use super::model::Camera;
 use super::opencv_yaml::{self, YamlMatrix, YamlValue, FORMAT};
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 use crate::math::{DAffine3, DMat3, DQuat, DVec2, DVec3};
 use crate::optim::{levenberg_marquardt_numeric, LmParams};
 
@@ -255,8 +256,8 @@ impl OpenCvCalibration {
     /// [`OpenCvParams::max_deviation_px`].
     pub fn to_camera(&self, params: &OpenCvParams) -> Result<OpenCvImport> {
         let k = &self.camera_matrix;
-        ensure_finite("camera_matrix", k.iter())?;
-        ensure_finite("distortion coefficients", self.distortion.iter())?;
+        all_finite("camera_matrix", k.iter())?;
+        all_finite("distortion coefficients", self.distortion.iter())?;
         if k[(2, 0)] != 0.0 || k[(2, 1)] != 0.0 || k[(2, 2)] == 0.0 || k[(1, 0)] != 0.0 {
             return Err(Error::InvalidParam {
                 name: "camera_matrix",
@@ -442,8 +443,8 @@ fn check_deviation(deviation: f64, params: &OpenCvParams) -> Result<()> {
 }
 
 fn rigid(r: &Matrix3<f64>, t: &Vector3<f64>) -> Result<DAffine3> {
-    ensure_finite("R", r.iter())?;
-    ensure_finite("T", t.iter())?;
+    all_finite("R", r.iter())?;
+    all_finite("T", t.iter())?;
     let m = DMat3::from_cols_slice(r.as_slice());
     // Re-orthonormalise (files store ~8 digits) via the nearest rotation of the quaternion.
     let q = DQuat::from_mat3(&m).normalize();

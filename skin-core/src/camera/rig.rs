@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 
 use super::intrinsics::Intrinsics;
 use super::model::Camera;
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 use crate::math::DVec3;
 
 /// A set of cameras observing one volume. Serialisable (e.g. to JSON with `serde_json`).
@@ -40,7 +41,7 @@ impl Rig {
                 reason: "a ring needs at least one camera".into(),
             });
         }
-        ensure_finite(
+        all_finite(
             "ring geometry",
             [
                 radius_m, height_m, look_at.x, look_at.y, look_at.z, up.x, up.y, up.z,

@@ -12,7 +12,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 
 /// Most grid offsets the coarse search evaluates (guards against absurd ranges).
 const MAX_GRID_OFFSETS: usize = 10_000_000;
@@ -47,7 +48,7 @@ impl SampledSignal {
     }
 
     fn validate(&self) -> Result<()> {
-        ensure_finite("signal start time", [&self.start_s])?;
+        all_finite("signal start time", [&self.start_s])?;
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
             return Err(Error::InvalidParam {
                 name: "rate_hz",
@@ -63,7 +64,7 @@ impl SampledSignal {
                 ),
             });
         }
-        ensure_finite("signal values", self.values.iter())
+        all_finite("signal values", self.values.iter())
     }
 
     /// Time of sample `i`, s.
@@ -198,7 +199,7 @@ pub fn estimate_time_offset(
     a.validate()?;
     b.validate()?;
     let p = params;
-    ensure_finite(
+    all_finite(
         "time offset range",
         [&p.min_offset_s, &p.max_offset_s, &p.tolerance_s],
     )?;

@@ -19,7 +19,7 @@ use nalgebra::DMatrix;
 use nalgebra_sparse::CscMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::error::ensure_finite;
+use crate::check::all_finite;
 use crate::faer_bridge::{csc_as_faer, dmatrix_as_faer_mut};
 use crate::{Error, Result};
 
@@ -271,7 +271,7 @@ impl SparseCholesky {
     pub(crate) fn factor_values(&mut self, values: &[f64]) -> Result<()> {
         debug_assert_eq!(values.len(), self.row_idx.len());
         self.factored = false;
-        ensure_finite("matrix values", values)?;
+        all_finite("matrix values", values)?;
         let start = Instant::now();
         let n = self.n();
         // SAFETY: same arrays as validated when the analysis was built.
@@ -335,7 +335,7 @@ impl SparseCholesky {
                 got: rhs.nrows(),
             });
         }
-        ensure_finite("right-hand side", rhs.iter())?;
+        all_finite("right-hand side", rhs.iter())?;
         if !self.factored {
             return Err(Error::Singular {
                 what: "no valid factorisation (the last one failed)".into(),

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::cholesky::{CholeskyParams, CholeskyStats, SparseCholesky};
 use super::normal::NormalPattern;
-use crate::error::ensure_finite;
+use crate::check::all_finite;
 use crate::{Error, Result};
 
 /// Builder of a least-squares problem: a data term `A` (weight 1) plus weighted terms `C_k`.
@@ -122,7 +122,7 @@ impl LsqProblem {
         matrices.push(self.a);
         matrices.extend(self.terms.into_iter().map(|t| t.0));
         for m in &matrices {
-            ensure_finite("least-squares matrix values", m.values())?;
+            all_finite("least-squares matrix values", m.values())?;
         }
         let start = Instant::now();
         let refs: Vec<&CscMatrix<f64>> = matrices.iter().collect();
@@ -152,7 +152,7 @@ impl LsqProblem {
 }
 
 fn check_weights(weights: &[f64]) -> Result<()> {
-    ensure_finite("least-squares weights", weights)?;
+    all_finite("least-squares weights", weights)?;
     if let Some(w) = weights.iter().find(|w| **w < 0.0) {
         return Err(Error::InvalidParam {
             name: "weight",
@@ -263,7 +263,7 @@ impl LsqSolver {
                     got: m.nnz(),
                 });
             }
-            ensure_finite("least-squares matrix values", m.values())?;
+            all_finite("least-squares matrix values", m.values())?;
         }
         for (old, m) in self.matrices.iter_mut().zip(new) {
             old.values_mut().copy_from_slice(m.values());
@@ -304,7 +304,7 @@ impl LsqSolver {
                     got: r.ncols(),
                 });
             }
-            ensure_finite("least-squares right-hand side", r.iter())?;
+            all_finite("least-squares right-hand side", r.iter())?;
         }
         Ok(())
     }

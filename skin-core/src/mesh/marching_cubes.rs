@@ -104,7 +104,7 @@ impl ScalarGrid {
                 got: self.values.len(),
             });
         }
-        crate::error::ensure_finite("grid values", self.values.iter())
+        crate::check::all_finite("grid values", self.values.iter())
     }
 
     fn index(&self, i: usize, j: usize, k: usize) -> usize {

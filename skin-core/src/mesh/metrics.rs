@@ -43,7 +43,7 @@ impl DistanceStats {
                 what: "distances (statistics)",
             });
         }
-        crate::error::ensure_finite("distances", distances)?;
+        crate::check::all_finite("distances", distances)?;
         if let Some(d) = distances.iter().find(|&&d| d < 0.0) {
             return Err(Error::InvalidParam {
                 name: "distances",

@@ -668,7 +668,7 @@ mod tests {
     /// The MakeHuman base mesh, group `body` (see data/makehuman/SOURCE.md).
     #[test]
     fn makehuman_body_group() {
-        let path = crate::data::shared_data_path("makehuman/base.obj").unwrap();
+        let path = example_kit::data_path("makehuman/base.obj").unwrap();
         let obj = ObjFile::read(&path).unwrap();
         assert_eq!(obj.vertices.len(), 19_158);
         assert_eq!(obj.polygon_count(), 18_486);

@@ -114,7 +114,7 @@ impl SkinWeights {
                 reason: format!("must be >= 0 and finite, got {prune_below}"),
             });
         }
-        crate::error::ensure_finite("dense skinning weights", w.iter())?;
+        crate::check::all_finite("dense skinning weights", w.iter())?;
         let mut lists = Vec::with_capacity(w.nrows());
         let mut row: Vec<(u32, f64)> = Vec::new();
         for i in 0..w.nrows() {

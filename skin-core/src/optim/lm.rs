@@ -12,7 +12,8 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use super::numeric::numeric_jacobian;
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 
 /// Default iteration limit. Default: 200.
 pub const DEFAULT_MAX_ITERATIONS: usize = 200;
@@ -184,11 +185,11 @@ where
             what: "optimisation parameters",
         });
     }
-    ensure_finite("initial parameters", x0.iter())?;
+    all_finite("initial parameters", x0.iter())?;
     let n = x0.len();
     let mut x = x0.clone();
     let mut r = residual(&x)?;
-    ensure_finite("residuals at the initial parameters", r.iter())?;
+    all_finite("residuals at the initial parameters", r.iter())?;
     let m = r.len();
     let mut cost = 0.5 * r.norm_squared();
     let initial_cost = cost;
@@ -209,7 +210,7 @@ where
                 got: jac.nrows() * jac.ncols(),
             });
         }
-        ensure_finite("Jacobian", jac.iter())?;
+        all_finite("Jacobian", jac.iter())?;
         let jtj = jac.tr_mul(&jac);
         let g = jac.tr_mul(&r);
         for j in 0..n {

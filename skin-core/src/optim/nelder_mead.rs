@@ -12,7 +12,8 @@
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{ensure_finite, Error, Result};
+use crate::check::all_finite;
+use crate::error::{Error, Result};
 
 /// Knobs of [`nelder_mead`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -136,7 +137,7 @@ where
             got: steps.len(),
         });
     }
-    ensure_finite("initial parameters", x0.iter())?;
+    all_finite("initial parameters", x0.iter())?;
     if steps.iter().any(|s| !(s.is_finite() && *s != 0.0)) {
         return Err(Error::InvalidParam {
             name: "initial_step",

@@ -28,7 +28,7 @@ pub fn numeric_jacobian<F>(residual: &mut F, x: &DVector<f64>) -> Result<DMatrix
 where
     F: FnMut(&DVector<f64>) -> Result<DVector<f64>>,
 {
-    crate::error::ensure_finite("numeric_jacobian point", x.iter())?;
+    crate::check::all_finite("numeric_jacobian point", x.iter())?;
     let mut m: Option<usize> = None;
     let mut columns = Vec::with_capacity(x.len());
     let mut xp = x.clone();
@@ -58,7 +58,7 @@ where
         None => residual(x)?.len(),
     };
     let jac = DMatrix::from_fn(m, x.len(), |i, j| columns[j][i]);
-    crate::error::ensure_finite("numeric Jacobian", jac.iter())?;
+    crate::check::all_finite("numeric Jacobian", jac.iter())?;
     Ok(jac)
 }
 

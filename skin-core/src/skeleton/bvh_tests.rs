@@ -33,12 +33,9 @@ Frame Time: .0083333
 
 ";
 
-/// A shared data file (see [`crate::data`]); the tests fail, rather than skip, without it.
-fn data_file(rel: &str) -> Option<PathBuf> {
-    match crate::data::shared_data_path(rel) {
-        Ok(p) => Some(p),
-        Err(e) => panic!("{e}"),
-    }
+/// A data file of the repository's `data/` folder; the tests fail, rather than skip, without it.
+fn data_file(rel: &str) -> PathBuf {
+    example_kit::data_path(rel).unwrap()
 }
 
 fn parse(text: &str) -> crate::Result<Bvh> {
@@ -337,10 +334,7 @@ fn odd_but_valid_layouts() {
 
 #[test]
 fn cmu_131_01() {
-    let Some(path) = data_file("mocap-cmu/131_01.bvh") else {
-        eprintln!("skipping: data/mocap-cmu/131_01.bvh not found");
-        return;
-    };
+    let path = data_file("mocap-cmu/131_01.bvh");
     let b = read_bvh(
         &path,
         &BvhParams {
@@ -415,10 +409,7 @@ fn cmu_131_01() {
 #[test]
 fn makehuman_walk_and_dance() {
     for (file, frames) in [("makehuman/walk1.bvh", 14), ("makehuman/dance1.bvh", 1)] {
-        let Some(path) = data_file(file) else {
-            eprintln!("skipping: data/{file} not found");
-            return;
-        };
+        let path = data_file(file);
         let p = BvhParams {
             metres_per_unit: 0.1,
         }; // MakeHuman works in decimetres.

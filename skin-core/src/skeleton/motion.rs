@@ -39,7 +39,7 @@ impl Motion {
                 reason: format!("must be finite and positive, got {frame_time_s}"),
             });
         }
-        crate::error::ensure_finite("motion frames", frames.iter())?;
+        crate::check::all_finite("motion frames", frames.iter())?;
         Ok(Motion {
             frame_time_s,
             frames,

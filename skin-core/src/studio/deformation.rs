@@ -21,7 +21,7 @@
 //!   [`FlapParams::max_lag_m`].
 //!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
 
-use crate::error::ensure_positive as positive;
+use crate::check::positive;
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::SkinWeights;
 use crate::skeleton::Skeleton;

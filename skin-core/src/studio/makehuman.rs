@@ -595,11 +595,8 @@ mod tests {
 
     #[test]
     fn real_rig_files_parse_and_merge() {
-        let dir = crate::data::shared_data_path("makehuman").unwrap();
-        let Ok(s) = read_mhskel(dir.join("default.mhskel")) else {
-            eprintln!("MakeHuman data not found; skipping");
-            return;
-        };
+        let dir = example_kit::data_path("makehuman").unwrap();
+        let s = read_mhskel(dir.join("default.mhskel")).unwrap();
         let w = read_mhw(dir.join("default_weights.mhw")).unwrap();
         assert_eq!(s.bones.len(), 163);
         let kept: Vec<&str> = MAKEHUMAN_SUBSET.iter().map(|t| t.1).collect();

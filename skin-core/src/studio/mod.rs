@@ -10,9 +10,7 @@
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
 //!   playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads, maps, retargets
 //!   and resamples in one call).
-//! * [`raster`]: CPU rasteriser: silhouette masks, depth along the ray, camera-space normals,
-//!   triangle ids and perspective-correct barycentrics, exact under the camera's radial
-//!   distortion.
+//! * Rendering is [`crate::raster`] (in the default build: methods use it at run time).
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
 //! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
@@ -22,7 +20,6 @@
 
 pub mod capture;
 pub mod preview;
-pub mod raster;
 pub mod shading;
 
 mod deformation;
@@ -51,5 +48,4 @@ pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionPa
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
-pub use raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};

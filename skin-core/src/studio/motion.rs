@@ -3,7 +3,7 @@
 //! dynamics. Both return a [`Motion`] (resample with [`Motion::resample`]); BVH playback is in
 //! [`retarget`](super::retarget).
 
-use crate::error::ensure_positive as positive;
+use crate::check::positive;
 use crate::skeleton::{Motion, Skeleton};
 use crate::{Error, Result};
 use nalgebra::DMatrix;

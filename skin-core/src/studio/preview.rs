@@ -9,9 +9,9 @@
 use glam::DVec3;
 use image::{Rgb, RgbImage};
 
-use super::raster::{Buffers, Rasterizer, RenderParams, NO_TRIANGLE};
 use crate::camera::{Camera, Intrinsics};
 use crate::mesh::TriMesh;
+use crate::raster::{Buffers, Rasterizer, RenderParams, NO_TRIANGLE};
 use crate::{Error, Result};
 
 /// How a panel is coloured.

@@ -128,11 +128,7 @@ fn retargeted_positions_match_source_within_scale() {
     }
 }
 
-fn data(rel: &str) -> Option<std::path::PathBuf> {
-    super::super::tests::data_dir()
-        .map(|d| d.join(rel))
-        .filter(|p| p.exists())
-}
+use super::super::tests::data;
 
 /// Angle between the performer's and the (G-rotated) source bone directions, radians.
 fn bone_angles(
@@ -164,10 +160,7 @@ fn bone_angles(
 
 #[test]
 fn cmu_walk_retargets_with_matching_limb_directions() {
-    let Some(path) = data("mocap-cmu/131_01.bvh") else {
-        eprintln!("CMU data not found; skipping");
-        return;
-    };
+    let path = data("mocap-cmu/131_01.bvh");
     let bvh = read_bvh(
         path,
         &BvhParams {
@@ -226,7 +219,7 @@ fn cmu_walk_retargets_with_matching_limb_directions() {
     let r = out.motion.resample(&target, 1.0 / 30.0).unwrap();
     assert!((r.frame_count() as f64 - bvh.motion.duration_s() * 30.0).abs() < 2.0);
     let played = play_bvh(
-        data("mocap-cmu/131_01.bvh").unwrap(),
+        data("mocap-cmu/131_01.bvh"),
         &BvhParams {
             metres_per_unit: CMU_METRES_PER_UNIT,
         },
@@ -248,11 +241,7 @@ fn cmu_walk_retargets_with_matching_limb_directions() {
 
 #[test]
 fn makehuman_bvhs_retarget_and_bad_maps_are_named() {
-    let (Some(walk), Some(dance)) = (data("makehuman/walk1.bvh"), data("makehuman/dance1.bvh"))
-    else {
-        eprintln!("MakeHuman data not found; skipping");
-        return;
-    };
+    let (walk, dance) = (data("makehuman/walk1.bvh"), data("makehuman/dance1.bvh"));
     let target = human_skeleton(&HumanParams::default()).unwrap();
     for path in [walk, dance] {
         let bvh = read_bvh(

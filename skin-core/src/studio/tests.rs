@@ -8,13 +8,10 @@ use nalgebra::DMatrix;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-/// The shared data folder (see [`crate::data`]). The tests need it: a missing folder fails
-/// them with a message naming `DYNAMIC_SHAPES_DATA` rather than skipping silently.
-pub(crate) fn data_dir() -> Option<PathBuf> {
-    if let Err(e) = crate::data::shared_data_path("makehuman/base.obj") {
-        panic!("{e}");
-    }
-    Some(crate::data::shared_data_dir())
+/// A file of the repository's `data/` folder. The tests need it: a missing file fails them
+/// with a message naming the path rather than skipping silently.
+pub(crate) fn data(rel: &str) -> PathBuf {
+    example_kit::data_path(rel).unwrap()
 }
 
 fn procedural() -> &'static Performer {
@@ -28,14 +25,9 @@ fn procedural() -> &'static Performer {
     })
 }
 
-fn makehuman() -> Option<&'static Performer> {
-    static P: OnceLock<Option<Performer>> = OnceLock::new();
-    P.get_or_init(|| {
-        data_dir().map(|d| {
-            makehuman_performer(d.join("makehuman"), &DeformationParams::default()).unwrap()
-        })
-    })
-    .as_ref()
+fn makehuman() -> &'static Performer {
+    static P: OnceLock<Performer> = OnceLock::new();
+    P.get_or_init(|| makehuman_performer(data("makehuman"), &DeformationParams::default()).unwrap())
 }
 
 fn with_dof(p: &Performer, dof: &str, v: f64) -> Vec<f64> {
@@ -76,10 +68,7 @@ fn procedural_bulge_zero_at_rest_and_grows_with_flexion() {
 
 #[test]
 fn makehuman_performer_matches_template_and_bulges() {
-    let Some(p) = makehuman() else {
-        eprintln!("data/makehuman not found; skipping");
-        return;
-    };
+    let p = makehuman();
     assert_eq!(p.vertex_count(), 13380);
     assert_eq!(p.skeleton.dof_count(), 42);
     let f = p
@@ -281,8 +270,8 @@ fn pose_rejects_bad_input() {
 #[ignore = "measurement, prints figures"]
 fn figures() {
     use crate::skeleton::{read_bvh, BvhParams, CMU_METRES_PER_UNIT};
-    let Some(p) = makehuman() else { return };
-    let dir = data_dir().unwrap();
+    let p = makehuman();
+    let dir = example_kit::data_dir();
     let rom = range_of_motion(&p.skeleton, &RangeOfMotionParams::default()).unwrap();
     let fast = fast_motion(&p.skeleton, &FastMotionParams::default()).unwrap();
     let t = std::time::Instant::now();
@@ -355,7 +344,7 @@ proptest::proptest! {
 #[test]
 #[ignore = "writes a picture for visual inspection"]
 fn picture() {
-    let Some(p) = makehuman() else { return };
+    let p = makehuman();
     let mut theta = p.skeleton.rest_pose();
     for (n, v) in [
         ("l_elbow.flexion", 2.0),

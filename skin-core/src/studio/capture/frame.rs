@@ -1,7 +1,7 @@
 //! One captured frame: what the cameras observe and the ground truth behind it.
 
 use crate::mesh::TriMesh;
-use crate::studio::raster::RenderedView;
+use crate::raster::RenderedView;
 use crate::studio::shading::ShadedView;
 use crate::studio::{Performer, PosedFrame};
 

@@ -35,8 +35,8 @@ pub use spec::{CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ};
 use rayon::prelude::*;
 
 use crate::mesh::MeshQuery;
+use crate::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::skeleton::Motion;
-use crate::studio::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::studio::shading::{
     check_lights_outside, shade, vertices_seen, Albedo, LightVisibility, Shadows,
 };

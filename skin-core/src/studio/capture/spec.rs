@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::camera::Rig;
 use crate::error::{Error, Result};
-use crate::studio::raster::RenderParams;
+use crate::raster::RenderParams;
 use crate::studio::shading::{Light, DEFAULT_SHADOW_BIAS_M};
 
 /// Lighting of the shaded observations: Lambertian shading ([`crate::studio::shading::shade`])

@@ -65,7 +65,7 @@ impl Default for DomeParams {
 /// radius, a height fraction outside `(0, 1]`, a zero `up`, no lights, or a clear radius that
 /// leaves no floor for floor lights.
 pub fn dome_lights(p: &DomeParams) -> Result<Vec<Light>> {
-    crate::error::ensure_finite(
+    crate::check::all_finite(
         "dome params",
         [
             &p.radius_m,

@@ -9,7 +9,7 @@ use super::lights::{Light, PreparedLight};
 use super::visibility::{check_lights_outside, unoccluded, LightVisibility};
 use crate::math::DVec3;
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
-use crate::studio::raster::{RenderedView, NO_TRIANGLE};
+use crate::raster::{RenderedView, NO_TRIANGLE};
 use crate::{Error, Result};
 
 /// Surface reflectance `ρ` (linear RGB, each in `[0, 1]` for a physical surface), evaluated per

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use super::lights::Light;
 use crate::math::DVec3;
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh};
-use crate::studio::raster::{RenderedView, NO_TRIANGLE};
+use crate::raster::{RenderedView, NO_TRIANGLE};
 use crate::{Error, Result};
 
 /// Offset of shadow-ray origins along the surface normal, m: 0.1 mm, far above the f64

@@ -1,8 +1,8 @@
 use super::*;
 use crate::camera::{Camera, Intrinsics};
 use crate::math::DVec3;
-use crate::studio::raster::tests::uv_sphere;
-use crate::studio::raster::{Buffers, Rasterizer, RenderParams};
+use crate::raster::tests::uv_sphere;
+use crate::raster::{Buffers, Rasterizer, RenderParams};
 use crate::studio::shading::{dome_lights, vertices_seen, DomeParams, DEFAULT_SHADOW_BIAS_M};
 
 /// A square floor grid in the y = 0 plane, normals +Y, `n × n` cells of side `2·half / n`.

@@ -49,7 +49,7 @@ use setup::{setup_triangles, vertex_normals_camera, VertexSetup};
 /// use skin_core::camera::{Camera, Intrinsics};
 /// use skin_core::math::DVec3;
 /// use skin_core::mesh::TriMesh;
-/// use skin_core::studio::raster::{Rasterizer, RenderParams};
+/// use skin_core::raster::{Rasterizer, RenderParams};
 /// let k = Intrinsics::from_horizontal_fov(0.8, 64, 48)?;
 /// let cam = Camera::look_at(k, DVec3::new(0.0, 0.0, -3.0), DVec3::ZERO, DVec3::Y)?;
 /// // A square facing the camera (counter-clockwise seen from -z).
