@@ -13,6 +13,8 @@
 //! | [`image`] | masks, background subtraction, contours with normals, distance transforms, PNG IO | Sand §4.2 |
 //! | [`lsq`] | sparse least squares with several right-hand sides and symbolic reuse | Vlasic Eq. 2.1, 2.2, 3.3, 3.4 |
 //! | [`raster`] | CPU rasteriser: silhouette masks, depth along the ray, camera-space normals, triangle ids and barycentrics, exact under radial distortion | Sand §6.2 (silhouette error) |
+//! | [`stats`] | mean, median, percentiles (NumPy's interpolation), RMS of samples | |
+//! | [`check`] | input checks: finite, positive, in range, index in bounds | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
 #![warn(missing_docs)]
 
@@ -26,6 +28,7 @@ pub mod mesh;
 pub mod optim;
 pub mod raster;
 pub mod skeleton;
+pub mod stats;
 #[cfg(feature = "studio")]
 pub mod studio;
 

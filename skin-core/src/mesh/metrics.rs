@@ -7,13 +7,12 @@
 //! (not to B's vertices, which would depend on B's resolution), via the BVH of
 //! [`MeshQuery`]. All vertices of A are used, referenced by a face or not.
 //!
-//! The 95th percentile uses linear interpolation between order statistics (the definition
-//! NumPy's `percentile` uses by default), so figures compare directly with Python peers.
+//! Statistics are [`crate::stats`]'s (the 95th percentile interpolates as NumPy does).
 
 use crate::math::DVec3;
 use crate::mesh::query::MeshQuery;
 use crate::mesh::TriMesh;
-use crate::{Error, Result};
+use crate::{stats, Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Summary statistics of a set of non-negative distances (mesh units).
@@ -50,28 +49,15 @@ impl DistanceStats {
                 reason: format!("distances must be >= 0, got {d}"),
             });
         }
-        let n = distances.len() as f64;
-        let mean = distances.iter().sum::<f64>() / n;
-        let rms = (distances.iter().map(|d| d * d).sum::<f64>() / n).sqrt();
-        let mut sorted = distances.to_vec();
-        sorted.sort_by(f64::total_cmp);
+        let sorted = stats::sorted(distances);
         Ok(DistanceStats {
             count: distances.len(),
-            mean,
-            rms,
-            p95: percentile_sorted(&sorted, 0.95),
+            mean: stats::mean(distances),
+            rms: stats::rms(distances),
+            p95: stats::percentile_sorted(&sorted, 0.95),
             max: sorted[sorted.len() - 1],
         })
     }
-}
-
-/// Percentile `q` in `[0, 1]` of a sorted, non-empty slice with linear interpolation.
-fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
-    let pos = q * (sorted.len() - 1) as f64;
-    let lo = pos.floor() as usize;
-    let hi = pos.ceil() as usize;
-    let frac = pos - lo as f64;
-    sorted[lo] + frac * (sorted[hi] - sorted[lo])
 }
 
 /// Distances from every vertex of one mesh to the surface of another.
