@@ -16,6 +16,7 @@
 //!
 //! `cargo run --release --example studio [-- --quick]` (`--quick`: 400×300 views, the first
 //! 90 frames of the walk, fewer repetitions). Last stdout line: one JSON object of figures.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use std::path::Path;
 use std::time::Instant;

@@ -4,6 +4,7 @@
 //!
 //! Run with `cargo run --release --example tour`. Examples are discovered from `examples/*.rs` and `examples/*/main.rs`
 //! so a new example joins the tour by existing. Pass `--full` to run them at full size.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -3,6 +3,7 @@
 //! ground truth is checked against independent computations: depth against ray casting through
 //! the mesh BVH, silhouettes against a second (mask-only) render, joint positions against the
 //! skeleton's forward kinematics, and the skinned surface against the performer.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::math::{DVec2, DVec3};

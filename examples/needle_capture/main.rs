@@ -30,6 +30,7 @@
 //!
 //! `cargo run --release --example needle_capture [-- --quick]` (`--quick`: procedural
 //! performer, 360×240 views, 24 s of training, small grids; under a minute).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod pictures;
 

@@ -2,6 +2,7 @@
 //! needles) walked through 720×480 silhouettes of the procedural performer from 3 cameras,
 //! 4 frames of fast motion per iteration (12 camera-frames), parallel over frames.
 //! Throughput is reported in camera-frames per second.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // criterion_group!/criterion_main! generate undocumented public functions.
 #![allow(missing_docs)]

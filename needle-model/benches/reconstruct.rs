@@ -8,6 +8,7 @@
 //! * `NEEDLE_FULL=1 cargo bench -p needle-model --bench reconstruct` — additionally times the
 //!   whole body once (figure `reconstruct_s_24min`, target ≤ 60 s on 2 cores) and prints one
 //!   JSON line to stdout before criterion runs.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![allow(missing_docs)] // criterion_group! generates an undocumented public function
 
 use std::hint::black_box;

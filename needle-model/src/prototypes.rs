@@ -113,10 +113,10 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
     }
     let first = rng.random_range(0..count);
     let mut chosen = vec![first];
+    let mut last = first;
     let mut min_d2: Vec<f32> = vec![f32::INFINITY; count];
     const CHUNK: usize = 4096;
     loop {
-        let last = *chosen.last().expect("chosen starts non-empty"); // pushed above
         let p = &samples[last * dim..(last + 1) * dim];
         // Update distances to the newest prototype and find the farthest sample (lowest
         // index on ties) in one parallel pass.
@@ -161,6 +161,7 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
             });
         }
         chosen.push(best_i);
+        last = best_i;
     }
 }
 

@@ -1,4 +1,5 @@
 //! Calibration speed on the `calibrate` example's problem: 300 points, σ = 0.5 px.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![allow(missing_docs)] // criterion_group! generates an undocumented public function
 
 use std::hint::black_box;

@@ -1,6 +1,7 @@
 //! Speed of the `skin_core::image` stages on a VGA (640×480) silhouette: exact signed distance
 //! transform, contour extraction with normals, background classification of a colour frame,
 //! and mask mismatch counting.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // criterion_group!/criterion_main! generate undocumented public functions.
 #![allow(missing_docs)]

@@ -1,6 +1,7 @@
 //! Criterion benches of the peer Laplacian-editing problem (`bench/peers/laplacian.py`):
 //! cotangent Laplacian of the deformed level-5 icosphere, factorisation of
 //! `ΔᵀΔ + 1000 CᵀC` (500 constraints `choose(40, n, 500)`), one 3-RHS solve.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // `criterion_group!` generates an undocumented `pub fn benches`.
 #![allow(missing_docs)]

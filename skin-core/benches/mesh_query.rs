@@ -2,7 +2,7 @@
 //! or, when the data set is absent, a UV sphere of similar size.
 //!
 //! Run: `cargo bench -p skin-core --bench mesh_query`.
-
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};

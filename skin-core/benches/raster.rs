@@ -4,6 +4,7 @@
 //! 1,200-light dome with per-vertex shadows at 1024×1024 (`shade_ms_per_view_shadowed`).
 //!
 //! Run: `cargo bench -p skin-core --bench raster`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -4,6 +4,7 @@
 //! Cases: `fk_point_jacobians` (FK + 54×42 positional Jacobian), and
 //! `fk_inertial_terms` (FK + rate sweep + positional and local orientational Jacobians +
 //! `J̇θ̇` of 18 points + `J̇_ω θ̇` of 18 frames).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // criterion_group!/criterion_main! generate undocumented public functions.
 #![allow(missing_docs)]

@@ -52,6 +52,10 @@ pub(crate) fn faer_to_dmatrix(m: MatRef<'_, f64>) -> DMatrix<f64> {
 /// # Panics
 /// Never for matrices produced by faer: the only failure of `try_from_csc_data` is an
 /// invariant violation (duplicate row in a column), which faer's own invariants exclude.
+#[allow(
+    clippy::expect_used,
+    reason = "faer sparse matrices have sorted, unique entries per column"
+)]
 pub(crate) fn faer_to_csc(m: SparseColMatRef<'_, usize, f64>) -> CscMatrix<f64> {
     let ncols = m.ncols();
     let mut col_offsets = Vec::with_capacity(ncols + 1);

@@ -390,6 +390,10 @@ impl BackgroundModel {
         &self.mean
     }
 
+    #[allow(
+        clippy::expect_used,
+        reason = "the buffer is built from width × height values"
+    )]
     fn single_channel_image(&self, v: &[f32]) -> GrayF32Image {
         // `v` has one value per pixel by construction.
         GrayF32Image::from_raw(self.width, self.height, v.to_vec())

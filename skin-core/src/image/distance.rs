@@ -33,6 +33,10 @@ fn require_pixels(mask: &Mask) -> Result<()> {
 
 /// Exact Euclidean distance (pixels) from every pixel centre to the centre of the nearest
 /// *set* pixel of `target` (0 on set pixels).
+#[allow(
+    clippy::expect_used,
+    reason = "the transform writes width × height samples"
+)]
 fn edt_to_set(target: &Mask) -> GrayF32Image {
     let sq = euclidean_squared_distance_transform(&target.to_gray());
     let data: Vec<f32> = sq.as_raw().iter().map(|&d2| d2.sqrt() as f32).collect();
@@ -99,6 +103,10 @@ pub fn distance_to_background(mask: &Mask) -> Result<GrayF32Image> {
 ///
 /// # Errors
 /// [`Error::Empty`] if the mask is zero-sized, empty or full (no boundary exists).
+#[allow(
+    clippy::expect_used,
+    reason = "the transform writes width × height samples"
+)]
 pub fn signed_distance(mask: &Mask) -> Result<GrayF32Image> {
     // The two transforms are independent; run them on two threads (results are identical
     // for any thread count).

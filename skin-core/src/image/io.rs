@@ -202,6 +202,10 @@ pub fn encode_depth_u16(depth_m: &GrayF32Image, encoding: &DepthEncoding) -> Res
 ///
 /// # Errors
 /// [`Error::InvalidParam`] for an invalid encoding.
+#[allow(
+    clippy::expect_used,
+    reason = "the decoder yields width × height samples"
+)]
 pub fn decode_depth_u16(image: &Gray16Image, encoding: &DepthEncoding) -> Result<GrayF32Image> {
     encoding.validate()?;
     let data = image
@@ -351,6 +355,10 @@ fn encode_normals<T: Copy>(
 ///
 /// # Errors
 /// [`Error::Empty`] for a zero-sized image; [`Error::Io`] / [`Error::Image`] if writing fails.
+#[allow(
+    clippy::expect_used,
+    reason = "the buffer holds 3 samples per pixel by construction"
+)]
 pub fn write_normal_png(
     normals: &Rgb32FImage,
     path: impl AsRef<Path>,
@@ -401,6 +409,10 @@ fn decode_normals<T: Copy + Into<f32> + PartialEq + Default>(raw: &[T], max: f32
 /// # Errors
 /// [`Error::Io`] / [`Error::Image`] for unreadable files; [`Error::Parse`] if the PNG is not
 /// RGB.
+#[allow(
+    clippy::expect_used,
+    reason = "the buffer holds 3 samples per pixel by construction"
+)]
 pub fn read_normal_png(path: impl AsRef<Path>) -> Result<Rgb32FImage> {
     let img = read_png(path.as_ref())?;
     let (w, h) = (img.width(), img.height());

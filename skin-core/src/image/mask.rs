@@ -152,6 +152,7 @@ impl Mask {
     }
 
     /// A grey image with foreground [`MASK_FOREGROUND_GREY`] (255) and background 0.
+    #[allow(clippy::expect_used, reason = "one sample per pixel by construction")]
     pub fn to_gray(&self) -> GrayImage {
         let data = self.map_pixels(|f| if f { MASK_FOREGROUND_GREY } else { 0 });
         // `map_pixels` yields exactly width * height values.

@@ -204,6 +204,10 @@ impl LsqSolver {
 
     /// The lower triangle of the normal matrix `AᵀA + Σ w_k C_kᵀ C_k` as a CSC matrix (for
     /// inspection and tests; the solver never materialises the upper triangle).
+    #[allow(
+        clippy::expect_used,
+        reason = "the pattern was validated as CSC when it was built"
+    )]
     pub fn normal_matrix_lower(&self) -> CscMatrix<f64> {
         let n = self.n();
         // The pattern arrays are valid sorted CSC (built by NormalPattern), so this cannot
