@@ -36,16 +36,17 @@ mod pictures;
 
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::Camera;
+use dynamic_shapes::core::camera::{Camera, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::stats::{mean, median};
 use dynamic_shapes::core::studio::{
     fast_motion, makehuman_performer, play_bvh, preview, procedural_performer, range_of_motion,
-    DeformationState, FastMotionParams, Paint, Performer, PreviewPanel, ProceduralBodyParams,
-    RangeOfMotionParams, RetargetParams,
+    studio_ring, Capture, CaptureFrame, CaptureSpec, DeformationState, FastMotionParams, Paint,
+    Performer, PreviewPanel, ProceduralBodyParams, RangeOfMotionParams, RetargetParams,
 };
-use dynamic_shapes::needle::truth::{self, mean, median, Errors, TestSet};
+use dynamic_shapes::needle::truth::{Errors, TestSet};
 use dynamic_shapes::needle::{
     animate, merged_mesh, primitive_meshes, select_params, union_mesh, BodyLayout, FrameInput,
     NeedleBody, NeedleModel, ObservationStore, ObserveParams, Observer, Parameter,
@@ -53,7 +54,6 @@ use dynamic_shapes::needle::{
     SurfaceParams, ValidationFrame,
 };
 use pictures::{error_colour, side_by_side, Plot, Series};
-use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 
 const OUT_DIR: &str = "out/needle_capture";
@@ -142,21 +142,27 @@ struct Test {
     masks: Vec<Vec<Mask>>,
 }
 
+/// A silhouette capture of `motion` at its own frame rate by `rig`.
+fn silhouettes<'a>(p: &'a Performer, rig: &Rig, motion: &Motion) -> Res<Capture<'a>> {
+    let spec = CaptureSpec::masks_only(rig.clone()).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    Ok(Capture::new(p, motion, spec)?)
+}
+
 fn test_set(
     p: &Performer,
     body: &NeedleBody,
-    cameras: &[Camera],
+    rig: &Rig,
     motion: &Motion,
     stride: usize,
 ) -> Res<Test> {
     let mut set = TestSet::default();
     let mut masks = vec![];
-    let frames: Vec<&[f64]> = (0..motion.frame_count()).map(|k| motion.frame(k)).collect();
-    truth::for_each_posed(p, frames, motion.frame_time_s, stride, |_, th, tv, lv| {
-        let mesh = p.mesh(tv.to_vec());
-        masks.push(truth::render_masks(cameras, &mesh)?);
-        set.push_frame(body, p, th, tv, lv)
-    })?;
+    let capture = silhouettes(p, rig, motion)?;
+    for frame in capture.frames_stepped(0..capture.frame_count(), stride) {
+        let frame = frame?;
+        masks.push(frame.masks());
+        set.push_frame(body, p, &frame.truth)?;
+    }
     Ok(Test { set, masks })
 }
 
@@ -166,11 +172,13 @@ fn summary(prefix: &str, e: &mut Errors, out: &mut Map<String, Value>) {
         v.sort_by(f64::total_cmp);
         v.get(v.len() * 9 / 10).copied().unwrap_or(f64::NAN)
     };
+    // Means near joints are summed in increasing order (the order of the figures so far).
+    e.near_joints_mm.sort_by(f64::total_cmp);
     out.insert(format!("{prefix}_mean_mm"), json!(mean(&e.all_mm)));
-    out.insert(format!("{prefix}_median_mm"), json!(median(&mut e.all_mm)));
+    out.insert(format!("{prefix}_median_mm"), json!(median(&e.all_mm)));
     out.insert(
         format!("{prefix}_median_near_joints_mm"),
-        json!(median(&mut e.near_joints_mm)),
+        json!(median(&e.near_joints_mm)),
     );
     out.insert(
         format!("{prefix}_mean_near_joints_mm"),
@@ -182,7 +190,7 @@ fn summary(prefix: &str, e: &mut Errors, out: &mut Map<String, Value>) {
     );
     out.insert(
         format!("{prefix}_median_deforming_mm"),
-        json!(median(&mut e.deforming_mm)),
+        json!(median(&e.deforming_mm)),
     );
 }
 
@@ -193,7 +201,8 @@ fn main() -> Res<()> {
     let performer = performer(s.quick)?;
     let sk = performer.skeleton.clone();
     let body = NeedleBody::new(&sk, &BodyLayout::table_3_1())?;
-    let cameras = truth::ring_cameras(3, s.width, s.height)?;
+    let rig = studio_ring(3, s.width, s.height)?;
+    let cameras = rig.cameras.clone();
     let observer = Observer::new(
         body.clone(),
         sk.clone(),
@@ -213,7 +222,7 @@ fn main() -> Res<()> {
         s.width,
         s.height
     );
-    let long = capture(&performer, &observer, &cameras, &train)?;
+    let long = capture(&performer, &observer, &rig, &train)?;
     let store = long.store;
     let short_motion = training_motion(&performer, s.short_s)?;
     eprintln!(
@@ -221,7 +230,7 @@ fn main() -> Res<()> {
         short_motion.frame_count(),
         short_motion.duration_s()
     );
-    let short_store = capture(&performer, &observer, &cameras, &short_motion)?.store;
+    let short_store = capture(&performer, &observer, &rig, &short_motion)?.store;
     // The unit: camera-frames (one 720×480 mask walked) per second.
     let camera_frames = (n_train * cameras.len()) as f64;
     let accumulate_fps = camera_frames / long.accumulate_s;
@@ -243,7 +252,7 @@ fn main() -> Res<()> {
         &RetargetParams::default(),
     )?
     .motion;
-    let walk = test_set(&performer, &body, &cameras, &walk_motion, s.test_stride)?;
+    let walk = test_set(&performer, &body, &rig, &walk_motion, s.test_stride)?;
     let fast_motion = fast_motion(
         &sk,
         &FastMotionParams {
@@ -252,7 +261,7 @@ fn main() -> Res<()> {
             ..Default::default()
         },
     )?;
-    let fast = test_set(&performer, &body, &cameras, &fast_motion, s.test_stride)?;
+    let fast = test_set(&performer, &body, &rig, &fast_motion, s.test_stride)?;
     let scored = |t: &Test| t.set.frames.iter().map(|f| f.needles.len()).sum::<usize>();
     eprintln!(
         "test: CMU 131_01 walk {} frames ({} needles), fast motion {} frames ({} needles)",
@@ -381,7 +390,7 @@ fn main() -> Res<()> {
     }
 
     // --- Automatic parameter selection by silhouette error (§6.3, Figure 11). ---
-    let selection = select(&s, &performer, &body, &cameras, &train, &store)?;
+    let selection = select(&s, &performer, &body, &rig, &train, &store)?;
     let chosen = selection.params;
     eprintln!(
         "selected F_near {} F_min {} W {} N {} (silhouette error {:.4} → {:.4}, {} reconstructions)",
@@ -479,26 +488,20 @@ fn select(
     s: &Setup,
     performer: &Performer,
     body: &NeedleBody,
-    cameras: &[Camera],
+    rig: &Rig,
     train: &Motion,
     store: &ObservationStore,
 ) -> Res<dynamic_shapes::needle::Selection> {
     let stride = (train.frame_count() / s.validation_frames).max(1);
     let mut thetas = vec![];
     let mut masks = vec![];
-    let frames: Vec<&[f64]> = (0..train.frame_count()).map(|k| train.frame(k)).collect();
-    truth::for_each_posed(
-        performer,
-        frames,
-        train.frame_time_s,
-        stride,
-        |_, th, tv, _| {
-            let mesh = performer.mesh(tv.to_vec());
-            masks.push(truth::render_masks(cameras, &mesh)?);
-            thetas.push(th.to_vec());
-            Ok(())
-        },
-    )?;
+    let capture = silhouettes(performer, rig, train)?;
+    for frame in capture.frames_stepped(0..capture.frame_count(), stride) {
+        let frame = frame?;
+        masks.push(frame.masks());
+        thetas.push(frame.truth.theta);
+    }
+    let cameras = &rig.cameras;
     let frames: Vec<ValidationFrame> = thetas
         .iter()
         .zip(&masks)
@@ -523,48 +526,46 @@ struct Captured {
     render_s: f64,
 }
 
-/// Poses the performer along `motion`, renders the true mesh's silhouettes and accumulates
-/// the observations, streamed in chunks of 48 frames (masks are not kept).
+/// Captures the performer's silhouettes along `motion` and accumulates the observations,
+/// streamed in chunks of 48 frames (masks are not kept).
 fn capture(
     performer: &Performer,
     observer: &Observer,
-    cameras: &[Camera],
+    rig: &Rig,
     motion: &Motion,
 ) -> Res<Captured> {
     let n = motion.frame_count();
     let mut store = observer.empty_store()?;
     let (mut accumulate_s, mut render_s) = (0.0, 0.0);
     let chunk = 48usize;
-    let mut pending: Vec<(Vec<f64>, TriMesh)> = vec![];
-    let mut state = DeformationState::default();
-    for k in 0..n {
-        let theta = motion.frame(k).to_vec();
-        let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
-        let mesh = performer.mesh(posed.true_vertices);
-        pending.push((theta, mesh));
-        if pending.len() == chunk || k + 1 == n {
-            let tr = Instant::now();
-            let masks: Vec<_> = pending
-                .par_iter()
-                .map(|(_, m)| truth::render_masks(cameras, m))
-                .collect::<Result<_, _>>()?;
-            render_s += tr.elapsed().as_secs_f64();
-            let frames: Vec<FrameInput> = pending
-                .iter()
-                .zip(&masks)
-                .map(|((t, _), m)| FrameInput { theta: t, masks: m })
-                .collect();
-            let ta = Instant::now();
-            let acc = observer.accumulate(&frames)?;
-            accumulate_s += ta.elapsed().as_secs_f64();
-            store.append(&acc.store)?;
-            pending.clear();
-            eprint!(
-                "\r  frame {}/{n}, {} observations",
-                k + 1,
-                store.total_observations()
-            );
+    let capture = silhouettes(performer, rig, motion)?;
+    let mut frames = capture.frames();
+    let mut done = 0;
+    loop {
+        let tr = Instant::now();
+        let pending: Vec<CaptureFrame> = frames.by_ref().take(chunk).collect::<Result<_, _>>()?;
+        render_s += tr.elapsed().as_secs_f64();
+        if pending.is_empty() {
+            break;
         }
+        let masks: Vec<Vec<Mask>> = pending.iter().map(CaptureFrame::masks).collect();
+        let inputs: Vec<FrameInput> = pending
+            .iter()
+            .zip(&masks)
+            .map(|(f, m)| FrameInput {
+                theta: &f.truth.theta,
+                masks: m,
+            })
+            .collect();
+        let ta = Instant::now();
+        let acc = observer.accumulate(&inputs)?;
+        accumulate_s += ta.elapsed().as_secs_f64();
+        store.append(&acc.store)?;
+        done += pending.len();
+        eprint!(
+            "\r  frame {done}/{n}, {} observations",
+            store.total_observations()
+        );
     }
     eprintln!();
     Ok(Captured {

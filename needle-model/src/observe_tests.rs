@@ -2,12 +2,12 @@
 
 use super::*;
 use crate::primitive::BodyLayout;
-use skin_core::camera::{Intrinsics, RadialDistortion, Rig};
+use skin_core::camera::{Intrinsics, RadialDistortion};
 use skin_core::mesh::{MeshQuery, Ray as MeshRay, TriMesh};
 use skin_core::skeleton::Motion;
 use skin_core::studio::{
-    fast_motion, procedural_performer, DeformationState, FastMotionParams, Performer,
-    ProceduralBodyParams,
+    fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
+    FastMotionParams, Performer, ProceduralBodyParams,
 };
 
 pub(crate) struct Scene {
@@ -18,11 +18,9 @@ pub(crate) struct Scene {
     pub masks: Vec<Vec<Mask>>,
 }
 
+/// The studio's silhouette ring of 3 cameras.
 pub(crate) fn cameras(width: u32, height: u32) -> Vec<Camera> {
-    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), width, height).unwrap();
-    Rig::ring(3, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)
-        .unwrap()
-        .cameras
+    studio_ring(3, width, height).unwrap().cameras
 }
 
 /// 3 cameras at 720×480, `n` frames of fast motion of the procedural performer.
@@ -34,21 +32,20 @@ pub(crate) fn scene(n: usize, frame_stride: usize) -> Scene {
 /// 3 cameras at 720×480, `n` frames (every `frame_stride`-th) of fast motion of `performer`.
 pub(crate) fn scene_of(performer: Performer, n: usize, frame_stride: usize) -> Scene {
     let motion: Motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();
-    let cameras = cameras(720, 480);
-    let mut state = DeformationState::default();
-    let (mut thetas, mut meshes, mut masks) = (vec![], vec![], vec![]);
-    for k in 0..n * frame_stride {
-        let theta = motion.frame(k).to_vec();
-        let posed = performer
-            .pose(&theta, &mut state, motion.frame_time_s)
-            .unwrap();
-        if k % frame_stride == 0 {
-            let mesh = performer.mesh(posed.true_vertices.clone());
-            masks.push(crate::truth::render_masks(&cameras, &mesh).unwrap());
-            meshes.push(mesh);
-            thetas.push(theta);
-        }
-    }
+    let rig = studio_ring(3, 720, 480).unwrap();
+    let cameras = rig.cameras.clone();
+    let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let frames: Vec<CaptureFrame> = capture
+        .frames_stepped(0..n * frame_stride, frame_stride)
+        .collect::<skin_core::Result<_>>()
+        .unwrap();
+    let masks = frames.iter().map(CaptureFrame::masks).collect();
+    let meshes = frames
+        .iter()
+        .map(|f| f.truth.true_mesh(&performer))
+        .collect();
+    let thetas = frames.into_iter().map(|f| f.truth.theta).collect();
     Scene {
         performer,
         cameras,

@@ -270,9 +270,9 @@ pub fn estimate_sync_offset(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::observe::tests::cameras;
     use skin_core::studio::{
-        fast_motion, procedural_performer, DeformationState, FastMotionParams, ProceduralBodyParams,
+        fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
+        FastMotionParams, ProceduralBodyParams,
     };
 
     #[test]
@@ -284,18 +284,30 @@ mod tests {
         .unwrap();
         let sk = &performer.skeleton;
         let motion = fast_motion(sk, &FastMotionParams::default()).unwrap();
-        let cams = cameras(240, 160);
+        let rig = studio_ring(3, 240, 160).unwrap();
+        let cams = rig.cameras.clone();
         let true_offset = 0.0437;
-        let mut masks = vec![];
         let times: Vec<f64> = (0..8).map(|k| 0.5 + 0.2 * k as f64).collect();
-        for &t in &times {
-            let theta = sample_motion(sk, &motion, t + true_offset).unwrap();
-            let posed = performer
-                .pose(&theta, &mut DeformationState::default(), 0.0)
-                .unwrap();
-            let mesh = performer.mesh(posed.true_vertices);
-            masks.push(crate::truth::render_masks(&cams, &mesh).unwrap());
-        }
+        // The video: the poses at the shifted times, captured 0.2 s apart.
+        let poses = times
+            .iter()
+            .map(|&t| sample_motion(sk, &motion, t + true_offset))
+            .collect::<Result<Vec<_>>>()
+            .unwrap();
+        let columns = nalgebra::DMatrix::from_fn(sk.dof_count(), poses.len(), |d, k| poses[k][d]);
+        let video = Motion::new(0.2, columns).unwrap();
+        let capture = Capture::new(
+            &performer,
+            &video,
+            CaptureSpec::masks_only(rig).with_frame_rate_hz(5.0),
+        )
+        .unwrap();
+        let masks: Vec<Vec<Mask>> = capture
+            .frames()
+            .map(|f| f.map(|f| CaptureFrame::masks(&f)))
+            .collect::<skin_core::Result<_>>()
+            .unwrap();
+        assert_eq!(masks.len(), times.len());
         let frames: Vec<VideoFrame> = times
             .iter()
             .zip(&masks)

@@ -9,11 +9,8 @@
 //! that any number of models can be scored cheaply with [`TestSet::errors`].
 
 use glam::DVec3;
-use skin_core::camera::{Camera, Intrinsics, Rig};
-use skin_core::image::Mask;
 use skin_core::mesh::{MeshQuery, Ray, TriMesh};
-use skin_core::raster::{Buffers, Rasterizer, RenderParams};
-use skin_core::studio::{DeformationState, Performer};
+use skin_core::studio::{FrameTruth, Performer};
 
 use crate::primitive::NeedleBody;
 use crate::reconstruct::NeedleModel;
@@ -29,35 +26,6 @@ pub const NEAR_JOINT_M: f64 = 0.10;
 /// non-skinning deformation the LBS baseline is exact, so errors over all needles favour it;
 /// errors over deforming needles measure what the method adds. Default: 0.002 m.
 pub const DEFORMING_M: f64 = 0.002;
-
-/// `n` cameras on a ring of radius 3.5 m at height 1.1 m looking at (0, 0.95, 0) with a
-/// 55° horizontal field of view: the studio rig of the observation tests.
-///
-/// # Errors
-/// As [`Intrinsics::from_horizontal_fov`] and [`Rig::ring`] (zero sizes or counts).
-pub fn ring_cameras(n: usize, width: u32, height: u32) -> Result<Vec<Camera>> {
-    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), width, height)?;
-    Ok(Rig::ring(n, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)?.cameras)
-}
-
-/// Binary silhouette of `mesh` in every camera (empty masks allowed).
-///
-/// # Errors
-/// As [`Rasterizer::render`] (degenerate mesh).
-pub fn render_masks(cameras: &[Camera], mesh: &TriMesh) -> Result<Vec<Mask>> {
-    let params = RenderParams::default()
-        .with_buffers(Buffers::MASK_ONLY)
-        .with_allow_empty(true);
-    cameras
-        .iter()
-        .map(|c| {
-            let v = Rasterizer::new(c).render(mesh, &params)?;
-            Ok(Mask::from_fn(v.width, v.height, |x, y| {
-                v.mask[v.index(x, y)] != 0
-            }))
-        })
-        .collect()
-}
 
 /// Length of the needle `origin + t·dir`, `t ∈ [0, max_m]`, inside `query`'s closed mesh:
 /// the distance to the first hit if that hit is a back face (the ray leaves the body there).
@@ -122,28 +90,9 @@ pub struct Errors {
     pub deforming_mm: Vec<f64>,
 }
 
-/// Median of `v` (NaN for an empty slice); `v` is sorted in place.
-pub fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Mean of `v` (NaN for an empty slice).
-pub fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len() as f64
-}
-
 impl TestSet {
-    /// Records the truth of one posed frame: `theta` the pose, `true_vertices` and
-    /// `lbs_vertices` the performer's surfaces at that pose.
+    /// Records the truth of one captured frame (its pose and the performer's true and
+    /// LBS surfaces there, from [`skin_core::studio::Capture`]).
     ///
     /// # Errors
     /// As forward kinematics, [`MeshQuery::new`] and the configuration points;
@@ -152,10 +101,13 @@ impl TestSet {
         &mut self,
         body: &NeedleBody,
         performer: &Performer,
-        theta: &[f64],
-        true_vertices: &[DVec3],
-        lbs_vertices: &[DVec3],
+        truth: &FrameTruth,
     ) -> Result<()> {
+        let theta = &truth.theta[..];
+        let (true_vertices, lbs_vertices) = (
+            &truth.posed.true_vertices[..],
+            &truth.posed.lbs_vertices[..],
+        );
         let nv = performer.template.vertices.len();
         for (what, v) in [
             ("true vertices", true_vertices),
@@ -298,33 +250,4 @@ impl Errors {
             self.deforming_mm.push(e_mm);
         }
     }
-}
-
-/// Poses `performer` along `motion_frames` (consecutive frames, `dt_s` apart, so the flap's
-/// dynamics run) and calls `visit(k, theta, true_vertices, lbs_vertices)` for every
-/// `stride`-th frame.
-///
-/// # Errors
-/// [`Error::InvalidParam`] for `stride == 0`; errors of [`Performer::pose`] and of `visit`.
-pub fn for_each_posed<'a>(
-    performer: &Performer,
-    motion_frames: impl IntoIterator<Item = &'a [f64]>,
-    dt_s: f64,
-    stride: usize,
-    mut visit: impl FnMut(usize, &[f64], &[DVec3], &[DVec3]) -> Result<()>,
-) -> Result<()> {
-    if stride == 0 {
-        return Err(Error::InvalidParam {
-            name: "stride",
-            reason: "must be ≥ 1".into(),
-        });
-    }
-    let mut state = DeformationState::default();
-    for (k, theta) in motion_frames.into_iter().enumerate() {
-        let posed = performer.pose(theta, &mut state, dt_s)?;
-        if k % stride == 0 {
-            visit(k, theta, &posed.true_vertices, &posed.lbs_vertices)?;
-        }
-    }
-    Ok(())
 }

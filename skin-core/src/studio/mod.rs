@@ -32,8 +32,9 @@ mod retarget;
 mod tests;
 
 pub use capture::{
-    CameraObservation, Capture, CaptureFrame, CaptureFrames, CaptureLighting, CaptureSpec,
-    FrameTruth, PixelNoise,
+    studio_ring, BarycentricImage, CameraObservation, Capture, CaptureFrame, CaptureFrames,
+    CaptureLighting, CaptureSpec, FrameTruth, PixelNoise, TriangleIdImage, ViewTruth,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
 };
 pub use deformation::{
     BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,

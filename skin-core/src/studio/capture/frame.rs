@@ -1,23 +1,88 @@
-//! One captured frame: what the cameras observe and the ground truth behind it.
+//! One captured frame: what the cameras observe and the ground truth behind it, in the
+//! library's own image types ([`Mask`] for silhouettes, `image` buffers for the rest).
 
+use image::{ImageBuffer, LumaA, Rgb32FImage};
+
+use crate::image::{GrayF32Image, Mask};
 use crate::mesh::TriMesh;
 use crate::raster::RenderedView;
-use crate::studio::shading::ShadedView;
 use crate::studio::{Performer, PosedFrame};
+use crate::Result;
 
-/// What one camera observes in one frame.
+/// Triangle ids of a view: the visible face per pixel, [`crate::raster::NO_TRIANGLE`] on
+/// background.
+pub type TriangleIdImage = ImageBuffer<image::Luma<u32>, Vec<u32>>;
+
+/// Perspective-correct barycentric weights `(λ₁, λ₂)` of face corners 1 and 2 per pixel
+/// (corner 0 has `1 − λ₁ − λ₂`); zero on background.
+pub type BarycentricImage = ImageBuffer<LumaA<f32>, Vec<f32>>;
+
+/// What one camera observes in one frame: the pipeline's input.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CameraObservation {
     /// Index of the camera in the rig.
     pub camera: usize,
-    /// Image width, px.
-    pub width: u32,
-    /// Image height, px.
-    pub height: u32,
-    /// Silhouette, row-major, 1 on the performer and 0 elsewhere.
-    pub mask: Vec<u8>,
+    /// Silhouette: set on the performer.
+    pub mask: Mask,
     /// Shaded image (linear radiance, with the spec's noise), when the spec has lighting.
-    pub shaded: Option<ShadedView>,
+    pub shaded: Option<Rgb32FImage>,
+}
+
+/// The ground-truth buffers of one camera view (rig order), each present when the capture's
+/// render params asked for it ([`crate::raster::Buffers`]). Only metrics read these.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewTruth {
+    /// Distance from the camera centre to the visible surface along the pixel ray, m;
+    /// `+∞` on background.
+    pub depth_m: Option<GrayF32Image>,
+    /// Camera-frame z of the visible surface, m; `+∞` on background.
+    pub camera_z_m: Option<GrayF32Image>,
+    /// Unit outward surface normal in the camera frame (x right, y down, z forward); zero on
+    /// background.
+    pub normals_camera: Option<Rgb32FImage>,
+    /// Visible face per pixel.
+    pub triangle_ids: Option<TriangleIdImage>,
+    /// Barycentric weights of the visible point.
+    pub barycentric: Option<BarycentricImage>,
+    /// Number of pixels that see the performer.
+    pub covered_pixels: usize,
+}
+
+impl ViewTruth {
+    /// Moves the buffers of a rendered view into image buffers (the mask is the
+    /// observation's, not repeated here).
+    pub(super) fn from_view(v: RenderedView) -> Result<Self> {
+        let (w, h) = (v.width, v.height);
+        let image = |data: Vec<f32>, what: &'static str| {
+            (!data.is_empty())
+                .then(|| GrayF32Image::from_raw(w, h, data).ok_or(size_error(what)))
+                .transpose()
+        };
+        Ok(Self {
+            depth_m: image(v.depth_m, "depth buffer")?,
+            camera_z_m: image(v.camera_z_m, "camera z buffer")?,
+            normals_camera: (!v.normal_camera.is_empty())
+                .then(|| {
+                    let data = v.normal_camera.into_iter().flatten().collect();
+                    Rgb32FImage::from_raw(w, h, data).ok_or(size_error("normal buffer"))
+                })
+                .transpose()?,
+            triangle_ids: (!v.triangle.is_empty())
+                .then(|| TriangleIdImage::from_raw(w, h, v.triangle).ok_or(size_error("ids")))
+                .transpose()?,
+            barycentric: (!v.bary.is_empty())
+                .then(|| {
+                    let data = v.bary.into_iter().flatten().collect();
+                    BarycentricImage::from_raw(w, h, data).ok_or(size_error("barycentrics"))
+                })
+                .transpose()?,
+            covered_pixels: v.covered_pixels,
+        })
+    }
+}
+
+fn size_error(what: &'static str) -> crate::Error {
+    crate::Error::Empty { what }
 }
 
 /// The ground truth of one frame.
@@ -27,9 +92,8 @@ pub struct FrameTruth {
     pub theta: Vec<f64>,
     /// Joint frames, joint positions, LBS and true vertices (world frame, m).
     pub posed: PosedFrame,
-    /// The full rendered buffers of every camera (rig order): mask, depth along the ray and
-    /// camera-frame normals, plus whatever else the spec's render params asked for.
-    pub views: Vec<RenderedView>,
+    /// The ground-truth buffers of every camera (rig order).
+    pub views: Vec<ViewTruth>,
 }
 
 impl FrameTruth {
@@ -61,4 +125,11 @@ pub struct CaptureFrame {
     pub observations: Vec<CameraObservation>,
     /// The ground truth.
     pub truth: FrameTruth,
+}
+
+impl CaptureFrame {
+    /// The silhouettes of every camera, rig order (the input of the silhouette methods).
+    pub fn masks(&self) -> Vec<Mask> {
+        self.observations.iter().map(|o| o.mask.clone()).collect()
+    }
 }

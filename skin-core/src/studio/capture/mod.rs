@@ -29,11 +29,17 @@ mod spec;
 #[cfg(test)]
 mod tests;
 
-pub use frame::{CameraObservation, CaptureFrame, FrameTruth};
-pub use spec::{CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ};
+pub use frame::{
+    BarycentricImage, CameraObservation, CaptureFrame, FrameTruth, TriangleIdImage, ViewTruth,
+};
+pub use spec::{
+    studio_ring, CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
+};
 
 use rayon::prelude::*;
 
+use crate::image::Mask;
 use crate::mesh::MeshQuery;
 use crate::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::skeleton::Motion;
@@ -41,7 +47,7 @@ use crate::studio::shading::{
     check_lights_outside, shade, vertices_seen, Albedo, LightVisibility, Shadows,
 };
 use crate::studio::{DeformationState, Performer, PosedFrame};
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// A capture ready to run: the performer, its motion resampled to the capture's frame rate,
 /// and one rasteriser per camera (their per-pixel rays are computed once, in [`Capture::new`]).
@@ -66,7 +72,7 @@ use crate::{Error, Result};
 /// for frame in capture.frames() {
 ///     let frame = frame?;
 ///     assert_eq!(frame.observations.len(), 4);
-///     assert!(frame.observations[0].mask.contains(&1));
+///     assert!(!frame.observations[0].mask.is_empty());
 ///     assert_eq!(frame.truth.posed.true_vertices.len(), performer.vertex_count());
 /// }
 /// # Ok::<(), skin_core::Error>(())
@@ -139,6 +145,17 @@ impl<'a> Capture<'a> {
     /// The frames of `range` (clipped to the capture), in order. Earlier frames are posed but
     /// not rendered, so the deformation's dynamics match a full run exactly.
     pub fn frames_in(&self, range: std::ops::Range<usize>) -> CaptureFrames<'_, 'a> {
+        self.frames_stepped(range, 1)
+    }
+
+    /// Every `step`-th frame of `range` (clipped to the capture; `step` 0 counts as 1), in
+    /// order: e.g. test frames spread over a motion. Every frame is posed, so the
+    /// deformation's dynamics match a full run exactly; only the yielded ones are rendered.
+    pub fn frames_stepped(
+        &self,
+        range: std::ops::Range<usize>,
+        step: usize,
+    ) -> CaptureFrames<'_, 'a> {
         let end = range.end.min(self.frame_count());
         CaptureFrames {
             capture: self,
@@ -146,6 +163,7 @@ impl<'a> Capture<'a> {
             next_pose: 0,
             next: range.start.min(end),
             end,
+            step: step.max(1),
             failed: false,
         }
     }
@@ -165,35 +183,45 @@ impl<'a> Capture<'a> {
     /// Renders frame `index` from its posed surfaces (observations and per-camera truth).
     fn render_frame(&self, index: usize, posed: PosedFrame) -> Result<CaptureFrame> {
         let mesh = self.performer.mesh(posed.true_vertices.clone());
-        let query = MeshQuery::new(&mesh)?;
+        // The body's search structure is built only when something needs it: lighting, or a
+        // camera inside the body's bounding box (a mask-only capture from outside skips it).
+        let mut query = None;
+        let bounds = mesh.bounding_box()?;
         for (i, cam) in self.spec.rig.cameras.iter().enumerate() {
-            if query.contains(cam.centre())? {
-                return Err(Error::InvalidParam {
-                    name: "rig",
-                    reason: format!(
-                        "camera {i} at {} is inside the performer's body at frame {index}; \
-                         move it outside the capture volume",
-                        cam.centre()
-                    ),
-                });
+            let c = cam.centre();
+            if c.cmpge(bounds.min).all() && c.cmple(bounds.max).all() {
+                let q = match query.take() {
+                    Some(q) => q,
+                    None => MeshQuery::new(&mesh)?,
+                };
+                if q.contains(c)? {
+                    return Err(Error::InvalidParam {
+                        name: "rig",
+                        reason: format!(
+                            "camera at {c} is inside the performer's body; move it outside the \
+                             capture volume"
+                        ),
+                    })
+                    .at(Context::Camera(i))
+                    .at(Context::Frame(index));
+                }
+                query = Some(q);
             }
         }
         let views = self
             .rasterizers
             .par_iter()
             .enumerate()
-            .map(|(i, r)| {
-                r.render(&mesh, &self.render).map_err(|e| match e {
-                    Error::NotVisible { what } => Error::NotVisible {
-                        what: format!("camera {i} at frame {index}: {what}"),
-                    },
-                    e => e,
-                })
-            })
-            .collect::<Result<Vec<RenderedView>>>()?;
+            .map(|(i, r)| r.render(&mesh, &self.render).at(Context::Camera(i)))
+            .collect::<Result<Vec<RenderedView>>>()
+            .at(Context::Frame(index))?;
         let shaded = match &self.spec.lighting {
             None => vec![None; views.len()],
             Some(lighting) => {
+                let query = match query {
+                    Some(q) => q,
+                    None => MeshQuery::new(&mesh)?,
+                };
                 check_lights_outside(&query, &lighting.lights)?;
                 let vis = if lighting.shadows {
                     let refs: Vec<&RenderedView> = views.iter().collect();
@@ -218,7 +246,7 @@ impl<'a> Capture<'a> {
                         if let Some(n) = &self.spec.noise {
                             noise::add(&mut s, n, self.spec.seed, index, i);
                         }
-                        Ok(Some(s))
+                        Ok(Some(s.to_image()?))
                     })
                     .collect::<Result<Vec<_>>>()?
             }
@@ -229,12 +257,17 @@ impl<'a> Capture<'a> {
             .enumerate()
             .map(|(camera, (v, shaded))| CameraObservation {
                 camera,
-                width: v.width,
-                height: v.height,
-                mask: v.mask.clone(),
+                mask: Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0),
                 shaded,
             })
             .collect();
+        let views = views
+            .into_iter()
+            .map(|mut v| {
+                v.mask = Vec::new();
+                ViewTruth::from_view(v)
+            })
+            .collect::<Result<_>>()?;
         Ok(CaptureFrame {
             index,
             time_s: index as f64 * self.motion.frame_time_s,
@@ -257,6 +290,7 @@ pub struct CaptureFrames<'c, 'a> {
     next_pose: usize,
     next: usize,
     end: usize,
+    step: usize,
     failed: bool,
 }
 
@@ -275,7 +309,7 @@ impl CaptureFrames<'_, '_> {
         }
         let posed = self.pose_next()?;
         let index = self.next;
-        self.next += 1;
+        self.next += self.step;
         self.capture.render_frame(index, posed)
     }
 }
@@ -293,7 +327,11 @@ impl Iterator for CaptureFrames<'_, '_> {
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
-        let n = if self.failed { 0 } else { self.end - self.next };
+        let n = if self.failed {
+            0
+        } else {
+            (self.end - self.next).div_ceil(self.step)
+        };
         (0, Some(n))
     }
 }

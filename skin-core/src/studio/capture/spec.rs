@@ -2,9 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::Rig;
+use crate::camera::{Intrinsics, Rig};
 use crate::error::{Error, Result};
-use crate::raster::RenderParams;
+use crate::math::DVec3;
+use crate::raster::{Buffers, RenderParams};
 use crate::studio::shading::{Light, DEFAULT_SHADOW_BIAS_M};
 
 /// Lighting of the shaded observations: Lambertian shading ([`crate::studio::shading::shade`])
@@ -96,6 +97,18 @@ impl CaptureSpec {
             lighting: None,
             noise: None,
         }
+    }
+
+    /// A spec that renders silhouettes only — the input of the silhouette methods (Sand 2003
+    /// §4.2, Vlasic thesis §2.3) — at the speed of the mask rasteriser: no depth or normal
+    /// truth buffers, and a camera that misses the performer gives an empty mask instead of an
+    /// error (a limb may leave a view).
+    pub fn masks_only(rig: Rig) -> Self {
+        Self::new(rig).with_render(
+            RenderParams::default()
+                .with_buffers(Buffers::MASK_ONLY)
+                .with_allow_empty(true),
+        )
     }
 
     /// Returns the spec with the given frame rate, Hz.
@@ -190,4 +203,33 @@ impl CaptureSpec {
         }
         Ok(())
     }
+}
+
+/// Radius of [`studio_ring`], m.
+pub const STUDIO_RING_RADIUS_M: f64 = 3.5;
+/// Height of the cameras of [`studio_ring`] above the floor, m.
+pub const STUDIO_RING_HEIGHT_M: f64 = 1.1;
+/// Point every camera of [`studio_ring`] looks at: the performer's mid-body (x, y, z), m.
+pub const STUDIO_RING_TARGET_M: [f64; 3] = [0.0, 0.95, 0.0];
+/// Horizontal field of view of [`studio_ring`], degrees.
+pub const STUDIO_RING_HFOV_DEG: f64 = 55.0;
+
+/// The studio's standard silhouette rig: `cameras` evenly spaced on a ring of radius
+/// [`STUDIO_RING_RADIUS_M`] at height [`STUDIO_RING_HEIGHT_M`], looking at
+/// [`STUDIO_RING_TARGET_M`] with a [`STUDIO_RING_HFOV_DEG`] horizontal field of view, images of
+/// `width` × `height` px. A performer standing at the origin fills about two thirds of the
+/// image height; Sand 2003 §6.1 used three such views, Vlasic §2.5.1 eight.
+///
+/// # Errors
+/// As [`Intrinsics::from_horizontal_fov`] and [`Rig::ring`] (zero sizes or counts).
+pub fn studio_ring(cameras: usize, width: u32, height: u32) -> Result<Rig> {
+    let k = Intrinsics::from_horizontal_fov(STUDIO_RING_HFOV_DEG.to_radians(), width, height)?;
+    Rig::ring(
+        cameras,
+        STUDIO_RING_RADIUS_M,
+        STUDIO_RING_HEIGHT_M,
+        DVec3::from_array(STUDIO_RING_TARGET_M),
+        DVec3::Y,
+        k,
+    )
 }

@@ -99,11 +99,19 @@ fn truth_matches_performer_and_observations_match_truth() {
         let mesh = f.truth.true_mesh(p);
         for (i, (o, v)) in f.observations.iter().zip(&f.truth.views).enumerate() {
             assert_eq!(o.camera, i);
-            assert_eq!((o.width, o.height), (96, 128));
-            assert_eq!(o.mask, v.mask, "observed silhouette is the true one");
+            assert_eq!(o.mask.dimensions(), (96, 128));
             assert!(o.shaded.is_none());
-            assert_eq!(v.depth_m.len(), 96 * 128, "truth has depth");
-            assert_eq!(v.normal_camera.len(), 96 * 128, "truth has normals");
+            assert_eq!(
+                v.depth_m.as_ref().unwrap().dimensions(),
+                (96, 128),
+                "truth has depth"
+            );
+            let normals = v.normals_camera.as_ref().unwrap();
+            assert_eq!(normals.dimensions(), (96, 128), "truth has normals");
+            assert!(
+                v.triangle_ids.is_none() && v.barycentric.is_none(),
+                "not asked for"
+            );
             assert!(
                 v.covered_pixels > 300,
                 "camera {i} sees the body: {}",
@@ -111,7 +119,20 @@ fn truth_matches_performer_and_observations_match_truth() {
             );
             // The truth views are the rasteriser's render of the true mesh.
             let direct = c.rasterizers()[i].render(&mesh, &c.spec().effective_render())?;
-            assert_eq!(&direct, v);
+            assert_eq!(o.mask.count(), direct.covered_pixels);
+            for (k, &m) in direct.mask.iter().enumerate() {
+                let (x, y) = ((k % 96) as u32, (k / 96) as u32);
+                assert_eq!(
+                    o.mask.get(x, y),
+                    m != 0,
+                    "observed silhouette is the true one"
+                );
+            }
+            assert_eq!(v.covered_pixels, direct.covered_pixels);
+            assert_eq!(v.depth_m.as_ref().unwrap().as_raw(), &direct.depth_m);
+            assert_eq!(v.camera_z_m.is_some(), !direct.camera_z_m.is_empty());
+            let flat: Vec<f32> = direct.normal_camera.iter().flatten().copied().collect();
+            assert_eq!(normals.as_raw(), &flat);
         }
         n += 1;
         Ok(())
@@ -196,7 +217,10 @@ fn noise_is_seeded_zero_mean_with_the_requested_sigma() {
     let other = frame(shaded_spec(2));
     assert_eq!(a, b, "same seed, same frame");
     for cam in 0..3 {
-        let img = |f: &CaptureFrame| f.observations[cam].shaded.clone().unwrap().radiance;
+        let img = |f: &CaptureFrame| {
+            let s = f.observations[cam].shaded.clone().unwrap();
+            s.pixels().map(|p| p.0).collect::<Vec<[f32; 3]>>()
+        };
         let (c0, a0, o0) = (img(&clean), img(&a), img(&other));
         assert_ne!(a0, o0, "another seed, other noise");
         let d: Vec<f64> = a0
@@ -218,7 +242,7 @@ fn noise_is_seeded_zero_mean_with_the_requested_sigma() {
             let prev = a.observations[cam - 1].shaded.as_ref().unwrap();
             let prev_clean = clean.observations[cam - 1].shaded.as_ref().unwrap();
             let e0 = a0[0][0] - c0[0][0];
-            let e1 = prev.radiance[0][0] - prev_clean.radiance[0][0];
+            let e1 = prev.get_pixel(0, 0)[0] - prev_clean.get_pixel(0, 0)[0];
             assert_ne!(e0, e1);
         }
     }
@@ -235,21 +259,19 @@ fn shaded_images_are_lit_on_the_body_only() {
     for o in &f.observations {
         let s = o.shaded.as_ref().unwrap();
         let lit = s
-            .radiance
-            .iter()
-            .zip(&o.mask)
-            .filter(|(r, &m)| m == 1 && r[0] > 0.0)
+            .pixels()
+            .zip(o.mask.iter())
+            .filter(|(r, m)| *m && r[0] > 0.0)
             .count();
-        let covered = o.mask.iter().filter(|&&m| m == 1).count();
+        let covered = o.mask.count();
         assert!(
             lit * 2 > covered,
             "most of the body is lit: {lit} of {covered}"
         );
         assert!(s
-            .radiance
-            .iter()
-            .zip(&o.mask)
-            .all(|(r, &m)| m == 1 || *r == [0.0; 3]));
+            .pixels()
+            .zip(o.mask.iter())
+            .all(|(r, m)| m || r.0 == [0.0; 3]));
     }
 }
 
@@ -276,18 +298,15 @@ fn camera_inside_the_body_is_named() {
     )
     .unwrap();
     let e = err_of(CaptureSpec::new(r));
-    match &e {
-        Error::InvalidParam {
-            name: "rig",
-            reason,
-        } => {
-            assert!(
-                reason.contains("camera 1") && reason.contains("inside"),
-                "{e}"
-            )
-        }
-        _ => panic!("unexpected error {e}"),
-    }
+    assert!(
+        matches!(e.root(), Error::InvalidParam { name: "rig", .. }),
+        "{e}"
+    );
+    let text = e.to_string();
+    assert!(
+        text.starts_with("frame 0: camera 1: ") && text.contains("inside"),
+        "{e}"
+    );
     // The iterator stops after the error.
     let mut r = rig(2);
     r.cameras[0] = Camera::look_at(
@@ -316,18 +335,18 @@ fn camera_seeing_nothing_is_named() {
     )
     .unwrap();
     let e = err_of(CaptureSpec::new(r.clone()));
-    match &e {
-        Error::NotVisible { what } => {
-            assert!(what.contains("camera 2") && what.contains("frame 0"), "{e}")
-        }
-        _ => panic!("unexpected error {e}"),
-    }
+    assert!(matches!(e.root(), Error::NotVisible { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("frame 0: camera 2: nothing visible"),
+        "{e}"
+    );
     // Accepted when empty views are allowed.
     let m = motion();
     let spec = CaptureSpec::new(r).with_render(RenderParams::default().with_allow_empty(true));
     let c = Capture::new(performer(), &m, spec).unwrap();
     let f = c.frames().next().unwrap().unwrap();
-    assert!(f.observations[2].mask.iter().all(|&v| v == 0));
+    assert!(f.observations[2].mask.is_empty());
 }
 
 #[test]
@@ -407,4 +426,48 @@ fn bad_specs_and_motions_are_errors() {
         Capture::new(p, &empty, CaptureSpec::new(rig(1))).unwrap_err(),
         Error::Empty { .. }
     ));
+}
+
+#[test]
+fn stepped_mask_only_frames_equal_those_of_a_full_run() {
+    let p = performer();
+    let m = motion();
+    let c = Capture::new(p, &m, CaptureSpec::masks_only(rig(3))).unwrap();
+    let all: Vec<CaptureFrame> = c.frames().collect::<Result<_>>().unwrap();
+    let n = c.frame_count();
+    assert!(n > 6);
+    let it = c.frames_stepped(1..n, 3);
+    assert_eq!(it.size_hint().1, Some((n - 1).div_ceil(3)));
+    let stepped: Vec<CaptureFrame> = it.collect::<Result<_>>().unwrap();
+    assert_eq!(stepped.len(), (n - 1).div_ceil(3));
+    for f in &stepped {
+        assert_eq!(f.index % 3, 1);
+        assert_eq!(
+            f, &all[f.index],
+            "frame {}: same pose, dynamics and masks",
+            f.index
+        );
+    }
+    for f in &all {
+        assert_eq!(f.masks().len(), 3);
+        for v in &f.truth.views {
+            assert!(
+                v.depth_m.is_none() && v.normals_camera.is_none(),
+                "masks only"
+            );
+        }
+    }
+}
+
+#[test]
+fn studio_ring_looks_at_the_performer_and_rejects_zero_sizes() {
+    let rig = studio_ring(3, 96, 64).unwrap();
+    assert_eq!(rig.cameras.len(), 3);
+    for cam in &rig.cameras {
+        let c = cam.centre();
+        assert!((c.x.hypot(c.z) - STUDIO_RING_RADIUS_M).abs() < 1e-9);
+        assert!((c.y - STUDIO_RING_HEIGHT_M).abs() < 1e-9);
+    }
+    assert!(studio_ring(0, 96, 64).is_err());
+    assert!(studio_ring(3, 0, 64).is_err());
 }
