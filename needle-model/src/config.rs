@@ -128,6 +128,78 @@ impl ConfigSpace {
     }
 }
 
+// Configuration points as flat rows (`S × dim` row-major `f32`), the form the store keeps
+// them in (§4.3) and prototype selection (§5.2), prototype shapes (§5.3) and the NRBF (§5.1)
+// consume.
+
+/// Largest configuration-space dimension accepted by prototype selection, prototype shapes
+/// and the NRBF (Sand's Table 1 has at most 9; in much higher dimensions nearest-neighbour
+/// neighbourhoods stop being local).
+pub const MAX_CONFIG_DIM: usize = 16;
+
+/// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
+/// non-empty, all finite. Returns the number of samples.
+pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
+    if dim == 0 || dim > MAX_CONFIG_DIM {
+        return Err(Error::InvalidParam {
+            name: "dim",
+            reason: format!("configuration dimension must be in 1..={MAX_CONFIG_DIM}, got {dim}"),
+        });
+    }
+    if samples.is_empty() {
+        return Err(Error::Empty {
+            what: "configuration samples",
+        });
+    }
+    if !samples.len().is_multiple_of(dim) {
+        return Err(Error::SizeMismatch {
+            what: "configuration samples (length must be a multiple of dim)",
+            expected: samples.len().div_ceil(dim) * dim,
+            got: samples.len(),
+        });
+    }
+    if samples.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "configuration samples",
+        });
+    }
+    Ok(samples.len() / dim)
+}
+
+/// Squared Euclidean distance of two configuration points.
+#[inline]
+pub(crate) fn dist2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
+/// distance unit of the NRBF kernel (§5.1) and of the tie radius of prototype shapes (§5.3).
+/// Returns 1 when all points coincide (any unit works then).
+///
+/// # Errors
+/// As [`check_samples`].
+pub(crate) fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
+    let count = check_samples(samples, dim)?;
+    let mut mean = vec![0f64; dim];
+    for row in samples.chunks_exact(dim) {
+        for (m, &v) in mean.iter_mut().zip(row) {
+            *m += v as f64;
+        }
+    }
+    mean.iter_mut().for_each(|m| *m /= count as f64);
+    let ss: f64 = samples
+        .chunks_exact(dim)
+        .map(|row| {
+            row.iter()
+                .zip(&mean)
+                .map(|(&v, m)| (v as f64 - m).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    let s = (ss / count as f64).sqrt() as f32;
+    Ok(if s > 0.0 && s.is_finite() { s } else { 1.0 })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

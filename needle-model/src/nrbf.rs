@@ -41,40 +41,14 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 
+use crate::config::{check_samples, config_scale};
 use crate::params::ReconstructionParams;
-use crate::prototypes::{
-    check_samples, farthest_point_prototypes, prototype_shapes, PrototypeShapes,
-};
+use crate::prototype_locations::farthest_point_prototypes;
+use crate::prototype_shapes::{prototype_shapes, PrototypeShapes};
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
-
-/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
-/// distance unit of the NRBF kernel. Returns 1 when all points coincide (any unit works then).
-///
-/// # Errors
-/// As [`crate::prototypes::farthest_point_prototypes`] for bad `samples`/`dim`.
-pub fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
-    let count = check_samples(samples, dim)?;
-    let mut mean = vec![0f64; dim];
-    for row in samples.chunks_exact(dim) {
-        for (m, &v) in mean.iter_mut().zip(row) {
-            *m += v as f64;
-        }
-    }
-    mean.iter_mut().for_each(|m| *m /= count as f64);
-    let ss: f64 = samples
-        .chunks_exact(dim)
-        .map(|row| {
-            row.iter()
-                .zip(&mean)
-                .map(|(&v, m)| (v as f64 - m).powi(2))
-                .sum::<f64>()
-        })
-        .sum();
-    let s = (ss / count as f64).sqrt() as f32;
-    Ok(if s > 0.0 && s.is_finite() { s } else { 1.0 })
-}
 
 /// A fitted NRBF deformation model of one primitive (Sand 2003 §5.1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -139,18 +113,8 @@ impl Nrbf {
                 what: "prototype shapes",
             });
         }
-        if !(config_scale.is_finite() && config_scale > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "config_scale",
-                reason: format!("must be finite and > 0, got {config_scale}"),
-            });
-        }
-        if !(kernel_width_w.is_finite() && kernel_width_w > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                reason: format!("must be finite and > 0, got {kernel_width_w}"),
-            });
-        }
+        check::positive("config_scale", f64::from(config_scale))?;
+        check::positive("kernel_width_w", kernel_width_w)?;
         Ok(Self {
             dim,
             num_needles: shapes.num_needles,
@@ -311,8 +275,7 @@ impl Nrbf {
     ///
     /// # Example
     /// ```
-    /// use needle_model::nrbf::Nrbf;
-    /// use needle_model::prototypes::PrototypeShapes;
+    /// use needle_model::{Nrbf, PrototypeShapes};
     /// // Two 1-D prototypes at 0 and 1 with one needle of length 2 and 4.
     /// let shapes = PrototypeShapes { num_needles: 1, num_prototypes: 2,
     ///     lengths: vec![2.0, 4.0], filled_needles: vec![] };
@@ -357,7 +320,6 @@ impl Nrbf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::prototypes::observations_from_lists;
     use rand::RngExt;
 
     const DIM: usize = 3;
@@ -414,7 +376,10 @@ mod tests {
                     }
                 }
             }
-            (samples, observations_from_lists(&per_needle).unwrap())
+            (
+                samples,
+                NeedleObservations::from_lists(&per_needle).unwrap(),
+            )
         }
 
         /// RMS error over held-out interior points.
@@ -541,7 +506,7 @@ mod tests {
         for j in 0..NEEDLES {
             let mut all = obs.needle(j).1.to_vec();
             all.sort_by(f32::total_cmp);
-            let expect = all[crate::prototypes::percentile_index(all.len(), params.f_min)];
+            let expect = all[crate::prototype_shapes::percentile_index(all.len(), params.f_min)];
             for k in 0..fit.model.num_prototypes() {
                 assert_eq!(fit.model.shapes()[k * NEEDLES + j], expect);
             }
@@ -665,7 +630,7 @@ mod tests {
             Nrbf::new(1, vec![0.0], nan_shape, 1.0, 7.0),
             Err(Error::NonFinite { .. })
         ));
-        let obs = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
+        let obs = NeedleObservations::from_lists(&[vec![(0, 1.0)]]).unwrap();
         assert!(matches!(
             Nrbf::fit(
                 &[0.0],
@@ -690,7 +655,6 @@ mod tests {
 #[cfg(test)]
 mod proptests {
     use super::*;
-    use crate::prototypes::observations_from_lists;
     use proptest::prelude::*;
 
     proptest! {
@@ -713,7 +677,7 @@ mod proptests {
             let per_needle: Vec<Vec<(u32, f32)>> = (0..3)
                 .map(|_| (0..200u32).map(|s| (s, rng.random_range(0.1f32..1.0))).collect())
                 .collect();
-            let obs = observations_from_lists(&per_needle).unwrap();
+            let obs = NeedleObservations::from_lists(&per_needle).unwrap();
             let params = ReconstructionParams::default()
                 .with_f_near(f_near)
                 .with_f_min(f_min)
