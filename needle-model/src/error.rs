@@ -79,6 +79,20 @@ impl Error {
         }
     }
 
+    /// The name of the invalid parameter if this is an invalid-parameter error, whether raised
+    /// here ([`Error::InvalidParam`]) or by [`skin_core::check`] ([`Error::Core`]), below any
+    /// contexts.
+    pub fn invalid_param_name(&self) -> Option<&'static str> {
+        match self.root() {
+            Error::InvalidParam { name, .. } => Some(name),
+            Error::Core(e) => match e.root() {
+                skin_core::Error::InvalidParam { name, .. } => Some(name),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
     /// The contexts from the outside in, e.g. `[Primitive(3), Needle(17)]`.
     pub fn contexts(&self) -> Vec<Context> {
         let mut out = Vec::new();

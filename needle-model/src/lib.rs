@@ -37,8 +37,9 @@
 //! | `silhouette_error.rs` | [`SilhouetteScorer`]: the silhouette error | §6.2 |
 //! | `select.rs` | [`select_params`]: automatic parameter selection | §6.3 |
 //!
-//! Validation equipment sits behind the cargo feature `validation`: [`truth`](crate#validation)
-//! (ground-truth scoring on the studio) and `baseline` (the linear-blend-skinning baseline).
+//! Validation equipment sits behind the cargo feature `validation` (see
+//! [Validation](#validation)): `truth` (ground-truth scoring on the studio) and `baseline`
+//! (the linear-blend-skinning baseline).
 //!
 //! Errors are one [`Error`]; an error inside a loop over primitives, needles, cameras or frames
 //! says where ([`Error::At`] with a [`Context`]).

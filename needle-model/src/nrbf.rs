@@ -84,7 +84,8 @@ impl Nrbf {
     /// # Errors
     /// [`Error::SizeMismatch`] if `shapes.num_prototypes` differs from the number of
     /// locations or `shapes.lengths` has the wrong size; [`Error::InvalidParam`] for
-    /// `dim ∉ 1..=16`, `config_scale ≤ 0` or `kernel_width_w ≤ 0`; [`Error::NonFinite`] for
+    /// `dim ∉ 1..=16`, an invalid-parameter [`Error::Core`] for `config_scale ≤ 0` or
+    /// `kernel_width_w ≤ 0`; [`Error::NonFinite`] for
     /// NaN/∞ inputs; [`Error::Empty`] for no prototypes.
     pub fn new(
         dim: usize,
@@ -612,14 +613,18 @@ mod tests {
             Nrbf::new(1, vec![0.0, 1.0], shapes(3), 1.0, 7.0),
             Err(Error::SizeMismatch { .. })
         ));
-        assert!(matches!(
-            Nrbf::new(1, vec![0.0], shapes(1), 0.0, 7.0),
-            Err(Error::InvalidParam { .. })
-        ));
-        assert!(matches!(
-            Nrbf::new(1, vec![0.0], shapes(1), 1.0, -1.0),
-            Err(Error::InvalidParam { .. })
-        ));
+        assert_eq!(
+            Nrbf::new(1, vec![0.0], shapes(1), 0.0, 7.0)
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("config_scale")
+        );
+        assert_eq!(
+            Nrbf::new(1, vec![0.0], shapes(1), 1.0, -1.0)
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("kernel_width_w")
+        );
         assert!(matches!(
             Nrbf::new(1, vec![f32::NAN], shapes(1), 1.0, 7.0),
             Err(Error::NonFinite { .. })
@@ -631,19 +636,15 @@ mod tests {
             Err(Error::NonFinite { .. })
         ));
         let obs = NeedleObservations::from_lists(&[vec![(0, 1.0)]]).unwrap();
-        assert!(matches!(
-            Nrbf::fit(
-                &[0.0],
-                1,
-                &obs,
-                &[vec![]],
-                &ReconstructionParams::default().with_kernel_width_w(0.0)
-            ),
-            Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                ..
-            })
-        ));
+        let e = Nrbf::fit(
+            &[0.0],
+            1,
+            &obs,
+            &[vec![]],
+            &ReconstructionParams::default().with_kernel_width_w(0.0),
+        )
+        .unwrap_err();
+        assert_eq!(e.invalid_param_name(), Some("kernel_width_w"));
         assert!(matches!(
             config_scale(&[f32::NAN], 1),
             Err(Error::NonFinite { .. })

@@ -10,6 +10,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use skin_core::check;
+
 use crate::{Error, Result};
 
 /// Default `F_near`: fraction of a needle's observations used for each prototype.
@@ -115,8 +117,10 @@ impl ReconstructionParams {
     /// Checks every field's range.
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] naming the field when `f_near ∉ (0, 1]`, `f_min ∉ [0, 1]`,
-    /// `kernel_width_w ≤ 0`, `prototype_count_n = 0`, `min_near = 0`, or any value is NaN / infinite.
+    /// An invalid-parameter error naming the field ([`Error::invalid_param_name`]):
+    /// [`Error::InvalidParam`] when `f_near ∉ (0, 1]` or NaN; [`Error::Core`] (from
+    /// [`skin_core::check`]) when `f_min ∉ [0, 1]`, `kernel_width_w ≤ 0`,
+    /// `prototype_count_n = 0`, `min_near = 0`, or a value is NaN / infinite.
     pub fn validate(&self) -> Result<()> {
         if !(self.f_near.is_finite() && self.f_near > 0.0 && self.f_near <= 1.0) {
             return Err(Error::InvalidParam {
@@ -124,30 +128,10 @@ impl ReconstructionParams {
                 reason: format!("must be in (0, 1], got {}", self.f_near),
             });
         }
-        if !(self.f_min.is_finite() && (0.0..=1.0).contains(&self.f_min)) {
-            return Err(Error::InvalidParam {
-                name: "f_min",
-                reason: format!("must be in [0, 1], got {}", self.f_min),
-            });
-        }
-        if !(self.kernel_width_w.is_finite() && self.kernel_width_w > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                reason: format!("must be finite and > 0, got {}", self.kernel_width_w),
-            });
-        }
-        if self.min_near == 0 {
-            return Err(Error::InvalidParam {
-                name: "min_near",
-                reason: "must be at least 1".into(),
-            });
-        }
-        if self.prototype_count_n == 0 {
-            return Err(Error::InvalidParam {
-                name: "prototype_count_n",
-                reason: "must be at least 1".into(),
-            });
-        }
+        check::in_range("f_min", self.f_min, 0.0..=1.0)?;
+        check::positive("kernel_width_w", self.kernel_width_w)?;
+        check::nonzero("min_near", self.min_near)?;
+        check::nonzero("prototype_count_n", self.prototype_count_n)?;
         Ok(())
     }
 }
@@ -183,10 +167,8 @@ mod tests {
             (d.with_min_near(0), "min_near"),
         ];
         for (p, field) in cases {
-            match p.validate() {
-                Err(Error::InvalidParam { name, .. }) => assert_eq!(name, field),
-                other => panic!("{field}: expected InvalidParam, got {other:?}"),
-            }
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.invalid_param_name(), Some(field), "{e}");
         }
         // Boundaries that are valid.
         d.with_f_near(1.0).with_f_min(0.0).validate().unwrap();

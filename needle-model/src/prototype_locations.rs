@@ -10,9 +10,10 @@
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 
 use crate::config::{check_samples, dist2};
-use crate::{Error, Result};
+use crate::Result;
 
 /// Prototype locations chosen by farthest-point selection (§5.2).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -36,9 +37,11 @@ pub struct PrototypeLocations {
 /// (with fewer than `n` prototypes) when every sample coincides with a prototype.
 ///
 /// # Errors
-/// [`Error::InvalidParam`] for `dim ∉ 1..=16` or `n = 0`; [`Error::Empty`] for no samples;
-/// [`Error::SizeMismatch`] if `samples.len()` is not a multiple of `dim`;
-/// [`Error::NonFinite`] for NaN/∞ coordinates.
+/// [`Error::InvalidParam`](crate::Error::InvalidParam) for `dim ∉ 1..=16`;
+/// [`Error::Core`](crate::Error::Core) (invalid parameter `prototype_count_n`) for `n = 0`;
+/// [`Error::Empty`](crate::Error::Empty) for no samples;
+/// [`Error::SizeMismatch`](crate::Error::SizeMismatch) if `samples.len()` is not a multiple
+/// of `dim`; [`Error::NonFinite`](crate::Error::NonFinite) for NaN/∞ coordinates.
 ///
 /// # Example
 /// ```
@@ -58,12 +61,7 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Result<PrototypeLocations> {
     let count = check_samples(samples, dim)?;
-    if n == 0 {
-        return Err(Error::InvalidParam {
-            name: "prototype_count_n",
-            reason: "must be at least 1".into(),
-        });
-    }
+    check::nonzero("prototype_count_n", n)?;
     let first = rng.random_range(0..count);
     let mut chosen = vec![first];
     let mut last = first;
@@ -121,6 +119,7 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -222,9 +221,11 @@ mod tests {
             f(&[0.0; 17], 17, 3, &mut rng),
             Err(Error::InvalidParam { name: "dim", .. })
         ));
-        assert!(matches!(
-            f(&[1.0, 2.0], 2, 0, &mut rng),
-            Err(Error::InvalidParam { .. })
-        ));
+        assert_eq!(
+            f(&[1.0, 2.0], 2, 0, &mut rng)
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("prototype_count_n")
+        );
     }
 }

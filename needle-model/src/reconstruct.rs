@@ -274,28 +274,32 @@ mod tests {
             NeedleModel::reconstruct_grids(&store, &grids[..1], &p),
             Err(Error::SizeMismatch { .. })
         ));
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&store, &[(6, 2), (5, 3)], &p),
-            Err(Error::SizeMismatch { .. })
-        ));
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&store, &grids, &p.with_f_min(2.0)),
-            Err(Error::InvalidParam { name: "f_min", .. })
-        ));
+        let e = NeedleModel::reconstruct_grids(&store, &[(6, 2), (5, 3)], &p).unwrap_err();
+        assert!(matches!(e.contexts()[..], [Context::Primitive(_)]), "{e}");
+        assert!(matches!(e.root(), Error::SizeMismatch { .. }), "{e}");
+        assert_eq!(
+            NeedleModel::reconstruct_grids(&store, &grids, &p.with_f_min(2.0))
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("f_min")
+        );
         let empty = ObservationStore::new(&[PrimitiveShape {
             config_dim: 3,
             needle_count: 4,
             max_length_m: 0.1,
         }])
         .unwrap();
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&empty, &[(4, 1)], &p),
-            Err(Error::NoObservations { .. })
-        ));
+        let e = NeedleModel::reconstruct_grids(&empty, &[(4, 1)], &p).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Primitive(0)]);
+        assert!(matches!(e.root(), Error::NoObservations { .. }));
+        assert_eq!(
+            e.to_string(),
+            "primitive 0: no observations: the primitive has no samples"
+        );
         let rec = NeedleModel::reconstruct_grids(&store, &grids, &p).unwrap();
         assert!(matches!(
             rec.model.needle_lengths(2, &[0.0; 3]),
-            Err(Error::SizeMismatch { .. })
+            Err(Error::IndexOutOfRange { index: 2, .. })
         ));
         assert!(matches!(
             rec.model.needle_lengths(0, &[0.0, f32::NAN, 0.0]),

@@ -21,6 +21,7 @@
 use std::collections::HashMap;
 
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 use skin_core::image::Mask;
 use skin_core::skeleton::Skeleton;
 
@@ -31,7 +32,7 @@ use crate::reconstruct::NeedleModel;
 use crate::silhouette_error::SilhouetteScorer;
 use crate::store::ObservationStore;
 use crate::surface::merged_mesh;
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// One validation frame: a pose and the observed mask of each camera.
 #[derive(Debug, Clone, Copy)]
@@ -137,8 +138,9 @@ pub struct Selection {
 /// as the union, see [`crate::silhouette_error`]).
 ///
 /// # Errors
-/// [`Error::Empty`] without frames; errors of [`NeedleModel::reconstruct`], [`animate`],
-/// [`merged_mesh`] and [`SilhouetteScorer::frame_error`].
+/// [`Error::Empty`] without frames; errors of [`NeedleModel::reconstruct`]; errors of
+/// [`animate`], [`merged_mesh`] and [`SilhouetteScorer::frame_error`] in [`Error::At`] with
+/// the validation frame's [`Context::Frame`].
 pub fn validation_error(
     store: &ObservationStore,
     body: &NeedleBody,
@@ -154,12 +156,23 @@ pub fn validation_error(
     }
     let model = NeedleModel::reconstruct(store, body, params)?.model;
     let mut sum = 0.0;
-    for f in frames {
-        let posed = animate(body, &model, skeleton, f.theta)?;
-        let mesh = merged_mesh(&posed)?;
-        sum += scorer.frame_error(&mesh, f.masks)?.error;
+    for (i, f) in frames.iter().enumerate() {
+        sum += frame_error(body, &model, skeleton, scorer, f).at(Context::Frame(i))?;
     }
     Ok(sum / frames.len() as f64)
+}
+
+/// Silhouette error of one validation frame (the body of [`validation_error`]'s loop).
+fn frame_error(
+    body: &NeedleBody,
+    model: &NeedleModel,
+    skeleton: &Skeleton,
+    scorer: &SilhouetteScorer,
+    f: &ValidationFrame<'_>,
+) -> Result<f64> {
+    let posed = animate(body, model, skeleton, f.theta)?;
+    let mesh = merged_mesh(&posed)?;
+    Ok(scorer.frame_error(&mesh, f.masks)?.error)
 }
 
 fn check_grid(name: &'static str, grid: &[f64], ok: impl Fn(f64) -> bool) -> Result<()> {
@@ -183,9 +196,9 @@ fn check_grid(name: &'static str, grid: &[f64], ok: impl Fn(f64) -> bool) -> Res
 /// values). The returned error never exceeds the start's.
 ///
 /// # Errors
-/// [`Error::InvalidParam`] for an empty grid, an out-of-range grid value (ranges of
-/// [`ReconstructionParams::validate`]), `rounds = 0` or a bad tolerance; errors of
-/// [`validation_error`] (including an invalid `start`).
+/// An invalid-parameter error ([`Error::invalid_param_name`]) for an empty grid, an
+/// out-of-range grid value (ranges of [`ReconstructionParams::validate`]), `rounds = 0` or a
+/// bad tolerance; errors of [`validation_error`] (including an invalid `start`).
 pub fn select_params(
     store: &ObservationStore,
     body: &NeedleBody,
@@ -204,18 +217,8 @@ pub fn select_params(
         .map(|&n| n as f64)
         .collect();
     check_grid("prototype_count_n_grid", &n_grid, |v| v >= 1.0)?;
-    if sel.rounds == 0 {
-        return Err(Error::InvalidParam {
-            name: "rounds",
-            reason: "must be ≥ 1".into(),
-        });
-    }
-    if !(sel.n_relative_tolerance.is_finite() && sel.n_relative_tolerance >= 0.0) {
-        return Err(Error::InvalidParam {
-            name: "n_relative_tolerance",
-            reason: format!("must be finite and ≥ 0, got {}", sel.n_relative_tolerance),
-        });
-    }
+    check::nonzero("rounds", sel.rounds)?;
+    check::non_negative("n_relative_tolerance", sel.n_relative_tolerance)?;
     start.validate()?;
     // Evaluations are cached by the exact parameter values.
     let mut cache: HashMap<[u64; 4], f64> = HashMap::new();
@@ -477,7 +480,7 @@ mod tests {
             },
         ];
         for c in &cases {
-            assert!(matches!(run(c), Err(Error::InvalidParam { .. })), "{c:?}");
+            assert!(run(c).unwrap_err().invalid_param_name().is_some(), "{c:?}");
         }
         assert!(matches!(
             validation_error(&s.store, &s.body, &s.sk, &s.scorer, &[], &d),
@@ -488,6 +491,7 @@ mod tests {
             theta: &nan_pose,
             masks: &s.masks[0],
         }];
-        assert!(validation_error(&s.store, &s.body, &s.sk, &s.scorer, &bad, &d).is_err());
+        let e = validation_error(&s.store, &s.body, &s.sk, &s.scorer, &bad, &d).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Frame(0)], "{e}");
     }
 }
