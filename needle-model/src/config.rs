@@ -58,8 +58,8 @@ impl ConfigSpace {
     /// A configuration space from marker names.
     ///
     /// # Errors
-    /// [`Error::Empty`] without markers; errors of [`resolve_marker`]; [`Error::InvalidParam`]
-    /// if `carrier` is not a joint of `skeleton`.
+    /// [`Error::Empty`] without markers; errors of [`resolve_marker`];
+    /// [`Error::IndexOutOfRange`] if `carrier` is not a joint of `skeleton`.
     pub fn new(skeleton: &Skeleton, carrier: usize, markers: &[String]) -> Result<Self> {
         if markers.is_empty() {
             return Err(Error::Empty {
@@ -67,9 +67,10 @@ impl ConfigSpace {
             });
         }
         if carrier >= skeleton.joint_count() {
-            return Err(Error::InvalidParam {
-                name: "carrier",
-                reason: format!("joint index {carrier} ≥ {}", skeleton.joint_count()),
+            return Err(Error::IndexOutOfRange {
+                what: "carrier joint",
+                index: carrier,
+                len: skeleton.joint_count(),
             });
         }
         let markers = markers

@@ -23,6 +23,7 @@ use skin_core::camera::{
     calibrate, estimate_time_offset, CalibrationParams, CalibrationReport, SampledSignal,
     TimeOffsetParams,
 };
+use skin_core::check;
 
 use crate::{Error, Result};
 
@@ -85,8 +86,8 @@ pub struct DeviceCalibration {
 ///
 /// # Errors
 /// [`Error::Empty`] for an empty track or a video without detections; [`Error::NonFinite`]
-/// for NaN/∞ positions, centres or times; [`Error::InvalidParam`] for non-positive rates, a
-/// zero `up` or `sync_seconds ≤ 0`; the errors of [`estimate_time_offset`] (no overlap,
+/// for NaN/∞ positions, centres or times; an invalid-parameter error
+/// ([`Error::invalid_param_name`]) for non-positive rates, a zero `up` or `sync_seconds ≤ 0`; the errors of [`estimate_time_offset`] (no overlap,
 /// constant signals) and [`calibrate`] (fewer than six matched points, coplanar motion).
 pub fn calibrate_device(
     track: &DeviceTrack,
@@ -97,12 +98,7 @@ pub fn calibrate_device(
         ("track rate_hz", track.rate_hz),
         ("video rate_hz", video.rate_hz),
     ] {
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be finite and > 0, got {rate}"),
-            });
-        }
+        check::positive(name, rate)?;
     }
     if !(track.start_s.is_finite() && video.start_s.is_finite()) {
         return Err(Error::NonFinite {
@@ -134,14 +130,9 @@ pub fn calibrate_device(
     let up = up.normalize();
     let frames = match params.sync_seconds {
         None => video.centres.len(),
-        Some(s) if s.is_finite() && s > 0.0 => {
-            ((s * video.rate_hz).ceil() as usize).min(video.centres.len())
-        }
         Some(s) => {
-            return Err(Error::InvalidParam {
-                name: "sync_seconds",
-                reason: format!("must be finite and > 0, got {s}"),
-            })
+            let s = check::positive("sync_seconds", s)?;
+            ((s * video.rate_hz).ceil() as usize).min(video.centres.len())
         }
     };
     let v = fill_gaps(&video.centres[..frames]).ok_or(Error::Empty {

@@ -40,7 +40,7 @@ use skin_core::image::Mask;
 use skin_core::math::{DVec2, DVec3};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
-use crate::error::{Error, Result};
+use crate::error::{Context, Error, Result, ResultExt};
 use crate::primitive::NeedleBody;
 use crate::store::ObservationStore;
 
@@ -278,7 +278,8 @@ impl Observer {
     /// # Errors
     /// [`Error::SizeMismatch`] for a wrong number of masks or a mask whose size differs from
     /// its camera's image; errors of [`Skeleton::forward_kinematics`] (wrong length or
-    /// non-finite θ); errors of [`ObservationStore::push_sample`] for a store of another body.
+    /// non-finite θ); errors of [`ObservationStore::push_sample`] for a store of another body
+    /// (in [`Error::At`] with the [`Context::Primitive`] and [`Context::Camera`]).
     pub fn observe_frame(
         &self,
         theta: &[f64],
@@ -302,13 +303,18 @@ impl Observer {
         let mut config = Vec::new();
         for (p, prim) in self.body.primitives.iter().enumerate() {
             config.resize(prim.config.dim(), 0.0);
-            prim.config.point_into(fk, &mut config)?;
-            let t = world.get(prim.carrier).ok_or(Error::SizeMismatch {
-                what: "forward kinematics joints",
-                expected: prim.carrier + 1,
-                got: world.len(),
-            })?;
-            for (cam, mask) in self.cameras.iter().zip(masks) {
+            prim.config
+                .point_into(fk, &mut config)
+                .at(Context::Primitive(p))?;
+            let t = world
+                .get(prim.carrier)
+                .ok_or(Error::SizeMismatch {
+                    what: "forward kinematics joints",
+                    expected: prim.carrier + 1,
+                    got: world.len(),
+                })
+                .at(Context::Primitive(p))?;
+            for (c, (cam, mask)) in self.cameras.iter().zip(masks).enumerate() {
                 obs.clear();
                 for j in 0..prim.needle_count() {
                     let (o, d) = prim.needle_world(t, j);
@@ -319,7 +325,10 @@ impl Observer {
                         obs.push((j as u16, length_m as f32));
                     }
                 }
-                store.push_sample(p, &config, &obs)?;
+                store
+                    .push_sample(p, &config, &obs)
+                    .at(Context::Camera(c))
+                    .at(Context::Primitive(p))?;
             }
         }
         Ok(stats)
@@ -329,8 +338,8 @@ impl Observer {
     /// then primitive, then camera order, identical for any thread count.
     ///
     /// # Errors
-    /// As [`Observer::observe_frame`] for the first failing frame; [`Error::Empty`] for no
-    /// frames.
+    /// [`Error::Empty`] for no frames; the errors of [`Observer::observe_frame`] for the first
+    /// failing frame, in [`Error::At`] with its [`Context::Frame`].
     pub fn accumulate(&self, frames: &[FrameInput<'_>]) -> Result<Accumulation> {
         if frames.is_empty() {
             return Err(Error::Empty { what: "frames" });
@@ -338,9 +347,12 @@ impl Observer {
         let shapes = self.body.store_shapes();
         let parts: Vec<(ObservationStore, ObserveStats)> = frames
             .par_iter()
-            .map(|f| {
+            .enumerate()
+            .map(|(i, f)| {
                 let mut st = ObservationStore::new(&shapes)?;
-                let stats = self.observe_frame(f.theta, f.masks, &mut st)?;
+                let stats = self
+                    .observe_frame(f.theta, f.masks, &mut st)
+                    .at(Context::Frame(i))?;
                 Ok((st, stats))
             })
             .collect::<Result<_>>()?;

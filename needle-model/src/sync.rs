@@ -137,8 +137,8 @@ pub fn sample_motion(skeleton: &Skeleton, motion: &Motion, t_s: f64) -> Result<V
 /// [`Error::Empty`] without frames, cameras or markers, or if every mask is empty (no
 /// silhouette to measure against); [`Error::SizeMismatch`] for a frame whose mask count or
 /// mask size does not match the cameras; [`Error::NonFinite`] for a non-finite time or initial
-/// offset; [`Error::InvalidParam`] for an unknown marker or invalid params; errors of
-/// [`sample_motion`] and of the optimiser.
+/// offset; an invalid-parameter error ([`Error::invalid_param_name`]) for an unknown marker or
+/// invalid params; errors of [`sample_motion`] and of the optimiser.
 pub fn estimate_sync_offset(
     skeleton: &Skeleton,
     motion: &Motion,
@@ -160,12 +160,7 @@ pub fn estimate_sync_offset(
             what: "sync markers",
         });
     }
-    if !(params.cap_px.is_finite() && params.cap_px > 0.0) {
-        return Err(Error::InvalidParam {
-            name: "cap_px",
-            reason: format!("must be finite and > 0, got {}", params.cap_px),
-        });
-    }
+    skin_core::check::positive("cap_px", params.cap_px)?;
     if !initial_offset_s.is_finite() {
         return Err(Error::NonFinite {
             what: "initial offset",
