@@ -1,12 +1,8 @@
 //! Animation of the reconstructed body for a new pose (Sand, McMillan and Popović 2003 §5.4;
 //! thesis §5.4).
 //!
-//! "To animate the body we evaluate the reconstructed deformable primitives for the new
-//! skeletal configuration": for a pose θ the skeleton's forward kinematics gives every bone
-//! frame; each primitive's configuration point (marker coordinates in its carrier frame, §3.3)
-//! is evaluated by its NRBF ([`NeedleModel::needle_lengths`], §5.1) and every needle endpoint is
-//! `origin + direction · length` in the posed carrier frame. The result, an [`AnimatedBody`],
-//! is the input of the surface builders in [`crate::surface`].
+//! The method is documented on [`animate`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
@@ -52,6 +48,16 @@ impl AnimatedBody {
 }
 
 /// Poses `body` at θ and evaluates `model` for every primitive (Sand 2003 §5.4).
+///
+/// Animation of the reconstructed body for a new pose (Sand, McMillan and Popović 2003 §5.4;
+/// thesis §5.4).
+///
+/// "To animate the body we evaluate the reconstructed deformable primitives for the new
+/// skeletal configuration": for a pose θ the skeleton's forward kinematics gives every bone
+/// frame; each primitive's configuration point (marker coordinates in its carrier frame, §3.3)
+/// is evaluated by its NRBF ([`NeedleModel::needle_lengths`], §5.1) and every needle endpoint is
+/// `origin + direction · length` in the posed carrier frame. The result, an [`AnimatedBody`],
+/// is the input of the surface builders ([`crate::primitive_meshes`], [`crate::union_mesh`]).
 ///
 /// # Errors
 /// [`Error::Core`] for a pose of the wrong length or with NaN/∞ (from the skeleton's pose

@@ -1,15 +1,7 @@
 //! Configuration spaces of deformable primitives (Sand 2003 §3.3, Table 3.1).
 //!
-//! "To avoid the issues of joint-angle representation, we use marker coordinates to determine
-//! the configuration space. For example, the configuration of the right thigh depends on
-//! markers attached to the hip and the right calf, where the positions are expressed with
-//! respect to the local coordinate frame of the thigh bone" (§3.3). A [`ConfigSpace`] is a
-//! carrier joint plus a list of markers (points rigid on other bones); its configuration
-//! point is the concatenation of the markers' positions in the carrier frame (3 values each,
-//! metres).
-//!
-//! Marker syntax: a joint name (`"r_knee"`) is that joint's origin; `"joint.tip"` is its end
-//! site (e.g. `"r_ankle.tip"`, the toe tip of `human_skeleton`).
+//! The method is documented on [`ConfigSpace`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
@@ -17,7 +9,9 @@ use skin_core::skeleton::{AttachedPoint, ForwardKinematics, Skeleton};
 
 use crate::error::{Error, Result};
 
-/// Resolves a marker name (see the module docs) to a point attached to a joint.
+/// Resolves a marker name to a point attached to a joint: a joint name (`"r_knee"`) is that
+/// joint's origin; `"joint.tip"` is its end site (e.g. `"r_ankle.tip"`, the toe tip of
+/// `human_skeleton`).
 ///
 /// # Errors
 /// [`Error::InvalidParam`] for an unknown joint or a `.tip` of a joint without end site.
@@ -46,6 +40,19 @@ pub fn resolve_marker(skeleton: &Skeleton, name: &str) -> Result<AttachedPoint> 
 }
 
 /// The configuration space of one primitive: marker positions in the carrier frame (§3.3).
+///
+/// Configuration spaces of deformable primitives (Sand 2003 §3.3, Table 3.1).
+///
+/// "To avoid the issues of joint-angle representation, we use marker coordinates to determine
+/// the configuration space. For example, the configuration of the right thigh depends on
+/// markers attached to the hip and the right calf, where the positions are expressed with
+/// respect to the local coordinate frame of the thigh bone" (§3.3). A [`ConfigSpace`] is a
+/// carrier joint plus a list of markers (points rigid on other bones); its configuration
+/// point is the concatenation of the markers' positions in the carrier frame (3 values each,
+/// metres).
+///
+/// Marker syntax: a joint name (`"r_knee"`) is that joint's origin; `"joint.tip"` is its end
+/// site (e.g. `"r_ankle.tip"`, the toe tip of `human_skeleton`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ConfigSpace {
     /// Carrier joint index (the primitive's frame).

@@ -2,20 +2,8 @@
 //! thesis §4.1): a motion-capture marker on a green sphere, tracked by the motion-capture
 //! system and seen by a video camera.
 //!
-//! "The calibration process starts with synchronization of video and motion data. We move the
-//! calibration device up and down in a plane roughly parallel to the image plane of a
-//! particular camera and correlate the vertical image coordinate with the vertical world
-//! coordinate. After synchronization, the calibration device can be moved freely in three
-//! dimensions. We resample the resulting motion-capture sequence to obtain a sequence of
-//! matching image `p_i` and world `w_i` points" and minimise the image error.
-//!
-//! [`calibrate_device`] chains the skin-core pieces: the time offset by normalised
-//! cross-correlation of the device's height with the sphere's image `v` coordinate
-//! ([`estimate_time_offset`], which accepts the inverted sign: `v` grows downwards), the
-//! motion-capture track resampled at each video frame's time (linear interpolation), and
-//! [`calibrate`] (DLT, then Levenberg–Marquardt or Sand's simplex, with radial distortion).
-//! Frames where the sphere was not detected are skipped; for the correlation their `v` is
-//! interpolated from the neighbouring detections.
+//! The method is documented on [`calibrate_device`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
@@ -82,7 +70,26 @@ pub struct DeviceCalibration {
 }
 
 /// Synchronises the device's track with one camera's video and calibrates that camera
-/// (module docs).
+/// (see [`calibrate_device`]).
+///
+/// Camera calibration with the calibration device (Sand, McMillan and Popović 2003 §4.1;
+/// thesis §4.1): a motion-capture marker on a green sphere, tracked by the motion-capture
+/// system and seen by a video camera.
+///
+/// "The calibration process starts with synchronization of video and motion data. We move the
+/// calibration device up and down in a plane roughly parallel to the image plane of a
+/// particular camera and correlate the vertical image coordinate with the vertical world
+/// coordinate. After synchronization, the calibration device can be moved freely in three
+/// dimensions. We resample the resulting motion-capture sequence to obtain a sequence of
+/// matching image `p_i` and world `w_i` points" and minimise the image error.
+///
+/// [`calibrate_device`] chains the skin-core pieces: the time offset by normalised
+/// cross-correlation of the device's height with the sphere's image `v` coordinate
+/// ([`estimate_time_offset`], which accepts the inverted sign: `v` grows downwards), the
+/// motion-capture track resampled at each video frame's time (linear interpolation), and
+/// [`calibrate`] (DLT, then Levenberg–Marquardt or Sand's simplex, with radial distortion).
+/// Frames where the sphere was not detected are skipped; for the correlation their `v` is
+/// interpolated from the neighbouring detections.
 ///
 /// # Errors
 /// [`Error::Empty`] for an empty track or a video without detections; [`Error::NonFinite`]

@@ -1,41 +1,8 @@
 //! Normalised radial basis function deformation model: Sand, McMillan and Popović 2003 §5.1
 //! (thesis §5.1) and its fitting from observations (§5.2–5.3).
 //!
-//! Each needle length of a primitive is a distance-weighted average of prototype shapes:
-//!
-//! ```text
-//! l_j(x) = Σ_k v_jk K(x, p_k) / Σ_k K(x, p_k)                       (§5.1)
-//! ```
-//!
-//! The paper uses the plain normalised kernel average ("interpolate prototype shapes via
-//! distance-weighted averaging", after Broomhead and Lowe) — there is no linear solve for RBF
-//! coefficients, and the model does not pass exactly through `v_jk` at `p_k` unless the
-//! kernel is narrow compared with the prototype spacing. Far from all prototypes the weights
-//! tend to the nearest prototype, which is the extrapolation the paper wants (§5.1).
-//!
-//! ## The kernel and the meaning of `W`
-//!
-//! The paper says only that `K` is Gaussian with "kernel width W" and that `W = 7` minimised
-//! the silhouette error (§6.3); it gives neither the formula nor the units of the
-//! configuration space (marker coordinates in the bone frame, §3.3), so a bare `W = 7` in
-//! metres, centimetres or millimetres would mean a static model, a smooth one or
-//! nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
-//! measuring distances in units of the training data's RMS radius
-//! `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
-//!
-//! ```text
-//! K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
-//! ```
-//!
-//! Why this reading: with `N = 100` farthest-point prototypes over a 3-D data cloud the
-//! prototype spacing is ≈ 0.4 s, so σ ≈ 0.27 s gives each query a few prototypes with
-//! non-negligible weight — a smooth blend, neither a static average (σ ≫ spacing) nor
-//! nearest-neighbour lookup (σ ≪ spacing). In 9-D spaces `s` grows like √dim together with the
-//! prototype spacing, so the same `W` stays sensible; this is why the paper could use one
-//! `W` for all primitives. Larger `W` is a sharper kernel.
-//!
-//! Evaluation subtracts the smallest exponent before `exp`, so the weights never underflow
-//! to `0/0` however far `x` is from the data.
+//! The method is documented on [`Nrbf`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -51,6 +18,45 @@ use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
 /// A fitted NRBF deformation model of one primitive (Sand 2003 §5.1).
+///
+/// Normalised radial basis function deformation model: Sand, McMillan and Popović 2003 §5.1
+/// (thesis §5.1) and its fitting from observations (§5.2–5.3).
+///
+/// Each needle length of a primitive is a distance-weighted average of prototype shapes:
+///
+/// ```text
+/// l_j(x) = Σ_k v_jk K(x, p_k) / Σ_k K(x, p_k)                       (§5.1)
+/// ```
+///
+/// The paper uses the plain normalised kernel average ("interpolate prototype shapes via
+/// distance-weighted averaging", after Broomhead and Lowe) — there is no linear solve for RBF
+/// coefficients, and the model does not pass exactly through `v_jk` at `p_k` unless the
+/// kernel is narrow compared with the prototype spacing. Far from all prototypes the weights
+/// tend to the nearest prototype, which is the extrapolation the paper wants (§5.1).
+///
+/// ## The kernel and the meaning of `W`
+///
+/// The paper says only that `K` is Gaussian with "kernel width W" and that `W = 7` minimised
+/// the silhouette error (§6.3); it gives neither the formula nor the units of the
+/// configuration space (marker coordinates in the bone frame, §3.3), so a bare `W = 7` in
+/// metres, centimetres or millimetres would mean a static model, a smooth one or
+/// nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
+/// measuring distances in units of the training data's RMS radius
+/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
+///
+/// ```text
+/// K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
+/// ```
+///
+/// Why this reading: with `N = 100` farthest-point prototypes over a 3-D data cloud the
+/// prototype spacing is ≈ 0.4 s, so σ ≈ 0.27 s gives each query a few prototypes with
+/// non-negligible weight — a smooth blend, neither a static average (σ ≫ spacing) nor
+/// nearest-neighbour lookup (σ ≪ spacing). In 9-D spaces `s` grows like √dim together with the
+/// prototype spacing, so the same `W` stays sensible; this is why the paper could use one
+/// `W` for all primitives. Larger `W` is a sharper kernel.
+///
+/// Evaluation subtracts the smallest exponent before `exp`, so the weights never underflow
+/// to `0/0` however far `x` is from the data.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Nrbf {
     dim: usize,
@@ -61,7 +67,7 @@ pub struct Nrbf {
     shapes: Vec<f32>,
     /// RMS radius `s` of the training configurations (configuration-space units).
     config_scale: f32,
-    /// Kernel parameter `W` (dimensionless, see the module docs).
+    /// Kernel parameter `W` (dimensionless, see [`Nrbf`]).
     kernel_width_w: f64,
 }
 

@@ -1,12 +1,7 @@
 //! Reconstruction parameters of Sand, McMillan and Popović 2003, §6.3 (thesis §5.5).
 //!
-//! The prototype estimation algorithm (§5.2–5.3) has four free parameters: the fraction of
-//! nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
-//! kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
-//! paper selects them by minimising the silhouette error (§6.2) and reports
-//! `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. One
-//! parameter is ours: a floor `min_near` on the observations behind each estimate
-//! ([`ReconstructionParams::min_near`]).
+//! The method is documented on [`ReconstructionParams`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 
@@ -20,7 +15,7 @@ pub const DEFAULT_F_NEAR: f64 = 0.022;
 /// Default `F_min`: percentile (as a fraction) taken as the robust minimum.
 /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
 pub const DEFAULT_F_MIN: f64 = 0.10;
-/// Default kernel width `W` of the NRBF Gaussian (see [`crate::nrbf`] for its exact meaning).
+/// Default kernel width `W` of the NRBF Gaussian (see [`crate::Nrbf`] for its exact meaning).
 /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
 pub const DEFAULT_KERNEL_WIDTH_W: f64 = 7.0;
 /// Default number of prototypes per deformable primitive `N`. Sand 2003 §6.3.
@@ -32,6 +27,16 @@ pub const DEFAULT_MIN_NEAR: usize = 50;
 pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
 
 /// Parameters of prototype reconstruction (Sand 2003 §5.2–5.3) and NRBF evaluation (§5.1).
+///
+/// Reconstruction parameters of Sand, McMillan and Popović 2003, §6.3 (thesis §5.5).
+///
+/// The prototype estimation algorithm (§5.2–5.3) has four free parameters: the fraction of
+/// nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
+/// kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
+/// paper selects them by minimising the silhouette error (§6.2) and reports
+/// `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. One
+/// parameter is ours: a floor `min_near` on the observations behind each estimate
+/// ([`ReconstructionParams::min_near`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReconstructionParams {
     /// Fraction of a needle's observations, nearest in configuration space to a prototype
@@ -46,7 +51,7 @@ pub struct ReconstructionParams {
     pub f_min: f64,
     /// Gaussian kernel parameter `W` of the NRBF (§5.1). Dimensionless: configuration-space
     /// distances are measured in units of the training data's RMS radius `s`, and the kernel
-    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::nrbf`]). Larger `W` means a
+    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
     /// sharper, more local kernel. Must be > 0. Source: Sand 2003 §6.3. Default: 7.
     pub kernel_width_w: f64,
     /// Number of prototypes per deformable primitive (§5.2). Must be ≥ 1. If a primitive has

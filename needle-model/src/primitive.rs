@@ -1,16 +1,7 @@
 //! Deformable primitives: needles in rings around a bone axis (Sand 2003 §3.1–3.2, Table 3.1).
 //!
-//! "Each deformable primitive consists of a rigid axis, which usually corresponds to a bone in
-//! the skeleton, and a set of needles, which are rigidly attached to the axis. Each needle
-//! originates at a point along the axis and extends outward in a fixed direction" (§3.1). The
-//! needles sit in rings: `axial` rings evenly spaced along the axis, `radial` needles per ring
-//! evenly spaced in angle, perpendicular to the axis. Needle `j = ring · radial + k` (ring-major).
-//! Junctions are unions of overlapping primitives (§3.2), so the axes are extended a little
-//! past the joints ([`PrimitiveSpec::extend_start`], [`PrimitiveSpec::extend_end`]).
-//!
-//! [`BodyLayout::table_3_1`] is the thesis's default body (12 primitives, 6 600 needles) mapped
-//! onto the 19-joint skeleton of [`skin_core::skeleton::human_skeleton`] (the MakeHuman
-//! performer has the same joint names).
+//! The method is documented on [`NeedleBody`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::check;
@@ -30,7 +21,7 @@ pub struct PrimitiveSpec {
     /// Joint whose frame carries the primitive (its axis and needles are rigid in it).
     pub carrier: String,
     /// Markers whose rest-pose mean is the start of the axis (see
-    /// [`crate::config`] for the marker syntax: a joint name, or `joint.tip` for its end site).
+    /// [`crate::resolve_marker`] for the marker syntax: a joint name, or `joint.tip` for its end site).
     pub axis_from: Vec<String>,
     /// Markers whose rest-pose mean is the end of the axis.
     pub axis_to: Vec<String>,
@@ -254,6 +245,20 @@ impl Primitive {
 }
 
 /// All primitives of a body, resolved against one skeleton.
+///
+/// Deformable primitives: needles in rings around a bone axis (Sand 2003 §3.1–3.2, Table 3.1).
+///
+/// "Each deformable primitive consists of a rigid axis, which usually corresponds to a bone in
+/// the skeleton, and a set of needles, which are rigidly attached to the axis. Each needle
+/// originates at a point along the axis and extends outward in a fixed direction" (§3.1). The
+/// needles sit in rings: `axial` rings evenly spaced along the axis, `radial` needles per ring
+/// evenly spaced in angle, perpendicular to the axis. Needle `j = ring · radial + k` (ring-major).
+/// Junctions are unions of overlapping primitives (§3.2), so the axes are extended a little
+/// past the joints ([`PrimitiveSpec::extend_start`], [`PrimitiveSpec::extend_end`]).
+///
+/// [`BodyLayout::table_3_1`] is the thesis's default body (12 primitives, 6 600 needles) mapped
+/// onto the 19-joint skeleton of [`skin_core::skeleton::human_skeleton`] (the MakeHuman
+/// performer has the same joint names).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NeedleBody {
     /// The primitives.
@@ -289,7 +294,7 @@ impl NeedleBody {
         self.primitives.iter().map(Primitive::needle_count).sum()
     }
 
-    /// Shapes for an [`crate::store::ObservationStore`] of this body.
+    /// Shapes for an [`crate::ObservationStore`] of this body.
     pub fn store_shapes(&self) -> Vec<PrimitiveShape> {
         self.primitives
             .iter()

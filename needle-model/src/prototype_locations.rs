@@ -1,11 +1,7 @@
 //! Prototype locations: Sand, McMillan and Popović 2003 §5.2 (thesis §5.2).
 //!
-//! The first prototype is a random observed configuration point; each further prototype is
-//! the observed point farthest (Euclidean) from all prototypes chosen so far
-//! ([`farthest_point_prototypes`]). Unlike clustering or random sampling this also places
-//! prototypes where the data is sparse.
-//!
-//! Configuration points are `f32` rows of length `dim`, one per (frame, camera) sample.
+//! The method is documented on [`farthest_point_prototypes`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rand::{Rng, RngExt};
 use rayon::prelude::*;
@@ -32,6 +28,15 @@ pub struct PrototypeLocations {
 /// Farthest-point prototype selection (Sand 2003 §5.2): exact, `O(n · S · dim)`, parallel over
 /// samples. Ties go to the lowest sample index, so the result does not depend on the thread
 /// count.
+///
+/// Prototype locations: Sand, McMillan and Popović 2003 §5.2 (thesis §5.2).
+///
+/// The first prototype is a random observed configuration point; each further prototype is
+/// the observed point farthest (Euclidean) from all prototypes chosen so far
+/// ([`farthest_point_prototypes`]). Unlike clustering or random sampling this also places
+/// prototypes where the data is sparse.
+///
+/// Configuration points are `f32` rows of length `dim`, one per (frame, camera) sample.
 ///
 /// `samples` holds `S` configuration points as rows of length `dim`. Selection stops early
 /// (with fewer than `n` prototypes) when every sample coincides with a prototype.

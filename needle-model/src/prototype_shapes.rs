@@ -1,15 +1,7 @@
 //! Prototype shapes: Sand, McMillan and Popović 2003 §5.3 (thesis §5.3).
 //!
-//! For needle `j` with `m_j` observations and prototype `k`, take the `n = F_near · m_j`
-//! observations of that needle whose configuration points are nearest to `p_k`, and use their
-//! `F_min` percentile length as `v_jk` (the "robust minimum": silhouettes only overestimate,
-//! §5). Selecting a fraction rather than a radius borrows from other poses where data is
-//! sparse — the paper's hole filling across configuration space. Needles that have *no*
-//! observation at all are filled from neighbouring needles on the primitive
-//! ([`prototype_shapes`], with the needle grid of [`grid_adjacency`]); see its docs.
-//!
-//! Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
-//! sample), observations are grouped per needle in [`NeedleObservations`].
+//! The method is documented on [`prototype_shapes()`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -21,7 +13,7 @@ use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
 /// Ring/axial grid adjacency of a primitive's needles in ring-major order
-/// (`j = ring · radial + k`, the layout of [`crate::primitive`]): the two ring neighbours
+/// (`j = ring · radial + k`, the layout of [`crate::NeedleBody`]): the two ring neighbours
 /// (wrapping around) and the needles at the same angle in the previous and next ring.
 /// Used by [`prototype_shapes`] to fill never-observed needles.
 ///
@@ -102,9 +94,22 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 
 /// Prototype shapes by the robust minimum of nearby observations (Sand 2003 §5.3).
 ///
+/// Prototype shapes: Sand, McMillan and Popović 2003 §5.3 (thesis §5.3).
+///
+/// For needle `j` with `m_j` observations and prototype `k`, take the `n = F_near · m_j`
+/// observations of that needle whose configuration points are nearest to `p_k`, and use their
+/// `F_min` percentile length as `v_jk` (the "robust minimum": silhouettes only overestimate,
+/// §5). Selecting a fraction rather than a radius borrows from other poses where data is
+/// sparse — the paper's hole filling across configuration space. Needles that have *no*
+/// observation at all are filled from neighbouring needles on the primitive
+/// ([`prototype_shapes`], with the needle grid of [`grid_adjacency`]); see its docs.
+///
+/// Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
+/// sample), observations are grouped per needle in [`NeedleObservations`].
+///
 /// * `samples`: configuration points, `S × dim` row-major.
 /// * `observations`: per-needle observations indexing rows of `samples`.
-/// * `prototype_points`: prototype locations `N × dim` (e.g. [`PrototypeLocations::points`]).
+/// * `prototype_points`: prototype locations `N × dim` (e.g. [`crate::PrototypeLocations::points`]).
 /// * `adjacency`: neighbouring needles of each needle on the primitive (ring and axial grid),
 ///   used only to fill needles without any observation; must have one entry per needle.
 ///
@@ -123,10 +128,10 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 /// those frames are equal to float precision. Cutting such a tie by sample index keeps the
 /// first `n` in time, i.e. the few views of a short stretch of the capture, and their
 /// robust minimum stays far above the surface (on the studio this made the calves' median
-/// error 10 mm instead of 1 mm). Samples within [`TIE_RADIUS`] × the data's RMS radius of
+/// error 10 mm instead of 1 mm). Samples within `TIE_RADIUS` = 10⁻³ × the data's RMS radius of
 /// the one that completes the `n` nearest are equally near and are all taken: a pose held
 /// for a thousand frames gives its prototype every one of those views. So that this costs
-/// no more than the plain walk, groups of more than [`LARGE_TIE_SAMPLES`] bit-identical
+/// no more than the plain walk, groups of more than `LARGE_TIE_SAMPLES` = 64 bit-identical
 /// configurations keep one sorted list of each needle's observations, taken in one step,
 /// and the percentile is found by merging the sorted lists (`O(F_min · n)`).
 ///

@@ -2,10 +2,8 @@
 //! algorithm box in Sand, McMillan and Popović 2003 §5.3 ("for each bone i …") and the
 //! animation step of §5.4.
 //!
-//! Each primitive of an [`ObservationStore`] is fitted independently
-//! ([`Nrbf::fit`]: prototype locations §5.2, shapes §5.3), in parallel over primitives
-//! (each fit is itself parallel over needles). The result is a [`NeedleModel`] that predicts
-//! every needle length of a primitive from its configuration point (§5.1, §5.4).
+//! The method is documented on [`NeedleModel`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -18,6 +16,15 @@ use crate::store::ObservationStore;
 use crate::{Context, Error, Result, ResultExt};
 
 /// The reconstructed deformable body: one NRBF per primitive (Sand 2003 §5.1).
+///
+/// Whole-body skin reconstruction from accumulated observations: the outer loop of the
+/// algorithm box in Sand, McMillan and Popović 2003 §5.3 ("for each bone i …") and the
+/// animation step of §5.4.
+///
+/// Each primitive of an [`ObservationStore`] is fitted independently
+/// ([`Nrbf::fit`]: prototype locations §5.2, shapes §5.3), in parallel over primitives
+/// (each fit is itself parallel over needles). The result is a [`NeedleModel`] that predicts
+/// every needle length of a primitive from its configuration point (§5.1, §5.4).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NeedleModel {
     /// Per-primitive models, indexed like the store's primitives.

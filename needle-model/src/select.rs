@@ -1,22 +1,8 @@
 //! Automatic selection of the reconstruction parameters (Sand, McMillan and Popović 2003 §6.3;
 //! thesis §5.5, Figure 5-4 / paper Figure 11).
 //!
-//! "The parameter selection algorithm varies the parameters and computes the silhouette error
-//! for each set of values. We perform repeated optimizations of each individual parameter to
-//! account for the dependence between the parameters" (§6.3). This is coordinate descent over
-//! `F_near`, `F_min`, `W` and `N` ([`ReconstructionParams`]): each parameter in turn is swept
-//! over its grid with the others held at their current values, the best value is kept, and
-//! the sweep repeats for [`SelectionParams::rounds`] rounds or until nothing changes. The
-//! objective is the mean silhouette error (§6.2, [`crate::silhouette_error`]) of the
-//! reconstructed body over a set of validation frames.
-//!
-//! `N` is special: "the error continues to decrease as more prototypes are added; we selected
-//! N = 100 based on the silhouette error plot" (§6.3). The automatic rule here takes the
-//! *smallest* `N` whose error is within [`SelectionParams::n_relative_tolerance`] of the best
-//! `N` on the grid — the knee a person reads off the plot.
-//!
-//! Each [`Selection::curves`] entry is the error curve of one parameter from its last sweep
-//! (a Figure-11-like plot).
+//! The method is documented on [`select_params`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use std::collections::HashMap;
 
@@ -87,7 +73,7 @@ pub struct SelectionParams {
     /// a round changes nothing. Must be ≥ 1. Default: 2 (the paper's "repeated
     /// optimizations").
     pub rounds: usize,
-    /// Relative error tolerance of the `N` rule (module docs): the smallest `N` with
+    /// Relative error tolerance of the `N` rule (see [`select_params`]): the smallest `N` with
     /// `error ≤ best · (1 + tol)` is chosen. Must be finite and ≥ 0. Default: 0.01.
     pub n_relative_tolerance: f64,
 }
@@ -135,7 +121,7 @@ pub struct Selection {
 
 /// The mean silhouette error (§6.2) over `frames` of the body reconstructed from `store` with
 /// `params`; the predicted surface is [`merged_mesh`] of the animated body (same silhouette
-/// as the union, see [`crate::silhouette_error`]).
+/// as the union, see [`crate::SilhouetteScorer`]).
 ///
 /// # Errors
 /// [`Error::Empty`] without frames; errors of [`NeedleModel::reconstruct`]; errors of
@@ -194,6 +180,26 @@ fn check_grid(name: &'static str, grid: &[f64], ok: impl Fn(f64) -> bool) -> Res
 /// Selects `F_near`, `F_min`, `W` and `N` by coordinate descent on the validation silhouette
 /// error, starting from `start` (normally [`ReconstructionParams::default`], the paper's
 /// values). The returned error never exceeds the start's.
+///
+/// Automatic selection of the reconstruction parameters (Sand, McMillan and Popović 2003 §6.3;
+/// thesis §5.5, Figure 5-4 / paper Figure 11).
+///
+/// "The parameter selection algorithm varies the parameters and computes the silhouette error
+/// for each set of values. We perform repeated optimizations of each individual parameter to
+/// account for the dependence between the parameters" (§6.3). This is coordinate descent over
+/// `F_near`, `F_min`, `W` and `N` ([`ReconstructionParams`]): each parameter in turn is swept
+/// over its grid with the others held at their current values, the best value is kept, and
+/// the sweep repeats for [`SelectionParams::rounds`] rounds or until nothing changes. The
+/// objective is the mean silhouette error (§6.2, [`crate::SilhouetteScorer`]) of the
+/// reconstructed body over a set of validation frames.
+///
+/// `N` is special: "the error continues to decrease as more prototypes are added; we selected
+/// N = 100 based on the silhouette error plot" (§6.3). The automatic rule here takes the
+/// *smallest* `N` whose error is within [`SelectionParams::n_relative_tolerance`] of the best
+/// `N` on the grid — the knee a person reads off the plot.
+///
+/// Each [`Selection::curves`] entry is the error curve of one parameter from its last sweep
+/// (a Figure-11-like plot).
 ///
 /// # Errors
 /// An invalid-parameter error ([`Error::invalid_param_name`]) for an empty grid, an

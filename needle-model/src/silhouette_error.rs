@@ -1,22 +1,8 @@
 //! The silhouette error of a reconstruction (Sand, McMillan and Popović 2003 §6.2; thesis
 //! §6.1).
 //!
-//! "We measure the silhouette matching error by comparing the segmented video images to a
-//! projection of the reconstructed geometry. To reduce the effect of unmodeled geometry (such
-//! as the head), we consider only pixels near the projected silhouette boundary. We define the
-//! silhouette error … to be the fraction of pixels for which the predicted and observed
-//! silhouette do not match" (§6.2).
-//!
-//! Here the predicted body mesh is rendered mask-only by one
-//! [`skin_core::raster::Rasterizer`] per camera; the comparison region is
-//! [`Mask::boundary_band`] of the *predicted* silhouette (as in the paper: unmodelled observed
-//! geometry away from the predicted boundary is ignored), and the error of a frame is the
-//! pooled fraction `Σ_cameras mismatched / Σ_cameras band pixels`. The sequence error is the
-//! mean over frames ("we normalize the error value by dividing by the number of frames").
-//!
-//! Any closed, outward mesh of the body works. Since the silhouette of a union of solids is the
-//! union of their silhouettes, [`crate::surface::merged_mesh`] (overlapping primitive shells)
-//! gives the same masks as [`crate::surface::union_mesh`] at a fraction of the cost.
+//! The method is documented on [`SilhouetteScorer`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
@@ -69,6 +55,26 @@ pub struct SilhouetteError {
 
 /// Renders predicted bodies and scores them against observed masks (§6.2). Build once per
 /// camera set (the rasterisers precompute their pixel rays), score many frames.
+///
+/// The silhouette error of a reconstruction (Sand, McMillan and Popović 2003 §6.2; thesis
+/// §6.1).
+///
+/// "We measure the silhouette matching error by comparing the segmented video images to a
+/// projection of the reconstructed geometry. To reduce the effect of unmodeled geometry (such
+/// as the head), we consider only pixels near the projected silhouette boundary. We define the
+/// silhouette error … to be the fraction of pixels for which the predicted and observed
+/// silhouette do not match" (§6.2).
+///
+/// Here the predicted body mesh is rendered mask-only by one
+/// [`skin_core::raster::Rasterizer`] per camera; the comparison region is
+/// [`Mask::boundary_band`] of the *predicted* silhouette (as in the paper: unmodelled observed
+/// geometry away from the predicted boundary is ignored), and the error of a frame is the
+/// pooled fraction `Σ_cameras mismatched / Σ_cameras band pixels`. The sequence error is the
+/// mean over frames ("we normalize the error value by dividing by the number of frames").
+///
+/// Any closed, outward mesh of the body works. Since the silhouette of a union of solids is the
+/// union of their silhouettes, [`crate::merged_mesh`] (overlapping primitive shells)
+/// gives the same masks as [`crate::union_mesh`] at a fraction of the cost.
 #[derive(Clone)]
 pub struct SilhouetteScorer {
     rasterizers: Vec<Rasterizer>,

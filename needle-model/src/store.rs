@@ -1,21 +1,7 @@
 //! Compact storage of needle-length observations (Sand 2003 §4.3).
 //!
-//! "For each needle length observation, we also record the bone's current position in
-//! configuration space" (§4.3). Eight minutes of three-camera video give tens of millions of
-//! observations, so the store keeps them compact:
-//!
-//! * the configuration point of a primitive is stored **once per sample** — one sample is one
-//!   (frame, camera) pair in which the primitive produced at least one observation — as a
-//!   row of `config_dim` `f32` values (row-major);
-//! * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
-//!   length quantised to `u16` with a per-primitive scale
-//!   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
-//!   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
-//! * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
-//!   index of an observation is implicit.
-//!
-//! Samples are appended in a deterministic order (frame-major, then camera), so a store built
-//! in parallel and merged in frame order is bit-identical to one built serially.
+//! The method is documented on [`ObservationStore`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 
@@ -234,7 +220,26 @@ impl<'de> Deserialize<'de> for NeedleObservations {
 }
 
 /// All needle observations of a body, compact (4 bytes per observation plus one configuration
-/// row and one offset per sample). See the module docs for the layout.
+/// row and one offset per sample).
+///
+/// Compact storage of needle-length observations (Sand 2003 §4.3).
+///
+/// "For each needle length observation, we also record the bone's current position in
+/// configuration space" (§4.3). Eight minutes of three-camera video give tens of millions of
+/// observations, so the store keeps them compact:
+///
+/// * the configuration point of a primitive is stored **once per sample** — one sample is one
+///   (frame, camera) pair in which the primitive produced at least one observation — as a
+///   row of `config_dim` `f32` values (row-major);
+/// * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
+///   length quantised to `u16` with a per-primitive scale
+///   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
+///   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
+/// * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
+///   index of an observation is implicit.
+///
+/// Samples are appended in a deterministic order (frame-major, then camera), so a store built
+/// in parallel and merged in frame order is bit-identical to one built serially.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObservationStore {
     primitives: Vec<PrimitiveTable>,

@@ -1,22 +1,7 @@
 //! Surfaces of the animated body (Sand, McMillan and Popović 2003 §3.1–3.2 and §5.4).
 //!
-//! Two renderings of an [`AnimatedBody`]:
-//!
-//! * **Per-primitive meshes** ([`primitive_mesh`], [`merged_mesh`]): the needle endpoints of a
-//!   primitive form a ring-major grid; consecutive rings and consecutive needles of a ring are
-//!   joined by quads (two triangles), closed around the axis, and each end is capped by a fan
-//!   to the axis end point. This is the thesis's display of the deformable primitives
-//!   (Figure 3-1); the primitives overlap at the junctions (§3.2), so the merged mesh is a
-//!   union of closed shells, not one surface.
-//! * **One watertight body surface** ([`union_mesh`]): §3.2 defines junctions as the *union* of
-//!   overlapping primitives. Each primitive gets an implicit function
-//!   `f(x) = max(r(x) − R(φ, t), −t, t − L)` where `r` is the distance of `x` from the axis, `t`
-//!   its position along the axis of length `L`, and `R(φ, t)` the needle radial profile
-//!   (bilinear in the needle angle and the ring coordinate, constant beyond the end rings).
-//!   `f < 0` inside. The body is `min_p f_p`, sampled on a regular grid and polygonised by
-//!   [`skin_core::mesh::marching_cubes`] (watertight marching tetrahedra). `f` is a distance
-//!   in the radial and axial directions (not a Euclidean distance), which is all the linear
-//!   iso-surface interpolation needs near the surface.
+//! The method is documented on [`union_mesh`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -160,7 +145,7 @@ pub fn merged_mesh(body: &AnimatedBody) -> Result<TriMesh> {
     Ok(TriMesh::new(vertices, faces)?)
 }
 
-/// The implicit function of one primitive at world point `x` (module docs): negative inside,
+/// The implicit function of one primitive at world point `x` (see [`union_mesh`]): negative inside,
 /// zero on the needle surface, in metres. Assumes a primitive accepted by [`primitive_mesh`]'s
 /// checks (any `radial ≥ 1` is fine here).
 pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
@@ -193,7 +178,27 @@ pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
 }
 
 /// One watertight surface of the union of all primitives (§3.2), by marching cubes over
-/// `min_p f_p` (module docs) on a grid of spacing `params.voxel_m`.
+/// `min_p f_p` (see below) on a grid of spacing `params.voxel_m`.
+///
+/// Surfaces of the animated body (Sand, McMillan and Popović 2003 §3.1–3.2 and §5.4).
+///
+/// Two renderings of an [`AnimatedBody`]:
+///
+/// * **Per-primitive meshes** ([`primitive_mesh`], [`merged_mesh`]): the needle endpoints of a
+///   primitive form a ring-major grid; consecutive rings and consecutive needles of a ring are
+///   joined by quads (two triangles), closed around the axis, and each end is capped by a fan
+///   to the axis end point. This is the thesis's display of the deformable primitives
+///   (Figure 3-1); the primitives overlap at the junctions (§3.2), so the merged mesh is a
+///   union of closed shells, not one surface.
+/// * **One watertight body surface** ([`union_mesh`]): §3.2 defines junctions as the *union* of
+///   overlapping primitives. Each primitive gets an implicit function
+///   `f(x) = max(r(x) − R(φ, t), −t, t − L)` where `r` is the distance of `x` from the axis, `t`
+///   its position along the axis of length `L`, and `R(φ, t)` the needle radial profile
+///   (bilinear in the needle angle and the ring coordinate, constant beyond the end rings).
+///   `f < 0` inside. The body is `min_p f_p`, sampled on a regular grid and polygonised by
+///   [`skin_core::mesh::marching_cubes`] (watertight marching tetrahedra). `f` is a distance
+///   in the radial and axial directions (not a Euclidean distance), which is all the linear
+///   iso-surface interpolation needs near the surface.
 ///
 /// # Errors
 /// [`Error::Empty`] for a body without primitives; an invalid-parameter error
