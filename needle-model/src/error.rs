@@ -94,6 +94,25 @@ impl Error {
     }
 
     /// The contexts from the outside in, e.g. `[Primitive(3), Needle(17)]`.
+    ///
+    /// # Example
+    /// ```
+    /// use needle_model::{prototype_shapes, Context, Error, NeedleObservations};
+    /// use needle_model::ReconstructionParams;
+    /// // Needle 1 is never observed and has no neighbour to borrow a length from (§5.3).
+    /// let obs = NeedleObservations::from_lists(&[vec![(0, 0.05)], vec![]])?;
+    /// let adjacency = [vec![], vec![]];
+    /// let params = ReconstructionParams::default();
+    /// let e = prototype_shapes(&[0.0], 1, &obs, &[0.0], &adjacency, &params).unwrap_err();
+    /// assert_eq!(e.contexts(), [Context::Needle(1)]);
+    /// assert!(matches!(e.root(), Error::NoObservations { .. }));
+    /// assert_eq!(
+    ///     e.to_string(),
+    ///     "needle 1: no observations: never observed and no observed needle reachable \
+    ///      through the adjacency"
+    /// );
+    /// # Ok::<(), Error>(())
+    /// ```
     pub fn contexts(&self) -> Vec<Context> {
         let mut out = Vec::new();
         let mut e = self;

@@ -17,7 +17,7 @@
 //! with prototype locations `p_k` chosen by farthest-point selection (§5.2) and prototype
 //! shapes `v_jk` the `F_min` percentile of the `F_near` nearest observations (§5.3).
 //!
-//! ## Stages, in the paper's order (one private file each, everything re-exported here)
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
 //!
 //! | file | stage | paper |
 //! | --- | --- | --- |
@@ -36,6 +36,7 @@
 //! | `surface.rs` | [`primitive_meshes`], [`union_mesh`]: meshes, the union body | §3.2, §5.4 |
 //! | `silhouette_error.rs` | [`SilhouetteScorer`]: the silhouette error | §6.2 |
 //! | `select.rs` | [`select_params`]: automatic parameter selection | §6.3 |
+//! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | — |
 //!
 //! Validation equipment sits behind the cargo feature `validation` (see
 //! [Validation](#validation)): `truth` (ground-truth scoring on the studio) and `baseline`
