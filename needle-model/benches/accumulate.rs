@@ -10,8 +10,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use needle_model::observe::{FrameInput, ObserveParams, Observer};
-use needle_model::primitive::{BodyLayout, NeedleBody};
+use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
 use skin_core::camera::{Intrinsics, Rig};
 use skin_core::image::Mask;
 use skin_core::math::DVec3;

@@ -15,11 +15,9 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use needle_model::prototypes::{
-    farthest_point_prototypes, grid_adjacency, observations_from_lists,
+use needle_model::{
+    farthest_point_prototypes, grid_adjacency, NeedleObservations, Nrbf, ReconstructionParams,
 };
-use needle_model::NeedleObservations;
-use needle_model::{Nrbf, ReconstructionParams};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -112,7 +110,7 @@ fn synthetic_primitive(
     Primitive {
         dim,
         samples,
-        observations: observations_from_lists(&per_needle).unwrap(),
+        observations: NeedleObservations::from_lists(&per_needle).unwrap(),
         adjacency,
     }
 }
@@ -128,12 +126,12 @@ fn full_body(pose_dependent: bool) -> (f64, usize) {
             .expect("synthetic primitive fits");
         let s = t.elapsed().as_secs_f64();
         fit_s += s;
-        obs += p.observations.sample.len();
+        obs += p.observations.observation_count();
         needles += fit.model.num_needles();
         eprintln!(
             "primitive {i} (pose-dependent visibility {pose_dependent}): dim {dim}, {} needles, {} observations, fit {s:.2} s",
             fit.model.num_needles(),
-            p.observations.sample.len()
+            p.observations.observation_count()
         );
     }
     assert_eq!(needles, 6_600);

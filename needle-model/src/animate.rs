@@ -1,20 +1,16 @@
 //! Animation of the reconstructed body for a new pose (Sand, McMillan and Popović 2003 §5.4;
 //! thesis §5.4).
 //!
-//! "To animate the body we evaluate the reconstructed deformable primitives for the new
-//! skeletal configuration": for a pose θ the skeleton's forward kinematics gives every bone
-//! frame; each primitive's configuration point (marker coordinates in its carrier frame, §3.3)
-//! is evaluated by its NRBF ([`NeedleModel::needle_lengths`], §5.1) and every needle endpoint is
-//! `origin + direction · length` in the posed carrier frame. The result, an [`AnimatedBody`],
-//! is the input of the surface builders in [`crate::surface`].
+//! The method is documented on [`animate`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
-use skin_core::skeleton::Skeleton;
+use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
-use crate::primitive::NeedleBody;
+use crate::primitive::{NeedleBody, Primitive};
 use crate::reconstruct::NeedleModel;
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// One posed primitive: its needles in world space.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -53,6 +49,16 @@ impl AnimatedBody {
 
 /// Poses `body` at θ and evaluates `model` for every primitive (Sand 2003 §5.4).
 ///
+/// Animation of the reconstructed body for a new pose (Sand, McMillan and Popović 2003 §5.4;
+/// thesis §5.4).
+///
+/// "To animate the body we evaluate the reconstructed deformable primitives for the new
+/// skeletal configuration": for a pose θ the skeleton's forward kinematics gives every bone
+/// frame; each primitive's configuration point (marker coordinates in its carrier frame, §3.3)
+/// is evaluated by its NRBF ([`NeedleModel::needle_lengths`], §5.1) and every needle endpoint is
+/// `origin + direction · length` in the posed carrier frame. The result, an [`AnimatedBody`],
+/// is the input of the surface builders ([`crate::primitive_meshes`], [`crate::union_mesh`]).
+///
 /// # Errors
 /// [`Error::Core`] for a pose of the wrong length or with NaN/∞ (from the skeleton's pose
 /// check); [`Error::SizeMismatch`] if `model` and `body` disagree on the number of primitives or
@@ -72,51 +78,63 @@ pub fn animate(
         });
     }
     let fk = skeleton.forward_kinematics(theta)?;
-    let world = fk.world_from_joint();
     let mut primitives = Vec::with_capacity(body.primitives.len());
     for (p, prim) in body.primitives.iter().enumerate() {
-        let frame = world.get(prim.carrier).ok_or(Error::SizeMismatch {
-            what: "skeleton joints (primitive carrier)",
-            expected: prim.carrier + 1,
-            got: world.len(),
-        })?;
-        let config = prim.config.point(&fk)?;
-        let config32: Vec<f32> = config.iter().map(|&v| v as f32).collect();
-        let lengths32 = model.needle_lengths(p, &config32)?;
-        if lengths32.len() != prim.needle_count() {
-            return Err(Error::SizeMismatch {
-                what: "model needle lengths vs primitive needles",
-                expected: prim.needle_count(),
-                got: lengths32.len(),
-            });
-        }
-        if lengths32.iter().any(|l| !l.is_finite()) {
-            return Err(Error::NonFinite {
-                what: "predicted needle length",
-            });
-        }
-        let lengths: Vec<f64> = lengths32.iter().map(|&l| f64::from(l)).collect();
-        let mut origins = Vec::with_capacity(lengths.len());
-        let mut endpoints = Vec::with_capacity(lengths.len());
-        let mut directions = Vec::with_capacity(lengths.len());
-        for (j, &l) in lengths.iter().enumerate() {
-            let (o, d) = prim.needle_world(frame, j);
-            origins.push(o);
-            endpoints.push(o + d * l);
-            directions.push(d);
-        }
-        primitives.push(AnimatedPrimitive {
-            radial: prim.radial,
-            axial: prim.axial,
-            axis_start: frame.transform_point3(prim.axis_start),
-            axis_end: frame.transform_point3(prim.axis_end),
-            origins,
-            directions,
-            endpoints,
-            lengths,
-        });
+        primitives.push(animate_primitive(prim, p, model, &fk).at(Context::Primitive(p))?);
     }
     Ok(AnimatedBody { primitives })
+}
+
+/// Primitive `p` of the body posed by `fk` (the body of [`animate`]'s loop).
+fn animate_primitive(
+    prim: &Primitive,
+    p: usize,
+    model: &NeedleModel,
+    fk: &ForwardKinematics,
+) -> Result<AnimatedPrimitive> {
+    let frame = fk
+        .world_from_joint()
+        .get(prim.carrier)
+        .ok_or(Error::SizeMismatch {
+            what: "skeleton joints (primitive carrier)",
+            expected: prim.carrier + 1,
+            got: fk.world_from_joint().len(),
+        })?;
+    let config = prim.config.point(fk)?;
+    let config32: Vec<f32> = config.iter().map(|&v| v as f32).collect();
+    let lengths32 = model.needle_lengths(p, &config32)?;
+    if lengths32.len() != prim.needle_count() {
+        return Err(Error::SizeMismatch {
+            what: "model needle lengths vs primitive needles",
+            expected: prim.needle_count(),
+            got: lengths32.len(),
+        });
+    }
+    if lengths32.iter().any(|l| !l.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "predicted needle length",
+        });
+    }
+    let lengths: Vec<f64> = lengths32.iter().map(|&l| f64::from(l)).collect();
+    let mut origins = Vec::with_capacity(lengths.len());
+    let mut endpoints = Vec::with_capacity(lengths.len());
+    let mut directions = Vec::with_capacity(lengths.len());
+    for (j, &l) in lengths.iter().enumerate() {
+        let (o, d) = prim.needle_world(frame, j);
+        origins.push(o);
+        endpoints.push(o + d * l);
+        directions.push(d);
+    }
+    Ok(AnimatedPrimitive {
+        radial: prim.radial,
+        axial: prim.axial,
+        axis_start: frame.transform_point3(prim.axis_start),
+        axis_end: frame.transform_point3(prim.axis_end),
+        origins,
+        directions,
+        endpoints,
+        lengths,
+    })
 }
 
 #[cfg(test)]

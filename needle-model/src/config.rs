@@ -1,15 +1,7 @@
 //! Configuration spaces of deformable primitives (Sand 2003 §3.3, Table 3.1).
 //!
-//! "To avoid the issues of joint-angle representation, we use marker coordinates to determine
-//! the configuration space. For example, the configuration of the right thigh depends on
-//! markers attached to the hip and the right calf, where the positions are expressed with
-//! respect to the local coordinate frame of the thigh bone" (§3.3). A [`ConfigSpace`] is a
-//! carrier joint plus a list of markers (points rigid on other bones); its configuration
-//! point is the concatenation of the markers' positions in the carrier frame (3 values each,
-//! metres).
-//!
-//! Marker syntax: a joint name (`"r_knee"`) is that joint's origin; `"joint.tip"` is its end
-//! site (e.g. `"r_ankle.tip"`, the toe tip of `human_skeleton`).
+//! The method is documented on [`ConfigSpace`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
@@ -17,7 +9,9 @@ use skin_core::skeleton::{AttachedPoint, ForwardKinematics, Skeleton};
 
 use crate::error::{Error, Result};
 
-/// Resolves a marker name (see the module docs) to a point attached to a joint.
+/// Resolves a marker name to a point attached to a joint: a joint name (`"r_knee"`) is that
+/// joint's origin; `"joint.tip"` is its end site (e.g. `"r_ankle.tip"`, the toe tip of
+/// `human_skeleton`).
 ///
 /// # Errors
 /// [`Error::InvalidParam`] for an unknown joint or a `.tip` of a joint without end site.
@@ -46,6 +40,19 @@ pub fn resolve_marker(skeleton: &Skeleton, name: &str) -> Result<AttachedPoint> 
 }
 
 /// The configuration space of one primitive: marker positions in the carrier frame (§3.3).
+///
+/// Configuration spaces of deformable primitives (Sand 2003 §3.3, Table 3.1).
+///
+/// "To avoid the issues of joint-angle representation, we use marker coordinates to determine
+/// the configuration space. For example, the configuration of the right thigh depends on
+/// markers attached to the hip and the right calf, where the positions are expressed with
+/// respect to the local coordinate frame of the thigh bone" (§3.3). A [`ConfigSpace`] is a
+/// carrier joint plus a list of markers (points rigid on other bones); its configuration
+/// point is the concatenation of the markers' positions in the carrier frame (3 values each,
+/// metres).
+///
+/// Marker syntax: a joint name (`"r_knee"`) is that joint's origin; `"joint.tip"` is its end
+/// site (e.g. `"r_ankle.tip"`, the toe tip of `human_skeleton`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ConfigSpace {
     /// Carrier joint index (the primitive's frame).
@@ -58,8 +65,8 @@ impl ConfigSpace {
     /// A configuration space from marker names.
     ///
     /// # Errors
-    /// [`Error::Empty`] without markers; errors of [`resolve_marker`]; [`Error::InvalidParam`]
-    /// if `carrier` is not a joint of `skeleton`.
+    /// [`Error::Empty`] without markers; errors of [`resolve_marker`];
+    /// [`Error::IndexOutOfRange`] if `carrier` is not a joint of `skeleton`.
     pub fn new(skeleton: &Skeleton, carrier: usize, markers: &[String]) -> Result<Self> {
         if markers.is_empty() {
             return Err(Error::Empty {
@@ -67,9 +74,10 @@ impl ConfigSpace {
             });
         }
         if carrier >= skeleton.joint_count() {
-            return Err(Error::InvalidParam {
-                name: "carrier",
-                reason: format!("joint index {carrier} ≥ {}", skeleton.joint_count()),
+            return Err(Error::IndexOutOfRange {
+                what: "carrier joint",
+                index: carrier,
+                len: skeleton.joint_count(),
             });
         }
         let markers = markers
@@ -126,6 +134,78 @@ impl ConfigSpace {
         self.point_into(fk, &mut out)?;
         Ok(out)
     }
+}
+
+// Configuration points as flat rows (`S × dim` row-major `f32`), the form the store keeps
+// them in (§4.3) and prototype selection (§5.2), prototype shapes (§5.3) and the NRBF (§5.1)
+// consume.
+
+/// Largest configuration-space dimension accepted by prototype selection, prototype shapes
+/// and the NRBF (Sand's Table 1 has at most 9; in much higher dimensions nearest-neighbour
+/// neighbourhoods stop being local).
+pub const MAX_CONFIG_DIM: usize = 16;
+
+/// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
+/// non-empty, all finite. Returns the number of samples.
+pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
+    if dim == 0 || dim > MAX_CONFIG_DIM {
+        return Err(Error::InvalidParam {
+            name: "dim",
+            reason: format!("configuration dimension must be in 1..={MAX_CONFIG_DIM}, got {dim}"),
+        });
+    }
+    if samples.is_empty() {
+        return Err(Error::Empty {
+            what: "configuration samples",
+        });
+    }
+    if !samples.len().is_multiple_of(dim) {
+        return Err(Error::SizeMismatch {
+            what: "configuration samples (length must be a multiple of dim)",
+            expected: samples.len().div_ceil(dim) * dim,
+            got: samples.len(),
+        });
+    }
+    if samples.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "configuration samples",
+        });
+    }
+    Ok(samples.len() / dim)
+}
+
+/// Squared Euclidean distance of two configuration points.
+#[inline]
+pub(crate) fn dist2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
+/// distance unit of the NRBF kernel (§5.1) and of the tie radius of prototype shapes (§5.3).
+/// Returns 1 when all points coincide (any unit works then).
+///
+/// # Errors
+/// As [`check_samples`].
+pub(crate) fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
+    let count = check_samples(samples, dim)?;
+    let mut mean = vec![0f64; dim];
+    for row in samples.chunks_exact(dim) {
+        for (m, &v) in mean.iter_mut().zip(row) {
+            *m += v as f64;
+        }
+    }
+    mean.iter_mut().for_each(|m| *m /= count as f64);
+    let ss: f64 = samples
+        .chunks_exact(dim)
+        .map(|row| {
+            row.iter()
+                .zip(&mean)
+                .map(|(&v, m)| (v as f64 - m).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    let s = (ss / count as f64).sqrt() as f32;
+    Ok(if s > 0.0 && s.is_finite() { s } else { 1.0 })
 }
 
 #[cfg(test)]

@@ -2,20 +2,8 @@
 //! thesis §4.1): a motion-capture marker on a green sphere, tracked by the motion-capture
 //! system and seen by a video camera.
 //!
-//! "The calibration process starts with synchronization of video and motion data. We move the
-//! calibration device up and down in a plane roughly parallel to the image plane of a
-//! particular camera and correlate the vertical image coordinate with the vertical world
-//! coordinate. After synchronization, the calibration device can be moved freely in three
-//! dimensions. We resample the resulting motion-capture sequence to obtain a sequence of
-//! matching image `p_i` and world `w_i` points" and minimise the image error.
-//!
-//! [`calibrate_device`] chains the skin-core pieces: the time offset by normalised
-//! cross-correlation of the device's height with the sphere's image `v` coordinate
-//! ([`estimate_time_offset`], which accepts the inverted sign: `v` grows downwards), the
-//! motion-capture track resampled at each video frame's time (linear interpolation), and
-//! [`calibrate`] (DLT, then Levenberg–Marquardt or Sand's simplex, with radial distortion).
-//! Frames where the sphere was not detected are skipped; for the correlation their `v` is
-//! interpolated from the neighbouring detections.
+//! The method is documented on [`calibrate_device`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
@@ -23,6 +11,7 @@ use skin_core::camera::{
     calibrate, estimate_time_offset, CalibrationParams, CalibrationReport, SampledSignal,
     TimeOffsetParams,
 };
+use skin_core::check;
 
 use crate::{Error, Result};
 
@@ -81,12 +70,31 @@ pub struct DeviceCalibration {
 }
 
 /// Synchronises the device's track with one camera's video and calibrates that camera
-/// (module docs).
+/// (see [`calibrate_device`]).
+///
+/// Camera calibration with the calibration device (Sand, McMillan and Popović 2003 §4.1;
+/// thesis §4.1): a motion-capture marker on a green sphere, tracked by the motion-capture
+/// system and seen by a video camera.
+///
+/// "The calibration process starts with synchronization of video and motion data. We move the
+/// calibration device up and down in a plane roughly parallel to the image plane of a
+/// particular camera and correlate the vertical image coordinate with the vertical world
+/// coordinate. After synchronization, the calibration device can be moved freely in three
+/// dimensions. We resample the resulting motion-capture sequence to obtain a sequence of
+/// matching image `p_i` and world `w_i` points" and minimise the image error.
+///
+/// [`calibrate_device`] chains the skin-core pieces: the time offset by normalised
+/// cross-correlation of the device's height with the sphere's image `v` coordinate
+/// ([`estimate_time_offset`], which accepts the inverted sign: `v` grows downwards), the
+/// motion-capture track resampled at each video frame's time (linear interpolation), and
+/// [`calibrate`] (DLT, then Levenberg–Marquardt or Sand's simplex, with radial distortion).
+/// Frames where the sphere was not detected are skipped; for the correlation their `v` is
+/// interpolated from the neighbouring detections.
 ///
 /// # Errors
 /// [`Error::Empty`] for an empty track or a video without detections; [`Error::NonFinite`]
-/// for NaN/∞ positions, centres or times; [`Error::InvalidParam`] for non-positive rates, a
-/// zero `up` or `sync_seconds ≤ 0`; the errors of [`estimate_time_offset`] (no overlap,
+/// for NaN/∞ positions, centres or times; an invalid-parameter error
+/// ([`Error::invalid_param_name`]) for non-positive rates, a zero `up` or `sync_seconds ≤ 0`; the errors of [`estimate_time_offset`] (no overlap,
 /// constant signals) and [`calibrate`] (fewer than six matched points, coplanar motion).
 pub fn calibrate_device(
     track: &DeviceTrack,
@@ -97,12 +105,7 @@ pub fn calibrate_device(
         ("track rate_hz", track.rate_hz),
         ("video rate_hz", video.rate_hz),
     ] {
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be finite and > 0, got {rate}"),
-            });
-        }
+        check::positive(name, rate)?;
     }
     if !(track.start_s.is_finite() && video.start_s.is_finite()) {
         return Err(Error::NonFinite {
@@ -134,14 +137,9 @@ pub fn calibrate_device(
     let up = up.normalize();
     let frames = match params.sync_seconds {
         None => video.centres.len(),
-        Some(s) if s.is_finite() && s > 0.0 => {
-            ((s * video.rate_hz).ceil() as usize).min(video.centres.len())
-        }
         Some(s) => {
-            return Err(Error::InvalidParam {
-                name: "sync_seconds",
-                reason: format!("must be finite and > 0, got {s}"),
-            })
+            let s = check::positive("sync_seconds", s)?;
+            ((s * video.rate_hz).ceil() as usize).min(video.centres.len())
         }
     };
     let v = fill_gaps(&video.centres[..frames]).ok_or(Error::Empty {

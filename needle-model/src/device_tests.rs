@@ -121,10 +121,12 @@ fn bad_device_data_is_refused() {
     ));
     let mut t = track.clone();
     t.rate_hz = 0.0;
-    assert!(matches!(
-        calibrate_device(&t, &video, &p),
-        Err(Error::InvalidParam { .. })
-    ));
+    assert_eq!(
+        calibrate_device(&t, &video, &p)
+            .unwrap_err()
+            .invalid_param_name(),
+        Some("track rate_hz")
+    );
     let mut v = video.clone();
     v.centres.iter_mut().for_each(|c| *c = None);
     assert!(matches!(
@@ -147,10 +149,8 @@ fn bad_device_data_is_refused() {
             ..Default::default()
         },
     ] {
-        assert!(matches!(
-            calibrate_device(&track, &video, &bad),
-            Err(Error::InvalidParam { .. })
-        ));
+        let e = calibrate_device(&track, &video, &bad).unwrap_err();
+        assert!(e.invalid_param_name().is_some(), "{e}");
     }
     // A device that never moves vertically cannot be synchronised: an error, not garbage.
     let flat = DeviceTrack {

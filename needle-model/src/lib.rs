@@ -8,61 +8,161 @@
 //! axis (§3.1–3.2). Each frame, each needle is projected into each camera and walked outward
 //! until it leaves the silhouette; the resulting length is an observation tied to the pose of
 //! the bones the primitive depends on (§3.3, §4.3). A normalised radial basis function over
-//! prototype poses then predicts every needle's length for any new pose (§5).
+//! prototype poses then predicts every needle's length for any new pose (§5):
 //!
-//! Stages, one module each: [`primitive`] (needles in rings, Table 3.1 layout), [`config`]
-//! (configuration spaces, §3.3), [`sync`] (video/mocap time offset, §4.2), [`observe`]
-//! (silhouette walks, §4.3), [`store`] (compact observation storage), [`params`]
-//! (reconstruction parameters, §6.3), [`prototypes`] (prototype locations and robust-minimum
-//! shapes, §5.2–5.3), [`nrbf`] (the normalised RBF, §5.1), [`reconstruct`] (the whole body,
-//! §5.3–5.4), [`animate`](mod@animate) (posed needle endpoints, §5.4), [`surface`] (primitive meshes and the
-//! watertight union body, §3.2), [`silhouette_error`] (§6.2) and [`select`] (automatic
-//! parameter selection, §6.3).
-//!
-//! ```no_run
-//! use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
-//! # fn run(skeleton: skin_core::skeleton::Skeleton, cameras: Vec<skin_core::camera::Camera>,
-//! #        theta: Vec<f64>, masks: Vec<skin_core::image::Mask>) -> needle_model::Result<()> {
-//! let body = NeedleBody::new(&skeleton, &BodyLayout::table_3_1())?; // 6 600 needles
-//! let observer = Observer::new(body, skeleton, cameras, ObserveParams::default())?;
-//! let acc = observer.accumulate(&[FrameInput { theta: &theta, masks: &masks }])?;
-//! println!("{} observations", acc.store.total_observations());
-//! # Ok(()) }
+//! ```text
+//! l_j(x) = Σ_k v_jk K(x, p_k) / Σ_k K(x, p_k),   K(x, p) = exp(−W ‖x − p‖² / s²)   (§5.1)
 //! ```
+//!
+//! with prototype locations `p_k` chosen by farthest-point selection (§5.2) and prototype
+//! shapes `v_jk` the `F_min` percentile of the `F_near` nearest observations (§5.3).
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | file | stage | paper |
+//! | --- | --- | --- |
+//! | `primitive.rs` | [`NeedleBody`], [`BodyLayout`]: needles in rings, the Table 3.1 layout | §3.1–3.2 |
+//! | `config.rs` | [`ConfigSpace`]: marker coordinates in the carrier frame | §3.3 |
+//! | `device.rs` | [`calibrate_device`]: camera calibration with the calibration device | §4.1 |
+//! | `sync.rs` | [`estimate_sync_offset`]: video/mocap time offset from silhouettes | §4.2 |
+//! | `observe.rs` | [`Observer`]: silhouette walks of every needle | §4.3 |
+//! | `store.rs` | [`ObservationStore`], [`NeedleObservations`]: 4-byte observations | §4.3 |
+//! | `params.rs` | [`ReconstructionParams`]: `F_near`, `F_min`, `W`, `N` | §6.3 |
+//! | `prototype_locations.rs` | [`farthest_point_prototypes`] | §5.2 |
+//! | `prototype_shapes.rs` | [`prototype_shapes`]: robust minimum, hole filling | §5.3 |
+//! | `nrbf.rs` | [`Nrbf`]: the normalised RBF and its fit | §5.1 (fit §5.2–5.3) |
+//! | `reconstruct.rs` | [`NeedleModel`]: every primitive of the body | §5.3 (outer loop) |
+//! | `animate.rs` | [`animate()`]: posed needle endpoints | §5.4 |
+//! | `surface.rs` | [`primitive_meshes`], [`union_mesh`]: meshes, the union body | §3.2, §5.4 |
+//! | `silhouette_error.rs` | [`SilhouetteScorer`]: the silhouette error | §6.2 |
+//! | `select.rs` | [`select_params`]: automatic parameter selection | §6.3 |
+//! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | — |
+//!
+//! Validation equipment sits behind the cargo feature `validation` (see
+//! [Validation](#validation)): `truth` (ground-truth scoring on the studio) and `baseline`
+//! (the linear-blend-skinning baseline).
+//!
+//! Errors are one [`Error`]; an error inside a loop over primitives, needles, cameras or frames
+//! says where ([`Error::At`] with a [`Context`]).
+//!
+//! ## Quick start
+//!
+//! A synthetic performer seen by two low-resolution cameras for a few frames: accumulate the
+//! needle observations, reconstruct, and predict the needle lengths of one primitive.
+//!
+//! ```
+//! use needle_model::{
+//!     BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
+//!     ReconstructionParams,
+//! };
+//! use skin_core::camera::{Intrinsics, Rig};
+//! use skin_core::image::Mask;
+//! use skin_core::math::DVec3;
+//! use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+//! use skin_core::studio::{
+//!     fast_motion, procedural_performer, DeformationState, FastMotionParams,
+//!     ProceduralBodyParams,
+//! };
+//!
+//! // The studio: a procedural performer in fast motion, two cameras at 160 × 120 px.
+//! let performer = procedural_performer(&ProceduralBodyParams::default())?;
+//! let skeleton = performer.skeleton.clone();
+//! let motion = fast_motion(&skeleton, &FastMotionParams::default())?;
+//! let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 160, 120)?;
+//! let cameras = Rig::ring(2, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)?.cameras;
+//!
+//! // Silhouettes of six frames.
+//! let render = RenderParams::default()
+//!     .with_buffers(Buffers::MASK_ONLY)
+//!     .with_allow_empty(true);
+//! let mut state = DeformationState::default();
+//! let (mut thetas, mut masks) = (Vec::new(), Vec::new());
+//! for f in (0..60).step_by(10) {
+//!     let theta = motion.frame(f).to_vec();
+//!     let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
+//!     let mesh = performer.mesh(posed.true_vertices);
+//!     let mut frame_masks = Vec::new();
+//!     for camera in &cameras {
+//!         let v = Rasterizer::new(camera).render(&mesh, &render)?;
+//!         frame_masks.push(Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0));
+//!     }
+//!     thetas.push(theta);
+//!     masks.push(frame_masks);
+//! }
+//!
+//! // §4.3: walk every needle through every silhouette (a quarter of Table 3.1's density).
+//! let body = NeedleBody::new(&skeleton, &BodyLayout::table_3_1().with_density(0.25))?;
+//! let observer = Observer::new(body, skeleton.clone(), cameras, ObserveParams::default())?;
+//! let frames: Vec<FrameInput<'_>> = thetas
+//!     .iter()
+//!     .zip(&masks)
+//!     .map(|(theta, masks)| FrameInput { theta, masks })
+//!     .collect();
+//! let acc = observer.accumulate(&frames)?;
+//! assert!(acc.store.total_observations() > 0);
+//!
+//! // §5.2–5.3: prototypes and their shapes, per primitive.
+//! let params = ReconstructionParams::default().with_prototype_count_n(4);
+//! let rec = NeedleModel::reconstruct(&acc.store, observer.body(), &params)?;
+//!
+//! // §5.4: the needle lengths of the first primitive in the first frame's pose.
+//! let fk = skeleton.forward_kinematics(&thetas[0])?;
+//! let primitive = &observer.body().primitives[0];
+//! let x: Vec<f32> = primitive.config.point(&fk)?.iter().map(|&v| v as f32).collect();
+//! let lengths_m = rec.model.needle_lengths(0, &x)?;
+//! assert_eq!(lengths_m.len(), primitive.needle_count());
+//! assert!(lengths_m.iter().all(|&l| l >= 0.0 && f64::from(l) <= primitive.max_length_m));
+//! # Ok::<(), needle_model::Error>(())
+//! ```
+//!
+//! ## Validation
+//!
+//! With the cargo feature `validation`, the public modules `truth` (ground truth of the
+//! studio: test sets, per-vertex errors) and `baseline` (linear blend skinning with bone-heat
+//! weights fitted to the same silhouettes) are compiled too.
 #![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
 
-pub mod animate;
+mod animate;
 #[cfg(feature = "validation")]
 pub mod baseline;
-pub mod config;
-pub mod device;
-pub mod error;
-pub mod nrbf;
-pub mod observe;
-pub mod params;
-pub mod primitive;
-pub mod prototypes;
-pub mod reconstruct;
-pub mod select;
-pub mod silhouette_error;
-pub mod store;
-pub mod surface;
-pub mod sync;
+mod config;
+mod device;
+mod error;
+mod nrbf;
+mod observe;
+mod params;
+mod primitive;
+mod prototype_locations;
+mod prototype_shapes;
+mod reconstruct;
+mod select;
+mod silhouette_error;
+mod store;
+mod surface;
+mod sync;
 #[cfg(feature = "validation")]
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
 #[cfg(feature = "validation")]
 pub use baseline::SkinnedShape;
-pub use config::ConfigSpace;
+pub use config::{resolve_marker, ConfigSpace, MAX_CONFIG_DIM};
 pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};
-pub use error::{Error, Result};
+pub use error::{Context, Error, Result, ResultExt};
 pub use nrbf::{Nrbf, NrbfFit};
-pub use observe::{Accumulation, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
-pub use params::ReconstructionParams;
+pub use observe::{
+    Accumulation, Discard, FrameInput, ObserveParams, ObserveStats, Observer, Walk,
+    DEFAULT_MAX_KNOT_SPACING_PX, DEFAULT_MIN_RAY_ANGLE_DEG,
+};
+pub use params::{
+    ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W, DEFAULT_MIN_NEAR,
+    DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_SEED,
+};
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
-pub use prototypes::{PrototypeLocations, PrototypeShapes};
-pub use reconstruct::{NeedleModel, Reconstruction};
+pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
+pub use prototype_shapes::{grid_adjacency, prototype_shapes, PrototypeShapes};
+pub use reconstruct::{NeedleModel, PrimitiveFitReport, Reconstruction};
 pub use select::{
     select_params, validation_error, Parameter, ParameterCurve, Selection, SelectionParams,
     ValidationFrame,
@@ -70,8 +170,13 @@ pub use select::{
 pub use silhouette_error::{
     FrameSilhouetteError, SilhouetteError, SilhouetteErrorParams, SilhouetteScorer,
 };
-pub use store::{NeedleObservations, Observation, ObservationStore, PrimitiveShape};
+pub use store::{
+    NeedleObservations, Observation, ObservationStore, PackedObservation, PrimitiveShape,
+};
 pub use surface::{
     merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,
 };
-pub use sync::{estimate_sync_offset, SyncParams, SyncResult, VideoFrame};
+pub use sync::{
+    estimate_sync_offset, sample_motion, SyncParams, SyncResult, VideoFrame, DEFAULT_SYNC_CAP_PX,
+    DEFAULT_SYNC_INITIAL_STEP_S,
+};

@@ -1,82 +1,62 @@
 //! Normalised radial basis function deformation model: Sand, McMillan and Popović 2003 §5.1
 //! (thesis §5.1) and its fitting from observations (§5.2–5.3).
 //!
-//! Each needle length of a primitive is a distance-weighted average of prototype shapes:
-//!
-//! ```text
-//! l_j(x) = Σ_k v_jk K(x, p_k) / Σ_k K(x, p_k)                       (§5.1)
-//! ```
-//!
-//! The paper uses the plain normalised kernel average ("interpolate prototype shapes via
-//! distance-weighted averaging", after Broomhead and Lowe) — there is no linear solve for RBF
-//! coefficients, and the model does not pass exactly through `v_jk` at `p_k` unless the
-//! kernel is narrow compared with the prototype spacing. Far from all prototypes the weights
-//! tend to the nearest prototype, which is the extrapolation the paper wants (§5.1).
-//!
-//! ## The kernel and the meaning of `W`
-//!
-//! The paper says only that `K` is Gaussian with "kernel width W" and that `W = 7` minimised
-//! the silhouette error (§6.3); it gives neither the formula nor the units of the
-//! configuration space (marker coordinates in the bone frame, §3.3), so a bare `W = 7` in
-//! metres, centimetres or millimetres would mean a static model, a smooth one or
-//! nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
-//! measuring distances in units of the training data's RMS radius
-//! `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
-//!
-//! ```text
-//! K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
-//! ```
-//!
-//! Why this reading: with `N = 100` farthest-point prototypes over a 3-D data cloud the
-//! prototype spacing is ≈ 0.4 s, so σ ≈ 0.27 s gives each query a few prototypes with
-//! non-negligible weight — a smooth blend, neither a static average (σ ≫ spacing) nor
-//! nearest-neighbour lookup (σ ≪ spacing). In 9-D spaces `s` grows like √dim together with the
-//! prototype spacing, so the same `W` stays sensible; this is why the paper could use one
-//! `W` for all primitives. Larger `W` is a sharper kernel.
-//!
-//! Evaluation subtracts the smallest exponent before `exp`, so the weights never underflow
-//! to `0/0` however far `x` is from the data.
+//! The method is documented on [`Nrbf`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 
+use crate::config::{check_samples, config_scale};
 use crate::params::ReconstructionParams;
-use crate::prototypes::{
-    check_samples, farthest_point_prototypes, prototype_shapes, PrototypeShapes,
-};
+use crate::prototype_locations::farthest_point_prototypes;
+use crate::prototype_shapes::{prototype_shapes, PrototypeShapes};
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
-/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
-/// distance unit of the NRBF kernel. Returns 1 when all points coincide (any unit works then).
-///
-/// # Errors
-/// As [`crate::prototypes::farthest_point_prototypes`] for bad `samples`/`dim`.
-pub fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
-    let count = check_samples(samples, dim)?;
-    let mut mean = vec![0f64; dim];
-    for row in samples.chunks_exact(dim) {
-        for (m, &v) in mean.iter_mut().zip(row) {
-            *m += v as f64;
-        }
-    }
-    mean.iter_mut().for_each(|m| *m /= count as f64);
-    let ss: f64 = samples
-        .chunks_exact(dim)
-        .map(|row| {
-            row.iter()
-                .zip(&mean)
-                .map(|(&v, m)| (v as f64 - m).powi(2))
-                .sum::<f64>()
-        })
-        .sum();
-    let s = (ss / count as f64).sqrt() as f32;
-    Ok(if s > 0.0 && s.is_finite() { s } else { 1.0 })
-}
-
 /// A fitted NRBF deformation model of one primitive (Sand 2003 §5.1).
+///
+/// Normalised radial basis function deformation model: Sand, McMillan and Popović 2003 §5.1
+/// (thesis §5.1) and its fitting from observations (§5.2–5.3).
+///
+/// Each needle length of a primitive is a distance-weighted average of prototype shapes:
+///
+/// ```text
+/// l_j(x) = Σ_k v_jk K(x, p_k) / Σ_k K(x, p_k)                       (§5.1)
+/// ```
+///
+/// The paper uses the plain normalised kernel average ("interpolate prototype shapes via
+/// distance-weighted averaging", after Broomhead and Lowe) — there is no linear solve for RBF
+/// coefficients, and the model does not pass exactly through `v_jk` at `p_k` unless the
+/// kernel is narrow compared with the prototype spacing. Far from all prototypes the weights
+/// tend to the nearest prototype, which is the extrapolation the paper wants (§5.1).
+///
+/// ## The kernel and the meaning of `W`
+///
+/// The paper says only that `K` is Gaussian with "kernel width W" and that `W = 7` minimised
+/// the silhouette error (§6.3); it gives neither the formula nor the units of the
+/// configuration space (marker coordinates in the bone frame, §3.3), so a bare `W = 7` in
+/// metres, centimetres or millimetres would mean a static model, a smooth one or
+/// nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
+/// measuring distances in units of the training data's RMS radius
+/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
+///
+/// ```text
+/// K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
+/// ```
+///
+/// Why this reading: with `N = 100` farthest-point prototypes over a 3-D data cloud the
+/// prototype spacing is ≈ 0.4 s, so σ ≈ 0.27 s gives each query a few prototypes with
+/// non-negligible weight — a smooth blend, neither a static average (σ ≫ spacing) nor
+/// nearest-neighbour lookup (σ ≪ spacing). In 9-D spaces `s` grows like √dim together with the
+/// prototype spacing, so the same `W` stays sensible; this is why the paper could use one
+/// `W` for all primitives. Larger `W` is a sharper kernel.
+///
+/// Evaluation subtracts the smallest exponent before `exp`, so the weights never underflow
+/// to `0/0` however far `x` is from the data.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Nrbf {
     dim: usize,
@@ -87,7 +67,7 @@ pub struct Nrbf {
     shapes: Vec<f32>,
     /// RMS radius `s` of the training configurations (configuration-space units).
     config_scale: f32,
-    /// Kernel parameter `W` (dimensionless, see the module docs).
+    /// Kernel parameter `W` (dimensionless, see [`Nrbf`]).
     kernel_width_w: f64,
 }
 
@@ -110,7 +90,8 @@ impl Nrbf {
     /// # Errors
     /// [`Error::SizeMismatch`] if `shapes.num_prototypes` differs from the number of
     /// locations or `shapes.lengths` has the wrong size; [`Error::InvalidParam`] for
-    /// `dim ∉ 1..=16`, `config_scale ≤ 0` or `kernel_width_w ≤ 0`; [`Error::NonFinite`] for
+    /// `dim ∉ 1..=16`, an invalid-parameter [`Error::Core`] for `config_scale ≤ 0` or
+    /// `kernel_width_w ≤ 0`; [`Error::NonFinite`] for
     /// NaN/∞ inputs; [`Error::Empty`] for no prototypes.
     pub fn new(
         dim: usize,
@@ -139,18 +120,8 @@ impl Nrbf {
                 what: "prototype shapes",
             });
         }
-        if !(config_scale.is_finite() && config_scale > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "config_scale",
-                reason: format!("must be finite and > 0, got {config_scale}"),
-            });
-        }
-        if !(kernel_width_w.is_finite() && kernel_width_w > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                reason: format!("must be finite and > 0, got {kernel_width_w}"),
-            });
-        }
+        check::positive("config_scale", f64::from(config_scale))?;
+        check::positive("kernel_width_w", kernel_width_w)?;
         Ok(Self {
             dim,
             num_needles: shapes.num_needles,
@@ -311,8 +282,7 @@ impl Nrbf {
     ///
     /// # Example
     /// ```
-    /// use needle_model::nrbf::Nrbf;
-    /// use needle_model::prototypes::PrototypeShapes;
+    /// use needle_model::{Nrbf, PrototypeShapes};
     /// // Two 1-D prototypes at 0 and 1 with one needle of length 2 and 4.
     /// let shapes = PrototypeShapes { num_needles: 1, num_prototypes: 2,
     ///     lengths: vec![2.0, 4.0], filled_needles: vec![] };
@@ -357,7 +327,6 @@ impl Nrbf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::prototypes::observations_from_lists;
     use rand::RngExt;
 
     const DIM: usize = 3;
@@ -414,7 +383,10 @@ mod tests {
                     }
                 }
             }
-            (samples, observations_from_lists(&per_needle).unwrap())
+            (
+                samples,
+                NeedleObservations::from_lists(&per_needle).unwrap(),
+            )
         }
 
         /// RMS error over held-out interior points.
@@ -541,7 +513,7 @@ mod tests {
         for j in 0..NEEDLES {
             let mut all = obs.needle(j).1.to_vec();
             all.sort_by(f32::total_cmp);
-            let expect = all[crate::prototypes::percentile_index(all.len(), params.f_min)];
+            let expect = all[crate::prototype_shapes::percentile_index(all.len(), params.f_min)];
             for k in 0..fit.model.num_prototypes() {
                 assert_eq!(fit.model.shapes()[k * NEEDLES + j], expect);
             }
@@ -647,14 +619,18 @@ mod tests {
             Nrbf::new(1, vec![0.0, 1.0], shapes(3), 1.0, 7.0),
             Err(Error::SizeMismatch { .. })
         ));
-        assert!(matches!(
-            Nrbf::new(1, vec![0.0], shapes(1), 0.0, 7.0),
-            Err(Error::InvalidParam { .. })
-        ));
-        assert!(matches!(
-            Nrbf::new(1, vec![0.0], shapes(1), 1.0, -1.0),
-            Err(Error::InvalidParam { .. })
-        ));
+        assert_eq!(
+            Nrbf::new(1, vec![0.0], shapes(1), 0.0, 7.0)
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("config_scale")
+        );
+        assert_eq!(
+            Nrbf::new(1, vec![0.0], shapes(1), 1.0, -1.0)
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("kernel_width_w")
+        );
         assert!(matches!(
             Nrbf::new(1, vec![f32::NAN], shapes(1), 1.0, 7.0),
             Err(Error::NonFinite { .. })
@@ -665,20 +641,16 @@ mod tests {
             Nrbf::new(1, vec![0.0], nan_shape, 1.0, 7.0),
             Err(Error::NonFinite { .. })
         ));
-        let obs = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
-        assert!(matches!(
-            Nrbf::fit(
-                &[0.0],
-                1,
-                &obs,
-                &[vec![]],
-                &ReconstructionParams::default().with_kernel_width_w(0.0)
-            ),
-            Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                ..
-            })
-        ));
+        let obs = NeedleObservations::from_lists(&[vec![(0, 1.0)]]).unwrap();
+        let e = Nrbf::fit(
+            &[0.0],
+            1,
+            &obs,
+            &[vec![]],
+            &ReconstructionParams::default().with_kernel_width_w(0.0),
+        )
+        .unwrap_err();
+        assert_eq!(e.invalid_param_name(), Some("kernel_width_w"));
         assert!(matches!(
             config_scale(&[f32::NAN], 1),
             Err(Error::NonFinite { .. })
@@ -690,7 +662,6 @@ mod tests {
 #[cfg(test)]
 mod proptests {
     use super::*;
-    use crate::prototypes::observations_from_lists;
     use proptest::prelude::*;
 
     proptest! {
@@ -713,7 +684,7 @@ mod proptests {
             let per_needle: Vec<Vec<(u32, f32)>> = (0..3)
                 .map(|_| (0..200u32).map(|s| (s, rng.random_range(0.1f32..1.0))).collect())
                 .collect();
-            let obs = observations_from_lists(&per_needle).unwrap();
+            let obs = NeedleObservations::from_lists(&per_needle).unwrap();
             let params = ReconstructionParams::default()
                 .with_f_near(f_near)
                 .with_f_min(f_min)

@@ -1,37 +1,7 @@
 //! Accumulation of needle-length observations from silhouettes (Sand 2003 §4.3).
 //!
-//! "The system projects each needle into each video frame to compute the needle length from
-//! its intersection with the silhouette. Starting at the origin of the needle, we traverse the
-//! image outward until the needle projection leaves the silhouette. If the traversal extends
-//! beyond a prescribed maximum length, the measurement is discarded. [...] Based on the
-//! world-space orientation of the needle, we convert the image-space measurement into a
-//! world-space length" (§4.3). Each kept length is stored with the primitive's configuration
-//! point (§3.3) in an [`ObservationStore`].
-//!
-//! **Walk.** The needle from its origin `o` to `o + L_max·d` is projected; the image path is
-//! traversed cell by cell (exact grid traversal, Amanatides–Woo) under the pixel convention of
-//! [`skin_core::image`] (pixel `(x, y)` covers `[x−½, x+½] × [y−½, y+½]`). The exit point is
-//! where the path enters the first background pixel, i.e. the boundary between the last
-//! foreground and first background pixel centres — the unbiased sub-pixel estimate of the
-//! silhouette edge for a mask sampled at pixel centres (error within ±½ px along the path).
-//! The image fraction is mapped back to a world length by the exact inverse of the
-//! perspective division along the segment (`μ = λ z_a / (z_b − λ (z_b − z_a))`). With radial
-//! distortion the needle's image is a curve; it is followed as a polyline of projected knots no
-//! more than [`ObserveParams::max_knot_spacing_px`] apart.
-//!
-//! **Discarded walks** (counted in [`ObserveStats`]): the walk reaches `L_max` while still
-//! inside the silhouette (§4.3; this is what happens everywhere for an all-foreground mask);
-//! the needle is nearly parallel to the viewing ray ([`ObserveParams::min_ray_angle_deg`]);
-//! the origin projects onto a background pixel (an empty mask, or a bone outside its
-//! silhouette: the data disagree, so no bound can be read); the path leaves the image while
-//! inside the silhouette (the silhouette is clipped); the needle is behind the camera.
-//!
-//! A camera that sees no needle simply yields no observation (its walks are counted as
-//! `origin_outside`/`behind_camera`); this is not an error, since in a moving capture some
-//! cameras lose the performer in some frames.
-//!
-//! Frames are processed in parallel (rayon); each frame fills its own store, and stores are
-//! appended in frame order, so the result is identical for any thread count.
+//! The method is documented on [`Observer`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -40,7 +10,7 @@ use skin_core::image::Mask;
 use skin_core::math::{DVec2, DVec3};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
-use crate::error::{Error, Result};
+use crate::error::{Context, Error, Result, ResultExt};
 use crate::primitive::NeedleBody;
 use crate::store::ObservationStore;
 
@@ -175,7 +145,7 @@ impl ObserveStats {
 /// One frame of input: the pose and one silhouette per camera (in camera order).
 #[derive(Debug, Clone, Copy)]
 pub struct FrameInput<'a> {
-    /// Pose θ of the skeleton (synchronised to the video frame, see [`crate::sync`]).
+    /// Pose θ of the skeleton (synchronised to the video frame, see [`crate::estimate_sync_offset`]).
     pub theta: &'a [f64],
     /// Silhouette masks, one per camera, each of its camera's image size.
     pub masks: &'a [Mask],
@@ -191,6 +161,41 @@ pub struct Accumulation {
 }
 
 /// Walks needles of a body through silhouettes of a fixed camera set.
+///
+/// Accumulation of needle-length observations from silhouettes (Sand 2003 §4.3).
+///
+/// "The system projects each needle into each video frame to compute the needle length from
+/// its intersection with the silhouette. Starting at the origin of the needle, we traverse the
+/// image outward until the needle projection leaves the silhouette. If the traversal extends
+/// beyond a prescribed maximum length, the measurement is discarded. [...] Based on the
+/// world-space orientation of the needle, we convert the image-space measurement into a
+/// world-space length" (§4.3). Each kept length is stored with the primitive's configuration
+/// point (§3.3) in an [`ObservationStore`].
+///
+/// **Walk.** The needle from its origin `o` to `o + L_max·d` is projected; the image path is
+/// traversed cell by cell (exact grid traversal, Amanatides–Woo) under the pixel convention of
+/// [`skin_core::image`] (pixel `(x, y)` covers `[x−½, x+½] × [y−½, y+½]`). The exit point is
+/// where the path enters the first background pixel, i.e. the boundary between the last
+/// foreground and first background pixel centres — the unbiased sub-pixel estimate of the
+/// silhouette edge for a mask sampled at pixel centres (error within ±½ px along the path).
+/// The image fraction is mapped back to a world length by the exact inverse of the
+/// perspective division along the segment (`μ = λ z_a / (z_b − λ (z_b − z_a))`). With radial
+/// distortion the needle's image is a curve; it is followed as a polyline of projected knots no
+/// more than [`ObserveParams::max_knot_spacing_px`] apart.
+///
+/// **Discarded walks** (counted in [`ObserveStats`]): the walk reaches `L_max` while still
+/// inside the silhouette (§4.3; this is what happens everywhere for an all-foreground mask);
+/// the needle is nearly parallel to the viewing ray ([`ObserveParams::min_ray_angle_deg`]);
+/// the origin projects onto a background pixel (an empty mask, or a bone outside its
+/// silhouette: the data disagree, so no bound can be read); the path leaves the image while
+/// inside the silhouette (the silhouette is clipped); the needle is behind the camera.
+///
+/// A camera that sees no needle simply yields no observation (its walks are counted as
+/// `origin_outside`/`behind_camera`); this is not an error, since in a moving capture some
+/// cameras lose the performer in some frames.
+///
+/// Frames are processed in parallel (rayon); each frame fills its own store, and stores are
+/// appended in frame order, so the result is identical for any thread count.
 #[derive(Debug, Clone)]
 pub struct Observer {
     body: NeedleBody,
@@ -278,7 +283,8 @@ impl Observer {
     /// # Errors
     /// [`Error::SizeMismatch`] for a wrong number of masks or a mask whose size differs from
     /// its camera's image; errors of [`Skeleton::forward_kinematics`] (wrong length or
-    /// non-finite θ); errors of [`ObservationStore::push_sample`] for a store of another body.
+    /// non-finite θ); errors of [`ObservationStore::push_sample`] for a store of another body
+    /// (in [`Error::At`] with the [`Context::Primitive`] and [`Context::Camera`]).
     pub fn observe_frame(
         &self,
         theta: &[f64],
@@ -302,13 +308,18 @@ impl Observer {
         let mut config = Vec::new();
         for (p, prim) in self.body.primitives.iter().enumerate() {
             config.resize(prim.config.dim(), 0.0);
-            prim.config.point_into(fk, &mut config)?;
-            let t = world.get(prim.carrier).ok_or(Error::SizeMismatch {
-                what: "forward kinematics joints",
-                expected: prim.carrier + 1,
-                got: world.len(),
-            })?;
-            for (cam, mask) in self.cameras.iter().zip(masks) {
+            prim.config
+                .point_into(fk, &mut config)
+                .at(Context::Primitive(p))?;
+            let t = world
+                .get(prim.carrier)
+                .ok_or(Error::SizeMismatch {
+                    what: "forward kinematics joints",
+                    expected: prim.carrier + 1,
+                    got: world.len(),
+                })
+                .at(Context::Primitive(p))?;
+            for (c, (cam, mask)) in self.cameras.iter().zip(masks).enumerate() {
                 obs.clear();
                 for j in 0..prim.needle_count() {
                     let (o, d) = prim.needle_world(t, j);
@@ -319,7 +330,10 @@ impl Observer {
                         obs.push((j as u16, length_m as f32));
                     }
                 }
-                store.push_sample(p, &config, &obs)?;
+                store
+                    .push_sample(p, &config, &obs)
+                    .at(Context::Camera(c))
+                    .at(Context::Primitive(p))?;
             }
         }
         Ok(stats)
@@ -329,8 +343,8 @@ impl Observer {
     /// then primitive, then camera order, identical for any thread count.
     ///
     /// # Errors
-    /// As [`Observer::observe_frame`] for the first failing frame; [`Error::Empty`] for no
-    /// frames.
+    /// [`Error::Empty`] for no frames; the errors of [`Observer::observe_frame`] for the first
+    /// failing frame, in [`Error::At`] with its [`Context::Frame`].
     pub fn accumulate(&self, frames: &[FrameInput<'_>]) -> Result<Accumulation> {
         if frames.is_empty() {
             return Err(Error::Empty { what: "frames" });
@@ -338,9 +352,12 @@ impl Observer {
         let shapes = self.body.store_shapes();
         let parts: Vec<(ObservationStore, ObserveStats)> = frames
             .par_iter()
-            .map(|f| {
+            .enumerate()
+            .map(|(i, f)| {
                 let mut st = ObservationStore::new(&shapes)?;
-                let stats = self.observe_frame(f.theta, f.masks, &mut st)?;
+                let stats = self
+                    .observe_frame(f.theta, f.masks, &mut st)
+                    .at(Context::Frame(i))?;
                 Ok((st, stats))
             })
             .collect::<Result<_>>()?;
@@ -354,7 +371,7 @@ impl Observer {
     }
 
     /// Walks one needle (world origin `origin`, unit direction `dir`) through `mask` seen by
-    /// `camera`, up to `max_length_m` (see the module docs). Inputs are assumed valid
+    /// `camera`, up to `max_length_m` (see [`Observer`]). Inputs are assumed valid
     /// (finite, mask of the camera's size); a non-finite projection is reported as
     /// [`Discard::BehindCamera`].
     pub fn walk(

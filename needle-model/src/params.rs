@@ -1,14 +1,11 @@
 //! Reconstruction parameters of Sand, McMillan and Popović 2003, §6.3 (thesis §5.5).
 //!
-//! The prototype estimation algorithm (§5.2–5.3) has four free parameters: the fraction of
-//! nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
-//! kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
-//! paper selects them by minimising the silhouette error (§6.2) and reports
-//! `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. One
-//! parameter is ours: a floor `min_near` on the observations behind each estimate
-//! ([`ReconstructionParams::min_near`]).
+//! The method is documented on [`ReconstructionParams`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
+
+use skin_core::check;
 
 use crate::{Error, Result};
 
@@ -18,7 +15,7 @@ pub const DEFAULT_F_NEAR: f64 = 0.022;
 /// Default `F_min`: percentile (as a fraction) taken as the robust minimum.
 /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
 pub const DEFAULT_F_MIN: f64 = 0.10;
-/// Default kernel width `W` of the NRBF Gaussian (see [`crate::nrbf`] for its exact meaning).
+/// Default kernel width `W` of the NRBF Gaussian (see [`crate::Nrbf`] for its exact meaning).
 /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
 pub const DEFAULT_KERNEL_WIDTH_W: f64 = 7.0;
 /// Default number of prototypes per deformable primitive `N`. Sand 2003 §6.3.
@@ -30,6 +27,16 @@ pub const DEFAULT_MIN_NEAR: usize = 50;
 pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
 
 /// Parameters of prototype reconstruction (Sand 2003 §5.2–5.3) and NRBF evaluation (§5.1).
+///
+/// Reconstruction parameters of Sand, McMillan and Popović 2003, §6.3 (thesis §5.5).
+///
+/// The prototype estimation algorithm (§5.2–5.3) has four free parameters: the fraction of
+/// nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
+/// kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
+/// paper selects them by minimising the silhouette error (§6.2) and reports
+/// `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. One
+/// parameter is ours: a floor `min_near` on the observations behind each estimate
+/// ([`ReconstructionParams::min_near`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReconstructionParams {
     /// Fraction of a needle's observations, nearest in configuration space to a prototype
@@ -44,7 +51,7 @@ pub struct ReconstructionParams {
     pub f_min: f64,
     /// Gaussian kernel parameter `W` of the NRBF (§5.1). Dimensionless: configuration-space
     /// distances are measured in units of the training data's RMS radius `s`, and the kernel
-    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::nrbf`]). Larger `W` means a
+    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
     /// sharper, more local kernel. Must be > 0. Source: Sand 2003 §6.3. Default: 7.
     pub kernel_width_w: f64,
     /// Number of prototypes per deformable primitive (§5.2). Must be ≥ 1. If a primitive has
@@ -115,8 +122,10 @@ impl ReconstructionParams {
     /// Checks every field's range.
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] naming the field when `f_near ∉ (0, 1]`, `f_min ∉ [0, 1]`,
-    /// `kernel_width_w ≤ 0`, `prototype_count_n = 0`, `min_near = 0`, or any value is NaN / infinite.
+    /// An invalid-parameter error naming the field ([`Error::invalid_param_name`]):
+    /// [`Error::InvalidParam`] when `f_near ∉ (0, 1]` or NaN; [`Error::Core`] (from
+    /// [`skin_core::check`]) when `f_min ∉ [0, 1]`, `kernel_width_w ≤ 0`,
+    /// `prototype_count_n = 0`, `min_near = 0`, or a value is NaN / infinite.
     pub fn validate(&self) -> Result<()> {
         if !(self.f_near.is_finite() && self.f_near > 0.0 && self.f_near <= 1.0) {
             return Err(Error::InvalidParam {
@@ -124,30 +133,10 @@ impl ReconstructionParams {
                 reason: format!("must be in (0, 1], got {}", self.f_near),
             });
         }
-        if !(self.f_min.is_finite() && (0.0..=1.0).contains(&self.f_min)) {
-            return Err(Error::InvalidParam {
-                name: "f_min",
-                reason: format!("must be in [0, 1], got {}", self.f_min),
-            });
-        }
-        if !(self.kernel_width_w.is_finite() && self.kernel_width_w > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "kernel_width_w",
-                reason: format!("must be finite and > 0, got {}", self.kernel_width_w),
-            });
-        }
-        if self.min_near == 0 {
-            return Err(Error::InvalidParam {
-                name: "min_near",
-                reason: "must be at least 1".into(),
-            });
-        }
-        if self.prototype_count_n == 0 {
-            return Err(Error::InvalidParam {
-                name: "prototype_count_n",
-                reason: "must be at least 1".into(),
-            });
-        }
+        check::in_range("f_min", self.f_min, 0.0..=1.0)?;
+        check::positive("kernel_width_w", self.kernel_width_w)?;
+        check::nonzero("min_near", self.min_near)?;
+        check::nonzero("prototype_count_n", self.prototype_count_n)?;
         Ok(())
     }
 }
@@ -183,10 +172,8 @@ mod tests {
             (d.with_min_near(0), "min_near"),
         ];
         for (p, field) in cases {
-            match p.validate() {
-                Err(Error::InvalidParam { name, .. }) => assert_eq!(name, field),
-                other => panic!("{field}: expected InvalidParam, got {other:?}"),
-            }
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.invalid_param_name(), Some(field), "{e}");
         }
         // Boundaries that are valid.
         d.with_f_near(1.0).with_f_min(0.0).validate().unwrap();

@@ -1,23 +1,15 @@
 //! Deformable primitives: needles in rings around a bone axis (Sand 2003 §3.1–3.2, Table 3.1).
 //!
-//! "Each deformable primitive consists of a rigid axis, which usually corresponds to a bone in
-//! the skeleton, and a set of needles, which are rigidly attached to the axis. Each needle
-//! originates at a point along the axis and extends outward in a fixed direction" (§3.1). The
-//! needles sit in rings: `axial` rings evenly spaced along the axis, `radial` needles per ring
-//! evenly spaced in angle, perpendicular to the axis. Needle `j = ring · radial + k` (ring-major).
-//! Junctions are unions of overlapping primitives (§3.2), so the axes are extended a little
-//! past the joints ([`PrimitiveSpec::extend_start`], [`PrimitiveSpec::extend_end`]).
-//!
-//! [`BodyLayout::table_3_1`] is the thesis's default body (12 primitives, 6 600 needles) mapped
-//! onto the 19-joint skeleton of [`skin_core::skeleton::human_skeleton`] (the MakeHuman
-//! performer has the same joint names).
+//! The method is documented on [`NeedleBody`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 use skin_core::math::{DAffine3, DVec3};
-use skin_core::skeleton::Skeleton;
+use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 use crate::config::{resolve_marker, ConfigSpace};
-use crate::error::{Error, Result};
+use crate::error::{Context, Error, Result, ResultExt};
 use crate::store::PrimitiveShape;
 
 /// Description of one deformable primitive by joint names (resolved against a skeleton by
@@ -29,7 +21,7 @@ pub struct PrimitiveSpec {
     /// Joint whose frame carries the primitive (its axis and needles are rigid in it).
     pub carrier: String,
     /// Markers whose rest-pose mean is the start of the axis (see
-    /// [`crate::config`] for the marker syntax: a joint name, or `joint.tip` for its end site).
+    /// [`crate::resolve_marker`] for the marker syntax: a joint name, or `joint.tip` for its end site).
     pub axis_from: Vec<String>,
     /// Markers whose rest-pose mean is the end of the axis.
     pub axis_to: Vec<String>,
@@ -253,6 +245,20 @@ impl Primitive {
 }
 
 /// All primitives of a body, resolved against one skeleton.
+///
+/// Deformable primitives: needles in rings around a bone axis (Sand 2003 §3.1–3.2, Table 3.1).
+///
+/// "Each deformable primitive consists of a rigid axis, which usually corresponds to a bone in
+/// the skeleton, and a set of needles, which are rigidly attached to the axis. Each needle
+/// originates at a point along the axis and extends outward in a fixed direction" (§3.1). The
+/// needles sit in rings: `axial` rings evenly spaced along the axis, `radial` needles per ring
+/// evenly spaced in angle, perpendicular to the axis. Needle `j = ring · radial + k` (ring-major).
+/// Junctions are unions of overlapping primitives (§3.2), so the axes are extended a little
+/// past the joints ([`PrimitiveSpec::extend_start`], [`PrimitiveSpec::extend_end`]).
+///
+/// [`BodyLayout::table_3_1`] is the thesis's default body (12 primitives, 6 600 needles) mapped
+/// onto the 19-joint skeleton of [`skin_core::skeleton::human_skeleton`] (the MakeHuman
+/// performer has the same joint names).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NeedleBody {
     /// The primitives.
@@ -264,9 +270,11 @@ impl NeedleBody {
     /// using the rest pose (θ = 0) and expressed in each carrier frame.
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] for an unknown joint name, a zero count, more than 65 536 needles,
-    /// a non-positive maximum length, a negative extension, or a degenerate (zero-length) axis;
-    /// [`Error::Empty`] for a layout without primitives or a primitive without markers.
+    /// [`Error::Empty`] for a layout without primitives. Per primitive, in [`Error::At`] with
+    /// its [`Context::Primitive`]: an invalid-parameter error ([`Error::invalid_param_name`])
+    /// for an unknown joint name, a zero count, more than 65 536 needles, a non-positive
+    /// maximum length, a negative extension, or a degenerate (zero-length) axis;
+    /// [`Error::Empty`] for a primitive without markers.
     pub fn new(skeleton: &Skeleton, layout: &BodyLayout) -> Result<Self> {
         if layout.primitives.is_empty() {
             return Err(Error::Empty {
@@ -274,86 +282,9 @@ impl NeedleBody {
             });
         }
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
-        let world = rest.world_from_joint();
         let mut primitives = Vec::with_capacity(layout.primitives.len());
-        for s in &layout.primitives {
-            let carrier = skeleton
-                .joint_index(&s.carrier)
-                .ok_or_else(|| Error::InvalidParam {
-                    name: "carrier",
-                    reason: format!("no joint named {:?} (primitive {})", s.carrier, s.name),
-                })?;
-            let n = s.radial.saturating_mul(s.axial);
-            if s.radial == 0 || s.axial == 0 || n > usize::from(u16::MAX) + 1 {
-                return Err(Error::InvalidParam {
-                    name: "radial/axial",
-                    reason: format!("{}: counts must be ≥ 1 with ≤ 65536 needles", s.name),
-                });
-            }
-            if !(s.max_length_m.is_finite() && s.max_length_m > 0.0) {
-                return Err(Error::InvalidParam {
-                    name: "max_length_m",
-                    reason: format!("{}: must be finite and > 0", s.name),
-                });
-            }
-            let ext_ok = |e: f64| e.is_finite() && e >= 0.0;
-            if !(ext_ok(s.extend_start) && ext_ok(s.extend_end)) {
-                return Err(Error::InvalidParam {
-                    name: "extend_start/extend_end",
-                    reason: format!("{}: must be finite and ≥ 0", s.name),
-                });
-            }
-            let carrier_from_world = world[carrier].inverse();
-            let mean = |names: &[String]| -> Result<DVec3> {
-                if names.is_empty() {
-                    return Err(Error::Empty {
-                        what: "axis markers",
-                    });
-                }
-                let mut sum = DVec3::ZERO;
-                for m in names {
-                    let pt = resolve_marker(skeleton, m)?;
-                    sum += carrier_from_world.transform_point3(rest.point(&pt)?);
-                }
-                Ok(sum / names.len() as f64)
-            };
-            let a = mean(&s.axis_from)?;
-            let b = mean(&s.axis_to)?;
-            let len = a.distance(b);
-            if len < 1e-6 {
-                return Err(Error::InvalidParam {
-                    name: "axis",
-                    reason: format!("{}: axis start and end coincide", s.name),
-                });
-            }
-            let axis = (b - a) / len;
-            let start = a - axis * (s.extend_start * len);
-            let end = b + axis * (s.extend_end * len);
-            let (u, v) = perpendicular_basis(axis);
-            let mut needle_origin = Vec::with_capacity(n);
-            let mut needle_dir = Vec::with_capacity(n);
-            for ring in 0..s.axial {
-                let t = (ring as f64 + 0.5) / s.axial as f64;
-                let o = start.lerp(end, t);
-                for k in 0..s.radial {
-                    let phi = std::f64::consts::TAU * k as f64 / s.radial as f64;
-                    needle_origin.push(o);
-                    needle_dir.push(u * phi.cos() + v * phi.sin());
-                }
-            }
-            let config = ConfigSpace::new(skeleton, carrier, &s.config_markers)?;
-            primitives.push(Primitive {
-                name: s.name.clone(),
-                carrier,
-                axis_start: start,
-                axis_end: end,
-                radial: s.radial,
-                axial: s.axial,
-                max_length_m: s.max_length_m,
-                needle_origin,
-                needle_dir,
-                config,
-            });
+        for (i, s) in layout.primitives.iter().enumerate() {
+            primitives.push(build_primitive(skeleton, &rest, s).at(Context::Primitive(i))?);
         }
         Ok(Self { primitives })
     }
@@ -363,7 +294,7 @@ impl NeedleBody {
         self.primitives.iter().map(Primitive::needle_count).sum()
     }
 
-    /// Shapes for an [`crate::store::ObservationStore`] of this body.
+    /// Shapes for an [`crate::ObservationStore`] of this body.
     pub fn store_shapes(&self) -> Vec<PrimitiveShape> {
         self.primitives
             .iter()
@@ -374,6 +305,86 @@ impl NeedleBody {
             })
             .collect()
     }
+}
+
+/// Resolves one primitive of a layout against `skeleton` at rest (`rest`), the body of
+/// [`NeedleBody::new`]'s loop (errors get the primitive's context there).
+fn build_primitive(
+    skeleton: &Skeleton,
+    rest: &ForwardKinematics,
+    s: &PrimitiveSpec,
+) -> Result<Primitive> {
+    let world = rest.world_from_joint();
+    let carrier = skeleton
+        .joint_index(&s.carrier)
+        .ok_or_else(|| Error::InvalidParam {
+            name: "carrier",
+            reason: format!("no joint named {:?} (primitive {:?})", s.carrier, s.name),
+        })?;
+    let n = s.radial.saturating_mul(s.axial);
+    if s.radial == 0 || s.axial == 0 || n > usize::from(u16::MAX) + 1 {
+        return Err(Error::InvalidParam {
+            name: "radial/axial",
+            reason: format!(
+                "{:?}: counts must be ≥ 1 with ≤ 65536 needles, got {} × {}",
+                s.name, s.radial, s.axial
+            ),
+        });
+    }
+    check::positive("max_length_m", s.max_length_m)?;
+    check::non_negative("extend_start", s.extend_start)?;
+    check::non_negative("extend_end", s.extend_end)?;
+    let carrier_from_world = world[carrier].inverse();
+    let mean = |names: &[String]| -> Result<DVec3> {
+        if names.is_empty() {
+            return Err(Error::Empty {
+                what: "axis markers",
+            });
+        }
+        let mut sum = DVec3::ZERO;
+        for m in names {
+            let pt = resolve_marker(skeleton, m)?;
+            sum += carrier_from_world.transform_point3(rest.point(&pt)?);
+        }
+        Ok(sum / names.len() as f64)
+    };
+    let a = mean(&s.axis_from)?;
+    let b = mean(&s.axis_to)?;
+    let len = a.distance(b);
+    if len < 1e-6 {
+        return Err(Error::InvalidParam {
+            name: "axis",
+            reason: format!("{:?}: axis start and end coincide", s.name),
+        });
+    }
+    let axis = (b - a) / len;
+    let start = a - axis * (s.extend_start * len);
+    let end = b + axis * (s.extend_end * len);
+    let (u, v) = perpendicular_basis(axis);
+    let mut needle_origin = Vec::with_capacity(n);
+    let mut needle_dir = Vec::with_capacity(n);
+    for ring in 0..s.axial {
+        let t = (ring as f64 + 0.5) / s.axial as f64;
+        let o = start.lerp(end, t);
+        for k in 0..s.radial {
+            let phi = std::f64::consts::TAU * k as f64 / s.radial as f64;
+            needle_origin.push(o);
+            needle_dir.push(u * phi.cos() + v * phi.sin());
+        }
+    }
+    let config = ConfigSpace::new(skeleton, carrier, &s.config_markers)?;
+    Ok(Primitive {
+        name: s.name.clone(),
+        carrier,
+        axis_start: start,
+        axis_end: end,
+        radial: s.radial,
+        axial: s.axial,
+        max_length_m: s.max_length_m,
+        needle_origin,
+        needle_dir,
+        config,
+    })
 }
 
 /// Orthonormal `(u, v)` perpendicular to unit `axis`; `u` is the carrier frame's +z (forward)

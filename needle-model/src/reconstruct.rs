@@ -2,10 +2,8 @@
 //! algorithm box in Sand, McMillan and Popović 2003 §5.3 ("for each bone i …") and the
 //! animation step of §5.4.
 //!
-//! Each primitive of an [`ObservationStore`] is fitted independently
-//! ([`Nrbf::fit`]: prototype locations §5.2, shapes §5.3), in parallel over primitives
-//! (each fit is itself parallel over needles). The result is a [`NeedleModel`] that predicts
-//! every needle length of a primitive from its configuration point (§5.1, §5.4).
+//! The method is documented on [`NeedleModel`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -13,11 +11,20 @@ use serde::{Deserialize, Serialize};
 use crate::nrbf::Nrbf;
 use crate::params::ReconstructionParams;
 use crate::primitive::NeedleBody;
-use crate::prototypes::grid_adjacency;
+use crate::prototype_shapes::grid_adjacency;
 use crate::store::ObservationStore;
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// The reconstructed deformable body: one NRBF per primitive (Sand 2003 §5.1).
+///
+/// Whole-body skin reconstruction from accumulated observations: the outer loop of the
+/// algorithm box in Sand, McMillan and Popović 2003 §5.3 ("for each bone i …") and the
+/// animation step of §5.4.
+///
+/// Each primitive of an [`ObservationStore`] is fitted independently
+/// ([`Nrbf::fit`]: prototype locations §5.2, shapes §5.3), in parallel over primitives
+/// (each fit is itself parallel over needles). The result is a [`NeedleModel`] that predicts
+/// every needle length of a primitive from its configuration point (§5.1, §5.4).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NeedleModel {
     /// Per-primitive models, indexed like the store's primitives.
@@ -73,9 +80,11 @@ impl NeedleModel {
     /// first prototype, so results do not depend on the thread count.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] if `grids` has the wrong length or a grid's needle count
-    /// differs from the store's; [`Error::NoObservations`] for a primitive without samples;
-    /// the errors of [`Nrbf::fit`] (invalid params, NaN, unfillable needles).
+    /// [`Error::SizeMismatch`] if `grids` has the wrong length; [`Error::InvalidParam`] for
+    /// invalid `params`. Per primitive, in [`Error::At`] with its [`Context::Primitive`]:
+    /// [`Error::SizeMismatch`] if its grid's needle count differs from the store's,
+    /// [`Error::NoObservations`] if it has no samples, and the errors of [`Nrbf::fit`]
+    /// (NaN, unfillable needles, with their [`Context::Needle`]).
     pub fn reconstruct_grids(
         store: &ObservationStore,
         grids: &[(usize, usize)],
@@ -92,46 +101,7 @@ impl NeedleModel {
         }
         let fits: Vec<(Nrbf, PrimitiveFitReport)> = (0..count)
             .into_par_iter()
-            .map(|p| {
-                let (radial, axial) = grids[p];
-                if radial * axial != store.needle_count(p) {
-                    return Err(Error::SizeMismatch {
-                        what: "needle grid radial × axial vs store needle count",
-                        expected: store.needle_count(p),
-                        got: radial * axial,
-                    });
-                }
-                if store.sample_count(p) == 0 {
-                    return Err(Error::NoObservations {
-                        what: format!("primitive {p} has no samples"),
-                    });
-                }
-                let obs = store.by_needle(p)?;
-                let adjacency = grid_adjacency(radial, axial)?;
-                let prim_params = params.with_seed(params.seed.wrapping_add(p as u64));
-                let fit = Nrbf::fit(
-                    store.samples(p),
-                    store.config_dim(p),
-                    &obs,
-                    &adjacency,
-                    &prim_params,
-                )?;
-                log::debug!(
-                    "primitive {p}: {} samples, {} observations, {} prototypes, {} filled needles",
-                    store.sample_count(p),
-                    obs.sample.len(),
-                    fit.model.num_prototypes(),
-                    fit.filled_needles.len()
-                );
-                let report = PrimitiveFitReport {
-                    samples: store.sample_count(p),
-                    observations: obs.sample.len(),
-                    prototype_samples: fit.prototype_samples,
-                    covering_radius: fit.covering_radius,
-                    filled_needles: fit.filled_needles,
-                };
-                Ok((fit.model, report))
-            })
+            .map(|p| fit_primitive(store, grids[p], p, params).at(Context::Primitive(p)))
             .collect::<Result<_>>()?;
         let (primitives, reports) = fits.into_iter().unzip();
         Ok(Reconstruction {
@@ -149,18 +119,65 @@ impl NeedleModel {
     /// configuration point `config` (§5.4).
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for an unknown primitive or a wrong-sized point;
-    /// [`Error::NonFinite`] for NaN/∞ coordinates.
+    /// [`Error::IndexOutOfRange`] for an unknown primitive; [`Error::SizeMismatch`] for a
+    /// wrong-sized point; [`Error::NonFinite`] for NaN/∞ coordinates.
     pub fn needle_lengths(&self, p: usize, config: &[f32]) -> Result<Vec<f32>> {
         self.primitives
             .get(p)
-            .ok_or(Error::SizeMismatch {
-                what: "primitive index",
-                expected: self.primitives.len(),
-                got: p,
+            .ok_or(Error::IndexOutOfRange {
+                what: "primitive",
+                index: p,
+                len: self.primitives.len(),
             })?
             .evaluate(config)
     }
+}
+
+/// Fits primitive `p` of `store` on its `(radial, axial)` needle grid (the body of
+/// [`NeedleModel::reconstruct_grids`]'s loop; errors get the primitive's context there).
+fn fit_primitive(
+    store: &ObservationStore,
+    (radial, axial): (usize, usize),
+    p: usize,
+    params: &ReconstructionParams,
+) -> Result<(Nrbf, PrimitiveFitReport)> {
+    if radial * axial != store.needle_count(p) {
+        return Err(Error::SizeMismatch {
+            what: "needle grid radial × axial vs store needle count",
+            expected: store.needle_count(p),
+            got: radial * axial,
+        });
+    }
+    if store.sample_count(p) == 0 {
+        return Err(Error::NoObservations {
+            what: "the primitive has no samples".into(),
+        });
+    }
+    let obs = store.by_needle(p)?;
+    let adjacency = grid_adjacency(radial, axial)?;
+    let prim_params = params.with_seed(params.seed.wrapping_add(p as u64));
+    let fit = Nrbf::fit(
+        store.samples(p),
+        store.config_dim(p),
+        &obs,
+        &adjacency,
+        &prim_params,
+    )?;
+    log::debug!(
+        "primitive {p}: {} samples, {} observations, {} prototypes, {} filled needles",
+        store.sample_count(p),
+        obs.observation_count(),
+        fit.model.num_prototypes(),
+        fit.filled_needles.len()
+    );
+    let report = PrimitiveFitReport {
+        samples: store.sample_count(p),
+        observations: obs.observation_count(),
+        prototype_samples: fit.prototype_samples,
+        covering_radius: fit.covering_radius,
+        filled_needles: fit.filled_needles,
+    };
+    Ok((fit.model, report))
 }
 
 #[cfg(test)]
@@ -264,28 +281,32 @@ mod tests {
             NeedleModel::reconstruct_grids(&store, &grids[..1], &p),
             Err(Error::SizeMismatch { .. })
         ));
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&store, &[(6, 2), (5, 3)], &p),
-            Err(Error::SizeMismatch { .. })
-        ));
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&store, &grids, &p.with_f_min(2.0)),
-            Err(Error::InvalidParam { name: "f_min", .. })
-        ));
+        let e = NeedleModel::reconstruct_grids(&store, &[(6, 2), (5, 3)], &p).unwrap_err();
+        assert!(matches!(e.contexts()[..], [Context::Primitive(_)]), "{e}");
+        assert!(matches!(e.root(), Error::SizeMismatch { .. }), "{e}");
+        assert_eq!(
+            NeedleModel::reconstruct_grids(&store, &grids, &p.with_f_min(2.0))
+                .unwrap_err()
+                .invalid_param_name(),
+            Some("f_min")
+        );
         let empty = ObservationStore::new(&[PrimitiveShape {
             config_dim: 3,
             needle_count: 4,
             max_length_m: 0.1,
         }])
         .unwrap();
-        assert!(matches!(
-            NeedleModel::reconstruct_grids(&empty, &[(4, 1)], &p),
-            Err(Error::NoObservations { .. })
-        ));
+        let e = NeedleModel::reconstruct_grids(&empty, &[(4, 1)], &p).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Primitive(0)]);
+        assert!(matches!(e.root(), Error::NoObservations { .. }));
+        assert_eq!(
+            e.to_string(),
+            "primitive 0: no observations: the primitive has no samples"
+        );
         let rec = NeedleModel::reconstruct_grids(&store, &grids, &p).unwrap();
         assert!(matches!(
             rec.model.needle_lengths(2, &[0.0; 3]),
-            Err(Error::SizeMismatch { .. })
+            Err(Error::IndexOutOfRange { index: 2, .. })
         ));
         assert!(matches!(
             rec.model.needle_lengths(0, &[0.0, f32::NAN, 0.0]),

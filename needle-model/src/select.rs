@@ -1,26 +1,13 @@
 //! Automatic selection of the reconstruction parameters (Sand, McMillan and Popović 2003 §6.3;
 //! thesis §5.5, Figure 5-4 / paper Figure 11).
 //!
-//! "The parameter selection algorithm varies the parameters and computes the silhouette error
-//! for each set of values. We perform repeated optimizations of each individual parameter to
-//! account for the dependence between the parameters" (§6.3). This is coordinate descent over
-//! `F_near`, `F_min`, `W` and `N` ([`ReconstructionParams`]): each parameter in turn is swept
-//! over its grid with the others held at their current values, the best value is kept, and
-//! the sweep repeats for [`SelectionParams::rounds`] rounds or until nothing changes. The
-//! objective is the mean silhouette error (§6.2, [`crate::silhouette_error`]) of the
-//! reconstructed body over a set of validation frames.
-//!
-//! `N` is special: "the error continues to decrease as more prototypes are added; we selected
-//! N = 100 based on the silhouette error plot" (§6.3). The automatic rule here takes the
-//! *smallest* `N` whose error is within [`SelectionParams::n_relative_tolerance`] of the best
-//! `N` on the grid — the knee a person reads off the plot.
-//!
-//! Each [`Selection::curves`] entry is the error curve of one parameter from its last sweep
-//! (a Figure-11-like plot).
+//! The method is documented on [`select_params`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use std::collections::HashMap;
 
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 use skin_core::image::Mask;
 use skin_core::skeleton::Skeleton;
 
@@ -31,7 +18,7 @@ use crate::reconstruct::NeedleModel;
 use crate::silhouette_error::SilhouetteScorer;
 use crate::store::ObservationStore;
 use crate::surface::merged_mesh;
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// One validation frame: a pose and the observed mask of each camera.
 #[derive(Debug, Clone, Copy)]
@@ -86,7 +73,7 @@ pub struct SelectionParams {
     /// a round changes nothing. Must be ≥ 1. Default: 2 (the paper's "repeated
     /// optimizations").
     pub rounds: usize,
-    /// Relative error tolerance of the `N` rule (module docs): the smallest `N` with
+    /// Relative error tolerance of the `N` rule (see [`select_params`]): the smallest `N` with
     /// `error ≤ best · (1 + tol)` is chosen. Must be finite and ≥ 0. Default: 0.01.
     pub n_relative_tolerance: f64,
 }
@@ -134,11 +121,12 @@ pub struct Selection {
 
 /// The mean silhouette error (§6.2) over `frames` of the body reconstructed from `store` with
 /// `params`; the predicted surface is [`merged_mesh`] of the animated body (same silhouette
-/// as the union, see [`crate::silhouette_error`]).
+/// as the union, see [`crate::SilhouetteScorer`]).
 ///
 /// # Errors
-/// [`Error::Empty`] without frames; errors of [`NeedleModel::reconstruct`], [`animate`],
-/// [`merged_mesh`] and [`SilhouetteScorer::frame_error`].
+/// [`Error::Empty`] without frames; errors of [`NeedleModel::reconstruct`]; errors of
+/// [`animate`], [`merged_mesh`] and [`SilhouetteScorer::frame_error`] in [`Error::At`] with
+/// the validation frame's [`Context::Frame`].
 pub fn validation_error(
     store: &ObservationStore,
     body: &NeedleBody,
@@ -154,12 +142,23 @@ pub fn validation_error(
     }
     let model = NeedleModel::reconstruct(store, body, params)?.model;
     let mut sum = 0.0;
-    for f in frames {
-        let posed = animate(body, &model, skeleton, f.theta)?;
-        let mesh = merged_mesh(&posed)?;
-        sum += scorer.frame_error(&mesh, f.masks)?.error;
+    for (i, f) in frames.iter().enumerate() {
+        sum += frame_error(body, &model, skeleton, scorer, f).at(Context::Frame(i))?;
     }
     Ok(sum / frames.len() as f64)
+}
+
+/// Silhouette error of one validation frame (the body of [`validation_error`]'s loop).
+fn frame_error(
+    body: &NeedleBody,
+    model: &NeedleModel,
+    skeleton: &Skeleton,
+    scorer: &SilhouetteScorer,
+    f: &ValidationFrame<'_>,
+) -> Result<f64> {
+    let posed = animate(body, model, skeleton, f.theta)?;
+    let mesh = merged_mesh(&posed)?;
+    Ok(scorer.frame_error(&mesh, f.masks)?.error)
 }
 
 fn check_grid(name: &'static str, grid: &[f64], ok: impl Fn(f64) -> bool) -> Result<()> {
@@ -182,10 +181,30 @@ fn check_grid(name: &'static str, grid: &[f64], ok: impl Fn(f64) -> bool) -> Res
 /// error, starting from `start` (normally [`ReconstructionParams::default`], the paper's
 /// values). The returned error never exceeds the start's.
 ///
+/// Automatic selection of the reconstruction parameters (Sand, McMillan and Popović 2003 §6.3;
+/// thesis §5.5, Figure 5-4 / paper Figure 11).
+///
+/// "The parameter selection algorithm varies the parameters and computes the silhouette error
+/// for each set of values. We perform repeated optimizations of each individual parameter to
+/// account for the dependence between the parameters" (§6.3). This is coordinate descent over
+/// `F_near`, `F_min`, `W` and `N` ([`ReconstructionParams`]): each parameter in turn is swept
+/// over its grid with the others held at their current values, the best value is kept, and
+/// the sweep repeats for [`SelectionParams::rounds`] rounds or until nothing changes. The
+/// objective is the mean silhouette error (§6.2, [`crate::SilhouetteScorer`]) of the
+/// reconstructed body over a set of validation frames.
+///
+/// `N` is special: "the error continues to decrease as more prototypes are added; we selected
+/// N = 100 based on the silhouette error plot" (§6.3). The automatic rule here takes the
+/// *smallest* `N` whose error is within [`SelectionParams::n_relative_tolerance`] of the best
+/// `N` on the grid — the knee a person reads off the plot.
+///
+/// Each [`Selection::curves`] entry is the error curve of one parameter from its last sweep
+/// (a Figure-11-like plot).
+///
 /// # Errors
-/// [`Error::InvalidParam`] for an empty grid, an out-of-range grid value (ranges of
-/// [`ReconstructionParams::validate`]), `rounds = 0` or a bad tolerance; errors of
-/// [`validation_error`] (including an invalid `start`).
+/// An invalid-parameter error ([`Error::invalid_param_name`]) for an empty grid, an
+/// out-of-range grid value (ranges of [`ReconstructionParams::validate`]), `rounds = 0` or a
+/// bad tolerance; errors of [`validation_error`] (including an invalid `start`).
 pub fn select_params(
     store: &ObservationStore,
     body: &NeedleBody,
@@ -204,18 +223,8 @@ pub fn select_params(
         .map(|&n| n as f64)
         .collect();
     check_grid("prototype_count_n_grid", &n_grid, |v| v >= 1.0)?;
-    if sel.rounds == 0 {
-        return Err(Error::InvalidParam {
-            name: "rounds",
-            reason: "must be ≥ 1".into(),
-        });
-    }
-    if !(sel.n_relative_tolerance.is_finite() && sel.n_relative_tolerance >= 0.0) {
-        return Err(Error::InvalidParam {
-            name: "n_relative_tolerance",
-            reason: format!("must be finite and ≥ 0, got {}", sel.n_relative_tolerance),
-        });
-    }
+    check::nonzero("rounds", sel.rounds)?;
+    check::non_negative("n_relative_tolerance", sel.n_relative_tolerance)?;
     start.validate()?;
     // Evaluations are cached by the exact parameter values.
     let mut cache: HashMap<[u64; 4], f64> = HashMap::new();
@@ -477,7 +486,7 @@ mod tests {
             },
         ];
         for c in &cases {
-            assert!(matches!(run(c), Err(Error::InvalidParam { .. })), "{c:?}");
+            assert!(run(c).unwrap_err().invalid_param_name().is_some(), "{c:?}");
         }
         assert!(matches!(
             validation_error(&s.store, &s.body, &s.sk, &s.scorer, &[], &d),
@@ -488,6 +497,7 @@ mod tests {
             theta: &nan_pose,
             masks: &s.masks[0],
         }];
-        assert!(validation_error(&s.store, &s.body, &s.sk, &s.scorer, &bad, &d).is_err());
+        let e = validation_error(&s.store, &s.body, &s.sk, &s.scorer, &bad, &d).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Frame(0)], "{e}");
     }
 }

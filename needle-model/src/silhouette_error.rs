@@ -1,30 +1,17 @@
 //! The silhouette error of a reconstruction (Sand, McMillan and Popović 2003 §6.2; thesis
 //! §6.1).
 //!
-//! "We measure the silhouette matching error by comparing the segmented video images to a
-//! projection of the reconstructed geometry. To reduce the effect of unmodeled geometry (such
-//! as the head), we consider only pixels near the projected silhouette boundary. We define the
-//! silhouette error … to be the fraction of pixels for which the predicted and observed
-//! silhouette do not match" (§6.2).
-//!
-//! Here the predicted body mesh is rendered mask-only by one
-//! [`skin_core::raster::Rasterizer`] per camera; the comparison region is
-//! [`Mask::boundary_band`] of the *predicted* silhouette (as in the paper: unmodelled observed
-//! geometry away from the predicted boundary is ignored), and the error of a frame is the
-//! pooled fraction `Σ_cameras mismatched / Σ_cameras band pixels`. The sequence error is the
-//! mean over frames ("we normalize the error value by dividing by the number of frames").
-//!
-//! Any closed, outward mesh of the body works. Since the silhouette of a union of solids is the
-//! union of their silhouettes, [`crate::surface::merged_mesh`] (overlapping primitive shells)
-//! gives the same masks as [`crate::surface::union_mesh`] at a fraction of the cost.
+//! The method is documented on [`SilhouetteScorer`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
+use skin_core::check;
 use skin_core::image::Mask;
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// Parameters of the silhouette error.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -68,6 +55,26 @@ pub struct SilhouetteError {
 
 /// Renders predicted bodies and scores them against observed masks (§6.2). Build once per
 /// camera set (the rasterisers precompute their pixel rays), score many frames.
+///
+/// The silhouette error of a reconstruction (Sand, McMillan and Popović 2003 §6.2; thesis
+/// §6.1).
+///
+/// "We measure the silhouette matching error by comparing the segmented video images to a
+/// projection of the reconstructed geometry. To reduce the effect of unmodeled geometry (such
+/// as the head), we consider only pixels near the projected silhouette boundary. We define the
+/// silhouette error … to be the fraction of pixels for which the predicted and observed
+/// silhouette do not match" (§6.2).
+///
+/// Here the predicted body mesh is rendered mask-only by one
+/// [`skin_core::raster::Rasterizer`] per camera; the comparison region is
+/// [`Mask::boundary_band`] of the *predicted* silhouette (as in the paper: unmodelled observed
+/// geometry away from the predicted boundary is ignored), and the error of a frame is the
+/// pooled fraction `Σ_cameras mismatched / Σ_cameras band pixels`. The sequence error is the
+/// mean over frames ("we normalize the error value by dividing by the number of frames").
+///
+/// Any closed, outward mesh of the body works. Since the silhouette of a union of solids is the
+/// union of their silhouettes, [`crate::merged_mesh`] (overlapping primitive shells)
+/// gives the same masks as [`crate::union_mesh`] at a fraction of the cost.
 #[derive(Clone)]
 pub struct SilhouetteScorer {
     rasterizers: Vec<Rasterizer>,
@@ -78,17 +85,13 @@ impl SilhouetteScorer {
     /// A scorer for `cameras`.
     ///
     /// # Errors
-    /// [`Error::Empty`] without cameras; [`Error::InvalidParam`] for a bad band radius.
+    /// [`Error::Empty`] without cameras; an invalid-parameter [`Error::Core`] for a negative
+    /// or non-finite band radius.
     pub fn new(cameras: &[Camera], params: SilhouetteErrorParams) -> Result<Self> {
         if cameras.is_empty() {
             return Err(Error::Empty { what: "cameras" });
         }
-        if !(params.band_radius_px.is_finite() && params.band_radius_px >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "band_radius_px",
-                reason: format!("must be finite and ≥ 0, got {}", params.band_radius_px),
-            });
-        }
+        check::non_negative("band_radius_px", params.band_radius_px)?;
         Ok(Self {
             rasterizers: cameras.iter().map(Rasterizer::new).collect(),
             params,
@@ -103,12 +106,12 @@ impl SilhouetteScorer {
     /// The predicted silhouette of `mesh` in camera `c` (empty mask if it is not visible).
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for an unknown camera; rasteriser errors (empty mesh...).
+    /// [`Error::IndexOutOfRange`] for an unknown camera; rasteriser errors (empty mesh...).
     pub fn predicted_mask(&self, mesh: &TriMesh, c: usize) -> Result<Mask> {
-        let r = self.rasterizers.get(c).ok_or(Error::SizeMismatch {
-            what: "camera index",
-            expected: self.rasterizers.len(),
-            got: c,
+        let r = self.rasterizers.get(c).ok_or(Error::IndexOutOfRange {
+            what: "camera",
+            index: c,
+            len: self.rasterizers.len(),
         })?;
         let params = RenderParams::default()
             .with_buffers(Buffers::MASK_ONLY)
@@ -122,8 +125,9 @@ impl SilhouetteScorer {
     /// The silhouette error of one frame: `mesh` against one observed mask per camera.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for a wrong number of masks or a mask of the wrong size;
-    /// [`Error::Empty`] if the prediction is visible in no camera; rasteriser errors.
+    /// [`Error::SizeMismatch`] for a wrong number of masks; [`Error::Empty`] if the prediction
+    /// is visible in no camera; in [`Error::At`] with the [`Context::Camera`]:
+    /// [`Error::SizeMismatch`] for a mask of the wrong size, rasteriser errors.
     pub fn frame_error(&self, mesh: &TriMesh, observed: &[Mask]) -> Result<FrameSilhouetteError> {
         if observed.len() != self.rasterizers.len() {
             return Err(Error::SizeMismatch {
@@ -135,17 +139,9 @@ impl SilhouetteScorer {
         let mut mismatched_px = Vec::with_capacity(observed.len());
         let mut band_px = Vec::with_capacity(observed.len());
         for (c, obs) in observed.iter().enumerate() {
-            let pred = self.predicted_mask(mesh, c)?;
-            if pred.dimensions() != obs.dimensions() {
-                return Err(Error::SizeMismatch {
-                    what: "observed mask pixels vs camera image",
-                    expected: pred.pixel_count(),
-                    got: obs.pixel_count(),
-                });
-            }
-            let band = pred.boundary_band(self.params.band_radius_px)?;
-            mismatched_px.push(pred.xor(obs)?.and(&band)?.count());
-            band_px.push(band.count());
+            let (mismatched, band) = self.camera_error(mesh, c, obs).at(Context::Camera(c))?;
+            mismatched_px.push(mismatched);
+            band_px.push(band);
         }
         let total: usize = band_px.iter().sum();
         if total == 0 {
@@ -161,12 +157,27 @@ impl SilhouetteScorer {
         })
     }
 
+    /// Mismatched and band pixels of `mesh` against `obs` in camera `c` (the body of
+    /// [`Self::frame_error`]'s loop).
+    fn camera_error(&self, mesh: &TriMesh, c: usize, obs: &Mask) -> Result<(usize, usize)> {
+        let pred = self.predicted_mask(mesh, c)?;
+        if pred.dimensions() != obs.dimensions() {
+            return Err(Error::SizeMismatch {
+                what: "observed mask pixels vs camera image",
+                expected: pred.pixel_count(),
+                got: obs.pixel_count(),
+            });
+        }
+        let band = pred.boundary_band(self.params.band_radius_px)?;
+        Ok((pred.xor(obs)?.and(&band)?.count(), band.count()))
+    }
+
     /// The silhouette error of a sequence: `meshes[f]` against `observed[f]` (one mask per
     /// camera), and the mean over frames.
     ///
     /// # Errors
     /// [`Error::Empty`] without frames; [`Error::SizeMismatch`] if the lists differ in
-    /// length; errors of [`Self::frame_error`].
+    /// length; errors of [`Self::frame_error`] in [`Error::At`] with the [`Context::Frame`].
     pub fn sequence_error(
         &self,
         meshes: &[TriMesh],
@@ -185,7 +196,8 @@ impl SilhouetteScorer {
         let frames = meshes
             .iter()
             .zip(observed)
-            .map(|(m, o)| self.frame_error(m, o))
+            .enumerate()
+            .map(|(f, (m, o))| self.frame_error(m, o).at(Context::Frame(f)))
             .collect::<Result<Vec<_>>>()?;
         let mean = frames.iter().map(|f| f.error).sum::<f64>() / frames.len() as f64;
         Ok(SilhouetteError { frames, mean })
@@ -239,10 +251,12 @@ pub(crate) mod tests {
         let bad = SilhouetteErrorParams {
             band_radius_px: f64::NAN,
         };
-        assert!(matches!(
-            SilhouetteScorer::new(&cams, bad),
-            Err(Error::InvalidParam { .. })
-        ));
+        assert_eq!(
+            SilhouetteScorer::new(&cams, bad)
+                .err()
+                .and_then(|e| e.invalid_param_name()),
+            Some("band_radius_px")
+        );
         let s = SilhouetteScorer::new(&cams, SilhouetteErrorParams::default()).unwrap();
         let m = sphere(0.4);
         let obs = vec![Mask::new(64, 48); 2];
@@ -251,11 +265,17 @@ pub(crate) mod tests {
             Err(Error::SizeMismatch { .. })
         ));
         let small = vec![Mask::new(10, 10); 2];
+        let e = s.frame_error(&m, &small).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Camera(0)]);
+        assert!(matches!(e.root(), Error::SizeMismatch { .. }));
         assert!(matches!(
-            s.frame_error(&m, &small),
-            Err(Error::SizeMismatch { .. })
+            s.predicted_mask(&m, 5),
+            Err(Error::IndexOutOfRange {
+                index: 5,
+                len: 2,
+                ..
+            })
         ));
-        assert!(s.predicted_mask(&m, 5).is_err());
         // A body outside every view has no band.
         let far = TriMesh::new(
             m.vertices

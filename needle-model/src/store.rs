@@ -1,25 +1,11 @@
 //! Compact storage of needle-length observations (Sand 2003 §4.3).
 //!
-//! "For each needle length observation, we also record the bone's current position in
-//! configuration space" (§4.3). Eight minutes of three-camera video give tens of millions of
-//! observations, so the store keeps them compact:
-//!
-//! * the configuration point of a primitive is stored **once per sample** — one sample is one
-//!   (frame, camera) pair in which the primitive produced at least one observation — as a
-//!   row of `config_dim` `f32` values (row-major);
-//! * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
-//!   length quantised to `u16` with a per-primitive scale
-//!   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
-//!   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
-//! * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
-//!   index of an observation is implicit.
-//!
-//! Samples are appended in a deterministic order (frame-major, then camera), so a store built
-//! in parallel and merged in frame order is bit-identical to one built serially.
+//! The method is documented on [`ObservationStore`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::{Context, Error, Result, ResultExt};
 
 /// Number of quantisation steps of a needle length (`u16::MAX`).
 const LENGTH_STEPS: f32 = u16::MAX as f32;
@@ -77,22 +63,123 @@ impl PrimitiveTable {
     }
 }
 
-/// Per-needle view of one primitive's observations, in CSR form
-/// (see [`ObservationStore::by_needle`]).
+/// Per-needle view of one primitive's observations, in CSR form: what prototype shape
+/// estimation (§5.3) consumes. [`ObservationStore::by_needle`] returns it; other sources build
+/// it with [`NeedleObservations::from_lists`] or [`NeedleObservations::from_csr`].
 ///
-/// Observations of needle `j` are `sample[start[j]..start[j+1]]` and
-/// `length_m[start[j]..start[j+1]]`, in increasing sample order.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Observations of needle `j` are [`Self::needle`]`(j)`: sample indices (rows of the
+/// primitive's configuration points) and lengths, in the order given (increasing sample order
+/// when built by the store).
+///
+/// Valid by construction: the offsets start at 0, never decrease and end at the number of
+/// observations; there is one sample index per length; every length is finite. (Whether the
+/// sample indices fit a given set of configuration points is checked where both meet, in
+/// [`crate::prototype_shapes`].)
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NeedleObservations {
     /// CSR offsets, `needle_count + 1` entries.
-    pub start: Vec<u32>,
+    start: Vec<u32>,
     /// Sample index (row of [`ObservationStore::samples`]) of each observation.
-    pub sample: Vec<u32>,
+    sample: Vec<u32>,
     /// Observed length of each observation, metres.
-    pub length_m: Vec<f32>,
+    length_m: Vec<f32>,
 }
 
 impl NeedleObservations {
+    /// Builds the table from one list of `(sample index, length)` per needle, e.g. for
+    /// synthetic data or other sources than the store.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if there are more than `u32::MAX` observations;
+    /// [`Error::NonFinite`] for a NaN/∞ length.
+    ///
+    /// # Example
+    /// ```
+    /// use needle_model::NeedleObservations;
+    /// let obs = NeedleObservations::from_lists(&[vec![(0, 0.05), (2, 0.06)], vec![]])?;
+    /// assert_eq!(obs.needle_count(), 2);
+    /// assert_eq!(obs.needle(0), (&[0u32, 2][..], &[0.05f32, 0.06][..]));
+    /// # Ok::<(), needle_model::Error>(())
+    /// ```
+    pub fn from_lists(per_needle: &[Vec<(u32, f32)>]) -> Result<Self> {
+        let total: usize = per_needle.iter().map(Vec::len).sum();
+        if u32::try_from(total).is_err() {
+            return Err(Error::SizeMismatch {
+                what: "observations of one primitive (at most u32::MAX)",
+                expected: u32::MAX as usize,
+                got: total,
+            });
+        }
+        if per_needle.iter().flatten().any(|(_, l)| !l.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "observed needle lengths",
+            });
+        }
+        let mut start = Vec::with_capacity(per_needle.len() + 1);
+        start.push(0u32);
+        let mut sample = Vec::with_capacity(total);
+        let mut length_m = Vec::with_capacity(total);
+        for list in per_needle {
+            for &(s, l) in list {
+                sample.push(s);
+                length_m.push(l);
+            }
+            start.push(sample.len() as u32); // ≤ total ≤ u32::MAX, checked above
+        }
+        Ok(Self {
+            start,
+            sample,
+            length_m,
+        })
+    }
+
+    /// Builds the table from its CSR arrays: `start` has `needle_count + 1` offsets into
+    /// `sample` and `length_m` (observations of needle `j` are `start[j]..start[j + 1]`).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if `start` is empty, does not begin at 0, decreases or does not
+    /// end at `sample.len()`, or if `sample` and `length_m` differ in length;
+    /// [`Error::NonFinite`] for a NaN/∞ length.
+    pub fn from_csr(start: Vec<u32>, sample: Vec<u32>, length_m: Vec<f32>) -> Result<Self> {
+        if sample.len() != length_m.len() {
+            return Err(Error::SizeMismatch {
+                what: "per-needle observations (lengths vs sample indices)",
+                expected: sample.len(),
+                got: length_m.len(),
+            });
+        }
+        let consistent = start.first() == Some(&0)
+            && start.windows(2).all(|w| w[0] <= w[1])
+            && start.last().map(|&e| e as usize) == Some(sample.len());
+        if !consistent {
+            return Err(Error::SizeMismatch {
+                what: "per-needle observation offsets (must start at 0, not decrease and end at the observation count)",
+                expected: sample.len(),
+                got: start.last().map_or(0, |&e| e as usize),
+            });
+        }
+        if length_m.iter().any(|l| !l.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "observed needle lengths",
+            });
+        }
+        Ok(Self {
+            start,
+            sample,
+            length_m,
+        })
+    }
+
+    /// Number of needles (one list each, possibly empty).
+    pub fn needle_count(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// Total number of observations over all needles.
+    pub fn observation_count(&self) -> usize {
+        self.sample.len()
+    }
+
     /// Sample indices and lengths of needle `j` (empty slices if `j` is out of range).
     pub fn needle(&self, j: usize) -> (&[u32], &[f32]) {
         if j + 1 >= self.start.len() {
@@ -101,10 +188,58 @@ impl NeedleObservations {
         let r = self.start[j] as usize..self.start[j + 1] as usize;
         (&self.sample[r.clone()], &self.length_m[r])
     }
+
+    /// CSR offsets, `needle_count() + 1` entries, first 0, last `observation_count()`.
+    pub fn offsets(&self) -> &[u32] {
+        &self.start
+    }
+
+    /// Sample index of every observation, needle by needle.
+    pub fn samples(&self) -> &[u32] {
+        &self.sample
+    }
+
+    /// Length of every observation (finite), needle by needle; metres when built by the store.
+    pub fn lengths_m(&self) -> &[f32] {
+        &self.length_m
+    }
+}
+
+impl<'de> Deserialize<'de> for NeedleObservations {
+    /// Deserialises the three arrays and checks them as [`NeedleObservations::from_csr`].
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        struct Raw {
+            start: Vec<u32>,
+            sample: Vec<u32>,
+            length_m: Vec<f32>,
+        }
+        let r = Raw::deserialize(d)?;
+        Self::from_csr(r.start, r.sample, r.length_m).map_err(serde::de::Error::custom)
+    }
 }
 
 /// All needle observations of a body, compact (4 bytes per observation plus one configuration
-/// row and one offset per sample). See the module docs for the layout.
+/// row and one offset per sample).
+///
+/// Compact storage of needle-length observations (Sand 2003 §4.3).
+///
+/// "For each needle length observation, we also record the bone's current position in
+/// configuration space" (§4.3). Eight minutes of three-camera video give tens of millions of
+/// observations, so the store keeps them compact:
+///
+/// * the configuration point of a primitive is stored **once per sample** — one sample is one
+///   (frame, camera) pair in which the primitive produced at least one observation — as a
+///   row of `config_dim` `f32` values (row-major);
+/// * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
+///   length quantised to `u16` with a per-primitive scale
+///   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
+///   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
+/// * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
+///   index of an observation is implicit.
+///
+/// Samples are appended in a deterministic order (frame-major, then camera), so a store built
+/// in parallel and merged in frame order is bit-identical to one built serially.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObservationStore {
     primitives: Vec<PrimitiveTable>,
@@ -114,29 +249,24 @@ impl ObservationStore {
     /// An empty store for primitives of the given shapes.
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] if a primitive has `config_dim == 0`, more than 65 536 needles,
-    /// or a maximum length that is not finite and positive.
+    /// [`Error::At`] with [`Context::Primitive`] around [`Error::InvalidParam`] (possibly as
+    /// [`Error::Core`]) if a primitive has `config_dim == 0`, more than 65 536 needles, or a
+    /// maximum length that is not finite and positive.
     pub fn new(shapes: &[PrimitiveShape]) -> Result<Self> {
         let mut primitives = Vec::with_capacity(shapes.len());
-        for s in shapes {
-            if s.config_dim == 0 {
-                return Err(Error::InvalidParam {
-                    name: "config_dim",
-                    reason: "must be at least 1".into(),
-                });
-            }
-            if s.needle_count == 0 || s.needle_count > usize::from(u16::MAX) + 1 {
-                return Err(Error::InvalidParam {
-                    name: "needle_count",
-                    reason: format!("must be in 1..=65536, got {}", s.needle_count),
-                });
-            }
-            if !(s.max_length_m.is_finite() && s.max_length_m > 0.0) {
-                return Err(Error::InvalidParam {
-                    name: "max_length_m",
-                    reason: format!("must be finite and > 0, got {}", s.max_length_m),
-                });
-            }
+        for (p, s) in shapes.iter().enumerate() {
+            let check = || -> Result<()> {
+                skin_core::check::nonzero("config_dim", s.config_dim)?;
+                if s.needle_count == 0 || s.needle_count > usize::from(u16::MAX) + 1 {
+                    return Err(Error::InvalidParam {
+                        name: "needle_count",
+                        reason: format!("must be in 1..=65536, got {}", s.needle_count),
+                    });
+                }
+                skin_core::check::positive("max_length_m", s.max_length_m)?;
+                Ok(())
+            };
+            check().at(Context::Primitive(p))?;
             primitives.push(PrimitiveTable {
                 config_dim: s.config_dim,
                 needle_count: s.needle_count,
@@ -155,10 +285,10 @@ impl ObservationStore {
     }
 
     fn table(&self, p: usize) -> Result<&PrimitiveTable> {
-        self.primitives.get(p).ok_or(Error::SizeMismatch {
-            what: "primitive index",
-            expected: self.primitives.len(),
-            got: p,
+        self.primitives.get(p).ok_or(Error::IndexOutOfRange {
+            what: "primitive",
+            index: p,
+            len: self.primitives.len(),
         })
     }
 
@@ -240,7 +370,7 @@ impl ObservationStore {
     /// §5.3, consumes). Within a needle, observations are in increasing sample order.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] if `p` is out of range.
+    /// [`Error::IndexOutOfRange`] if `p` is out of range.
     pub fn by_needle(&self, p: usize) -> Result<NeedleObservations> {
         let t = self.table(p)?;
         let mut start = vec![0u32; t.needle_count + 1];
@@ -262,6 +392,7 @@ impl ObservationStore {
                 *c += 1;
             }
         }
+        // Offsets from a counting sort of the packed needles; lengths dequantised from u16.
         Ok(NeedleObservations {
             start,
             sample,
@@ -291,8 +422,8 @@ impl ObservationStore {
     /// otherwise returns `Ok(true)`.
     ///
     /// # Errors
-    /// * [`Error::SizeMismatch`] if `p` is out of range or `config.len() != config_dim(p)`,
-    ///   or a needle index is `>= needle_count(p)`;
+    /// * [`Error::IndexOutOfRange`] if `p` is out of range or a needle index is
+    ///   `>= needle_count(p)`; [`Error::SizeMismatch`] if `config.len() != config_dim(p)`;
     /// * [`Error::NonFinite`] if the configuration or a length is NaN/infinite;
     /// * [`Error::InvalidParam`] if a length is negative or above the primitive's maximum
     ///   (by more than half a quantisation step).
@@ -300,10 +431,10 @@ impl ObservationStore {
     /// Nothing is appended when an error is returned.
     pub fn push_sample(&mut self, p: usize, config: &[f64], obs: &[(u16, f32)]) -> Result<bool> {
         let n_prim = self.primitives.len();
-        let t = self.primitives.get_mut(p).ok_or(Error::SizeMismatch {
-            what: "primitive index",
-            expected: n_prim,
-            got: p,
+        let t = self.primitives.get_mut(p).ok_or(Error::IndexOutOfRange {
+            what: "primitive",
+            index: p,
+            len: n_prim,
         })?;
         if config.len() != t.config_dim {
             return Err(Error::SizeMismatch {
@@ -323,10 +454,10 @@ impl ObservationStore {
         let mut packed = Vec::with_capacity(obs.len());
         for &(needle, length_m) in obs {
             if usize::from(needle) >= t.needle_count {
-                return Err(Error::SizeMismatch {
-                    what: "needle index",
-                    expected: t.needle_count,
-                    got: usize::from(needle),
+                return Err(Error::IndexOutOfRange {
+                    what: "needle",
+                    index: usize::from(needle),
+                    len: t.needle_count,
                 });
             }
             if !length_m.is_finite() {
@@ -466,7 +597,7 @@ mod tests {
         ));
         assert!(matches!(
             st.push_sample(0, &[0.0; 3], &[(0, 0.01), (400, 0.01)]),
-            Err(Error::SizeMismatch { .. })
+            Err(Error::IndexOutOfRange { .. })
         ));
         assert!(matches!(
             st.push_sample(0, &[0.0; 3], &[(0, 0.2)]),
@@ -482,7 +613,7 @@ mod tests {
         ));
         assert!(matches!(
             st.push_sample(2, &[0.0; 3], &[(0, 0.01)]),
-            Err(Error::SizeMismatch { .. })
+            Err(Error::IndexOutOfRange { .. })
         ));
         assert_eq!(st.total_observations(), 0);
         assert_eq!(st.sample_count(0), 0);
@@ -512,6 +643,51 @@ mod tests {
         let mut a = ObservationStore::new(&shapes()).unwrap();
         let b = ObservationStore::new(&shapes()[..1]).unwrap();
         assert!(a.append(&b).is_err());
+    }
+
+    #[test]
+    fn lists_build_the_store_layout() {
+        let per_needle = vec![vec![(0u32, 1.0f32), (2, 1.5)], vec![], vec![(1, 2.0)]];
+        let a = NeedleObservations::from_lists(&per_needle).unwrap();
+        assert_eq!(a.offsets(), &[0, 2, 2, 3]);
+        assert_eq!(a.needle_count(), 3);
+        assert_eq!(a.observation_count(), 3);
+        assert_eq!(a.needle(0), (&[0u32, 2][..], &[1.0f32, 1.5][..]));
+        assert_eq!(a.needle(1), (&[][..], &[][..]));
+        assert_eq!(a.needle(7), (&[][..], &[][..]));
+    }
+
+    #[test]
+    fn needle_observations_are_checked_on_construction() {
+        assert!(matches!(
+            NeedleObservations::from_lists(&[vec![(0, f32::NAN)]]),
+            Err(Error::NonFinite { .. })
+        ));
+        let ok = NeedleObservations::from_csr(vec![0, 1, 1], vec![4], vec![0.5]).unwrap();
+        assert_eq!(ok.needle(0), (&[4u32][..], &[0.5f32][..]));
+        for (start, sample, length) in [
+            (vec![], vec![], vec![]),
+            (vec![1, 1], vec![0], vec![0.5]),
+            (vec![0, 3], vec![0], vec![0.5]),
+            (vec![0, 1, 0], vec![0], vec![0.5]),
+            (vec![0, 1], vec![0], vec![]),
+        ] {
+            assert!(matches!(
+                NeedleObservations::from_csr(start, sample, length),
+                Err(Error::SizeMismatch { .. })
+            ));
+        }
+        assert!(matches!(
+            NeedleObservations::from_csr(vec![0, 1], vec![0], vec![f32::INFINITY]),
+            Err(Error::NonFinite { .. })
+        ));
+        let json = serde_json::to_string(&ok).unwrap();
+        assert_eq!(
+            serde_json::from_str::<NeedleObservations>(&json).unwrap(),
+            ok
+        );
+        let broken = json.replace("[0,1,1]", "[0,3,1]");
+        assert!(serde_json::from_str::<NeedleObservations>(&broken).is_err());
     }
 
     proptest! {

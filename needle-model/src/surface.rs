@@ -1,30 +1,16 @@
 //! Surfaces of the animated body (Sand, McMillan and Popović 2003 §3.1–3.2 and §5.4).
 //!
-//! Two renderings of an [`AnimatedBody`]:
-//!
-//! * **Per-primitive meshes** ([`primitive_mesh`], [`merged_mesh`]): the needle endpoints of a
-//!   primitive form a ring-major grid; consecutive rings and consecutive needles of a ring are
-//!   joined by quads (two triangles), closed around the axis, and each end is capped by a fan
-//!   to the axis end point. This is the thesis's display of the deformable primitives
-//!   (Figure 3-1); the primitives overlap at the junctions (§3.2), so the merged mesh is a
-//!   union of closed shells, not one surface.
-//! * **One watertight body surface** ([`union_mesh`]): §3.2 defines junctions as the *union* of
-//!   overlapping primitives. Each primitive gets an implicit function
-//!   `f(x) = max(r(x) − R(φ, t), −t, t − L)` where `r` is the distance of `x` from the axis, `t`
-//!   its position along the axis of length `L`, and `R(φ, t)` the needle radial profile
-//!   (bilinear in the needle angle and the ring coordinate, constant beyond the end rings).
-//!   `f < 0` inside. The body is `min_p f_p`, sampled on a regular grid and polygonised by
-//!   [`skin_core::mesh::marching_cubes`] (watertight marching tetrahedra). `f` is a distance
-//!   in the radial and axial directions (not a Euclidean distance), which is all the linear
-//!   iso-surface interpolation needs near the surface.
+//! The method is documented on [`union_mesh`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use skin_core::check;
 use skin_core::math::DVec3;
 use skin_core::mesh::{marching_cubes, ScalarGrid, TriMesh};
 
 use crate::animate::{AnimatedBody, AnimatedPrimitive};
-use crate::{Error, Result};
+use crate::{Context, Error, Result, ResultExt};
 
 /// Parameters of [`union_mesh`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -128,14 +114,19 @@ pub fn primitive_mesh(p: &AnimatedPrimitive) -> Result<TriMesh> {
 /// [`primitive_mesh`] of every primitive.
 ///
 /// # Errors
-/// As [`primitive_mesh`]; [`Error::Empty`] for a body without primitives.
+/// [`Error::Empty`] for a body without primitives; the errors of [`primitive_mesh`] in
+/// [`Error::At`] with the [`Context::Primitive`].
 pub fn primitive_meshes(body: &AnimatedBody) -> Result<Vec<TriMesh>> {
     if body.primitives.is_empty() {
         return Err(Error::Empty {
             what: "animated body primitives",
         });
     }
-    body.primitives.iter().map(primitive_mesh).collect()
+    body.primitives
+        .iter()
+        .enumerate()
+        .map(|(i, p)| primitive_mesh(p).at(Context::Primitive(i)))
+        .collect()
 }
 
 /// All primitive meshes concatenated into one mesh (overlapping closed shells).
@@ -154,7 +145,7 @@ pub fn merged_mesh(body: &AnimatedBody) -> Result<TriMesh> {
     Ok(TriMesh::new(vertices, faces)?)
 }
 
-/// The implicit function of one primitive at world point `x` (module docs): negative inside,
+/// The implicit function of one primitive at world point `x` (see [`union_mesh`]): negative inside,
 /// zero on the needle surface, in metres. Assumes a primitive accepted by [`primitive_mesh`]'s
 /// checks (any `radial ≥ 1` is fine here).
 pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
@@ -187,19 +178,35 @@ pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
 }
 
 /// One watertight surface of the union of all primitives (§3.2), by marching cubes over
-/// `min_p f_p` (module docs) on a grid of spacing `params.voxel_m`.
+/// `min_p f_p` (see below) on a grid of spacing `params.voxel_m`.
+///
+/// Surfaces of the animated body (Sand, McMillan and Popović 2003 §3.1–3.2 and §5.4).
+///
+/// Two renderings of an [`AnimatedBody`]:
+///
+/// * **Per-primitive meshes** ([`primitive_mesh`], [`merged_mesh`]): the needle endpoints of a
+///   primitive form a ring-major grid; consecutive rings and consecutive needles of a ring are
+///   joined by quads (two triangles), closed around the axis, and each end is capped by a fan
+///   to the axis end point. This is the thesis's display of the deformable primitives
+///   (Figure 3-1); the primitives overlap at the junctions (§3.2), so the merged mesh is a
+///   union of closed shells, not one surface.
+/// * **One watertight body surface** ([`union_mesh`]): §3.2 defines junctions as the *union* of
+///   overlapping primitives. Each primitive gets an implicit function
+///   `f(x) = max(r(x) − R(φ, t), −t, t − L)` where `r` is the distance of `x` from the axis, `t`
+///   its position along the axis of length `L`, and `R(φ, t)` the needle radial profile
+///   (bilinear in the needle angle and the ring coordinate, constant beyond the end rings).
+///   `f < 0` inside. The body is `min_p f_p`, sampled on a regular grid and polygonised by
+///   [`skin_core::mesh::marching_cubes`] (watertight marching tetrahedra). `f` is a distance
+///   in the radial and axial directions (not a Euclidean distance), which is all the linear
+///   iso-surface interpolation needs near the surface.
 ///
 /// # Errors
-/// [`Error::Empty`] for a body without primitives; [`Error::InvalidParam`] for a bad voxel
-/// size or padding, or a grid over 2³¹ nodes; the input errors of [`primitive_mesh`] (except
-/// the `radial ≥ 3` requirement).
+/// [`Error::Empty`] for a body without primitives; an invalid-parameter error
+/// ([`Error::invalid_param_name`]) for a bad voxel size or padding, or a grid over 2³¹ nodes;
+/// the input errors of [`primitive_mesh`] (except the `radial ≥ 3` requirement) in
+/// [`Error::At`] with the [`Context::Primitive`].
 pub fn union_mesh(body: &AnimatedBody, params: &SurfaceParams) -> Result<TriMesh> {
-    if !(params.voxel_m.is_finite() && params.voxel_m > 0.0) {
-        return Err(Error::InvalidParam {
-            name: "voxel_m",
-            reason: format!("must be finite and > 0, got {}", params.voxel_m),
-        });
-    }
+    check::positive("voxel_m", params.voxel_m)?;
     if params.padding_voxels == 0 {
         return Err(Error::InvalidParam {
             name: "padding_voxels",
@@ -214,8 +221,8 @@ pub fn union_mesh(body: &AnimatedBody, params: &SurfaceParams) -> Result<TriMesh
     // Bounding boxes (with one voxel margin) per primitive, to skip far primitives.
     let h = params.voxel_m;
     let mut boxes = Vec::with_capacity(body.primitives.len());
-    for p in &body.primitives {
-        check_primitive(p)?;
+    for (i, p) in body.primitives.iter().enumerate() {
+        check_primitive(p).at(Context::Primitive(i))?;
         let mut lo = p.axis_start.min(p.axis_end);
         let mut hi = p.axis_start.max(p.axis_end);
         for e in &p.endpoints {
@@ -394,6 +401,12 @@ mod tests {
         let mut bad = good.clone();
         bad.axis_end = bad.axis_start;
         assert!(primitive_mesh(&bad).is_err());
+        let two = AnimatedBody {
+            primitives: vec![good.clone(), bad],
+        };
+        let e = primitive_meshes(&two).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Primitive(1)]);
+        assert_eq!(e.invalid_param_name(), Some("axis"));
         let empty = AnimatedBody { primitives: vec![] };
         assert!(matches!(merged_mesh(&empty), Err(Error::Empty { .. })));
         let d = SurfaceParams::default();
@@ -413,10 +426,8 @@ mod tests {
                 ..d
             },
         ] {
-            assert!(matches!(
-                union_mesh(&one, &p),
-                Err(Error::InvalidParam { .. })
-            ));
+            let e = union_mesh(&one, &p).unwrap_err();
+            assert!(e.invalid_param_name().is_some(), "{e}");
         }
     }
 }

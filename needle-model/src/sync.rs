@@ -1,18 +1,7 @@
 //! Synchronisation of video and motion capture from silhouettes (Sand 2003 §4.1–4.2).
 //!
-//! "Our system uses simplex optimizer (the same one used for camera calibration) to minimize
-//! an objective function that measures the image-space distance from projected arm and leg
-//! markers to the silhouettes over a number of video frames" (§4.2). Video frame `k`, taken at
-//! video time `t_k`, shows the pose of the motion at time `t_k + offset`; the offset is found
-//! by Nelder–Mead ([`skin_core::optim::nelder_mead`], the downhill simplex of §4.1) on
-//!
-//! `E(offset) = mean_{k, camera, marker} min(D_fg(π(marker(θ(t_k + offset)))), cap)`
-//!
-//! where `D_fg` is the Euclidean distance (px) to the nearest silhouette pixel
-//! ([`skin_core::image::distance_to_foreground`], sampled bilinearly so `E` is continuous)
-//! and θ(t) interpolates the motion linearly between frames (rotations along the shorter arc).
-//! Markers inside the silhouette cost 0; the cap bounds the influence of markers projecting
-//! far off the silhouette or off the image (occluded or mis-segmented limbs).
+//! The method is documented on [`estimate_sync_offset`]; the module is private and
+//! everything public is re-exported at the crate root.
 
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
@@ -32,7 +21,7 @@ pub const DEFAULT_SYNC_INITIAL_STEP_S: f64 = 0.1;
 /// Knobs of [`estimate_sync_offset`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SyncParams {
-    /// Markers whose projections are pulled into the silhouettes (see [`crate::config`] for
+    /// Markers whose projections are pulled into the silhouettes (see [`crate::resolve_marker`] for
     /// the syntax). Sand §4.2 uses "arm and leg markers": they move fastest, so they carry the
     /// most timing information. Default: elbows, wrists, fingertips, knees, ankles, toe tips.
     pub markers: Vec<String>,
@@ -133,12 +122,28 @@ pub fn sample_motion(skeleton: &Skeleton, motion: &Motion, t_s: f64) -> Result<V
 
 /// Estimates the video-to-motion time offset (Sand §4.2), starting from `initial_offset_s`.
 ///
+/// Synchronisation of video and motion capture from silhouettes (Sand 2003 §4.1–4.2).
+///
+/// "Our system uses simplex optimizer (the same one used for camera calibration) to minimize
+/// an objective function that measures the image-space distance from projected arm and leg
+/// markers to the silhouettes over a number of video frames" (§4.2). Video frame `k`, taken at
+/// video time `t_k`, shows the pose of the motion at time `t_k + offset`; the offset is found
+/// by Nelder–Mead ([`skin_core::optim::nelder_mead`], the downhill simplex of §4.1) on
+///
+/// `E(offset) = mean_{k, camera, marker} min(D_fg(π(marker(θ(t_k + offset)))), cap)`
+///
+/// where `D_fg` is the Euclidean distance (px) to the nearest silhouette pixel
+/// ([`skin_core::image::distance_to_foreground`], sampled bilinearly so `E` is continuous)
+/// and θ(t) interpolates the motion linearly between frames (rotations along the shorter arc).
+/// Markers inside the silhouette cost 0; the cap bounds the influence of markers projecting
+/// far off the silhouette or off the image (occluded or mis-segmented limbs).
+///
 /// # Errors
 /// [`Error::Empty`] without frames, cameras or markers, or if every mask is empty (no
 /// silhouette to measure against); [`Error::SizeMismatch`] for a frame whose mask count or
 /// mask size does not match the cameras; [`Error::NonFinite`] for a non-finite time or initial
-/// offset; [`Error::InvalidParam`] for an unknown marker or invalid params; errors of
-/// [`sample_motion`] and of the optimiser.
+/// offset; an invalid-parameter error ([`Error::invalid_param_name`]) for an unknown marker or
+/// invalid params; errors of [`sample_motion`] and of the optimiser.
 pub fn estimate_sync_offset(
     skeleton: &Skeleton,
     motion: &Motion,
@@ -160,12 +165,7 @@ pub fn estimate_sync_offset(
             what: "sync markers",
         });
     }
-    if !(params.cap_px.is_finite() && params.cap_px > 0.0) {
-        return Err(Error::InvalidParam {
-            name: "cap_px",
-            reason: format!("must be finite and > 0, got {}", params.cap_px),
-        });
-    }
+    skin_core::check::positive("cap_px", params.cap_px)?;
     if !initial_offset_s.is_finite() {
         return Err(Error::NonFinite {
             what: "initial offset",

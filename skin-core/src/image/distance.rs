@@ -132,6 +132,40 @@ pub fn signed_distance(mask: &Mask) -> Result<GrayF32Image> {
         .expect("signed distance has width * height samples"))
 }
 
+/// The silhouette band lives here, beside the signed distance it is measured with, so that
+/// `mask.rs` does not depend on this file.
+impl Mask {
+    /// The pixels within `radius_px` of the silhouette boundary, on either side: foreground
+    /// pixels whose centre is at most `radius_px + ½` from the nearest background pixel
+    /// centre, and background pixels at most `radius_px + ½` from the nearest foreground
+    /// pixel centre. The `+ ½` places the boundary on the pixel edges between foreground and
+    /// background (see [`signed_distance`]), so `radius_px = 0.5` selects the
+    /// one-pixel layer on each side of a straight edge.
+    ///
+    /// This is the region of Sand et al. 2003 §6.2's silhouette error ("only pixels near the
+    /// projected silhouette boundary"). The image border is not a silhouette boundary: an
+    /// empty or full mask has an empty band.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] if `radius_px` is negative or not finite.
+    pub fn boundary_band(&self, radius_px: f64) -> Result<Mask> {
+        if !(radius_px.is_finite() && radius_px >= 0.0) {
+            return Err(Error::InvalidParam {
+                name: "radius_px",
+                reason: format!("must be finite and >= 0, got {radius_px}"),
+            });
+        }
+        if self.is_empty() || self.count() == self.pixel_count() {
+            return Ok(Mask::new(self.width(), self.height()));
+        }
+        // Both classes are present, so the signed distance exists.
+        let sd = signed_distance(self)?;
+        let r = radius_px as f32;
+        let flags: Vec<bool> = sd.as_raw().iter().map(|d| d.abs() <= r).collect();
+        Mask::from_bools(self.width(), self.height(), &flags)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -229,6 +263,45 @@ mod tests {
         assert!(matches!(
             distance_to_background(&zero),
             Err(Error::Empty { .. })
+        ));
+    }
+
+    #[test]
+    fn mismatch_in_band_counts_only_band_pixels() {
+        // Predicted: a 10x10 square; observed: the square shifted by one column.
+        let pred = Mask::from_fn(30, 30, |x, y| {
+            (10..20).contains(&x) && (10..20).contains(&y)
+        });
+        let obs = Mask::from_fn(30, 30, |x, y| {
+            (11..21).contains(&x) && (10..20).contains(&y)
+        });
+        let band = pred.boundary_band(1.5).unwrap();
+        let f_band = pred.mismatch_fraction(&obs, Some(&band)).unwrap();
+        let f_all = pred.mismatch_fraction(&obs, None).unwrap();
+        // 20 pixels differ, all inside the band; the band is much smaller than the image.
+        assert_eq!(pred.xor(&obs).unwrap().and(&band).unwrap().count(), 20);
+        assert!((f_all - 20.0 / 900.0).abs() < 1e-12);
+        assert!((f_band - 20.0 / band.count() as f64).abs() < 1e-12);
+        assert!(f_band > 5.0 * f_all);
+    }
+
+    #[test]
+    fn boundary_band_layers() {
+        let m = Mask::from_fn(20, 20, |x, y| (5..15).contains(&x) && (5..15).contains(&y));
+        let b = m.boundary_band(0.5).unwrap();
+        // 0.5 px: the inner ring (36 px) plus the outer 4-adjacent ring (40 px, corners excluded).
+        assert_eq!(b.count(), 36 + 40);
+        assert_eq!(m.inner_boundary().count(), 36);
+        assert!(m.inner_boundary().and_not(&b).unwrap().is_empty());
+        assert!(Mask::new(5, 5).boundary_band(2.0).unwrap().is_empty());
+        assert!(Mask::new(5, 5).not().boundary_band(2.0).unwrap().is_empty());
+        assert!(matches!(
+            m.boundary_band(-1.0),
+            Err(Error::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            m.boundary_band(f64::NAN),
+            Err(Error::InvalidParam { .. })
         ));
     }
 }

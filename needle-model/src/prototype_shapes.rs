@@ -1,205 +1,19 @@
-//! Prototype locations and shapes: Sand, McMillan and Popović 2003 §5.2–5.3 (thesis §5.2–5.3).
+//! Prototype shapes: Sand, McMillan and Popović 2003 §5.3 (thesis §5.3).
 //!
-//! * **Locations (§5.2).** The first prototype is a random observed configuration point; each
-//!   further prototype is the observed point farthest (Euclidean) from all prototypes chosen so
-//!   far ([`farthest_point_prototypes`]). Unlike clustering or random sampling this also places
-//!   prototypes where the data is sparse.
-//! * **Shapes (§5.3).** For needle `j` with `m_j` observations and prototype `k`, take the
-//!   `n = F_near · m_j` observations of that needle whose configuration points are nearest to
-//!   `p_k`, and use their `F_min` percentile length as `v_jk` (the "robust minimum":
-//!   silhouettes only overestimate, §5). Selecting a fraction rather than a radius borrows from
-//!   other poses where data is sparse — the paper's hole filling across configuration space.
-//!   Needles that have *no* observation at all are filled from neighbouring needles on the
-//!   primitive ([`prototype_shapes`]); see its docs.
-//!
-//! Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
-//! sample), observations are grouped per needle in [`NeedleObservations`].
+//! The method is documented on [`prototype_shapes()`]; the module is private and
+//! everything public is re-exported at the crate root.
 
-use rand::{Rng, RngExt};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::config::{check_samples, config_scale, dist2};
+use crate::error::{Context, ResultExt};
 use crate::params::ReconstructionParams;
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
-/// Largest configuration-space dimension accepted (Sand's Table 1 has at most 9; in much
-/// higher dimensions nearest-neighbour neighbourhoods stop being local).
-pub const MAX_CONFIG_DIM: usize = 16;
-
-/// Checks a flat sample array: `dim` in `1..=MAX_CONFIG_DIM`, length a multiple of `dim`,
-/// non-empty, all finite. Returns the number of samples.
-pub(crate) fn check_samples(samples: &[f32], dim: usize) -> Result<usize> {
-    if dim == 0 || dim > MAX_CONFIG_DIM {
-        return Err(Error::InvalidParam {
-            name: "dim",
-            reason: format!("configuration dimension must be in 1..={MAX_CONFIG_DIM}, got {dim}"),
-        });
-    }
-    if samples.is_empty() {
-        return Err(Error::Empty {
-            what: "configuration samples",
-        });
-    }
-    if !samples.len().is_multiple_of(dim) {
-        return Err(Error::SizeMismatch {
-            what: "configuration samples (length must be a multiple of dim)",
-            expected: samples.len().div_ceil(dim) * dim,
-            got: samples.len(),
-        });
-    }
-    if samples.iter().any(|v| !v.is_finite()) {
-        return Err(Error::NonFinite {
-            what: "configuration samples",
-        });
-    }
-    Ok(samples.len() / dim)
-}
-
-#[inline]
-fn dist2(a: &[f32], b: &[f32]) -> f32 {
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
-}
-
-/// Prototype locations chosen by farthest-point selection (§5.2).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PrototypeLocations {
-    /// Indices of the chosen samples, in selection order (the first is the random start).
-    pub sample_indices: Vec<usize>,
-    /// Chosen configuration points, row-major `sample_indices.len() × dim`.
-    pub points: Vec<f32>,
-    /// Configuration-space dimension.
-    pub dim: usize,
-    /// Covering radius: the largest distance from any sample to its nearest prototype
-    /// (configuration-space units). Zero when every distinct sample is a prototype.
-    pub covering_radius: f32,
-}
-
-/// Farthest-point prototype selection (Sand 2003 §5.2): exact, `O(n · S · dim)`, parallel over
-/// samples. Ties go to the lowest sample index, so the result does not depend on the thread
-/// count.
-///
-/// `samples` holds `S` configuration points as rows of length `dim`. Selection stops early
-/// (with fewer than `n` prototypes) when every sample coincides with a prototype.
-///
-/// # Errors
-/// [`Error::InvalidParam`] for `dim ∉ 1..=16` or `n = 0`; [`Error::Empty`] for no samples;
-/// [`Error::SizeMismatch`] if `samples.len()` is not a multiple of `dim`;
-/// [`Error::NonFinite`] for NaN/∞ coordinates.
-///
-/// # Example
-/// ```
-/// use needle_model::prototypes::farthest_point_prototypes;
-/// use rand::SeedableRng;
-/// let samples = [0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
-/// let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-/// let protos = farthest_point_prototypes(&samples, 2, 4, &mut rng)?;
-/// assert_eq!(protos.sample_indices.len(), 4);
-/// assert_eq!(protos.covering_radius, 0.0);
-/// # Ok::<(), needle_model::Error>(())
-/// ```
-pub fn farthest_point_prototypes<R: Rng + ?Sized>(
-    samples: &[f32],
-    dim: usize,
-    n: usize,
-    rng: &mut R,
-) -> Result<PrototypeLocations> {
-    let count = check_samples(samples, dim)?;
-    if n == 0 {
-        return Err(Error::InvalidParam {
-            name: "prototype_count_n",
-            reason: "must be at least 1".into(),
-        });
-    }
-    let first = rng.random_range(0..count);
-    let mut chosen = vec![first];
-    let mut last = first;
-    let mut min_d2: Vec<f32> = vec![f32::INFINITY; count];
-    const CHUNK: usize = 4096;
-    loop {
-        let p = &samples[last * dim..(last + 1) * dim];
-        // Update distances to the newest prototype and find the farthest sample (lowest
-        // index on ties) in one parallel pass.
-        let (best_d2, best_i) = min_d2
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(|(c, chunk)| {
-                let mut best = (-1.0f32, usize::MAX);
-                for (o, d) in chunk.iter_mut().enumerate() {
-                    let i = c * CHUNK + o;
-                    let nd = dist2(&samples[i * dim..(i + 1) * dim], p);
-                    if nd < *d {
-                        *d = nd;
-                    }
-                    if *d > best.0 {
-                        best = (*d, i);
-                    }
-                }
-                best
-            })
-            .reduce(
-                || (-1.0f32, usize::MAX),
-                |a, b| {
-                    if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
-                        b
-                    } else {
-                        a
-                    }
-                },
-            );
-        if chosen.len() == n || best_d2 <= 0.0 {
-            let covering_radius = best_d2.max(0.0).sqrt();
-            let points = chosen
-                .iter()
-                .flat_map(|&i| samples[i * dim..(i + 1) * dim].iter().copied())
-                .collect();
-            return Ok(PrototypeLocations {
-                sample_indices: chosen,
-                points,
-                dim,
-                covering_radius,
-            });
-        }
-        chosen.push(best_i);
-        last = best_i;
-    }
-}
-
-/// Builds the per-needle observation table ([`NeedleObservations`], the form
-/// [`crate::ObservationStore::by_needle`] returns) from one list of `(sample index, length)`
-/// per needle, e.g. for synthetic data or other sources than the store.
-///
-/// # Errors
-/// [`Error::SizeMismatch`] if there are more than `u32::MAX` observations.
-pub fn observations_from_lists(per_needle: &[Vec<(u32, f32)>]) -> Result<NeedleObservations> {
-    let total: usize = per_needle.iter().map(Vec::len).sum();
-    if u32::try_from(total).is_err() {
-        return Err(Error::SizeMismatch {
-            what: "observations of one primitive (at most u32::MAX)",
-            expected: u32::MAX as usize,
-            got: total,
-        });
-    }
-    let mut start = Vec::with_capacity(per_needle.len() + 1);
-    start.push(0u32);
-    let mut sample = Vec::with_capacity(total);
-    let mut length_m = Vec::with_capacity(total);
-    for list in per_needle {
-        for &(s, l) in list {
-            sample.push(s);
-            length_m.push(l);
-        }
-        start.push(sample.len() as u32); // ≤ total ≤ u32::MAX, checked above
-    }
-    Ok(NeedleObservations {
-        start,
-        sample,
-        length_m,
-    })
-}
-
 /// Ring/axial grid adjacency of a primitive's needles in ring-major order
-/// (`j = ring · radial + k`, the layout of [`crate::primitive`]): the two ring neighbours
+/// (`j = ring · radial + k`, the layout of [`crate::NeedleBody`]): the two ring neighbours
 /// (wrapping around) and the needles at the same angle in the previous and next ring.
 /// Used by [`prototype_shapes`] to fill never-observed needles.
 ///
@@ -261,14 +75,14 @@ impl PrototypeShapes {
 /// Number of nearest observations used for a needle with `m` observations (§5.3):
 /// `n = round(F_near · m)`, raised to `min_near` (see [`ReconstructionParams::min_near`]) and
 /// clamped to `1..=m`.
-pub fn near_count(m: usize, f_near: f64, min_near: usize) -> usize {
+pub(crate) fn near_count(m: usize, f_near: f64, min_near: usize) -> usize {
     ((f_near * m as f64).round() as usize)
         .max(min_near)
         .clamp(1, m.max(1))
 }
 
 /// Index of the `F_min` percentile in `n` sorted values: `round(F_min · (n − 1))`.
-pub fn percentile_index(n: usize, f_min: f64) -> usize {
+pub(crate) fn percentile_index(n: usize, f_min: f64) -> usize {
     ((f_min * (n.saturating_sub(1)) as f64).round() as usize).min(n.saturating_sub(1))
 }
 
@@ -280,9 +94,22 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 
 /// Prototype shapes by the robust minimum of nearby observations (Sand 2003 §5.3).
 ///
+/// Prototype shapes: Sand, McMillan and Popović 2003 §5.3 (thesis §5.3).
+///
+/// For needle `j` with `m_j` observations and prototype `k`, take the `n = F_near · m_j`
+/// observations of that needle whose configuration points are nearest to `p_k`, and use their
+/// `F_min` percentile length as `v_jk` (the "robust minimum": silhouettes only overestimate,
+/// §5). Selecting a fraction rather than a radius borrows from other poses where data is
+/// sparse — the paper's hole filling across configuration space. Needles that have *no*
+/// observation at all are filled from neighbouring needles on the primitive
+/// ([`prototype_shapes`], with the needle grid of [`grid_adjacency`]); see its docs.
+///
+/// Data layout: configuration points are `f32` rows of length `dim` (one per (frame, camera)
+/// sample), observations are grouped per needle in [`NeedleObservations`].
+///
 /// * `samples`: configuration points, `S × dim` row-major.
 /// * `observations`: per-needle observations indexing rows of `samples`.
-/// * `prototype_points`: prototype locations `N × dim` (e.g. [`PrototypeLocations::points`]).
+/// * `prototype_points`: prototype locations `N × dim` (e.g. [`crate::PrototypeLocations::points`]).
 /// * `adjacency`: neighbouring needles of each needle on the primitive (ring and axial grid),
 ///   used only to fill needles without any observation; must have one entry per needle.
 ///
@@ -301,10 +128,10 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 /// those frames are equal to float precision. Cutting such a tie by sample index keeps the
 /// first `n` in time, i.e. the few views of a short stretch of the capture, and their
 /// robust minimum stays far above the surface (on the studio this made the calves' median
-/// error 10 mm instead of 1 mm). Samples within [`TIE_RADIUS`] × the data's RMS radius of
+/// error 10 mm instead of 1 mm). Samples within `TIE_RADIUS` = 10⁻³ × the data's RMS radius of
 /// the one that completes the `n` nearest are equally near and are all taken: a pose held
 /// for a thousand frames gives its prototype every one of those views. So that this costs
-/// no more than the plain walk, groups of more than [`LARGE_TIE_SAMPLES`] bit-identical
+/// no more than the plain walk, groups of more than `LARGE_TIE_SAMPLES` = 64 bit-identical
 /// configurations keep one sorted list of each needle's observations, taken in one step,
 /// and the percentile is found by merging the sorted lists (`O(F_min · n)`).
 ///
@@ -318,10 +145,12 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 ///
 /// # Errors
 /// [`Error::InvalidParam`] for invalid `params` or `dim`; [`Error::SizeMismatch`] for a
-/// `prototype_points` length not a multiple of `dim`, an adjacency of wrong length, or an
-/// out-of-range sample/needle index; [`Error::NonFinite`] for NaN/∞ coordinates or lengths;
-/// [`Error::Empty`] for no samples or prototypes; [`Error::NoObservations`] when a needle has
-/// no observation and no observed needle is reachable through `adjacency`.
+/// `prototype_points` length not a multiple of `dim` or an adjacency of wrong length;
+/// [`Error::IndexOutOfRange`] for an observation's sample index beyond the samples, or (in
+/// [`Error::At`] with the [`Context::Needle`]) a neighbour index beyond the needles;
+/// [`Error::NonFinite`] for NaN/∞ coordinates; [`Error::Empty`] for no samples, prototypes
+/// or needles; [`Error::NoObservations`] in [`Error::At`] with the [`Context::Needle`] when
+/// a needle has no observation and no observed needle is reachable through `adjacency`.
 pub fn prototype_shapes(
     samples: &[f32],
     dim: usize,
@@ -355,17 +184,7 @@ pub fn prototype_shapes(
             what: "prototype locations",
         });
     }
-    let num_needles = observations.start.len().saturating_sub(1);
-    if observations.sample.len() != observations.length_m.len()
-        || observations.start.last().map_or(0, |&e| e as usize) != observations.sample.len()
-        || observations.start.windows(2).any(|w| w[0] > w[1])
-    {
-        return Err(Error::SizeMismatch {
-            what: "per-needle observation table (start offsets vs sample and length arrays)",
-            expected: observations.sample.len(),
-            got: observations.length_m.len(),
-        });
-    }
+    let num_needles = observations.needle_count();
     if num_needles == 0 {
         return Err(Error::Empty { what: "needles" });
     }
@@ -376,34 +195,32 @@ pub fn prototype_shapes(
             got: adjacency.len(),
         });
     }
-    if let Some(&bad) = adjacency
+    for (j, nb) in adjacency.iter().enumerate() {
+        if let Some(&bad) = nb.iter().find(|&&n| n as usize >= num_needles) {
+            return Err(Error::IndexOutOfRange {
+                what: "neighbour in needle adjacency",
+                index: bad as usize,
+                len: num_needles,
+            })
+            .at(Context::Needle(j));
+        }
+    }
+    if let Some(&bad) = observations
+        .samples()
         .iter()
-        .flatten()
-        .find(|&&n| n as usize >= num_needles)
+        .find(|&&s| s as usize >= count)
     {
-        return Err(Error::SizeMismatch {
-            what: "neighbour index in needle adjacency (must be < number of needles)",
-            expected: num_needles,
-            got: bad as usize,
-        });
-    }
-    if let Some(&bad) = observations.sample.iter().find(|&&s| s as usize >= count) {
-        return Err(Error::SizeMismatch {
-            what: "sample index in observations (must be < number of samples)",
-            expected: count,
-            got: bad as usize,
-        });
-    }
-    if observations.length_m.iter().any(|l| !l.is_finite()) {
-        return Err(Error::NonFinite {
-            what: "observed needle lengths",
+        return Err(Error::IndexOutOfRange {
+            what: "sample of an observation (row of the configuration samples)",
+            index: bad as usize,
+            len: count,
         });
     }
     let num_protos = prototype_points.len() / dim;
 
     // Every sample with its distance, in order of distance to each prototype: O(N·S log S).
     // A large group of identical configurations is one entry, `GROUP | g`.
-    let tie = TIE_RADIUS * crate::nrbf::config_scale(samples, dim)?;
+    let tie = TIE_RADIUS * config_scale(samples, dim)?;
     let pose_groups = PoseGroups::new(samples, dim);
     let order: Vec<Vec<(f32, u32)>> = prototype_points
         .par_chunks_exact(dim)
@@ -494,10 +311,9 @@ pub fn prototype_shapes(
     }
     if let Some(j) = known.iter().position(|&k| !k) {
         return Err(Error::NoObservations {
-            what: format!(
-                "needle {j}: never observed and no observed needle reachable through the adjacency"
-            ),
-        });
+            what: "never observed and no observed needle reachable through the adjacency".into(),
+        })
+        .at(Context::Needle(j));
     }
     filled_needles.sort_unstable();
     Ok(PrototypeShapes {
@@ -510,11 +326,11 @@ pub fn prototype_shapes(
 
 /// Samples whose configurations lie within this fraction of the data's RMS radius of the
 /// `n`-th nearest one count as equally near (see [`prototype_shapes`]).
-pub const TIE_RADIUS: f32 = 1e-3;
+pub(crate) const TIE_RADIUS: f32 = 1e-3;
 /// Groups of more samples than this with bit-identical configurations are taken through a
 /// pre-sorted list per needle (an optimisation with the same result, see
 /// [`prototype_shapes`]).
-pub const LARGE_TIE_SAMPLES: usize = 64;
+pub(crate) const LARGE_TIE_SAMPLES: usize = 64;
 
 /// Large groups of samples with bit-identical configurations (a pose held for a while):
 /// [`needle_prototype_lengths`] takes such a group whole through one pre-sorted list per
@@ -687,121 +503,14 @@ fn kth_of_sorted(lists: &mut [&[f32]], k: usize) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use crate::prototype_locations::farthest_point_prototypes;
+    use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
     fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
         (0..count * dim)
             .map(|_| rng.random_range(-1.0f32..1.0))
             .collect()
-    }
-
-    fn covering_radius(samples: &[f32], dim: usize, chosen: &[usize]) -> f32 {
-        samples
-            .chunks_exact(dim)
-            .map(|x| {
-                chosen
-                    .iter()
-                    .map(|&c| dist2(x, &samples[c * dim..(c + 1) * dim]))
-                    .fold(f32::INFINITY, f32::min)
-            })
-            .fold(0.0, f32::max)
-            .sqrt()
-    }
-
-    #[test]
-    fn farthest_point_is_greedy_and_spreads_better_than_random() {
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        // Clustered data: a dense blob plus a sparse shell, as in Sand's Figure 7.
-        let dim = 3;
-        let mut samples = uniform_points(&mut rng, 3000, dim);
-        samples.iter_mut().for_each(|v| *v *= 0.2);
-        samples.extend(uniform_points(&mut rng, 300, dim));
-        let n = 40;
-        let locs = farthest_point_prototypes(&samples, dim, n, &mut rng).unwrap();
-        assert_eq!(locs.sample_indices.len(), n);
-        assert_eq!(locs.points.len(), n * dim);
-        let mut sorted = locs.sample_indices.clone();
-        sorted.sort_unstable();
-        sorted.dedup();
-        assert_eq!(sorted.len(), n, "prototypes must be distinct samples");
-        // Greedy property: each new prototype maximises the distance to the previous ones.
-        for k in 1..n {
-            let prev = &locs.sample_indices[..k];
-            let r = covering_radius(&samples, dim, prev);
-            let i = locs.sample_indices[k];
-            let di = prev
-                .iter()
-                .map(|&c| {
-                    dist2(
-                        &samples[i * dim..(i + 1) * dim],
-                        &samples[c * dim..(c + 1) * dim],
-                    )
-                })
-                .fold(f32::INFINITY, f32::min)
-                .sqrt();
-            assert!((di - r).abs() <= 1e-5 * r.max(1.0), "step {k}: {di} vs {r}");
-        }
-        let exact = covering_radius(&samples, dim, &locs.sample_indices);
-        assert!((exact - locs.covering_radius).abs() < 1e-5);
-        // Random selection of the same size covers worse (mean over several draws).
-        let mut random_mean = 0.0;
-        for _ in 0..10 {
-            let idx: Vec<usize> = (0..n).map(|_| rng.random_range(0..3300)).collect();
-            random_mean += covering_radius(&samples, dim, &idx) / 10.0;
-        }
-        assert!(
-            locs.covering_radius < 0.7 * random_mean,
-            "farthest point {} vs random {}",
-            locs.covering_radius,
-            random_mean
-        );
-    }
-
-    #[test]
-    fn farthest_point_stops_when_all_samples_are_prototypes() {
-        let samples = [0.0f32, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0];
-        let mut rng = ChaCha8Rng::seed_from_u64(0);
-        let locs = farthest_point_prototypes(&samples, 2, 10, &mut rng).unwrap();
-        assert_eq!(locs.sample_indices.len(), 2);
-        assert_eq!(locs.covering_radius, 0.0);
-    }
-
-    #[test]
-    fn farthest_point_rejects_bad_input() {
-        let mut rng = ChaCha8Rng::seed_from_u64(0);
-        let f = |s: &[f32], d, n, rng: &mut ChaCha8Rng| farthest_point_prototypes(s, d, n, rng);
-        assert!(matches!(f(&[], 2, 3, &mut rng), Err(Error::Empty { .. })));
-        assert!(matches!(
-            f(&[1.0, 2.0, 3.0], 2, 3, &mut rng),
-            Err(Error::SizeMismatch { .. })
-        ));
-        assert!(matches!(
-            f(&[1.0, f32::NAN], 2, 3, &mut rng),
-            Err(Error::NonFinite { .. })
-        ));
-        assert!(matches!(
-            f(&[1.0, 2.0], 0, 3, &mut rng),
-            Err(Error::InvalidParam { name: "dim", .. })
-        ));
-        assert!(matches!(
-            f(&[0.0; 17], 17, 3, &mut rng),
-            Err(Error::InvalidParam { name: "dim", .. })
-        ));
-        assert!(matches!(
-            f(&[1.0, 2.0], 2, 0, &mut rng),
-            Err(Error::InvalidParam { .. })
-        ));
-    }
-
-    #[test]
-    fn lists_build_the_store_layout() {
-        let per_needle = vec![vec![(0u32, 1.0f32), (2, 1.5)], vec![], vec![(1, 2.0)]];
-        let a = observations_from_lists(&per_needle).unwrap();
-        assert_eq!(a.start, vec![0, 2, 2, 3]);
-        assert_eq!(a.needle(0), (&[0u32, 2][..], &[1.0f32, 1.5][..]));
-        assert_eq!(a.needle(1), (&[][..], &[][..]));
-        assert_eq!(a.needle(7), (&[][..], &[][..]));
     }
 
     #[test]
@@ -847,7 +556,7 @@ mod tests {
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
         let n = near_count(s.len(), pr.f_near, pr.min_near);
-        let reach = d[n - 1].0 + TIE_RADIUS * crate::nrbf::config_scale(samples, dim).unwrap();
+        let reach = d[n - 1].0 + TIE_RADIUS * config_scale(samples, dim).unwrap();
         let mut near: Vec<f32> = d.iter().filter(|x| x.0 <= reach).map(|x| x.1).collect();
         let n = near.len();
         near.sort_by(f32::total_cmp);
@@ -880,7 +589,7 @@ mod tests {
                     v
                 })
                 .collect();
-            let obs = observations_from_lists(&per_needle).unwrap();
+            let obs = NeedleObservations::from_lists(&per_needle).unwrap();
             let params = ReconstructionParams::default()
                 .with_f_near(0.05)
                 .with_f_min(0.2);
@@ -930,7 +639,7 @@ mod tests {
                 v
             })
             .collect();
-        let obs = observations_from_lists(&per_needle).unwrap();
+        let obs = NeedleObservations::from_lists(&per_needle).unwrap();
         let locs = farthest_point_prototypes(&samples, dim, 9, &mut rng).unwrap();
         let mut points = locs.points.clone();
         // Prototypes at the held poses themselves, too.
@@ -965,7 +674,7 @@ mod tests {
         let per_needle = vec![(0..1100u32)
             .map(|s| (s, if s < 1000 { 2.0 - s as f32 * 1e-3 } else { 5.0 }))
             .collect::<Vec<_>>()];
-        let obs = observations_from_lists(&per_needle).unwrap();
+        let obs = NeedleObservations::from_lists(&per_needle).unwrap();
         let params = ReconstructionParams::default()
             .with_f_near(0.02)
             .with_f_min(0.1);
@@ -998,7 +707,7 @@ mod tests {
                 }
             })
             .collect();
-        let obs = observations_from_lists(&per_needle).unwrap();
+        let obs = NeedleObservations::from_lists(&per_needle).unwrap();
         let adj: Vec<Vec<u16>> = (0..6u16).map(|j| vec![(j + 5) % 6, (j + 1) % 6]).collect();
         let params = ReconstructionParams::default()
             .with_f_near(0.5)
@@ -1013,35 +722,33 @@ mod tests {
         // With needles 2..=4 unobserved, needle 3 is filled in a second round from 2 and 4.
         let mut per2 = per_needle.clone();
         per2[4].clear();
-        let obs2 = observations_from_lists(&per2).unwrap();
+        let obs2 = NeedleObservations::from_lists(&per2).unwrap();
         let shapes = prototype_shapes(&samples, 1, &obs2, &[0.0], &adj, &params).unwrap();
         assert_eq!(shapes.shape(0)[2], 2.0);
         assert_eq!(shapes.shape(0)[4], 6.0);
         assert_eq!(shapes.shape(0)[3], 4.0);
         // No neighbours: a clear error.
         let no_adj = vec![vec![]; 6];
-        assert!(matches!(
-            prototype_shapes(&samples, 1, &obs, &[0.0], &no_adj, &params),
-            Err(Error::NoObservations { .. })
-        ));
+        let e = prototype_shapes(&samples, 1, &obs, &[0.0], &no_adj, &params).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Needle(2)]);
+        assert!(matches!(e.root(), Error::NoObservations { .. }));
     }
 
     #[test]
     fn shapes_reject_bad_input() {
         let samples = [0.0f32, 1.0];
         let p = ReconstructionParams::default();
-        let ok = observations_from_lists(&[vec![(0, 1.0)]]).unwrap();
+        let ok = NeedleObservations::from_lists(&[vec![(0, 1.0)]]).unwrap();
         let adj = vec![vec![]];
-        let bad_idx = observations_from_lists(&[vec![(5, 1.0)]]).unwrap();
-        let nan = observations_from_lists(&[vec![(0, f32::NAN)]]).unwrap();
+        let bad_idx = NeedleObservations::from_lists(&[vec![(5, 1.0)]]).unwrap();
         assert!(prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p).is_ok());
         assert!(matches!(
             prototype_shapes(&samples, 1, &bad_idx, &[0.0], &adj, &p),
-            Err(Error::SizeMismatch { .. })
-        ));
-        assert!(matches!(
-            prototype_shapes(&samples, 1, &nan, &[0.0], &adj, &p),
-            Err(Error::NonFinite { .. })
+            Err(Error::IndexOutOfRange {
+                index: 5,
+                len: 2,
+                ..
+            })
         ));
         assert!(matches!(
             prototype_shapes(&samples, 1, &ok, &[f32::NAN], &adj, &p),
@@ -1055,21 +762,14 @@ mod tests {
             prototype_shapes(&samples, 1, &ok, &[0.0], &[], &p),
             Err(Error::SizeMismatch { .. })
         ));
-        assert!(matches!(
-            prototype_shapes(&samples, 1, &ok, &[0.0], &[vec![3]], &p),
-            Err(Error::SizeMismatch { .. })
-        ));
+        let e = prototype_shapes(&samples, 1, &ok, &[0.0], &[vec![3]], &p).unwrap_err();
+        assert_eq!(e.contexts(), vec![Context::Needle(0)]);
+        assert!(matches!(e.root(), Error::IndexOutOfRange { index: 3, .. }));
         assert!(matches!(
             prototype_shapes(&samples, 1, &ok, &[0.0], &adj, &p.with_f_near(2.0)),
             Err(Error::InvalidParam { name: "f_near", .. })
         ));
-        let none = observations_from_lists(&[]).unwrap();
-        let mut broken = ok.clone();
-        broken.start = vec![0, 3];
-        assert!(matches!(
-            prototype_shapes(&samples, 1, &broken, &[0.0], &adj, &p),
-            Err(Error::SizeMismatch { .. })
-        ));
+        let none = NeedleObservations::from_lists(&[]).unwrap();
         assert!(matches!(
             prototype_shapes(&samples, 1, &none, &[0.0], &[], &p),
             Err(Error::Empty { .. })
