@@ -22,6 +22,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
+use dynamic_shapes::core::image::{
+    normals_rgb8, write_depth_png16, write_mask_png, DepthEncoding, GrayF32Image, Mask,
+};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{MeshQuery, TriMesh};
 use dynamic_shapes::core::raster::{Buffers, RenderParams, RenderedView, NO_TRIANGLE};
@@ -29,16 +32,16 @@ use dynamic_shapes::core::skeleton::{
     AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
 };
 use dynamic_shapes::core::studio::shading::{
-    dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, ShadedView, Shadows,
+    dome_lights, shade, srgb8, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
     DEFAULT_SHADOW_BIAS_M,
 };
 use dynamic_shapes::core::studio::{
     makehuman_performer, play_bvh, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
-    DeformationParams, Performer, RetargetParams,
+    DeformationParams, Performer, RetargetParams, ViewTruth,
 };
 use example_kit::data_path;
 use image::imageops::{resize, FilterType};
-use image::{GrayImage, Rgb, RgbImage};
+use image::{Rgb, Rgb32FImage, RgbImage};
 use nalgebra::DMatrix;
 use serde_json::json;
 
@@ -307,13 +310,13 @@ fn ramp(t: f64) -> [f64; 3] {
 }
 
 /// Depth as grey (near bright), scaled over the covered pixels of the view.
-fn depth_picture(v: &RenderedView) -> RgbImage {
-    let covered = v.depth_m.iter().filter(|d| d.is_finite());
+fn depth_picture(depth_m: &GrayF32Image) -> RgbImage {
+    let covered = depth_m.as_raw().iter().filter(|d| d.is_finite());
     let (lo, hi) = covered.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &d| {
         (a.min(d), b.max(d))
     });
-    let mut img = RgbImage::new(v.width, v.height);
-    for (p, &d) in img.pixels_mut().zip(&v.depth_m) {
+    let mut img = RgbImage::new(depth_m.width(), depth_m.height());
+    for (p, &d) in img.pixels_mut().zip(depth_m.as_raw()) {
         if d.is_finite() {
             let g = (255.0 * (1.0 - 0.8 * (d - lo) / (hi - lo).max(1e-6))) as u8;
             *p = Rgb([g, g, g]);
@@ -325,38 +328,49 @@ fn depth_picture(v: &RenderedView) -> RgbImage {
 /// Per-pixel |truth − LBS| (mm) interpolated from the vertices with the barycentrics, coloured
 /// on a false-colour scale from 0 to `max_mm` and shaded by the normal for shape.
 fn difference_picture(
-    v: &RenderedView,
+    v: &ViewTruth,
     faces: &[[u32; 3]],
     dist_mm: &[f64],
     max_mm: f64,
-) -> RgbImage {
-    let mut img = RgbImage::new(v.width, v.height);
-    for (i, p) in img.pixels_mut().enumerate() {
-        let t = v.triangle[i];
+) -> AnyResult<RgbImage> {
+    let ids = v
+        .triangle_ids
+        .as_ref()
+        .ok_or("the spec renders triangle ids")?;
+    let bary = v
+        .barycentric
+        .as_ref()
+        .ok_or("the spec renders barycentrics")?;
+    let normals = v
+        .normals_camera
+        .as_ref()
+        .ok_or("the spec renders normals")?;
+    let mut img = RgbImage::new(ids.width(), ids.height());
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        let t = ids.get_pixel(x, y)[0];
         if t == NO_TRIANGLE {
             continue;
         }
         let f = faces[t as usize];
-        let [b1, b2] = v.bary[i].map(f64::from);
+        let [b1, b2] = bary.get_pixel(x, y).0.map(f64::from);
         let d = dist_mm[f[0] as usize] * (1.0 - b1 - b2)
             + dist_mm[f[1] as usize] * b1
             + dist_mm[f[2] as usize] * b2;
-        let light = 0.45 + 0.55 * f64::from(-v.normal_camera[i][2]).clamp(0.0, 1.0);
+        let light = 0.45 + 0.55 * f64::from(-normals.get_pixel(x, y)[2]).clamp(0.0, 1.0);
         *p = Rgb(ramp(d / max_mm).map(|c| (255.0 * c * light) as u8));
     }
-    img
+    Ok(img)
 }
 
 /// Exposure mapping the 99th percentile of the covered radiance to 0.9.
-fn exposure(views: &[&ShadedView], masks: &[&[u8]]) -> f32 {
+fn exposure(views: &[&Rgb32FImage], masks: &[&Mask]) -> f32 {
     let mut lum: Vec<f32> = views
         .iter()
         .zip(masks)
         .flat_map(|(s, m)| {
-            s.radiance
-                .iter()
+            s.pixels()
                 .zip(m.iter())
-                .filter(|(_, &m)| m == 1)
+                .filter(|(_, m)| *m)
                 .map(|(r, _)| r[0].max(r[1]).max(r[2]))
         })
         .collect();
@@ -374,16 +388,12 @@ fn exposure(views: &[&ShadedView], masks: &[&[u8]]) -> f32 {
 
 /// The silhouette's bounding box, padded by 10 % and widened to the tile's aspect ratio,
 /// clipped to the image: `(x, y, width, height)` (the whole image for an empty mask).
-fn crop_box(mask: &[u8], w: u32, h: u32) -> (u32, u32, u32, u32) {
-    let (mut lo, mut hi) = ((w, h), (0u32, 0u32));
-    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m == 1) {
-        let (x, y) = (i as u32 % w, i as u32 / w);
-        lo = (lo.0.min(x), lo.1.min(y));
-        hi = (hi.0.max(x), hi.1.max(y));
-    }
-    if hi.0 < lo.0 {
+fn crop_box(mask: &Mask) -> (u32, u32, u32, u32) {
+    let (w, h) = mask.dimensions();
+    let Some(b) = mask.bounding_box() else {
         return (0, 0, w, h);
-    }
+    };
+    let (lo, hi) = ((b.x_min, b.y_min), (b.x_max, b.y_max));
     let aspect = f64::from(TILE.0) / f64::from(TILE.1);
     let (cx, cy) = (f64::from(lo.0 + hi.0) / 2.0, f64::from(lo.1 + hi.1) / 2.0);
     let mut bh = f64::from(hi.1 - lo.1 + 1) * 1.2;
@@ -406,16 +416,12 @@ fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> An
         .collect();
     let max_mm = dist_mm.iter().copied().fold(0.0, f64::max).max(1e-3);
     let faces = &performer.template.faces;
-    let shaded: Vec<&ShadedView> = frame
+    let shaded: Vec<&Rgb32FImage> = frame
         .observations
         .iter()
         .map(|o| o.shaded.as_ref().ok_or("the spec has lighting"))
         .collect::<Result<_, _>>()?;
-    let masks: Vec<&[u8]> = frame
-        .observations
-        .iter()
-        .map(|o| o.mask.as_slice())
-        .collect();
+    let masks: Vec<&Mask> = frame.observations.iter().map(|o| &o.mask).collect();
     let exp = exposure(&shaded, &masks);
     let n = frame.observations.len() as u32;
     let mut sheet = RgbImage::new(TILE.0 * n, TILE.1 * 5);
@@ -425,18 +431,20 @@ fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> An
         .zip(&frame.truth.views)
         .enumerate()
     {
-        let mask =
-            GrayImage::from_raw(o.width, o.height, o.mask.iter().map(|&m| m * 255).collect())
-                .ok_or("mask of the view's size")?;
-        let mask_rgb = image::DynamicImage::ImageLuma8(mask).to_rgb8();
+        let mask_rgb = image::DynamicImage::ImageLuma8(o.mask.to_gray()).to_rgb8();
+        let depth = v.depth_m.as_ref().ok_or("the spec renders depth")?;
+        let normals = v
+            .normals_camera
+            .as_ref()
+            .ok_or("the spec renders normals")?;
         let pictures = [
             mask_rgb,
-            depth_picture(v),
-            v.normal_rgb8_image()?,
-            shaded[c].to_srgb8(exp),
-            difference_picture(v, faces, &dist_mm, max_mm),
+            depth_picture(depth),
+            normals_rgb8(normals),
+            srgb8(shaded[c], exp),
+            difference_picture(v, faces, &dist_mm, max_mm)?,
         ];
-        let (x0, y0, cw, ch) = crop_box(&o.mask, o.width, o.height);
+        let (x0, y0, cw, ch) = crop_box(&o.mask);
         for (row, pic) in pictures.iter().enumerate() {
             let cropped = image::imageops::crop_imm(pic, x0, y0, cw, ch).to_image();
             let tile = resize(&cropped, TILE.0, TILE.1, FilterType::Triangle);
@@ -448,9 +456,12 @@ fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> An
             );
         }
         if c == 0 {
-            v.mask_image()?.save(out.join("cam0_silhouette.png"))?;
-            v.depth_mm_u16_image()?
-                .save(out.join("cam0_depth_mm.png"))?;
+            write_mask_png(&o.mask, out.join("cam0_silhouette.png"))?;
+            let mm = DepthEncoding {
+                scale_m: 1e-3,
+                offset_m: 0.0,
+            };
+            write_depth_png16(depth, out.join("cam0_depth_mm.png"), &mm)?;
             pictures[1].save(out.join("cam0_depth_grey.png"))?;
             pictures[2].save(out.join("cam0_normals.png"))?;
             pictures[3].save(out.join("cam0_shaded.png"))?;

@@ -3,12 +3,14 @@
 //! capture it never saw (CMU 131_01, retargeted) against the performer's true posed mesh.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
-use dynamic_shapes::core::skeleton::{BvhParams, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::stats::median;
 use dynamic_shapes::core::studio::{
-    play_bvh, procedural_performer, range_of_motion, DeformationState, ProceduralBodyParams,
-    RangeOfMotionParams, RetargetParams,
+    play_bvh, procedural_performer, range_of_motion, studio_ring, Capture, CaptureFrame,
+    CaptureSpec, FrameTruth, ProceduralBodyParams, RangeOfMotionParams, RetargetParams,
 };
-use dynamic_shapes::needle::truth::{self, median, TestSet};
+use dynamic_shapes::needle::truth::TestSet;
 use dynamic_shapes::needle::{
     animate, union_mesh, BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
     ReconstructionParams, SkinnedShape, SurfaceParams,
@@ -19,7 +21,8 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
     let performer = procedural_performer(&ProceduralBodyParams::default()).unwrap();
     let sk = performer.skeleton.clone();
     let body = NeedleBody::new(&sk, &BodyLayout::table_3_1()).unwrap();
-    let cameras = truth::ring_cameras(3, 360, 240).unwrap();
+    let rig = studio_ring(3, 360, 240).unwrap();
+    let cameras = rig.cameras.clone();
     let observer = Observer::new(
         body.clone(),
         sk.clone(),
@@ -38,18 +41,19 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
         },
     )
     .unwrap();
-    let mut state = DeformationState::default();
-    let mut thetas = vec![];
-    let mut masks = vec![];
-    for k in 0..rom.frame_count() {
-        let theta = rom.frame(k);
-        let posed = performer.pose(theta, &mut state, rom.frame_time_s).unwrap();
-        if k % 2 == 0 {
-            let mesh = performer.mesh(posed.true_vertices);
-            masks.push(truth::render_masks(&cameras, &mesh).unwrap());
-            thetas.push(theta.to_vec());
-        }
-    }
+    // Silhouettes of a motion at its own frame rate.
+    let capture_of = |motion: &Motion| {
+        let spec =
+            CaptureSpec::masks_only(rig.clone()).with_frame_rate_hz(1.0 / motion.frame_time_s);
+        Capture::new(&performer, motion, spec).unwrap()
+    };
+    let training = capture_of(&rom);
+    let captured: Vec<CaptureFrame> = training
+        .frames_stepped(0..training.frame_count(), 2)
+        .collect::<Result<_, _>>()
+        .unwrap();
+    let thetas: Vec<Vec<f64>> = captured.iter().map(|f| f.truth.theta.clone()).collect();
+    let masks: Vec<Vec<Mask>> = captured.iter().map(CaptureFrame::masks).collect();
     let frames: Vec<FrameInput> = thetas
         .iter()
         .zip(&masks)
@@ -70,11 +74,11 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
     .unwrap()
     .motion;
     let mut test = TestSet::default();
-    let poses: Vec<&[f64]> = (0..walk.frame_count()).map(|k| walk.frame(k)).collect();
-    truth::for_each_posed(&performer, poses, walk.frame_time_s, 20, |_, th, tv, lv| {
-        test.push_frame(&body, &performer, th, tv, lv)
-    })
-    .unwrap();
+    let walking = capture_of(&walk);
+    for frame in walking.frames_stepped(0..walking.frame_count(), 20) {
+        test.push_frame(&body, &performer, &frame.unwrap().truth)
+            .unwrap();
+    }
     let scored: usize = test.frames.iter().map(|f| f.needles.len()).sum();
     assert!(scored > 50_000, "{scored} scored needles");
 
@@ -88,25 +92,25 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
     let rest = animate(&body, &model, &sk, &sk.rest_pose()).unwrap();
     let lbs =
         SkinnedShape::heat(&sk, union_mesh(&rest, &SurfaceParams::default()).unwrap()).unwrap();
-    let mut m = test.errors(&model).unwrap();
-    let mut s = test.errors(&stat).unwrap();
-    let mut b = test
+    let m = test.errors(&model).unwrap();
+    let s = test.errors(&stat).unwrap();
+    let b = test
         .surface_errors(&body, &sk, |th| {
             lbs.pose(&performer, sk.forward_kinematics(th)?.world_from_joint())
         })
         .unwrap();
-    let mut exact = test.lbs_errors();
+    let exact = test.lbs_errors();
     assert!(!m.near_joints_mm.is_empty() && !m.deforming_mm.is_empty());
     let (mm, sm, bm, em) = (
-        median(&mut m.all_mm),
-        median(&mut s.all_mm),
-        median(&mut b.all_mm),
-        median(&mut exact.all_mm),
+        median(&m.all_mm),
+        median(&s.all_mm),
+        median(&b.all_mm),
+        median(&exact.all_mm),
     );
     let (mj, sj, bj) = (
-        median(&mut m.near_joints_mm),
-        median(&mut s.near_joints_mm),
-        median(&mut b.near_joints_mm),
+        median(&m.near_joints_mm),
+        median(&s.near_joints_mm),
+        median(&b.near_joints_mm),
     );
     // Per primitive, against the static model from the same observations: an estimate biased
     // to a few views shows up as one primitive far worse than static (ties in F_near once cut
@@ -158,19 +162,29 @@ fn truth_rejects_bad_input() {
     .unwrap();
     let theta = performer.skeleton.rest_pose();
     let v = performer.template.vertices.clone();
+    let rest = performer
+        .pose(&theta, &mut Default::default(), 0.1)
+        .unwrap();
+    let truth = |theta: &[f64], true_vertices: &[_], lbs_vertices: &[_]| FrameTruth {
+        theta: theta.to_vec(),
+        posed: dynamic_shapes::core::studio::PosedFrame {
+            true_vertices: true_vertices.to_vec(),
+            lbs_vertices: lbs_vertices.to_vec(),
+            ..rest.clone()
+        },
+        views: vec![],
+    };
     let mut test = TestSet::default();
     assert!(test
-        .push_frame(&body, &performer, &theta, &v[1..], &v)
+        .push_frame(&body, &performer, &truth(&theta, &v[1..], &v))
         .is_err());
     assert!(test
-        .push_frame(&body, &performer, &theta[1..], &v, &v)
+        .push_frame(&body, &performer, &truth(&theta[1..], &v, &v))
         .is_err());
-    let frames = [theta.as_slice()];
-    assert!(truth::for_each_posed(&performer, frames, 0.1, 0, |_, _, _, _| Ok(())).is_err());
-    assert!(median(&mut []).is_nan());
-    assert!(truth::ring_cameras(3, 0, 240).is_err());
+    assert!(test.frames.is_empty());
     // The rest pose: needles start inside the body and end within their maximum length.
-    test.push_frame(&body, &performer, &theta, &v, &v).unwrap();
+    test.push_frame(&body, &performer, &truth(&theta, &v, &v))
+        .unwrap();
     let n = &test.frames[0].needles;
     assert!(
         n.len() > body.needle_count() / 2,
@@ -184,13 +198,14 @@ fn truth_rejects_bad_input() {
     // Scoring a surface: the template itself at rest is the truth; a body of another layout
     // or a failing surface is an error, not a panic.
     let template = |_: &[f64]| Ok(performer.template.clone());
-    let mut e = test
+    let e = test
         .surface_errors(&body, &performer.skeleton, template)
         .unwrap();
-    assert!(median(&mut e.all_mm) < 1e-6);
+    assert!(median(&e.all_mm) < 1e-6);
     let full = NeedleBody::new(&performer.skeleton, &BodyLayout::table_3_1()).unwrap();
     let mut big = TestSet::default();
-    big.push_frame(&full, &performer, &theta, &v, &v).unwrap();
+    big.push_frame(&full, &performer, &truth(&theta, &v, &v))
+        .unwrap();
     assert!(big
         .surface_errors(&body, &performer.skeleton, template)
         .is_err());

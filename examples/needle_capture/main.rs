@@ -354,14 +354,14 @@ fn main() -> Res<()> {
     let mut sweep = vec![];
     for n in [10usize, 30, 100, 300] {
         // N = 100 is the main model, already reconstructed and scored.
-        let mut e = if n == base.prototype_count_n {
+        let e = if n == base.prototype_count_n {
             walk.set.errors(&main)?
         } else {
             walk.set.errors(
                 &NeedleModel::reconstruct(&store, &body, &base.with_prototype_count_n(n))?.model,
             )?
         };
-        let (a, b) = (median(&mut e.all_mm), median(&mut e.near_joints_mm));
+        let (a, b) = (median(&e.all_mm), median(&e.near_joints_mm));
         eprintln!("N = {n}: median {a:.2} mm, near joints {b:.2} mm");
         sweep.push((n, a, b));
     }
@@ -377,11 +377,11 @@ fn main() -> Res<()> {
     match NeedleModel::reconstruct(&short_store, &body, &base)
         .and_then(|r| walk.set.errors(&r.model))
     {
-        Ok(mut e) => {
-            out.insert("short_train_median_mm".into(), json!(median(&mut e.all_mm)));
+        Ok(e) => {
+            out.insert("short_train_median_mm".into(), json!(median(&e.all_mm)));
             out.insert(
                 "short_train_median_near_joints_mm".into(),
-                json!(median(&mut e.near_joints_mm)),
+                json!(median(&e.near_joints_mm)),
             );
         }
         Err(e) => {

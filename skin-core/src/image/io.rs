@@ -349,6 +349,18 @@ fn encode_normals<T: Copy>(
         .collect()
 }
 
+/// Normals as an 8-bit RGB picture, `colour = (n + 1) / 2` (missing normals black), the
+/// in-memory form of [`write_normal_png`] with [`NormalBits::Eight`].
+#[allow(
+    clippy::expect_used,
+    reason = "the buffer holds 3 samples per pixel by construction"
+)]
+pub fn normals_rgb8(normals: &Rgb32FImage) -> RgbImage {
+    let (w, h) = normals.dimensions();
+    let data = encode_normals(normals, f32::from(u8::MAX), |v| v as u8, 0u8);
+    RgbImage::from_raw(w, h, data).expect("3 samples per pixel")
+}
+
 /// Writes camera-space normals (any frame: components are mapped independently) as an RGB
 /// PNG with `colour = (n + 1) / 2`; missing normals (NaN, ∞ or zero) are written black, which
 /// no unit normal produces (the darkest, `−(1,1,1)/√3`, encodes to ≈ 0.21 per channel).
@@ -368,14 +380,7 @@ pub fn write_normal_png(
     require_pixels(w, h, "normal map (zero-sized)")?;
     let path = path.as_ref();
     match bits {
-        NormalBits::Eight => {
-            let data = encode_normals(normals, f32::from(u8::MAX), |v| v as u8, 0u8);
-            // `data` has 3 samples per pixel by construction.
-            save_png(
-                &RgbImage::from_raw(w, h, data).expect("3 samples per pixel"),
-                path,
-            )
-        }
+        NormalBits::Eight => save_png(&normals_rgb8(normals), path),
         NormalBits::Sixteen => {
             let data = encode_normals(normals, f32::from(u16::MAX), |v| v as u16, 0u16);
             save_png(

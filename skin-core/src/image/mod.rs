@@ -56,10 +56,10 @@ pub use contour::{
 };
 pub use distance::{distance_to_background, distance_to_foreground, signed_distance, GrayF32Image};
 pub use io::{
-    decode_depth_u16, depth_false_colour, encode_depth_u16, is_valid_depth, read_depth_png16,
-    read_mask_png, read_normal_png, write_depth_false_colour_png, write_depth_png16,
-    write_mask_png, write_normal_png, DepthEncoding, DepthRange, Gray16Image, NormalBits,
-    Rgb16Image, DEFAULT_DEPTH_SCALE_M, DEPTH_NO_DATA, MASK_READ_THRESHOLD,
+    decode_depth_u16, depth_false_colour, encode_depth_u16, is_valid_depth, normals_rgb8,
+    read_depth_png16, read_mask_png, read_normal_png, write_depth_false_colour_png,
+    write_depth_png16, write_mask_png, write_normal_png, DepthEncoding, DepthRange, Gray16Image,
+    NormalBits, Rgb16Image, DEFAULT_DEPTH_SCALE_M, DEPTH_NO_DATA, MASK_READ_THRESHOLD,
 };
 pub use mask::{Mask, PixelRect, MASK_FOREGROUND_GREY};
 pub use sample::{sample_bilinear, sample_bilinear_with_gradient, BilinearSample};

@@ -296,11 +296,8 @@ fn mask_only_fast_path_equals_full_mask_and_culling_is_exact_for_closed_meshes()
     assert_eq!(full.mask, fast.mask);
     assert_eq!(full, no_cull);
     assert!(fast.depth_m.is_empty() && fast.normal_camera.is_empty());
-    assert_eq!(full.mask_image().unwrap().dimensions(), (70, 50));
-    assert_eq!(full.normal_rgb8_image().unwrap().dimensions(), (70, 50));
-    let d16 = full.depth_mm_u16_image().unwrap();
-    let i = full.mask.iter().position(|&m| m == 1).unwrap();
-    assert_eq!(d16.as_raw()[i] as f32, (full.depth_m[i] * 1000.0).round());
+    assert_eq!(full.depth_image().unwrap().dimensions(), (70, 50));
+    assert_eq!(full.normal_image().unwrap().dimensions(), (70, 50));
     assert!(fast.depth_image().is_err() && fast.normal_image().is_err());
     // Reusing a view for another mesh overwrites every pixel.
     let mut reused = full.clone();

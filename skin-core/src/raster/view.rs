@@ -1,6 +1,6 @@
 //! The rendered buffers of one view and their conversion to `image` buffers.
 
-use image::{GrayImage, ImageBuffer, Luma, Rgb, Rgb32FImage, RgbImage};
+use image::{ImageBuffer, Luma, Rgb32FImage};
 use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
@@ -52,23 +52,6 @@ impl RenderedView {
         y as usize * self.width as usize + x as usize
     }
 
-    /// The silhouette as an 8-bit image (255 inside, 0 outside), ready for PNG.
-    ///
-    /// # Errors
-    /// [`Error::Empty`] if the mask was not rendered.
-    pub fn mask_image(&self) -> Result<GrayImage> {
-        if self.mask.is_empty() {
-            return Err(missing("mask buffer (enable Buffers::mask)"));
-        }
-        let data = self
-            .mask
-            .iter()
-            .map(|&m| if m != 0 { 255 } else { 0 })
-            .collect();
-        GrayImage::from_raw(self.width, self.height, data)
-            .ok_or_else(|| missing("mask buffer of the view's size"))
-    }
-
     /// Depth along the ray as a float image (background `+∞`).
     ///
     /// # Errors
@@ -78,31 +61,6 @@ impl RenderedView {
             return Err(missing("depth buffer (enable Buffers::depth)"));
         }
         ImageBuffer::from_raw(self.width, self.height, self.depth_m.clone())
-            .ok_or_else(|| missing("depth buffer of the view's size"))
-    }
-
-    /// Depth along the ray in millimetres as a 16-bit image (0 on background and beyond
-    /// 65.535 m), the usual depth-camera PNG format.
-    ///
-    /// # Errors
-    /// [`Error::Empty`] if depth was not rendered.
-    pub fn depth_mm_u16_image(&self) -> Result<ImageBuffer<Luma<u16>, Vec<u16>>> {
-        if self.depth_m.is_empty() {
-            return Err(missing("depth buffer (enable Buffers::depth)"));
-        }
-        let data = self
-            .depth_m
-            .iter()
-            .map(|&d| {
-                let mm = (d * 1000.0).round();
-                if mm.is_finite() && (1.0..=65535.0).contains(&mm) {
-                    mm as u16
-                } else {
-                    0
-                }
-            })
-            .collect();
-        ImageBuffer::from_raw(self.width, self.height, data)
             .ok_or_else(|| missing("depth buffer of the view's size"))
     }
 
@@ -117,22 +75,5 @@ impl RenderedView {
         let data = self.normal_camera.iter().flatten().copied().collect();
         Rgb32FImage::from_raw(self.width, self.height, data)
             .ok_or_else(|| missing("normal buffer of the view's size"))
-    }
-
-    /// Normals mapped to 8-bit colour, `(n + 1)/2 · 255` (background black), for PNG.
-    ///
-    /// # Errors
-    /// [`Error::Empty`] if normals were not rendered.
-    pub fn normal_rgb8_image(&self) -> Result<RgbImage> {
-        if self.normal_camera.is_empty() {
-            return Err(missing("normal buffer (enable Buffers::normal)"));
-        }
-        let mut img = RgbImage::new(self.width, self.height);
-        for (p, n) in img.pixels_mut().zip(&self.normal_camera) {
-            if *n != [0.0; 3] {
-                *p = Rgb(n.map(|c| ((c + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8));
-            }
-        }
-        Ok(img)
     }
 }

@@ -25,5 +25,5 @@ mod visibility;
 
 pub use dome::{dome_lights, DomeParams};
 pub use lights::Light;
-pub use shade::{shade, Albedo, ShadedView, Shadows};
+pub use shade::{shade, srgb8, Albedo, ShadedView, Shadows};
 pub use visibility::{check_lights_outside, vertices_seen, LightVisibility, DEFAULT_SHADOW_BIAS_M};

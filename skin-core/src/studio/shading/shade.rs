@@ -87,23 +87,23 @@ impl ShadedView {
             got: len,
         })
     }
+}
 
-    /// 8-bit sRGB image of `radiance · exposure` (clamped to `[0, 1]`), for PNG.
-    pub fn to_srgb8(&self, exposure: f32) -> RgbImage {
-        let mut img = RgbImage::new(self.width, self.height);
-        for (p, c) in img.pixels_mut().zip(&self.radiance) {
-            *p = Rgb(c.map(|v| {
-                let v = (v * exposure).clamp(0.0, 1.0);
-                let s = if v <= 0.003_130_8 {
-                    12.92 * v
-                } else {
-                    1.055 * v.powf(1.0 / 2.4) - 0.055
-                };
-                (s * 255.0).round() as u8
-            }));
-        }
-        img
+/// 8-bit sRGB picture of `radiance · exposure` (clamped to `[0, 1]`), for PNG.
+pub fn srgb8(radiance: &Rgb32FImage, exposure: f32) -> RgbImage {
+    let mut img = RgbImage::new(radiance.width(), radiance.height());
+    for (p, c) in img.pixels_mut().zip(radiance.pixels()) {
+        *p = Rgb(c.0.map(|v| {
+            let v = (v * exposure).clamp(0.0, 1.0);
+            let s = if v <= 0.003_130_8 {
+                12.92 * v
+            } else {
+                1.055 * v.powf(1.0 / 2.4) - 0.055
+            };
+            (s * 255.0).round() as u8
+        }));
     }
+    img
 }
 
 /// Shades every covered pixel of `view` (rendered from `mesh` with [`crate::studio::Buffers`]

@@ -318,7 +318,9 @@ fn albedo_modes_agree_and_bad_inputs_are_errors() {
     }
     assert!(lit > 50);
     assert_eq!(a.to_image().unwrap().dimensions(), (24, 24));
-    assert_eq!(a.to_srgb8(1.0).dimensions(), (24, 24));
+    let picture = srgb8(&a.to_image().unwrap(), 1.0);
+    assert_eq!(picture.dimensions(), (24, 24));
+    assert!(picture.pixels().any(|p| p.0 != [0; 3]));
     // Errors.
     let alb = Albedo::Uniform([1.0; 3]);
     assert!(matches!(
