@@ -11,12 +11,9 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
-use skin_core::camera::{Intrinsics, Rig};
-use skin_core::image::Mask;
-use skin_core::math::DVec3;
-use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 use skin_core::studio::{
-    fast_motion, procedural_performer, DeformationState, FastMotionParams, ProceduralBodyParams,
+    fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
+    FastMotionParams, ProceduralBodyParams,
 };
 
 const FRAMES: usize = 4;
@@ -24,34 +21,16 @@ const FRAMES: usize = 4;
 fn bench(c: &mut Criterion) {
     let performer = procedural_performer(&ProceduralBodyParams::default()).expect("performer");
     let motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).expect("motion");
-    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 720, 480).expect("intrinsics");
-    let cameras = Rig::ring(3, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)
-        .expect("rig")
-        .cameras;
-    let params = RenderParams::default().with_buffers(Buffers::MASK_ONLY);
-    let mut state = DeformationState::default();
-    let mut thetas = vec![];
-    let mut masks: Vec<Vec<Mask>> = vec![];
-    for f in 0..FRAMES * 15 {
-        let theta = motion.frame(f).to_vec();
-        let posed = performer
-            .pose(&theta, &mut state, motion.frame_time_s)
-            .expect("pose");
-        if f % 15 != 0 {
-            continue;
-        }
-        let mesh = performer.mesh(posed.true_vertices);
-        masks.push(
-            cameras
-                .iter()
-                .map(|cam| {
-                    let v = Rasterizer::new(cam).render(&mesh, &params).expect("render");
-                    Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0)
-                })
-                .collect(),
-        );
-        thetas.push(theta);
-    }
+    let rig = studio_ring(3, 720, 480).expect("rig");
+    let cameras = rig.cameras.clone();
+    let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    let capture = Capture::new(&performer, &motion, spec).expect("capture");
+    let captured: Vec<CaptureFrame> = capture
+        .frames_stepped(0..FRAMES * 15, 15)
+        .collect::<Result<_, _>>()
+        .expect("frames");
+    let masks: Vec<_> = captured.iter().map(CaptureFrame::masks).collect();
+    let thetas: Vec<_> = captured.iter().map(|f| f.truth.theta.clone()).collect();
     let sk = performer.skeleton.clone();
     let body = NeedleBody::new(&sk, &BodyLayout::table_3_1()).expect("body");
     let observer =

@@ -55,12 +55,8 @@
 //!     BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
 //!     ReconstructionParams,
 //! };
-//! use skin_core::camera::{Intrinsics, Rig};
-//! use skin_core::image::Mask;
-//! use skin_core::math::DVec3;
-//! use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 //! use skin_core::studio::{
-//!     fast_motion, procedural_performer, DeformationState, FastMotionParams,
+//!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
 //!     ProceduralBodyParams,
 //! };
 //!
@@ -68,26 +64,17 @@
 //! let performer = procedural_performer(&ProceduralBodyParams::default())?;
 //! let skeleton = performer.skeleton.clone();
 //! let motion = fast_motion(&skeleton, &FastMotionParams::default())?;
-//! let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 160, 120)?;
-//! let cameras = Rig::ring(2, 3.5, 1.1, DVec3::new(0.0, 0.95, 0.0), DVec3::Y, k)?.cameras;
+//! let rig = studio_ring(2, 160, 120)?;
+//! let cameras = rig.cameras.clone();
 //!
-//! // Silhouettes of six frames.
-//! let render = RenderParams::default()
-//!     .with_buffers(Buffers::MASK_ONLY)
-//!     .with_allow_empty(true);
-//! let mut state = DeformationState::default();
+//! // Silhouettes of six frames, every tenth of the motion at its own frame rate.
+//! let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+//! let capture = Capture::new(&performer, &motion, spec)?;
 //! let (mut thetas, mut masks) = (Vec::new(), Vec::new());
-//! for f in (0..60).step_by(10) {
-//!     let theta = motion.frame(f).to_vec();
-//!     let posed = performer.pose(&theta, &mut state, motion.frame_time_s)?;
-//!     let mesh = performer.mesh(posed.true_vertices);
-//!     let mut frame_masks = Vec::new();
-//!     for camera in &cameras {
-//!         let v = Rasterizer::new(camera).render(&mesh, &render)?;
-//!         frame_masks.push(Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0));
-//!     }
-//!     thetas.push(theta);
-//!     masks.push(frame_masks);
+//! for frame in capture.frames_stepped(0..60, 10) {
+//!     let frame = frame?;
+//!     masks.push(frame.masks());
+//!     thetas.push(frame.truth.theta);
 //! }
 //!
 //! // §4.3: walk every needle through every silhouette (a quarter of Table 3.1's density).

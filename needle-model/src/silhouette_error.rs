@@ -116,10 +116,7 @@ impl SilhouetteScorer {
         let params = RenderParams::default()
             .with_buffers(Buffers::MASK_ONLY)
             .with_allow_empty(true);
-        let view = r.render(mesh, &params)?;
-        Ok(Mask::from_fn(view.width, view.height, |x, y| {
-            view.mask[view.index(x, y)] != 0
-        }))
+        Ok(r.render(mesh, &params)?.silhouette())
     }
 
     /// The silhouette error of one frame: `mesh` against one observed mask per camera.

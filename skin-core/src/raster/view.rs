@@ -3,6 +3,7 @@
 use image::{ImageBuffer, Luma, Rgb32FImage};
 use serde::{Deserialize, Serialize};
 
+use crate::image::Mask;
 use crate::{Error, Result};
 
 /// Triangle id of a pixel that sees no surface.
@@ -45,6 +46,13 @@ impl RenderedView {
     /// Number of pixels.
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
+    }
+
+    /// The silhouette as a [`Mask`] (all background if the mask buffer was not rendered).
+    pub fn silhouette(&self) -> Mask {
+        Mask::from_fn(self.width, self.height, |x, y| {
+            self.mask.get(self.index(x, y)).is_some_and(|&m| m != 0)
+        })
     }
 
     /// Row-major index of pixel `(x, y)`.

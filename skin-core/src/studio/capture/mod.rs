@@ -39,7 +39,6 @@ pub use spec::{
 
 use rayon::prelude::*;
 
-use crate::image::Mask;
 use crate::mesh::MeshQuery;
 use crate::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::skeleton::Motion;
@@ -257,7 +256,7 @@ impl<'a> Capture<'a> {
             .enumerate()
             .map(|(camera, (v, shaded))| CameraObservation {
                 camera,
-                mask: Mask::from_fn(v.width, v.height, |x, y| v.mask[v.index(x, y)] != 0),
+                mask: v.silhouette(),
                 shaded,
             })
             .collect();
