@@ -1,0 +1,530 @@
+//! Pictures that explain themselves: line and scatter charts with a title, axis labels with
+//! units and a legend, false-colour images with a colour bar, and titled or labelled
+//! compositions of pictures. Drawn with `plotters` into `image` 0.25 buffers (the bitmap
+//! backend without its encoder, which would pull a second `image`), with the bundled DejaVu
+//! Sans font (`fonts/`, Bitstream Vera licence) registered through `ab_glyph`: no system
+//! font lookup.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use image::{Rgb, RgbImage};
+use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use crate::{Error, Result};
+
+/// DejaVu Sans 2.37 (see `fonts/SOURCE.md`).
+static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
+/// The family name the charts ask for.
+const FAMILY: &str = "sans-serif";
+
+/// Registers the bundled font once; every drawing function calls it.
+fn font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED
+        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Plot("the bundled font does not parse".into()))
+    }
+}
+
+fn plot_err(e: impl std::fmt::Display) -> Error {
+    Error::Plot(e.to_string())
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// Runs `f` on a drawing area over `img` (RGB, drawn in place).
+fn draw_on(img: &mut RgbImage, f: impl FnOnce(&Area) -> Result<()>) -> Result<()> {
+    font()?;
+    let (w, h) = img.dimensions();
+    let root = BitMapBackend::with_buffer(img.as_mut(), (w, h)).into_drawing_area();
+    f(&root)?;
+    root.present().map_err(plot_err)?;
+    Ok(())
+}
+
+fn rgb(c: [u8; 3]) -> RGBColor {
+    RGBColor(c[0], c[1], c[2])
+}
+
+/// A number for a tick label: up to 4 significant digits, no trailing zeros.
+pub fn tick(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}
+
+/// How a [`Series`] is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// A polyline.
+    Line,
+    /// A polyline with a marker at every point.
+    LineMarkers,
+    /// A dashed polyline (a baseline or reference).
+    Dashed,
+    /// Markers only (a scatter).
+    Markers,
+    /// Separate segments: points 0–1, 2–3, … (e.g. residual vectors).
+    Segments,
+}
+
+/// One labelled set of points of a [`Chart`].
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// The legend entry.
+    pub label: String,
+    /// `[r, g, b]`.
+    pub colour: [u8; 3],
+    /// How it is drawn.
+    pub style: Style,
+    /// Points in data units.
+    pub points: Vec<(f64, f64)>,
+}
+
+impl Series {
+    /// A series of `style`.
+    pub fn new(
+        label: impl Into<String>,
+        colour: [u8; 3],
+        style: Style,
+        points: Vec<(f64, f64)>,
+    ) -> Self {
+        Series {
+            label: label.into(),
+            colour,
+            style,
+            points,
+        }
+    }
+}
+
+/// Where the legend goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LegendPosition {
+    /// Upper left corner of the plotting area.
+    UpperLeft,
+    /// Upper right corner.
+    UpperRight,
+    /// Lower left corner.
+    LowerLeft,
+    /// Lower right corner.
+    LowerRight,
+}
+
+impl LegendPosition {
+    fn plotters(self) -> SeriesLabelPosition {
+        match self {
+            LegendPosition::UpperLeft => SeriesLabelPosition::UpperLeft,
+            LegendPosition::UpperRight => SeriesLabelPosition::UpperRight,
+            LegendPosition::LowerLeft => SeriesLabelPosition::LowerLeft,
+            LegendPosition::LowerRight => SeriesLabelPosition::LowerRight,
+        }
+    }
+}
+
+/// A 2-D chart: title, axis labels (with units, e.g. `"error (mm)"`), legend.
+#[derive(Debug, Clone)]
+pub struct Chart {
+    /// Title above the chart.
+    pub title: String,
+    /// x axis label with its unit.
+    pub x_label: String,
+    /// y axis label with its unit.
+    pub y_label: String,
+    /// Size in pixels.
+    pub size: (u32, u32),
+    /// Logarithmic x axis.
+    pub log_x: bool,
+    /// The y axis starts at 0 (unless data go below).
+    pub y_from_zero: bool,
+    /// y grows downwards (image coordinates).
+    pub y_down: bool,
+    /// Fixed x range (data span otherwise).
+    pub x_range: Option<(f64, f64)>,
+    /// Fixed y range (data span otherwise).
+    pub y_range: Option<(f64, f64)>,
+    /// Legend position.
+    pub legend: LegendPosition,
+    /// The data.
+    pub series: Vec<Series>,
+}
+
+impl Chart {
+    /// A 640×420 chart with linear axes, y from zero, legend at the upper right.
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+    ) -> Self {
+        Chart {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            size: (640, 420),
+            log_x: false,
+            y_from_zero: true,
+            y_down: false,
+            x_range: None,
+            y_range: None,
+            legend: LegendPosition::UpperRight,
+            series: Vec::new(),
+        }
+    }
+
+    /// Adds a series.
+    pub fn with(mut self, s: Series) -> Self {
+        self.series.push(s);
+        self
+    }
+
+    fn span(&self, pick: impl Fn(&(f64, f64)) -> f64, log: bool) -> Option<(f64, f64)> {
+        let vals = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(pick)
+            .filter(|v| v.is_finite() && (!log || *v > 0.0));
+        let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        lo.is_finite().then_some((lo, hi))
+    }
+
+    /// Draws the chart.
+    ///
+    /// # Errors
+    /// [`Error::Plot`] when plotters fails (e.g. a size of zero).
+    pub fn draw(&self) -> Result<RgbImage> {
+        let mut img =
+            RgbImage::from_pixel(self.size.0.max(1), self.size.1.max(1), Rgb([255, 255, 255]));
+        let (mut x0, mut x1) = self
+            .x_range
+            .or_else(|| self.span(|p| p.0, self.log_x))
+            .unwrap_or((0.0, 1.0));
+        if x1 <= x0 {
+            (x0, x1) = if self.log_x {
+                (x0 / 2.0, x0 * 2.0)
+            } else {
+                (x0 - 0.5, x1 + 0.5)
+            };
+        }
+        let sign = if self.y_down { -1.0 } else { 1.0 };
+        let (mut y0, mut y1) = match self.y_range {
+            Some(r) => r,
+            None => {
+                let (lo, hi) = self.span(|p| p.1, false).unwrap_or((0.0, 1.0));
+                let (lo, hi) = if self.y_from_zero {
+                    (lo.min(0.0), hi.max(0.0))
+                } else {
+                    (lo, hi)
+                };
+                let pad = 0.08 * (hi - lo).max(1e-12);
+                (
+                    if self.y_from_zero && lo >= 0.0 {
+                        lo
+                    } else {
+                        lo - pad
+                    },
+                    hi + pad,
+                )
+            }
+        };
+        if y1 <= y0 {
+            (y0, y1) = (y0 - 0.5, y1 + 0.5);
+        }
+        let y: RangedCoordf64 = if self.y_down {
+            (-y1..-y0).into()
+        } else {
+            (y0..y1).into()
+        };
+        draw_on(&mut img, |root| {
+            root.fill(&WHITE).map_err(plot_err)?;
+            if self.log_x {
+                self.draw_axes(root, (x0..x1).log_scale(), y, sign)
+            } else {
+                self.draw_axes(root, x0..x1, y, sign)
+            }
+        })?;
+        Ok(img)
+    }
+
+    fn draw_axes<X>(&self, root: &Area, x: X, y: RangedCoordf64, sign: f64) -> Result<()>
+    where
+        X: AsRangedCoord<Value = f64>,
+        X::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    {
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, (FAMILY, 20))
+            .margin(12)
+            .x_label_area_size(48)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x, y)
+            .map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .axis_desc_style((FAMILY, 15))
+            .label_style((FAMILY, 13))
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(sign * *v))
+            .light_line_style(RGBColor(235, 235, 235))
+            .bold_line_style(RGBColor(215, 215, 215))
+            .draw()
+            .map_err(plot_err)?;
+        for s in &self.series {
+            let c = rgb(s.colour);
+            let pts: Vec<(f64, f64)> = s
+                .points
+                .iter()
+                .filter(|p| p.0.is_finite() && p.1.is_finite())
+                .map(|&(a, b)| (a, sign * b))
+                .collect();
+            let stroke = c.stroke_width(2);
+            let anno = match s.style {
+                Style::Line | Style::LineMarkers => {
+                    if s.style == Style::LineMarkers {
+                        chart
+                            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, c.filled())))
+                            .map_err(plot_err)?;
+                    }
+                    chart
+                        .draw_series(LineSeries::new(pts.clone(), stroke))
+                        .map_err(plot_err)?
+                }
+                Style::Dashed => chart
+                    .draw_series(DashedLineSeries::new(pts.clone(), 8, 5, stroke))
+                    .map_err(plot_err)?,
+                Style::Markers => chart
+                    .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                    .map_err(plot_err)?,
+                Style::Segments => chart
+                    .draw_series(
+                        pts.chunks_exact(2)
+                            .map(|w| PathElement::new(vec![w[0], w[1]], c.stroke_width(1))),
+                    )
+                    .map_err(plot_err)?,
+            };
+            if s.label.is_empty() {
+                continue;
+            }
+            let style = s.style;
+            anno.label(&s.label).legend(
+                move |(x, y)| -> DynElement<'static, BitMapBackend, (i32, i32)> {
+                    match style {
+                        Style::Markers => Circle::new((x + 10, y), 4, c.filled()).into_dyn(),
+                        Style::Dashed => DashedPathElement::new(
+                            vec![(x, y), (x + 22, y)].into_iter(),
+                            5,
+                            3,
+                            c.stroke_width(2),
+                        )
+                        .into_dyn(),
+                        _ => PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(2))
+                            .into_dyn(),
+                    }
+                },
+            );
+        }
+        if self.series.iter().any(|s| !s.label.is_empty()) {
+            chart
+                .configure_series_labels()
+                .position(self.legend.plotters())
+                .label_font((FAMILY, 13))
+                .background_style(WHITE.mix(0.85))
+                .border_style(RGBColor(150, 150, 150))
+                .draw()
+                .map_err(plot_err)?;
+        }
+        Ok(())
+    }
+}
+
+/// Writes `text` centred in the box `(x, y, w, h)` of `img`.
+fn text(root: &Area, s: &str, size: u32, (x, y, w, h): (i32, i32, i32, i32)) -> Result<()> {
+    let style =
+        TextStyle::from((FAMILY, size).into_font()).pos(Pos::new(HPos::Center, VPos::Center));
+    root.draw_text(s, &style, (x + w / 2, y + h / 2))
+        .map_err(plot_err)
+}
+
+/// `img` with a title strip above it (32 px, or 56 px with a subtitle).
+///
+/// # Errors
+/// [`Error::Plot`] when plotters fails.
+pub fn titled(img: &RgbImage, title: &str, subtitle: Option<&str>) -> Result<RgbImage> {
+    let strip = if subtitle.is_some() { 56 } else { 32 };
+    let w = img.width().max(8 * title.chars().count() as u32 + 20);
+    let mut out = RgbImage::from_pixel(w, img.height() + strip, Rgb([255, 255, 255]));
+    image::imageops::overlay(
+        &mut out,
+        img,
+        i64::from((w - img.width()) / 2),
+        i64::from(strip),
+    );
+    draw_on(&mut out, |root| {
+        text(root, title, 18, (0, 2, w as i32, 28))?;
+        if let Some(s) = subtitle {
+            text(root, s, 14, (0, 30, w as i32, 22))?;
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// `img` (rows of equal height `img.height() / labels.len()`) with a label column on the left.
+///
+/// # Errors
+/// [`Error::Plot`] when plotters fails.
+pub fn label_rows(img: &RgbImage, labels: &[&str], column_px: u32) -> Result<RgbImage> {
+    let mut out = RgbImage::from_pixel(img.width() + column_px, img.height(), Rgb([255, 255, 255]));
+    image::imageops::overlay(&mut out, img, i64::from(column_px), 0);
+    let rh = img.height() as i32 / labels.len().max(1) as i32;
+    draw_on(&mut out, |root| {
+        for (i, l) in labels.iter().enumerate() {
+            text(root, l, 14, (0, i as i32 * rh, column_px as i32, rh))?;
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Pictures side by side, top-aligned, on white.
+///
+/// # Errors
+/// [`Error::Plot`] for no pictures.
+pub fn side_by_side(panels: &[RgbImage]) -> Result<RgbImage> {
+    let h = panels
+        .iter()
+        .map(RgbImage::height)
+        .max()
+        .ok_or(Error::Plot("no panels".into()))?;
+    let w = panels.iter().map(RgbImage::width).sum();
+    let mut out = RgbImage::from_pixel(w, h, Rgb([255, 255, 255]));
+    let mut x0 = 0i64;
+    for p in panels {
+        image::imageops::overlay(&mut out, p, x0, 0);
+        x0 += i64::from(p.width());
+    }
+    Ok(out)
+}
+
+/// Pictures one above the other, centred, on white.
+///
+/// # Errors
+/// [`Error::Plot`] for no pictures.
+pub fn stacked(rows: &[RgbImage]) -> Result<RgbImage> {
+    let w = rows
+        .iter()
+        .map(RgbImage::width)
+        .max()
+        .ok_or(Error::Plot("no rows".into()))?;
+    let h = rows.iter().map(RgbImage::height).sum();
+    let mut out = RgbImage::from_pixel(w, h, Rgb([255, 255, 255]));
+    let mut y0 = 0i64;
+    for r in rows {
+        image::imageops::overlay(&mut out, r, i64::from((w - r.width()) / 2), y0);
+        y0 += i64::from(r.height());
+    }
+    Ok(out)
+}
+
+/// The scale of a false-colour picture.
+pub struct ColourBar<'a> {
+    /// What the colours measure, with the unit, e.g. `"needle error (mm)"`.
+    pub label: &'a str,
+    /// Value of the bottom colour.
+    pub min: f64,
+    /// Value of the top colour (values above are drawn in it: say so in `note`).
+    pub max: f64,
+    /// Colour of `t ∈ [0, 1]` (`min` → `max`).
+    pub ramp: &'a dyn Fn(f64) -> [u8; 3],
+    /// A line under the bar, e.g. `"grey: not scored"`.
+    pub note: Option<&'a str>,
+}
+
+/// `img` with a colour bar (ticks in the bar's unit) on its right.
+///
+/// # Errors
+/// [`Error::Plot`] when plotters fails.
+pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
+    let bw = 150u32;
+    let h = img.height().max(240);
+    let mut out = RgbImage::from_pixel(img.width() + bw, h, Rgb([255, 255, 255]));
+    image::imageops::overlay(&mut out, img, 0, i64::from((h - img.height()) / 2));
+    let (lo, hi) = if bar.max > bar.min {
+        (bar.min, bar.max)
+    } else {
+        (bar.min, bar.min + 1.0)
+    };
+    draw_on(&mut out, |root| {
+        let (_, right) = root.split_horizontally(img.width());
+        let note_h = if bar.note.is_some() { 40 } else { 0 };
+        let (area, note) = right.split_vertically(h - note_h);
+        let mut chart = ChartBuilder::on(&area)
+            .margin_top(20)
+            .margin_bottom(14)
+            .margin_right(42)
+            .y_label_area_size(62)
+            .build_cartesian_2d(0.0..1.0, lo..hi)
+            .map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .disable_y_mesh()
+            .disable_x_axis()
+            .y_desc(bar.label)
+            .axis_desc_style((FAMILY, 14))
+            .label_style((FAMILY, 12))
+            .y_label_formatter(&|v| tick(*v))
+            .draw()
+            .map_err(plot_err)?;
+        let steps = 100;
+        chart
+            .draw_series((0..steps).map(|i| {
+                let t0 = i as f64 / steps as f64;
+                let t1 = (i + 1) as f64 / steps as f64;
+                let c = (bar.ramp)((t0 + t1) / 2.0);
+                Rectangle::new(
+                    [(0.0, lo + (hi - lo) * t0), (1.0, lo + (hi - lo) * t1)],
+                    rgb(c).filled(),
+                )
+            }))
+            .map_err(plot_err)?;
+        if let Some(n) = bar.note {
+            let (w, _) = note.dim_in_pixel();
+            text(&note, n, 12, (0, 0, w as i32, 24))?;
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Saves `img` as PNG (with `image` 0.25).
+///
+/// # Errors
+/// [`Error::Image`] when writing fails.
+pub fn save(img: &RgbImage, path: impl AsRef<Path>) -> Result<()> {
+    img.save(path.as_ref())
+        .map_err(|e| Error::Image(format!("{}: {e}", path.as_ref().display())))
+}
