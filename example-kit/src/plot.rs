@@ -8,13 +8,16 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use ab_glyph::{Font, FontRef, ScaleFont};
 use image::{Rgb, RgbImage};
 use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::text_anchor::Pos;
+use plotters_backend::text_anchor::{HPos, VPos};
+use plotters_backend::{BackendColor, BackendCoord, BackendTextStyle, DrawingErrorKind};
 
 use crate::{Error, Result};
 
@@ -39,13 +42,187 @@ fn plot_err(e: impl std::fmt::Display) -> Error {
     Error::Plot(e.to_string())
 }
 
-type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+/// The bundled font for [`Backend`]'s own text drawing.
+fn font_ref() -> Result<&'static FontRef<'static>> {
+    static FONT_REF: OnceLock<Option<FontRef<'static>>> = OnceLock::new();
+    FONT_REF
+        .get_or_init(|| FontRef::try_from_slice(FONT).ok())
+        .as_ref()
+        .ok_or(Error::Plot("the bundled font does not parse".into()))
+}
+
+/// The bitmap backend with its text drawn here: plotters 0.3.7's `ab_glyph` text puts the
+/// baseline at half the font size (full stops float mid-line) and ignores glyph bearings
+/// (spaces vanish). Everything else is the bitmap backend's.
+pub struct Backend<'a> {
+    inner: BitMapBackend<'a>,
+    font: &'static FontRef<'static>,
+}
+
+impl Backend<'_> {
+    /// Width of `text` at `size` px, and the line height.
+    fn layout(&self, text: &str, size: f64) -> (i32, i32) {
+        let f = self.font.as_scaled(size as f32);
+        let mut w = 0.0f32;
+        let mut prev = None;
+        for c in text.chars() {
+            let g = f.glyph_id(c);
+            if let Some(p) = prev {
+                w += f.kern(p, g);
+            }
+            w += f.h_advance(g);
+            prev = Some(g);
+        }
+        (w.ceil() as i32, (f.ascent() - f.descent()).ceil() as i32)
+    }
+}
+
+type BErr = <BitMapBackend<'static> as DrawingBackend>::ErrorType;
+
+impl DrawingBackend for Backend<'_> {
+    type ErrorType = BErr;
+
+    fn get_size(&self) -> (u32, u32) {
+        self.inner.get_size()
+    }
+    fn ensure_prepared(&mut self) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.ensure_prepared()
+    }
+    fn present(&mut self) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.present()
+    }
+    fn draw_pixel(
+        &mut self,
+        p: BackendCoord,
+        c: BackendColor,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.draw_pixel(p, c)
+    }
+    fn draw_line<S: plotters_backend::BackendStyle>(
+        &mut self,
+        a: BackendCoord,
+        b: BackendCoord,
+        s: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.draw_line(a, b, s)
+    }
+    fn draw_rect<S: plotters_backend::BackendStyle>(
+        &mut self,
+        a: BackendCoord,
+        b: BackendCoord,
+        s: &S,
+        fill: bool,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.draw_rect(a, b, s, fill)
+    }
+    fn draw_path<S: plotters_backend::BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        path: I,
+        s: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.draw_path(path, s)
+    }
+    fn draw_circle<S: plotters_backend::BackendStyle>(
+        &mut self,
+        c: BackendCoord,
+        r: u32,
+        s: &S,
+        fill: bool,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.draw_circle(c, r, s, fill)
+    }
+    fn fill_polygon<S: plotters_backend::BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        v: I,
+        s: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.fill_polygon(v, s)
+    }
+    fn blit_bitmap(
+        &mut self,
+        pos: BackendCoord,
+        size: (u32, u32),
+        src: &[u8],
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        self.inner.blit_bitmap(pos, size, src)
+    }
+    fn estimate_text_size<T: BackendTextStyle>(
+        &self,
+        text: &str,
+        style: &T,
+    ) -> std::result::Result<(u32, u32), DrawingErrorKind<BErr>> {
+        let (w, h) = self.layout(text, style.size());
+        Ok((w.max(0) as u32, h.max(0) as u32))
+    }
+    fn draw_text<T: BackendTextStyle>(
+        &mut self,
+        text: &str,
+        style: &T,
+        pos: BackendCoord,
+    ) -> std::result::Result<(), DrawingErrorKind<BErr>> {
+        let colour = style.color();
+        if colour.alpha == 0.0 {
+            return Ok(());
+        }
+        let (width, height) = self.layout(text, style.size());
+        let dx = match style.anchor().h_pos {
+            HPos::Left => 0,
+            HPos::Right => -width,
+            HPos::Center => -width / 2,
+        };
+        let dy = match style.anchor().v_pos {
+            VPos::Top => 0,
+            VPos::Center => -height / 2,
+            VPos::Bottom => -height,
+        };
+        let trans = style.transform();
+        let (w, h) = self.get_size();
+        let f = self.font.as_scaled(style.size() as f32);
+        let mut pen = 0.0f32;
+        let mut prev = None;
+        let mut pixels = Vec::new();
+        for c in text.chars() {
+            let id = f.glyph_id(c);
+            if let Some(p) = prev {
+                pen += f.kern(p, id);
+            }
+            prev = Some(id);
+            let glyph = id.with_scale_and_position(f.scale(), ab_glyph::point(pen, f.ascent()));
+            if let Some(q) = f.outline_glyph(glyph) {
+                let b = q.px_bounds();
+                q.draw(|x, y, cov| {
+                    pixels.push((b.min.x as i32 + x as i32, b.min.y as i32 + y as i32, cov))
+                });
+            }
+            pen += f.h_advance(id);
+        }
+        for (x, y, cov) in pixels {
+            let (x, y) = trans.transform(x + dx, y + dy);
+            let (x, y) = (pos.0 + x, pos.1 + y);
+            if x >= 0 && y >= 0 && x < w as i32 && y < h as i32 && cov > 0.0 {
+                let c = BackendColor {
+                    alpha: colour.alpha * f64::from(cov.min(1.0)),
+                    rgb: colour.rgb,
+                };
+                self.inner.draw_pixel((x, y), c)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+type Area<'a> = DrawingArea<Backend<'a>, Shift>;
 
 /// Runs `f` on a drawing area over `img` (RGB, drawn in place).
 fn draw_on(img: &mut RgbImage, f: impl FnOnce(&Area) -> Result<()>) -> Result<()> {
     font()?;
+    let font = font_ref()?;
     let (w, h) = img.dimensions();
-    let root = BitMapBackend::with_buffer(img.as_mut(), (w, h)).into_drawing_area();
+    let root = Backend {
+        inner: BitMapBackend::with_buffer(img.as_mut(), (w, h)),
+        font,
+    }
+    .into_drawing_area();
     f(&root)?;
     root.present().map_err(plot_err)?;
     Ok(())
@@ -57,7 +234,10 @@ fn rgb(c: [u8; 3]) -> RGBColor {
 
 /// A number for a tick label: up to 4 significant digits, no trailing zeros.
 pub fn tick(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !v.is_finite() {
         return format!("{v}");
     }
     let a = v.abs();
@@ -165,6 +345,8 @@ pub struct Chart {
     pub y_range: Option<(f64, f64)>,
     /// Legend position.
     pub legend: LegendPosition,
+    /// Marker radius, px.
+    pub marker_px: u32,
     /// The data.
     pub series: Vec<Series>,
 }
@@ -187,6 +369,7 @@ impl Chart {
             x_range: None,
             y_range: None,
             legend: LegendPosition::UpperRight,
+            marker_px: 4,
             series: Vec::new(),
         }
     }
@@ -268,7 +451,7 @@ impl Chart {
         Ok(img)
     }
 
-    fn draw_axes<X>(&self, root: &Area, x: X, y: RangedCoordf64, sign: f64) -> Result<()>
+    fn draw_axes<'b, X>(&self, root: &Area<'b>, x: X, y: RangedCoordf64, sign: f64) -> Result<()>
     where
         X: AsRangedCoord<Value = f64>,
         X::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
@@ -305,7 +488,10 @@ impl Chart {
                 Style::Line | Style::LineMarkers => {
                     if s.style == Style::LineMarkers {
                         chart
-                            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, c.filled())))
+                            .draw_series(
+                                pts.iter()
+                                    .map(|&p| Circle::new(p, self.marker_px, c.filled())),
+                            )
                             .map_err(plot_err)?;
                     }
                     chart
@@ -316,7 +502,10 @@ impl Chart {
                     .draw_series(DashedLineSeries::new(pts.clone(), 8, 5, stroke))
                     .map_err(plot_err)?,
                 Style::Markers => chart
-                    .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                    .draw_series(
+                        pts.iter()
+                            .map(|&p| Circle::new(p, self.marker_px, c.filled())),
+                    )
                     .map_err(plot_err)?,
                 Style::Segments => chart
                     .draw_series(
@@ -330,7 +519,7 @@ impl Chart {
             }
             let style = s.style;
             anno.label(&s.label).legend(
-                move |(x, y)| -> DynElement<'static, BitMapBackend, (i32, i32)> {
+                move |(x, y)| -> DynElement<'static, Backend<'b>, (i32, i32)> {
                     match style {
                         Style::Markers => Circle::new((x + 10, y), 4, c.filled()).into_dyn(),
                         Style::Dashed => DashedPathElement::new(
