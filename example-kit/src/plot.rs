@@ -393,6 +393,37 @@ impl Chart {
         lo.is_finite().then_some((lo, hi))
     }
 
+    /// Tick label of `v` on an axis spanning `span`: enough decimals to tell ticks apart.
+    fn tick_in(v: f64, span: f64) -> String {
+        if !(span.is_finite() && span > 0.0) || v == 0.0 {
+            return tick(v);
+        }
+        let a = v.abs();
+        if !(1e-3..1e6).contains(&a) {
+            return tick(v);
+        }
+        let decimals = (1.0 - (span / 5.0).log10().floor()).clamp(0.0, 8.0) as usize;
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_owned()
+        } else {
+            s
+        }
+    }
+
+    /// Tick label of a log axis: only at 1, 2 and 5 × a power of ten (the others stay unlabelled).
+    fn log_tick(v: f64) -> String {
+        if v <= 0.0 || !v.is_finite() {
+            return String::new();
+        }
+        let m = v / 10f64.powf(v.log10().floor());
+        if [1.0, 2.0, 5.0, 10.0].iter().any(|k| (m - k).abs() < 1e-6) {
+            tick(v)
+        } else {
+            String::new()
+        }
+    }
+
     /// Draws the chart.
     ///
     /// # Errors
@@ -421,7 +452,13 @@ impl Chart {
                 } else {
                     (lo, hi)
                 };
-                let pad = 0.08 * (hi - lo).max(1e-12);
+                // A flat series gets a visible range around its value.
+                let flat = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1e-12);
+                let pad = if flat {
+                    0.05 * hi.abs().max(1e-3)
+                } else {
+                    0.08 * (hi - lo)
+                };
                 (
                     if self.y_from_zero && lo >= 0.0 {
                         lo
@@ -456,11 +493,15 @@ impl Chart {
         X: AsRangedCoord<Value = f64>,
         X::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
     {
+        let y_span = {
+            let r = y.range();
+            r.end - r.start
+        };
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, (FAMILY, 20))
             .margin(12)
             .x_label_area_size(48)
-            .y_label_area_size(64)
+            .y_label_area_size(78)
             .build_cartesian_2d(x, y)
             .map_err(plot_err)?;
         chart
@@ -469,9 +510,15 @@ impl Chart {
             .y_desc(&self.y_label)
             .axis_desc_style((FAMILY, 15))
             .label_style((FAMILY, 13))
-            .x_label_formatter(&|v| tick(*v))
-            .y_label_formatter(&|v| tick(sign * *v))
-            .light_line_style(RGBColor(235, 235, 235))
+            .x_label_formatter(&|v| {
+                if self.log_x {
+                    Self::log_tick(*v)
+                } else {
+                    tick(*v)
+                }
+            })
+            .y_label_formatter(&|v| Self::tick_in(sign * *v, y_span))
+            .light_line_style(WHITE)
             .bold_line_style(RGBColor(215, 215, 215))
             .draw()
             .map_err(plot_err)?;
@@ -668,7 +715,9 @@ pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
     };
     draw_on(&mut out, |root| {
         let (_, right) = root.split_horizontally(img.width());
-        let note_h = if bar.note.is_some() { 40 } else { 0 };
+        let note_h = bar
+            .note
+            .map_or(0, |n| 16 * n.split("; ").count() as u32 + 12);
         let (area, note) = right.split_vertically(h - note_h);
         let mut chart = ChartBuilder::on(&area)
             .margin_top(20)
@@ -702,7 +751,9 @@ pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
             .map_err(plot_err)?;
         if let Some(n) = bar.note {
             let (w, _) = note.dim_in_pixel();
-            text(&note, n, 12, (0, 0, w as i32, 24))?;
+            for (i, line) in n.split("; ").enumerate() {
+                text(&note, line, 12, (0, 16 * i as i32, w as i32, 16))?;
+            }
         }
         Ok(())
     })?;
