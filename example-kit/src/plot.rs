@@ -570,7 +570,7 @@ impl Chart {
                     match style {
                         Style::Markers => Circle::new((x + 10, y), 4, c.filled()).into_dyn(),
                         Style::Dashed => DashedPathElement::new(
-                            vec![(x, y), (x + 22, y)].into_iter(),
+                            vec![(x, y), (x + 22, y)],
                             5,
                             3,
                             c.stroke_width(2),
