@@ -111,6 +111,37 @@ mod tests {
         let img = plot::with_colour_bar(&chart, &bar).unwrap();
         assert_eq!(img.width(), 640 + 150);
         assert_eq!(plot::tick(2.5), "2.5");
+        assert_eq!(plot::tick(-0.0), "0");
+    }
+
+    #[test]
+    fn a_run_writes_figures_and_manifest() {
+        let dir = std::env::temp_dir().join(format!("example-kit-test-{}", std::process::id()));
+        let common = cli::Common {
+            quick: true,
+            out: Some(dir.clone()),
+        };
+        let mut run = Run::start("demo", &common, "what ran").unwrap();
+        run.stage("stage one", Some(3)).finish("done");
+        run.headline(Headline::new("x_mm", "x", "mm").goal(Goal::AtMost(2.0)));
+        run.picture("a.png", "a picture");
+        run.finish(serde_json::json!({ "x_mm": 1.5 })).unwrap();
+        let figures: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("figures.json")).unwrap())
+                .unwrap();
+        assert_eq!(figures["x_mm"], 1.5);
+        assert!(figures["seconds"].is_number());
+        assert!(figures["stage_seconds"]["stage one"].is_number());
+        let m = report::read_manifest(&dir).unwrap();
+        assert_eq!(m.caption, "what ran");
+        assert!(m.quick);
+        assert!(m.headlines[0].goal.unwrap().met(1.5));
+        assert_eq!(m.pictures[0].file, "a.png");
+        assert!(Run::start("demo", &common, "")
+            .unwrap()
+            .finish(serde_json::json!(1))
+            .is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
         assert_eq!(plot::tick(100.0), "100");
     }
 }
