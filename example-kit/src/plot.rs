@@ -604,12 +604,24 @@ fn text(root: &Area, s: &str, size: u32, (x, y, w, h): (i32, i32, i32, i32)) -> 
         .map_err(plot_err)
 }
 
-/// `img` with a title strip above it (32 px, or 56 px with a subtitle).
+/// Text scale of a picture `width` px wide: 1 up to 1100 px, then in proportion.
+fn text_scale(width: u32) -> f64 {
+    (f64::from(width) / 1100.0).max(1.0)
+}
+
+/// `img` with a title strip above it (and a subtitle line), text larger on wide pictures.
 ///
 /// # Errors
 /// [`Error::Plot`] when plotters fails.
 pub fn titled(img: &RgbImage, title: &str, subtitle: Option<&str>) -> Result<RgbImage> {
-    let strip = if subtitle.is_some() { 56 } else { 32 };
+    // Text grows with wide pictures so it stays readable when the picture is shown scaled down.
+    let k = text_scale(img.width());
+    let (t, st) = ((18.0 * k) as u32, (14.0 * k) as u32);
+    let strip = if subtitle.is_some() {
+        t + st + 24
+    } else {
+        t + 14
+    };
     let w = img.width().max(8 * title.chars().count() as u32 + 20);
     let mut out = RgbImage::from_pixel(w, img.height() + strip, Rgb([255, 255, 255]));
     image::imageops::overlay(
@@ -619,9 +631,9 @@ pub fn titled(img: &RgbImage, title: &str, subtitle: Option<&str>) -> Result<Rgb
         i64::from(strip),
     );
     draw_on(&mut out, |root| {
-        text(root, title, 18, (0, 2, w as i32, 28))?;
+        text(root, title, t, (0, 2, w as i32, t as i32 + 10))?;
         if let Some(s) = subtitle {
-            text(root, s, 14, (0, 30, w as i32, 22))?;
+            text(root, s, st, (0, t as i32 + 12, w as i32, st as i32 + 8))?;
         }
         Ok(())
     })?;
@@ -633,12 +645,19 @@ pub fn titled(img: &RgbImage, title: &str, subtitle: Option<&str>) -> Result<Rgb
 /// # Errors
 /// [`Error::Plot`] when plotters fails.
 pub fn label_rows(img: &RgbImage, labels: &[&str], column_px: u32) -> Result<RgbImage> {
+    let k = text_scale(img.width());
+    let column_px = (column_px as f64 * k) as u32;
     let mut out = RgbImage::from_pixel(img.width() + column_px, img.height(), Rgb([255, 255, 255]));
     image::imageops::overlay(&mut out, img, i64::from(column_px), 0);
     let rh = img.height() as i32 / labels.len().max(1) as i32;
     draw_on(&mut out, |root| {
         for (i, l) in labels.iter().enumerate() {
-            text(root, l, 14, (0, i as i32 * rh, column_px as i32, rh))?;
+            text(
+                root,
+                l,
+                (14.0 * k) as u32,
+                (0, i as i32 * rh, column_px as i32, rh),
+            )?;
         }
         Ok(())
     })?;
@@ -704,7 +723,9 @@ pub struct ColourBar<'a> {
 /// # Errors
 /// [`Error::Plot`] when plotters fails.
 pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
-    let bw = 150u32;
+    let k = text_scale(img.width().max(img.height() * 3 / 2));
+    let px = |v: f64| (v * k) as u32;
+    let bw = px(150.0);
     let h = img.height().max(240);
     let mut out = RgbImage::from_pixel(img.width() + bw, h, Rgb([255, 255, 255]));
     image::imageops::overlay(&mut out, img, 0, i64::from((h - img.height()) / 2));
@@ -717,13 +738,13 @@ pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
         let (_, right) = root.split_horizontally(img.width());
         let note_h = bar
             .note
-            .map_or(0, |n| 16 * n.split("; ").count() as u32 + 12);
+            .map_or(0, |n| px(16.0) * n.split("; ").count() as u32 + 12);
         let (area, note) = right.split_vertically(h - note_h);
         let mut chart = ChartBuilder::on(&area)
-            .margin_top(20)
-            .margin_bottom(14)
-            .margin_right(42)
-            .y_label_area_size(62)
+            .margin_top(px(20.0))
+            .margin_bottom(px(14.0))
+            .margin_right(px(42.0))
+            .y_label_area_size(px(62.0))
             .build_cartesian_2d(0.0..1.0, lo..hi)
             .map_err(plot_err)?;
         chart
@@ -732,8 +753,8 @@ pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
             .disable_y_mesh()
             .disable_x_axis()
             .y_desc(bar.label)
-            .axis_desc_style((FAMILY, 14))
-            .label_style((FAMILY, 12))
+            .axis_desc_style((FAMILY, px(14.0)))
+            .label_style((FAMILY, px(12.0)))
             .y_label_formatter(&|v| tick(*v))
             .draw()
             .map_err(plot_err)?;
@@ -752,7 +773,8 @@ pub fn with_colour_bar(img: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
         if let Some(n) = bar.note {
             let (w, _) = note.dim_in_pixel();
             for (i, line) in n.split("; ").enumerate() {
-                text(&note, line, 12, (0, 16 * i as i32, w as i32, 16))?;
+                let lh = px(16.0) as i32;
+                text(&note, line, px(12.0), (0, lh * i as i32, w as i32, lh))?;
             }
         }
         Ok(())
