@@ -144,7 +144,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .filter(|o| !o.ok)
         .map(|o| o.name.as_str())
         .collect();
-    run.picture("index.html", "The tour page.");
     run.finish(serde_json::json!({
         "examples": outcomes.len(),
         "failed": failed,
