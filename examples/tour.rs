@@ -45,7 +45,7 @@ struct Outcome {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut run = Run::start(
+    let run = Run::start(
         "tour",
         &example_kit::Common {
             quick: !args.full,
