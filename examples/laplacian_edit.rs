@@ -9,7 +9,7 @@
 //!    and forward, write the edited mesh
 //!    as OBJ and a before/after render (studio rasteriser) as PNG under `out/laplacian_edit/`.
 //!
-//! `cargo run --release --example laplacian_edit [-- --quick] [-- --par]`
+//! `cargo run --release --example laplacian_edit [-- --quick] [-- --par] [-- --out DIR]`
 //! (`--quick`: level-4 icosphere, 3 repetitions; `--par`: rayon inside the factorisation).
 //! Last stdout line: one JSON object with all figures.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
@@ -17,19 +17,20 @@
 use std::path::Path;
 use std::time::Instant;
 
+use clap::Parser;
 use dynamic_shapes::core::lsq::{CholeskyParams, LsqParams, LsqProblem};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{
     cotangent_laplacian, read_obj_group, shapes, write_obj, LaplacianParams, TriMesh,
 };
 use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
+use example_kit::{Headline, Run};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
 use serde_json::json;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
-const OUT_DIR: &str = "out/laplacian_edit";
 /// Constraint weight `w_C` (Vlasic 2010 §2.4.2, Eq. 2.1–2.2).
 const W_C: f64 = 1000.0;
 /// Laplacian-coordinate weight of the peer problem (`laplacian.py`: w = 0.5).
@@ -64,10 +65,11 @@ fn selection(n: usize, rows: &[usize]) -> CscMatrix<f64> {
     CscMatrix::from(&coo)
 }
 
-fn peer(level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Value> {
+fn peer(run: &Run, level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Value> {
+    let stage = run.stage("peer problem", None);
     let mesh = shapes::peer_blob(level)?;
     let n = mesh.vertices.len();
-    eprintln!("peer: icosphere level {level}, {n} vertices");
+    stage.set_message(format!("icosphere level {level}, {n} vertices"));
     let (build_ms, l) = median_ms(reps, || {
         cotangent_laplacian(&mesh, &LaplacianParams::default())
     });
@@ -97,15 +99,15 @@ fn peer(level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Va
     let (solve_ms, x) = median_ms(reps, || solver.solve(&b, &d));
     let x = x?;
     let diag = solver.diagnostics(&x, &b, &d)?;
-    eprintln!(
-        "peer: build {build_ms:.2} ms, factor {factor_ms:.2} ms (pattern {:.2}, symbolic {:.2}, assemble {:.2}, numeric {:.2}), refactor {refactor_ms:.2} ms, solve {solve_ms:.2} ms, objective {:.4}, residual {:.2e}",
+    stage.finish(format!(
+        "icosphere level {level}, {n} vertices: build {build_ms:.2} ms, factor {factor_ms:.2} ms (pattern {:.2}, symbolic {:.2}, assemble {:.2}, numeric {:.2}), refactor {refactor_ms:.2} ms, solve {solve_ms:.2} ms, objective {:.4}, residual {:.2e}",
         stats.pattern_ms,
         stats.cholesky.symbolic_ms,
         stats.assemble_ms,
         stats.cholesky.numeric_ms,
         diag.objective,
         diag.normal_rel_residual
-    );
+    ));
     Ok(json!({
         "level": level,
         "vertices": n,
@@ -128,8 +130,13 @@ fn peer(level: u32, reps: usize, params: &LsqParams) -> AnyResult<serde_json::Va
 }
 
 /// Front views of several meshes side by side ([`preview`], studio rasteriser, headlight
-/// shading), written to `path`.
-fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
+/// shading) under a title, written to `path`.
+fn render(
+    meshes: &[(&TriMesh, [u8; 3])],
+    title: &str,
+    subtitle: &str,
+    path: &Path,
+) -> AnyResult<()> {
     let panels: Vec<PreviewPanel> = meshes
         .iter()
         .map(|&(mesh, c)| PreviewPanel {
@@ -137,18 +144,20 @@ fn render(meshes: &[(&TriMesh, [u8; 3])], path: &Path) -> AnyResult<()> {
             paint: Paint::Flat(c),
         })
         .collect();
-    preview(&panels, 480)?.save(path)?;
+    let img = example_kit::plot::titled(&preview(&panels, 480)?, title, Some(subtitle))?;
+    example_kit::plot::save(&img, path)?;
     Ok(())
 }
 
-fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
+fn makehuman(run: &mut Run, params: &LsqParams) -> AnyResult<serde_json::Value> {
+    let stage = run.stage("makehuman edit", None);
     let path = example_kit::data_path("makehuman/base.obj")?;
     let mesh = read_obj_group(&path, "body")?;
     let n = mesh.vertices.len();
-    eprintln!(
-        "makehuman: body with {n} vertices, {} faces",
+    stage.set_message(format!(
+        "body with {n} vertices, {} faces",
         mesh.faces.len()
-    );
+    ));
     let t = Instant::now();
     let l = cotangent_laplacian(&mesh, &LaplacianParams::default())?;
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -205,16 +214,23 @@ fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
         .sum::<DVec3>()
         / hand.len() as f64;
     let hand_err = (hand_shift - pull).length() / pull.length();
-    std::fs::create_dir_all(OUT_DIR)?;
-    write_obj(Path::new(OUT_DIR).join("makehuman_edit.obj"), &edited)?;
+    write_obj(run.path("makehuman_edit.obj"), &edited)?;
     render(
         &[(&mesh, [90, 120, 200]), (&edited, [230, 140, 60])],
-        &Path::new(OUT_DIR).join("makehuman_before_after.png"),
+        "Laplacian edit of the MakeHuman body: left hand pulled up and forward",
+        "front views; blue: before, orange: after (feet and body outside the left arm pinned)",
+        &run.path("makehuman_before_after.png"),
     )?;
-    eprintln!(
-        "makehuman: build {build_ms:.2} ms, factor {factor_ms:.2} ms, solve {solve_ms:.2} ms, anchors moved <= {anchor_err:.2e}, hand pull error {:.1} %",
-        100.0 * hand_err
+    run.picture(
+        "makehuman_before_after.png",
+        "The MakeHuman body before (blue) and after (orange) the edit: the left hand is pulled \
+         up and forward while the feet and everything outside the left arm stay pinned; the \
+         arm bends smoothly and keeps its detail (cotangent Laplacian, w_C = 1000).",
     );
+    stage.finish(format!(
+        "build {build_ms:.2} ms, factor {factor_ms:.2} ms, solve {solve_ms:.2} ms, anchors moved <= {anchor_err:.2e}, hand pull error {:.1} %",
+        100.0 * hand_err
+    ));
     Ok(json!({
         "makehuman_vertices": n,
         "makehuman_faces": mesh.faces.len(),
@@ -230,11 +246,22 @@ fn makehuman(params: &LsqParams) -> AnyResult<serde_json::Value> {
     }))
 }
 
+/// Laplacian editing (Vlasic 2010 §2.4.1) solved by `skin_core::lsq`: the peers' icosphere
+/// problem, then a hand pulled on the MakeHuman body.
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: example_kit::Common,
+    /// Use rayon inside the factorisation.
+    #[arg(long)]
+    par: bool,
+}
+
 fn main() -> AnyResult<()> {
     let start = Instant::now();
-    let args: Vec<String> = std::env::args().collect();
-    let quick = args.iter().any(|a| a == "--quick");
-    let par = args.iter().any(|a| a == "--par");
+    let args = Args::parse();
+    let quick = args.common.quick;
+    let par = args.par;
     let params = LsqParams {
         cholesky: CholeskyParams {
             parallel: par,
@@ -242,9 +269,46 @@ fn main() -> AnyResult<()> {
         },
     };
     let (level, reps) = if quick { (4, 3) } else { (5, 5) };
-    std::fs::create_dir_all(OUT_DIR)?;
-    let peer_figures = peer(level, reps, &params)?;
-    let mh = makehuman(&params)?;
+    let mut run = Run::start(
+        "laplacian_edit",
+        &args.common,
+        &format!(
+            "Laplacian editing (Vlasic 2010 §2.4.1, cotangent Laplacian, soft constraints w_C = \
+             1000) solved by sparse least squares: the peers' problem on a level-{level} \
+             icosphere (500 noisy constraints, median of {reps} runs), then the left hand of \
+             the MakeHuman body pulled up and forward with its feet and the rest of the body \
+             pinned."
+        ),
+    )?;
+    let peer_figures = peer(&run, level, reps, &params)?;
+    let mh = makehuman(&mut run, &params)?;
+    for (key, label, unit) in [
+        (
+            "laplacian_build_ms",
+            "cotangent Laplacian build (icosphere)",
+            "ms",
+        ),
+        (
+            "lsq_factor_ms",
+            "factorisation of ΔᵀΔ + w_C CᵀC (icosphere)",
+            "ms",
+        ),
+        ("lsq_solve_ms", "3-right-hand-side solve (icosphere)", "ms"),
+        ("vertices", "icosphere vertices", ""),
+        (
+            "makehuman_lsq_factor_ms",
+            "factorisation (MakeHuman body)",
+            "ms",
+        ),
+        ("makehuman_lsq_solve_ms", "solve (MakeHuman body)", "ms"),
+        (
+            "makehuman_hand_pull_rel_err",
+            "hand displacement error, relative to the pull",
+            "",
+        ),
+    ] {
+        run.headline(Headline::new(key, label, unit));
+    }
     let mut out = json!({ "example": "laplacian_edit", "quick": quick, "parallel": par });
     let obj = out.as_object_mut().ok_or("json object")?;
     for fig in [peer_figures, mh] {
@@ -253,6 +317,6 @@ fn main() -> AnyResult<()> {
         }
     }
     obj.insert("seconds".into(), json!(start.elapsed().as_secs_f64()));
-    println!("{out}");
+    run.finish(out)?;
     Ok(())
 }

@@ -14,32 +14,44 @@
 //! vertices one view sees are reported as `visibility_ms_per_view`), `fk_jacobian_us` (FK +
 //! positional Jacobians of the 42-DOF skeleton with 18 attached points).
 //!
-//! `cargo run --release --example studio [-- --quick]` (`--quick`: 400×300 views, the first
-//! 90 frames of the walk, fewer repetitions). Last stdout line: one JSON object of figures.
+//! The performers' non-skinning deformation over the studio's motions (formerly an ignored
+//! test of skin-core): the largest |truth − LBS| of the MakeHuman performer over the range of
+//! motion (`rom_max_nonskinning_mm`, with its cost `nonskinning_ms_per_frame`), the fast motion
+//! (`fast_max_nonskinning_mm`) and the MakeHuman walk (`walk1_*`), and of the procedural
+//! performer (`procedural_*`); and `nonskinning_pose.png`, the MakeHuman body in a test pose
+//! (elbow, knee, hip and shoulder flexed) coloured by |truth − LBS|, front and side.
+//!
+//! `cargo run --release --example studio [-- --quick] [-- --out DIR]` (`--quick`: 400×300
+//! views, the first 90 frames of the walk, fewer repetitions). Last stdout line: one JSON
+//! object of figures.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use std::path::Path;
 use std::time::Instant;
 
+use clap::Parser;
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::image::{
     normals_rgb8, write_depth_png16, write_mask_png, DepthEncoding, GrayF32Image, Mask,
 };
-use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::math::{DQuat, DVec3};
 use dynamic_shapes::core::mesh::{MeshQuery, TriMesh};
 use dynamic_shapes::core::raster::{Buffers, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::skeleton::{
-    AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
+    read_bvh, AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
 };
 use dynamic_shapes::core::studio::shading::{
     dome_lights, shade, srgb8, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
     DEFAULT_SHADOW_BIAS_M,
 };
 use dynamic_shapes::core::studio::{
-    makehuman_performer, play_bvh, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
-    DeformationParams, Performer, RetargetParams, ViewTruth,
+    fast_motion, makehuman_performer, play_bvh, preview, procedural_performer, range_of_motion,
+    retarget, Capture, CaptureFrame, CaptureLighting, CaptureSpec, DeformationParams,
+    DeformationState, FastMotionParams, JointMap, Paint, Performer, PreviewPanel,
+    ProceduralBodyParams, RangeOfMotionParams, RetargetParams, ViewTruth,
 };
-use example_kit::data_path;
+use example_kit::plot::{self as kplot, ColourBar};
+use example_kit::{data_path, Goal, Headline, Run};
 use image::imageops::{resize, FilterType};
 use image::{Rgb, Rgb32FImage, RgbImage};
 use nalgebra::DMatrix;
@@ -47,7 +59,8 @@ use serde_json::json;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
-const OUT_DIR: &str = "out/studio";
+/// Top of the colour scale of `nonskinning_pose.png`, mm.
+const POSE_SCALE_MM: f64 = 30.0;
 /// Capture frame rate, Hz (Vlasic thesis §2.5.1: 25 FPS).
 const FRAME_RATE_HZ: f64 = 25.0;
 /// Cameras in the ring (Vlasic thesis §2.5.1: "a ring of eight cameras").
@@ -84,22 +97,45 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The synthetic capture studio end to end: the MakeHuman performer walking CMU 131_01 seen
+/// by an 8-camera ring, with timings and the size of its non-skinning deformation.
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: example_kit::Common,
+}
+
 fn main() -> AnyResult<()> {
     let start = Instant::now();
-    let quick = std::env::args().any(|a| a == "--quick");
-    let out = Path::new(OUT_DIR);
-    std::fs::create_dir_all(out)?;
+    let args = Args::parse();
+    let quick = args.common.quick;
+    let (w, h) = if quick { (400, 300) } else { (1600, 1200) };
+    let mut run = Run::start(
+        "studio",
+        &args.common,
+        &format!(
+            "The synthetic capture studio: the MakeHuman performer walks the CMU 131_01 motion \
+             capture (retargeted{}), an 8-camera ring at {w}×{h} captures the frame of largest \
+             non-skinning deformation under a 1,200-light dome, with rasteriser, shading and \
+             kinematics timings; then the size of the deformation no skinning reaches, over the \
+             studio's motions and in one test pose.",
+            if quick { ", first 90 frames" } else { "" }
+        ),
+    )?;
+    let out = run.out().to_path_buf();
+    let out = out.as_path();
+    let stage = run.stage("performer", None);
 
     let mh = data_path("makehuman/base.obj")?;
     let performer = makehuman_performer(
         mh.parent().ok_or("data path has a parent")?,
         &DeformationParams::default(),
     )?;
-    eprintln!(
-        "studio: MakeHuman performer, {} vertices, {} DOFs",
+    stage.println(format!(
+        "MakeHuman performer, {} vertices, {} DOFs",
         performer.vertex_count(),
         performer.skeleton.dof_count()
-    );
+    ));
     let walk = play_bvh(
         data_path("mocap-cmu/131_01.bvh")?,
         &BvhParams {
@@ -116,15 +152,17 @@ fn main() -> AnyResult<()> {
             motion.frames.columns(0, QUICK_FRAMES).into_owned(),
         )?;
     }
-    eprintln!(
-        "studio: CMU 131_01 retargeted (scale {:.3}), {} frames at {FRAME_RATE_HZ} Hz",
+    stage.finish(format!(
+        "CMU 131_01 retargeted (scale {:.3}), {} frames at {FRAME_RATE_HZ} Hz",
         walk.scale,
         motion.frame_count()
-    );
+    ));
+    let stage = run.stage("walk deformation", Some(motion.frame_count() as u64));
 
     // The non-skinning deformation over the motion, and the frame where it is largest.
     let (mut worst_m, mut worst_frame, mut centre) = (0.0f64, 0, DVec3::ZERO);
     performer.perform(&motion, |k, f| {
+        stage.inc(1);
         let d = f.max_nonskinning_m();
         if d > worst_m {
             let (lo, hi) = f
@@ -137,17 +175,14 @@ fn main() -> AnyResult<()> {
         }
         Ok(())
     })?;
-    eprintln!(
-        "studio: max non-skinning {:.1} mm (frame {worst_frame})",
+    stage.finish(format!(
+        "max non-skinning {:.1} mm (frame {worst_frame})",
         worst_m * 1e3
-    );
+    ));
+    let stage = run.stage("capture", None);
 
     // The ring, centred on the body's bounding box at that frame.
-    let (scale, (w, h)) = if quick {
-        (0.25, (400, 300))
-    } else {
-        (1.0, (1600, 1200))
-    };
+    let scale = if quick { 0.25 } else { 1.0 };
     let f = FOCAL_PX * scale;
     let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0, w, h)?;
     let look_at = centre;
@@ -179,7 +214,8 @@ fn main() -> AnyResult<()> {
         .next()
         .ok_or("the chosen frame is in the motion")??;
     let capture_frame_s = t.elapsed().as_secs_f64();
-    eprintln!("studio: frame {worst_frame} captured from {CAMERAS} cameras at {w}x{h} under {} lights in {capture_frame_s:.2} s", lights.len());
+    stage.finish(format!("frame {worst_frame} captured from {CAMERAS} cameras at {w}x{h} under {} lights in {capture_frame_s:.2} s", lights.len()));
+    let stage = run.stage("timings", None);
 
     // Rasteriser speed: silhouette + depth + normals of the posed body, median over the views.
     let mesh = frame.truth.true_mesh(&performer);
@@ -194,19 +230,46 @@ fn main() -> AnyResult<()> {
         })?);
     }
     let raster_ms = median(per_view);
-    eprintln!("studio: raster {raster_ms:.2} ms per {w}x{h} view (mask + depth + normals)");
+    stage.println(format!(
+        "raster {raster_ms:.2} ms per {w}x{h} view (mask + depth + normals)"
+    ));
 
     let (shade_ms, visibility_ms) =
         shade_timing(&mesh, &lights, look_at, if quick { 1 } else { 3 })?;
-    eprintln!("studio: dome shading {shade_ms:.1} ms per 1024x1024 view, shadow visibility of its vertices {visibility_ms:.0} ms");
+    stage.println(format!("dome shading {shade_ms:.1} ms per 1024x1024 view, shadow visibility of its vertices {visibility_ms:.0} ms"));
     let fk_us = fk_jacobian_us(&performer.skeleton, if quick { 2_000 } else { 20_000 })?;
-    eprintln!("studio: FK + Jacobians of {JACOBIAN_POINTS} points: {fk_us:.2} us");
+    stage.finish(format!(
+        "FK + Jacobians of {JACOBIAN_POINTS} points: {fk_us:.2} us"
+    ));
 
+    let stage = run.stage("contact sheet", None);
     let diff_max_mm = write_pictures(&performer, &frame, out)?;
+    stage.finish(format!("{}/contact_sheet.png", out.display()));
+    run.picture(
+        "contact_sheet.png",
+        &format!(
+            "Frame {worst_frame} of the walk from the {CAMERAS} cameras (columns), each cropped to \
+             its silhouette. Rows: silhouette, depth (near bright), normals, shading under the \
+             dome with cast shadows, and |truth − LBS| on the body (colour bar, mm): the \
+             deformation no skinning method reaches."
+        ),
+    );
 
-    println!(
-        "{}",
-        json!({
+    let stage = run.stage("deformation figures", None);
+    let deformation = deformation_figures(&performer)?;
+    stage.finish("range of motion, fast motion, MakeHuman walk, procedural performer");
+    let stage = run.stage("test pose", None);
+    let pose = pose_picture(&performer, out)?;
+    stage.finish("nonskinning_pose.png");
+    run.picture(
+        "nonskinning_pose.png",
+        "The MakeHuman performer with elbow, knee, hip and shoulder flexed, front and side, \
+         coloured by the distance between the true surface and linear blend skinning (mm): \
+         the muscle bulges and flap the studio adds to skinning.",
+    );
+    headlines(&mut run, w, h);
+
+    let mut figures = json!({
             "raster_ms_per_view": raster_ms,
             "shade_ms_per_view_shadowed": shade_ms,
             "visibility_ms_per_view": visibility_ms,
@@ -221,9 +284,210 @@ fn main() -> AnyResult<()> {
             "height": h,
             "quick": quick,
             "seconds": start.elapsed().as_secs_f64(),
-        })
-    );
+    });
+    let obj = figures.as_object_mut().ok_or("json object")?;
+    for extra in [deformation, pose] {
+        if let serde_json::Value::Object(m) = extra {
+            obj.extend(m);
+        }
+    }
+    run.finish(figures)?;
     Ok(())
+}
+
+/// The figures `tour` shows, with the goals of `docs/skin-core.md`.
+fn headlines(run: &mut Run, w: u32, h: u32) {
+    let doc = "goal from docs/skin-core.md";
+    for hl in [
+        Headline::new(
+            "raster_ms_per_view",
+            "rasterise mask + depth + normals, per view",
+            "ms",
+        )
+        .goal(Goal::AtMost(10.0))
+        .note(&format!("{doc}, at 1600×1200; this run {w}×{h}")),
+        Headline::new(
+            "shade_ms_per_view_shadowed",
+            "dome shading with shadows, 1024×1024 view",
+            "ms",
+        ),
+        Headline::new(
+            "visibility_ms_per_view",
+            "shadow visibility of one view's vertices",
+            "ms",
+        ),
+        Headline::new(
+            "fk_jacobian_us",
+            "FK + positional Jacobians, 42 DOF, 18 points",
+            "µs",
+        )
+        .goal(Goal::AtMost(20.0))
+        .note(doc),
+        Headline::new(
+            "max_nonskinning_mm",
+            "largest |truth − LBS| over the walk",
+            "mm",
+        )
+        .goal(Goal::AtLeast(10.0))
+        .note("\"tens of mm\", docs/skin-core.md"),
+        Headline::new(
+            "rom_max_nonskinning_mm",
+            "largest |truth − LBS| over the range of motion",
+            "mm",
+        ),
+        Headline::new(
+            "fast_max_nonskinning_mm",
+            "largest |truth − LBS| over the fast motion",
+            "mm",
+        ),
+        Headline::new(
+            "pose_max_nonskinning_mm",
+            "largest |truth − LBS| in the test pose",
+            "mm",
+        ),
+    ] {
+        run.headline(hl);
+    }
+}
+
+/// The non-skinning deformation of the performers over the studio's motions (the figures of
+/// the former ignored test `studio::tests::figures`).
+fn deformation_figures(p: &Performer) -> AnyResult<serde_json::Value> {
+    let rom = range_of_motion(&p.skeleton, &RangeOfMotionParams::default())?;
+    let fast = fast_motion(&p.skeleton, &FastMotionParams::default())?;
+    let t = Instant::now();
+    let d_rom = p.max_nonskinning_m(&rom)?;
+    let per_frame_ms = t.elapsed().as_secs_f64() * 1e3 / rom.frame_count() as f64;
+    let d_fast = p.max_nonskinning_m(&fast)?;
+    eprintln!(
+        "deformation: makehuman {} vertices; range of motion {} frames, max non-skinning {:.1} mm ({per_frame_ms:.2} ms/frame); fast motion {:.1} mm",
+        p.vertex_count(),
+        rom.frame_count(),
+        d_rom * 1e3,
+        d_fast * 1e3
+    );
+    let mut fig = json!({
+        "rom_frames": rom.frame_count(),
+        "rom_max_nonskinning_mm": d_rom * 1e3,
+        "nonskinning_ms_per_frame": per_frame_ms,
+        "fast_max_nonskinning_mm": d_fast * 1e3,
+    });
+    let obj = fig.as_object_mut().ok_or("json object")?;
+    // The MakeHuman walk (CMU 131_01 is the capture above), retargeted at 30 Hz.
+    let bvh = read_bvh(
+        data_path("makehuman/walk1.bvh")?,
+        &BvhParams {
+            metres_per_unit: 0.1,
+        },
+    )?;
+    let map = JointMap::detect(&bvh.skeleton)?;
+    let r = retarget(
+        &bvh.skeleton,
+        &bvh.motion,
+        &p.skeleton,
+        &map,
+        &RetargetParams::default(),
+    )?;
+    let m = r.motion.resample(&p.skeleton, 1.0 / 30.0)?;
+    let d_walk1 = p.max_nonskinning_m(&m)?;
+    eprintln!(
+        "deformation: makehuman/walk1.bvh scale {:.3}, {} frames at 30 Hz, max non-skinning {:.1} mm",
+        r.scale,
+        m.frame_count(),
+        d_walk1 * 1e3
+    );
+    obj.insert("walk1_scale".into(), json!(r.scale));
+    obj.insert("walk1_frames".into(), json!(m.frame_count()));
+    obj.insert("walk1_max_nonskinning_mm".into(), json!(d_walk1 * 1e3));
+    // The procedural performer: built at its default 2 cm grid (timed); the 3 cm grid of the
+    // tests over the range of motion.
+    let t = Instant::now();
+    let q = procedural_performer(&ProceduralBodyParams::default())?;
+    obj.insert(
+        "procedural_build_s".into(),
+        json!(t.elapsed().as_secs_f64()),
+    );
+    obj.insert("procedural_vertices".into(), json!(q.vertex_count()));
+    let q3 = procedural_performer(&ProceduralBodyParams {
+        grid_spacing_m: 0.03,
+        ..Default::default()
+    })?;
+    let d = q3.max_nonskinning_m(&range_of_motion(
+        &q3.skeleton,
+        &RangeOfMotionParams::default(),
+    )?)?;
+    obj.insert("procedural_3cm_vertices".into(), json!(q3.vertex_count()));
+    obj.insert(
+        "procedural_3cm_rom_max_nonskinning_mm".into(),
+        json!(d * 1e3),
+    );
+    Ok(fig)
+}
+
+/// `nonskinning_pose.png` (the former ignored test `studio::tests::picture`): the performer
+/// with four joints flexed, coloured by |truth − LBS|, front and side; returns its figures.
+fn pose_picture(p: &Performer, out: &Path) -> AnyResult<serde_json::Value> {
+    let mut theta = p.skeleton.rest_pose();
+    for (n, v) in [
+        ("l_elbow.flexion", 2.0),
+        ("r_knee.flexion", 1.5),
+        ("r_hip.flexion", 0.8),
+        ("l_shoulder.flexion", 0.6),
+    ] {
+        theta[p.skeleton.dof_index(n).ok_or("the performer has the DOF")?] = v;
+    }
+    let f = p.pose(&theta, &mut DeformationState::default(), 0.05)?;
+    let dist_mm: Vec<f64> = f
+        .lbs_vertices
+        .iter()
+        .zip(&f.true_vertices)
+        .map(|(a, b)| a.distance(*b) * 1e3)
+        .collect();
+    let max_mm = dist_mm.iter().copied().fold(0.0, f64::max);
+    let above_10mm = dist_mm.iter().filter(|&&d| d > 10.0).count();
+    let colours: Vec<[u8; 3]> = dist_mm
+        .iter()
+        .map(|d| ramp(d / POSE_SCALE_MM).map(|c| (255.0 * c) as u8))
+        .collect();
+    let front = p.mesh(f.true_vertices.clone());
+    let turn = DQuat::from_rotation_y(-std::f64::consts::FRAC_PI_2);
+    let side = p.mesh(f.true_vertices.iter().map(|v| turn * *v).collect());
+    let img = preview(
+        &[
+            PreviewPanel {
+                mesh: &front,
+                paint: Paint::PerVertex(&colours),
+            },
+            PreviewPanel {
+                mesh: &side,
+                paint: Paint::PerVertex(&colours),
+            },
+        ],
+        480,
+    )?;
+    let ramp_u8 = |t: f64| ramp(t).map(|c| (255.0 * c) as u8);
+    let img = kplot::with_colour_bar(
+        &img,
+        &ColourBar {
+            label: "|truth − LBS| (mm)",
+            min: 0.0,
+            max: POSE_SCALE_MM,
+            ramp: &ramp_u8,
+            note: Some(&format!("top: ≥ {POSE_SCALE_MM} mm")),
+        },
+    )?;
+    let img = kplot::titled(
+        &img,
+        "Non-skinning deformation in a test pose",
+        Some(&format!(
+            "left elbow, right knee, right hip and left shoulder flexed; front and side; largest {max_mm:.1} mm, {above_10mm} vertices above 10 mm"
+        )),
+    )?;
+    kplot::save(&img, out.join("nonskinning_pose.png"))?;
+    Ok(json!({
+        "pose_max_nonskinning_mm": max_mm,
+        "pose_vertices_above_10mm": above_10mm,
+    }))
 }
 
 /// Median ms of shading one 1024×1024 view under the dome with per-vertex shadows, and ms of
@@ -468,10 +732,29 @@ fn write_pictures(performer: &Performer, frame: &CaptureFrame, out: &Path) -> An
             pictures[4].save(out.join("cam0_lbs_vs_truth.png"))?;
         }
     }
-    sheet.save(out.join("contact_sheet.png"))?;
-    eprintln!(
-        "studio: wrote {}/contact_sheet.png (rows: silhouette, depth, normals, shaded, |truth - LBS| 0..{max_mm:.1} mm)",
-        out.display()
-    );
+    let sheet = kplot::label_rows(
+        &sheet,
+        &["silhouette", "depth", "normals", "shaded", "|truth − LBS|"],
+        110,
+    )?;
+    let ramp_u8 = |t: f64| ramp(t).map(|c| (255.0 * c) as u8);
+    let sheet = kplot::with_colour_bar(
+        &sheet,
+        &ColourBar {
+            label: "|truth − LBS| (mm), last row",
+            min: 0.0,
+            max: max_mm,
+            ramp: &ramp_u8,
+            note: None,
+        },
+    )?;
+    let sheet = kplot::titled(
+        &sheet,
+        "Studio capture of the frame of largest non-skinning deformation",
+        Some(&format!(
+            "columns: the {n} ring cameras, each cropped to its silhouette; depth near = bright; normals in camera space"
+        )),
+    )?;
+    kplot::save(&sheet, out.join("contact_sheet.png"))?;
     Ok(max_mm)
 }

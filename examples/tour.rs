@@ -1,26 +1,62 @@
-//! The main job: runs every other example of the workspace in its `--quick` form, collects the
-//! JSON figures each prints as its last line, and writes `out/tour/index.html` with a table of
-//! all figures and links to every picture the examples wrote.
+//! The main job: runs every other example of the workspace in its `--quick` form and writes
+//! `out/tour/index.html` for a person: per example a caption saying what ran, its pictures
+//! with captions, and its headline figures rounded, with units, beside their goals (met or
+//! not). Each example says what these are in the `manifest.json` it writes beside its
+//! `figures.json` (`example_kit::report`); the full JSON stays in `figures.json`.
 //!
-//! Run with `cargo run --release --example tour`. Examples are discovered from `examples/*.rs` and `examples/*/main.rs`
-//! so a new example joins the tour by existing. Pass `--full` to run them at full size.
+//! Run with `cargo run --release --example tour [-- --full] [-- --out DIR]`. Examples are
+//! discovered from `examples/*.rs` and `examples/*/main.rs` so a new example joins the tour by
+//! existing. `--full` runs them at full size. The examples' progress goes to stderr as they
+//! run; the last stdout line is one JSON object with every example's figures.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::time::Instant;
+
+use clap::Parser;
+use example_kit::report::{read_manifest, Manifest};
+use example_kit::Run;
+use serde_json::{Map, Value};
+
+/// Runs every example in its quick form and writes out/tour/index.html.
+#[derive(Parser)]
+struct Args {
+    /// Run the examples at full size instead of `--quick`.
+    #[arg(long)]
+    full: bool,
+    /// Folder of the page [default: out/tour].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
 
 struct Outcome {
     name: String,
     ok: bool,
-    figures: Option<serde_json::Map<String, serde_json::Value>>,
+    figures: Option<Map<String, Value>>,
+    manifest: Option<Manifest>,
     seconds: f64,
-    pictures: Vec<PathBuf>,
+    /// Pictures in the example's folder that its manifest does not caption.
+    other_pictures: Vec<PathBuf>,
+    dir: PathBuf,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let full = std::env::args().any(|a| a == "--full");
+    let args = Args::parse();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let run = Run::start(
+        "tour",
+        &example_kit::Common {
+            quick: !args.full,
+            out: Some(
+                args.out
+                    .clone()
+                    .unwrap_or_else(|| root.join("out").join("tour")),
+            ),
+        },
+        "Every example of the workspace.",
+    )?;
     let mut names: Vec<String> = std::fs::read_dir(root.join("examples"))?
         .filter_map(|e| e.ok())
         .filter_map(|e| {
@@ -38,29 +74,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut outcomes = Vec::new();
-    for name in &names {
+    for (i, name) in names.iter().enumerate() {
         eprintln!(
-            "tour: running example {name}{}",
-            if full { "" } else { " --quick" }
+            "tour: [{}/{}] running example {name}{}",
+            i + 1,
+            names.len(),
+            if args.full { "" } else { " --quick" }
         );
+        let dir = root.join("out").join(name);
         let start = Instant::now();
         let mut cmd = Command::new(&cargo);
         cmd.current_dir(root)
-            .args(["run", "--release", "--quiet", "--example", name]);
-        if !full {
-            cmd.args(["--", "--quick"]);
+            .args(["run", "--release", "--quiet", "--example", name, "--"])
+            .arg("--out")
+            .arg(&dir)
+            .stderr(Stdio::inherit());
+        if !args.full {
+            cmd.arg("--quick");
         }
         let output = cmd.output()?;
         let seconds = start.elapsed().as_secs_f64();
-        eprint!("{}", String::from_utf8_lossy(&output.stderr));
         let stdout = String::from_utf8_lossy(&output.stdout);
         let figures = stdout
             .lines()
             .rev()
             .find(|l| !l.trim().is_empty())
-            .and_then(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+            .and_then(|l| serde_json::from_str::<Value>(l).ok())
             .and_then(|v| v.as_object().cloned());
-        let pictures = list_pictures(&root.join("out").join(name));
+        let manifest = read_manifest(&dir).ok();
+        let captioned: Vec<PathBuf> = manifest
+            .iter()
+            .flat_map(|m| m.pictures.iter().map(|p| dir.join(&p.file)))
+            .collect();
+        let other_pictures = list_pictures(&dir)
+            .into_iter()
+            .filter(|p| !captioned.contains(p))
+            .collect();
         let ok = output.status.success() && figures.is_some();
         eprintln!(
             "tour: {name} {} in {seconds:.1} s",
@@ -70,27 +119,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             name: name.clone(),
             ok,
             figures,
+            manifest,
             seconds,
-            pictures,
+            other_pictures,
+            dir,
         });
     }
 
-    let out_dir = root.join("out").join("tour");
-    std::fs::create_dir_all(&out_dir)?;
-    std::fs::write(
-        out_dir.join("index.html"),
-        render_html(&outcomes, &root.join("out")),
-    )?;
+    let page = run.path("index.html");
+    std::fs::write(&page, render_html(&outcomes, run.out(), !args.full))?;
+    eprintln!("tour: wrote {}", page.display());
 
-    let summary: serde_json::Map<String, serde_json::Value> = outcomes
+    let summary: Map<String, Value> = outcomes
         .iter()
         .map(|o| {
             (
                 o.name.clone(),
-                o.figures
-                    .clone()
-                    .map(serde_json::Value::Object)
-                    .unwrap_or(serde_json::Value::Null),
+                o.figures.clone().map(Value::Object).unwrap_or(Value::Null),
             )
         })
         .collect();
@@ -99,16 +144,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .filter(|o| !o.ok)
         .map(|o| o.name.as_str())
         .collect();
-    eprintln!("tour: wrote {}", out_dir.join("index.html").display());
-    println!(
-        "{}",
-        serde_json::json!({
-            "examples": outcomes.len(),
-            "failed": failed,
-            "figures": summary,
-            "seconds": outcomes.iter().map(|o| o.seconds).sum::<f64>(),
-        })
-    );
+    run.finish(serde_json::json!({
+        "examples": outcomes.len(),
+        "failed": failed,
+        "figures": summary,
+        "seconds": outcomes.iter().map(|o| o.seconds).sum::<f64>(),
+    }))?;
     if failed.is_empty() {
         Ok(())
     } else {
@@ -143,64 +184,266 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
-fn render_html(outcomes: &[Outcome], out_root: &Path) -> String {
-    let mut html = String::from(
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>dynamic-shapes tour</title>\
-         <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
-         td,th{border:1px solid #ccc;padding:4px 8px;text-align:left}img{max-width:480px;margin:4px}\
-         .fail{color:#b00}</style></head><body><h1>dynamic-shapes tour</h1>\
-         <table><tr><th>example</th><th>status</th><th>figure</th><th>value</th></tr>",
-    );
-    for o in outcomes {
-        let status = if o.ok {
-            "ok"
-        } else {
-            "<span class=\"fail\">failed</span>"
-        };
-        match &o.figures {
-            Some(map) if !map.is_empty() => {
-                for (i, (k, v)) in map.iter().enumerate() {
-                    let head = if i == 0 {
-                        format!(
-                            "<td rowspan=\"{}\">{}</td><td rowspan=\"{}\">{status}</td>",
-                            map.len(),
-                            escape(&o.name),
-                            map.len()
-                        )
-                    } else {
-                        String::new()
-                    };
-                    html += &format!(
-                        "<tr>{head}<td>{}</td><td>{}</td></tr>",
-                        escape(k),
-                        escape(&v.to_string())
-                    );
-                }
-            }
-            _ => {
-                html += &format!(
-                "<tr><td>{}</td><td>{status}</td><td colspan=\"2\">no figures ({:.1} s)</td></tr>",
-                escape(&o.name),
-                o.seconds
-            )
-            }
-        }
+/// `v` rounded to 3 significant digits for a person: thousands separated, no exponent
+/// between 0.001 and 10⁶, `a × 10ⁿ` outside.
+fn round3(v: f64) -> String {
+    if !v.is_finite() {
+        return "—".into();
     }
-    html += "</table>";
-    for o in outcomes.iter().filter(|o| !o.pictures.is_empty()) {
-        html += &format!("<h2>{}</h2>", escape(&o.name));
-        for p in &o.pictures {
-            // Pictures live under out/<example>/; the page is out/tour/index.html.
-            let rel = Path::new("..").join(p.strip_prefix(out_root).unwrap_or(p));
-            let rel = rel.to_string_lossy();
-            html += &format!(
-                "<a href=\"{0}\"><img src=\"{0}\" alt=\"{0}\"></a>",
-                escape(&rel)
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        let e = a.log10().floor() as i32;
+        let m = v / 10f64.powi(e);
+        let sup: String = e
+            .to_string()
+            .chars()
+            .map(|c| match c {
+                '-' => '⁻',
+                d => ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'][d as usize - '0' as usize],
+            })
+            .collect();
+        return format!("{m:.2} × 10{sup}");
+    }
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{:.*}", decimals, v);
+    // Thousands separators in the integer part.
+    let (int, frac) = s.split_once('.').map_or((s.as_str(), ""), |(i, f)| (i, f));
+    let (sign, digits) = int.strip_prefix('-').map_or(("", int), |d| ("-", d));
+    let mut grouped = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            grouped.push(',');
+        }
+        grouped.push(c);
+    }
+    if frac.is_empty() {
+        format!("{sign}{grouped}")
+    } else {
+        format!("{sign}{grouped}.{frac}")
+    }
+}
+
+/// A duration for a person: ms below a second, s above.
+fn duration(s: f64) -> String {
+    if s < 1.0 {
+        format!("{} ms", round3(s * 1e3))
+    } else {
+        format!("{} s", round3(s))
+    }
+}
+
+fn with_unit(v: &str, unit: &str) -> String {
+    match unit {
+        "" => v.to_owned(),
+        "×" => format!("{v}×"),
+        u => format!("{v} {u}"),
+    }
+}
+
+/// `path` relative to the page's folder `from` (both under the repository's `out/`).
+fn relative(path: &Path, from: &Path) -> String {
+    let mut up = PathBuf::new();
+    let mut base = from.to_path_buf();
+    loop {
+        if let Ok(rest) = path.strip_prefix(&base) {
+            return up.join(rest).to_string_lossy().into_owned();
+        }
+        if !base.pop() {
+            return path.to_string_lossy().into_owned();
+        }
+        up.push("..");
+    }
+}
+
+const STYLE: &str = "body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1150px;\
+    color:#222;line-height:1.4}h1{margin-bottom:0}h2{margin-top:2em;border-bottom:1px solid #ccc}\
+    table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ddd;padding:4px 10px;\
+    text-align:left;vertical-align:top}th{background:#f4f4f4}td.num{text-align:right;\
+    white-space:nowrap;font-variant-numeric:tabular-nums}.met{color:#0a7d2c;font-weight:600}\
+    .missed{color:#b3261e;font-weight:600}.fail{color:#b3261e;font-weight:600}\
+    .note{color:#666;font-size:0.9em}figure{margin:1em 0}figure img{max-width:100%;\
+    border:1px solid #eee}figcaption{color:#444;font-size:0.95em;margin-top:0.3em}\
+    p.caption{font-size:1.05em}";
+
+fn render_html(outcomes: &[Outcome], page_dir: &Path, quick: bool) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <title>dynamic-shapes tour</title><style>{STYLE}</style></head><body>\
+         <h1>dynamic-shapes tour</h1><p class=\"note\">Every example of the workspace{}. \
+         Figures are rounded to 3 significant digits; each example's full figures are in its \
+         <code>figures.json</code>. Goals are those the issues and the method guides \
+         (<code>docs/</code>) state; most are stated for the full-size run, so a quick run \
+         can miss a speed or accuracy goal that the full run meets.</p>",
+        if quick {
+            ", each run in its quick (CI-sized) form"
+        } else {
+            ", each run at full size"
+        }
+    );
+    // Overview.
+    h += "<table><tr><th>example</th><th>status</th><th>time</th><th>goals met</th></tr>";
+    for o in outcomes {
+        let (met, total) = goal_count(o);
+        let _ = write!(
+            h,
+            "<tr><td><a href=\"#{0}\">{0}</a></td><td>{1}</td><td class=\"num\">{2:.0} s</td>\
+             <td class=\"num\">{3}</td></tr>",
+            escape(&o.name),
+            if o.ok {
+                "ran".to_owned()
+            } else {
+                "<span class=\"fail\">failed</span>".to_owned()
+            },
+            o.seconds,
+            if total == 0 {
+                "no goal stated".to_owned()
+            } else {
+                format!("{met} of {total}")
+            }
+        );
+    }
+    h += "</table>";
+
+    for o in outcomes {
+        let _ = write!(h, "<h2 id=\"{0}\">{0}</h2>", escape(&o.name));
+        if !o.ok {
+            let _ = write!(
+                h,
+                "<p class=\"fail\">The example failed (see the tour's log on stderr).</p>"
             );
         }
+        let Some(m) = &o.manifest else {
+            h += "<p class=\"note\">This example wrote no manifest.json.</p>";
+            continue;
+        };
+        let _ = write!(
+            h,
+            "<p class=\"caption\">{} <span class=\"note\">({}, {:.0} s)</span></p>",
+            escape(&m.caption),
+            if m.quick { "quick run" } else { "full run" },
+            o.seconds
+        );
+        let any_goal = m.headlines.iter().any(|hl| hl.goal.is_some());
+        if !m.headlines.is_empty() {
+            h += if any_goal {
+                "<table><tr><th>figure</th><th>value</th><th>goal</th><th></th></tr>"
+            } else {
+                "<table><tr><th>figure</th><th>value</th></tr>"
+            };
+            for hl in &m.headlines {
+                let v = o
+                    .figures
+                    .as_ref()
+                    .and_then(|f| f.get(&hl.key))
+                    .and_then(Value::as_f64);
+                let value = v.map_or("—".to_owned(), |v| with_unit(&round3(v), &hl.unit));
+                let (goal, verdict) = match (hl.goal, v) {
+                    (Some(g), v) => {
+                        let (op, x) = match g {
+                            example_kit::Goal::AtMost(x) => ("≤", x),
+                            example_kit::Goal::AtLeast(x) => ("≥", x),
+                        };
+                        let verdict = match v {
+                            Some(v) if g.met(v) => "<span class=\"met\">met</span>",
+                            Some(_) => "<span class=\"missed\">not met</span>",
+                            None => "",
+                        };
+                        (
+                            format!("{op} {}", with_unit(&format!("{x}"), &hl.unit)),
+                            verdict,
+                        )
+                    }
+                    (None, _) => ("—".to_owned(), ""),
+                };
+                let note = hl
+                    .note
+                    .as_deref()
+                    .map(|n| format!("<br><span class=\"note\">{}</span>", escape(n)))
+                    .unwrap_or_default();
+                let _ = write!(
+                    h,
+                    "<tr><td>{}<br><span class=\"note\"><code>{}</code></span></td>\
+                     <td class=\"num\">{}</td>",
+                    escape(&hl.label),
+                    escape(&hl.key),
+                    escape(&value),
+                );
+                if any_goal {
+                    let _ = write!(
+                        h,
+                        "<td class=\"num\">{}</td><td>{}{}</td>",
+                        escape(&goal),
+                        verdict,
+                        note
+                    );
+                }
+                h += "</tr>";
+            }
+            h += "</table>";
+        }
+        let stages: Vec<String> = m
+            .stages
+            .iter()
+            .map(|(s, t)| format!("{} {}", escape(s), duration(*t)))
+            .collect();
+        if !stages.is_empty() {
+            let _ = write!(h, "<p class=\"note\">Stages: {}.</p>", stages.join(" · "));
+        }
+        for p in &m.pictures {
+            let src = escape(&relative(&o.dir.join(&p.file), page_dir));
+            let _ = write!(
+                h,
+                "<figure><a href=\"{src}\"><img src=\"{src}\" alt=\"{}\"></a>\
+                 <figcaption>{}</figcaption></figure>",
+                escape(&p.caption),
+                escape(&p.caption)
+            );
+        }
+        let figures = escape(&relative(&o.dir.join("figures.json"), page_dir));
+        let mut links = vec![format!("<a href=\"{figures}\">figures.json</a>")];
+        for p in &o.other_pictures {
+            let src = escape(&relative(p, page_dir));
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            links.push(format!("<a href=\"{src}\">{}</a>", escape(&name)));
+        }
+        let _ = write!(
+            h,
+            "<p class=\"note\">All figures and files: {}.</p>",
+            links.join(", ")
+        );
     }
-    html += "</body></html>\n";
-    html
+    h += "</body></html>\n";
+    h
+}
+
+/// Goals met and goals stated of an example's headline figures.
+fn goal_count(o: &Outcome) -> (usize, usize) {
+    let Some(m) = &o.manifest else { return (0, 0) };
+    let mut met = 0;
+    let mut total = 0;
+    for hl in &m.headlines {
+        if let Some(g) = hl.goal {
+            total += 1;
+            let v = o
+                .figures
+                .as_ref()
+                .and_then(|f| f.get(&hl.key))
+                .and_then(Value::as_f64);
+            if v.is_some_and(|v| g.met(v)) {
+                met += 1;
+            }
+        }
+    }
+    (met, total)
 }

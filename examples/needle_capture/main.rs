@@ -18,23 +18,28 @@
 //! minutes of training.
 //!
 //! Writes under `out/needle_capture/`:
-//! * `error_vs_n.png`: median error against log N — blue all needles, red near elbows and
-//!   knees; dashed: static (grey), captured-rest LBS (orange), each at its all-needle median.
-//! * `silhouette_error_vs_params.png`: silhouette error against F_near, F_min, W and N (log x),
-//!   one panel each, from the last coordinate-descent sweep (like Sand 2003 Figure 11).
+//! * `error_vs_n.png`: median error (mm) against N (log axis) — blue all needles, red near
+//!   elbows and knees; dashed: static (grey), captured-rest LBS (orange), each at its
+//!   all-needle median; title, axis labels and legend.
+//! * `silhouette_error_vs_params.png`: silhouette error against F_near, F_min, W and N (log x
+//!   for F_near and N), one panel each, from the last coordinate-descent sweep (like Sand 2003
+//!   Figure 11), the selected value marked.
 //! * `test_poses.png`: three walk poses, top row the true body (grey), bottom row the model's
 //!   watertight union surface (blue).
 //! * `error_map.png`: the model's per-primitive surfaces at one walk pose, coloured by needle
-//!   error (blue 0 → red ≥ 20 mm; grey: needle not scored).
-//! * `figures.json`; progress on stderr; last stdout line one JSON object.
+//!   error with a colour bar in mm (blue 0 → red ≥ 20 mm; grey: needle not scored).
+//! * `figures.json`, `manifest.json` (captions and headline figures for `tour`); progress on
+//!   stderr; last stdout line one JSON object.
 //!
-//! `cargo run --release --example needle_capture [-- --quick]` (`--quick`: procedural
-//! performer, 360×240 views, 24 s of training, small grids; under a minute).
+//! `cargo run --release --example needle_capture [-- --quick] [-- --out DIR]` (`--quick`:
+//! procedural performer, 360×240 views, 24 s of training, small grids; under a minute).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod pictures;
 
 use std::time::Instant;
+
+use clap::Parser;
 
 use dynamic_shapes::core::camera::{Camera, Rig};
 use dynamic_shapes::core::image::Mask;
@@ -53,10 +58,13 @@ use dynamic_shapes::needle::{
     ReconstructionParams, SelectionParams, SilhouetteErrorParams, SilhouetteScorer, SkinnedShape,
     SurfaceParams, ValidationFrame,
 };
-use pictures::{error_colour, side_by_side, Plot, Series};
+use example_kit::plot::{self as kplot, Chart, ColourBar, LegendPosition, Series, Style};
+use example_kit::{Goal, Headline, Run};
+use pictures::error_colour;
 use serde_json::{json, Map, Value};
 
-const OUT_DIR: &str = "out/needle_capture";
+/// Needle error at the top of the error map's colour scale, mm.
+const ERROR_MAP_MAX_MM: f64 = 20.0;
 /// The performer turns on the spot at this rate during training, degrees per second.
 const TURN_DEG_PER_S: f64 = 60.0;
 
@@ -194,10 +202,34 @@ fn summary(prefix: &str, e: &mut Errors, out: &mut Map<String, Value>) {
     );
 }
 
+/// Validation of the needle model (Sand, McMillan and Popović 2003) on the synthetic studio.
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: example_kit::Common,
+}
+
 fn main() -> Res<()> {
     let t0 = Instant::now();
-    let s = Setup::new(std::env::args().any(|a| a == "--quick"));
-    std::fs::create_dir_all(OUT_DIR)?;
+    let args = Args::parse();
+    let s = Setup::new(args.common.quick);
+    let mut run =
+        Run::start(
+            "needle_capture",
+            &args.common,
+            &format!(
+            "Needle model (Sand 2003) trained on silhouettes of {} performer turning through a \
+             range of motion ({} s, 3 cameras at {}×{}), then tested against ground truth on the \
+             real CMU 131_01 walk and a fast motion it never saw, beside a static model and \
+             linear blend skinning of the captured rest shape; error against N, automatic \
+             parameter selection by silhouette error, speed.",
+            if s.quick { "the procedural" } else { "the MakeHuman" },
+            s.train_s,
+            s.width,
+            s.height
+        ),
+        )?;
+    let out_dir = run.out().to_path_buf();
     let performer = performer(s.quick)?;
     let sk = performer.skeleton.clone();
     let body = NeedleBody::new(&sk, &BodyLayout::table_3_1())?;
@@ -222,7 +254,9 @@ fn main() -> Res<()> {
         s.width,
         s.height
     );
-    let long = capture(&performer, &observer, &rig, &train)?;
+    let stage = run.stage("capture", Some(n_train as u64));
+    let long = capture(&performer, &observer, &rig, &train, &stage)?;
+    stage.finish(format!("{n_train} frames"));
     let store = long.store;
     let short_motion = training_motion(&performer, s.short_s)?;
     eprintln!(
@@ -230,7 +264,9 @@ fn main() -> Res<()> {
         short_motion.frame_count(),
         short_motion.duration_s()
     );
-    let short_store = capture(&performer, &observer, &rig, &short_motion)?.store;
+    let stage = run.stage("short capture", Some(short_motion.frame_count() as u64));
+    let short_store = capture(&performer, &observer, &rig, &short_motion, &stage)?.store;
+    stage.finish(format!("{} frames", short_motion.frame_count()));
     // The issue's unit: camera-frames (one 720×480 mask walked) per second.
     let camera_frames = (n_train * cameras.len()) as f64;
     let accumulate_fps = camera_frames / long.accumulate_s;
@@ -242,6 +278,7 @@ fn main() -> Res<()> {
     );
 
     // --- Test truth: motions never seen in training. ---
+    let stage = run.stage("test truth", None);
     let walk_motion = play_bvh(
         example_kit::data_path("mocap-cmu/131_01.bvh")?,
         &BvhParams {
@@ -263,20 +300,21 @@ fn main() -> Res<()> {
     )?;
     let fast = test_set(&performer, &body, &rig, &fast_motion, s.test_stride)?;
     let scored = |t: &Test| t.set.frames.iter().map(|f| f.needles.len()).sum::<usize>();
-    eprintln!(
-        "test: CMU 131_01 walk {} frames ({} needles), fast motion {} frames ({} needles)",
+    stage.finish(format!(
+        "CMU 131_01 walk {} frames ({} needles), fast motion {} frames ({} needles)",
         walk.set.frames.len(),
         scored(&walk),
         fast.set.frames.len(),
         scored(&fast)
-    );
+    ));
 
     // --- Reconstructions and baselines. ---
+    let stage = run.stage("reconstruct", None);
     let base = ReconstructionParams::default();
     let tr = Instant::now();
     let main = NeedleModel::reconstruct(&store, &body, &base)?.model;
     let reconstruct_s = tr.elapsed().as_secs_f64();
-    eprintln!("reconstruct (N = 100): {reconstruct_s:.2} s");
+    stage.println(format!("N = 100: {reconstruct_s:.2} s"));
     // The paper's size, 8 minutes × 3 cameras = 43,200 camera-frames: the real store appended
     // to itself until it is at least that big (only the cost is of interest here).
     let mut big = store.clone();
@@ -288,12 +326,14 @@ fn main() -> Res<()> {
     let tb = Instant::now();
     NeedleModel::reconstruct(&big, &body, &base)?;
     let reconstruct_s_24min = tb.elapsed().as_secs_f64();
-    eprintln!(
-        "reconstruct at {big_camera_frames} camera-frames ({} observations): {reconstruct_s_24min:.2} s",
+    stage.println(format!(
+        "at {big_camera_frames} camera-frames ({} observations): {reconstruct_s_24min:.2} s",
         big.total_observations()
-    );
+    ));
     drop(big);
     let stat = NeedleModel::reconstruct(&store, &body, &base.with_f_near(1.0))?.model;
+    stage.finish("model, 24-minute store, static model");
+    let stage = run.stage("score baselines", None);
     let rest = animate(&body, &main, &sk, &sk.rest_pose())?;
     let rest_mesh = union_mesh(&rest, &SurfaceParams::default())?;
     let lbs_heat = SkinnedShape::heat(&sk, rest_mesh.clone())?;
@@ -347,11 +387,13 @@ fn main() -> Res<()> {
         "lbs_true_weights_median_near_joints_mm",
         "lbs_exact_rest_median_mm",
     ] {
-        eprintln!("  {k}: {:.2}", out[k].as_f64().unwrap_or(f64::NAN));
+        stage.println(format!("{k}: {:.2}", out[k].as_f64().unwrap_or(f64::NAN)));
     }
+    stage.finish("walk and fast motion");
 
     // --- Error vs N, and short vs long training (walk test). ---
     let mut sweep = vec![];
+    let stage = run.stage("error vs N", Some(4));
     for n in [10usize, 30, 100, 300] {
         // N = 100 is the main model, already reconstructed and scored.
         let e = if n == base.prototype_count_n {
@@ -362,7 +404,8 @@ fn main() -> Res<()> {
             )?
         };
         let (a, b) = (median(&e.all_mm), median(&e.near_joints_mm));
-        eprintln!("N = {n}: median {a:.2} mm, near joints {b:.2} mm");
+        stage.println(format!("N = {n}: median {a:.2} mm, near joints {b:.2} mm"));
+        stage.inc(1);
         sweep.push((n, a, b));
     }
     out.insert(
@@ -372,6 +415,7 @@ fn main() -> Res<()> {
             .map(|&(n, a, b)| json!({"n": n, "median_mm": a, "near_joints_mm": b}))
             .collect::<Vec<_>>()),
     );
+    stage.finish("N = 10, 30, 100, 300, and 30 s of training");
     // A primitive never observed in the short capture makes its reconstruction fail:
     // reported, not fatal.
     match NeedleModel::reconstruct(&short_store, &body, &base)
@@ -390,9 +434,10 @@ fn main() -> Res<()> {
     }
 
     // --- Automatic parameter selection by silhouette error (§6.3, Figure 11). ---
+    let stage = run.stage("selection", None);
     let selection = select(&s, &performer, &body, &rig, &train, &store)?;
     let chosen = selection.params;
-    eprintln!(
+    stage.finish(format!(
         "selected F_near {} F_min {} W {} N {} (silhouette error {:.4} → {:.4}, {} reconstructions)",
         chosen.f_near,
         chosen.f_min,
@@ -401,14 +446,15 @@ fn main() -> Res<()> {
         selection.start_error,
         selection.error,
         selection.evaluations
-    );
+    ));
     let selected = NeedleModel::reconstruct(&store, &body, &chosen)?.model;
     summary("selected", &mut walk.set.errors(&selected)?, &mut out);
     out.insert("selected_params".into(), json!(chosen));
     out.insert("selection_evaluations".into(), json!(selection.evaluations));
-    plot_selection(&selection.curves)?;
+    plot_selection(&mut run, &selection.curves, &chosen)?;
 
     // --- Animation speed: NRBF + per-primitive meshes, and the watertight union. ---
+    let stage = run.stage("speed", None);
     let poses: Vec<&[f64]> = walk.set.frames.iter().map(|f| f.theta.as_slice()).collect();
     let ta = Instant::now();
     for th in &poses {
@@ -423,12 +469,16 @@ fn main() -> Res<()> {
         std::hint::black_box(union_mesh(&posed, &SurfaceParams::default())?);
     }
     let union_fps = union_poses.len() as f64 / tu.elapsed().as_secs_f64();
-    eprintln!("animate {animate_fps:.0} fps (per-primitive surfaces), union {union_fps:.2} fps");
+    stage.finish(format!(
+        "animate {animate_fps:.0} fps (per-primitive surfaces), union {union_fps:.2} fps"
+    ));
 
     // --- Pictures. ---
-    plot_error_vs_n(&sweep, &out)?;
-    render_test_poses(&performer, &body, &main, &walk)?;
-    render_error_map(&body, &main, &sk, &walk)?;
+    let stage = run.stage("pictures", None);
+    plot_error_vs_n(&mut run, &sweep, &out)?;
+    render_test_poses(&mut run, &performer, &body, &main, &walk)?;
+    render_error_map(&mut run, &body, &main, &sk, &walk)?;
+    stage.finish(format!("written under {}", out_dir.display()));
 
     for (k, v) in [
         ("quick", json!(s.quick)),
@@ -456,13 +506,92 @@ fn main() -> Res<()> {
     ] {
         out.insert(k.into(), v);
     }
-    let out = Value::Object(out);
-    std::fs::write(
-        format!("{OUT_DIR}/figures.json"),
-        serde_json::to_string_pretty(&out)?,
-    )?;
-    println!("{out}");
+    // Added for the headline: the issue's accuracy goal is this ratio ≥ 2.
+    let ratio = out["lbs_median_near_joints_mm"]
+        .as_f64()
+        .unwrap_or(f64::NAN)
+        / out["test_median_near_joints_mm"]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+    out.insert("near_joints_gain_over_lbs".into(), json!(ratio));
+    headlines(&mut run, &s);
+    run.finish(Value::Object(out))?;
     Ok(())
+}
+
+/// The figures `tour` shows, with the goals of the issue (`docs/needle-model.md`).
+fn headlines(run: &mut Run, s: &Setup) {
+    let doc = "goal from docs/needle-model.md";
+    for h in [
+        Headline::new(
+            "test_median_mm",
+            "model error on the CMU walk, median over needles",
+            "mm",
+        ),
+        Headline::new(
+            "test_median_near_joints_mm",
+            "model error near elbows and knees, median",
+            "mm",
+        ),
+        Headline::new(
+            "static_median_near_joints_mm",
+            "static model (F_near = 1) near joints, median",
+            "mm",
+        ),
+        Headline::new(
+            "lbs_median_near_joints_mm",
+            "LBS of the captured rest shape near joints, median",
+            "mm",
+        ),
+        Headline::new(
+            "near_joints_gain_over_lbs",
+            "near-joint error of LBS ÷ that of the model",
+            "×",
+        )
+        .goal(Goal::AtLeast(2.0))
+        .note("the issue's accuracy goal (docs/needle-model.md)"),
+        Headline::new(
+            "test_silhouette_error",
+            "silhouette error on the walk (fraction of band pixels)",
+            "",
+        ),
+        Headline::new(
+            "accumulate_frames_per_s",
+            "observation accumulation",
+            "camera-frames/s",
+        )
+        .goal(Goal::AtLeast(300.0))
+        .note(&format!(
+            "{doc}, at 720×480; this run {}×{}",
+            s.width, s.height
+        )),
+        Headline::new(
+            "reconstruct_s_24min",
+            "reconstruction from ≥ 43,200 camera-frames",
+            "s",
+        )
+        .goal(Goal::AtMost(60.0))
+        .note(doc),
+        Headline::new(
+            "animate_fps",
+            "animation (NRBF + per-primitive surfaces)",
+            "fps",
+        )
+        .goal(Goal::AtLeast(30.0))
+        .note(doc),
+        Headline::new(
+            "union_fps",
+            "animation with the watertight union surface",
+            "fps",
+        )
+        .goal(Goal::AtLeast(2.0))
+        .note(doc),
+        Headline::new("bytes_per_observation", "memory per observation", "B")
+            .goal(Goal::AtMost(4.0))
+            .note(doc),
+    ] {
+        run.headline(h);
+    }
 }
 
 /// Mean silhouette error (§6.2) of `model`'s surface over the test frames.
@@ -533,8 +662,8 @@ fn capture(
     observer: &Observer,
     rig: &Rig,
     motion: &Motion,
+    progress: &example_kit::Stage,
 ) -> Res<Captured> {
-    let n = motion.frame_count();
     let mut store = observer.empty_store()?;
     let (mut accumulate_s, mut render_s) = (0.0, 0.0);
     let chunk = 48usize;
@@ -562,12 +691,9 @@ fn capture(
         accumulate_s += ta.elapsed().as_secs_f64();
         store.append(&acc.store)?;
         done += pending.len();
-        eprint!(
-            "\r  frame {done}/{n}, {} observations",
-            store.total_observations()
-        );
+        progress.set_position(done as u64);
+        progress.set_message(format!("{} observations", store.total_observations()));
     }
-    eprintln!();
     Ok(Captured {
         store,
         accumulate_s,
@@ -576,68 +702,127 @@ fn capture(
 }
 
 /// `error_vs_n.png` (see the module docs).
-fn plot_error_vs_n(sweep: &[(usize, f64, f64)], fig: &Map<String, Value>) -> Res<()> {
-    let xs = || sweep.iter().map(|&(n, _, _)| n as f64);
-    let baseline = |k: &str, colour| Series {
-        points: xs()
-            .map(|x| (x, fig[k].as_f64().unwrap_or(f64::NAN)))
-            .collect(),
-        colour,
-        dashed: true,
+fn plot_error_vs_n(
+    run: &mut Run,
+    sweep: &[(usize, f64, f64)],
+    fig: &Map<String, Value>,
+) -> Res<()> {
+    let (x0, x1) = (sweep[0].0 as f64, sweep[sweep.len() - 1].0 as f64);
+    let baseline = |k: &str| {
+        let y = fig[k].as_f64().unwrap_or(f64::NAN);
+        vec![(x0, y), (x1, y)]
     };
-    Plot {
-        width: 480,
-        height: 320,
-        log_x: true,
-        series: vec![
-            Series {
-                points: sweep.iter().map(|&(n, a, _)| (n as f64, a)).collect(),
-                colour: [0, 60, 220],
-                dashed: false,
-            },
-            Series {
-                points: sweep.iter().map(|&(n, _, b)| (n as f64, b)).collect(),
-                colour: [220, 0, 0],
-                dashed: false,
-            },
-            baseline("static_median_mm", [128, 128, 128]),
-            baseline("lbs_median_mm", [230, 140, 0]),
-        ],
-    }
-    .draw()
-    .save(format!("{OUT_DIR}/error_vs_n.png"))?;
+    let mut chart = Chart::new(
+        "Walk test error against the number of prototypes N",
+        "prototypes per primitive N (log scale)",
+        "median needle-length error (mm)",
+    );
+    chart.log_x = true;
+    chart.legend = LegendPosition::LowerRight;
+    let img = chart
+        .with(Series::new(
+            "needle model, all needles",
+            [0, 60, 220],
+            Style::LineMarkers,
+            sweep.iter().map(|&(n, a, _)| (n as f64, a)).collect(),
+        ))
+        .with(Series::new(
+            "needle model, near elbows and knees",
+            [220, 0, 0],
+            Style::LineMarkers,
+            sweep.iter().map(|&(n, _, b)| (n as f64, b)).collect(),
+        ))
+        .with(Series::new(
+            "static model (F_near = 1), all needles",
+            [128, 128, 128],
+            Style::Dashed,
+            baseline("static_median_mm"),
+        ))
+        .with(Series::new(
+            "LBS of the captured rest shape, all needles",
+            [230, 140, 0],
+            Style::Dashed,
+            baseline("lbs_median_mm"),
+        ))
+        .draw()?;
+    run.save_picture(
+        "error_vs_n.png",
+        &img,
+        "Median needle-length error on the CMU walk against the number of prototypes N \
+         (log axis): all needles (blue) and needles near elbows and knees (red); dashed: the \
+         static model and LBS of the captured rest shape, each at its all-needle median.",
+    )?;
     Ok(())
 }
 
-/// `silhouette_error_vs_params.png`: one panel per parameter, F_near, F_min, W, N.
-fn plot_selection(curves: &[dynamic_shapes::needle::ParameterCurve]) -> Res<()> {
+/// `silhouette_error_vs_params.png`: one panel per parameter, F_near, F_min, W, N, the
+/// selected value marked.
+fn plot_selection(
+    run: &mut Run,
+    curves: &[dynamic_shapes::needle::ParameterCurve],
+    chosen: &ReconstructionParams,
+) -> Res<()> {
     let panels: Vec<_> = curves
         .iter()
         .map(|c| {
-            Plot {
-                width: 240,
-                height: 200,
-                log_x: matches!(c.parameter, Parameter::FNear | Parameter::PrototypeCountN),
-                series: vec![Series {
-                    points: c
-                        .values
-                        .iter()
-                        .copied()
-                        .zip(c.errors.iter().copied())
-                        .collect(),
-                    colour: [0, 60, 220],
-                    dashed: false,
-                }],
-            }
-            .draw()
+            let (name, what, value) = match c.parameter {
+                Parameter::FNear => ("F_near", "F_near (fraction, log scale)", chosen.f_near),
+                Parameter::FMin => ("F_min", "F_min (percentile fraction)", chosen.f_min),
+                Parameter::KernelWidthW => {
+                    ("W", "kernel width W (dimensionless)", chosen.kernel_width_w)
+                }
+                Parameter::PrototypeCountN => (
+                    "N",
+                    "prototypes N (log scale)",
+                    chosen.prototype_count_n as f64,
+                ),
+            };
+            let points: Vec<(f64, f64)> = c
+                .values
+                .iter()
+                .copied()
+                .zip(c.errors.iter().copied())
+                .collect();
+            let pick = points
+                .iter()
+                .filter(|p| (p.0 - value).abs() <= 1e-9 * value.abs().max(1.0))
+                .copied()
+                .collect();
+            let mut chart = Chart::new(
+                format!("silhouette error against {name}"),
+                what,
+                "silhouette error (fraction)",
+            );
+            chart.size = (480, 340);
+            chart.y_from_zero = false;
+            chart.log_x = matches!(c.parameter, Parameter::FNear | Parameter::PrototypeCountN);
+            chart
+                .with(Series::new("", [0, 60, 220], Style::LineMarkers, points))
+                .with(Series::new("", [220, 0, 0], Style::Markers, pick))
+                .draw()
         })
-        .collect();
-    side_by_side(&panels)?.save(format!("{OUT_DIR}/silhouette_error_vs_params.png"))?;
+        .collect::<Result<_, _>>()?;
+    let img = kplot::titled(
+        &kplot::stacked(&[
+            kplot::side_by_side(&panels[..panels.len().min(2)])?,
+            kplot::side_by_side(&panels[panels.len().min(2)..])?,
+        ])?,
+        "Automatic parameter selection by silhouette error (Sand 2003 §6.3, Figure 11)",
+        Some("blue: last coordinate-descent sweep; red: the selected value; error: mean fraction of mismatched pixels in a 3 px band around the predicted silhouette"),
+    )?;
+    run.save_picture(
+        "silhouette_error_vs_params.png",
+        &img,
+        "Silhouette error of the reconstruction against each parameter in the last \
+         coordinate-descent sweep, the others held at their values of that sweep (like Sand \
+         2003 Figure 11); red: the selected value.",
+    )?;
     Ok(())
 }
 
 /// `test_poses.png`: three walk poses, truth above, the model's union surface below.
 fn render_test_poses(
+    run: &mut Run,
     performer: &Performer,
     body: &NeedleBody,
     model: &NeedleModel,
@@ -678,12 +863,25 @@ fn render_test_poses(
     let mut img = image::RgbImage::new(w, 2 * h);
     image::imageops::overlay(&mut img, &rows[0], 0, 0);
     image::imageops::overlay(&mut img, &rows[1], 0, h as i64);
-    img.save(format!("{OUT_DIR}/test_poses.png"))?;
+    let img = kplot::titled(
+        &img,
+        "Three poses of the CMU walk (never seen in training)",
+        Some(
+            "top: the true body (grey); bottom: the needle model's watertight union surface (blue)",
+        ),
+    )?;
+    run.save_picture(
+        "test_poses.png",
+        &img,
+        "Three walk poses: the true body (top, grey) and the needle model's watertight union \
+         surface (bottom, blue), front views.",
+    )?;
     Ok(())
 }
 
 /// `error_map.png`: per-primitive surfaces at the middle walk pose coloured by needle error.
 fn render_error_map(
+    run: &mut Run,
     body: &NeedleBody,
     model: &NeedleModel,
     sk: &dynamic_shapes::core::skeleton::Skeleton,
@@ -704,17 +902,41 @@ fn render_error_map(
     let mut colours = vec![];
     for (m, e) in meshes.iter().zip(&err) {
         // Needle endpoints come first in each primitive mesh; cap centres are unscored.
-        colours
-            .extend((0..m.vertices.len()).map(|v| error_colour(e.get(v).copied().flatten(), 20.0)));
+        colours.extend(
+            (0..m.vertices.len())
+                .map(|v| error_colour(e.get(v).copied().flatten(), ERROR_MAP_MAX_MM)),
+        );
     }
     let mesh = merged_mesh(&posed)?;
-    preview(
+    let img = preview(
         &[PreviewPanel {
             mesh: &mesh,
             paint: Paint::PerVertex(&colours),
         }],
         640,
-    )?
-    .save(format!("{OUT_DIR}/error_map.png"))?;
+    )?;
+    let ramp = |t: f64| error_colour(Some(t * ERROR_MAP_MAX_MM), ERROR_MAP_MAX_MM);
+    let img = kplot::with_colour_bar(
+        &img,
+        &ColourBar {
+            label: "needle-length error (mm)",
+            min: 0.0,
+            max: ERROR_MAP_MAX_MM,
+            ramp: &ramp,
+            note: Some("top: ≥ 20 mm; grey: not scored"),
+        },
+    )?;
+    let img = kplot::titled(
+        &img,
+        "Needle error at the middle walk pose",
+        Some("the model's per-primitive surfaces coloured by |model − true| needle length"),
+    )?;
+    run.save_picture(
+        "error_map.png",
+        &img,
+        "The model's per-primitive surfaces at the middle walk pose, each needle endpoint \
+         coloured by its length error against the truth (colour bar in mm; grey: needle not \
+         scored).",
+    )?;
     Ok(())
 }
