@@ -49,12 +49,7 @@ impl SampledSignal {
 
     fn validate(&self) -> Result<()> {
         all_finite("signal start time", [&self.start_s])?;
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "rate_hz",
-                reason: format!("must be finite and > 0, got {}", self.rate_hz),
-            });
-        }
+        crate::check::positive("rate_hz", self.rate_hz)?;
         if self.values.len() < 3 {
             return Err(Error::InvalidParam {
                 name: "values",

@@ -100,18 +100,8 @@ impl BackgroundParams {
     }
 
     fn validate(&self) -> Result<()> {
-        if !(self.k_sigma.is_finite() && self.k_sigma >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "k_sigma",
-                reason: format!("must be finite and >= 0, got {}", self.k_sigma),
-            });
-        }
-        if !(self.min_threshold.is_finite() && self.min_threshold >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "min_threshold",
-                reason: format!("must be finite and >= 0, got {}", self.min_threshold),
-            });
-        }
+        crate::check::non_negative("k_sigma", f64::from(self.k_sigma))?;
+        crate::check::non_negative("min_threshold", f64::from(self.min_threshold))?;
         Ok(())
     }
 }
@@ -440,12 +430,7 @@ impl BackgroundModel {
         update: impl Fn(f32) -> f32,
     ) -> Result<()> {
         self.check_region(region)?;
-        if !(value.is_finite() && value >= 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be finite and >= 0, got {value}"),
-            });
-        }
+        crate::check::non_negative(name, f64::from(value))?;
         for (t, inside) in self.threshold.iter_mut().zip(region.iter()) {
             if inside {
                 *t = update(*t);

@@ -108,12 +108,7 @@ impl ContourParams {
                 reason: format!("must be finite, got {}", self.outward_offset_px),
             });
         }
-        if !(self.sample_step_px.is_finite() && self.sample_step_px >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "sample_step_px",
-                reason: format!("must be finite and >= 0, got {}", self.sample_step_px),
-            });
-        }
+        crate::check::non_negative("sample_step_px", self.sample_step_px)?;
         Ok(())
     }
 }
@@ -162,12 +157,7 @@ impl Contour {
     /// 10⁸ samples; [`Error::SizeMismatch`] if `points` and `normals` differ in length;
     /// [`Error::NonFinite`] if a point or normal is NaN or infinite.
     pub fn resample(&self, step_px: f64) -> Result<Contour> {
-        if !(step_px.is_finite() && step_px > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "step_px",
-                reason: format!("must be finite and > 0, got {step_px}"),
-            });
-        }
+        crate::check::positive("step_px", step_px)?;
         if self.normals.len() != self.points.len() {
             return Err(Error::SizeMismatch {
                 what: "contour normals vs points",

@@ -149,12 +149,7 @@ impl Mask {
     /// # Errors
     /// [`Error::InvalidParam`] if `radius_px` is negative or not finite.
     pub fn boundary_band(&self, radius_px: f64) -> Result<Mask> {
-        if !(radius_px.is_finite() && radius_px >= 0.0) {
-            return Err(Error::InvalidParam {
-                name: "radius_px",
-                reason: format!("must be finite and >= 0, got {radius_px}"),
-            });
-        }
+        crate::check::non_negative("radius_px", radius_px)?;
         if self.is_empty() || self.count() == self.pixel_count() {
             return Ok(Mask::new(self.width(), self.height()));
         }

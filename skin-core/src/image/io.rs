@@ -72,12 +72,7 @@ impl DepthEncoding {
     }
 
     fn validate(&self) -> Result<()> {
-        if !(self.scale_m.is_finite() && self.scale_m > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "scale_m",
-                reason: format!("must be finite and > 0, got {}", self.scale_m),
-            });
-        }
+        crate::check::positive("scale_m", self.scale_m)?;
         if !self.offset_m.is_finite() {
             return Err(Error::InvalidParam {
                 name: "offset_m",

@@ -121,18 +121,9 @@ pub fn bone_heat_weights_dense(
     {
         return Err(Error::NonFinite { what: "bones" });
     }
-    for (name, v) in [
-        ("heat_constant", params.heat_constant),
-        ("min_distance_rel", params.min_distance_rel),
-        ("tie_tolerance", params.tie_tolerance),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be positive and finite, got {v}"),
-            });
-        }
-    }
+    crate::check::positive("heat_constant", params.heat_constant)?;
+    crate::check::positive("min_distance_rel", params.min_distance_rel)?;
+    crate::check::positive("tie_tolerance", params.tie_tolerance)?;
     let l = cotangent_laplacian(mesh, &params.laplacian)?;
     let mut mass = mass_matrix(mesh, params.mass, &params.laplacian)?;
     let n = mesh.vertices.len();

@@ -71,12 +71,7 @@ fn face_double_areas(mesh: &TriMesh, params: &LaplacianParams) -> Result<Vec<Opt
             what: "mesh for a Laplacian (no vertices or no faces)",
         });
     }
-    if !(params.degenerate_tol >= 0.0 && params.degenerate_tol.is_finite()) {
-        return Err(Error::InvalidParam {
-            name: "degenerate_tol",
-            reason: format!("must be >= 0 and finite, got {}", params.degenerate_tol),
-        });
-    }
+    crate::check::non_negative("degenerate_tol", params.degenerate_tol)?;
     let mut skipped = 0usize;
     let mut out = Vec::with_capacity(mesh.faces.len());
     for (f, _) in mesh.faces.iter().enumerate() {

@@ -108,12 +108,7 @@ impl SkinWeights {
                 reason: "must be >= 1".into(),
             });
         }
-        if !(prune_below >= 0.0 && prune_below.is_finite()) {
-            return Err(Error::InvalidParam {
-                name: "prune_below",
-                reason: format!("must be >= 0 and finite, got {prune_below}"),
-            });
-        }
+        crate::check::non_negative("prune_below", prune_below)?;
         crate::check::all_finite("dense skinning weights", w.iter())?;
         let mut lists = Vec::with_capacity(w.nrows());
         let mut row: Vec<(u32, f64)> = Vec::new();

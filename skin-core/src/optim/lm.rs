@@ -71,25 +71,11 @@ impl LmParams {
     }
 
     fn validate(&self) -> Result<()> {
-        let positive = |name: &'static str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(Error::InvalidParam {
-                    name,
-                    reason: format!("must be finite and >= 0, got {v}"),
-                })
-            }
-        };
-        positive("cost_tolerance", self.cost_tolerance)?;
-        positive("step_tolerance", self.step_tolerance)?;
-        positive("gradient_tolerance", self.gradient_tolerance)?;
-        if !(self.initial_lambda.is_finite() && self.initial_lambda > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "initial_lambda",
-                reason: format!("must be finite and > 0, got {}", self.initial_lambda),
-            });
-        }
+        use crate::check::{non_negative, positive};
+        non_negative("cost_tolerance", self.cost_tolerance)?;
+        non_negative("step_tolerance", self.step_tolerance)?;
+        non_negative("gradient_tolerance", self.gradient_tolerance)?;
+        positive("initial_lambda", self.initial_lambda)?;
         Ok(())
     }
 }

@@ -144,17 +144,8 @@ where
             reason: "every step must be finite and non-zero".into(),
         });
     }
-    for (name, v) in [
-        ("f_tolerance", params.f_tolerance),
-        ("x_tolerance", params.x_tolerance),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be finite and >= 0, got {v}"),
-            });
-        }
-    }
+    crate::check::non_negative("f_tolerance", params.f_tolerance)?;
+    crate::check::non_negative("x_tolerance", params.x_tolerance)?;
     let nf = n as f64;
     let (alpha, beta, gamma, delta) = if params.adaptive && n > 2 {
         (1.0, 1.0 + 2.0 / nf, 0.75 - 0.5 / nf, 1.0 - 1.0 / nf)

@@ -48,15 +48,7 @@ impl Default for BvhParams {
 
 impl BvhParams {
     pub(super) fn check(&self) -> Result<()> {
-        let m = self.metres_per_unit;
-        if m.is_finite() && m > 0.0 {
-            Ok(())
-        } else {
-            Err(Error::InvalidParam {
-                name: "metres_per_unit",
-                reason: format!("must be finite and positive, got {m}"),
-            })
-        }
+        crate::check::positive("metres_per_unit", self.metres_per_unit).map(|_| ())
     }
 }
 

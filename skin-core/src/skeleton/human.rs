@@ -20,7 +20,7 @@
 use super::dof::{Dof, DofLimits};
 use super::model::{Joint, Skeleton};
 use crate::math::DVec3;
-use crate::{Error, Result};
+use crate::Result;
 use serde::{Deserialize, Serialize};
 
 /// Default stature of [`human_skeleton`], metres (a typical adult).
@@ -80,12 +80,7 @@ fn rot(joint: &str, dof: &str, axis: DVec3, min_deg: f64, max_deg: f64) -> Dof {
 /// ```
 pub fn human_skeleton(params: &HumanParams) -> Result<Skeleton> {
     let h = params.height_m;
-    if !(h.is_finite() && h > 0.0) {
-        return Err(Error::InvalidParam {
-            name: "height_m",
-            reason: format!("must be finite and positive, got {h}"),
-        });
-    }
+    crate::check::positive("height_m", h)?;
     let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z) * h;
     let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
     let mut j: Vec<Joint> = Vec::with_capacity(19);

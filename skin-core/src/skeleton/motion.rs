@@ -33,12 +33,7 @@ impl Motion {
     /// [`Error::InvalidParam`] unless `frame_time_s` is finite and positive;
     /// [`Error::NonFinite`] for NaN/inf poses.
     pub fn new(frame_time_s: f64, frames: DMatrix<f64>) -> Result<Self> {
-        if !(frame_time_s.is_finite() && frame_time_s > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "frame_time_s",
-                reason: format!("must be finite and positive, got {frame_time_s}"),
-            });
-        }
+        crate::check::positive("frame_time_s", frame_time_s)?;
         crate::check::all_finite("motion frames", frames.iter())?;
         Ok(Motion {
             frame_time_s,
@@ -97,12 +92,7 @@ impl Motion {
     /// `new_frame_time_s` or a result of more than 10⁸ values.
     pub fn resample(&self, skeleton: &Skeleton, new_frame_time_s: f64) -> Result<Motion> {
         self.check_for(skeleton)?;
-        if !(new_frame_time_s.is_finite() && new_frame_time_s > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "new_frame_time_s",
-                reason: format!("must be finite and positive, got {new_frame_time_s}"),
-            });
-        }
+        crate::check::positive("new_frame_time_s", new_frame_time_s)?;
         let n_old = self.frame_count();
         let n_dof = skeleton.dof_count();
         // The same rate (to 1e-12 relative, e.g. 1/(1/dt)) keeps the frames bit for bit rather

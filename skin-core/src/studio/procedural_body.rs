@@ -188,19 +188,9 @@ pub fn procedural_performer(params: &ProceduralBodyParams) -> Result<Performer> 
         ("grid_spacing_m", params.grid_spacing_m),
         ("weight_falloff_m", params.weight_falloff_m),
     ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::InvalidParam {
-                name,
-                reason: format!("must be finite and positive, got {v}"),
-            });
-        }
+        crate::check::positive(name, v)?;
     }
-    if !(params.blend_m.is_finite() && params.blend_m >= 0.0) {
-        return Err(Error::InvalidParam {
-            name: "blend_m",
-            reason: format!("must be finite and non-negative, got {}", params.blend_m),
-        });
-    }
+    crate::check::non_negative("blend_m", params.blend_m)?;
     let skeleton = human_skeleton(&HumanParams {
         height_m: params.height_m,
     })?;

@@ -165,12 +165,7 @@ impl CaptureSpec {
                 what: "capture rig cameras",
             });
         }
-        if !(self.frame_rate_hz.is_finite() && self.frame_rate_hz > 0.0) {
-            return Err(Error::InvalidParam {
-                name: "frame_rate_hz",
-                reason: format!("must be finite and positive, got {}", self.frame_rate_hz),
-            });
-        }
+        crate::check::positive("frame_rate_hz", self.frame_rate_hz)?;
         if let Some(l) = &self.lighting {
             if l.lights.is_empty() {
                 return Err(Error::Empty {
@@ -186,20 +181,10 @@ impl CaptureSpec {
                     reason: format!("each channel must be in [0, 1], got {:?}", l.albedo),
                 });
             }
-            if !(l.shadow_bias_m.is_finite() && l.shadow_bias_m >= 0.0) {
-                return Err(Error::InvalidParam {
-                    name: "shadow_bias_m",
-                    reason: format!("must be finite and >= 0, got {}", l.shadow_bias_m),
-                });
-            }
+            crate::check::non_negative("shadow_bias_m", l.shadow_bias_m)?;
         }
         if let Some(n) = &self.noise {
-            if !(n.sigma.is_finite() && n.sigma >= 0.0) {
-                return Err(Error::InvalidParam {
-                    name: "noise sigma",
-                    reason: format!("must be finite and >= 0, got {}", n.sigma),
-                });
-            }
+            crate::check::non_negative("noise sigma", f64::from(n.sigma))?;
         }
         Ok(())
     }

@@ -166,12 +166,7 @@ pub fn shade(
             }
         }
         Shadows::PerPixel { query, bias_m } => {
-            if !(bias_m.is_finite() && *bias_m >= 0.0) {
-                return Err(Error::InvalidParam {
-                    name: "shadow bias_m",
-                    reason: format!("must be finite and >= 0, got {bias_m}"),
-                });
-            }
+            crate::check::non_negative("shadow bias_m", *bias_m)?;
             check_lights_outside(query, lights)?;
         }
     }

@@ -181,12 +181,7 @@ pub fn vertices_seen(mesh: &TriMesh, views: &[&RenderedView]) -> Result<Vec<bool
 }
 
 fn check_bias(bias_m: f64) -> Result<()> {
-    if !(bias_m.is_finite() && bias_m >= 0.0) {
-        return Err(Error::InvalidParam {
-            name: "shadow bias_m",
-            reason: format!("must be finite and >= 0, got {bias_m}"),
-        });
-    }
+    crate::check::non_negative("shadow bias_m", bias_m)?;
     Ok(())
 }
 
