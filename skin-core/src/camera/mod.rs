@@ -44,7 +44,7 @@ pub use dlt::{
     ProjectionDecomposition, MIN_CORRESPONDENCES,
 };
 pub use intrinsics::Intrinsics;
-pub use model::{Camera, Projection, ProjectionJacobian, Ray, MIN_DEPTH_M};
+pub use model::{Camera, Projection, ProjectionJacobian, MIN_DEPTH_M};
 pub use opencv::{OpenCvCalibration, OpenCvExport, OpenCvImport, OpenCvParams};
 pub use rig::Rig;
 pub use synthetic::{
