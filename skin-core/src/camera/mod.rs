@@ -47,7 +47,5 @@ pub use intrinsics::Intrinsics;
 pub use model::{Camera, Projection, ProjectionJacobian, MIN_DEPTH_M};
 pub use opencv::{OpenCvCalibration, OpenCvExport, OpenCvImport, OpenCvParams};
 pub use rig::Rig;
-pub use synthetic::{
-    standard_normal, synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams,
-};
+pub use synthetic::{synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams};
 pub use time_offset::{estimate_time_offset, SampledSignal, TimeOffset, TimeOffsetParams};
