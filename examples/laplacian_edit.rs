@@ -23,6 +23,7 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{
     cotangent_laplacian, read_obj_group, shapes, write_obj, LaplacianParams, TriMesh,
 };
+use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use example_kit::{Headline, Run};
 use nalgebra::DMatrix;
@@ -76,8 +77,8 @@ fn peer(run: &Run, level: u32, reps: usize, params: &LsqParams) -> AnyResult<ser
     let l = l?;
     let v = positions(&mesh);
     let b = (&l * &v) * PEER_W_L;
-    let chosen = shapes::SplitMix64::new(40).choose(n, PEER_CONSTRAINTS)?;
-    let noise = shapes::SplitMix64::new(41).normal(PEER_CONSTRAINTS * 3);
+    let chosen = SplitMix64::new(40).choose(n, PEER_CONSTRAINTS)?;
+    let noise = SplitMix64::new(41).normal(PEER_CONSTRAINTS * 3);
     let p = DMatrix::from_fn(PEER_CONSTRAINTS, 3, |r, k| {
         v[(chosen[r], k)] + PEER_NOISE * noise[3 * r + k]
     });

@@ -88,12 +88,7 @@ fn cmu_walk_capture_truth_is_consistent() {
                         .camera()
                         .ray(DVec2::new(x as f64, y as f64))
                         .expect("pixel ray");
-                    let hit = query
-                        .cast_ray(
-                            dynamic_shapes::core::mesh::Ray::new(ray.origin, ray.direction),
-                            f64::INFINITY,
-                        )
-                        .expect("ray cast");
+                    let hit = query.cast_ray(ray, f64::INFINITY).expect("ray cast");
                     let d = depth.get_pixel(x, y)[0];
                     match hit {
                         Some(h) if obs.mask.get(x, y) => {

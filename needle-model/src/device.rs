@@ -215,5 +215,4 @@ fn track_at(track: &DeviceTrack, t: f64) -> Option<DVec3> {
 }
 
 #[cfg(test)]
-#[path = "device_tests.rs"]
 mod tests;

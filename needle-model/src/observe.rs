@@ -558,5 +558,4 @@ fn traverse(
 }
 
 #[cfg(test)]
-#[path = "observe_tests.rs"]
 pub(crate) mod tests;

@@ -315,6 +315,7 @@ mod tests {
     use crate::silhouette_error::SilhouetteErrorParams;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Exp};
     use skin_core::camera::{Camera, Intrinsics};
     use skin_core::math::DVec3;
     use skin_core::skeleton::{human_skeleton, HumanParams};
@@ -338,6 +339,7 @@ mod tests {
         let body = NeedleBody::new(&sk, &BodyLayout::table_3_1().with_density(0.2)).unwrap();
         let mut store = ObservationStore::new(&body.store_shapes()).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let overestimate = Exp::new(1.0 / 0.02f32).unwrap(); // mean 2 cm
         let pose = |rng: &mut ChaCha8Rng| -> Vec<f64> {
             let mut th = sk.rest_pose();
             for v in th.iter_mut().skip(6) {
@@ -352,8 +354,8 @@ mod tests {
                 let x = prim.config.point(&fk).unwrap();
                 let obs: Vec<(u16, f32)> = (0..prim.needle_count())
                     .map(|j| {
-                        let u: f32 = rng.random_range(f32::EPSILON..1.0);
-                        (j as u16, (TRUE_LENGTH - 0.02 * u.ln()).min(0.1))
+                        let excess = overestimate.sample(&mut rng);
+                        (j as u16, (TRUE_LENGTH + excess).min(0.1))
                     })
                     .collect();
                 store.push_sample(p, &x, &obs).unwrap();

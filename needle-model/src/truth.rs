@@ -9,7 +9,8 @@
 //! that any number of models can be scored cheaply with [`TestSet::errors`].
 
 use glam::DVec3;
-use skin_core::mesh::{MeshQuery, Ray, TriMesh};
+use skin_core::math::Ray;
+use skin_core::mesh::{MeshQuery, TriMesh};
 use skin_core::studio::{FrameTruth, Performer};
 
 use crate::primitive::NeedleBody;

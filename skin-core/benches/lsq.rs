@@ -11,6 +11,7 @@ use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
 use skin_core::lsq::{LsqParams, LsqProblem};
 use skin_core::mesh::{cotangent_laplacian, shapes, LaplacianParams};
+use skin_core::random::SplitMix64;
 use std::hint::black_box;
 
 struct Peer {
@@ -26,10 +27,8 @@ fn peer_problem(level: u32) -> (skin_core::mesh::TriMesh, Peer) {
     let l = cotangent_laplacian(&mesh, &LaplacianParams::default()).expect("valid mesh");
     let v = DMatrix::from_fn(n, 3, |i, k| mesh.vertices[i][k]);
     let b = (&l * &v) * 0.5;
-    let chosen = shapes::SplitMix64::new(40)
-        .choose(n, 500)
-        .expect("500 <= n");
-    let noise = shapes::SplitMix64::new(41).normal(500 * 3);
+    let chosen = SplitMix64::new(40).choose(n, 500).expect("500 <= n");
+    let noise = SplitMix64::new(41).normal(500 * 3);
     let p = DMatrix::from_fn(500, 3, |r, k| v[(chosen[r], k)] + 0.05 * noise[3 * r + k]);
     let mut coo = CooMatrix::new(500, n);
     for (r, &i) in chosen.iter().enumerate() {

@@ -8,10 +8,8 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skin_core::math::DVec3;
-use skin_core::mesh::{
-    mesh_distance, read_obj_group, vertex_normals, MeshQuery, NormalWeighting, Ray,
-};
+use skin_core::math::{DVec3, Ray};
+use skin_core::mesh::{mesh_distance, read_obj_group, vertex_normals, MeshQuery, NormalWeighting};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {

@@ -15,6 +15,7 @@
 //! | [`raster`] | CPU rasteriser: silhouette masks, depth along the ray, camera-space normals, triangle ids and barycentrics, exact under radial distortion | Sand §6.2 (silhouette error) |
 //! | [`stats`] | mean, median, percentiles (NumPy's interpolation), RMS of samples | |
 //! | [`check`] | input checks: finite, positive, in range, index in bounds | |
+//! | [`random`] | the counter-based SplitMix64 stream of the peer benchmarks (bit-exact inputs, order-independent noise) | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
 #![warn(missing_docs)]
 
@@ -26,6 +27,7 @@ pub mod lsq;
 pub mod math;
 pub mod mesh;
 pub mod optim;
+pub mod random;
 pub mod raster;
 pub mod skeleton;
 pub mod stats;

@@ -44,10 +44,8 @@ pub use dlt::{
     ProjectionDecomposition, MIN_CORRESPONDENCES,
 };
 pub use intrinsics::Intrinsics;
-pub use model::{Camera, Projection, ProjectionJacobian, Ray, MIN_DEPTH_M};
+pub use model::{Camera, Projection, ProjectionJacobian, MIN_DEPTH_M};
 pub use opencv::{OpenCvCalibration, OpenCvExport, OpenCvImport, OpenCvParams};
 pub use rig::Rig;
-pub use synthetic::{
-    standard_normal, synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams,
-};
+pub use synthetic::{synthetic_calibration, SyntheticCalibration, SyntheticCalibrationParams};
 pub use time_offset::{estimate_time_offset, SampledSignal, TimeOffset, TimeOffsetParams};

@@ -8,29 +8,13 @@ use super::distortion::RadialDistortion;
 use super::intrinsics::Intrinsics;
 use crate::check::all_finite;
 use crate::error::{Error, Result};
-use crate::math::{DAffine3, DMat3, DVec2, DVec3};
+use crate::math::{DAffine3, DMat3, DVec2, DVec3, Ray};
 
 /// Points closer to the camera plane than this (m, camera z) are treated as behind the camera:
 /// their projection is numerically meaningless.
 pub const MIN_DEPTH_M: f64 = 1e-9;
 /// Tolerance on `‖RᵀR − I‖` and `|det R − 1|` when checking that a pose is rigid.
 const RIGID_TOLERANCE: f64 = 1e-6;
-
-/// A world-space ray: `origin + s·direction`, `s ≥ 0`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Ray {
-    /// Start point, world frame, m (the camera centre for pixel rays).
-    pub origin: DVec3,
-    /// Unit direction, world frame.
-    pub direction: DVec3,
-}
-
-impl Ray {
-    /// The point at distance `s` (m) along the ray.
-    pub fn at(&self, s: f64) -> DVec3 {
-        self.origin + self.direction * s
-    }
-}
 
 /// A projected point: distorted pixel and depth along the optical axis.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -3,6 +3,7 @@
 //! points of Sand 2003 §4.1), observed with Gaussian pixel noise.
 
 use rand::{Rng, RngExt};
+use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
 use super::distortion::RadialDistortion;
@@ -73,13 +74,6 @@ pub struct SyntheticCalibration {
     pub pixels_exact: Vec<DVec2>,
 }
 
-/// One standard normal sample (Box–Muller).
-pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // in (0, 1]
-    let u2: f64 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
-
 /// Draws a camera looking at the origin from `distance_m` (random azimuth, 5–25° elevation,
 /// world up +Y) and `n_points` uniform points of the volume that it sees.
 ///
@@ -138,7 +132,10 @@ pub fn synthetic_calibration<R: Rng + ?Sized>(
     }
     let pixels = pixels_exact
         .iter()
-        .map(|px| *px + DVec2::new(standard_normal(rng), standard_normal(rng)) * p.noise_px)
+        .map(|px| {
+            let noise = DVec2::new(rng.sample(StandardNormal), rng.sample(StandardNormal));
+            *px + noise * p.noise_px
+        })
         .collect();
     Ok(SyntheticCalibration {
         truth,

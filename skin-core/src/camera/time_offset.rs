@@ -282,12 +282,11 @@ pub fn estimate_time_offset(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::synthetic::standard_normal;
-    use rand::SeedableRng;
+    use rand::{RngExt, SeedableRng};
+    use rand_distr::StandardNormal;
 
     /// Smooth pseudo-random motion: a sum of sinusoids with random frequencies and phases.
     fn motion(seed: u64) -> impl Fn(f64) -> f64 {
-        use rand::RngExt;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let comps: Vec<(f64, f64, f64)> = (0..6)
             .map(|_| {
@@ -317,7 +316,11 @@ mod tests {
     ) -> SampledSignal {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let v = (0..n)
-            .map(|i| gain * f(start + i as f64 / rate) + 3.0 + noise * standard_normal(&mut rng))
+            .map(|i| {
+                gain * f(start + i as f64 / rate)
+                    + 3.0
+                    + noise * rng.sample::<f64, _>(StandardNormal)
+            })
             .collect();
         SampledSignal::new(start, rate, v).unwrap()
     }

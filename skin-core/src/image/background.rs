@@ -487,12 +487,11 @@ mod tests {
     use ::image::{Luma, Rgb};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
 
-    /// Gaussian noise N(0, sigma²) by the Box–Muller transform.
+    /// Gaussian noise N(0, sigma²).
     fn noise(rng: &mut ChaCha8Rng, sigma: f32) -> f32 {
-        let u1 = 1.0 - rng.random::<f64>(); // in (0, 1]
-        let u2 = rng.random::<f64>();
-        ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32 * sigma
+        rng.sample::<f64, _>(StandardNormal) as f32 * sigma
     }
 
     fn backdrop(x: u32, y: u32) -> [f32; 3] {

@@ -301,6 +301,7 @@ fn voronoi_shares(p: [DVec3; 3], dbl: f64) -> [f64; 3] {
 mod tests {
     use super::*;
     use crate::mesh::shapes;
+    use crate::random::SplitMix64;
     use nalgebra::DMatrix;
     use proptest::prelude::*;
 
@@ -310,7 +311,7 @@ mod tests {
 
     /// Flat grid of k × k vertices in the plane z = 0 with jittered interior vertices.
     fn flat_grid(k: u32, jitter: f64, seed: u64) -> TriMesh {
-        let rng = shapes::SplitMix64::new(seed);
+        let rng = SplitMix64::new(seed);
         let u = rng.uniform((2 * k * k) as usize);
         let mut vertices = Vec::new();
         for y in 0..k {
@@ -488,7 +489,7 @@ mod tests {
         #[test]
         fn invariants(seed in 0u64..10_000, level in 0u32..3) {
             let mut m = shapes::peer_blob(level).unwrap();
-            let u = shapes::SplitMix64::new(seed).normal(3 * m.vertices.len());
+            let u = SplitMix64::new(seed).normal(3 * m.vertices.len());
             for (i, v) in m.vertices.iter_mut().enumerate() {
                 *v += 0.05 * DVec3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
             }

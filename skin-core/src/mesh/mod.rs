@@ -40,7 +40,7 @@ pub use obj::{
     write_obj, write_obj_to, ObjFile, ObjGroupMesh, DEFAULT_GROUP,
 };
 pub use ply::{read_ply, read_ply_from_reader, write_ply, write_ply_to, PlyEncoding};
-pub use query::{ClosestPoint, MeshQuery, Ray, RayHit};
+pub use query::{ClosestPoint, MeshQuery, RayHit};
 pub use skinning::{skin, SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW};
 pub use surface_point::{
     closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,

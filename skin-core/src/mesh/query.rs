@@ -17,7 +17,7 @@
 //! only for a closed, consistently outward-oriented mesh; on an open mesh it tells on which side
 //! of the nearby surface the point lies.
 
-use crate::math::DVec3;
+use crate::math::{DVec3, Ray};
 use crate::mesh::normals::triangle_normal;
 use crate::mesh::surface_point::{closest_point_on_triangle, SurfacePoint};
 use crate::mesh::TriMesh;
@@ -26,22 +26,6 @@ use parry3d_f64::query::{PointQueryWithLocation, Ray as ParryRay, RayCast};
 use parry3d_f64::shape::{TriMesh as ParryTriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-
-/// A ray `origin + t * direction`, `t ≥ 0`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Ray {
-    /// Start point (mesh units and frame).
-    pub origin: DVec3,
-    /// Direction (any non-zero length; normalised internally).
-    pub direction: DVec3,
-}
-
-impl Ray {
-    /// A ray from `origin` along `direction`.
-    pub fn new(origin: DVec3, direction: DVec3) -> Self {
-        Ray { origin, direction }
-    }
-}
 
 /// The closest surface point to a query point.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -1,79 +1,11 @@
-//! Procedural meshes and the deterministic random stream of the peer benchmarks, so tests,
-//! benches and examples can regenerate bit-identical inputs to the Python peers in
-//! `bench/peers/` (see its README, "Deterministic inputs", and `laplacian.py`).
+//! Procedural meshes of the peer benchmarks, so tests, benches and examples can regenerate
+//! bit-identical inputs to the Python peers in `bench/peers/` (see its README, "Deterministic
+//! inputs", and `laplacian.py`); their random inputs come from [`crate::random::SplitMix64`].
 
 use crate::math::DVec3;
 use crate::mesh::TriMesh;
 use crate::{Error, Result};
 use std::collections::HashMap;
-
-/// The golden-ratio increment of SplitMix64.
-const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
-
-/// Counter-based SplitMix64 stream of the peer benchmarks (`peerlib.py`): the `i`-th output
-/// of the classic sequential SplitMix64 generator whose state starts at `seed`.
-///
-/// `u64(seed, i) = mix(seed + (i + 1)·GOLDEN)` with wrapping arithmetic. Uniform and normal
-/// deviates and "choose m of n" follow `peerlib.py` exactly (uniforms bit-exact, normals to
-/// the last ulp of libm).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct SplitMix64 {
-    /// Seed of the stream.
-    pub seed: u64,
-}
-
-impl SplitMix64 {
-    /// The stream with this seed.
-    pub fn new(seed: u64) -> Self {
-        Self { seed }
-    }
-
-    /// The `i`-th 64-bit output.
-    pub fn u64_at(&self, i: u64) -> u64 {
-        let mut z = self
-            .seed
-            .wrapping_add(i.wrapping_add(1).wrapping_mul(GOLDEN));
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// `n` uniforms in `[0, 1)`: `(u64(seed, i) >> 11) · 2⁻⁵³`.
-    pub fn uniform(&self, n: usize) -> Vec<f64> {
-        (0..n as u64)
-            .map(|i| (self.u64_at(i) >> 11) as f64 * (-53f64).exp2())
-            .collect()
-    }
-
-    /// `n` standard normals by Box–Muller (cosine branch only) on `uniform(2n)`:
-    /// `sqrt(−2 ln(1 − U[2i])) · cos(2π U[2i+1])`. Multi-dimensional arrays are filled in
-    /// row-major order.
-    pub fn normal(&self, n: usize) -> Vec<f64> {
-        let u = self.uniform(2 * n);
-        u.chunks_exact(2)
-            .map(|p| (-2.0 * (1.0 - p[0]).ln()).sqrt() * (std::f64::consts::TAU * p[1]).cos())
-            .collect()
-    }
-
-    /// `m` distinct indices of `0..n`: those of the `m` smallest keys of `uniform(n)` (stable
-    /// order on ties, as `np.argsort(kind="stable")[:m]`).
-    ///
-    /// # Errors
-    /// [`Error::InvalidParam`] if `m > n`.
-    pub fn choose(&self, n: usize, m: usize) -> Result<Vec<usize>> {
-        if m > n {
-            return Err(Error::InvalidParam {
-                name: "m",
-                reason: format!("cannot choose {m} of {n}"),
-            });
-        }
-        let keys = self.uniform(n);
-        let mut idx: Vec<usize> = (0..n).collect();
-        idx.sort_by(|&a, &b| keys[a].total_cmp(&keys[b]));
-        idx.truncate(m);
-        Ok(idx)
-    }
-}
 
 /// Golden ratio φ.
 const PHI: f64 = 1.618_033_988_749_895;
@@ -297,29 +229,6 @@ mod tests {
         assert!(uv_sphere(DVec3::ZERO, 1.0, 1, 8).is_err());
         assert!(uv_sphere(DVec3::ZERO, 1.0, 4, 2).is_err());
         assert!(uv_sphere(DVec3::ZERO, f64::NAN, 4, 8).is_err());
-    }
-
-    #[test]
-    fn splitmix_check_values() {
-        let s = SplitMix64::new(1_234_567);
-        assert_eq!(s.u64_at(0), 6_457_827_717_110_365_317);
-        assert_eq!(s.u64_at(1), 3_203_168_211_198_807_973);
-        assert_eq!(s.u64_at(2), 9_817_491_932_198_370_423);
-        let u = s.uniform(1000);
-        assert!(u.iter().all(|&x| (0.0..1.0).contains(&x)));
-        let n = SplitMix64::new(5).normal(20_000);
-        let mean = n.iter().sum::<f64>() / n.len() as f64;
-        let var = n.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n.len() as f64;
-        assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.05);
-        let c = SplitMix64::new(40).choose(100, 10).unwrap();
-        let keys = SplitMix64::new(40).uniform(100);
-        let max_chosen = c.iter().map(|&i| keys[i]).fold(0.0, f64::max);
-        let unchosen_min = (0..100)
-            .filter(|i| !c.contains(i))
-            .map(|i| keys[i])
-            .fold(1.0, f64::min);
-        assert!(max_chosen < unchosen_min);
-        assert!(SplitMix64::new(1).choose(3, 4).is_err());
     }
 
     #[test]

@@ -551,3 +551,6 @@ pub fn read_bvh(path: impl AsRef<Path>, params: &BvhParams) -> Result<Bvh> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     parse_bvh(&text, params)
 }
+
+#[cfg(test)]
+mod tests;

@@ -508,3 +508,6 @@ fn frame_to_axes(fk: &ForwardKinematics, f: &AttachedFrame, axes: AngularFrame) 
         AngularFrame::Local => q.inverse(),
     })
 }
+
+#[cfg(test)]
+mod tests;

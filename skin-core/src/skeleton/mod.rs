@@ -43,11 +43,6 @@ mod jacobian;
 mod model;
 mod motion;
 
-#[cfg(test)]
-mod bvh_tests;
-#[cfg(test)]
-mod fd_tests;
-
 pub use bvh::{parse_bvh, read_bvh, Bvh, BvhParams, CMU_METRES_PER_UNIT};
 pub use bvh_export::{to_bvh_string, write_bvh};
 pub use dof::{Dof, DofKind, DofLimits};

@@ -524,5 +524,4 @@ pub fn play_bvh(
 }
 
 #[cfg(test)]
-#[path = "retarget_tests.rs"]
 mod tests;

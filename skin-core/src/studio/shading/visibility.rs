@@ -12,8 +12,8 @@
 use rayon::prelude::*;
 
 use super::lights::Light;
-use crate::math::DVec3;
-use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, Ray, TriMesh};
+use crate::math::{DVec3, Ray};
+use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use crate::raster::{RenderedView, NO_TRIANGLE};
 use crate::{Error, Result};
 

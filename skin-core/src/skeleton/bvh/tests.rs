@@ -1,8 +1,8 @@
 //! BVH import/export tests: hand-written files with known answers, malformed input, round
 //! trips, and the real files in `data/` (CMU 131_01, MakeHuman walk1/dance1).
 
-use super::*;
 use crate::math::{DMat3, DVec3};
+use crate::skeleton::*;
 use crate::Error;
 use std::path::PathBuf;
 

@@ -1,8 +1,8 @@
 //! Finite-difference checks of the analytic Jacobians, their derivatives and `J̇θ̇`, on random
 //! skeletons (random trees, axes, rotation and translation DOFs) and on the human skeleton.
 
-use super::*;
 use crate::math::{DQuat, DVec3};
+use crate::skeleton::*;
 use crate::Error;
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;

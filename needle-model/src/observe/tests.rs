@@ -3,7 +3,8 @@
 use super::*;
 use crate::primitive::BodyLayout;
 use skin_core::camera::{Intrinsics, RadialDistortion};
-use skin_core::mesh::{MeshQuery, Ray as MeshRay, TriMesh};
+use skin_core::math::Ray;
+use skin_core::mesh::{MeshQuery, TriMesh};
 use skin_core::skeleton::Motion;
 use skin_core::studio::{
     fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
@@ -92,7 +93,7 @@ fn check_against_truth(sc: &Scene) {
             let t = fk.world_from_joint()[prim.carrier];
             for j in 0..prim.needle_count() {
                 let (o, d) = prim.needle_world(&t, j);
-                let Some(hit) = query.cast_ray(MeshRay::new(o, d), 1.0).unwrap() else {
+                let Some(hit) = query.cast_ray(Ray::new(o, d), 1.0).unwrap() else {
                     continue;
                 };
                 // Only needles whose origin is inside the body (first hit leaves the mesh).
