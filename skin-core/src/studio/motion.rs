@@ -569,6 +569,7 @@ pub fn pose_shares(
     let mut counts: HashMap<Vec<i64>, usize> = HashMap::new();
     Ok((0..skeleton.joint_count())
         .map(|j| {
+            // The root (no parent) is not counted.
             skeleton.joints()[j].parent?;
             let dofs: Vec<usize> = skeleton
                 .joint_dofs(j)
