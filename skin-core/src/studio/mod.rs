@@ -7,9 +7,12 @@
 //!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices.
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
 //!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
-//! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
-//!   playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads, maps, retargets
-//!   and resamples in one call).
+//! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
+//!   [`exercise_motion`] (every limited DOF at once through 90 % of its range, turning on the
+//!   spot), and BVH playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads,
+//!   maps, retargets and resamples in one call). [`range_coverage`] and [`max_pose_share`]
+//!   (per bone [`pose_shares`]) measure how much of each range a motion visits and how long
+//!   it holds any one pose.
 //! * Rendering is [`crate::raster`] (in the default build: methods use it at run time).
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
@@ -45,7 +48,11 @@ pub use makehuman::{
     read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,
     MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
 };
-pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
+pub use motion::{
+    exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
+    DofCoverage, ExerciseParams, FastMotionParams, PoseShare, RangeOfMotionParams,
+    DEFAULT_EXERCISE_DURATION_S, DEFAULT_EXERCISE_TURN_DEG_PER_S,
+};
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
