@@ -26,7 +26,7 @@ pub struct Common {
     /// Small CI-sized run (under a minute) instead of the full-size workload.
     #[arg(long)]
     pub quick: bool,
-    /// Folder for the example's pictures and files [default: out/<example>].
+    /// Folder for the example's pictures and files (default: out/NAME, NAME the example).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }

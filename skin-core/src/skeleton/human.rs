@@ -69,7 +69,7 @@ fn rot(joint: &str, dof: &str, axis: DVec3, min_deg: f64, max_deg: f64) -> Dof {
 /// DOF names are `"<joint>.<dof>"`, e.g. `"l_knee.flexion"`.
 ///
 /// # Errors
-/// [`Error::InvalidParam`] unless `height_m` is finite and positive.
+/// [`Error::InvalidParam`](crate::Error::InvalidParam) unless `height_m` is finite and positive.
 ///
 /// # Example
 /// ```

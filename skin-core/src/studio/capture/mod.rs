@@ -20,7 +20,7 @@
 //! **Checks per frame.** A camera centre inside the performer's body (parity rays through the
 //! posed mesh) is an [`Error::InvalidParam`] naming the camera and frame; a camera that sees
 //! none of the body is an [`Error::NotVisible`] naming them (unless
-//! [`crate::studio::RenderParams::allow_empty`]); lights inside the body are rejected as in
+//! [`crate::raster::RenderParams::allow_empty`]); lights inside the body are rejected as in
 //! [`crate::studio::shading::check_lights_outside`].
 
 mod frame;

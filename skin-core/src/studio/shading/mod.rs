@@ -16,7 +16,7 @@
 //! | `lights.rs` | [`Light`] and its irradiance |
 //! | `dome.rs` | [`dome_lights`]: the light-stage dome of Vlasic §3.2.1 at real positions |
 //! | `visibility.rs` | [`LightVisibility`]: per-vertex shadow-ray visibility through the BVH, lights-inside-the-body check |
-//! | `shade.rs` | [`shade`]: per-pixel Lambertian shading of a [`crate::studio::RenderedView`] with an [`Albedo`] |
+//! | `shade.rs` | [`shade`]: per-pixel Lambertian shading of a [`crate::raster::RenderedView`] with an [`Albedo`] |
 
 mod dome;
 mod lights;

@@ -106,7 +106,7 @@ pub fn srgb8(radiance: &Rgb32FImage, exposure: f32) -> RgbImage {
     img
 }
 
-/// Shades every covered pixel of `view` (rendered from `mesh` with [`crate::studio::Buffers`]
+/// Shades every covered pixel of `view` (rendered from `mesh` with [`crate::raster::Buffers`]
 /// `triangle` on): `L_o = ρ/π Σ_l V_l E_l` at the visible point, with the smooth (area-weighted
 /// vertex) normal interpolated by the barycentrics. Parallel over rows; identical for any
 /// thread count.

@@ -144,7 +144,7 @@ impl LightVisibility {
 }
 
 /// Flags of the vertices whose faces are visible in any of `views` (rendered from `mesh` with
-/// [`crate::studio::Buffers`] `triangle` on): the vertices shading those views reads.
+/// [`crate::raster::Buffers`] `triangle` on): the vertices shading those views reads.
 ///
 /// # Errors
 /// [`Error::Empty`] if a view has no triangle buffer; [`Error::IndexOutOfRange`] for a
