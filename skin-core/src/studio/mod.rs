@@ -4,7 +4,8 @@
 //!
 //! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
 //!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
-//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices.
+//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices; opt-in pose-driven
+//!   muscle and joint shapes ([`PoseDeformParams`], a pure smooth function of θ).
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
 //!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`], and BVH
@@ -25,6 +26,7 @@ pub mod shading;
 mod deformation;
 mod makehuman;
 mod motion;
+mod muscles;
 mod performer;
 mod procedural_body;
 mod retarget;
@@ -46,6 +48,11 @@ pub use makehuman::{
     MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
 };
 pub use motion::{fast_motion, range_of_motion, FastMotionParams, RangeOfMotionParams};
+pub use muscles::{
+    activation_ramp, Bump, EffectAxis, EffectSide, PoseDeformParams, PoseEffect, Push,
+    DEFAULT_BICEPS_M, DEFAULT_BRACHIORADIALIS_M, DEFAULT_CALF_M, DEFAULT_DELTOID_M,
+    DEFAULT_ELBOW_VOLUME_M, DEFAULT_HAMSTRINGS_M, DEFAULT_KNEE_VOLUME_M, DEFAULT_TRUNK_M,
+};
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
