@@ -663,7 +663,8 @@ impl PoseModel {
             for (j, w) in weights.influences(v) {
                 let q = rotations[j as usize];
                 let r = *reference.get_or_insert(q);
-                blend = blend + if q.dot(r) < 0.0 { -q } else { q } * w;
+                let aligned = if q.dot(r) < 0.0 { -q } else { q };
+                blend += aligned * w;
             }
             let n = blend.length();
             let q = if n > 1e-9 {
