@@ -139,7 +139,9 @@ pub struct DeformationParams {
     pub flap: Option<FlapParams>,
     /// Pose-driven muscle and joint shapes ([`PoseDeformParams`]); `None` disables them.
     /// Default: `None` for now (opt-in), so the default performer's ground truth is unchanged;
-    /// `Some(PoseDeformParams::default())` switches on the human body's effects.
+    /// `Some(PoseDeformParams::default())` switches on the human body's effects (whose
+    /// biceps and hamstrings overlap the hinge [`bulge`](Self::bulge): set `bulge` to
+    /// [`DeformationParams::none`]'s to keep one model of each muscle).
     #[serde(default)]
     pub pose: Option<PoseDeformParams>,
 }

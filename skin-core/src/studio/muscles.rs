@@ -188,7 +188,7 @@ impl Default for PoseDeformParams {
     ///
     /// | effect | DOFs (reference) | amplitude | region, profile | side, push |
     /// | --- | --- | --- | --- | --- |
-    /// | `biceps` | `elbow.flexion` (90°) | 20 mm | upper arm, peak at 60 % down, ≈ 30 % of peak at 95 % | flexor, out |
+    /// | `biceps` | `elbow.flexion` (90°) | 20 mm | upper arm (and the forearm's weight near the elbow, so the skin weights' fade does not cut the profile), peak at 60 % down, ≈ 30 % of peak at 95 % | flexor, out |
     /// | `brachioradialis` | `elbow.flexion` (90°) | 8 mm | forearm, peak at 25 % | flexor, out |
     /// | `deltoid` | `shoulder.abduction` (90°) | 12 mm | upper arm and clavicle, peak at 15 % | lateral, out |
     /// | `calf` | `ankle.dorsiflexion` (−30°, i.e. 30° plantarflexion) | 10 mm | shank, peak at 30 % | posterior, out |
@@ -252,7 +252,7 @@ impl Default for PoseDeformParams {
                     DEFAULT_BICEPS_M,
                     "shoulder",
                     Bone,
-                    &["shoulder"],
+                    &["shoulder", "elbow"],
                     (0.6, 0.6, 0.55),
                     towards("elbow.flexion"),
                     Outward,

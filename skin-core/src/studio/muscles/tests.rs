@@ -223,6 +223,50 @@ fn each_effect_reaches_its_amplitude_in_its_region() {
     }
 }
 
+/// The biceps profile on the mesh: peak about 60 % down the upper arm, still about 30 % of it
+/// near the elbow.
+#[test]
+fn biceps_profile_along_the_upper_arm() {
+    let params = PoseDeformParams::default();
+    let e = params.effect("l_biceps").unwrap();
+    let p = with_pose(params.clone().only("l_biceps"));
+    let f = pose(&p, &e.reference_pose(&p.skeleton).unwrap());
+    let fk = p
+        .skeleton
+        .forward_kinematics(&p.skeleton.rest_pose())
+        .unwrap();
+    let at = |n: &str| fk.world_from_joint()[p.skeleton.joint_index(n).unwrap()].translation;
+    let (a, b) = (at("l_shoulder"), at("l_elbow"));
+    let band = |lo: f64, hi: f64| {
+        p.template
+            .vertices
+            .iter()
+            .zip(&f.pose_displacement)
+            .filter(|(x, _)| (lo..hi).contains(&((**x - a).dot(b - a) / (b - a).length_squared())))
+            .map(|(_, d)| d.length())
+            .fold(0.0, f64::max)
+    };
+    let bands: Vec<f64> = (0..12)
+        .map(|k| band(k as f64 * 0.1, k as f64 * 0.1 + 0.1))
+        .collect();
+    eprintln!(
+        "l_biceps max mm per tenth of the upper arm: {:.1?}",
+        bands.iter().map(|d| d * 1e3).collect::<Vec<_>>()
+    );
+    let peak = stats_max(&bands);
+    let k = bands.iter().position(|d| *d == peak).unwrap();
+    assert!((4..=6).contains(&k), "peak in tenth {k}");
+    let near_elbow = bands[9] / peak;
+    assert!(
+        (0.2..0.5).contains(&near_elbow),
+        "{near_elbow} of peak at 90–100 %"
+    );
+}
+
+fn stats_max(v: &[f64]) -> f64 {
+    crate::stats::max(v)
+}
+
 #[test]
 fn directions_follow_the_anatomy() {
     let params = PoseDeformParams::default();
@@ -316,11 +360,12 @@ fn deterministic_for_any_thread_count() {
 }
 
 #[test]
-fn pose_is_fast_enough() {
+fn pose_time_is_reported() {
     let p = full();
     let theta = mixed(p);
+    pose(p, &theta);
     let t0 = std::time::Instant::now();
-    let n = 20;
+    let n = 100;
     for _ in 0..n {
         pose(p, &theta);
     }
