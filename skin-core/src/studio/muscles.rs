@@ -437,11 +437,13 @@ pub(super) struct PoseModel {
     touched: Vec<u32>,
 }
 
+/// A check's error, restated for effect `effect` ("effect 'l_biceps': amplitude_m must be …").
 fn in_effect(effect: &str, e: Error) -> Error {
-    Error::InvalidParam {
-        name: "pose.effects",
-        reason: format!("effect '{effect}': {e}"),
-    }
+    let reason = match e {
+        Error::InvalidParam { name, reason } => format!("{name} {reason}"),
+        other => other.to_string(),
+    };
+    invalid(effect, reason)
 }
 
 fn invalid(effect: &str, reason: String) -> Error {
