@@ -2,7 +2,7 @@
 //! produce, so that ground truth differs from any skinned template and the methods (Vlasic
 //! §2.4–2.5 molding, Sand 2003 needles) have something real to recover.
 //!
-//! Two effects are added to the LBS surface:
+//! Two effects are added to the LBS surface, and a third on request:
 //!
 //! * **Muscle bulge.** For each hinge (elbow, knee) the proximal segment swells on its flexor
 //!   side in proportion to the flexion angle: vertex `v` moves by
@@ -20,7 +20,12 @@
 //!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem, and saturated smoothly at
 //!   [`FlapParams::max_lag_m`].
 //!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
+//! * **Pose-driven muscle and joint shapes** (opt-in, [`DeformationParams::pose`]): biceps,
+//!   deltoid, calf, trunk and joint-volume effects, a pure smooth function of θ
+//!   ([`PoseDeformParams`], module `muscles`), recorded separately in
+//!   [`PosedFrame::pose_displacement`](super::PosedFrame::pose_displacement).
 
+use super::muscles::{pose_model, PoseDeformParams, PoseModel};
 use crate::check::positive;
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::SkinWeights;
@@ -132,6 +137,13 @@ pub struct DeformationParams {
     pub bulge: BulgeParams,
     /// Hip flap; `None` disables it. Default: `Some(FlapParams::default())`.
     pub flap: Option<FlapParams>,
+    /// Pose-driven muscle and joint shapes ([`PoseDeformParams`]); `None` disables them.
+    /// Default: `None` for now (opt-in), so the default performer's ground truth is unchanged;
+    /// `Some(PoseDeformParams::default())` switches on the human body's effects (whose
+    /// biceps and hamstrings overlap the hinge [`bulge`](Self::bulge): set `bulge` to
+    /// [`DeformationParams::none`]'s to keep one model of each muscle).
+    #[serde(default)]
+    pub pose: Option<PoseDeformParams>,
 }
 
 impl Default for DeformationParams {
@@ -139,6 +151,7 @@ impl Default for DeformationParams {
         DeformationParams {
             bulge: BulgeParams::default(),
             flap: Some(FlapParams::default()),
+            pose: None,
         }
     }
 }
@@ -152,7 +165,14 @@ impl DeformationParams {
                 hinges: vec![],
             },
             flap: None,
+            pose: None,
         }
+    }
+
+    /// These parameters with the pose-driven deformation `pose` switched on.
+    pub fn with_pose(mut self, pose: PoseDeformParams) -> Self {
+        self.pose = Some(pose);
+        self
     }
 }
 
@@ -180,6 +200,8 @@ struct FlapModel {
 pub struct DeformationModel {
     bulges: Vec<BulgeModel>,
     flap: Option<FlapModel>,
+    #[serde(default)]
+    pose: Option<PoseModel>,
 }
 
 /// State of the deformation's dynamics across frames (the flap masses). Start from
@@ -310,7 +332,37 @@ impl DeformationModel {
             None => None,
             Some(fp) => flap_model(fp, skeleton, frames, rest_vertices, weights)?,
         };
-        Ok(DeformationModel { bulges, flap })
+        let pose = match &params.pose {
+            None => None,
+            Some(pp) => Some(pose_model(pp, skeleton, &rest, rest_vertices, weights)?),
+        };
+        Ok(DeformationModel { bulges, flap, pose })
+    }
+
+    /// Number of pose-driven effects (0 when the pose-driven deformation is off).
+    pub fn pose_effect_count(&self) -> usize {
+        self.pose.as_ref().map_or(0, PoseModel::effect_count)
+    }
+
+    /// Whether the pose-driven deformation is on.
+    pub fn has_pose(&self) -> bool {
+        self.pose.is_some()
+    }
+
+    /// The pose-driven displacement of every vertex at pose θ (zero vectors when it is off),
+    /// with the skinning transforms `world_from_rest` (one per joint) and the performer's
+    /// skin weights.
+    pub(super) fn pose_displacement(
+        &self,
+        theta: &[f64],
+        world_from_rest: &[DAffine3],
+        weights: &SkinWeights,
+    ) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; weights.vertex_count()];
+        if let Some(p) = &self.pose {
+            p.add_displacement(theta, world_from_rest, weights, &mut out);
+        }
+        out
     }
 
     /// Number of flap masses (0 when the flap is disabled or the template has no band).
@@ -413,7 +465,7 @@ impl DeformationModel {
 }
 
 /// Far end of a joint's distal segment at rest: its end site, else the mean of its children.
-fn distal_tip(skeleton: &Skeleton, frames: &[DAffine3], j: usize) -> DVec3 {
+pub(super) fn distal_tip(skeleton: &Skeleton, frames: &[DAffine3], j: usize) -> DVec3 {
     if let Some(e) = skeleton.joints()[j].end_site {
         return frames[j].transform_point3(e);
     }

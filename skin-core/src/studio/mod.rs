@@ -4,7 +4,8 @@
 //!
 //! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
 //!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
-//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices.
+//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices; opt-in pose-driven
+//!   muscle and joint shapes ([`PoseDeformParams`], a pure smooth function of θ).
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
 //!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
@@ -28,6 +29,7 @@ pub mod shading;
 mod deformation;
 mod makehuman;
 mod motion;
+mod muscles;
 mod performer;
 mod procedural_body;
 mod retarget;
@@ -52,6 +54,11 @@ pub use motion::{
     exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
     DofCoverage, ExerciseParams, FastMotionParams, PoseShare, RangeOfMotionParams,
     DEFAULT_EXERCISE_DURATION_S, DEFAULT_EXERCISE_TURN_DEG_PER_S,
+};
+pub use muscles::{
+    activation_ramp, Bump, EffectAxis, EffectSide, PoseDeformParams, PoseEffect, Push,
+    DEFAULT_BICEPS_M, DEFAULT_BRACHIORADIALIS_M, DEFAULT_CALF_M, DEFAULT_DELTOID_M,
+    DEFAULT_ELBOW_VOLUME_M, DEFAULT_HAMSTRINGS_M, DEFAULT_KNEE_VOLUME_M, DEFAULT_TRUNK_M,
 };
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};

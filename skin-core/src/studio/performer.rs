@@ -42,6 +42,11 @@ pub struct PosedFrame {
     pub lbs_vertices: Vec<DVec3>,
     /// Ground-truth vertices: LBS plus the non-skinning deformation, metres.
     pub true_vertices: Vec<DVec3>,
+    /// The pose-driven part of `true_vertices − lbs_vertices`, per vertex, metres: the
+    /// muscle and joint shapes of [`DeformationParams::pose`] (a pure function of θ), zero
+    /// vectors when that deformation is off. The rest of the difference is the hinge bulge and
+    /// the dynamic flap.
+    pub pose_displacement: Vec<DVec3>,
 }
 
 impl PosedFrame {
@@ -121,17 +126,6 @@ impl Performer {
         self.template.vertex_count()
     }
 
-    /// Linear blend skinning of the template for joint frames `world_from_joint`
-    /// (Vlasic §2.5.1, [`crate::mesh::skin`]) with `world_from_rest = world_from_joint ·
-    /// joint_from_world_rest`.
-    fn skin(&self, world_from_joint: &[DAffine3]) -> Result<Vec<DVec3>> {
-        skin(
-            &self.template.vertices,
-            &self.weights,
-            &self.world_from_rest(world_from_joint),
-        )
-    }
-
     /// The skinning transforms `world_from_rest[j] = world_from_joint[j] ·
     /// joint_from_world_rest[j]` that map rest-pose (template) coordinates to the pose whose
     /// joint frames are `world_from_joint` — what [`crate::mesh::skin`] takes to pose any
@@ -145,7 +139,8 @@ impl Performer {
             .collect()
     }
 
-    /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation.
+    /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation
+    /// (hinge bulge, pose-driven shapes when [`DeformationParams::pose`] is set, hip flap).
     /// `state` carries the flap's dynamics from frame to frame (start with
     /// `DeformationState::default()`); `dt_s` is the time since the previous call (ignored on
     /// the first).
@@ -162,10 +157,19 @@ impl Performer {
         let mut fk = ForwardKinematics::new(&self.skeleton);
         self.skeleton.forward_kinematics_into(theta, &mut fk)?;
         let world_from_joint = fk.world_from_joint().to_vec();
-        let lbs_vertices = self.skin(&world_from_joint)?;
+        let world_from_rest = self.world_from_rest(&world_from_joint);
+        let lbs_vertices = skin(&self.template.vertices, &self.weights, &world_from_rest)?;
         let mut true_vertices = lbs_vertices.clone();
         self.deformation
             .add_bulge(theta, &world_from_joint, &mut true_vertices);
+        let pose_displacement =
+            self.deformation
+                .pose_displacement(theta, &world_from_rest, &self.weights);
+        if self.deformation.has_pose() {
+            for (t, d) in true_vertices.iter_mut().zip(&pose_displacement) {
+                *t += *d;
+            }
+        }
         self.deformation
             .add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;
         Ok(PosedFrame {
@@ -173,6 +177,7 @@ impl Performer {
             world_from_joint,
             lbs_vertices,
             true_vertices,
+            pose_displacement,
         })
     }
 

@@ -90,7 +90,8 @@ fn size_error(what: &'static str) -> crate::Error {
 pub struct FrameTruth {
     /// The pose θ (one value per DOF of the performer's skeleton).
     pub theta: Vec<f64>,
-    /// Joint frames, joint positions, LBS and true vertices (world frame, m).
+    /// Joint frames, joint positions, LBS and true vertices, and the pose-driven part of the
+    /// truth (world frame, m).
     pub posed: PosedFrame,
     /// The ground-truth buffers of every camera (rig order).
     pub views: Vec<ViewTruth>,
