@@ -122,13 +122,14 @@ pub fn farthest_point_prototypes<R: Rng + ?Sized>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::Error;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
+    /// `count` points uniform in `[-1, 1)^dim`, flattened (a fixture of the shape tests too).
+    pub(crate) fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
         (0..count * dim)
             .map(|_| rng.random_range(-1.0f32..1.0))
             .collect()

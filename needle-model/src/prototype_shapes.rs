@@ -504,14 +504,9 @@ fn kth_of_sorted(lists: &mut [&[f32]], k: usize) -> f32 {
 mod tests {
     use super::*;
     use crate::prototype_locations::farthest_point_prototypes;
+    use crate::prototype_locations::tests::uniform_points;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    fn uniform_points(rng: &mut ChaCha8Rng, count: usize, dim: usize) -> Vec<f32> {
-        (0..count * dim)
-            .map(|_| rng.random_range(-1.0f32..1.0))
-            .collect()
-    }
 
     #[test]
     fn grid_adjacency_is_symmetric_ring_and_axial() {
