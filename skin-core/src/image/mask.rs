@@ -140,7 +140,11 @@ impl Mask {
     }
 
     /// Builds a mask from exactly `width · height` row-major flags, 64 at a time.
-    fn from_flags(width: u32, height: u32, flags: impl IntoIterator<Item = bool>) -> Self {
+    pub(crate) fn from_flags(
+        width: u32,
+        height: u32,
+        flags: impl IntoIterator<Item = bool>,
+    ) -> Self {
         let mut m = Mask::new(width, height);
         let mut flags = flags.into_iter();
         for w in &mut m.words {

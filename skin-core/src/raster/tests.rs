@@ -299,6 +299,17 @@ fn mask_only_fast_path_equals_full_mask_and_culling_is_exact_for_closed_meshes()
     assert_eq!(full.depth_image().unwrap().dimensions(), (70, 50));
     assert_eq!(full.normal_image().unwrap().dimensions(), (70, 50));
     assert!(fast.depth_image().is_err() && fast.normal_image().is_err());
+    let sil = full.silhouette();
+    assert_eq!(sil.dimensions(), (70, 50));
+    assert_eq!(sil.count(), full.covered_pixels);
+    for (k, &m) in full.mask.iter().enumerate() {
+        assert_eq!(sil.get((k % 70) as u32, (k / 70) as u32), m != 0);
+    }
+    assert_eq!(
+        fast.silhouette(),
+        sil,
+        "the mask-only path gives the same silhouette"
+    );
     // Reusing a view for another mesh overwrites every pixel.
     let mut reused = full.clone();
     let moved = uv_sphere(DVec3::new(0.3, 0.0, 0.0), 0.3, 16, 24);

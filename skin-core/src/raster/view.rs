@@ -50,9 +50,10 @@ impl RenderedView {
 
     /// The silhouette as a [`Mask`] (all background if the mask buffer was not rendered).
     pub fn silhouette(&self) -> Mask {
-        Mask::from_fn(self.width, self.height, |x, y| {
-            self.mask.get(self.index(x, y)).is_some_and(|&m| m != 0)
-        })
+        if self.mask.len() != self.pixel_count() {
+            return Mask::new(self.width, self.height);
+        }
+        Mask::from_flags(self.width, self.height, self.mask.iter().map(|&m| m != 0))
     }
 
     /// Row-major index of pixel `(x, y)`.
