@@ -50,8 +50,7 @@ fn median_ms<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
         out = f();
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    times.sort_by(f64::total_cmp);
-    (times[times.len() / 2], out)
+    (dynamic_shapes::core::stats::median(&times), out)
 }
 
 fn positions(mesh: &TriMesh) -> DMatrix<f64> {

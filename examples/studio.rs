@@ -40,14 +40,16 @@ use dynamic_shapes::core::raster::{Buffers, RenderParams, RenderedView, NO_TRIAN
 use dynamic_shapes::core::skeleton::{
     read_bvh, AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
 };
+use dynamic_shapes::core::stats::median;
 use dynamic_shapes::core::studio::shading::{
     dome_lights, shade, srgb8, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
     DEFAULT_SHADOW_BIAS_M,
 };
 use dynamic_shapes::core::studio::{
-    fast_motion, makehuman_performer, play_bvh, preview, procedural_performer, range_of_motion,
-    retarget, Capture, CaptureFrame, CaptureLighting, CaptureSpec, DeformationParams,
-    DeformationState, FastMotionParams, JointMap, Paint, Performer, PreviewPanel,
+    exercise_motion, fast_motion, makehuman_performer, max_pose_share, play_bvh, preview,
+    procedural_performer, range_coverage, range_of_motion, retarget, Capture, CaptureFrame,
+    CaptureLighting, CaptureSpec, DeformationParams, DeformationState, ExerciseParams,
+    FastMotionParams, JointMap, Paint, Performer, PoseDeformParams, PreviewPanel,
     ProceduralBodyParams, RangeOfMotionParams, RetargetParams, ViewTruth,
 };
 use example_kit::plot::{self as kplot, ColourBar};
@@ -89,12 +91,7 @@ fn median_ms(reps: usize, mut f: impl FnMut() -> AnyResult<()>) -> AnyResult<f64
         f()?;
         t.push(s.elapsed().as_secs_f64() * 1e3);
     }
-    Ok(median(t))
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    Ok(median(&t))
 }
 
 /// The synthetic capture studio end to end: the MakeHuman performer walking CMU 131_01 seen
@@ -229,7 +226,7 @@ fn main() -> AnyResult<()> {
             Ok(())
         })?);
     }
-    let raster_ms = median(per_view);
+    let raster_ms = median(&per_view);
     stage.println(format!(
         "raster {raster_ms:.2} ms per {w}x{h} view (mask + depth + normals)"
     ));
@@ -258,6 +255,14 @@ fn main() -> AnyResult<()> {
     let stage = run.stage("deformation figures", None);
     let deformation = deformation_figures(&performer)?;
     stage.finish("range of motion, fast motion, MakeHuman walk, procedural performer");
+    let stage = run.stage("exercise and pose-driven shapes", None);
+    let exercise = exercise_figures(&performer, &motion, quick)?;
+    stage.finish(format!(
+        "exercise: min range coverage {:.3}, max pose share {:.4}; pose-driven shapes up to {:.1} mm",
+        exercise["exercise_range_coverage_min"].as_f64().unwrap_or(f64::NAN),
+        exercise["exercise_max_pose_share"].as_f64().unwrap_or(f64::NAN),
+        exercise["pose_deform_max_mm"].as_f64().unwrap_or(f64::NAN),
+    ));
     let stage = run.stage("test pose", None);
     let pose = pose_picture(&performer, out)?;
     stage.finish("nonskinning_pose.png");
@@ -286,7 +291,7 @@ fn main() -> AnyResult<()> {
             "seconds": start.elapsed().as_secs_f64(),
     });
     let obj = figures.as_object_mut().ok_or("json object")?;
-    for extra in [deformation, pose] {
+    for extra in [deformation, exercise, pose] {
         if let serde_json::Value::Object(m) = extra {
             obj.extend(m);
         }
@@ -345,9 +350,104 @@ fn headlines(run: &mut Run, w: u32, h: u32) {
             "largest |truth − LBS| in the test pose",
             "mm",
         ),
+        Headline::new(
+            "exercise_range_coverage_min",
+            "free exercise: smallest share of a DOF's range visited",
+            "",
+        )
+        .goal(Goal::AtLeast(0.8))
+        .note("studio issue, 5 minutes at 30 fps"),
+        Headline::new(
+            "exercise_max_pose_share",
+            "free exercise: largest share of frames in one 5° pose cell",
+            "",
+        )
+        .goal(Goal::AtMost(0.05))
+        .note("studio issue; the range of motion's is rom_max_pose_share"),
+        Headline::new(
+            "pose_deform_max_mm",
+            "opt-in pose-driven shapes: largest displacement (walk, exercise)",
+            "mm",
+        ),
     ] {
         run.headline(hl);
     }
+}
+
+/// The free multi-DOF exercise (5 minutes at 30 fps, the acceptance length of the studio
+/// issue) measured by its range coverage and largest held-pose share, and the opt-in
+/// pose-driven muscle and joint shapes ([`PoseDeformParams`]) measured on the walk and on the
+/// exercise: their largest displacement, the largest number of vertices moved more than 2, 5
+/// and 10 mm in one frame, and the cost of posing with them.
+fn exercise_figures(p: &Performer, walk: &Motion, quick: bool) -> AnyResult<serde_json::Value> {
+    let exercise = exercise_motion(&p.skeleton, &ExerciseParams::default())?;
+    let coverage = range_coverage(&p.skeleton, &exercise)?
+        .iter()
+        .map(|c| c.coverage)
+        .fold(1.0, f64::min);
+    let share = max_pose_share(&p.skeleton, &exercise, 5.0)?;
+    let rom_share = max_pose_share(
+        &p.skeleton,
+        &range_of_motion(&p.skeleton, &RangeOfMotionParams::default())?,
+        5.0,
+    )?;
+    let muscled = Performer::new(
+        "makehuman with pose-driven shapes",
+        p.template.clone(),
+        p.skeleton.clone(),
+        p.weights.clone(),
+        &DeformationParams::default().with_pose(PoseDeformParams::default()),
+    )?;
+    // Every frame of the walk; the exercise every 10th frame (every 100th with --quick).
+    let stride = if quick { 100 } else { 10 };
+    let mut out = serde_json::Map::new();
+    let mut pose_ms = Vec::new();
+    let mut overall_max_mm = 0.0f64;
+    for (name, motion, step) in [("walk", walk, 1), ("exercise", &exercise, stride)] {
+        let (mut max_mm, mut over) = (0.0f64, [0usize; 3]);
+        for k in (0..motion.frame_count()).step_by(step) {
+            let t = Instant::now();
+            let f = muscled.pose(motion.frame(k), &mut DeformationState::default(), 0.0)?;
+            pose_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            let mm: Vec<f64> = f
+                .pose_displacement
+                .iter()
+                .map(|d| d.length() * 1e3)
+                .collect();
+            max_mm = max_mm.max(mm.iter().copied().fold(0.0, f64::max));
+            for (o, limit) in over.iter_mut().zip([2.0, 5.0, 10.0]) {
+                *o = (*o).max(mm.iter().filter(|&&d| d > limit).count());
+            }
+        }
+        overall_max_mm = overall_max_mm.max(max_mm);
+        out.insert(format!("{name}_pose_deform_max_mm"), json!(max_mm));
+        for (o, limit) in over.iter().zip([2, 5, 10]) {
+            out.insert(
+                format!("{name}_pose_deform_vertices_over_{limit}mm"),
+                json!(o),
+            );
+        }
+    }
+    out.insert("pose_deform_max_mm".into(), json!(overall_max_mm));
+    out.insert(
+        "pose_deform_vertices_over_5mm".into(),
+        json!(out["exercise_pose_deform_vertices_over_5mm"]
+            .as_u64()
+            .max(out["walk_pose_deform_vertices_over_5mm"].as_u64())),
+    );
+    out.insert(
+        "deform_ms_per_frame_with_pose".into(),
+        json!(median(&pose_ms)),
+    );
+    out.insert("exercise_frames".into(), json!(exercise.frame_count()));
+    out.insert("exercise_range_coverage_min".into(), json!(coverage));
+    out.insert("exercise_max_pose_share".into(), json!(share.share));
+    out.insert(
+        "exercise_max_pose_share_joint".into(),
+        json!(p.skeleton.joints()[share.joint].name),
+    );
+    out.insert("rom_max_pose_share".into(), json!(rom_share.share));
+    Ok(serde_json::Value::Object(out))
 }
 
 /// The non-skinning deformation of the performers over the studio's motions (the figures of
@@ -556,7 +656,7 @@ fn fk_jacobian_us(s: &Skeleton, reps: usize) -> AnyResult<f64> {
         }
         times.push(t.elapsed().as_secs_f64() * 1e6 / BATCH as f64);
     }
-    Ok(median(times))
+    Ok(median(&times))
 }
 
 /// A false-colour ramp (dark blue → cyan → yellow → red) of `t ∈ [0, 1]`.
