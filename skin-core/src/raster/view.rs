@@ -1,6 +1,6 @@
 //! The rendered buffers of one view and their conversion to `image` buffers.
 
-use image::{ImageBuffer, Luma, Rgb32FImage};
+use image::{ImageBuffer, Luma, Pixel, Rgb32FImage};
 use serde::{Deserialize, Serialize};
 
 use crate::image::Mask;
@@ -42,6 +42,26 @@ fn missing(what: &'static str) -> Error {
     Error::Empty { what }
 }
 
+/// A `width × height` image of row-major `samples` (channels interleaved): the one conversion
+/// of a rendered buffer, moved rather than copied (used by [`RenderedView`]'s image methods and
+/// by the studio's per-view ground truth).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] naming `what` unless there are `width · height · channels` samples.
+pub(crate) fn buffer_image<P: Pixel>(
+    width: u32,
+    height: u32,
+    samples: Vec<P::Subpixel>,
+    what: &'static str,
+) -> Result<ImageBuffer<P, Vec<P::Subpixel>>> {
+    let got = samples.len();
+    ImageBuffer::from_raw(width, height, samples).ok_or(Error::SizeMismatch {
+        what,
+        expected: width as usize * height as usize * usize::from(P::CHANNEL_COUNT),
+        got,
+    })
+}
+
 impl RenderedView {
     /// Number of pixels.
     pub fn pixel_count(&self) -> usize {
@@ -69,8 +89,12 @@ impl RenderedView {
         if self.depth_m.is_empty() {
             return Err(missing("depth buffer (enable Buffers::depth)"));
         }
-        ImageBuffer::from_raw(self.width, self.height, self.depth_m.clone())
-            .ok_or_else(|| missing("depth buffer of the view's size"))
+        buffer_image(
+            self.width,
+            self.height,
+            self.depth_m.clone(),
+            "depth buffer",
+        )
     }
 
     /// Camera-frame normals as a float RGB image (x, y, z).
@@ -82,7 +106,6 @@ impl RenderedView {
             return Err(missing("normal buffer (enable Buffers::normal)"));
         }
         let data = self.normal_camera.iter().flatten().copied().collect();
-        Rgb32FImage::from_raw(self.width, self.height, data)
-            .ok_or_else(|| missing("normal buffer of the view's size"))
+        buffer_image(self.width, self.height, data, "normal buffer")
     }
 }

@@ -5,7 +5,7 @@ use image::{ImageBuffer, LumaA, Rgb32FImage};
 
 use crate::image::{GrayF32Image, Mask};
 use crate::mesh::TriMesh;
-use crate::raster::RenderedView;
+use crate::raster::{buffer_image, RenderedView};
 use crate::studio::{Performer, PosedFrame};
 use crate::Result;
 
@@ -52,37 +52,26 @@ impl ViewTruth {
     /// Moves the buffers of a rendered view into image buffers (the mask is the
     /// observation's, not repeated here).
     pub(super) fn from_view(v: RenderedView) -> Result<Self> {
-        let (w, h) = (v.width, v.height);
-        let image = |data: Vec<f32>, what: &'static str| {
-            (!data.is_empty())
-                .then(|| GrayF32Image::from_raw(w, h, data).ok_or(size_error(what)))
+        // A buffer that was not rendered is empty and stays `None`.
+        fn rendered<P: image::Pixel>(
+            (w, h): (u32, u32),
+            samples: Vec<P::Subpixel>,
+            what: &'static str,
+        ) -> Result<Option<ImageBuffer<P, Vec<P::Subpixel>>>> {
+            (!samples.is_empty())
+                .then(|| buffer_image(w, h, samples, what))
                 .transpose()
-        };
+        }
+        let size = (v.width, v.height);
         Ok(Self {
-            depth_m: image(v.depth_m, "depth buffer")?,
-            camera_z_m: image(v.camera_z_m, "camera z buffer")?,
-            normals_camera: (!v.normal_camera.is_empty())
-                .then(|| {
-                    let data = v.normal_camera.into_iter().flatten().collect();
-                    Rgb32FImage::from_raw(w, h, data).ok_or(size_error("normal buffer"))
-                })
-                .transpose()?,
-            triangle_ids: (!v.triangle.is_empty())
-                .then(|| TriangleIdImage::from_raw(w, h, v.triangle).ok_or(size_error("ids")))
-                .transpose()?,
-            barycentric: (!v.bary.is_empty())
-                .then(|| {
-                    let data = v.bary.into_iter().flatten().collect();
-                    BarycentricImage::from_raw(w, h, data).ok_or(size_error("barycentrics"))
-                })
-                .transpose()?,
+            depth_m: rendered(size, v.depth_m, "depth buffer")?,
+            camera_z_m: rendered(size, v.camera_z_m, "camera z buffer")?,
+            normals_camera: rendered(size, v.normal_camera.concat(), "normal buffer")?,
+            triangle_ids: rendered(size, v.triangle, "triangle id buffer")?,
+            barycentric: rendered(size, v.bary.concat(), "barycentric buffer")?,
             covered_pixels: v.covered_pixels,
         })
     }
-}
-
-fn size_error(what: &'static str) -> crate::Error {
-    crate::Error::Empty { what }
 }
 
 /// The ground truth of one frame.
