@@ -396,7 +396,7 @@ fn exercise_figures(p: &Performer, walk: &Motion, quick: bool) -> AnyResult<serd
         p.template.clone(),
         p.skeleton.clone(),
         p.weights.clone(),
-        &DeformationParams::default().with_pose(PoseDeformParams::default()),
+        &DeformationParams::default().with_pose(Some(PoseDeformParams::default())),
     )?;
     // Every frame of the walk; the exercise every 10th frame (every 100th with --quick).
     let stride = if quick { 100 } else { 10 };

@@ -2,28 +2,27 @@
 //! produce, so that ground truth differs from any skinned template and the methods (Vlasic
 //! §2.4–2.5 molding, Sand 2003 needles) have something real to recover.
 //!
-//! Two effects are added to the LBS surface, and a third on request:
+//! Two effects are added to the LBS surface, each recorded separately in
+//! [`PosedFrame`](super::PosedFrame):
 //!
-//! * **Muscle bulge.** For each hinge (elbow, knee) the proximal segment swells on its flexor
-//!   side in proportion to the flexion angle: vertex `v` moves by
-//!   `A · max(θ_flex, 0) · w_bone(v) · sin²(π s_v) · max(0, r̂_v · f̂) · r̂_v`, expressed in the
-//!   proximal bone's frame, where `s_v ∈ [0, 1]` is the position along the bone, `r̂_v` the
-//!   radial direction from the bone axis, `f̂` the direction the distal segment swings to
-//!   under positive flexion and `w_bone` the vertex's skin weight on the bone. The displacement
-//!   depends on the *child* joint's angle, which LBS of the parent bone cannot express. It is
-//!   exactly zero at θ_flex ≤ 0 and grows linearly with flexion.
-//! * **Hip flap.** A loose cloth-like band around the hips lags behind the body: `K` point
+//! * **Pose-driven muscle and joint shapes** ([`DeformationParams::pose`], on by default):
+//!   biceps, brachioradialis, deltoid, calf, hamstrings, trunk and joint-volume effects, a pure
+//!   smooth function of θ ([`PoseDeformParams`], module `muscles`), in
+//!   [`PosedFrame::pose_displacement`](super::PosedFrame::pose_displacement).
+//! * **Hip flap** (dynamic, in
+//!   [`PosedFrame::dynamic_displacement`](super::PosedFrame::dynamic_displacement)). A loose
+//!   cloth-like band around the hips lags behind the body: `K` point
 //!   masses spaced in azimuth around the pelvis each follow the skinned position of an anchor
 //!   vertex of the band through a damped spring, `m ẍ = −k (x − T) − c (ẋ − Ṫ)` (second-order
 //!   dynamics, integrated with backward Euler substeps, unconditionally stable and
 //!   deterministic). A band vertex moves by the lag `x − T` of the two masses nearest in
-//!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem, and saturated smoothly at
-//!   [`FlapParams::max_lag_m`].
+//!   azimuth (linearly blended), scaled by a profile that is 0 at the waist and 1 at the hem,
+//!   and saturated smoothly at [`FlapParams::max_lag_m`].
 //!   The state ([`DeformationState`]) is explicit: the same inputs give the same frames.
-//! * **Pose-driven muscle and joint shapes** (opt-in, [`DeformationParams::pose`]): biceps,
-//!   deltoid, calf, trunk and joint-volume effects, a pure smooth function of θ
-//!   ([`PoseDeformParams`], module `muscles`), recorded separately in
-//!   [`PosedFrame::pose_displacement`](super::PosedFrame::pose_displacement).
+//!
+//! Until 0.2 a third effect, a hinge "bulge" of the upper arm and thigh linear in elbow and
+//! knee flexion, stood in for muscles; the pose-driven biceps and hamstrings replace it (both
+//! together counted those muscles twice).
 
 use super::muscles::{pose_model, PoseDeformParams, PoseModel};
 use crate::check::positive;
@@ -32,52 +31,7 @@ use crate::mesh::SkinWeights;
 use crate::skeleton::Skeleton;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
-use std::f64::consts::{PI, TAU};
-
-/// Default bulge amplitude, metres of radial swelling per radian of flexion: 12 mm/rad gives
-/// ≈ 31 mm at full elbow flexion (150°) and ≈ 28 mm at full knee flexion (135°), the order of
-/// the biceps thickening seen when a flexed arm contracts. A synthetic but plausible size.
-pub const DEFAULT_BULGE_M_PER_RAD: f64 = 0.012;
-
-/// One hinge whose flexion makes the proximal segment bulge.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct HingeBulge {
-    /// Name of the flexion DOF (e.g. `"l_elbow.flexion"`); its joint is the distal joint.
-    pub flexion_dof: String,
-    /// Name of the joint whose bone bulges (the parent of the DOF's joint, e.g. `"l_shoulder"`
-    /// for the upper arm).
-    pub muscle_joint: String,
-}
-
-/// Parameters of the muscle bulge.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct BulgeParams {
-    /// Radial swelling per radian of flexion at the centre of the flexor side, metres/radian.
-    /// Default: [`DEFAULT_BULGE_M_PER_RAD`] (0.012).
-    pub amplitude_m_per_rad: f64,
-    /// The hinges. Default: both elbows (upper arm bulges, biceps) and both knees (thigh
-    /// bulges, hamstrings), with the joint names of
-    /// [`human_skeleton`](crate::skeleton::human_skeleton).
-    pub hinges: Vec<HingeBulge>,
-}
-
-impl Default for BulgeParams {
-    fn default() -> Self {
-        let h = |d: &str, m: &str| HingeBulge {
-            flexion_dof: d.into(),
-            muscle_joint: m.into(),
-        };
-        BulgeParams {
-            amplitude_m_per_rad: DEFAULT_BULGE_M_PER_RAD,
-            hinges: vec![
-                h("l_elbow.flexion", "l_shoulder"),
-                h("r_elbow.flexion", "r_shoulder"),
-                h("l_knee.flexion", "l_hip"),
-                h("r_knee.flexion", "r_hip"),
-            ],
-        }
-    }
-}
+use std::f64::consts::TAU;
 
 /// Parameters of the hip flap's dynamics and extent.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -133,25 +87,18 @@ impl Default for FlapParams {
 /// Parameters of the whole non-skinning deformation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeformationParams {
-    /// Muscle bulge. Default: [`BulgeParams::default`].
-    pub bulge: BulgeParams,
     /// Hip flap; `None` disables it. Default: `Some(FlapParams::default())`.
     pub flap: Option<FlapParams>,
     /// Pose-driven muscle and joint shapes ([`PoseDeformParams`]); `None` disables them.
-    /// Default: `None` for now (opt-in), so the default performer's ground truth is unchanged;
-    /// `Some(PoseDeformParams::default())` switches on the human body's effects (whose
-    /// biceps and hamstrings overlap the hinge [`bulge`](Self::bulge): set `bulge` to
-    /// [`DeformationParams::none`]'s to keep one model of each muscle).
-    #[serde(default)]
+    /// Default: `Some(PoseDeformParams::default())`, the human body's effects.
     pub pose: Option<PoseDeformParams>,
 }
 
 impl Default for DeformationParams {
     fn default() -> Self {
         DeformationParams {
-            bulge: BulgeParams::default(),
             flap: Some(FlapParams::default()),
-            pose: None,
+            pose: Some(PoseDeformParams::default()),
         }
     }
 }
@@ -160,29 +107,22 @@ impl DeformationParams {
     /// No non-skinning deformation at all (ground truth equals LBS).
     pub fn none() -> Self {
         DeformationParams {
-            bulge: BulgeParams {
-                amplitude_m_per_rad: 0.0,
-                hinges: vec![],
-            },
             flap: None,
             pose: None,
         }
     }
 
-    /// These parameters with the pose-driven deformation `pose` switched on.
-    pub fn with_pose(mut self, pose: PoseDeformParams) -> Self {
-        self.pose = Some(pose);
+    /// These parameters with the pose-driven deformation `pose` (`None`: off).
+    pub fn with_pose(mut self, pose: Option<PoseDeformParams>) -> Self {
+        self.pose = pose;
         self
     }
-}
 
-/// Precomputed bulge of one hinge.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct BulgeModel {
-    dof: usize,
-    muscle_joint: usize,
-    /// (vertex, displacement per radian in the muscle joint's frame, metres/radian).
-    vertices: Vec<(u32, DVec3)>,
+    /// These parameters with the hip flap `flap` (`None`: off).
+    pub fn with_flap(mut self, flap: Option<FlapParams>) -> Self {
+        self.flap = flap;
+        self
+    }
 }
 
 /// Precomputed hip flap.
@@ -198,9 +138,7 @@ struct FlapModel {
 /// The performer's non-skinning deformation, precomputed for one template and skeleton.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeformationModel {
-    bulges: Vec<BulgeModel>,
     flap: Option<FlapModel>,
-    #[serde(default)]
     pose: Option<PoseModel>,
 }
 
@@ -246,8 +184,8 @@ impl DeformationModel {
     /// its skeleton and skin weights (bones = joints).
     ///
     /// # Errors
-    /// [`Error::InvalidParam`] for a hinge or flap joint name the skeleton lacks, a flexion
-    /// DOF that is not a rotation, or a non-positive/non-finite parameter;
+    /// [`Error::InvalidParam`] for a flap joint name the skeleton lacks, a non-positive or
+    /// non-finite parameter, or a pose effect's error (see [`PoseDeformParams`]);
     /// [`Error::SizeMismatch`] if `weights` and `rest_vertices` differ in length.
     pub fn new(
         params: &DeformationParams,
@@ -262,72 +200,8 @@ impl DeformationModel {
                 got: weights.vertex_count(),
             });
         }
-        non_negative(
-            "bulge.amplitude_m_per_rad",
-            params.bulge.amplitude_m_per_rad,
-        )?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         let frames = rest.world_from_joint();
-        let weight_on = |v: usize, j: usize| {
-            weights
-                .influences(v)
-                .filter(|p| p.0 as usize == j)
-                .map(|p| p.1)
-                .sum::<f64>()
-        };
-        let mut bulges = Vec::new();
-        for h in &params.bulge.hinges {
-            let dof = skeleton
-                .dof_index(&h.flexion_dof)
-                .ok_or_else(|| Error::InvalidParam {
-                    name: "bulge.hinges",
-                    reason: format!("the skeleton has no DOF '{}'", h.flexion_dof),
-                })?;
-            if !skeleton.is_rotation(dof) {
-                return Err(Error::InvalidParam {
-                    name: "bulge.hinges",
-                    reason: format!("DOF '{}' is not a rotation", h.flexion_dof),
-                });
-            }
-            let m = joint_named(skeleton, &h.muscle_joint, "bulge.hinges")?;
-            let hinge_joint = skeleton.dof_joint(dof);
-            let a = frames[m].translation;
-            let b = frames[hinge_joint].translation;
-            let axis = b - a;
-            let len2 = axis.length_squared();
-            if len2 < 1e-12 {
-                return Err(Error::Degenerate {
-                    what: format!("bone of '{}' has zero length", h.muscle_joint),
-                });
-            }
-            // Flexor side: where the distal segment's far end moves under positive flexion.
-            let tip = distal_tip(skeleton, frames, hinge_joint);
-            let swing = rest.dof_axes_world()[dof].cross(tip - rest.dof_origins_world()[dof]);
-            let flexor = (swing - axis * swing.dot(axis) / len2).normalize_or_zero();
-            let joint_from_world = frames[m].inverse();
-            let mut verts = Vec::new();
-            for (v, p) in rest_vertices.iter().enumerate() {
-                let w = weight_on(v, m);
-                if w <= 0.0 {
-                    continue;
-                }
-                let s = (*p - a).dot(axis) / len2;
-                if !(0.0..=1.0).contains(&s) {
-                    continue;
-                }
-                let radial = (*p - a - axis * s).normalize_or_zero();
-                let side = radial.dot(flexor).max(0.0);
-                let c = params.bulge.amplitude_m_per_rad * w * (PI * s).sin().powi(2) * side;
-                if c > 0.0 {
-                    verts.push((v as u32, joint_from_world.transform_vector3(radial) * c));
-                }
-            }
-            bulges.push(BulgeModel {
-                dof,
-                muscle_joint: m,
-                vertices: verts,
-            });
-        }
         let flap = match &params.flap {
             None => None,
             Some(fp) => flap_model(fp, skeleton, frames, rest_vertices, weights)?,
@@ -336,7 +210,7 @@ impl DeformationModel {
             None => None,
             Some(pp) => Some(pose_model(pp, skeleton, &rest, rest_vertices, weights)?),
         };
-        Ok(DeformationModel { bulges, flap, pose })
+        Ok(DeformationModel { flap, pose })
     }
 
     /// Number of pose-driven effects (0 when the pose-driven deformation is off).
@@ -370,28 +244,8 @@ impl DeformationModel {
         self.flap.as_ref().map_or(0, |f| f.anchors.len())
     }
 
-    /// Adds the bulge to `out` (already holding the LBS positions) for pose θ with joint
-    /// frames `world_from_joint`.
-    pub(super) fn add_bulge(
-        &self,
-        theta: &[f64],
-        world_from_joint: &[DAffine3],
-        out: &mut [DVec3],
-    ) {
-        for b in &self.bulges {
-            let flex = theta[b.dof].max(0.0);
-            if flex == 0.0 {
-                continue;
-            }
-            let r = world_from_joint[b.muscle_joint].matrix3;
-            for &(v, d) in &b.vertices {
-                out[v as usize] += r * (d * flex);
-            }
-        }
-    }
-
     /// Advances the flap dynamics to the current frame (anchors read from the LBS positions
-    /// `lbs`) and adds the flap to `out`. `dt_s` is the time since the previous frame; it is
+    /// `lbs`) and adds the flap's displacement to `out` (one entry per vertex). `dt_s` is the time since the previous frame; it is
     /// ignored on the first frame (empty `state`), which starts the masses at rest.
     ///
     /// # Errors

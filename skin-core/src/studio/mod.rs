@@ -3,9 +3,9 @@
 //! `dynamic-shapes`.
 //!
 //! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
-//!   (muscle bulge, lagging hip flap) that linear blend skinning cannot produce;
-//!   [`Performer::pose`] → [`PosedFrame`] with LBS and true vertices; opt-in pose-driven
-//!   muscle and joint shapes ([`PoseDeformParams`], a pure smooth function of θ).
+//!   (pose-driven muscle and joint shapes, [`PoseDeformParams`], a pure smooth function of θ;
+//!   a lagging hip flap) that linear blend skinning cannot produce; [`Performer::pose`] →
+//!   [`PosedFrame`] with LBS and true vertices and each effect's displacement separately.
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
 //!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
 //! * Motions ([`crate::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
@@ -41,10 +41,7 @@ pub use capture::{
     CaptureLighting, CaptureSpec, FrameTruth, PixelNoise, TriangleIdImage, ViewTruth,
     STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
 };
-pub use deformation::{
-    BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
-    DEFAULT_BULGE_M_PER_RAD,
-};
+pub use deformation::{DeformationModel, DeformationParams, DeformationState, FlapParams};
 pub use makehuman::{
     makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
     read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,

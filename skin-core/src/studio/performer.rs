@@ -1,8 +1,9 @@
 //! The studio's performer: a rigged template (mesh in metres, skeleton, skin weights) plus a
 //! known non-skinning deformation ([`DeformationModel`]). Posing gives both the linear blend
 //! skinning surface (Vlasic thesis §2.5.1: `v' = Σⱼ wⱼ Mⱼ v`, the model every method assumes)
-//! and the ground-truth surface (LBS plus bulge and flap), so a method's error against truth
-//! can be split into what skinning cannot explain and what the method got wrong.
+//! and the ground-truth surface (LBS plus the pose-driven shapes plus the dynamic flap), each
+//! part recorded separately, so a method's error against truth can be split into what skinning
+//! cannot explain, what is a function of pose, what is dynamic and what the method got wrong.
 
 use super::deformation::{DeformationModel, DeformationParams, DeformationState};
 use crate::math::{DAffine3, DVec3};
@@ -40,13 +41,17 @@ pub struct PosedFrame {
     pub joint_positions: Vec<DVec3>,
     /// Linear-blend-skinned template vertices, metres (what a skinning method can reach).
     pub lbs_vertices: Vec<DVec3>,
-    /// Ground-truth vertices: LBS plus the non-skinning deformation, metres.
+    /// Ground-truth vertices, metres: exactly
+    /// `lbs_vertices + pose_displacement + dynamic_displacement`.
     pub true_vertices: Vec<DVec3>,
-    /// The pose-driven part of `true_vertices − lbs_vertices`, per vertex, metres: the
-    /// muscle and joint shapes of [`DeformationParams::pose`] (a pure function of θ), zero
-    /// vectors when that deformation is off. The rest of the difference is the hinge bulge and
-    /// the dynamic flap.
+    /// The pose-driven part of the truth, per vertex, metres: the muscle and joint shapes of
+    /// [`DeformationParams::pose`], a pure function of θ (what a pose-driven model such as
+    /// Sand's needles can learn); zero vectors when that deformation is off.
     pub pose_displacement: Vec<DVec3>,
+    /// The dynamic part of the truth, per vertex, metres: the hip flap's lag, which depends
+    /// on the motion's history and no function of the current pose can predict; zero vectors
+    /// when the flap is off.
+    pub dynamic_displacement: Vec<DVec3>,
 }
 
 impl PosedFrame {
@@ -140,7 +145,7 @@ impl Performer {
     }
 
     /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation
-    /// (hinge bulge, pose-driven shapes when [`DeformationParams::pose`] is set, hip flap).
+    /// (the pose-driven shapes of [`DeformationParams::pose`], the hip flap's dynamics).
     /// `state` carries the flap's dynamics from frame to frame (start with
     /// `DeformationState::default()`); `dt_s` is the time since the previous call (ignored on
     /// the first).
@@ -159,25 +164,25 @@ impl Performer {
         let world_from_joint = fk.world_from_joint().to_vec();
         let world_from_rest = self.world_from_rest(&world_from_joint);
         let lbs_vertices = skin(&self.template.vertices, &self.weights, &world_from_rest)?;
-        let mut true_vertices = lbs_vertices.clone();
-        self.deformation
-            .add_bulge(theta, &world_from_joint, &mut true_vertices);
         let pose_displacement =
             self.deformation
                 .pose_displacement(theta, &world_from_rest, &self.weights);
-        if self.deformation.has_pose() {
-            for (t, d) in true_vertices.iter_mut().zip(&pose_displacement) {
-                *t += *d;
-            }
-        }
+        let mut dynamic_displacement = vec![DVec3::ZERO; lbs_vertices.len()];
         self.deformation
-            .add_flap(&lbs_vertices, state, dt_s, &mut true_vertices)?;
+            .add_flap(&lbs_vertices, state, dt_s, &mut dynamic_displacement)?;
+        let true_vertices = lbs_vertices
+            .iter()
+            .zip(&pose_displacement)
+            .zip(&dynamic_displacement)
+            .map(|((l, p), d)| *l + *p + *d)
+            .collect();
         Ok(PosedFrame {
             joint_positions: fk.joint_positions(),
             world_from_joint,
             lbs_vertices,
             true_vertices,
             pose_displacement,
+            dynamic_displacement,
         })
     }
 

@@ -26,7 +26,7 @@ fn with_pose(pose: PoseDeformParams) -> Performer {
         p.template.clone(),
         p.skeleton.clone(),
         p.weights.clone(),
-        &DeformationParams::none().with_pose(pose),
+        &DeformationParams::none().with_pose(Some(pose)),
     )
     .unwrap()
 }
@@ -100,7 +100,7 @@ fn profiles_and_activation() {
 }
 
 #[test]
-fn zero_at_rest_and_off_by_default() {
+fn zero_at_rest_and_on_by_default() {
     let p = full();
     let f = pose(p, &p.skeleton.rest_pose());
     assert!(f.pose_displacement.iter().all(|d| *d == DVec3::ZERO));
@@ -118,24 +118,28 @@ fn zero_at_rest_and_off_by_default() {
         .pose_displacement
         .iter()
         .all(|d| *d == DVec3::ZERO));
-    // The default performer: option off, no pose-driven displacement, and switching it on
-    // changes the truth by exactly the recorded displacement.
-    let b = base();
-    assert_eq!(b.deformation.pose_effect_count(), 0);
-    assert_eq!(DeformationParams::default().pose, None);
-    let on = Performer::new(
+    // The default performer has every effect on, and switching them off changes the truth
+    // by exactly the recorded displacement and nothing else.
+    let on = base();
+    assert_eq!(on.deformation.pose_effect_count(), 20);
+    assert_eq!(
+        DeformationParams::default().pose,
+        Some(PoseDeformParams::default())
+    );
+    let b = &Performer::new(
         "x",
-        b.template.clone(),
-        b.skeleton.clone(),
-        b.weights.clone(),
-        &DeformationParams::default().with_pose(PoseDeformParams::default()),
+        on.template.clone(),
+        on.skeleton.clone(),
+        on.weights.clone(),
+        &DeformationParams::default().with_pose(None),
     )
     .unwrap();
+    assert_eq!(b.deformation.pose_effect_count(), 0);
     let theta = mixed(b);
     let off = pose(b, &theta);
     assert_eq!(off.pose_displacement.len(), b.vertex_count());
     assert!(off.pose_displacement.iter().all(|d| *d == DVec3::ZERO));
-    let f = pose(&on, &theta);
+    let f = pose(on, &theta);
     assert_eq!(f.lbs_vertices, off.lbs_vertices);
     for ((a, b), d) in f
         .true_vertices
@@ -388,7 +392,7 @@ fn bad_input_is_named() {
             b.template.clone(),
             b.skeleton.clone(),
             b.weights.clone(),
-            &DeformationParams::none().with_pose(pose),
+            &DeformationParams::none().with_pose(Some(pose)),
         )
         .map(|_| ())
         .unwrap_err()
@@ -451,7 +455,7 @@ fn procedural_performer_takes_the_defaults() {
     let p = crate::studio::procedural_performer(&crate::studio::ProceduralBodyParams {
         grid_spacing_m: 0.03,
         deformation: DeformationParams::none()
-            .with_pose(PoseDeformParams::default().only("l_biceps")),
+            .with_pose(Some(PoseDeformParams::default().only("l_biceps"))),
         ..Default::default()
     })
     .unwrap();
@@ -466,7 +470,7 @@ fn procedural_performer_takes_the_defaults() {
     // Every default effect resolves on the procedural skeleton too.
     let all = crate::studio::procedural_performer(&crate::studio::ProceduralBodyParams {
         grid_spacing_m: 0.03,
-        deformation: DeformationParams::none().with_pose(PoseDeformParams::default()),
+        deformation: DeformationParams::none().with_pose(Some(PoseDeformParams::default())),
         ..Default::default()
     })
     .unwrap();
