@@ -479,6 +479,11 @@ impl Refinement {
         &self.face_parent
     }
 
+    /// The coarse faces.
+    pub fn coarse_faces(&self) -> &[[u32; 3]] {
+        &self.coarse_faces
+    }
+
     /// How each coarse face was refined.
     pub fn coarse_face_kinds(&self) -> &[FaceRefinement] {
         &self.coarse_face_kind
