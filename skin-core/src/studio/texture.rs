@@ -171,7 +171,7 @@ impl AlbedoTexture {
             + 0.3 * self.noise(p / (0.5 * q.blotch_scale_m), 2);
         let freckle = smoothstep((self.noise(p / q.freckle_scale_m, 3) - 0.35) / 0.25);
         let m = (1.0 + f64::from(q.skin_variation) * blotch) as f32;
-        let dark = f32::from(q.freckle_darkening) * freckle as f32;
+        let dark = q.freckle_darkening * freckle as f32;
         // Freckles are brown: they darken blue most, red least.
         let tint = [0.8, 1.0, 1.2];
         std::array::from_fn(|c| (q.skin_albedo[c] * m * (1.0 - dark * tint[c])).clamp(0.0, 1.0))

@@ -19,7 +19,12 @@
 //!   the folds run around the limb — parallel to the flexion axis on the inner side — and
 //!   `e_c` the envelope: region skin weight × [`Bump`] along the axis × `max(0, r̂·f̂)²` around
 //!   it (the inner side [`EffectSide`] of the joint), evaluated at the coarse vertices and
-//!   interpolated linearly, so it is exactly zero on every face that is not refined.
+//!   interpolated linearly, so it is exactly zero on every face that is not refined. Skin
+//!   folds where it is compressed, not where it is stretched: each refined coarse face's
+//!   largest principal stretch (rest → posed) scales the folds at its corners by 1 up to
+//!   1.15, smoothly down to 0 at 1.3 (the lateral sides of a joint bent far past 90°), which
+//!   also keeps the wrinkled edges within the bound where linear blend skinning stretches
+//!   the coarse faces most.
 //! * **Garment**: `h = A_g · (g_y cos(2π y / λ_g) + g_φ cos(N φ)) / max(1, g_y + g_φ)`, with
 //!   `y` the rest height and `φ` the rest azimuth about the vertical through
 //!   [`GarmentWrinkles::axis_joint`] (`N` folds around, `N = round(2π R̄ / λ_g)` for the
@@ -60,8 +65,9 @@ pub const DEFAULT_WRINKLE_MAX_EDGE_M: f64 = 0.003;
 /// their full amplitude: 10 %.
 pub const DEFAULT_FULL_COMPRESSION: f64 = 0.10;
 /// The rest refinement targets this share of [`WrinkleParams::max_edge_m`], so that the
-/// stretch of posing and the slope of the folds (`2πA/λ ≈ 0.6` at the defaults, i.e. edges
-/// across a fold up to ≈ 17 % longer) keep the posed wrinkled edges within the bound.
+/// stretch of posing (folds fade out from a principal stretch of 1.15) and the slope of the
+/// folds (`2πA/λ ≈ 0.6` at the defaults, i.e. edges across a fold up to ≈ 17 % longer) keep
+/// the posed wrinkled edges within the bound: `0.7 · 1.15 · 1.17 ≈ 0.94`.
 pub const WRINKLE_EDGE_MARGIN: f64 = 0.7;
 
 /// Wrinkles at one joint crease, driven by one flexion DOF.
