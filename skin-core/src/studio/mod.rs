@@ -19,6 +19,13 @@
 //!   Lambertian shading with albedo, cast shadows by ray casts.
 //! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
+//! * Fine detail: [`WrinkleModel`] refines the wrinkle regions at render time
+//!   ([`crate::mesh::Refinement`], edges ≤ 3 mm) and adds pose-dependent wrinkles as real
+//!   geometry (elbow and knee creases driven by flexion, garment folds driven by its
+//!   compression; 1–3 mm, 1–3 cm) → [`FineSurface`], with the wrinkle displacement kept
+//!   separately; [`AlbedoTexture`] is a non-uniform albedo (skin variation, a printed garment
+//!   pattern) evaluated at rest positions, shaded through
+//!   [`shading::Albedo::Textured`].
 //! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 
@@ -35,6 +42,8 @@ mod procedural_body;
 mod retarget;
 #[cfg(test)]
 mod tests;
+mod texture;
+mod wrinkles;
 
 pub use capture::{
     studio_ring, BarycentricImage, CameraObservation, Capture, CaptureFrame, CaptureFrames,
@@ -61,3 +70,9 @@ pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};
+pub use texture::{AlbedoTexture, Material, Print, TextureParams};
+pub use wrinkles::{
+    CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams,
+    DEFAULT_FULL_COMPRESSION, DEFAULT_GARMENT_WAVELENGTH_M, DEFAULT_WRINKLE_AMPLITUDE_M,
+    DEFAULT_WRINKLE_MAX_EDGE_M, DEFAULT_WRINKLE_WAVELENGTH_M, WRINKLE_EDGE_MARGIN,
+};

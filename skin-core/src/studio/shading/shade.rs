@@ -10,6 +10,7 @@ use super::visibility::{check_lights_outside, unoccluded, LightVisibility};
 use crate::math::DVec3;
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use crate::raster::{RenderedView, NO_TRIANGLE};
+use crate::studio::{AlbedoTexture, Material};
 use crate::{Error, Result};
 
 /// Surface reflectance `ρ` (linear RGB, each in `[0, 1]` for a physical surface), evaluated per
@@ -30,6 +31,18 @@ pub enum Albedo<'a> {
         /// Albedo at a rest-pose position.
         texture: &'a (dyn Fn(DVec3) -> [f32; 3] + Sync),
     },
+    /// The studio's [`AlbedoTexture`] evaluated per pixel at the rest-pose position of the
+    /// visible point (as [`Albedo::Procedural`]), with one [`Material`] per face (skin or
+    /// printed garment; no blending across a material boundary).
+    Textured {
+        /// Rest-pose position of every vertex, m (e.g.
+        /// [`crate::studio::FineSurface::rest_positions`]).
+        rest_positions: &'a [DVec3],
+        /// Material of every face.
+        face_materials: &'a [Material],
+        /// The texture.
+        texture: &'a AlbedoTexture,
+    },
 }
 
 impl std::fmt::Debug for Albedo<'_> {
@@ -40,6 +53,17 @@ impl std::fmt::Debug for Albedo<'_> {
             Albedo::Procedural { rest_positions, .. } => {
                 write!(f, "Procedural({} rest positions)", rest_positions.len())
             }
+            Albedo::Textured {
+                rest_positions,
+                face_materials,
+                texture,
+            } => write!(
+                f,
+                "Textured({} rest positions, {} faces, {:?})",
+                rest_positions.len(),
+                face_materials.len(),
+                texture.params().print
+            ),
         }
     }
 }
@@ -152,6 +176,18 @@ pub fn shade(
         Albedo::Uniform(_) => {}
         Albedo::PerVertex(a) => size("per-vertex albedo", a.len())?,
         Albedo::Procedural { rest_positions, .. } => size("rest positions", rest_positions.len())?,
+        Albedo::Textured {
+            rest_positions,
+            face_materials,
+            ..
+        } => {
+            size("rest positions", rest_positions.len())?;
+            crate::check::same_size(
+                "face materials vs mesh faces",
+                mesh.face_count(),
+                face_materials.len(),
+            )?;
+        }
     }
     match shadows {
         Shadows::None => {}
@@ -216,6 +252,11 @@ pub fn shade(
                         rest_positions,
                         texture,
                     } => texture(interp(rest_positions)),
+                    Albedo::Textured {
+                        rest_positions,
+                        face_materials,
+                        texture,
+                    } => texture.eval(face_materials[t as usize], interp(rest_positions)),
                 };
                 let rows = match shadows {
                     Shadows::PerVertex(vis) => f.map(|v| vis.row(v)),
