@@ -25,6 +25,7 @@
 //! together counted those muscles twice).
 
 use super::muscles::{pose_model, PoseDeformParams, PoseModel};
+use super::wrinkles::WrinkleParams;
 use crate::check::positive;
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::SkinWeights;
@@ -92,6 +93,13 @@ pub struct DeformationParams {
     /// Pose-driven muscle and joint shapes ([`PoseDeformParams`]); `None` disables them.
     /// Default: `Some(PoseDeformParams::default())`, the human body's effects.
     pub pose: Option<PoseDeformParams>,
+    /// Render-time wrinkles ([`WrinkleParams`]: elbow and knee creases, garment folds) on a
+    /// refined surface ([`Performer::fine_surface`](super::Performer::fine_surface)); `None`
+    /// renders the template's own faces. Default: `None` (the silhouette methods need no
+    /// millimetre folds, and the refined body takes several times longer to rasterise);
+    /// the photometric validations switch it on.
+    #[serde(default)]
+    pub wrinkles: Option<WrinkleParams>,
 }
 
 impl Default for DeformationParams {
@@ -99,6 +107,7 @@ impl Default for DeformationParams {
         DeformationParams {
             flap: Some(FlapParams::default()),
             pose: Some(PoseDeformParams::default()),
+            wrinkles: None,
         }
     }
 }
@@ -109,12 +118,19 @@ impl DeformationParams {
         DeformationParams {
             flap: None,
             pose: None,
+            wrinkles: None,
         }
     }
 
     /// These parameters with the pose-driven deformation `pose` (`None`: off).
     pub fn with_pose(mut self, pose: Option<PoseDeformParams>) -> Self {
         self.pose = pose;
+        self
+    }
+
+    /// These parameters with the render-time wrinkles `wrinkles` (`None`: off).
+    pub fn with_wrinkles(mut self, wrinkles: Option<WrinkleParams>) -> Self {
+        self.wrinkles = wrinkles;
         self
     }
 

@@ -6,6 +6,8 @@
 //! cannot explain, what is a function of pose, what is dynamic and what the method got wrong.
 
 use super::deformation::{DeformationModel, DeformationParams, DeformationState};
+use super::texture::Material;
+use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::{skin, SkinWeights, TriMesh};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
@@ -28,6 +30,8 @@ pub struct Performer {
     pub weights: SkinWeights,
     /// The non-skinning deformation.
     pub deformation: DeformationModel,
+    /// Render-time wrinkles on a refined surface, when [`DeformationParams::wrinkles`] is set.
+    wrinkles: Option<WrinkleModel>,
     /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
     joint_from_world_rest: Vec<DAffine3>,
 }
@@ -101,6 +105,11 @@ impl Performer {
             });
         }
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
+        let wrinkles = params
+            .wrinkles
+            .as_ref()
+            .map(|w| WrinkleModel::new(w.clone(), &skeleton, &template, &weights, 0..0))
+            .transpose()?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         let joint_from_world_rest = rest
             .world_from_joint()
@@ -113,6 +122,7 @@ impl Performer {
             skeleton,
             weights,
             deformation,
+            wrinkles,
             joint_from_world_rest,
         })
     }
@@ -129,6 +139,33 @@ impl Performer {
     /// Number of template vertices.
     pub fn vertex_count(&self) -> usize {
         self.template.vertex_count()
+    }
+
+    /// The render-time wrinkle model, when [`DeformationParams::wrinkles`] is set.
+    pub fn wrinkles(&self) -> Option<&WrinkleModel> {
+        self.wrinkles.as_ref()
+    }
+
+    /// The material of every template face (skin; the garment's faces are
+    /// [`Material::Garment`]): what [`crate::studio::shading::Albedo::Textured`] needs with
+    /// the template's rest positions.
+    pub fn face_materials(&self) -> Vec<Material> {
+        vec![Material::Skin; self.template.face_count()]
+    }
+
+    /// The surface the cameras see at pose θ, refined and wrinkled at render time
+    /// ([`WrinkleModel::apply`] on `posed.true_vertices`), or `None` when the performer has no
+    /// wrinkles (the template's faces on the true vertices are then the surface). The
+    /// wrinkle displacement it records is the fourth part of the truth, after
+    /// [`PosedFrame`]'s skinned, pose-driven and dynamic parts.
+    ///
+    /// # Errors
+    /// As [`WrinkleModel::apply`] (a θ or vertex count of another performer).
+    pub fn fine_surface(&self, theta: &[f64], posed: &PosedFrame) -> Result<Option<FineSurface>> {
+        self.wrinkles
+            .as_ref()
+            .map(|w| w.apply(theta, &posed.true_vertices))
+            .transpose()
     }
 
     /// The skinning transforms `world_from_rest[j] = world_from_joint[j] ·

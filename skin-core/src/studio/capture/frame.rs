@@ -6,7 +6,7 @@ use image::{ImageBuffer, LumaA, Rgb32FImage};
 use crate::image::{GrayF32Image, Mask};
 use crate::mesh::TriMesh;
 use crate::raster::{buffer_image, RenderedView};
-use crate::studio::{Performer, PosedFrame};
+use crate::studio::{FineSurface, Performer, PosedFrame};
 use crate::Result;
 
 /// Triangle ids of a view: the visible face per pixel, [`crate::raster::NO_TRIANGLE`] on
@@ -82,6 +82,10 @@ pub struct FrameTruth {
     /// Joint frames, joint positions, LBS and true vertices, and the pose-driven part of the
     /// truth (world frame, m).
     pub posed: PosedFrame,
+    /// The render-time refined and wrinkled surface, when the performer has wrinkles
+    /// ([`Performer::fine_surface`]): then the cameras saw this mesh, and the views' triangle
+    /// ids and barycentrics refer to its faces; otherwise they refer to the template's faces.
+    pub fine: Option<FineSurface>,
     /// The ground-truth buffers of every camera (rig order).
     pub views: Vec<ViewTruth>,
 }
@@ -90,6 +94,14 @@ impl FrameTruth {
     /// The true posed mesh (true vertices with the performer's faces).
     pub fn true_mesh(&self, performer: &Performer) -> TriMesh {
         performer.mesh(self.posed.true_vertices.clone())
+    }
+
+    /// The mesh the cameras saw: the fine surface when there is one, else the true mesh.
+    pub fn rendered_mesh(&self, performer: &Performer) -> TriMesh {
+        match &self.fine {
+            Some(f) => f.mesh.clone(),
+            None => self.true_mesh(performer),
+        }
     }
 
     /// Distance between each true vertex and its LBS position, m (the non-skinning

@@ -45,7 +45,7 @@ use crate::skeleton::Motion;
 use crate::studio::shading::{
     check_lights_outside, shade, vertices_seen, Albedo, LightVisibility, Shadows,
 };
-use crate::studio::{DeformationState, Performer, PosedFrame};
+use crate::studio::{AlbedoTexture, DeformationState, Material, Performer, PosedFrame};
 use crate::{Context, Error, Result, ResultExt};
 
 /// A capture ready to run: the performer, its motion resampled to the capture's frame rate,
@@ -83,6 +83,10 @@ pub struct Capture<'a> {
     spec: CaptureSpec,
     render: RenderParams,
     rasterizers: Vec<Rasterizer>,
+    texture: Option<AlbedoTexture>,
+    /// Material of every rendered face (fine faces when the performer has wrinkles), for the
+    /// texture.
+    face_materials: Vec<Material>,
 }
 
 impl<'a> Capture<'a> {
@@ -102,12 +106,28 @@ impl<'a> Capture<'a> {
         }
         let motion = motion.resample(&performer.skeleton, 1.0 / spec.frame_rate_hz)?;
         let rasterizers = spec.rig.cameras.par_iter().map(Rasterizer::new).collect();
+        let texture = spec
+            .lighting
+            .as_ref()
+            .and_then(|l| l.texture)
+            .map(AlbedoTexture::new)
+            .transpose()?;
+        let face_materials = match performer.wrinkles() {
+            Some(w) => w
+                .garment_faces()
+                .iter()
+                .map(|&g| if g { Material::Garment } else { Material::Skin })
+                .collect(),
+            None => performer.face_materials(),
+        };
         Ok(Self {
             performer,
             motion,
             render: spec.effective_render(),
             spec,
             rasterizers,
+            texture,
+            face_materials,
         })
     }
 
@@ -181,7 +201,19 @@ impl<'a> Capture<'a> {
 
     /// Renders frame `index` from its posed surfaces (observations and per-camera truth).
     fn render_frame(&self, index: usize, posed: PosedFrame) -> Result<CaptureFrame> {
-        let mesh = self.performer.mesh(posed.true_vertices.clone());
+        let theta = self.motion.frame(index);
+        let fine = self
+            .performer
+            .fine_surface(theta, &posed)
+            .at(Context::Frame(index))?;
+        let coarse;
+        let mesh = match &fine {
+            Some(f) => &f.mesh,
+            None => {
+                coarse = self.performer.mesh(posed.true_vertices.clone());
+                &coarse
+            }
+        };
         // The body's search structure is built only when something needs it: lighting, or a
         // camera inside the body's bounding box (a mask-only capture from outside skips it).
         let mut query = None;
@@ -191,7 +223,7 @@ impl<'a> Capture<'a> {
             if c.cmpge(bounds.min).all() && c.cmple(bounds.max).all() {
                 let q = match query.take() {
                     Some(q) => q,
-                    None => MeshQuery::new(&mesh)?,
+                    None => MeshQuery::new(mesh)?,
                 };
                 if q.contains(c)? {
                     return Err(Error::InvalidParam {
@@ -211,7 +243,7 @@ impl<'a> Capture<'a> {
             .rasterizers
             .par_iter()
             .enumerate()
-            .map(|(i, r)| r.render(&mesh, &self.render).at(Context::Camera(i)))
+            .map(|(i, r)| r.render(mesh, &self.render).at(Context::Camera(i)))
             .collect::<Result<Vec<RenderedView>>>()
             .at(Context::Frame(index))?;
         let shaded = match &self.spec.lighting {
@@ -219,14 +251,14 @@ impl<'a> Capture<'a> {
             Some(lighting) => {
                 let query = match query {
                     Some(q) => q,
-                    None => MeshQuery::new(&mesh)?,
+                    None => MeshQuery::new(mesh)?,
                 };
                 check_lights_outside(&query, &lighting.lights)?;
                 let vis = if lighting.shadows {
                     let refs: Vec<&RenderedView> = views.iter().collect();
-                    let needed = vertices_seen(&mesh, &refs)?;
+                    let needed = vertices_seen(mesh, &refs)?;
                     Some(LightVisibility::compute_for(
-                        &mesh,
+                        mesh,
                         &query,
                         &lighting.lights,
                         lighting.shadow_bias_m,
@@ -236,12 +268,22 @@ impl<'a> Capture<'a> {
                     None
                 };
                 let shadows = vis.as_ref().map_or(Shadows::None, Shadows::PerVertex);
-                let albedo = Albedo::Uniform(lighting.albedo);
+                let albedo = match &self.texture {
+                    None => Albedo::Uniform(lighting.albedo),
+                    Some(texture) => Albedo::Textured {
+                        rest_positions: match &fine {
+                            Some(f) => &f.rest_positions,
+                            None => &self.performer.template.vertices,
+                        },
+                        face_materials: &self.face_materials,
+                        texture,
+                    },
+                };
                 views
                     .par_iter()
                     .enumerate()
                     .map(|(i, v)| {
-                        let mut s = shade(v, &mesh, &lighting.lights, &albedo, &shadows)?;
+                        let mut s = shade(v, mesh, &lighting.lights, &albedo, &shadows)?;
                         if let Some(n) = &self.spec.noise {
                             noise::add(&mut s, n, self.spec.seed, index, i);
                         }
@@ -272,8 +314,9 @@ impl<'a> Capture<'a> {
             time_s: index as f64 * self.motion.frame_time_s,
             observations,
             truth: FrameTruth {
-                theta: self.motion.frame(index).to_vec(),
+                theta: theta.to_vec(),
                 posed,
+                fine,
                 views,
             },
         })

@@ -7,9 +7,10 @@ use crate::error::{Error, Result};
 use crate::math::DVec3;
 use crate::raster::{Buffers, RenderParams};
 use crate::studio::shading::{Light, DEFAULT_SHADOW_BIAS_M};
+use crate::studio::TextureParams;
 
 /// Lighting of the shaded observations: Lambertian shading ([`crate::studio::shading::shade`])
-/// of a uniform albedo under a set of lights, optionally with cast shadows.
+/// of a uniform albedo, or of a texture, under a set of lights, optionally with cast shadows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaptureLighting {
     /// The lights, world frame (e.g. [`crate::studio::shading::dome_lights`]).
@@ -17,6 +18,12 @@ pub struct CaptureLighting {
     /// Uniform linear-RGB albedo of the skin, each in `[0, 1]` (NaN rejected). Default: `[0.8, 0.6, 0.5]`
     /// (a light skin tone; any value works, the methods only need it known).
     pub albedo: [f32; 3],
+    /// A non-uniform albedo instead of `albedo`: skin variation and the garment's print
+    /// ([`crate::studio::AlbedoTexture`]), evaluated at the rest-pose position of the visible
+    /// point so that it moves with the skin (what optical flow and matching lock on).
+    /// Default: `None` (uniform).
+    #[serde(default)]
+    pub texture: Option<TextureParams>,
     /// Cast shadows by per-vertex visibility ([`crate::studio::shading::LightVisibility`],
     /// computed once per frame for the vertices any camera sees). Default: true.
     pub shadows: bool,
@@ -31,9 +38,16 @@ impl CaptureLighting {
         Self {
             lights,
             albedo: [0.8, 0.6, 0.5],
+            texture: None,
             shadows: true,
             shadow_bias_m: DEFAULT_SHADOW_BIAS_M,
         }
+    }
+
+    /// Returns the lighting with the texture `texture` (`None`: the uniform `albedo`).
+    pub fn with_texture(mut self, texture: Option<TextureParams>) -> Self {
+        self.texture = texture;
+        self
     }
 
     /// Returns the lighting with shadows on or off.

@@ -471,3 +471,96 @@ fn studio_ring_looks_at_the_performer_and_rejects_zero_sizes() {
     assert!(studio_ring(0, 96, 64).is_err());
     assert!(studio_ring(3, 0, 64).is_err());
 }
+
+/// The procedural performer with render-time wrinkles, its left elbow bent to 90°.
+fn wrinkled() -> (Performer, Motion) {
+    let base = performer();
+    let p = Performer::new(
+        "wrinkled",
+        base.template.clone(),
+        base.skeleton.clone(),
+        base.weights.clone(),
+        &crate::studio::DeformationParams::default()
+            .with_wrinkles(Some(crate::studio::WrinkleParams::default())),
+    )
+    .unwrap();
+    let mut theta = p.skeleton.rest_pose();
+    theta[p.skeleton.dof_index("l_elbow.flexion").unwrap()] = std::f64::consts::FRAC_PI_2;
+    let frames = nalgebra::DMatrix::from_fn(p.skeleton.dof_count(), 2, |d, _| theta[d]);
+    let m = Motion::new(1.0 / 25.0, frames).unwrap();
+    (p, m)
+}
+
+#[test]
+fn wrinkled_performer_is_rendered_as_its_fine_surface() {
+    let (p, m) = wrinkled();
+    let spec = CaptureSpec::new(rig(2)).with_render(RenderParams::default().with_buffers(
+        crate::raster::Buffers {
+            triangle: true,
+            ..Default::default()
+        },
+    ));
+    let c = Capture::new(&p, &m, spec).unwrap();
+    let f = c.frames().next().unwrap().unwrap();
+    let fine = f.truth.fine.as_ref().expect("wrinkles give a fine surface");
+    let w = p.wrinkles().unwrap();
+    assert_eq!(fine.mesh.vertex_count(), w.fine_vertex_count());
+    assert!(fine.mesh.face_count() > p.template.face_count());
+    // The elbow crease carries folds; the rendered triangles are the fine faces.
+    let max_mm = fine.max_wrinkle_m() * 1e3;
+    assert!((0.5..=3.0).contains(&max_mm), "{max_mm} mm");
+    let ids = f.truth.views[0].triangle_ids.as_ref().unwrap();
+    let seen: Vec<u32> = ids
+        .pixels()
+        .map(|p| p[0])
+        .filter(|&t| t != crate::raster::NO_TRIANGLE)
+        .collect();
+    assert!(!seen.is_empty());
+    assert!(seen.iter().all(|&t| (t as usize) < fine.mesh.face_count()));
+    assert_eq!(f.truth.rendered_mesh(&p), fine.mesh);
+    // The same capture of the plain performer renders the template's faces.
+    let plain = Capture::new(performer(), &m, CaptureSpec::new(rig(2))).unwrap();
+    let g = plain.frames().next().unwrap().unwrap();
+    assert!(g.truth.fine.is_none());
+    assert_eq!(
+        g.truth.rendered_mesh(performer()).face_count(),
+        performer().template.face_count()
+    );
+}
+
+#[test]
+fn textured_lighting_varies_the_shading_on_the_body() {
+    let lighting = CaptureLighting::new(point_lights()).with_shadows(false);
+    let shaded = |lighting: CaptureLighting| {
+        let spec = CaptureSpec::new(rig(1)).with_lighting(lighting);
+        let c = Capture::new(performer(), &motion(), spec).unwrap();
+        let f = c.frames().next().unwrap().unwrap();
+        f.observations[0].shaded.clone().unwrap()
+    };
+    let uniform = shaded(lighting.clone());
+    let textured = shaded(lighting.with_texture(Some(crate::studio::TextureParams::default())));
+    // Shading is linear in the albedo, so the ratio of the two images is the texture's skin
+    // albedo over the uniform one, pixel by pixel: varying, by the skin's few per cent.
+    let ratios: Vec<f64> = uniform
+        .pixels()
+        .zip(textured.pixels())
+        .filter(|(u, _)| u[1] > 1e-4)
+        .map(|(u, t)| f64::from(t[1] / u[1]))
+        .collect();
+    assert!(ratios.len() > 100, "{}", ratios.len());
+    let mean = crate::stats::mean(&ratios);
+    let sd = crate::stats::rms(&ratios.iter().map(|r| r - mean).collect::<Vec<_>>());
+    assert!((0.02..0.3).contains(&(sd / mean)), "{sd} / {mean}");
+    // A bad texture is refused when the capture is built.
+    let bad =
+        CaptureLighting::new(point_lights()).with_texture(Some(crate::studio::TextureParams {
+            print_period_m: -1.0,
+            ..Default::default()
+        }));
+    assert!(Capture::new(
+        performer(),
+        &motion(),
+        CaptureSpec::new(rig(1)).with_lighting(bad)
+    )
+    .is_err());
+}
