@@ -32,6 +32,8 @@ pub struct Performer {
     pub deformation: DeformationModel,
     /// Render-time wrinkles on a refined surface, when [`DeformationParams::wrinkles`] is set.
     wrinkles: Option<WrinkleModel>,
+    /// Number of body vertices (the template's first vertices; a garment's follow).
+    body_vertex_count: usize,
     /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
     joint_from_world_rest: Vec<DAffine3>,
 }
@@ -104,6 +106,7 @@ impl Performer {
                 got: weights.bone_count(),
             });
         }
+        let template_vertex_count = template.vertex_count();
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
         let wrinkles = params
             .wrinkles
@@ -123,6 +126,7 @@ impl Performer {
             weights,
             deformation,
             wrinkles,
+            body_vertex_count: template_vertex_count,
             joint_from_world_rest,
         })
     }
@@ -139,6 +143,11 @@ impl Performer {
     /// Number of template vertices.
     pub fn vertex_count(&self) -> usize {
         self.template.vertex_count()
+    }
+
+    /// The template vertices of the garment (empty without one): they follow the body's.
+    pub fn garment_vertices(&self) -> std::ops::Range<usize> {
+        self.body_vertex_count..self.vertex_count()
     }
 
     /// The render-time wrinkle model, when [`DeformationParams::wrinkles`] is set.
