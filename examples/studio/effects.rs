@@ -495,9 +495,10 @@ pub(crate) fn skirt_picture(full: &Performer, motion: &Motion, out: &Path) -> An
     Ok(best_k)
 }
 
-/// `wrinkle_closeup.png`: the left elbow bent to 90°, seen from inside the bend at 30 cm:
-/// the normal map of the refined surface with its wrinkles, and without them (the same fine
-/// mesh minus the recorded wrinkle displacement). Returns the close-up's figures.
+/// `wrinkle_closeup.png`: the left elbow bent to [`CLOSEUP_FLEXION_DEG`], its strongest fold
+/// seen along its normal from 12 cm: the normal map of the refined surface with its wrinkles,
+/// the wrinkle displacement, and the normal map without them (the same fine mesh minus the
+/// recorded wrinkle displacement). Returns the close-up's figures.
 pub(crate) fn wrinkle_closeup(full: &Performer, out: &Path) -> AnyResult<Value> {
     let s = &full.skeleton;
     let mut theta = s.rest_pose();
@@ -572,7 +573,9 @@ pub(crate) fn wrinkle_closeup(full: &Performer, out: &Path) -> AnyResult<Value> 
     }
     let img = kplot::titled(
         &kplot::side_by_side(&panels)?,
-        "Elbow crease at 90° flexion: normal maps of the refined surface",
+        &format!(
+            "Elbow crease at {CLOSEUP_FLEXION_DEG}° flexion: normal maps of the refined surface"
+        ),
         Some(&format!(
             "colour = camera-frame normal (x → red, y → green, z → blue); folds up to {:.1} mm",
             fine.max_wrinkle_m() * 1e3
