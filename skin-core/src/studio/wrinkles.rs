@@ -17,9 +17,16 @@
 //!   1 from the reference flexion on, C¹), `s` the rest position along the crease's axis (the
 //!   bisector of the two segments at the joint, as [`crate::studio::EffectAxis::Joint`]), so
 //!   the folds run around the limb — parallel to the flexion axis on the inner side — and
-//!   `e_c` the envelope: region skin weight × [`Bump`] along the axis × `max(0, r̂·f̂)²` around
-//!   it (the inner side [`EffectSide`] of the joint), evaluated at the coarse vertices and
-//!   interpolated linearly, so it is exactly zero on every face that is not refined. Skin
+//!   `e_c = w_region · bump_along(|s| / L) · bump_around(φ)` the envelope: region skin
+//!   weight, a [`Bump`] of the distance from the joint along the axis in lengths `L` of the
+//!   crease's bone (mirrored about the joint: by default strongest ≈ 1.8 cm on either side
+//!   of the crease line, on the upper arm and forearm (thigh and shank) faces of the bend
+//!   where the skin bunches, ≈ 0.7 of that on the line itself, which linear blend skinning
+//!   and the pose-driven crease tuck in out of the cameras' sight), and a [`Bump`] of the
+//!   angle `φ = ∠(r̂, f̂)` around the axis from the inner side `f̂` ([`EffectSide`]; by
+//!   default `cos²(90° · φ / 110°)`, [`CREASE_LOBE_RAD`], reaching the sides of the bend),
+//!   evaluated at the coarse vertices and interpolated linearly, so it is exactly zero on
+//!   every face that is not refined. Skin
 //!   folds where it is compressed, not where it is stretched: each refined coarse face's
 //!   largest principal stretch (rest → posed) scales the folds at its corners by 1 up to
 //!   1.15, smoothly down to 0 at 1.3 (the lateral sides of a joint bent far past 90°), which
@@ -70,6 +77,12 @@ pub const DEFAULT_FULL_COMPRESSION: f64 = 0.10;
 /// the posed wrinkled edges within the bound: `0.7 · 1.15 · 1.17 ≈ 0.94`.
 pub const WRINKLE_EDGE_MARGIN: f64 = 0.7;
 
+/// Default angular half-width of the crease folds around the limb, radians: 110° from the
+/// inner side (`cos²(90° · φ / 110°)`, half strength at 55°), wider than the lobe
+/// `max(0, r̂·f̂)²` (half strength at 45°, zero at 90°), so that the folds reach the sides
+/// of the bend that cameras see.
+pub const CREASE_LOBE_RAD: f64 = 110.0 * std::f64::consts::PI / 180.0;
+
 /// Wrinkles at one joint crease, driven by one flexion DOF.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CreaseWrinkles {
@@ -91,8 +104,14 @@ pub struct CreaseWrinkles {
     pub bone: String,
     /// Joints whose summed skin weight scales the folds per vertex, not empty.
     pub region: Vec<String>,
-    /// Profile along the crease axis, in lengths of `bone`'s segment, 0 at the joint.
+    /// Profile of the distance `|s|` from the joint along the crease axis, in lengths of
+    /// `bone`'s segment (mirrored about the joint, so a `peak > 0` puts the folds on both
+    /// sides of the crease line).
     pub along: Bump,
+    /// Profile of the angle `φ = ∠(r̂, f̂)` around the axis from the inner side, radians
+    /// (`φ ∈ [0, π]`; `Bump { peak: 0, before: π/2, after: π/2 }` is the lobe
+    /// `max(0, r̂·f̂)²`).
+    pub around: Bump,
     /// The inner side of the joint (where the skin folds).
     pub side: EffectSide,
 }
@@ -143,15 +162,23 @@ impl Default for WrinkleParams {
     /// Elbow and knee creases of both sides for the joint and DOF names of
     /// [`human_skeleton`](crate::skeleton::human_skeleton) (MakeHuman and procedural
     /// performers): 2 mm folds of 2 cm wavelength at 90° of flexion on the inner side (the
-    /// flexor side of the elbow, the back of the knee), over ±12 % of the upper arm
-    /// (≈ ±3.5 cm) and ±10 % of the thigh (≈ ±4.5 cm) around the joint; the garment's
-    /// defaults; 3 mm edges.
+    /// flexor side of the elbow, the back of the knee), strongest ≈ 1.8 cm either side of
+    /// the crease line (6 % of the upper arm, 4 % of the thigh; ≈ 0.7 of that on the line
+    /// itself) and fading out ≈ 6 cm from the joint, on the faces of the bend where the skin
+    /// bunches and cameras see it (the crease line itself is where linear blend skinning and
+    /// the pose-driven crease tuck the skin in); around the limb over ±110° from the inner
+    /// side ([`CREASE_LOBE_RAD`], half strength at ±55°); the garment's defaults; 3 mm edges.
     fn default() -> Self {
         let mut creases = Vec::new();
         for s in ["l", "r"] {
-            for (joint, bone, region, width) in [
-                ("elbow", "shoulder", ["shoulder", "elbow"], 0.12),
-                ("knee", "hip", ["hip", "knee"], 0.10),
+            for (joint, bone, region, (peak, before, after)) in [
+                (
+                    "elbow",
+                    "shoulder",
+                    ["shoulder", "elbow"],
+                    (0.06, 0.16, 0.15),
+                ),
+                ("knee", "hip", ["hip", "knee"], (0.04, 0.10, 0.10)),
             ] {
                 creases.push(CreaseWrinkles {
                     name: format!("{s}_{joint}"),
@@ -162,9 +189,14 @@ impl Default for WrinkleParams {
                     bone: format!("{s}_{bone}"),
                     region: region.iter().map(|r| format!("{s}_{r}")).collect(),
                     along: Bump {
+                        peak,
+                        before,
+                        after,
+                    },
+                    around: Bump {
                         peak: 0.0,
-                        before: width,
-                        after: width,
+                        before: CREASE_LOBE_RAD,
+                        after: CREASE_LOBE_RAD,
                     },
                     side: EffectSide::Towards(format!("{s}_{joint}.flexion")),
                 });
@@ -380,6 +412,9 @@ impl WrinkleModel {
             check::finite("along.peak", c.along.peak).map_err(wrap)?;
             check::positive("along.before", c.along.before).map_err(wrap)?;
             check::positive("along.after", c.along.after).map_err(wrap)?;
+            check::finite("around.peak", c.around.peak).map_err(wrap)?;
+            check::positive("around.before", c.around.before).map_err(wrap)?;
+            check::positive("around.after", c.around.after).map_err(wrap)?;
             check::nonzero("region (count)", c.region.len()).map_err(wrap)?;
             let region = c
                 .region
@@ -442,8 +477,8 @@ impl WrinkleModel {
                         .sum();
                     let along = (*x - origin).dot(axis);
                     let radial = (*x - origin - axis * along).normalize_or_zero();
-                    let lobe = radial.dot(side).max(0.0);
-                    w * c.along.value(along / length) * lobe * lobe
+                    let phi = radial.dot(side).clamp(-1.0, 1.0).acos();
+                    w * c.along.value(along.abs() / length) * c.around.value(phi)
                 })
                 .collect();
             envelopes.push(env);
