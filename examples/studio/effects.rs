@@ -10,10 +10,10 @@ use std::time::Instant;
 use dynamic_shapes::core::camera::{Camera, Intrinsics};
 use dynamic_shapes::core::image::normals_rgb8;
 use dynamic_shapes::core::math::{DQuat, DVec3};
-use dynamic_shapes::core::mesh::{vertex_normals, NormalWeighting, TriMesh};
-use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, NO_TRIANGLE};
+use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::skeleton::{read_bvh, BvhParams, Motion};
-use dynamic_shapes::core::stats::median;
+use dynamic_shapes::core::stats::{median, percentile};
 use dynamic_shapes::core::studio::{
     exercise_motion, fast_motion, max_pose_share, preview, procedural_performer, range_coverage,
     range_of_motion, retarget, DeformationParams, DeformationState, ExerciseParams,
@@ -495,8 +495,16 @@ pub(crate) fn skirt_picture(full: &Performer, motion: &Motion, out: &Path) -> An
     Ok(best_k)
 }
 
-/// `wrinkle_closeup.png`: the left elbow bent to [`CLOSEUP_FLEXION_DEG`], its strongest fold
-/// seen along its normal from 12 cm: the normal map of the refined surface with its wrinkles,
+/// The wrinkle displacement at pixel `i` of view `v` of `mesh` (interpolated with the
+/// barycentrics; the pixel must be covered).
+fn fold_at(mesh: &TriMesh, fold: &[DVec3], v: &RenderedView, i: usize) -> DVec3 {
+    let f = mesh.faces[v.triangle[i] as usize].map(|c| fold[c as usize]);
+    let [b1, b2] = v.bary[i].map(f64::from);
+    f[0] * (1.0 - b1 - b2) + f[1] * b1 + f[2] * b2
+}
+
+/// `wrinkle_closeup.png`: the left elbow bent to [`CLOSEUP_FLEXION_DEG`], seen from 20 cm by
+/// the camera (of 26 around it) that sees most of its folds: the normal map of the refined surface with its wrinkles,
 /// the wrinkle displacement, and the normal map without them (the same fine mesh minus the
 /// recorded wrinkle displacement). Returns the close-up's figures.
 pub(crate) fn wrinkle_closeup(full: &Performer, out: &Path) -> AnyResult<Value> {
@@ -512,19 +520,39 @@ pub(crate) fn wrinkle_closeup(full: &Performer, out: &Path) -> AnyResult<Value> 
     let at = |n: &str| -> AnyResult<DVec3> {
         Ok(f.joint_positions[s.joint_index(n).ok_or("the performer has the joint")?])
     };
-    // Look at the strongest fold near the left elbow along its normal, from 12 cm.
+    // Of 26 cameras 20 cm from the left elbow (the directions of a cube's faces, edges and
+    // corners), the one seeing most pixels of fold (> 0.5 mm).
     let elbow = at("l_elbow")?;
-    let normals = vertex_normals(&fine.mesh, NormalWeighting::Angle)?;
-    let strongest = (0..fine.mesh.vertex_count())
-        .filter(|&v| fine.mesh.vertices[v].distance(elbow) < 0.15)
-        .max_by(|&a, &b| {
-            let size = |v: usize| fine.wrinkle_displacement[v].length();
-            size(a).total_cmp(&size(b))
-        })
-        .ok_or("the refined surface has vertices near the left elbow")?;
-    let (centre, normal) = (fine.mesh.vertices[strongest], normals[strongest]);
+    let params = RenderParams::default().with_buffers(Buffers::ALL);
     let k = Intrinsics::from_horizontal_fov(0.9, 560, 420)?;
-    let cam = Camera::look_at(k, centre + normal * 0.12, centre, DVec3::Y)?;
+    let mut best: Option<(usize, Camera)> = None;
+    for i in 0..27 {
+        let d = DVec3::new(
+            (i % 3) as f64 - 1.0,
+            ((i / 3) % 3) as f64 - 1.0,
+            (i / 9) as f64 - 1.0,
+        );
+        if d == DVec3::ZERO {
+            continue;
+        }
+        let up = if d.normalize().dot(DVec3::Y).abs() > 0.9 {
+            DVec3::Z
+        } else {
+            DVec3::Y
+        };
+        let cam = Camera::look_at(k, elbow + d.normalize() * 0.2, elbow, up)?;
+        let v = Rasterizer::new(&cam).render(&fine.mesh, &params.with_allow_empty(true))?;
+        let seen = (0..v.triangle.len())
+            .filter(|&i| {
+                v.triangle[i] != NO_TRIANGLE
+                    && fold_at(&fine.mesh, &fine.wrinkle_displacement, &v, i).length() > 0.5e-3
+            })
+            .count();
+        if best.as_ref().is_none_or(|(n, _)| seen > *n) {
+            best = Some((seen, cam));
+        }
+    }
+    let (_, cam) = best.ok_or("26 candidate cameras")?;
     let r = Rasterizer::new(&cam);
     let smooth = TriMesh {
         vertices: fine
@@ -536,51 +564,92 @@ pub(crate) fn wrinkle_closeup(full: &Performer, out: &Path) -> AnyResult<Value> 
             .collect(),
         faces: fine.mesh.faces.clone(),
     };
-    let params = RenderParams::default().with_buffers(Buffers::ALL);
-    let mut panels = Vec::new();
-    for (mesh, title) in [(&fine.mesh, "with wrinkles"), (&smooth, "without wrinkles")] {
-        let v = r.render(mesh, &params)?;
+    let with = r.render(&fine.mesh, &params)?;
+    let without = r.render(&smooth, &params)?;
+    let ramp_u8 = |t: f64| ramp(t).map(|c| (255.0 * c) as u8);
+    let false_colour = |values: &[Option<f64>], top: f64, label: &str| -> AnyResult<RgbImage> {
+        let mut map = RgbImage::new(with.width, with.height);
+        for (p, v) in map.pixels_mut().zip(values) {
+            if let Some(v) = v {
+                *p = image::Rgb(ramp_u8(v / top));
+            }
+        }
+        Ok(kplot::with_colour_bar(
+            &map,
+            &ColourBar {
+                label,
+                min: 0.0,
+                max: top,
+                ramp: &ramp_u8,
+                note: None,
+            },
+        )?)
+    };
+    // Per pixel: the fold's displacement (mm), and the angle between the normals with and
+    // without the folds (degrees) where both views see the same face's refinement.
+    let covered = |i: usize| with.triangle[i] != NO_TRIANGLE && without.triangle[i] != NO_TRIANGLE;
+    let fold_mm: Vec<Option<f64>> = (0..with.triangle.len())
+        .map(|i| {
+            (with.triangle[i] != NO_TRIANGLE)
+                .then(|| fold_at(&fine.mesh, &fine.wrinkle_displacement, &with, i).length() * 1e3)
+        })
+        .collect();
+    let angle_deg: Vec<Option<f64>> = (0..with.triangle.len())
+        .map(|i| {
+            covered(i).then(|| {
+                let [a, b] = [&with, &without].map(|v| {
+                    DVec3::from_array(v.normal_camera[i].map(f64::from)).normalize_or_zero()
+                });
+                a.dot(b).clamp(-1.0, 1.0).acos().to_degrees()
+            })
+        })
+        .collect();
+    let on_folds: Vec<f64> = fold_mm
+        .iter()
+        .zip(&angle_deg)
+        .filter_map(|(f, a)| (f.is_some_and(|f| f > 0.5)).then_some(*a).flatten())
+        .collect();
+    let p90 = if on_folds.is_empty() {
+        0.0
+    } else {
+        percentile(&on_folds, 0.9)
+    };
+    let normals = |v: &RenderedView, title: &str| -> AnyResult<RgbImage> {
         let img = Rgb32FImage::from_raw(v.width, v.height, v.normal_camera.concat())
             .ok_or("normal buffer of the view's size")?;
-        panels.push(kplot::titled(&normals_rgb8(&img), title, None)?);
-        if panels.len() == 1 {
-            // Where the folds are: the wrinkle displacement at each pixel's surface point.
-            let top = 2.0;
-            let mut map = RgbImage::new(v.width, v.height);
-            for (i, p) in map.pixels_mut().enumerate() {
-                let t = v.triangle[i];
-                if t == NO_TRIANGLE {
-                    continue;
-                }
-                let f = mesh.faces[t as usize].map(|c| fine.wrinkle_displacement[c as usize]);
-                let [b1, b2] = v.bary[i].map(f64::from);
-                let d = f[0] * (1.0 - b1 - b2) + f[1] * b1 + f[2] * b2;
-                *p = image::Rgb(ramp(d.length() * 1e3 / top).map(|c| (255.0 * c) as u8));
-            }
-            let ramp_u8 = |t: f64| ramp(t).map(|c| (255.0 * c) as u8);
-            let map = kplot::with_colour_bar(
-                &map,
-                &ColourBar {
-                    label: "|wrinkle displacement| (mm)",
-                    min: 0.0,
-                    max: top,
-                    ramp: &ramp_u8,
-                    note: None,
-                },
-            )?;
-            panels.push(kplot::titled(&map, "fold displacement", None)?);
-        }
-    }
+        Ok(kplot::titled(&normals_rgb8(&img), title, None)?)
+    };
+    let panels = [
+        normals(&with, "normals with wrinkles")?,
+        normals(&without, "normals without wrinkles")?,
+        kplot::titled(
+            &false_colour(&fold_mm, 2.0, "|wrinkle displacement| (mm)")?,
+            "fold displacement",
+            None,
+        )?,
+        kplot::titled(
+            &false_colour(&angle_deg, 30.0, "normal change (°)")?,
+            "angle between the two normal maps",
+            None,
+        )?,
+    ];
     let img = kplot::titled(
-        &kplot::side_by_side(&panels)?,
+        &kplot::stacked(&[
+            kplot::side_by_side(&panels[..2])?,
+            kplot::side_by_side(&panels[2..])?,
+        ])?,
         &format!(
             "Elbow crease at {CLOSEUP_FLEXION_DEG}° flexion: normal maps of the refined surface"
         ),
         Some(&format!(
-            "colour = camera-frame normal (x → red, y → green, z → blue); folds up to {:.1} mm",
+            "normal maps: camera-frame normal x → red, y → green, z → blue; folds up to {:.1} mm; on fold pixels (> 0.5 mm) the normal turns by up to {p90:.0}° (90th percentile)",
             fine.max_wrinkle_m() * 1e3
         )),
     )?;
     kplot::save(&img, out.join("wrinkle_closeup.png"))?;
-    Ok(json!({ "closeup_wrinkle_max_mm": fine.max_wrinkle_m() * 1e3 }))
+    Ok(json!({
+        "closeup_wrinkle_max_mm": fine.max_wrinkle_m() * 1e3,
+        "closeup_fold_pixels": on_folds.len(),
+        "closeup_normal_change_p90_deg": p90,
+    }))
 }
