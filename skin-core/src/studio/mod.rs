@@ -19,6 +19,8 @@
 //!   Lambertian shading with albedo, cast shadows by ray casts.
 //! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
+//! * Garments ([`Garment`]): a skirt and a draped sheet ("Ghost") as their own cloth
+//!   surfaces with second-order dynamics (XPBD), driven by the body and colliding with it.
 //! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 
@@ -27,6 +29,7 @@ pub mod preview;
 pub mod shading;
 
 mod deformation;
+mod garment;
 mod makehuman;
 mod motion;
 mod muscles;
@@ -44,6 +47,10 @@ pub use capture::{
 pub use deformation::{
     BulgeParams, DeformationModel, DeformationParams, DeformationState, FlapParams, HingeBulge,
     DEFAULT_BULGE_M_PER_RAD,
+};
+pub use garment::{
+    ClothParams, Garment, GarmentParams, GarmentState, SheetParams, SkirtParams,
+    MAX_GARMENT_VERTICES, SETTLE_DAMPING_PER_S, WEIGHT_SMOOTHING_PASSES,
 };
 pub use makehuman::{
     makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
