@@ -114,7 +114,8 @@ pub(super) struct PosedColliders {
 impl Colliders {
     /// Keeps only the capsules owned by `joints`.
     pub(super) fn retain(&mut self, joints: &[usize]) {
-        self.capsules.retain(|c| joints.contains(&(c.joint as usize)));
+        self.capsules
+            .retain(|c| joints.contains(&(c.joint as usize)));
     }
 
     /// Poses every capsule with the joint frames `world_from_joint` (checked by the caller).
@@ -346,7 +347,12 @@ pub(super) fn fit(
             rb,
         });
     }
-    let floor_y = floor.then(|| body.vertices.iter().map(|v| v.y).fold(f64::INFINITY, f64::min));
+    let floor_y = floor.then(|| {
+        body.vertices
+            .iter()
+            .map(|v| v.y)
+            .fold(f64::INFINITY, f64::min)
+    });
     Ok(Colliders {
         capsules,
         floor_y,

@@ -212,7 +212,7 @@ pub(super) fn pattern(
         body_waist[b] = body_waist[b].max(r);
     }
     // Fill bins no vertex fell in from their neighbours.
-    while body_waist.iter().any(|&r| r == 0.0) {
+    while body_waist.contains(&0.0) {
         let prev = body_waist.clone();
         for (i, r) in body_waist.iter_mut().enumerate() {
             if *r == 0.0 {
@@ -246,7 +246,14 @@ pub(super) fn pattern(
     let r0: Vec<f64> = smooth_up(
         &r0.iter()
             .enumerate()
-            .map(|(s, r)| r.max(reach(profile, margin, c0, azimuth_dir(TAU * s as f64 / s_n as f64))))
+            .map(|(s, r)| {
+                r.max(reach(
+                    profile,
+                    margin,
+                    c0,
+                    azimuth_dir(TAU * s as f64 / s_n as f64),
+                ))
+            })
             .collect::<Vec<_>>(),
     );
     let rings = p.rings;
