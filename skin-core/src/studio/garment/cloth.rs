@@ -161,6 +161,9 @@ impl Cloth {
             p.stretch_compliance_m_per_n / (h * h),
             p.bend_compliance_m_per_n / (h * h),
         );
+        // Compressed fabric buckles below the mesh's resolution: a stretch edge shorter than
+        // its rest length resists like a fold, with the bending compliance.
+        let alpha_c = alpha_s.max(alpha_b);
         let mut before = colliders(0.0);
         for s in 1..=steps as usize {
             let a = s as f64 / steps;
@@ -176,8 +179,8 @@ impl Cloth {
             lambda_s.iter_mut().for_each(|l| *l = 0.0);
             lambda_b.iter_mut().for_each(|l| *l = 0.0);
             for _ in 0..p.iterations {
-                self.solve(&self.stretch, alpha_s, &mut lambda_s, &mut pred);
-                self.solve(&self.bend, alpha_b, &mut lambda_b, &mut pred);
+                self.solve(&self.stretch, (alpha_s, alpha_c), &mut lambda_s, &mut pred);
+                self.solve(&self.bend, (alpha_b, alpha_b), &mut lambda_b, &mut pred);
             }
             for i in 0..n {
                 if self.inv_mass[i] > 0.0 {
@@ -192,9 +195,9 @@ impl Cloth {
         }
     }
 
-    /// One Gauss–Seidel pass over distance constraints with compliance `alpha` (already
-    /// divided by h²): `Δλ = (−C − α̃ λ) / (w_i + w_j + α̃)`.
-    fn solve(&self, links: &[Link], alpha: f64, lambda: &mut [f64], p: &mut [DVec3]) {
+    /// One Gauss–Seidel pass over distance constraints with compliance `alpha` = (stretched,
+    /// compressed), already divided by h²: `Δλ = (−C − α̃ λ) / (w_i + w_j + α̃)`.
+    fn solve(&self, links: &[Link], alpha: (f64, f64), lambda: &mut [f64], p: &mut [DVec3]) {
         for (l, lam) in links.iter().zip(lambda.iter_mut()) {
             let (i, j) = (l.i as usize, l.j as usize);
             let (wi, wj) = (self.inv_mass[i], self.inv_mass[j]);
@@ -208,6 +211,7 @@ impl Cloth {
                 continue;
             }
             let c = len - l.rest_m;
+            let alpha = if c < 0.0 { alpha.1 } else { alpha.0 };
             let dl = (-c - alpha * *lam) / (w + alpha);
             *lam += dl;
             let corr = d * (dl / len);

@@ -90,12 +90,55 @@ impl PosedCapsule {
         }
     }
 
-    /// `(signed distance to the capsule surface, parameter, closest axis point)`.
-    pub(super) fn distance(&self, p: DVec3) -> (f64, f64, DVec3) {
-        let s = segment_param(p, self.a, self.b);
-        let c = self.a.lerp(self.b, s);
-        let r = self.ra + (self.rb - self.ra) * s;
-        (p.distance(c) - r, s, c)
+    /// `(signed distance to the surface, outward unit normal there, parameter along a → b of
+    /// the closest surface point's projection on the axis)`: the exact distance to the round
+    /// cone (convex hull of the spheres `(a, ra)` and `(b, rb)`), so pushing a point out by the
+    /// depth along the normal lands it on the surface — the plain "linear radius at the
+    /// closest axis point" is no distance for a steep taper (pushing radially by it amplifies
+    /// any motion along the axis, which made the cloth jitter on the pelvis cones).
+    pub(super) fn distance(&self, p: DVec3) -> (f64, DVec3, f64) {
+        let ab = self.b - self.a;
+        let l = ab.length();
+        let (ra, rb) = (self.ra, self.rb);
+        // One sphere holds the other (or the segment is a point): the larger sphere.
+        if l < 1e-12 || (ra - rb).abs() >= l {
+            let (c, r, s) = if ra >= rb {
+                (self.a, ra, 0.0)
+            } else {
+                (self.b, rb, 1.0)
+            };
+            let n = (p - c).try_normalize().unwrap_or(DVec3::Y);
+            return (p.distance(c) - r, n, s);
+        }
+        let e = ab / l;
+        let pa = p - self.a;
+        let u = pa.dot(e);
+        let q = pa - e * u;
+        let v = q.length();
+        let w = if v > 1e-12 {
+            q / v
+        } else {
+            e.any_orthonormal_vector()
+        };
+        // The side line in the (u, v) half-plane: normal (sin φ, cos φ), tangent to both
+        // circles, at the points T_a = ra (sin φ, cos φ) and T_b = (l, 0) + rb (sin φ, cos φ).
+        let sin = (ra - rb) / l;
+        let cos = (1.0 - sin * sin).sqrt();
+        // Position along the side line from T_a (direction (cos φ, −sin φ)).
+        let along = (u - ra * sin) * cos - (v - ra * cos) * sin;
+        if along <= 0.0 {
+            let n = (p - self.a).try_normalize().unwrap_or(-e);
+            (p.distance(self.a) - ra, n, 0.0)
+        } else if along >= l * cos {
+            let n = (p - self.b).try_normalize().unwrap_or(e);
+            (p.distance(self.b) - rb, n, 1.0)
+        } else {
+            let d = u * sin + v * cos - ra;
+            let n = e * sin + w * cos;
+            // The surface point's axial parameter.
+            let s = ((u - d * sin) / l).clamp(0.0, 1.0);
+            (d, n, s)
+        }
     }
 
     fn may_touch(&self, p: DVec3) -> bool {
@@ -180,14 +223,11 @@ impl PosedColliders {
             if (k < 64 && ignore & (1 << k) != 0) || !c.may_touch(p) {
                 continue;
             }
-            let (d, s, axis) = c.distance(p);
+            let (d, n, s) = c.distance(p);
             let depth = m - d;
             if depth <= 0.0 {
                 continue;
             }
-            let Some(n) = (p - axis).try_normalize() else {
-                continue;
-            };
             p += n * depth;
             if mu > 0.0 {
                 let surface = (c.a - c0.a).lerp(c.b - c0.b, s);
