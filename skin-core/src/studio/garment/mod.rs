@@ -24,6 +24,7 @@
 //! **Sizes.** Defaults: skirt 32 rings × 72 segments = 2,304 vertices, sheet 48 × 48 = 2,304
 //! vertices; at most [`MAX_GARMENT_VERTICES`].
 
+mod body;
 mod cloth;
 mod colliders;
 mod sheet;
@@ -36,6 +37,7 @@ use crate::math::{DAffine3, DVec3};
 use crate::mesh::{vertex_neighbors, MeshQuery, SkinWeights, TriMesh};
 use crate::skeleton::Skeleton;
 use crate::{Error, Result};
+use body::BodySurface;
 use cloth::Cloth;
 use colliders::Colliders;
 use nalgebra::DMatrix;
@@ -301,6 +303,7 @@ pub struct Garment {
     weights: SkinWeights,
     cloth: Cloth,
     colliders: Colliders,
+    body: BodySurface,
     joint_count: usize,
 }
 
@@ -316,6 +319,8 @@ pub struct GarmentState {
     pub skinned: Vec<DVec3>,
     /// The body's joint frames at the previous step.
     pub world_from_joint: Vec<DAffine3>,
+    /// The body's collision vertices at the previous step (module `body`), metres.
+    pub body: Vec<DVec3>,
 }
 
 /// Index of the joint called `name`, else [`Error::InvalidParam`] naming `what`.
@@ -362,6 +367,20 @@ impl Garment {
                 .collect::<Result<Vec<_>>>()?;
             colliders.retain(&keep);
         }
+        let body_surface = match params {
+            GarmentParams::Skirt(p) => {
+                let joints = p
+                    .collider_joints
+                    .iter()
+                    .map(|n| joint_named(skeleton, n, "skirt.collider_joints"))
+                    .collect::<Result<Vec<_>>>()?;
+                BodySurface::new(body, body_weights, &joints)?
+            }
+            GarmentParams::Sheet(_) => {
+                let all: Vec<usize> = (0..skeleton.joint_count()).collect();
+                BodySurface::new(body, body_weights, &all)?
+            }
+        };
         let posed = colliders.pose(frames);
         let owners: Vec<u32> = colliders.capsules.iter().map(|c| c.joint).collect();
         let (pattern, pinned, x) = match params {
@@ -420,6 +439,7 @@ impl Garment {
             weights,
             cloth,
             colliders,
+            body: body_surface,
             joint_count: skeleton.joint_count(),
         })
     }
@@ -457,20 +477,24 @@ impl Garment {
     /// One frame: `skinned` = the garment's LBS positions this frame (the integrator computes
     /// them with [`crate::mesh::skin`] of [`Garment::rest_mesh`], [`Garment::weights`] and
     /// the body's `world_from_rest`), `world_from_joint` = the body's joint frames (they move
-    /// the colliders), `dt_s` = time since the previous call, seconds (ignored on the first
-    /// call, which starts at rest on `skinned`). Over the interval pinned vertices and
-    /// colliders move linearly from the previous call's to this call's. Returns the simulated
-    /// vertex positions, metres.
+    /// the colliders), `body` = the posed body's vertices this frame (every vertex of the
+    /// template the garment was built on, in its order: the skinned body, or the true one),
+    /// `dt_s` = time since the previous call, seconds (ignored on the first call, which starts
+    /// at rest on `skinned`). Over the interval pinned vertices and colliders move linearly
+    /// from the previous call's to this call's; after the last substep every free vertex is
+    /// put at least the collision margin outside the posed body (module `body`). Returns the
+    /// simulated vertex positions, metres.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for `skinned` or `world_from_joint` of the wrong length or a
-    /// state of another garment; [`Error::NonFinite`] for non-finite inputs;
+    /// [`Error::SizeMismatch`] for `skinned`, `world_from_joint` or `body` of the wrong length
+    /// or a state of another garment; [`Error::NonFinite`] for non-finite inputs;
     /// [`Error::InvalidParam`] for a non-positive or non-finite `dt_s` after the first call.
     pub fn step(
         &self,
         state: &mut GarmentState,
         skinned: &[DVec3],
         world_from_joint: &[DAffine3],
+        body: &[DVec3],
         dt_s: f64,
     ) -> Result<Vec<DVec3>> {
         let n = self.vertex_count();
@@ -480,6 +504,7 @@ impl Garment {
             self.joint_count,
             world_from_joint.len(),
         )?;
+        check::same_size("posed body vertices", self.body.vertex_count, body.len())?;
         if !skinned.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFinite {
                 what: "skinned garment vertices",
@@ -490,12 +515,19 @@ impl Garment {
                 what: "joint frames (world_from_joint)",
             });
         }
+        if !body.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "posed body vertices",
+            });
+        }
+        let body_now = self.body.gather(body);
         if state.positions.is_empty() {
             *state = GarmentState {
                 positions: skinned.to_vec(),
                 velocities: vec![DVec3::ZERO; n],
                 skinned: skinned.to_vec(),
                 world_from_joint: world_from_joint.to_vec(),
+                body: body_now,
             };
             return Ok(skinned.to_vec());
         }
@@ -511,6 +543,7 @@ impl Garment {
             self.joint_count,
             state.world_from_joint.len(),
         )?;
+        check::same_size("garment state body", body_now.len(), state.body.len())?;
         check::positive("dt_s", dt_s)?;
         let from = self.colliders.pose(&state.world_from_joint);
         let to = self.colliders.pose(world_from_joint);
@@ -522,6 +555,16 @@ impl Garment {
             dt_s,
             |a| Colliders::between(&from, &to, a),
         );
+        let posed_body = self.body.pose(body_now);
+        body::project(
+            &self.cloth,
+            &posed_body,
+            &state.body,
+            dt_s,
+            &mut state.positions,
+            &mut state.velocities,
+        );
+        state.body = posed_body.vertices;
         state.skinned.clear();
         state.skinned.extend_from_slice(skinned);
         state.world_from_joint.clear();

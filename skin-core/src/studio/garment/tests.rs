@@ -50,7 +50,13 @@ fn play(
         let sk = skin(&g.rest_mesh().vertices, g.weights(), &wfr).unwrap();
         let t = Instant::now();
         let sim = g
-            .step(&mut st, &sk, &f.world_from_joint, motion.frame_time_s)
+            .step(
+                &mut st,
+                &sk,
+                &f.world_from_joint,
+                &f.lbs_vertices,
+                motion.frame_time_s,
+            )
             .unwrap();
         let secs = t.elapsed().as_secs_f64();
         each(k, &f, &sk, &sim, secs);
@@ -69,26 +75,46 @@ fn fast(seconds: f64, frame_time_s: f64) -> Motion {
     .unwrap()
 }
 
-/// The posed body's faces whose corners all belong mainly to `joints` (the skirt's colliders).
-fn faces_of(joints: &[&str]) -> Vec<[u32; 3]> {
+/// The body's faces except those mainly weighted to the arms and hands (mean over the corners
+/// of the weight on shoulder, elbow and wrist ≥ ½), each with whether it lies on the seam where
+/// the arms are cut off (a corner whose largest weight is an arm joint's). Arms are no
+/// colliders of the skirt and a hand may pass through it: a skirt vertex whose closest point
+/// is on the seam is inside an arm (or next to the hole the arm leaves), not the trunk.
+fn faces_without_arms() -> (Vec<[u32; 3]>, Vec<bool>) {
     let p = performer();
-    let ids: Vec<u32> = joints
-        .iter()
-        .map(|n| p.skeleton.joint_index(n).unwrap() as u32)
-        .collect();
-    let main = |v: u32| {
+    let arms: Vec<u32> = [
+        "l_shoulder",
+        "l_elbow",
+        "l_wrist",
+        "r_shoulder",
+        "r_elbow",
+        "r_wrist",
+    ]
+    .iter()
+    .map(|n| p.skeleton.joint_index(n).unwrap() as u32)
+    .collect();
+    let arm = |v: u32| -> f64 {
         p.weights
+            .influences(v as usize)
+            .filter(|(j, _)| arms.contains(j))
+            .map(|(_, w)| w)
+            .sum()
+    };
+    let main_is_arm = |v: u32| {
+        let main = p
+            .weights
             .influences(v as usize)
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap()
-            .0
+            .0;
+        arms.contains(&main)
     };
     p.template
         .faces
         .iter()
-        .filter(|f| f.iter().all(|&v| ids.contains(&main(v))))
-        .copied()
-        .collect()
+        .filter(|f| f.iter().map(|&v| arm(v)).sum::<f64>() / 3.0 < 0.5)
+        .map(|f| (*f, f.iter().any(|&v| main_is_arm(v))))
+        .unzip()
 }
 
 /// Hem ring of the default skirt.
@@ -145,21 +171,16 @@ fn skirt_is_coarse_valid_and_drapes_outside_the_body() {
     );
 }
 
-/// Over 2 s of the fast motion no free skirt vertex is more than 5 mm inside the skinned
-/// body's trunk and legs (the skirt's colliders; arms are no colliders of the skirt), and
-/// the hem swings at least 10 cm away from the skinned skirt.
+/// Over 2 s of the fast motion no free skirt vertex is more than 5 mm inside the posed
+/// (skinned) body — all of it but the arms and hands, see [`faces_without_arms`] — and the
+/// hem swings at least 10 cm away from the skinned skirt.
 #[test]
-#[ignore = "open: the hem displacement passes (≈ 1.27 m) but free vertices reach ≈ 105 mm \
-            into the skinned trunk (capsule colliders too coarse for LBS at the waist); see \
-            the report"]
 fn skirt_keeps_out_of_the_body_and_swings_in_fast_motion() {
     let g = skirt();
-    let joints = [
-        "pelvis", "spine", "chest", "l_hip", "l_knee", "l_ankle", "r_hip", "r_knee", "r_ankle",
-    ];
-    let faces = faces_of(&joints);
+    let (faces, seam) = faces_without_arms();
     let motion = fast(2.0, 1.0 / 60.0);
     let (mut pen, mut pen_pinned, mut hem_lag): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let mut in_arms = 0usize;
     let hem = hem(g);
     play(g, &motion, |k, f, sk, sim, _| {
         for i in hem.clone() {
@@ -172,8 +193,11 @@ fn skirt_keeps_out_of_the_body_and_swings_in_fast_motion() {
             };
             let q = MeshQuery::new(&body).unwrap();
             for (i, v) in sim.iter().enumerate() {
-                let d = -q.closest_point(*v).unwrap().signed_distance;
-                if g.is_pinned(i) {
+                let cp = q.closest_point(*v).unwrap();
+                let d = -cp.signed_distance;
+                if seam[cp.point.face as usize] {
+                    in_arms += usize::from(d > 0.0);
+                } else if g.is_pinned(i) {
                     pen_pinned = pen_pinned.max(d);
                 } else {
                     pen = pen.max(d);
@@ -183,7 +207,8 @@ fn skirt_keeps_out_of_the_body_and_swings_in_fast_motion() {
     });
     eprintln!(
         "skirt, fast motion 2 s at 60 fps: max penetration {:.1} mm (free), {:.1} mm (pinned \
-         waistband, i.e. skinned), max hem displacement from the skinned skirt {:.3} m",
+         waistband, i.e. skinned), max hem displacement from the skinned skirt {:.3} m; \
+         {in_arms} vertex-frames inside an arm (not counted)",
         1e3 * pen,
         1e3 * pen_pinned,
         hem_lag
@@ -299,32 +324,43 @@ fn step_rejects_bad_input() {
         .unwrap();
     let frames = rest.world_from_joint();
     let sk = g.rest_mesh().vertices.clone();
+    let body = &p.template.vertices[..];
     let mut st = GarmentState::default();
     assert!(matches!(
-        g.step(&mut st, &sk[1..], frames, 0.1),
+        g.step(&mut st, &sk[1..], frames, body, 0.1),
         Err(Error::SizeMismatch { .. })
     ));
     assert!(matches!(
-        g.step(&mut st, &sk, &frames[1..], 0.1),
+        g.step(&mut st, &sk, &frames[1..], body, 0.1),
         Err(Error::SizeMismatch { .. })
     ));
     let mut nan = sk.clone();
     nan[3].x = f64::NAN;
     assert!(matches!(
-        g.step(&mut st, &nan, frames, 0.1),
+        g.step(&mut st, &nan, frames, body, 0.1),
         Err(Error::NonFinite { .. })
     ));
-    assert_eq!(g.step(&mut st, &sk, frames, f64::NAN).unwrap(), sk);
+    assert!(matches!(
+        g.step(&mut st, &sk, frames, &body[1..], 0.1),
+        Err(Error::SizeMismatch { .. })
+    ));
+    let mut nan_body = body.to_vec();
+    nan_body[7].y = f64::NAN;
+    assert!(matches!(
+        g.step(&mut st, &sk, frames, &nan_body, 0.1),
+        Err(Error::NonFinite { .. })
+    ));
+    assert_eq!(g.step(&mut st, &sk, frames, body, f64::NAN).unwrap(), sk);
     for bad in [0.0, -0.1, f64::INFINITY] {
         assert!(matches!(
-            g.step(&mut st, &sk, frames, bad),
+            g.step(&mut st, &sk, frames, body, bad),
             Err(Error::InvalidParam { name: "dt_s", .. })
         ));
     }
     let mut wrong = st.clone();
     wrong.velocities.pop();
     assert!(matches!(
-        g.step(&mut wrong, &sk, frames, 0.1),
+        g.step(&mut wrong, &sk, frames, body, 0.1),
         Err(Error::SizeMismatch { .. })
     ));
 }
@@ -342,9 +378,10 @@ fn skirt_rest_drape_is_settled() {
         .unwrap();
     let frames = rest.world_from_joint();
     let sk = g.rest_mesh().vertices.clone();
+    let body = &p.template.vertices;
     let mut st = GarmentState::default();
-    g.step(&mut st, &sk, frames, 0.0).unwrap();
-    let x = g.step(&mut st, &sk, frames, 1.0 / 30.0).unwrap();
+    g.step(&mut st, &sk, frames, body, 0.0).unwrap();
+    let x = g.step(&mut st, &sk, frames, body, 1.0 / 30.0).unwrap();
     let moved = x
         .iter()
         .zip(&sk)
