@@ -135,6 +135,18 @@ impl BodySurface {
         })
     }
 
+    /// The collision surface of the body template `body` (the one it was built from) as a mesh
+    /// of its own, with the template index of each of its vertices.
+    pub(super) fn submesh(&self, body: &TriMesh) -> (TriMesh, &[u32]) {
+        (
+            TriMesh {
+                vertices: self.gather(&body.vertices),
+                faces: self.faces.clone(),
+            },
+            &self.used,
+        )
+    }
+
     /// The used vertices of the posed body `body` (checked to have `vertex_count` entries).
     pub(super) fn gather(&self, body: &[DVec3]) -> Vec<DVec3> {
         self.used.iter().map(|&v| body[v as usize]).collect()

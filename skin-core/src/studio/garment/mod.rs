@@ -73,8 +73,9 @@ pub struct ClothParams {
     /// interior edge), m/N. Default: 1.0 — soft enough to fold and drape, stiff enough to keep
     /// the coarse mesh from crumpling.
     pub bend_compliance_m_per_n: f64,
-    /// Velocity damping rate, 1/s (`v ← v e^{−c h}` each substep). Default: 0.5 — light: a
-    /// swing dies within a few seconds (friction and the solver damp it too).
+    /// Velocity damping rate, 1/s (`v ← v e^{−c h}` each substep). Default: 1.5 — the air
+    /// drag on a light fabric (≈ ρ_air · C_d · |v| / areal density = 1.2 kg/m³ × 1 × 0.3 m/s /
+    /// 0.25 kg/m²): the hem still lags and swings visibly, and a swing dies within about 2 s.
     pub damping_per_s: f64,
     /// Gravity, m/s², acting along −Y. Default: 9.81.
     pub gravity_m_per_s2: f64,
@@ -96,7 +97,7 @@ impl Default for ClothParams {
             density_kg_per_m2: 0.25,
             stretch_compliance_m_per_n: 1e-6,
             bend_compliance_m_per_n: 1.0,
-            damping_per_s: 0.5,
+            damping_per_s: 1.5,
             gravity_m_per_s2: 9.81,
             max_substep_s: 0.002,
             iterations: 1,
@@ -145,7 +146,8 @@ pub struct SkirtParams {
     /// Vertices around each ring (≥ 8). Default: 72. `rings × segments ≤`
     /// [`MAX_GARMENT_VERTICES`].
     pub segments: usize,
-    /// Settling time at construction, seconds. Default: 1.5.
+    /// Settling time at construction, seconds. Default: 4.0 (the drape then moves by about
+    /// 3 mm/s at most when held at rest: a real equilibrium).
     pub settle_s: f64,
     /// The cloth. Default: [`ClothParams::default`].
     pub cloth: ClothParams,
@@ -171,7 +173,7 @@ impl Default for SkirtParams {
             ]),
             rings: 32,
             segments: 72,
-            settle_s: 1.5,
+            settle_s: 4.0,
             cloth: ClothParams::default(),
         }
     }
@@ -433,7 +435,42 @@ impl Garment {
         let mut cloth = Cloth::new(params.cloth(), &pattern, &pinned)?;
         cloth.ignore = posed.inside_masks(&x);
         let rest_mesh = TriMesh::new(x, pattern.faces)?;
-        let weights = garment_weights(&rest_mesh, body, body_weights, &pinned)?;
+        // The skinned skirt a rigger would make: weights only on the waist joint, its
+        // ancestors and children (pelvis, spine, thighs) — a knee's or shin's weight goes to
+        // its nearest such ancestor — from the closest point on the trunk and legs.
+        let remap: Vec<usize> = match params {
+            GarmentParams::Skirt(p) => {
+                let waist = joint_named(skeleton, &p.waist_joint, "skirt.waist_joint")?;
+                let mut allowed: Vec<usize> = skeleton.children(waist).collect();
+                let mut up = Some(waist);
+                while let Some(j) = up {
+                    allowed.push(j);
+                    up = skeleton.joints()[j].parent;
+                }
+                (0..skeleton.joint_count())
+                    .map(|j| {
+                        let mut a = Some(j);
+                        while let Some(k) = a {
+                            if allowed.contains(&k) {
+                                return k;
+                            }
+                            a = skeleton.joints()[k].parent;
+                        }
+                        waist
+                    })
+                    .collect()
+            }
+            GarmentParams::Sheet(_) => (0..skeleton.joint_count()).collect(),
+        };
+        let (surface, surface_vertex) = body_surface.submesh(body);
+        let weights = garment_weights(
+            &rest_mesh,
+            &surface,
+            surface_vertex,
+            body_weights,
+            &remap,
+            &pinned,
+        )?;
         Ok(Garment {
             rest_mesh,
             weights,
@@ -450,12 +487,15 @@ impl Garment {
     }
 
     /// Skin weights of the rest mesh over the skeleton's joints: the *skinned* reference
-    /// garment. Each vertex takes the weights of the closest point of the body template
-    /// (blended barycentrically from that triangle's corners); then
-    /// [`WEIGHT_SMOOTHING_PASSES`] Jacobi passes replace each free vertex's weights by the
-    /// mean of its mesh neighbours' (pinned vertices keep the body's, so the waistband
-    /// skins exactly like the waist under it); at most 4 influences ≥ 0.01 are kept,
-    /// renormalised.
+    /// garment. Each vertex takes the weights of the closest point of the body's collision
+    /// surface (module `body`: for the skirt trunk and legs, for the sheet the whole body;
+    /// blended barycentrically from that triangle's corners). A skirt is skinned as a rigger
+    /// would skin it: only to the waist joint, its ancestors and its children (pelvis, spine,
+    /// thighs) — the weight of any other joint (knee, shin, chest) goes to its nearest such
+    /// ancestor, so the hem does not follow the shins. Then [`WEIGHT_SMOOTHING_PASSES`] Jacobi
+    /// passes replace each free vertex's weights by the mean of its mesh neighbours' (pinned
+    /// vertices keep the body's, so the waistband skins like the waist under it); at most 4
+    /// influences ≥ 0.01 are kept, renormalised.
     pub fn weights(&self) -> &SkinWeights {
         &self.weights
     }
@@ -594,23 +634,28 @@ fn settle(
     x
 }
 
-/// The skinned reference's weights (see [`Garment::weights`]).
+/// The skinned reference's weights (see [`Garment::weights`]): from the closest point of
+/// `surface` (its vertex `k` is body vertex `surface_vertex[k]`), joint `j`'s weight moved to
+/// joint `remap[j]`.
 fn garment_weights(
     rest: &TriMesh,
-    body: &TriMesh,
+    surface: &TriMesh,
+    surface_vertex: &[u32],
     body_weights: &SkinWeights,
+    remap: &[usize],
     fixed: &[bool],
 ) -> Result<SkinWeights> {
-    let query = MeshQuery::new(body)?;
+    let query = MeshQuery::new(surface)?;
     let bones = body_weights.bone_count();
     let n = rest.vertex_count();
     let mut w = DMatrix::<f64>::zeros(n, bones);
     for (i, &p) in rest.vertices.iter().enumerate() {
         let cp = query.closest_point(p)?;
-        let face = body.faces[cp.point.face as usize];
+        let face = surface.faces[cp.point.face as usize];
         for (&corner, &b) in face.iter().zip(&cp.point.bary) {
-            for (j, wj) in body_weights.influences(corner as usize) {
-                w[(i, j as usize)] += b * wj;
+            let v = surface_vertex[corner as usize] as usize;
+            for (j, wj) in body_weights.influences(v) {
+                w[(i, remap[j as usize])] += b * wj;
             }
         }
     }
