@@ -15,10 +15,16 @@
 //! joints shrink the surface inward (towards the capsules) rather than out of them — the
 //! penetration test of `tests.rs` measures what is left against the skinned body mesh.
 //!
-//! **Contact.** A vertex closer than `radius + margin` to a segment is moved out along the
-//! radial direction onto that distance, and its tangential motion relative to the capsule's
+//! **Contact.** Distances are exact for the round cone (the convex hull of the two end
+//! spheres), with its outward normal. A vertex closer than `margin` to the surface is moved
+//! out along that normal onto the margin, and its tangential motion relative to the capsule's
 //! surface over the substep is cut by Coulomb friction (static below `μ·depth`, else
-//! shortened by `μ·depth`), the usual position-based friction.
+//! shortened by `μ·depth`), the usual position-based friction. (Pushing radially by "distance
+//! to the axis minus the radius there" is no projection on a steep taper: a motion along the
+//! axis came back amplified as a radial push.)
+//!
+//! The capsules are the cheap per-substep contact; the posed body mesh has the last word at
+//! the end of each frame (module `body`).
 
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::{SkinWeights, TriMesh};

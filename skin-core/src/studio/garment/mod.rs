@@ -7,7 +7,13 @@
 //!   with inertia, gravity and damping that is unconditionally stable and deterministic
 //!   (serial, fixed-order loops: bit-identical output for any thread count).
 //! * Colliders (module `colliders`): tapered capsules on the joint frames, fitted at rest to
-//!   cover the body template, with a margin and Coulomb friction; a floor for the sheet.
+//!   cover the body template, with a margin and Coulomb friction; a floor for the sheet. Run
+//!   every substep.
+//! * Body surface (module `body`): after each frame's substeps every free vertex is put at
+//!   least the margin outside the posed body mesh itself (trunk and legs for the skirt — arms
+//!   are no colliders, a hand may pass through the skirt — the whole body for the sheet),
+//!   with its velocity into the body removed. The capsules fit a flat trunk and a skinned
+//!   bend only roughly; this makes the no-penetration guarantee exact.
 //! * Skirt ([`SkirtParams`], module `skirt`): a flared tube shaped around the body's waist and
 //!   hips, its waistband pinned to the skinned garment.
 //! * Sheet ([`SheetParams`], module `sheet`): a square grid dropped onto the figure; where it
@@ -17,8 +23,8 @@
 //! on the body at rest (θ = 0): the settled drape is [`Garment::rest_mesh`], the template a
 //! method would have scanned. **Skinned reference.** [`Garment::weights`] attach the rest mesh
 //! to the skeleton like any skinned template (see there); the integrator poses it with
-//! [`crate::mesh::skin`] and passes the result to [`Garment::step`], which pins the pinned
-//! vertices to it and simulates the rest. The difference between the two is the garment's
+//! [`crate::mesh::skin`] and passes the result, with the posed body's vertices, to
+//! [`Garment::step`], which pins the pinned vertices to it and simulates the rest. The difference between the two is the garment's
 //! non-skinning deformation.
 //!
 //! **Sizes.** Defaults: skirt 32 rings × 72 segments = 2,304 vertices, sheet 48 × 48 = 2,304
