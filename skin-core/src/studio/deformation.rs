@@ -24,6 +24,7 @@
 //! knee flexion, stood in for muscles; the pose-driven biceps and hamstrings replace it (both
 //! together counted those muscles twice).
 
+use super::garment::{GarmentParams, GarmentState};
 use super::muscles::{pose_model, PoseDeformParams, PoseModel};
 use super::wrinkles::WrinkleParams;
 use crate::check::positive;
@@ -93,6 +94,14 @@ pub struct DeformationParams {
     /// Pose-driven muscle and joint shapes ([`PoseDeformParams`]); `None` disables them.
     /// Default: `Some(PoseDeformParams::default())`, the human body's effects.
     pub pose: Option<PoseDeformParams>,
+    /// A loose garment with its own dynamics ([`GarmentParams`]: a skirt, or the "Ghost"
+    /// sheet), appended to the template as its rest drape (the shape a scan at rest would
+    /// show); `None`: no garment. Default: `None` (the needle and inertial validations use
+    /// the body alone; template-silhouette and photometric-normals opt in). With a garment,
+    /// switch the [`flap`](Self::flap) off: it is the skin-tight stand-in for loose clothing,
+    /// and under a skirt it only distorts the thighs the skirt collides with.
+    #[serde(default)]
+    pub garment: Option<GarmentParams>,
     /// Render-time wrinkles ([`WrinkleParams`]: elbow and knee creases, garment folds) on a
     /// refined surface ([`Performer::fine_surface`](super::Performer::fine_surface)); `None`
     /// renders the template's own faces. Default: `None` (the silhouette methods need no
@@ -107,6 +116,7 @@ impl Default for DeformationParams {
         DeformationParams {
             flap: Some(FlapParams::default()),
             pose: Some(PoseDeformParams::default()),
+            garment: None,
             wrinkles: None,
         }
     }
@@ -118,6 +128,7 @@ impl DeformationParams {
         DeformationParams {
             flap: None,
             pose: None,
+            garment: None,
             wrinkles: None,
         }
     }
@@ -125,6 +136,12 @@ impl DeformationParams {
     /// These parameters with the pose-driven deformation `pose` (`None`: off).
     pub fn with_pose(mut self, pose: Option<PoseDeformParams>) -> Self {
         self.pose = pose;
+        self
+    }
+
+    /// These parameters with the garment `garment` (`None`: none).
+    pub fn with_garment(mut self, garment: Option<GarmentParams>) -> Self {
+        self.garment = garment;
         self
     }
 
@@ -168,6 +185,9 @@ pub struct DeformationState {
     pub velocities: Vec<DVec3>,
     /// Anchor positions at the previous frame, metres.
     pub anchors: Vec<DVec3>,
+    /// The garment's simulation state (empty without a garment or before the first frame).
+    #[serde(default)]
+    pub garment: GarmentState,
 }
 
 fn non_negative(name: &'static str, v: f64) -> Result<()> {

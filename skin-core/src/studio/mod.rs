@@ -19,6 +19,9 @@
 //!   Lambertian shading with albedo, cast shadows by ray casts.
 //! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
+//! * Garments ([`Garment`], [`DeformationParams::garment`]): a skirt and a draped sheet
+//!   ("Ghost") as their own cloth surfaces with second-order dynamics (XPBD), driven by the
+//!   body and colliding with it, appended to the performer's template as their rest drape.
 //! * Fine detail: [`WrinkleModel`] refines the wrinkle regions at render time
 //!   ([`crate::mesh::Refinement`], edges ≤ 3 mm) and adds pose-dependent wrinkles as real
 //!   geometry (elbow and knee creases driven by flexion, garment folds driven by its
@@ -34,6 +37,7 @@ pub mod preview;
 pub mod shading;
 
 mod deformation;
+mod garment;
 mod makehuman;
 mod motion;
 mod muscles;
@@ -51,6 +55,10 @@ pub use capture::{
     STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
 };
 pub use deformation::{DeformationModel, DeformationParams, DeformationState, FlapParams};
+pub use garment::{
+    ClothParams, Garment, GarmentParams, GarmentState, SheetParams, SkirtParams,
+    MAX_GARMENT_VERTICES, SETTLE_DAMPING_PER_S, WEIGHT_SMOOTHING_PASSES,
+};
 pub use makehuman::{
     makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
     read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,

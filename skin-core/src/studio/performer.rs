@@ -6,6 +6,7 @@
 //! cannot explain, what is a function of pose, what is dynamic and what the method got wrong.
 
 use super::deformation::{DeformationModel, DeformationParams, DeformationState};
+use super::garment::Garment;
 use super::texture::Material;
 use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
@@ -22,18 +23,24 @@ use serde::{Deserialize, Serialize};
 pub struct Performer {
     /// Name (e.g. `"makehuman"`, `"procedural"`).
     pub name: String,
-    /// Template mesh at rest pose θ = 0, metres, world frame (+Y up, +Z forward, +X left).
+    /// Template mesh at rest pose θ = 0, metres, world frame (+Y up, +Z forward, +X left):
+    /// the body, then the garment's rest drape when there is one
+    /// ([`Performer::garment_vertices`]) — the shape a scan at rest would show.
     pub template: TriMesh,
     /// The skeleton; θ = 0 is the template's pose.
     pub skeleton: Skeleton,
-    /// Skin weights (bones = joints of `skeleton`), rows summing to 1.
+    /// Skin weights (bones = joints of `skeleton`), rows summing to 1; the garment's rows are
+    /// [`Garment::weights`], the skinned garment a rigger would make.
     pub weights: SkinWeights,
     /// The non-skinning deformation.
     pub deformation: DeformationModel,
+    /// The garment, when [`DeformationParams::garment`] is set.
+    garment: Option<Garment>,
     /// Render-time wrinkles on a refined surface, when [`DeformationParams::wrinkles`] is set.
     wrinkles: Option<WrinkleModel>,
-    /// Number of body vertices (the template's first vertices; a garment's follow).
+    /// Number of body vertices and faces (the template's first; a garment's follow).
     body_vertex_count: usize,
+    body_face_count: usize,
     /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
     joint_from_world_rest: Vec<DAffine3>,
 }
@@ -54,9 +61,10 @@ pub struct PosedFrame {
     /// [`DeformationParams::pose`], a pure function of θ (what a pose-driven model such as
     /// Sand's needles can learn); zero vectors when that deformation is off.
     pub pose_displacement: Vec<DVec3>,
-    /// The dynamic part of the truth, per vertex, metres: the hip flap's lag, which depends
-    /// on the motion's history and no function of the current pose can predict; zero vectors
-    /// when the flap is off.
+    /// The dynamic part of the truth, per vertex, metres: the hip flap's lag and the garment's
+    /// departure from the skinned garment ([`Garment::step`] minus its LBS), which depend on
+    /// the motion's history and no function of the current pose can predict; zero vectors
+    /// when neither is on.
     pub dynamic_displacement: Vec<DVec3>,
 }
 
@@ -106,12 +114,29 @@ impl Performer {
                 got: weights.bone_count(),
             });
         }
-        let template_vertex_count = template.vertex_count();
+        let (body_vertex_count, body_face_count) = (template.vertex_count(), template.face_count());
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
+        let garment = params
+            .garment
+            .as_ref()
+            .map(|g| Garment::new(g, &skeleton, &template, &weights))
+            .transpose()?;
+        let (template, weights) = match &garment {
+            None => (template, weights),
+            Some(g) => with_garment(template, weights, g)?,
+        };
         let wrinkles = params
             .wrinkles
             .as_ref()
-            .map(|w| WrinkleModel::new(w.clone(), &skeleton, &template, &weights, 0..0))
+            .map(|w| {
+                WrinkleModel::new(
+                    w.clone(),
+                    &skeleton,
+                    &template,
+                    &weights,
+                    body_vertex_count..template.vertex_count(),
+                )
+            })
             .transpose()?;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         let joint_from_world_rest = rest
@@ -125,8 +150,10 @@ impl Performer {
             skeleton,
             weights,
             deformation,
+            garment,
             wrinkles,
-            body_vertex_count: template_vertex_count,
+            body_vertex_count,
+            body_face_count,
             joint_from_world_rest,
         })
     }
@@ -159,7 +186,20 @@ impl Performer {
     /// [`Material::Garment`]): what [`crate::studio::shading::Albedo::Textured`] needs with
     /// the template's rest positions.
     pub fn face_materials(&self) -> Vec<Material> {
-        vec![Material::Skin; self.template.face_count()]
+        (0..self.template.face_count())
+            .map(|f| {
+                if f < self.body_face_count {
+                    Material::Skin
+                } else {
+                    Material::Garment
+                }
+            })
+            .collect()
+    }
+
+    /// The garment, when [`DeformationParams::garment`] is set.
+    pub fn garment(&self) -> Option<&Garment> {
+        self.garment.as_ref()
     }
 
     /// The surface the cameras see at pose θ, refined and wrinkled at render time
@@ -191,14 +231,15 @@ impl Performer {
     }
 
     /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation
-    /// (the pose-driven shapes of [`DeformationParams::pose`], the hip flap's dynamics).
+    /// (the pose-driven shapes of [`DeformationParams::pose`], the hip flap's dynamics, the
+    /// garment's simulation against the true body).
     /// `state` carries the flap's dynamics from frame to frame (start with
     /// `DeformationState::default()`); `dt_s` is the time since the previous call (ignored on
     /// the first).
     ///
     /// # Errors
     /// As [`Skeleton::check_pose`]; [`Error::InvalidParam`] for a bad `dt_s` after the first
-    /// frame; [`Error::SizeMismatch`] for a state of another performer.
+    /// frame; [`Error::SizeMismatch`] for a state of another performer; as [`Garment::step`].
     pub fn pose(
         &self,
         theta: &[f64],
@@ -216,6 +257,27 @@ impl Performer {
         let mut dynamic_displacement = vec![DVec3::ZERO; lbs_vertices.len()];
         self.deformation
             .add_flap(&lbs_vertices, state, dt_s, &mut dynamic_displacement)?;
+        if let Some(g) = &self.garment {
+            // The garment collides with the true body (muscles and flap included).
+            let b = self.body_vertex_count;
+            let body: Vec<DVec3> = (0..b)
+                .map(|v| lbs_vertices[v] + pose_displacement[v] + dynamic_displacement[v])
+                .collect();
+            let simulated = g.step(
+                &mut state.garment,
+                &lbs_vertices[b..],
+                &world_from_joint,
+                &body,
+                dt_s,
+            )?;
+            for ((d, x), l) in dynamic_displacement[b..]
+                .iter_mut()
+                .zip(&simulated)
+                .zip(&lbs_vertices[b..])
+            {
+                *d = *x - *l;
+            }
+        }
         let true_vertices = lbs_vertices
             .iter()
             .zip(&pose_displacement)
@@ -264,4 +326,24 @@ impl Performer {
         })?;
         Ok(worst)
     }
+}
+
+/// The template and skin weights of the body followed by the garment's rest drape and weights.
+fn with_garment(
+    body: TriMesh,
+    weights: SkinWeights,
+    garment: &Garment,
+) -> Result<(TriMesh, SkinWeights)> {
+    let n = body.vertex_count() as u32;
+    let rest = garment.rest_mesh();
+    let mut mesh = body;
+    mesh.vertices.extend_from_slice(&rest.vertices);
+    mesh.faces
+        .extend(rest.faces.iter().map(|f| f.map(|c| c + n)));
+    let lists: Vec<Vec<(u32, f64)>> = (0..weights.vertex_count())
+        .map(|v| weights.influences(v).collect())
+        .chain((0..garment.vertex_count()).map(|v| garment.weights().influences(v).collect()))
+        .collect();
+    let weights = SkinWeights::from_lists(&lists, weights.bone_count())?;
+    Ok((mesh, weights))
 }
