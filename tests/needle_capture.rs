@@ -172,6 +172,7 @@ fn truth_rejects_bad_input() {
             lbs_vertices: lbs_vertices.to_vec(),
             ..rest.clone()
         },
+        fine: None,
         views: vec![],
     };
     let mut test = TestSet::default();
