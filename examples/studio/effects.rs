@@ -429,7 +429,7 @@ pub(crate) fn effects_picture(
             &mesh,
             &paint_mm(&f.dynamic_displacement, dyn_top, |_| false),
             true,
-            "dynamic: skirt and flap (side)",
+            "dynamic: the skirt (side)",
             Some(("|dynamic displacement| (mm)", dyn_top)),
         )?,
     ];
