@@ -80,7 +80,7 @@ pub use procedural_body::{procedural_performer, ProceduralBodyParams};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};
 pub use texture::{AlbedoTexture, Material, Print, TextureParams};
 pub use wrinkles::{
-    CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams,
+    CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams, CREASE_LOBE_RAD,
     DEFAULT_FULL_COMPRESSION, DEFAULT_GARMENT_WAVELENGTH_M, DEFAULT_WRINKLE_AMPLITUDE_M,
     DEFAULT_WRINKLE_MAX_EDGE_M, DEFAULT_WRINKLE_WAVELENGTH_M, WRINKLE_EDGE_MARGIN,
 };
