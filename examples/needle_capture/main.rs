@@ -200,6 +200,23 @@ fn summary(prefix: &str, e: &mut Errors, out: &mut Map<String, Value>) {
         format!("{prefix}_median_deforming_mm"),
         json!(median(&e.deforming_mm)),
     );
+    // The pose-deforming needles (non-skinning length spanning > 3 mm over the test): the
+    // model's figures carry no prefix (`deforming_mean_mm`, `pose_r2`, ...).
+    let name = |field: &str| {
+        if prefix == "test" {
+            field.to_string()
+        } else {
+            format!("{prefix}_{field}")
+        }
+    };
+    let r2 = e.pose_r2();
+    out.insert(name("deforming_mean_mm"), json!(mean(&e.pose_deforming_mm)));
+    out.insert(
+        name("deforming_p90_mm"),
+        json!(p90(&mut e.pose_deforming_mm)),
+    );
+    out.insert(name("pose_r2"), json!(r2.r2));
+    out.insert(name("pose_r2_centred"), json!(r2.r2_centred));
 }
 
 /// Validation of the needle model (Sand, McMillan and Popović 2003) on the synthetic studio.
@@ -367,6 +384,10 @@ fn main() -> Res<()> {
             &mut out,
         );
         summary(&pre("lbs_exact_rest"), &mut t.set.lbs_errors(), &mut out);
+        out.insert(
+            pre("pose_deforming_needles"),
+            json!(t.set.pose_deforming().len()),
+        );
     }
     out.insert(
         "test_silhouette_error".into(),

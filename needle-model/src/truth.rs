@@ -8,6 +8,8 @@
 //! skinning-only model predicts. [`TestSet`] precomputes both for a sequence of test poses so
 //! that any number of models can be scored cheaply with [`TestSet::errors`].
 
+use std::collections::{HashMap, HashSet};
+
 use glam::DVec3;
 use skin_core::math::Ray;
 use skin_core::mesh::{MeshQuery, TriMesh};
@@ -27,6 +29,39 @@ pub const NEAR_JOINT_M: f64 = 0.10;
 /// non-skinning deformation the LBS baseline is exact, so errors over all needles favour it;
 /// errors over deforming needles measure what the method adds. Default: 0.002 m.
 pub const DEFORMING_M: f64 = 0.002;
+
+/// Span over a test set of a needle's non-skinning length (true minus LBS length) above which
+/// the needle counts as "pose-deforming", metres: 3 mm (the needle follow-up issue). With the
+/// performer's dynamic effects off, this is the needles whose length the pose-driven shapes
+/// change — what a pose-dependent model exists to recover.
+pub const POSE_DEFORMING_SPAN_M: f64 = 0.003;
+
+/// A needle's identity: (primitive, needle within it).
+pub type NeedleKey = (u32, u32);
+
+/// One needle-frame of a pose-deforming needle: the predicted and the true length, metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeedleSample {
+    /// Which needle.
+    pub key: NeedleKey,
+    /// Predicted length, metres.
+    pub predicted_m: f64,
+    /// True length, metres.
+    pub true_m: f64,
+}
+
+/// The share of the pose variance of the pose-deforming needles a predictor explains
+/// ([`Errors::pose_r2`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseR2 {
+    /// `1 − Σ(pred − true)² / Σ(true − mean_true)²` pooled over the needle-frames of the
+    /// pose-deforming needles, each needle's mean true length its own; NaN without samples.
+    /// A constant bias of a needle (the visual hull's) alone can make it negative.
+    pub r2: f64,
+    /// The same with each needle's mean error removed from its predictions: how well the
+    /// predictor follows the pose, whatever its bias.
+    pub r2_centred: f64,
+}
 
 /// Length of the needle `origin + t·dir`, `t ∈ [0, max_m]`, inside `query`'s closed mesh:
 /// the distance to the first hit if that hit is a back face (the ray leaves the body there).
@@ -89,6 +124,10 @@ pub struct Errors {
     pub near_joints_mm: Vec<f64>,
     /// Needles whose true and LBS lengths differ by more than [`DEFORMING_M`].
     pub deforming_mm: Vec<f64>,
+    /// Pose-deforming needles ([`TestSet::pose_deforming`]), every frame they are scored in.
+    pub pose_deforming_mm: Vec<f64>,
+    /// The needle-frames of the pose-deforming needles (for [`Errors::pose_r2`]).
+    pub pose_samples: Vec<NeedleSample>,
 }
 
 impl TestSet {
@@ -166,6 +205,7 @@ impl TestSet {
     /// # Errors
     /// As [`NeedleModel::needle_lengths`] (model of another body).
     pub fn errors(&self, model: &NeedleModel) -> Result<Errors> {
+        let deforming = self.pose_deforming();
         let mut out = Errors::default();
         for f in &self.frames {
             let pred: Vec<Vec<f32>> = f
@@ -183,7 +223,7 @@ impl TestSet {
                         expected: n.needle as usize + 1,
                         got: pred[n.primitive as usize].len(),
                     })?;
-                out.push(n, (l as f64 - n.true_m).abs() * 1e3);
+                out.push(n, l as f64, &deforming);
             }
         }
         Ok(out)
@@ -202,6 +242,7 @@ impl TestSet {
         skeleton: &skin_core::skeleton::Skeleton,
         mut surface: impl FnMut(&[f64]) -> Result<TriMesh>,
     ) -> Result<Errors> {
+        let deforming = self.pose_deforming();
         let mut out = Errors::default();
         for f in &self.frames {
             let query = MeshQuery::new(&surface(&f.theta)?)?;
@@ -225,7 +266,7 @@ impl TestSet {
                 let t = fk.world_from_joint()[prim.carrier];
                 let (o, d) = prim.needle_world(&t, n.needle as usize);
                 let l = exit_length(&query, o, d, 2.0 * prim.max_length_m)?.unwrap_or(0.0);
-                out.push(n, (l - n.true_m).abs() * 1e3);
+                out.push(n, l, &deforming);
             }
         }
         Ok(out)
@@ -233,16 +274,38 @@ impl TestSet {
 
     /// Errors of the LBS baseline (the skinned rest shape).
     pub fn lbs_errors(&self) -> Errors {
+        let deforming = self.pose_deforming();
         let mut out = Errors::default();
         for n in self.frames.iter().flat_map(|f| &f.needles) {
-            out.push(n, (n.lbs_m - n.true_m).abs() * 1e3);
+            out.push(n, n.lbs_m, &deforming);
         }
         out
+    }
+
+    /// The pose-deforming needles: those whose non-skinning length (true minus LBS length)
+    /// spans more than [`POSE_DEFORMING_SPAN_M`] over the frames in which they are scored.
+    pub fn pose_deforming(&self) -> HashSet<NeedleKey> {
+        let mut range: HashMap<NeedleKey, (f64, f64)> = HashMap::new();
+        for n in self.frames.iter().flat_map(|f| &f.needles) {
+            let d = n.true_m - n.lbs_m;
+            let r = range
+                .entry((n.primitive, n.needle))
+                .or_insert((f64::INFINITY, f64::NEG_INFINITY));
+            *r = (r.0.min(d), r.1.max(d));
+        }
+        range
+            .into_iter()
+            .filter(|(_, (lo, hi))| hi - lo > POSE_DEFORMING_SPAN_M)
+            .map(|(k, _)| k)
+            .collect()
     }
 }
 
 impl Errors {
-    fn push(&mut self, n: &NeedleTruth, e_mm: f64) {
+    /// Records the prediction `predicted_m` of needle-frame `n`; `deforming` is
+    /// [`TestSet::pose_deforming`].
+    fn push(&mut self, n: &NeedleTruth, predicted_m: f64, deforming: &HashSet<NeedleKey>) {
+        let e_mm = (predicted_m - n.true_m).abs() * 1e3;
         self.all_mm.push(e_mm);
         if n.near_joint {
             self.near_joints_mm.push(e_mm);
@@ -250,5 +313,106 @@ impl Errors {
         if (n.true_m - n.lbs_m).abs() > DEFORMING_M {
             self.deforming_mm.push(e_mm);
         }
+        let key = (n.primitive, n.needle);
+        if deforming.contains(&key) {
+            self.pose_deforming_mm.push(e_mm);
+            self.pose_samples.push(NeedleSample {
+                key,
+                predicted_m,
+                true_m: n.true_m,
+            });
+        }
+    }
+
+    /// The share of the pose variance of the pose-deforming needles this predictor explains
+    /// (the needle follow-up issue's `pose_r2` and `pose_r2_centred`).
+    pub fn pose_r2(&self) -> PoseR2 {
+        // Per needle: count, mean true length, mean error.
+        let mut per: HashMap<NeedleKey, (f64, f64, f64)> = HashMap::new();
+        for s in &self.pose_samples {
+            let e = per.entry(s.key).or_insert((0.0, 0.0, 0.0));
+            *e = (e.0 + 1.0, e.1 + s.true_m, e.2 + (s.predicted_m - s.true_m));
+        }
+        let (mut total, mut residual, mut centred) = (0.0, 0.0, 0.0);
+        for s in &self.pose_samples {
+            let (n, sum_true, sum_err) = per[&s.key];
+            let err = s.predicted_m - s.true_m;
+            total += (s.true_m - sum_true / n).powi(2);
+            residual += err * err;
+            centred += (err - sum_err / n).powi(2);
+        }
+        if self.pose_samples.is_empty() || total <= 0.0 {
+            return PoseR2 {
+                r2: f64::NAN,
+                r2_centred: f64::NAN,
+            };
+        }
+        PoseR2 {
+            r2: 1.0 - residual / total,
+            r2_centred: 1.0 - centred / total,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn needle(primitive: u32, true_m: f64, lbs_m: f64) -> NeedleTruth {
+        NeedleTruth {
+            primitive,
+            needle: 0,
+            true_m,
+            lbs_m,
+            near_joint: false,
+        }
+    }
+
+    /// Three frames of two needles: needle 0's non-skinning length spans 6 mm (pose-deforming),
+    /// needle 1's 1 mm (not).
+    fn set(lbs_bias_m: f64) -> TestSet {
+        let frames = [(0.000, 0.000), (0.003, 0.001), (0.006, 0.0005)]
+            .iter()
+            .map(|&(d0, d1)| TestFrame {
+                theta: vec![],
+                config: vec![],
+                needles: vec![
+                    needle(0, 0.05 + d0, 0.05 + lbs_bias_m),
+                    needle(1, 0.04 + d1, 0.04),
+                ],
+            })
+            .collect();
+        TestSet { frames }
+    }
+
+    #[test]
+    fn pose_deforming_needles_and_their_r2() {
+        let t = set(0.0);
+        assert_eq!(t.pose_deforming(), HashSet::from([(0, 0)]));
+        // The LBS predicts needle 0's mean-free part not at all: its constant prediction at
+        // the first frame's length explains nothing (r2 < 0: it is also biased), and nothing
+        // once its mean error is removed (r2_centred = 0).
+        let e = t.lbs_errors();
+        assert_eq!(e.all_mm.len(), 6);
+        assert_eq!(e.pose_deforming_mm.len(), 3);
+        let r = e.pose_r2();
+        // Truth 0, 3, 6 mm above 50 mm (mean 3): total = 9 + 0 + 9 = 18 mm²; errors 0, 3,
+        // 6 mm: residual 45 mm², centred residual 18 mm².
+        assert!((r.r2 - (1.0 - 45.0 / 18.0)).abs() < 1e-9, "{r:?}");
+        assert!(r.r2_centred.abs() < 1e-9, "{r:?}");
+        // A biased LBS (every length 10 mm long) moves r2 but not r2_centred.
+        let b = set(0.010).lbs_errors().pose_r2();
+        assert!(b.r2 < r.r2);
+        assert!((b.r2_centred - r.r2_centred).abs() < 1e-9);
+        // No pose-deforming needle: NaN, not a division by zero.
+        let flat = TestSet {
+            frames: vec![TestFrame {
+                theta: vec![],
+                config: vec![],
+                needles: vec![needle(0, 0.05, 0.05)],
+            }],
+        };
+        assert!(flat.pose_deforming().is_empty());
+        assert!(flat.lbs_errors().pose_r2().r2.is_nan());
     }
 }
