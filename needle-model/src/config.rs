@@ -180,23 +180,36 @@ pub(crate) fn dist2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
-/// distance unit of the NRBF kernel (§5.1) and of the tie radius of prototype shapes (§5.3).
-/// Returns 1 when all points coincide (any unit works then).
+/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of the *distinct* configuration points
+/// (`S × dim` row-major), the distance unit of the NRBF kernel (§5.1) and of the tie radius
+/// of prototype shapes (§5.3). Returns 1 when all points coincide (any unit works then).
+///
+/// Rows that are bit-identical are counted once (ours; the paper does not say how its unit
+/// was computed). On a range of motion a primitive sits at rest for most frames, so over all
+/// rows the mean sits at the rest pose and the RMS is the spread of a few sweeps diluted by
+/// thousands of copies of one point: `W = 7` then makes a kernel far narrower than the
+/// prototype spacing everywhere except at rest. The spread of the poses *visited* does not
+/// depend on how long each was held, which is what a kernel width should scale with.
 ///
 /// # Errors
 /// As [`check_samples`].
 pub(crate) fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
-    let count = check_samples(samples, dim)?;
+    check_samples(samples, dim)?;
+    let mut seen: std::collections::HashSet<Vec<u32>> = Default::default();
+    let distinct: Vec<&[f32]> = samples
+        .chunks_exact(dim)
+        .filter(|row| seen.insert(row.iter().map(|v| v.to_bits()).collect()))
+        .collect();
+    let count = distinct.len();
     let mut mean = vec![0f64; dim];
-    for row in samples.chunks_exact(dim) {
-        for (m, &v) in mean.iter_mut().zip(row) {
+    for row in &distinct {
+        for (m, &v) in mean.iter_mut().zip(row.iter()) {
             *m += v as f64;
         }
     }
     mean.iter_mut().for_each(|m| *m /= count as f64);
-    let ss: f64 = samples
-        .chunks_exact(dim)
+    let ss: f64 = distinct
+        .iter()
         .map(|row| {
             row.iter()
                 .zip(&mean)
@@ -237,6 +250,23 @@ mod tests {
         th[d] = 0.8;
         let p2 = cs.point(&sk.forward_kinematics(&th).unwrap()).unwrap();
         assert!(p0.iter().zip(&p2).any(|(a, b)| (a - b).abs() > 0.01));
+    }
+
+    #[test]
+    fn config_scale_counts_each_configuration_once() {
+        // 100 distinct 2-D rows, then the first repeated until it is 90 % of the rows.
+        let distinct: Vec<f32> = (0..100)
+            .flat_map(|i| [(i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() * 2.0])
+            .collect();
+        let mut tied = distinct.clone();
+        for _ in 0..900 {
+            tied.extend_from_slice(&distinct[..2]);
+        }
+        let s = config_scale(&distinct, 2).unwrap();
+        assert_eq!(config_scale(&tied, 2).unwrap(), s);
+        // The plain RMS over all rows would have shrunk towards the tie's spread (zero).
+        assert!(s > 0.5, "{s}");
+        assert_eq!(config_scale(&[3.0, 3.0, 3.0], 1).unwrap(), 1.0);
     }
 
     #[test]

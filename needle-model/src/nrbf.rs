@@ -42,7 +42,9 @@ use crate::{Error, Result};
 /// metres, centimetres or millimetres would mean a static model, a smooth one or
 /// nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
 /// measuring distances in units of the training data's RMS radius
-/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
+/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive over its *distinct* configuration
+/// points, so that a pose held for most of the capture does not shrink it; see
+/// `config_scale` in `config.rs`):
 ///
 /// ```text
 /// K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
