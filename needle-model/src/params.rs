@@ -103,8 +103,8 @@ pub struct ReconstructionParams {
     /// consistent geometry while ignoring a few outliers. Source: Sand 2003 §6.3. Default: 0.10.
     pub f_min: f64,
     /// Gaussian kernel parameter `W` of the NRBF (§5.1). Dimensionless: configuration-space
-    /// distances are measured in units of the RMS radius `s` of the distinct training configurations, and the kernel
-    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
+    /// distances are measured in units of the RMS radius `s` of the distinct training
+    /// configurations, and the kernel is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
     /// sharper, more local kernel. Must be > 0. Source: Sand 2003 §6.3. Default: 7.
     pub kernel_width_w: f64,
     /// Number of prototypes per deformable primitive (§5.2). Must be ≥ 1. If a primitive has
