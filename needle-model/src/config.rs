@@ -53,12 +53,114 @@ pub fn resolve_marker(skeleton: &Skeleton, name: &str) -> Result<AttachedPoint> 
 ///
 /// Marker syntax: a joint name (`"r_knee"`) is that joint's origin; `"joint.tip"` is its end
 /// site (e.g. `"r_ankle.tip"`, the toe tip of `human_skeleton`).
+///
+/// ## Marker weights (ours)
+///
+/// Raw marker coordinates make some DOFs nearly invisible. The thigh depends on the hip and
+/// the knee (§3.3, Table 3.1), but its pelvis marker sits a few centimetres from the hip's
+/// flexion axis while the ankle marker swings on a 40 cm calf: over the joint ranges the
+/// ankle moves ~10× more, so in the Euclidean distances of prototype selection (§5.2),
+/// neighbourhoods (§5.3) and the kernel (§5.1) hip flexion barely registers and the thigh's
+/// prototypes cannot tell a flexed hip from rest. Each marker `m` is therefore scaled by a
+/// weight `w_m = max_n r_n / r_m`, where `r_m` is its RMS displacement in the carrier frame
+/// over the sweeps of the DOFs that move it (`marker_rms_displacement`: each rotational DOF
+/// through its limits, others at rest). After weighting every marker moves about as much as
+/// the most mobile one, so every DOF the primitive depends on moves its configuration point
+/// comparably; coordinates stay in metres of the most mobile marker. Weights are floored at
+/// `r_m ≥ 10⁻³ · max r` and a marker that no DOF moves keeps weight 1. The weights are
+/// computed once from the skeleton in [`ConfigSpace::new`] (a property of the body, not of
+/// the training motion, so an unseen test pose is scaled the same way).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ConfigSpace {
     /// Carrier joint index (the primitive's frame).
     pub carrier: usize,
     /// Markers, each a point on another bone.
     pub markers: Vec<AttachedPoint>,
+    /// Weight of each marker's coordinates (see [Marker weights](#marker-weights-ours));
+    /// empty means 1 for every marker (the paper's raw coordinates).
+    #[serde(default)]
+    pub weights: Vec<f64>,
+}
+
+/// Sweep samples per DOF in [`marker_rms_displacement`].
+const SWEEP_STEPS: usize = 9;
+/// Range swept for a rotational DOF without limits, radians either side of rest.
+const UNLIMITED_SWEEP_RAD: f64 = std::f64::consts::FRAC_PI_2;
+
+/// RMS displacement (metres) of each marker in the carrier frame, over sweeps of every
+/// rotational DOF of `skeleton` through its limits (±90° if unlimited) with the other DOFs at
+/// rest, averaged over the DOFs that move the marker at all (by more than 1 µm). 0 for a
+/// marker that no DOF moves.
+///
+/// # Errors
+/// Errors of forward kinematics.
+pub(crate) fn marker_rms_displacement(
+    skeleton: &Skeleton,
+    carrier: usize,
+    markers: &[AttachedPoint],
+) -> Result<Vec<f64>> {
+    let rest = skeleton.rest_pose();
+    let raw = ConfigSpace {
+        carrier,
+        markers: markers.to_vec(),
+        weights: vec![],
+    };
+    let p0 = raw.point(&skeleton.forward_kinematics(&rest)?)?;
+    let mut sum = vec![0f64; markers.len()];
+    let mut dofs = vec![0usize; markers.len()];
+    let mut theta = rest.clone();
+    let mut ms = vec![0f64; markers.len()];
+    let mut moved = vec![0f64; markers.len()];
+    for d in 0..skeleton.dof_count() {
+        if !skeleton.is_rotation(d) {
+            continue;
+        }
+        let (lo, hi) = match skeleton.dof(d).limits {
+            Some(l) => (l.min, l.max),
+            None => (rest[d] - UNLIMITED_SWEEP_RAD, rest[d] + UNLIMITED_SWEEP_RAD),
+        };
+        ms.iter_mut().for_each(|v| *v = 0.0);
+        moved.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..SWEEP_STEPS {
+            theta[d] = lo + (hi - lo) * i as f64 / (SWEEP_STEPS - 1) as f64;
+            let p = raw.point(&skeleton.forward_kinematics(&theta)?)?;
+            for (m, (a, b)) in p.chunks_exact(3).zip(p0.chunks_exact(3)).enumerate() {
+                let d2: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+                ms[m] += d2 / SWEEP_STEPS as f64;
+                moved[m] = moved[m].max(d2);
+            }
+        }
+        theta[d] = rest[d];
+        for m in 0..markers.len() {
+            if moved[m] > 1e-12 {
+                sum[m] += ms[m];
+                dofs[m] += 1;
+            }
+        }
+    }
+    Ok(sum
+        .iter()
+        .zip(&dofs)
+        .map(|(&s, &n)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() })
+        .collect())
+}
+
+/// Marker weights from RMS displacements: `max r / r_m`, with `r_m` floored at `10⁻³ max r`;
+/// all 1 if no marker moves.
+fn weights_from_rms(rms: &[f64]) -> Vec<f64> {
+    let max = rms.iter().copied().fold(0.0, f64::max);
+    if max <= 0.0 || !max.is_finite() {
+        return vec![1.0; rms.len()];
+    }
+    rms.iter()
+        .map(|&r| {
+            if r > 0.0 {
+                max / r.max(1e-3 * max)
+            } else {
+                1.0
+            }
+        })
+        .collect()
 }
 
 impl ConfigSpace {
@@ -84,7 +186,18 @@ impl ConfigSpace {
             .iter()
             .map(|m| resolve_marker(skeleton, m))
             .collect::<Result<Vec<_>>>()?;
-        Ok(Self { carrier, markers })
+        let weights = weights_from_rms(&marker_rms_displacement(skeleton, carrier, &markers)?);
+        Ok(Self {
+            carrier,
+            markers,
+            weights,
+        })
+    }
+
+    /// The same space without marker weights: raw marker coordinates, as in the paper.
+    pub fn unweighted(mut self) -> Self {
+        self.weights.clear();
+        self
     }
 
     /// Dimension `3 × markers`.
@@ -93,7 +206,8 @@ impl ConfigSpace {
     }
 
     /// Writes the configuration point for the pose in `fk` into `out` (length [`Self::dim`]):
-    /// each marker's position in the carrier frame, metres.
+    /// each marker's position in the carrier frame times its weight (metres of the most
+    /// mobile marker, see [Marker weights](#marker-weights-ours)).
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] if `out` has the wrong length; errors of
@@ -113,8 +227,9 @@ impl ConfigSpace {
             got: world.len(),
         })?;
         let carrier_from_world = carrier.inverse();
-        for (m, chunk) in self.markers.iter().zip(out.chunks_exact_mut(3)) {
-            let p = carrier_from_world.transform_point3(fk.point(m)?);
+        for (i, (m, chunk)) in self.markers.iter().zip(out.chunks_exact_mut(3)).enumerate() {
+            let w = self.weights.get(i).copied().unwrap_or(1.0);
+            let p = carrier_from_world.transform_point3(fk.point(m)?) * w;
             chunk.copy_from_slice(&p.to_array());
         }
         if out.iter().any(|v| !v.is_finite()) {
@@ -180,23 +295,36 @@ pub(crate) fn dist2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of configuration points (`S × dim` row-major), the
-/// distance unit of the NRBF kernel (§5.1) and of the tie radius of prototype shapes (§5.3).
-/// Returns 1 when all points coincide (any unit works then).
+/// RMS radius `s = sqrt(mean ‖x_i − x̄‖²)` of the *distinct* configuration points
+/// (`S × dim` row-major), the distance unit of the NRBF kernel (§5.1) and of the tie radius
+/// of prototype shapes (§5.3). Returns 1 when all points coincide (any unit works then).
+///
+/// Rows that are bit-identical are counted once (ours; the paper does not say how its unit
+/// was computed). On a range of motion a primitive sits at rest for most frames, so over all
+/// rows the mean sits at the rest pose and the RMS is the spread of a few sweeps diluted by
+/// thousands of copies of one point: `W = 7` then makes a kernel far narrower than the
+/// prototype spacing everywhere except at rest. The spread of the poses *visited* does not
+/// depend on how long each was held, which is what a kernel width should scale with.
 ///
 /// # Errors
 /// As [`check_samples`].
 pub(crate) fn config_scale(samples: &[f32], dim: usize) -> Result<f32> {
-    let count = check_samples(samples, dim)?;
+    check_samples(samples, dim)?;
+    let mut seen: std::collections::HashSet<Vec<u32>> = Default::default();
+    let distinct: Vec<&[f32]> = samples
+        .chunks_exact(dim)
+        .filter(|row| seen.insert(row.iter().map(|v| v.to_bits()).collect()))
+        .collect();
+    let count = distinct.len();
     let mut mean = vec![0f64; dim];
-    for row in samples.chunks_exact(dim) {
-        for (m, &v) in mean.iter_mut().zip(row) {
+    for row in &distinct {
+        for (m, &v) in mean.iter_mut().zip(row.iter()) {
             *m += v as f64;
         }
     }
     mean.iter_mut().for_each(|m| *m /= count as f64);
-    let ss: f64 = samples
-        .chunks_exact(dim)
+    let ss: f64 = distinct
+        .iter()
         .map(|row| {
             row.iter()
                 .zip(&mean)
@@ -220,7 +348,9 @@ mod tests {
         let cs = ConfigSpace::new(&sk, elbow, &["r_shoulder".into()]).unwrap();
         let theta0 = sk.rest_pose();
         let p0 = cs.point(&sk.forward_kinematics(&theta0).unwrap()).unwrap();
-        // Distance from elbow to shoulder is the upper-arm length regardless of pose.
+        // One marker: weight 1. Distance from elbow to shoulder is the upper-arm length
+        // regardless of pose.
+        assert_eq!(cs.weights, vec![1.0]);
         let upper = sk.joints()[elbow].offset.length();
         assert!((DVec3::from_slice(&p0).length() - upper).abs() < 1e-9);
         // Moving the pelvis (global motion) does not change the configuration.
@@ -237,6 +367,67 @@ mod tests {
         th[d] = 0.8;
         let p2 = cs.point(&sk.forward_kinematics(&th).unwrap()).unwrap();
         assert!(p0.iter().zip(&p2).any(|(a, b)| (a - b).abs() > 0.01));
+    }
+
+    /// Displacement of the thigh's configuration point between rest and `dof` at `deg`.
+    fn thigh_move(cs: &ConfigSpace, sk: &Skeleton, dof: &str, deg: f64) -> f64 {
+        let rest = sk.rest_pose();
+        let p0 = cs.point(&sk.forward_kinematics(&rest).unwrap()).unwrap();
+        let mut th = rest;
+        th[sk.dof_index(dof).unwrap()] = deg.to_radians();
+        let p = cs.point(&sk.forward_kinematics(&th).unwrap()).unwrap();
+        p.iter()
+            .zip(&p0)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    #[test]
+    fn thigh_sees_hip_flexion_as_much_as_knee_flexion() {
+        let sk = human_skeleton(&HumanParams::default()).unwrap();
+        let hip = sk.joint_index("r_hip").unwrap();
+        let cs = ConfigSpace::new(&sk, hip, &["pelvis".into(), "r_ankle".into()]).unwrap();
+        let raw = cs.clone().unweighted();
+        let ratio = |c: &ConfigSpace| {
+            thigh_move(c, &sk, "r_hip.flexion", 60.0) / thigh_move(c, &sk, "r_knee.flexion", 60.0)
+        };
+        eprintln!(
+            "thigh weights {:?}; hip/knee flexion response, raw {:.3}, weighted {:.3}",
+            cs.weights,
+            ratio(&raw),
+            ratio(&cs)
+        );
+        // Raw marker coordinates: hip flexion moves the thigh's point ~10× less than the knee.
+        assert!(ratio(&raw) < 0.2, "raw {}", ratio(&raw));
+        // Weighted: comparable.
+        assert!((0.4..2.5).contains(&ratio(&cs)), "weighted {}", ratio(&cs));
+        // The ankle, the most mobile marker, keeps metres.
+        assert_eq!(cs.weights[1], 1.0);
+        assert!(cs.weights[0] > 3.0);
+        // Serialised spaces from before the weights read as unweighted.
+        let json = serde_json::to_string(&raw)
+            .unwrap()
+            .replace(",\"weights\":[]", "");
+        let back: ConfigSpace = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, raw);
+    }
+
+    #[test]
+    fn config_scale_counts_each_configuration_once() {
+        // 100 distinct 2-D rows, then the first repeated until it is 90 % of the rows.
+        let distinct: Vec<f32> = (0..100)
+            .flat_map(|i| [(i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() * 2.0])
+            .collect();
+        let mut tied = distinct.clone();
+        for _ in 0..900 {
+            tied.extend_from_slice(&distinct[..2]);
+        }
+        let s = config_scale(&distinct, 2).unwrap();
+        assert_eq!(config_scale(&tied, 2).unwrap(), s);
+        // The plain RMS over all rows would have shrunk towards the tie's spread (zero).
+        assert!(s > 0.5, "{s}");
+        assert_eq!(config_scale(&[3.0, 3.0, 3.0], 1).unwrap(), 1.0);
     }
 
     #[test]

@@ -143,8 +143,8 @@ pub use observe::{
     DEFAULT_MAX_KNOT_SPACING_PX, DEFAULT_MIN_RAY_ANGLE_DEG,
 };
 pub use params::{
-    ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W, DEFAULT_MIN_NEAR,
-    DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_SEED,
+    Neighbourhood, ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W,
+    DEFAULT_MIN_NEAR, DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_RADIUS_FACTOR, DEFAULT_SEED,
 };
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};

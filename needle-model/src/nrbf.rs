@@ -42,7 +42,9 @@ use crate::{Error, Result};
 /// metres, centimetres or millimetres would mean a static model, a smooth one or
 /// nearest-neighbour lookup. We make `W` dimensionless and the same for every primitive by
 /// measuring distances in units of the training data's RMS radius
-/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive from its configuration points):
+/// `s = sqrt(mean_i ‖x_i − x̄‖²)` (computed per primitive over its *distinct* configuration
+/// points, so that a pose held for most of the capture does not shrink it; see
+/// `config_scale` in `config.rs`):
 ///
 /// ```text
 /// K(x, p) = exp(−W · ‖x − p‖² / s²)     ⇔  Gaussian with σ = s / sqrt(2W)  (σ ≈ 0.27 s at W = 7)
@@ -82,6 +84,12 @@ pub struct NrbfFit {
     pub covering_radius: f32,
     /// Needles without observations that were filled from neighbours (§5.3).
     pub filled_needles: Vec<u32>,
+    /// Cap radius of the prototype neighbourhoods ([`PrototypeShapes::neighbourhood_radius`]).
+    pub neighbourhood_radius: Option<f32>,
+    /// (needle, prototype) estimates of observed needles ([`PrototypeShapes::estimates`]).
+    pub estimates: usize,
+    /// Estimates where the `min_near` floor bound ([`PrototypeShapes::floor_bound`]).
+    pub floor_bound: usize,
 }
 
 impl Nrbf {
@@ -151,6 +159,11 @@ impl Nrbf {
         let locs = farthest_point_prototypes(samples, dim, params.prototype_count_n, &mut rng)?;
         let shapes = prototype_shapes(samples, dim, observations, &locs.points, adjacency, params)?;
         let filled_needles = shapes.filled_needles.clone();
+        let (neighbourhood_radius, estimates, floor_bound) = (
+            shapes.neighbourhood_radius,
+            shapes.estimates,
+            shapes.floor_bound,
+        );
         let scale = config_scale(samples, dim)?;
         let model = Self::new(dim, locs.points, shapes, scale, params.kernel_width_w)?;
         Ok(NrbfFit {
@@ -158,6 +171,9 @@ impl Nrbf {
             prototype_samples: locs.sample_indices,
             covering_radius: locs.covering_radius,
             filled_needles,
+            neighbourhood_radius,
+            estimates,
+            floor_bound,
         })
     }
 
@@ -285,7 +301,8 @@ impl Nrbf {
     /// use needle_model::{Nrbf, PrototypeShapes};
     /// // Two 1-D prototypes at 0 and 1 with one needle of length 2 and 4.
     /// let shapes = PrototypeShapes { num_needles: 1, num_prototypes: 2,
-    ///     lengths: vec![2.0, 4.0], filled_needles: vec![] };
+    ///     lengths: vec![2.0, 4.0], filled_needles: vec![], neighbourhood_radius: None,
+    ///     estimates: 2, floor_bound: 0 };
     /// let model = Nrbf::new(1, vec![0.0, 1.0], shapes, 0.5, 7.0)?;
     /// let mid = model.evaluate(&[0.5])?;
     /// assert!((mid[0] - 3.0).abs() < 1e-6);
@@ -614,6 +631,9 @@ mod tests {
             num_prototypes: n,
             lengths: vec![1.0; n],
             filled_needles: vec![],
+            neighbourhood_radius: None,
+            estimates: n,
+            floor_bound: 0,
         };
         assert!(matches!(
             Nrbf::new(1, vec![0.0, 1.0], shapes(3), 1.0, 7.0),

@@ -25,6 +25,58 @@ pub const DEFAULT_PROTOTYPE_COUNT_N: usize = 100;
 pub const DEFAULT_MIN_NEAR: usize = 50;
 /// Default seed of the random first prototype location (§5.2 picks it "at random").
 pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
+/// Default `radius_factor` of [`Neighbourhood::Capped`]: a prototype's neighbourhood reaches
+/// at most one prototype spacing (the median nearest-prototype distance) from it.
+pub const DEFAULT_RADIUS_FACTOR: f64 = 1.0;
+
+/// Which observations a prototype's shape is estimated from (§5.3 and our departure from it).
+///
+/// * [`Neighbourhood::Fraction`] is the paper's rule: the `n = max(F_near · m, min_near)`
+///   observations nearest the prototype, however far they are. §5.3 takes a fraction rather
+///   than a distance so that far poses can fill holes in configuration space.
+/// * [`Neighbourhood::Capped`] (the default, a documented departure from §5.3) is the same
+///   nearest-first walk, stopped at a radius `R = radius_factor × spacing`, where `spacing` is
+///   the median distance from a prototype to its nearest other prototype. Why: on a training
+///   motion where a primitive sits at rest most of the time (a range of motion exercises one
+///   DOF at a time), a needle has ≈ 3 650 observations of which ≈ 3 300 share the rest
+///   configuration. The fraction walk of a prototype on a sweep runs through the sparse sweep,
+///   reaches the rest pose and takes that tie group whole, so the `F_min` percentile falls
+///   among rest-pose values and every prototype equals the static estimate. Capping the walk
+///   at about one prototype spacing keeps a far tie group out: a prototype's shape comes from
+///   observations near it in configuration space.
+///
+/// With the cap, `min_near` is a floor only: when the ball of radius `R` holds fewer than
+/// `min(min_near, m)` observations of the needle (a rarely seen needle, or a prototype where
+/// this needle was seldom visible), the estimate uses the `min(min_near, m)` nearest
+/// observations instead, ignoring the cap; otherwise it uses `min(F_near · m, ball count)`, so
+/// a small `F_near` keeps its meaning. An *empty* ball is the extreme case of the same floor:
+/// it falls back to the `min_near` nearest observations (as the fraction rule would), not to
+/// the needle's static estimate — nearest views are still the best evidence for this pose.
+/// A fraction that takes every observation (`F_near = 1`) is the static model in both
+/// variants: the cap limits a walk, and there is none. How often the floor binds is reported ([`crate::PrototypeShapes::floor_bound`],
+/// [`crate::PrimitiveFitReport::floor_bound`]). With a single prototype there is no spacing
+/// and the cap is infinite.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Neighbourhood {
+    /// §5.3 as published: a fraction `F_near` of the needle's observations, floored at
+    /// `min_near`, with no distance limit.
+    Fraction,
+    /// The fraction walk stopped at `radius_factor ×` the prototype spacing (median
+    /// nearest-prototype distance); `min_near` a floor only for sparse balls. `radius_factor`
+    /// must be finite and > 0. Default [`DEFAULT_RADIUS_FACTOR`].
+    Capped {
+        /// Cap radius in units of the prototype spacing.
+        radius_factor: f64,
+    },
+}
+
+impl Default for Neighbourhood {
+    fn default() -> Self {
+        Self::Capped {
+            radius_factor: DEFAULT_RADIUS_FACTOR,
+        }
+    }
+}
 
 /// Parameters of prototype reconstruction (Sand 2003 §5.2–5.3) and NRBF evaluation (§5.1).
 ///
@@ -34,9 +86,10 @@ pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
 /// nearby observations `F_near`, the percentile of the robust minimum `F_min`, the Gaussian
 /// kernel width `W` of the NRBF (§5.1), and the number of prototypes per primitive `N`. The
 /// paper selects them by minimising the silhouette error (§6.2) and reports
-/// `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. One
-/// parameter is ours: a floor `min_near` on the observations behind each estimate
-/// ([`ReconstructionParams::min_near`]).
+/// `F_near = 0.022`, `F_min = 0.10`, `W = 7`, `N = 100`; those are the defaults here. Two
+/// parameters are ours: a floor `min_near` on the observations behind each estimate
+/// ([`ReconstructionParams::min_near`]) and the [`Neighbourhood`] rule (default: capped at one
+/// prototype spacing, a departure from §5.3; the paper's rule stays selectable).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReconstructionParams {
     /// Fraction of a needle's observations, nearest in configuration space to a prototype
@@ -50,16 +103,18 @@ pub struct ReconstructionParams {
     /// consistent geometry while ignoring a few outliers. Source: Sand 2003 §6.3. Default: 0.10.
     pub f_min: f64,
     /// Gaussian kernel parameter `W` of the NRBF (§5.1). Dimensionless: configuration-space
-    /// distances are measured in units of the training data's RMS radius `s`, and the kernel
-    /// is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
+    /// distances are measured in units of the RMS radius `s` of the distinct training
+    /// configurations, and the kernel is `K(x, p) = exp(−W‖x − p‖²/s²)` (derivation in [`crate::Nrbf`]). Larger `W` means a
     /// sharper, more local kernel. Must be > 0. Source: Sand 2003 §6.3. Default: 7.
     pub kernel_width_w: f64,
     /// Number of prototypes per deformable primitive (§5.2). Must be ≥ 1. If a primitive has
     /// fewer distinct configuration points, fewer prototypes are placed.
     /// Source: Sand 2003 §6.3. Default: 100.
     pub prototype_count_n: usize,
-    /// Floor on the number of nearest observations behind each prototype's needle length:
-    /// `n = max(F_near · m, min_near)` (capped at the `m` observations of the needle).
+    /// Floor on the number of nearest observations behind each prototype's needle length.
+    /// With [`Neighbourhood::Fraction`]: `n = max(F_near · m, min_near)` (capped at the `m`
+    /// observations of the needle). With [`Neighbourhood::Capped`]: applied only when the
+    /// capped ball holds fewer than `min_near` observations of the needle (see there).
     ///
     /// Not in the paper, which never needed it: with 8 minutes from 3 cameras every needle has
     /// thousands of observations and `F_near · m` is large. A needle seen rarely (a calf
@@ -72,6 +127,11 @@ pub struct ReconstructionParams {
     pub min_near: usize,
     /// Seed of the RNG that picks the first prototype location (§5.2). Default: 0x5a4d_2003.
     pub seed: u64,
+    /// Which observations each prototype's shape comes from ([`Neighbourhood`]). Default:
+    /// [`Neighbourhood::Capped`] with `radius_factor = 1` (ours; the paper's rule is
+    /// [`Neighbourhood::Fraction`]).
+    #[serde(default)]
+    pub neighbourhood: Neighbourhood,
 }
 
 impl Default for ReconstructionParams {
@@ -83,6 +143,7 @@ impl Default for ReconstructionParams {
             prototype_count_n: DEFAULT_PROTOTYPE_COUNT_N,
             min_near: DEFAULT_MIN_NEAR,
             seed: DEFAULT_SEED,
+            neighbourhood: Neighbourhood::default(),
         }
     }
 }
@@ -118,6 +179,11 @@ impl ReconstructionParams {
         self.seed = seed;
         self
     }
+    /// Sets `neighbourhood`.
+    pub fn with_neighbourhood(mut self, neighbourhood: Neighbourhood) -> Self {
+        self.neighbourhood = neighbourhood;
+        self
+    }
 
     /// Checks every field's range.
     ///
@@ -125,7 +191,8 @@ impl ReconstructionParams {
     /// An invalid-parameter error naming the field ([`Error::invalid_param_name`]):
     /// [`Error::InvalidParam`] when `f_near ∉ (0, 1]` or NaN; [`Error::Core`] (from
     /// [`skin_core::check`]) when `f_min ∉ [0, 1]`, `kernel_width_w ≤ 0`,
-    /// `prototype_count_n = 0`, `min_near = 0`, or a value is NaN / infinite.
+    /// `prototype_count_n = 0`, `min_near = 0`, a capped `radius_factor ≤ 0`, or a value is
+    /// NaN / infinite.
     pub fn validate(&self) -> Result<()> {
         if !(self.f_near.is_finite() && self.f_near > 0.0 && self.f_near <= 1.0) {
             return Err(Error::InvalidParam {
@@ -137,6 +204,9 @@ impl ReconstructionParams {
         check::positive("kernel_width_w", self.kernel_width_w)?;
         check::nonzero("min_near", self.min_near)?;
         check::nonzero("prototype_count_n", self.prototype_count_n)?;
+        if let Neighbourhood::Capped { radius_factor } = self.neighbourhood {
+            check::positive("radius_factor", radius_factor)?;
+        }
         Ok(())
     }
 }
@@ -153,7 +223,16 @@ mod tests {
         assert_eq!(p.kernel_width_w, 7.0);
         assert_eq!(p.prototype_count_n, 100);
         assert_eq!(p.min_near, DEFAULT_MIN_NEAR);
+        assert_eq!(
+            p.neighbourhood,
+            Neighbourhood::Capped {
+                radius_factor: DEFAULT_RADIUS_FACTOR
+            }
+        );
         p.validate().unwrap();
+        p.with_neighbourhood(Neighbourhood::Fraction)
+            .validate()
+            .unwrap();
     }
 
     #[test]
@@ -170,6 +249,16 @@ mod tests {
             (d.with_kernel_width_w(f64::INFINITY), "kernel_width_w"),
             (d.with_prototype_count_n(0), "prototype_count_n"),
             (d.with_min_near(0), "min_near"),
+            (
+                d.with_neighbourhood(Neighbourhood::Capped { radius_factor: 0.0 }),
+                "radius_factor",
+            ),
+            (
+                d.with_neighbourhood(Neighbourhood::Capped {
+                    radius_factor: f64::NAN,
+                }),
+                "radius_factor",
+            ),
         ];
         for (p, field) in cases {
             let e = p.validate().unwrap_err();
@@ -191,6 +280,18 @@ mod tests {
             .with_seed(9);
         let s = serde_json::to_string(&p).unwrap();
         let q: ReconstructionParams = serde_json::from_str(&s).unwrap();
+        assert_eq!(p, q);
+        let f = p.with_neighbourhood(Neighbourhood::Fraction);
+        let q: ReconstructionParams =
+            serde_json::from_str(&serde_json::to_string(&f).unwrap()).unwrap();
+        assert_eq!(f, q);
+        // Parameters saved before the neighbourhood existed read as the default.
+        let old = s.replace(
+            ",\"neighbourhood\":{\"Capped\":{\"radius_factor\":1.0}}",
+            "",
+        );
+        assert_ne!(old, s);
+        let q: ReconstructionParams = serde_json::from_str(&old).unwrap();
         assert_eq!(p, q);
     }
 }

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{check_samples, config_scale, dist2};
 use crate::error::{Context, ResultExt};
-use crate::params::ReconstructionParams;
+use crate::params::{Neighbourhood, ReconstructionParams};
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
@@ -63,6 +63,18 @@ pub struct PrototypeShapes {
     pub lengths: Vec<f32>,
     /// Needles that had no observation and were filled from neighbouring needles.
     pub filled_needles: Vec<u32>,
+    /// Cap radius `R` of [`Neighbourhood::Capped`] in configuration-space units (`None` for
+    /// [`Neighbourhood::Fraction`] or a single prototype).
+    #[serde(default)]
+    pub neighbourhood_radius: Option<f32>,
+    /// Number of (needle, prototype) estimates of observed needles.
+    #[serde(default)]
+    pub estimates: usize,
+    /// Of [`Self::estimates`], how many had the `min_near` floor bind under
+    /// [`Neighbourhood::Capped`] (the ball held fewer than `min(min_near, m)` observations of
+    /// the needle, an empty ball included); always 0 for [`Neighbourhood::Fraction`].
+    #[serde(default)]
+    pub floor_bound: usize,
 }
 
 impl PrototypeShapes {
@@ -79,6 +91,41 @@ pub(crate) fn near_count(m: usize, f_near: f64, min_near: usize) -> usize {
     ((f_near * m as f64).round() as usize)
         .max(min_near)
         .clamp(1, m.max(1))
+}
+
+/// Prototype spacing: the median over prototypes of the distance to the nearest other
+/// prototype (`N × dim` row-major). `None` for fewer than two prototypes.
+pub(crate) fn prototype_spacing(points: &[f32], dim: usize) -> Option<f32> {
+    let n = points.len() / dim.max(1);
+    if n < 2 {
+        return None;
+    }
+    let mut nearest: Vec<f32> = points
+        .chunks_exact(dim)
+        .enumerate()
+        .map(|(i, p)| {
+            points
+                .chunks_exact(dim)
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, q)| dist2(p, q))
+                .fold(f32::INFINITY, f32::min)
+                .sqrt()
+        })
+        .collect();
+    let mid = nearest.len() / 2;
+    Some(*nearest.select_nth_unstable_by(mid, f32::total_cmp).1)
+}
+
+/// Number of nearest observations a capped neighbourhood uses ([`Neighbourhood::Capped`]):
+/// `min(n_frac, ball)` when the ball of the cap radius holds `ball ≥ floor` observations of the
+/// needle, else `floor` (the floor binds; second value `true`).
+pub(crate) fn capped_count(n_frac: usize, ball: usize, floor: usize) -> (usize, bool) {
+    if ball >= floor {
+        (n_frac.min(ball), false)
+    } else {
+        (floor, true)
+    }
 }
 
 /// Index of the `F_min` percentile in `n` sorted values: `round(F_min · (n − 1))`.
@@ -134,6 +181,17 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 /// no more than the plain walk, groups of more than `LARGE_TIE_SAMPLES` = 64 bit-identical
 /// configurations keep one sorted list of each needle's observations, taken in one step,
 /// and the percentile is found by merging the sorted lists (`O(F_min · n)`).
+///
+/// **Capped neighbourhoods (default; a documented departure from §5.3).** With
+/// [`Neighbourhood::Capped`] the walk stops at `R = radius_factor ×` the prototype spacing
+/// (median nearest-prototype distance, [`PrototypeShapes::neighbourhood_radius`]): the count
+/// is `min(F_near·m_j, ball)` where `ball` is the needle's observations within `R`, so a far
+/// pose held for most of the capture (the rest pose of a range of motion) cannot enter a
+/// sweep prototype's pool and make every prototype the static estimate. When the ball holds
+/// fewer than `min(min_near, m_j)` observations (an empty ball included) the floor binds and
+/// the `min_near` nearest are used, cap or not ([`PrototypeShapes::floor_bound`] counts it).
+/// Ties are taken whole as above. [`Neighbourhood::Fraction`] is the paper's rule, kept
+/// selectable.
 ///
 /// **Hole filling for unobserved needles.** The paper's fraction rule fills holes in
 /// configuration space, but a needle that was never observed (e.g. always perpendicular to
@@ -221,6 +279,12 @@ pub fn prototype_shapes(
     // Every sample with its distance, in order of distance to each prototype: O(N·S log S).
     // A large group of identical configurations is one entry, `GROUP | g`.
     let tie = TIE_RADIUS * config_scale(samples, dim)?;
+    let cap = match params.neighbourhood {
+        Neighbourhood::Fraction => None,
+        Neighbourhood::Capped { radius_factor } => {
+            prototype_spacing(prototype_points, dim).map(|sp| sp * radius_factor as f32)
+        }
+    };
     let pose_groups = PoseGroups::new(samples, dim);
     let order: Vec<Vec<(f32, u32)>> = prototype_points
         .par_chunks_exact(dim)
@@ -244,8 +308,8 @@ pub fn prototype_shapes(
         })
         .collect();
 
-    // Per needle: Some(N lengths) or None when unobserved.
-    let per_needle: Vec<Option<Vec<f32>>> = (0..num_needles)
+    // Per needle: Some((N lengths, floor bound count)) or None when unobserved.
+    let per_needle: Vec<Option<(Vec<f32>, usize)>> = (0..num_needles)
         .into_par_iter()
         .map_init(Scratch::default, |scratch, j| {
             let (s, l) = observations.needle(j);
@@ -255,6 +319,7 @@ pub fn prototype_shapes(
                 Some(needle_prototype_lengths(
                     &order,
                     tie,
+                    cap,
                     &pose_groups,
                     s,
                     l,
@@ -267,9 +332,12 @@ pub fn prototype_shapes(
 
     let mut lengths = vec![0f32; num_protos * num_needles];
     let mut known = vec![false; num_needles];
+    let (mut estimates, mut floor_bound) = (0, 0);
     for (j, v) in per_needle.iter().enumerate() {
-        if let Some(v) = v {
+        if let Some((v, floored)) = v {
             known[j] = true;
+            estimates += v.len();
+            floor_bound += floored;
             for (k, &x) in v.iter().enumerate() {
                 lengths[k * num_needles + j] = x;
             }
@@ -321,6 +389,9 @@ pub fn prototype_shapes(
         num_prototypes: num_protos,
         lengths,
         filled_needles,
+        neighbourhood_radius: cap,
+        estimates,
+        floor_bound,
     })
 }
 
@@ -385,29 +456,45 @@ struct Scratch {
 }
 
 /// §5.3 for one needle: the `F_min` percentile of its `F_near·m` nearest observations, for
-/// each prototype, given every prototype's samples in order of increasing distance.
+/// each prototype, given every prototype's samples in order of increasing distance. With a
+/// `cap` radius ([`Neighbourhood::Capped`]) the count is first limited to the observations
+/// within the cap, floored at `min(min_near, m)` ([`capped_count`]). Returns the lengths and
+/// how many prototypes had the floor bind.
 ///
 /// The needle's observations are bucketed by sample (counting sort), then for prototype `k`
 /// the samples are walked in distance order collecting this needle's observations until `n`
 /// are found, then on through samples tied with the last one (within `tie`). Expected
 /// walk length is `F_near·S` samples when the needle's visibility does not depend on pose,
-/// and at most `S`.
+/// and at most `S` (a capped count costs one more walk, counting only).
+#[allow(clippy::too_many_arguments)]
 fn needle_prototype_lengths(
     order: &[Vec<(f32, u32)>],
     tie: f32,
+    cap: Option<f32>,
     groups: &PoseGroups,
     sample_idx: &[u32],
     lengths: &[f32],
     params: &ReconstructionParams,
     scratch: &mut Scratch,
-) -> Vec<f32> {
+) -> (Vec<f32>, usize) {
     let m = sample_idx.len();
-    let n = near_count(m, params.f_near, params.min_near);
-    if n == m {
-        // Every observation is "near" every prototype: a static estimate.
+    let (n_frac, floor) = match cap {
+        None => (near_count(m, params.f_near, params.min_near), 0),
+        Some(_) => (
+            near_count(m, params.f_near, 1),
+            params.min_near.clamp(1, m.max(1)),
+        ),
+    };
+    if n_frac == m {
+        // Every observation is "near" every prototype: a static estimate. `F_near = 1` means
+        // every observation in both variants (the static model of thesis Figure 6-2c); the cap
+        // limits a fraction walk, and there is none.
         scratch.buf.clear();
         scratch.buf.extend_from_slice(lengths);
-        return vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()];
+        return (
+            vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()],
+            0,
+        );
     }
     let count = groups.group_of.len();
     let Scratch {
@@ -446,9 +533,35 @@ fn needle_prototype_lengths(
         }
         g.sort_unstable_by(f32::total_cmp);
     }
-    order
+    let entry_len = |s: u32| {
+        if s & PoseGroups::GROUP == 0 {
+            obs_of(s).len()
+        } else {
+            group_vals[(s & !PoseGroups::GROUP) as usize].len()
+        }
+    };
+    let mut floored = 0;
+    let out = order
         .iter()
         .map(|ord| {
+            let n = match cap {
+                None => n_frac,
+                Some(r) => {
+                    // Observations of this needle within the cap, counted until both the
+                    // fraction and the floor are reached.
+                    let goal = n_frac.max(floor);
+                    let mut ball = 0;
+                    for &(d, s) in ord {
+                        if d > r || ball >= goal {
+                            break;
+                        }
+                        ball += entry_len(s);
+                    }
+                    let (n, bound) = capped_count(n_frac, ball, floor);
+                    floored += usize::from(bound);
+                    n
+                }
+            };
             buf.clear();
             taken.clear();
             let mut total = 0;
@@ -480,7 +593,8 @@ fn needle_prototype_lengths(
                 kth_of_sorted(&mut lists, k)
             }
         })
-        .collect()
+        .collect();
+    (out, floored)
 }
 
 /// The `k`-th smallest (0-based) of the union of sorted lists; `k` must be below their total
@@ -530,7 +644,40 @@ mod tests {
         ));
     }
 
-    /// Brute force §5.3 for one needle and prototype.
+    /// Brute-force cap radius of `pr` for prototypes `points`: `radius_factor ×` the median
+    /// (upper median for an even count) of the nearest-other-prototype distances.
+    fn brute_cap(points: &[f32], dim: usize, pr: &ReconstructionParams) -> Option<f32> {
+        let Neighbourhood::Capped { radius_factor } = pr.neighbourhood else {
+            return None;
+        };
+        let rows: Vec<&[f32]> = points.chunks_exact(dim).collect();
+        if rows.len() < 2 {
+            return None;
+        }
+        let mut nn: Vec<f32> = (0..rows.len())
+            .map(|i| {
+                (0..rows.len())
+                    .filter(|&j| j != i)
+                    .map(|j| dist2(rows[i], rows[j]).sqrt())
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .collect();
+        nn.sort_by(f32::total_cmp);
+        Some(nn[nn.len() / 2] * radius_factor as f32)
+    }
+
+    /// The variants every brute-force test runs: the paper's and capped at three radii.
+    fn variants() -> [Neighbourhood; 4] {
+        [
+            Neighbourhood::Fraction,
+            Neighbourhood::Capped { radius_factor: 0.3 },
+            Neighbourhood::Capped { radius_factor: 1.0 },
+            Neighbourhood::Capped { radius_factor: 3.0 },
+        ]
+    }
+
+    /// Brute force §5.3 (and the capped variant, `cap` from [`brute_cap`]) for one needle and
+    /// prototype.
     fn brute(
         samples: &[f32],
         dim: usize,
@@ -538,6 +685,7 @@ mod tests {
         l: &[f32],
         p: &[f32],
         pr: &ReconstructionParams,
+        cap: Option<f32>,
     ) -> f32 {
         let mut d: Vec<(f32, f32)> = s
             .iter()
@@ -550,7 +698,22 @@ mod tests {
             })
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let n = near_count(s.len(), pr.f_near, pr.min_near);
+        let m = s.len();
+        let n = match cap {
+            None => near_count(m, pr.f_near, pr.min_near),
+            Some(r) => {
+                let ball = d.iter().filter(|x| x.0 <= r).count();
+                let floor = pr.min_near.clamp(1, m);
+                let n_frac = ((pr.f_near * m as f64).round() as usize).clamp(1, m);
+                if n_frac == m {
+                    m
+                } else if ball >= floor {
+                    n_frac.min(ball)
+                } else {
+                    floor
+                }
+            }
+        };
         let reach = d[n - 1].0 + TIE_RADIUS * config_scale(samples, dim).unwrap();
         let mut near: Vec<f32> = d.iter().filter(|x| x.0 <= reach).map(|x| x.1).collect();
         let n = near.len();
@@ -585,22 +748,29 @@ mod tests {
                 })
                 .collect();
             let obs = NeedleObservations::from_lists(&per_needle).unwrap();
-            let params = ReconstructionParams::default()
-                .with_f_near(0.05)
-                .with_f_min(0.2);
             let locs = farthest_point_prototypes(&samples, dim, 7, &mut rng).unwrap();
             let adj = vec![vec![]; 4];
-            let shapes =
-                prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
-            for k in 0..7 {
-                for j in 0..4 {
-                    let (s, l) = obs.needle(j);
-                    let p = &locs.points[k * dim..(k + 1) * dim];
-                    assert_eq!(
-                        shapes.shape(k)[j],
-                        brute(&samples, dim, s, l, p, &params),
-                        "dim {dim}"
-                    );
+            for nb in variants() {
+                let params = ReconstructionParams::default()
+                    .with_f_near(0.05)
+                    .with_f_min(0.2)
+                    .with_min_near(20)
+                    .with_neighbourhood(nb);
+                let cap = brute_cap(&locs.points, dim, &params);
+                let shapes =
+                    prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
+                assert_eq!(shapes.neighbourhood_radius, cap);
+                assert_eq!(shapes.estimates, 7 * 4);
+                for k in 0..7 {
+                    for j in 0..4 {
+                        let (s, l) = obs.needle(j);
+                        let p = &locs.points[k * dim..(k + 1) * dim];
+                        assert_eq!(
+                            shapes.shape(k)[j],
+                            brute(&samples, dim, s, l, p, &params, cap),
+                            "dim {dim}, {nb:?}"
+                        );
+                    }
                 }
             }
         }
@@ -639,10 +809,15 @@ mod tests {
         let mut points = locs.points.clone();
         // Prototypes at the held poses themselves, too.
         points.extend_from_slice(&distinct[..2 * dim]);
-        for f_near in [0.01, 0.05, 0.3] {
+        for (f_near, nb) in [0.01, 0.05, 0.3]
+            .into_iter()
+            .flat_map(|f| variants().map(|nb| (f, nb)))
+        {
             let params = ReconstructionParams::default()
                 .with_f_near(f_near)
-                .with_f_min(0.2);
+                .with_f_min(0.2)
+                .with_neighbourhood(nb);
+            let cap = brute_cap(&points, dim, &params);
             let shapes =
                 prototype_shapes(&samples, dim, &obs, &points, &vec![vec![]; 3], &params).unwrap();
             for (k, p) in points.chunks_exact(dim).enumerate() {
@@ -650,12 +825,110 @@ mod tests {
                     let (s, l) = obs.needle(j);
                     assert_eq!(
                         shapes.shape(k)[j],
-                        brute(&samples, dim, s, l, p, &params),
-                        "f_near {f_near}, prototype {k}, needle {j}"
+                        brute(&samples, dim, s, l, p, &params, cap),
+                        "f_near {f_near}, {nb:?}, prototype {k}, needle {j}"
                     );
                 }
             }
         }
+    }
+
+    /// 1-D: 3 000 samples at rest (0) with short lengths, a sparse sweep of 40 samples over
+    /// [1, 2] with long ones; prototypes at rest and along the sweep, spacing 0.25.
+    fn rest_and_sparse_sweep() -> (Vec<f32>, NeedleObservations, Vec<f32>) {
+        let mut samples = vec![0.0f32; 3000];
+        samples.extend((0..40).map(|i| 1.0 + i as f32 / 39.0));
+        let per_needle = vec![(0..samples.len() as u32)
+            .map(|s| {
+                (
+                    s,
+                    if s < 3000 {
+                        1.0
+                    } else {
+                        2.0 + samples[s as usize]
+                    },
+                )
+            })
+            .collect::<Vec<_>>()];
+        let obs = NeedleObservations::from_lists(&per_needle).unwrap();
+        let points = vec![0.0f32, 1.0, 1.25, 1.5, 1.75, 2.0];
+        (samples, obs, points)
+    }
+
+    #[test]
+    fn capped_neighbourhood_keeps_a_far_tie_group_out() {
+        let (samples, obs, points) = rest_and_sparse_sweep();
+        let adj = [vec![]];
+        // F_near · m = 67 > the 40 sweep samples: the paper's walk reaches the rest pose from
+        // every prototype and takes its 3 000 views whole, so every prototype is the static 1.
+        let fraction = ReconstructionParams::default()
+            .with_min_near(10)
+            .with_neighbourhood(Neighbourhood::Fraction);
+        let shapes = prototype_shapes(&samples, 1, &obs, &points, &adj, &fraction).unwrap();
+        assert!(
+            shapes.lengths.iter().all(|&l| l == 1.0),
+            "{:?}",
+            shapes.lengths
+        );
+        assert_eq!(shapes.floor_bound, 0);
+        assert_eq!(shapes.neighbourhood_radius, None);
+        // Capped at one spacing (0.25): the sweep prototypes see only sweep views (ball of
+        // ≥ 10 observations, so the floor does not bind); the rest prototype sees rest.
+        let capped = fraction.with_neighbourhood(Neighbourhood::Capped { radius_factor: 1.0 });
+        let shapes = prototype_shapes(&samples, 1, &obs, &points, &adj, &capped).unwrap();
+        assert_eq!(shapes.neighbourhood_radius, Some(0.25));
+        assert_eq!(shapes.floor_bound, 0);
+        assert_eq!(shapes.shape(0)[0], 1.0);
+        for (k, &p) in points.iter().enumerate().skip(1) {
+            let v = shapes.shape(k)[0];
+            assert!((v - (2.0 + p)).abs() < 0.3, "prototype at {p}: {v}");
+            let (s, l) = obs.needle(0);
+            assert_eq!(v, brute(&samples, 1, s, l, &[p], &capped, Some(0.25)));
+        }
+    }
+
+    #[test]
+    fn capped_neighbourhood_floors_a_rarely_seen_needle() {
+        let (samples, _, points) = rest_and_sparse_sweep();
+        // Needle 0 seen in 12 sweep samples only, all above 1.7; needle 1 everywhere.
+        let per_needle = vec![
+            (3000..3040u32)
+                .filter(|&s| samples[s as usize] > 1.7)
+                .map(|s| (s, 2.0 + samples[s as usize]))
+                .collect::<Vec<_>>(),
+            (0..3040u32).map(|s| (s, 1.5)).collect(),
+        ];
+        let obs = NeedleObservations::from_lists(&per_needle).unwrap();
+        let params = ReconstructionParams::default()
+            .with_min_near(8)
+            .with_neighbourhood(Neighbourhood::Capped { radius_factor: 1.0 });
+        let shapes =
+            prototype_shapes(&samples, 1, &obs, &points, &[vec![], vec![]], &params).unwrap();
+        let (s, l) = obs.needle(0);
+        assert_eq!(s.len(), 12);
+        for (k, &p) in points.iter().enumerate() {
+            let v = shapes.shape(k)[0];
+            assert_eq!(
+                v,
+                brute(&samples, 1, s, l, &[p], &params, Some(0.25)),
+                "{p}"
+            );
+        }
+        // Prototypes at 0, 1, 1.25 have an empty ball for needle 0 (its views start above
+        // 1.7), the one at 1.5 a ball of 1–2: the floor binds, the 8 nearest views are used.
+        // Needle 1 has 3 000 views in the rest ball, but only ≈ 10 in each sweep ball (≥ 8).
+        let mut nearest8: Vec<f32> = l.to_vec();
+        nearest8.sort_by(f32::total_cmp);
+        let mut low8 = nearest8[..8].to_vec();
+        assert_eq!(shapes.shape(0)[0], robust_minimum(&mut low8, params.f_min));
+        assert_eq!(shapes.floor_bound, 4);
+        assert_eq!(shapes.estimates, 12);
+        // The same needle under the paper's rule uses the 8 nearest everywhere, never floored.
+        let fraction = params.with_neighbourhood(Neighbourhood::Fraction);
+        let shapes =
+            prototype_shapes(&samples, 1, &obs, &points, &[vec![], vec![]], &fraction).unwrap();
+        assert_eq!(shapes.floor_bound, 0);
+        assert_eq!(shapes.shape(0)[0], robust_minimum(&mut low8, params.f_min));
     }
 
     #[test]

@@ -44,6 +44,18 @@ pub struct PrimitiveFitReport {
     pub covering_radius: f32,
     /// Never-observed needles filled from neighbouring needles (§5.3).
     pub filled_needles: Vec<u32>,
+    /// Cap radius of the prototype neighbourhoods (configuration-space units;
+    /// `None` for [`crate::Neighbourhood::Fraction`] or a single prototype).
+    #[serde(default)]
+    pub neighbourhood_radius: Option<f32>,
+    /// (needle, prototype) estimates of observed needles.
+    #[serde(default)]
+    pub estimates: usize,
+    /// Of [`Self::estimates`], how many had the `min_near` floor bind under
+    /// [`crate::Neighbourhood::Capped`] (fewer than `min_near` observations of the needle
+    /// within the cap radius).
+    #[serde(default)]
+    pub floor_bound: usize,
 }
 
 /// Result of [`NeedleModel::reconstruct`].
@@ -164,11 +176,14 @@ fn fit_primitive(
         &prim_params,
     )?;
     log::debug!(
-        "primitive {p}: {} samples, {} observations, {} prototypes, {} filled needles",
+        "primitive {p}: {} samples, {} observations, {} prototypes, {} filled needles, \
+         min_near floor bound in {} of {} estimates",
         store.sample_count(p),
         obs.observation_count(),
         fit.model.num_prototypes(),
-        fit.filled_needles.len()
+        fit.filled_needles.len(),
+        fit.floor_bound,
+        fit.estimates
     );
     let report = PrimitiveFitReport {
         samples: store.sample_count(p),
@@ -176,6 +191,9 @@ fn fit_primitive(
         prototype_samples: fit.prototype_samples,
         covering_radius: fit.covering_radius,
         filled_needles: fit.filled_needles,
+        neighbourhood_radius: fit.neighbourhood_radius,
+        estimates: fit.estimates,
+        floor_bound: fit.floor_bound,
     };
     Ok((fit.model, report))
 }
