@@ -148,7 +148,7 @@ impl PoseEffect {
     pub fn reference_pose(&self, skeleton: &Skeleton) -> Result<Vec<f64>> {
         let mut theta = skeleton.rest_pose();
         for name in &self.dofs {
-            let d = dof_named(skeleton, &self.name, name)?;
+            let d = effect(&self.name).dof(skeleton, name)?;
             theta[d] = self.reference_rad / self.dofs.len().max(1) as f64;
         }
         Ok(theta)
@@ -437,54 +437,159 @@ pub(super) struct PoseModel {
     touched: Vec<u32>,
 }
 
-/// A check's error, restated for effect `effect` ("effect 'l_biceps': amplitude_m must be …").
-fn in_effect(effect: &str, e: Error) -> Error {
-    let reason = match e {
-        Error::InvalidParam { name, reason } => format!("{name} {reason}"),
-        other => other.to_string(),
-    };
-    invalid(effect, reason)
+/// One named entry of a parameter list (a pose effect, a wrinkle crease): its errors name
+/// the list and the entry, and its DOF and joint names resolve against a skeleton.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Named<'a> {
+    /// The parameter list (e.g. `"pose.effects"`).
+    pub(super) list: &'static str,
+    /// What an entry is called in parameter errors (e.g. `"effect"`).
+    pub(super) kind: &'static str,
+    /// What an entry is called in geometry errors, outside its list (e.g. `"pose effect"`).
+    pub(super) long_kind: &'static str,
+    /// The entry's name.
+    pub(super) name: &'a str,
 }
 
-fn invalid(effect: &str, reason: String) -> Error {
-    Error::InvalidParam {
-        name: "pose.effects",
-        reason: format!("effect '{effect}': {reason}"),
+impl Named<'_> {
+    /// An [`Error::InvalidParam`] of this entry ("effect 'l_biceps': …").
+    pub(super) fn invalid(&self, reason: String) -> Error {
+        Error::InvalidParam {
+            name: self.list,
+            reason: format!("{} '{}': {reason}", self.kind, self.name),
+        }
+    }
+
+    /// A check's error, restated for this entry.
+    pub(super) fn wrap(&self, e: Error) -> Error {
+        let reason = match e {
+            Error::InvalidParam { name, reason } => format!("{name} {reason}"),
+            other => other.to_string(),
+        };
+        self.invalid(reason)
+    }
+
+    /// An [`Error::Degenerate`] of this entry.
+    pub(super) fn degenerate(&self, what: String) -> Error {
+        Error::Degenerate {
+            what: format!("{} '{}': {what}", self.long_kind, self.name),
+        }
+    }
+
+    /// The rotation DOF `dof` of `skeleton`.
+    pub(super) fn dof(&self, skeleton: &Skeleton, dof: &str) -> Result<usize> {
+        let d = skeleton
+            .dof_index(dof)
+            .ok_or_else(|| self.invalid(format!("the skeleton has no DOF '{dof}'")))?;
+        if skeleton.is_rotation(d) {
+            Ok(d)
+        } else {
+            Err(self.invalid(format!("DOF '{dof}' is not a rotation")))
+        }
+    }
+
+    /// The joint `joint` of `skeleton`.
+    pub(super) fn joint(&self, skeleton: &Skeleton, joint: &str) -> Result<usize> {
+        skeleton
+            .joint_index(joint)
+            .ok_or_else(|| self.invalid(format!("the skeleton has no joint '{joint}'")))
+    }
+
+    /// The segment of joint `bone` at rest: its start, its far end ([`distal_tip`]) and its
+    /// length.
+    pub(super) fn segment(
+        &self,
+        skeleton: &Skeleton,
+        frames: &[DAffine3],
+        bone: usize,
+    ) -> Result<(DVec3, DVec3, f64)> {
+        let a = frames[bone].translation;
+        let b = distal_tip(skeleton, frames, bone);
+        let length = a.distance(b);
+        if length < 1e-6 {
+            return Err(self.degenerate(format!(
+                "bone of '{}' has zero length",
+                skeleton.joints()[bone].name
+            )));
+        }
+        Ok((a, b, length))
+    }
+
+    /// The axis of [`EffectAxis::Joint`] for the segment `a → b` (length `length`) of joint
+    /// `bone`: origin at its one child joint, direction the bisector of the two segments' rest
+    /// directions.
+    pub(super) fn joint_axis(
+        &self,
+        skeleton: &Skeleton,
+        frames: &[DAffine3],
+        bone: usize,
+        (a, b, length): (DVec3, DVec3, f64),
+    ) -> Result<(DVec3, DVec3)> {
+        let children: Vec<usize> = skeleton.children(bone).collect();
+        let [child] = children[..] else {
+            return Err(self.invalid(format!(
+                "a joint axis needs a bone with one child joint; '{}' has {}",
+                skeleton.joints()[bone].name,
+                children.len()
+            )));
+        };
+        let c = frames[child].translation;
+        let distal = (distal_tip(skeleton, frames, child) - c).normalize_or_zero();
+        let axis = ((b - a) / length + distal).normalize_or_zero();
+        if axis == DVec3::ZERO {
+            return Err(self.degenerate("the joint is folded back on itself".into()));
+        }
+        Ok((c, axis))
+    }
+
+    /// The unit direction `f̂` of `side` perpendicular to `axis` at rest (see [`EffectSide`]).
+    pub(super) fn side(
+        &self,
+        skeleton: &Skeleton,
+        rest: &ForwardKinematics,
+        side: &EffectSide,
+        axis: DVec3,
+    ) -> Result<DVec3> {
+        let (sign, side_dof) = match side {
+            EffectSide::Towards(d) => (1.0, d),
+            EffectSide::AwayFrom(d) => (-1.0, d),
+        };
+        let sd = self.dof(skeleton, side_dof)?;
+        let tip = distal_tip(skeleton, rest.world_from_joint(), skeleton.dof_joint(sd));
+        let swing = rest.dof_axes_world()[sd].cross(tip - rest.dof_origins_world()[sd]);
+        let f = (swing - axis * swing.dot(axis)).normalize_or_zero() * sign;
+        if f == DVec3::ZERO {
+            return Err(self.degenerate(format!("side '{side_dof}' is parallel to the axis")));
+        }
+        Ok(f)
     }
 }
 
-fn dof_named(skeleton: &Skeleton, effect: &str, name: &str) -> Result<usize> {
-    let d = skeleton
-        .dof_index(name)
-        .ok_or_else(|| invalid(effect, format!("the skeleton has no DOF '{name}'")))?;
-    if skeleton.is_rotation(d) {
-        Ok(d)
-    } else {
-        Err(invalid(effect, format!("DOF '{name}' is not a rotation")))
+/// The [`Named`] of pose effect `name`.
+fn effect(name: &str) -> Named<'_> {
+    Named {
+        list: "pose.effects",
+        kind: "effect",
+        long_kind: "pose effect",
+        name,
     }
-}
-
-fn joint_named(skeleton: &Skeleton, effect: &str, name: &str) -> Result<usize> {
-    skeleton
-        .joint_index(name)
-        .ok_or_else(|| invalid(effect, format!("the skeleton has no joint '{name}'")))
 }
 
 /// Checks the parameters against `skeleton`: names, amplitudes, angles, widths.
 fn validate(p: &PoseEffect, skeleton: &Skeleton) -> Result<()> {
-    let n = p.name.as_str();
-    let wrap = |e| in_effect(n, e);
+    let n = effect(&p.name);
+    let wrap = |e| n.wrap(e);
     check::nonzero("dofs (count)", p.dofs.len()).map_err(wrap)?;
     check::nonzero("region (count)", p.region.len()).map_err(wrap)?;
     for d in &p.dofs {
-        dof_named(skeleton, n, d)?;
+        n.dof(skeleton, d)?;
     }
     for j in &p.region {
-        joint_named(skeleton, n, j)?;
+        n.joint(skeleton, j)?;
     }
-    joint_named(skeleton, n, &p.bone)?;
+    n.joint(skeleton, &p.bone)?;
     let (EffectSide::Towards(d) | EffectSide::AwayFrom(d)) = &p.side;
-    dof_named(skeleton, n, d)?;
+    n.dof(skeleton, d)?;
     check::non_negative("amplitude_m", p.amplitude_m).map_err(wrap)?;
     check::positive("|reference_rad|", p.reference_rad.abs()).map_err(wrap)?;
     check::finite("along.peak", p.along.peak).map_err(wrap)?;
@@ -510,71 +615,32 @@ pub(super) fn pose_model(
     for (i, e) in params.effects.iter().enumerate() {
         validate(e, skeleton)?;
         if params.effects[..i].iter().any(|o| o.name == e.name) {
-            return Err(invalid(&e.name, "duplicate effect name".into()));
+            return Err(effect(&e.name).invalid("duplicate effect name".into()));
         }
     }
     let frames = rest.world_from_joint();
     let mut effects = Vec::with_capacity(params.effects.len());
     let mut moved = vec![false; rest_vertices.len()];
     for p in &params.effects {
-        let n = p.name.as_str();
+        let n = effect(&p.name);
         let dofs = p
             .dofs
             .iter()
-            .map(|d| dof_named(skeleton, n, d))
+            .map(|d| n.dof(skeleton, d))
             .collect::<Result<Vec<_>>>()?;
         let region = p
             .region
             .iter()
-            .map(|j| joint_named(skeleton, n, j))
+            .map(|j| n.joint(skeleton, j))
             .collect::<Result<Vec<_>>>()?;
-        let bone = joint_named(skeleton, n, &p.bone)?;
-        let a = frames[bone].translation;
-        let b = distal_tip(skeleton, frames, bone);
-        let length = a.distance(b);
-        if length < 1e-6 {
-            return Err(Error::Degenerate {
-                what: format!("pose effect '{n}': bone of '{}' has zero length", p.bone),
-            });
-        }
+        let bone = n.joint(skeleton, &p.bone)?;
+        let segment = n.segment(skeleton, frames, bone)?;
+        let (a, b, length) = segment;
         let (origin, axis) = match p.axis {
             EffectAxis::Bone => (a, (b - a) / length),
-            EffectAxis::Joint => {
-                let children: Vec<usize> = skeleton.children(bone).collect();
-                let [child] = children[..] else {
-                    return Err(invalid(
-                        n,
-                        format!(
-                            "a joint axis needs a bone with one child joint; '{}' has {}",
-                            p.bone,
-                            children.len()
-                        ),
-                    ));
-                };
-                let c = frames[child].translation;
-                let distal = (distal_tip(skeleton, frames, child) - c).normalize_or_zero();
-                let axis = ((b - a) / length + distal).normalize_or_zero();
-                if axis == DVec3::ZERO {
-                    return Err(Error::Degenerate {
-                        what: format!("pose effect '{n}': the joint is folded back on itself"),
-                    });
-                }
-                (c, axis)
-            }
+            EffectAxis::Joint => n.joint_axis(skeleton, frames, bone, segment)?,
         };
-        let (sign, side_dof) = match &p.side {
-            EffectSide::Towards(d) => (1.0, d),
-            EffectSide::AwayFrom(d) => (-1.0, d),
-        };
-        let sd = dof_named(skeleton, n, side_dof)?;
-        let tip = distal_tip(skeleton, frames, skeleton.dof_joint(sd));
-        let swing = rest.dof_axes_world()[sd].cross(tip - rest.dof_origins_world()[sd]);
-        let side = (swing - axis * swing.dot(axis)).normalize_or_zero() * sign;
-        if side == DVec3::ZERO {
-            return Err(Error::Degenerate {
-                what: format!("pose effect '{n}': side '{side_dof}' is parallel to the axis"),
-            });
-        }
+        let side = n.side(skeleton, rest, &p.side, axis)?;
         let push = match p.push {
             Push::Outward => 1.0,
             Push::Inward => -1.0,

@@ -49,8 +49,7 @@ use std::ops::Range;
 
 use serde::{Deserialize, Serialize};
 
-use super::deformation::distal_tip;
-use super::muscles::{activation_ramp, Bump, EffectSide};
+use super::muscles::{activation_ramp, Bump, EffectSide, Named};
 use crate::check;
 use crate::math::DVec3;
 use crate::mesh::{unique_edges, FaceRefinement, RefineParams, Refinement, SkinWeights, TriMesh};
@@ -317,36 +316,14 @@ const FOLD_STRETCH_FULL: f64 = 1.15;
 /// Principal stretch from which creases are smooth.
 const FOLD_STRETCH_NONE: f64 = 1.3;
 
-fn invalid(name: &str, reason: String) -> Error {
-    Error::InvalidParam {
-        name: "wrinkles.creases",
-        reason: format!("crease '{name}': {reason}"),
+/// The [`Named`] of crease `name`.
+fn crease(name: &str) -> Named<'_> {
+    Named {
+        list: "wrinkles.creases",
+        kind: "crease",
+        long_kind: "crease",
+        name,
     }
-}
-
-fn in_crease(name: &str, e: Error) -> Error {
-    let reason = match e {
-        Error::InvalidParam { name, reason } => format!("{name} {reason}"),
-        other => other.to_string(),
-    };
-    invalid(name, reason)
-}
-
-fn dof_named(skeleton: &Skeleton, crease: &str, name: &str) -> Result<usize> {
-    let d = skeleton
-        .dof_index(name)
-        .ok_or_else(|| invalid(crease, format!("the skeleton has no DOF '{name}'")))?;
-    if skeleton.is_rotation(d) {
-        Ok(d)
-    } else {
-        Err(invalid(crease, format!("DOF '{name}' is not a rotation")))
-    }
-}
-
-fn joint_named(skeleton: &Skeleton, crease: &str, name: &str) -> Result<usize> {
-    skeleton
-        .joint_index(name)
-        .ok_or_else(|| invalid(crease, format!("the skeleton has no joint '{name}'")))
 }
 
 impl WrinkleModel {
@@ -400,12 +377,12 @@ impl WrinkleModel {
         let mut envelopes = Vec::with_capacity(params.creases.len());
         let mut geometry = Vec::with_capacity(params.creases.len());
         for (i, c) in params.creases.iter().enumerate() {
-            let n = c.name.as_str();
-            let wrap = |e| in_crease(n, e);
+            let n = crease(&c.name);
+            let wrap = |e| n.wrap(e);
             if params.creases[..i].iter().any(|o| o.name == c.name) {
-                return Err(invalid(n, "duplicate crease name".into()));
+                return Err(n.invalid("duplicate crease name".into()));
             }
-            let dof = dof_named(skeleton, n, &c.dof)?;
+            let dof = n.dof(skeleton, &c.dof)?;
             check::non_negative("amplitude_m", c.amplitude_m).map_err(wrap)?;
             check::positive("wavelength_m", c.wavelength_m).map_err(wrap)?;
             check::positive("|reference_rad|", c.reference_rad.abs()).map_err(wrap)?;
@@ -419,49 +396,13 @@ impl WrinkleModel {
             let region = c
                 .region
                 .iter()
-                .map(|j| joint_named(skeleton, n, j))
+                .map(|j| n.joint(skeleton, j))
                 .collect::<Result<Vec<_>>>()?;
-            let bone = joint_named(skeleton, n, &c.bone)?;
-            let children: Vec<usize> = skeleton.children(bone).collect();
-            let [child] = children[..] else {
-                return Err(invalid(
-                    n,
-                    format!(
-                        "the crease bone '{}' needs exactly one child joint, it has {}",
-                        c.bone,
-                        children.len()
-                    ),
-                ));
-            };
-            let a = frames[bone].translation;
-            let b = distal_tip(skeleton, frames, bone);
-            let length = a.distance(b);
-            if length < 1e-6 {
-                return Err(Error::Degenerate {
-                    what: format!("crease '{n}': bone of '{}' has zero length", c.bone),
-                });
-            }
-            let origin = frames[child].translation;
-            let distal = (distal_tip(skeleton, frames, child) - origin).normalize_or_zero();
-            let axis = ((b - a) / length + distal).normalize_or_zero();
-            if axis == DVec3::ZERO {
-                return Err(Error::Degenerate {
-                    what: format!("crease '{n}': the joint is folded back on itself"),
-                });
-            }
-            let (sign, side_dof) = match &c.side {
-                EffectSide::Towards(d) => (1.0, d),
-                EffectSide::AwayFrom(d) => (-1.0, d),
-            };
-            let sd = dof_named(skeleton, n, side_dof)?;
-            let tip = distal_tip(skeleton, frames, skeleton.dof_joint(sd));
-            let swing = rest.dof_axes_world()[sd].cross(tip - rest.dof_origins_world()[sd]);
-            let side = (swing - axis * swing.dot(axis)).normalize_or_zero() * sign;
-            if side == DVec3::ZERO {
-                return Err(Error::Degenerate {
-                    what: format!("crease '{n}': side '{side_dof}' is parallel to the axis"),
-                });
-            }
+            let bone = n.joint(skeleton, &c.bone)?;
+            let segment = n.segment(skeleton, frames, bone)?;
+            let length = segment.2;
+            let (origin, axis) = n.joint_axis(skeleton, frames, bone, segment)?;
+            let side = n.side(skeleton, &rest, &c.side, axis)?;
             let env: Vec<f64> = template
                 .vertices
                 .iter()
