@@ -27,7 +27,9 @@ fn procedural() -> &'static Performer {
     })
 }
 
-fn makehuman() -> &'static Performer {
+/// The MakeHuman performer with the default deformation, built once for all the studio's
+/// tests.
+pub(crate) fn makehuman() -> &'static Performer {
     static P: OnceLock<Performer> = OnceLock::new();
     P.get_or_init(|| makehuman_performer(data("makehuman"), &DeformationParams::default()).unwrap())
 }

@@ -1,21 +1,12 @@
 //! Tests of the pose-driven deformation on the MakeHuman performer.
 
 use super::*;
-use crate::studio::{
-    makehuman_performer, DeformationParams, DeformationState, Performer, PosedFrame,
-};
+use crate::studio::{DeformationParams, DeformationState, Performer, PosedFrame};
 use std::sync::OnceLock;
 
-/// The MakeHuman performer with today's default deformation (pose-driven part off).
+/// The MakeHuman performer with the default deformation (every pose-driven effect on).
 fn base() -> &'static Performer {
-    static P: OnceLock<Performer> = OnceLock::new();
-    P.get_or_init(|| {
-        makehuman_performer(
-            example_kit::data_path("makehuman").unwrap(),
-            &DeformationParams::default(),
-        )
-        .unwrap()
-    })
+    crate::studio::tests::makehuman()
 }
 
 /// The same body with only the pose-driven deformation `pose`.

@@ -3,21 +3,12 @@
 use super::*;
 use crate::mesh::{shapes::cylinder, vertex_normals, NormalWeighting};
 use crate::raster::{Rasterizer, RenderParams};
-use crate::studio::{
-    makehuman_performer, studio_ring, DeformationParams, DeformationState, Performer,
-};
+use crate::studio::{studio_ring, DeformationState, Performer};
 use std::sync::OnceLock;
 use std::time::Instant;
 
 fn performer() -> &'static Performer {
-    static P: OnceLock<Performer> = OnceLock::new();
-    P.get_or_init(|| {
-        makehuman_performer(
-            example_kit::data_path("makehuman").unwrap(),
-            &DeformationParams::default(),
-        )
-        .unwrap()
-    })
+    crate::studio::tests::makehuman()
 }
 
 /// The default wrinkle model of the MakeHuman body (no garment).
