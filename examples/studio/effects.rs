@@ -108,9 +108,9 @@ pub(crate) fn exercise_figures(p: &Performer) -> AnyResult<(Motion, Value)> {
 
 /// Each effect of the ground truth on the walk and on the exercise (every `stride`-th frame,
 /// the wrinkles on every [`FINE_EVERY`]-th of those; every frame is posed, so the dynamics are
-/// exact), for `full`, the performer with every
-/// effect on (pose-driven shapes, flap, skirt, wrinkles): their sizes, the skirt's hem lag
-/// (also over the fast motion), the wrinkles' amplitude, and the cost per frame on one core of
+/// exact), for `full`, the performer with every effect on ([`full_deformation`]): their
+/// sizes, the skirt's hem lag (also over the fast motion) and the walk's frame where it is
+/// largest (`walk_skirt_hem_lag_frame`), the wrinkles' amplitude, and the cost per frame on one core of
 /// the deformation (posing with every effect, the skirt's simulation included) and, apart, of
 /// the render-time refinement with its wrinkles.
 pub(crate) fn effect_figures(
@@ -127,7 +127,7 @@ pub(crate) fn effect_figures(
     let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     for (name, motion, step) in [("walk", walk, 1), ("exercise", exercise, stride)] {
         let (mut pose, mut dynamic, mut wrinkle) = Default::default();
-        let mut lag_mm = 0.0f64;
+        let (mut lag_mm, mut lag_frame) = (0.0f64, 0);
         let mut state = DeformationState::default();
         for k in 0..motion.frame_count() {
             // The deformation of one frame, timed on one core: posing (skinning, the
@@ -150,12 +150,16 @@ pub(crate) fn effect_figures(
                     EffectSize::add(&mut wrinkle, &fine.wrinkle_displacement);
                 }
             }
-            lag_mm = lag_mm.max(garment_lag_m(&f, &garment) * 1e3);
+            let lag = garment_lag_m(&f, &garment) * 1e3;
+            if lag > lag_mm {
+                (lag_mm, lag_frame) = (lag, k);
+            }
         }
         pose.write(&mut out, &format!("{name}_pose_deform"));
         dynamic.write(&mut out, &format!("{name}_dynamic"));
         wrinkle.write(&mut out, &format!("{name}_wrinkle"));
         out.insert(format!("{name}_skirt_hem_lag_max_mm"), json!(lag_mm));
+        out.insert(format!("{name}_skirt_hem_lag_frame"), json!(lag_frame));
         pose_all.max_mm = pose_all.max_mm.max(pose.max_mm);
         pose_all.over[1] = pose_all.over[1].max(pose.over[1]);
         wrinkle_max_mm = wrinkle_max_mm.max(wrinkle.max_mm);
@@ -455,20 +459,19 @@ pub(crate) fn effects_picture(
     Ok(())
 }
 
-/// `skirt_swing.png`: the frame of `motion` where the skirt departs most from the skinned
-/// skirt, from the side: the skinned skirt (what linear blend skinning of the scanned rest
-/// shape gives) and the simulated one, the garment coloured by its lag. Returns the frame.
-pub(crate) fn skirt_picture(full: &Performer, motion: &Motion, out: &Path) -> AnyResult<usize> {
+/// `skirt_swing.png`: frame `best_k` of `motion` (the frame where the skirt departs most from
+/// the skinned skirt, found by [`effect_figures`]) from the side: the skinned skirt (what
+/// linear blend skinning of the scanned rest shape gives) and the simulated one, the garment
+/// coloured by its lag.
+pub(crate) fn skirt_picture(
+    full: &Performer,
+    motion: &Motion,
+    best_k: usize,
+    out: &Path,
+) -> AnyResult<()> {
     let garment = full.garment_vertices();
-    let (mut best, mut best_k) = (0.0f64, 0);
-    full.perform(motion, |k, f| {
-        let lag = garment_lag_m(f, &garment);
-        if lag > best {
-            (best, best_k) = (lag, k);
-        }
-        Ok(())
-    })?;
     let f = posed_at(full, motion, best_k)?;
+    let best = garment_lag_m(&f, &garment);
     let top = (best * 1e3).max(1.0);
     let colours = paint_mm(&f.dynamic_displacement, top, |v| !garment.contains(&v));
     let mut skinned = f.true_vertices.clone();
@@ -499,7 +502,7 @@ pub(crate) fn skirt_picture(full: &Performer, motion: &Motion, out: &Path) -> An
         )),
     )?;
     kplot::save(&img, out.join("skirt_swing.png"))?;
-    Ok(best_k)
+    Ok(())
 }
 
 /// The wrinkle displacement at pixel `i` of view `v` of `mesh` (interpolated with the

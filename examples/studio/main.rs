@@ -337,9 +337,13 @@ fn main() -> AnyResult<()> {
         "effects.png",
         "The performer with every effect on at the walk's frame of largest deformation, \
          coloured by each part of the ground truth beyond skinning: the pose-driven shapes, \
-         the dynamic skirt and flap (from the side), and the render-time wrinkles.",
+         the dynamic skirt (from the side), and the render-time wrinkles.",
     );
-    let swing = skirt_picture(&full, &motion, out)?;
+    let swing = effects["walk_skirt_hem_lag_frame"]
+        .as_u64()
+        .ok_or("effect_figures reports the walk's frame of largest hem lag")?
+        as usize;
+    skirt_picture(&full, &motion, swing, out)?;
     run.picture(
         "skirt_swing.png",
         &format!(
