@@ -13,7 +13,7 @@ use skin_core::check;
 use crate::config::{check_samples, config_scale};
 use crate::params::ReconstructionParams;
 use crate::prototype_locations::farthest_point_prototypes;
-use crate::prototype_shapes::{prototype_shapes, PrototypeShapes};
+use crate::prototype_shapes::{prototype_shapes, NeighbourhoodStats, PrototypeShapes};
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
@@ -84,12 +84,8 @@ pub struct NrbfFit {
     pub covering_radius: f32,
     /// Needles without observations that were filled from neighbours (§5.3).
     pub filled_needles: Vec<u32>,
-    /// Cap radius of the prototype neighbourhoods ([`PrototypeShapes::neighbourhood_radius`]).
-    pub neighbourhood_radius: Option<f32>,
-    /// (needle, prototype) estimates of observed needles ([`PrototypeShapes::estimates`]).
-    pub estimates: usize,
-    /// Estimates where the `min_near` floor bound ([`PrototypeShapes::floor_bound`]).
-    pub floor_bound: usize,
+    /// How the prototype neighbourhoods came out ([`PrototypeShapes::neighbourhood`]).
+    pub neighbourhood: NeighbourhoodStats,
 }
 
 impl Nrbf {
@@ -159,11 +155,7 @@ impl Nrbf {
         let locs = farthest_point_prototypes(samples, dim, params.prototype_count_n, &mut rng)?;
         let shapes = prototype_shapes(samples, dim, observations, &locs.points, adjacency, params)?;
         let filled_needles = shapes.filled_needles.clone();
-        let (neighbourhood_radius, estimates, floor_bound) = (
-            shapes.neighbourhood_radius,
-            shapes.estimates,
-            shapes.floor_bound,
-        );
+        let neighbourhood = shapes.neighbourhood;
         let scale = config_scale(samples, dim)?;
         let model = Self::new(dim, locs.points, shapes, scale, params.kernel_width_w)?;
         Ok(NrbfFit {
@@ -171,9 +163,7 @@ impl Nrbf {
             prototype_samples: locs.sample_indices,
             covering_radius: locs.covering_radius,
             filled_needles,
-            neighbourhood_radius,
-            estimates,
-            floor_bound,
+            neighbourhood,
         })
     }
 
@@ -301,8 +291,7 @@ impl Nrbf {
     /// use needle_model::{Nrbf, PrototypeShapes};
     /// // Two 1-D prototypes at 0 and 1 with one needle of length 2 and 4.
     /// let shapes = PrototypeShapes { num_needles: 1, num_prototypes: 2,
-    ///     lengths: vec![2.0, 4.0], filled_needles: vec![], neighbourhood_radius: None,
-    ///     estimates: 2, floor_bound: 0 };
+    ///     lengths: vec![2.0, 4.0], filled_needles: vec![], neighbourhood: Default::default() };
     /// let model = Nrbf::new(1, vec![0.0, 1.0], shapes, 0.5, 7.0)?;
     /// let mid = model.evaluate(&[0.5])?;
     /// assert!((mid[0] - 3.0).abs() < 1e-6);
@@ -631,9 +620,11 @@ mod tests {
             num_prototypes: n,
             lengths: vec![1.0; n],
             filled_needles: vec![],
-            neighbourhood_radius: None,
-            estimates: n,
-            floor_bound: 0,
+            neighbourhood: NeighbourhoodStats {
+                radius: None,
+                estimates: n,
+                floor_bound: 0,
+            },
         };
         assert!(matches!(
             Nrbf::new(1, vec![0.0, 1.0], shapes(3), 1.0, 7.0),

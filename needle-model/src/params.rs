@@ -53,8 +53,8 @@ pub const DEFAULT_RADIUS_FACTOR: f64 = 1.0;
 /// it falls back to the `min_near` nearest observations (as the fraction rule would), not to
 /// the needle's static estimate — nearest views are still the best evidence for this pose.
 /// A fraction that takes every observation (`F_near = 1`) is the static model in both
-/// variants: the cap limits a walk, and there is none. How often the floor binds is reported ([`crate::PrototypeShapes::floor_bound`],
-/// [`crate::PrimitiveFitReport::floor_bound`]). With a single prototype there is no spacing
+/// variants: the cap limits a walk, and there is none. How often the floor binds is reported ([`crate::NeighbourhoodStats::floor_bound`],
+/// [`crate::PrimitiveFitReport::neighbourhood`]). With a single prototype there is no spacing
 /// and the cap is infinite.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Neighbourhood {

@@ -63,17 +63,23 @@ pub struct PrototypeShapes {
     pub lengths: Vec<f32>,
     /// Needles that had no observation and were filled from neighbouring needles.
     pub filled_needles: Vec<u32>,
+    /// How the prototype neighbourhoods came out.
+    #[serde(default)]
+    pub neighbourhood: NeighbourhoodStats,
+}
+
+/// How the neighbourhoods behind the prototype estimates came out (carried by
+/// [`PrototypeShapes`], [`crate::NrbfFit`] and [`crate::PrimitiveFitReport`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct NeighbourhoodStats {
     /// Cap radius `R` of [`Neighbourhood::Capped`] in configuration-space units (`None` for
     /// [`Neighbourhood::Fraction`] or a single prototype).
-    #[serde(default)]
-    pub neighbourhood_radius: Option<f32>,
+    pub radius: Option<f32>,
     /// Number of (needle, prototype) estimates of observed needles.
-    #[serde(default)]
     pub estimates: usize,
     /// Of [`Self::estimates`], how many had the `min_near` floor bind under
     /// [`Neighbourhood::Capped`] (the ball held fewer than `min(min_near, m)` observations of
     /// the needle, an empty ball included); always 0 for [`Neighbourhood::Fraction`].
-    #[serde(default)]
     pub floor_bound: usize,
 }
 
@@ -184,12 +190,12 @@ fn robust_minimum(values: &mut [f32], f_min: f64) -> f32 {
 ///
 /// **Capped neighbourhoods (default; a documented departure from §5.3).** With
 /// [`Neighbourhood::Capped`] the walk stops at `R = radius_factor ×` the prototype spacing
-/// (median nearest-prototype distance, [`PrototypeShapes::neighbourhood_radius`]): the count
+/// (median nearest-prototype distance, [`NeighbourhoodStats::radius`]): the count
 /// is `min(F_near·m_j, ball)` where `ball` is the needle's observations within `R`, so a far
 /// pose held for most of the capture (the rest pose of a range of motion) cannot enter a
 /// sweep prototype's pool and make every prototype the static estimate. When the ball holds
 /// fewer than `min(min_near, m_j)` observations (an empty ball included) the floor binds and
-/// the `min_near` nearest are used, cap or not ([`PrototypeShapes::floor_bound`] counts it).
+/// the `min_near` nearest are used, cap or not ([`NeighbourhoodStats::floor_bound`] counts it).
 /// Ties are taken whole as above. [`Neighbourhood::Fraction`] is the paper's rule, kept
 /// selectable.
 ///
@@ -389,9 +395,11 @@ pub fn prototype_shapes(
         num_prototypes: num_protos,
         lengths,
         filled_needles,
-        neighbourhood_radius: cap,
-        estimates,
-        floor_bound,
+        neighbourhood: NeighbourhoodStats {
+            radius: cap,
+            estimates,
+            floor_bound,
+        },
     })
 }
 
@@ -759,8 +767,8 @@ mod tests {
                 let cap = brute_cap(&locs.points, dim, &params);
                 let shapes =
                     prototype_shapes(&samples, dim, &obs, &locs.points, &adj, &params).unwrap();
-                assert_eq!(shapes.neighbourhood_radius, cap);
-                assert_eq!(shapes.estimates, 7 * 4);
+                assert_eq!(shapes.neighbourhood.radius, cap);
+                assert_eq!(shapes.neighbourhood.estimates, 7 * 4);
                 for k in 0..7 {
                     for j in 0..4 {
                         let (s, l) = obs.needle(j);
@@ -870,14 +878,14 @@ mod tests {
             "{:?}",
             shapes.lengths
         );
-        assert_eq!(shapes.floor_bound, 0);
-        assert_eq!(shapes.neighbourhood_radius, None);
+        assert_eq!(shapes.neighbourhood.floor_bound, 0);
+        assert_eq!(shapes.neighbourhood.radius, None);
         // Capped at one spacing (0.25): the sweep prototypes see only sweep views (ball of
         // ≥ 10 observations, so the floor does not bind); the rest prototype sees rest.
         let capped = fraction.with_neighbourhood(Neighbourhood::Capped { radius_factor: 1.0 });
         let shapes = prototype_shapes(&samples, 1, &obs, &points, &adj, &capped).unwrap();
-        assert_eq!(shapes.neighbourhood_radius, Some(0.25));
-        assert_eq!(shapes.floor_bound, 0);
+        assert_eq!(shapes.neighbourhood.radius, Some(0.25));
+        assert_eq!(shapes.neighbourhood.floor_bound, 0);
         assert_eq!(shapes.shape(0)[0], 1.0);
         for (k, &p) in points.iter().enumerate().skip(1) {
             let v = shapes.shape(k)[0];
@@ -921,13 +929,13 @@ mod tests {
         nearest8.sort_by(f32::total_cmp);
         let mut low8 = nearest8[..8].to_vec();
         assert_eq!(shapes.shape(0)[0], robust_minimum(&mut low8, params.f_min));
-        assert_eq!(shapes.floor_bound, 4);
-        assert_eq!(shapes.estimates, 12);
+        assert_eq!(shapes.neighbourhood.floor_bound, 4);
+        assert_eq!(shapes.neighbourhood.estimates, 12);
         // The same needle under the paper's rule uses the 8 nearest everywhere, never floored.
         let fraction = params.with_neighbourhood(Neighbourhood::Fraction);
         let shapes =
             prototype_shapes(&samples, 1, &obs, &points, &[vec![], vec![]], &fraction).unwrap();
-        assert_eq!(shapes.floor_bound, 0);
+        assert_eq!(shapes.neighbourhood.floor_bound, 0);
         assert_eq!(shapes.shape(0)[0], robust_minimum(&mut low8, params.f_min));
     }
 

@@ -44,18 +44,10 @@ pub struct PrimitiveFitReport {
     pub covering_radius: f32,
     /// Never-observed needles filled from neighbouring needles (§5.3).
     pub filled_needles: Vec<u32>,
-    /// Cap radius of the prototype neighbourhoods (configuration-space units;
-    /// `None` for [`crate::Neighbourhood::Fraction`] or a single prototype).
+    /// How the prototype neighbourhoods came out (cap radius, estimates, how often the
+    /// `min_near` floor bound).
     #[serde(default)]
-    pub neighbourhood_radius: Option<f32>,
-    /// (needle, prototype) estimates of observed needles.
-    #[serde(default)]
-    pub estimates: usize,
-    /// Of [`Self::estimates`], how many had the `min_near` floor bind under
-    /// [`crate::Neighbourhood::Capped`] (fewer than `min_near` observations of the needle
-    /// within the cap radius).
-    #[serde(default)]
-    pub floor_bound: usize,
+    pub neighbourhood: crate::NeighbourhoodStats,
 }
 
 /// Result of [`NeedleModel::reconstruct`].
@@ -182,8 +174,8 @@ fn fit_primitive(
         obs.observation_count(),
         fit.model.num_prototypes(),
         fit.filled_needles.len(),
-        fit.floor_bound,
-        fit.estimates
+        fit.neighbourhood.floor_bound,
+        fit.neighbourhood.estimates
     );
     let report = PrimitiveFitReport {
         samples: store.sample_count(p),
@@ -191,9 +183,7 @@ fn fit_primitive(
         prototype_samples: fit.prototype_samples,
         covering_radius: fit.covering_radius,
         filled_needles: fit.filled_needles,
-        neighbourhood_radius: fit.neighbourhood_radius,
-        estimates: fit.estimates,
-        floor_bound: fit.floor_bound,
+        neighbourhood: fit.neighbourhood,
     };
     Ok((fit.model, report))
 }
