@@ -1,14 +1,16 @@
 //! Small end-to-end validation of the needle model on the studio (the CI-sized version of
-//! `examples/needle_capture`): train on a turning range of motion, test on real motion
-//! capture it never saw (CMU 131_01, retargeted) against the performer's true posed mesh.
+//! `examples/needle_capture`): train on the free exercise while turning, test on an exercise
+//! of another seed and on real motion capture it never saw (CMU 131_01, retargeted) against
+//! the performer's true posed mesh, pose-driven shapes on and the hip flap off.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
-use dynamic_shapes::core::stats::median;
+use dynamic_shapes::core::stats::{mean, median};
 use dynamic_shapes::core::studio::{
-    play_bvh, procedural_performer, range_of_motion, studio_ring, Capture, CaptureFrame,
-    CaptureSpec, FrameTruth, ProceduralBodyParams, RangeOfMotionParams, RetargetParams,
+    exercise_motion, play_bvh, procedural_performer, studio_ring, Capture, CaptureFrame,
+    CaptureSpec, DeformationParams, ExerciseParams, FrameTruth, Performer, ProceduralBodyParams,
+    RetargetParams,
 };
 use dynamic_shapes::needle::truth::TestSet;
 use dynamic_shapes::needle::{
@@ -16,38 +18,55 @@ use dynamic_shapes::needle::{
     ReconstructionParams, SkinnedShape, SurfaceParams,
 };
 
+/// Silhouettes of `motion` at its own frame rate.
+fn capture_of<'a>(
+    performer: &'a Performer,
+    rig: &dynamic_shapes::core::camera::Rig,
+    motion: &Motion,
+) -> Capture<'a> {
+    let spec = CaptureSpec::masks_only(rig.clone()).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    Capture::new(performer, motion, spec).unwrap()
+}
+
+/// Truth of every `step`-th frame of `motion`.
+fn test_set(
+    performer: &Performer,
+    body: &NeedleBody,
+    rig: &dynamic_shapes::core::camera::Rig,
+    motion: &Motion,
+    step: usize,
+) -> TestSet {
+    let mut test = TestSet::default();
+    let capture = capture_of(performer, rig, motion);
+    for frame in capture.frames_stepped(0..capture.frame_count(), step) {
+        test.push_frame(body, performer, &frame.unwrap().truth)
+            .unwrap();
+    }
+    test
+}
+
 #[test]
-fn needle_model_recovers_the_surface_of_an_unseen_walk() {
-    let performer = procedural_performer(&ProceduralBodyParams::default()).unwrap();
+fn needle_model_follows_the_pose_on_unseen_motions() {
+    let performer = procedural_performer(&ProceduralBodyParams {
+        deformation: DeformationParams::default().with_flap(None),
+        ..Default::default()
+    })
+    .unwrap();
     let sk = performer.skeleton.clone();
     let body = NeedleBody::new(&sk, &BodyLayout::table_3_1()).unwrap();
     let rig = studio_ring(3, 360, 240).unwrap();
-    let cameras = rig.cameras.clone();
     let observer = Observer::new(
         body.clone(),
         sk.clone(),
-        cameras.clone(),
+        rig.cameras.clone(),
         ObserveParams::default(),
     )
     .unwrap();
 
-    // Training: range of motion while turning on the spot, 30 fps, every 2nd frame observed.
-    let rom = range_of_motion(
-        &sk,
-        &RangeOfMotionParams {
-            seconds_per_dof: 0.6,
-            turn_deg_per_s: 60.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    // Silhouettes of a motion at its own frame rate.
-    let capture_of = |motion: &Motion| {
-        let spec =
-            CaptureSpec::masks_only(rig.clone()).with_frame_rate_hz(1.0 / motion.frame_time_s);
-        Capture::new(&performer, motion, spec).unwrap()
-    };
-    let training = capture_of(&rom);
+    // Training: the free exercise while turning, 30 fps, every 2nd frame observed.
+    let exercise = ExerciseParams::default().with_duration_s(TRAIN_S);
+    let train = exercise_motion(&sk, &exercise).unwrap();
+    let training = capture_of(&performer, &rig, &train);
     let captured: Vec<CaptureFrame> = training
         .frames_stepped(0..training.frame_count(), 2)
         .collect::<Result<_, _>>()
@@ -61,7 +80,10 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
         .collect();
     let store = observer.accumulate(&frames).unwrap().store;
 
-    // Test: real motion capture, every 20th frame of the walk at 30 fps.
+    // Tests: an exercise of another seed (every 10th frame) and real motion capture (every
+    // 20th frame of the walk at 30 fps).
+    let other = exercise_motion(&sk, &exercise.with_duration_s(20.0).with_seed(23)).unwrap();
+    let ex = test_set(&performer, &body, &rig, &other, 10);
     let walk = play_bvh(
         example_kit::data_path("mocap-cmu/131_01.bvh").unwrap(),
         &BvhParams {
@@ -73,14 +95,11 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
     )
     .unwrap()
     .motion;
-    let mut test = TestSet::default();
-    let walking = capture_of(&walk);
-    for frame in walking.frames_stepped(0..walking.frame_count(), 20) {
-        test.push_frame(&body, &performer, &frame.unwrap().truth)
-            .unwrap();
+    let walk = test_set(&performer, &body, &rig, &walk, 20);
+    for t in [&ex, &walk] {
+        let scored: usize = t.frames.iter().map(|f| f.needles.len()).sum();
+        assert!(scored > 50_000, "{scored} scored needles");
     }
-    let scored: usize = test.frames.iter().map(|f| f.needles.len()).sum();
-    assert!(scored > 50_000, "{scored} scored needles");
 
     let params = ReconstructionParams::default();
     let model = NeedleModel::reconstruct(&store, &body, &params)
@@ -92,34 +111,23 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
     let rest = animate(&body, &model, &sk, &sk.rest_pose()).unwrap();
     let lbs =
         SkinnedShape::heat(&sk, union_mesh(&rest, &SurfaceParams::default()).unwrap()).unwrap();
-    let m = test.errors(&model).unwrap();
-    let s = test.errors(&stat).unwrap();
-    let b = test
-        .surface_errors(&body, &sk, |th| {
+    let lbs_of = |t: &TestSet| {
+        t.surface_errors(&body, &sk, |th| {
             lbs.pose(&performer, sk.forward_kinematics(th)?.world_from_joint())
         })
-        .unwrap();
-    let exact = test.lbs_errors();
-    assert!(!m.near_joints_mm.is_empty() && !m.deforming_mm.is_empty());
-    let (mm, sm, bm, em) = (
-        median(&m.all_mm),
-        median(&s.all_mm),
-        median(&b.all_mm),
-        median(&exact.all_mm),
-    );
-    let (mj, sj, bj) = (
-        median(&m.near_joints_mm),
-        median(&s.near_joints_mm),
-        median(&b.near_joints_mm),
-    );
+        .unwrap()
+    };
     // Per primitive, against the static model from the same observations: an estimate biased
     // to a few views shows up as one primitive far worse than static (ties in F_near once cut
     // by time made the calves 10 mm off where static was 1 mm; too few near observations made
-    // calf needles 7 cm long). Concavities the silhouettes cannot see (the crotch) are as bad
-    // for both, so the bound is relative.
-    let per_primitive = |model: &NeedleModel| {
+    // calf needles 7 cm long). Concavities the silhouettes cannot see are bad for both, so the
+    // bound is relative; it allows 1.5× because of one: the hips' crotch, seen only in the
+    // few poses with the legs apart, which the static model borrows for every pose and a
+    // pose-local neighbourhood does not (on this run the hips' median is 16.2 mm against
+    // 13.0 on the exercise and 15.2 against 10.8 on the walk; docs/needle-model.md).
+    let per_primitive = |t: &TestSet, model: &NeedleModel| {
         let mut e = vec![vec![]; body.primitives.len()];
-        for f in &test.frames {
+        for f in &t.frames {
             for n in &f.needles {
                 let p = n.primitive as usize;
                 let l = model.needle_lengths(p, &f.config[p]).unwrap()[n.needle as usize];
@@ -128,29 +136,73 @@ fn needle_model_recovers_the_surface_of_an_unseen_walk() {
         }
         e.iter_mut().map(|v| median(v)).collect::<Vec<f64>>()
     };
-    let (pm, ps) = (per_primitive(&model), per_primitive(&stat));
-    eprintln!(
-        "median mm: model {mm:.2} (near joints {mj:.2}), static {sm:.2} ({sj:.2}), captured-rest LBS {bm:.2} ({bj:.2}), exact-rest LBS {em:.2}; per primitive: model {pm:.1?}, static {ps:.1?}"
-    );
-    // Silhouettes bound the surface from outside (visual hull) at 360×240 (≈ 1 cm pixels):
-    // the model lands within half a pixel of the truth on most needles...
-    assert!(mm < 5.0, "model median {mm} mm");
-    assert!(mj < 5.0, "model median near joints {mj} mm");
-    for ((m, s), p) in pm.iter().zip(&ps).zip(&body.primitives) {
+    for (name, t) in [("exercise", &ex), ("walk", &walk)] {
+        let (m, s, b, x) = (
+            t.errors(&model).unwrap(),
+            t.errors(&stat).unwrap(),
+            lbs_of(t),
+            t.lbs_errors(),
+        );
+        let (mm, sm, bm, em) = (
+            median(&m.all_mm),
+            median(&s.all_mm),
+            median(&b.all_mm),
+            median(&x.all_mm),
+        );
+        let (md, sd, bd, ed) = (
+            mean(&m.pose_deforming_mm),
+            mean(&s.pose_deforming_mm),
+            mean(&b.pose_deforming_mm),
+            mean(&x.pose_deforming_mm),
+        );
+        let (mr, sr) = (m.pose_r2(), s.pose_r2());
+        let (pm, ps) = (per_primitive(t, &model), per_primitive(t, &stat));
+        eprintln!(
+            "{name}: median mm: model {mm:.2}, static {sm:.2}, captured-rest LBS {bm:.2}, exact-rest LBS {em:.2}; \
+             pose-deforming mean mm ({} needles): model {md:.2}, static {sd:.2}, LBS {bd:.2}, exact-rest LBS {ed:.2}; \
+             pose_r2_centred model {:.3} static {:.3}; per primitive: model {pm:.1?}, static {ps:.1?}",
+            t.pose_deforming().len(),
+            mr.r2_centred,
+            sr.r2_centred,
+        );
+        // Silhouettes bound the surface from outside (visual hull) at 360×240 (≈ 1 cm
+        // pixels): the model lands within half a pixel of the truth on most needles...
+        assert!(mm < 5.0, "{name}: model median {mm} mm");
+        for ((m, s), p) in pm.iter().zip(&ps).zip(&body.primitives) {
+            assert!(
+                *m <= 1.5 * s + 1.0,
+                "{name}: {}: model {m} mm, static {s} mm",
+                p.name
+            );
+        }
+        // ...is at least as accurate as the static model built from the same observations...
+        assert!(mm < 1.05 * sm, "{name}: model {mm} mm vs static {sm} mm");
+        // Ground-truth sanity: LBS of the exact rest shape matches the truth except where
+        // the pose-driven shapes act.
+        assert!(em < 1.0, "{name}: exact-rest lbs median {em} mm");
         assert!(
-            *m <= 1.25 * s + 1.0,
-            "{}: model {m} mm, static {s} mm",
-            p.name
+            t.pose_deforming().len() > 200,
+            "{name}: too few pose-deforming needles"
+        );
+        // ...and, where the pose changes the shape, follows it: better than the static model
+        // and than LBS of its own captured shape.
+        assert!(
+            md < sd && md < bd,
+            "{name}: pose-deforming model {md} mm, static {sd}, LBS {bd}"
+        );
+        assert!(
+            mr.r2_centred > MIN_R2_CENTRED,
+            "{name}: pose_r2_centred {:.3}",
+            mr.r2_centred
         );
     }
-    // ...and is as accurate as the static model built from the same observations, to
-    // within 10 % (the pose-dependent model trades some of each prototype's views for
-    // pose-dependence; docs/needle-model.md).
-    assert!(mm < 1.1 * sm, "model {mm} mm vs static {sm} mm");
-    // Ground-truth sanity: LBS of the exact rest shape matches the truth except where the
-    // non-skinning deformation acts.
-    assert!(em < 1.0, "exact-rest lbs median {em} mm");
 }
+
+/// Seconds of training exercise.
+const TRAIN_S: f64 = 60.0;
+/// Smallest share of the pose variance of the pose-deforming needles the model must explain
+/// (with each needle's bias removed; the static model scores 0).
+const MIN_R2_CENTRED: f64 = 0.05;
 
 #[test]
 fn truth_rejects_bad_input() {

@@ -22,7 +22,7 @@
 use glam::DVec3;
 use skin_core::math::DAffine3;
 use skin_core::mesh::{
-    bone_heat_weights, skin, BoneSegment, HeatWeightsParams, MeshQuery, SkinWeights, TriMesh,
+    bone_heat_weights, skin, HeatWeightsParams, MeshQuery, SkinWeights, TriMesh,
 };
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::Performer;
@@ -47,26 +47,7 @@ impl SkinnedShape {
     /// vertices; the errors of [`bone_heat_weights`] (degenerate mesh).
     pub fn heat(skeleton: &Skeleton, rest: TriMesh) -> Result<Self> {
         check_rest(&rest)?;
-        let fk = skeleton.forward_kinematics(&skeleton.rest_pose())?;
-        let frames = fk.world_from_joint();
-        let joints = skeleton.joints();
-        let bones: Vec<BoneSegment> = (0..joints.len())
-            .map(|j| {
-                let start = frames[j].translation;
-                let children: Vec<DVec3> = (0..joints.len())
-                    .filter(|&c| joints[c].parent == Some(j))
-                    .map(|c| frames[c].translation)
-                    .collect();
-                let end = match joints[j].end_site {
-                    Some(e) => frames[j].transform_point3(e),
-                    None if !children.is_empty() => {
-                        children.iter().sum::<DVec3>() / children.len() as f64
-                    }
-                    None => start,
-                };
-                BoneSegment { start, end }
-            })
-            .collect();
+        let bones = crate::pose_space::rest_bone_segments(skeleton)?;
         let weights = bone_heat_weights(&rest, &bones, &HeatWeightsParams::default())?;
         Ok(Self { rest, weights })
     }

@@ -80,6 +80,14 @@ pub struct ConfigSpace {
     /// empty means 1 for every marker (the paper's raw coordinates).
     #[serde(default)]
     pub weights: Vec<f64>,
+    /// How far the configuration point moves per radian of the joints that drive it: the
+    /// median, over the rotational DOFs that move it at the rest pose, of `‖∂x/∂θ_d‖`
+    /// (configuration units per radian). It converts configuration-space distances into
+    /// degrees of the driving joints for the neighbourhood diagnostics
+    /// ([`crate::NeighbourhoodStats::pool_radius_deg_median`]). `None` when unknown (a space
+    /// built by hand, or [`Self::unweighted`], whose metric differs).
+    #[serde(default)]
+    pub units_per_radian: Option<f64>,
 }
 
 /// Sweep samples per DOF in [`marker_rms_displacement`].
@@ -104,6 +112,7 @@ pub(crate) fn marker_rms_displacement(
         carrier,
         markers: markers.to_vec(),
         weights: vec![],
+        units_per_radian: None,
     };
     let p0 = raw.point(&skeleton.forward_kinematics(&rest)?)?;
     let mut sum = vec![0f64; markers.len()];
@@ -187,17 +196,47 @@ impl ConfigSpace {
             .map(|m| resolve_marker(skeleton, m))
             .collect::<Result<Vec<_>>>()?;
         let weights = weights_from_rms(&marker_rms_displacement(skeleton, carrier, &markers)?);
-        Ok(Self {
+        let mut space = Self {
             carrier,
             markers,
             weights,
-        })
+            units_per_radian: None,
+        };
+        space.units_per_radian = space.rate_at_rest(skeleton)?;
+        Ok(space)
     }
 
-    /// The same space without marker weights: raw marker coordinates, as in the paper.
+    /// The same space without marker weights: raw marker coordinates, as in the paper
+    /// ([`Self::units_per_radian`] becomes unknown).
     pub fn unweighted(mut self) -> Self {
         self.weights.clear();
+        self.units_per_radian = None;
         self
+    }
+
+    /// [`Self::units_per_radian`] by central differences of ±1° at the rest pose; `None` if no
+    /// rotational DOF moves the configuration point.
+    fn rate_at_rest(&self, skeleton: &Skeleton) -> Result<Option<f64>> {
+        let h = 1f64.to_radians();
+        let mut theta = skeleton.rest_pose();
+        let mut rates = vec![];
+        for d in (0..skeleton.dof_count()).filter(|&d| skeleton.is_rotation(d)) {
+            let rest = theta[d];
+            theta[d] = rest + h;
+            let a = self.point(&skeleton.forward_kinematics(&theta)?)?;
+            theta[d] = rest - h;
+            let b = self.point(&skeleton.forward_kinematics(&theta)?)?;
+            theta[d] = rest;
+            let step: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum();
+            rates.push(step.sqrt() / (2.0 * h));
+        }
+        let max = rates.iter().copied().fold(0.0, f64::max);
+        let mut moving: Vec<f64> = rates.into_iter().filter(|&r| r > 1e-6 * max).collect();
+        if moving.is_empty() || max <= 0.0 {
+            return Ok(None);
+        }
+        let mid = moving.len() / 2;
+        Ok(Some(*moving.select_nth_unstable_by(mid, f64::total_cmp).1))
     }
 
     /// Dimension `3 × markers`.

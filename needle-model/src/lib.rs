@@ -26,7 +26,7 @@
 //! | `device.rs` | [`calibrate_device`]: camera calibration with the calibration device | §4.1 |
 //! | `sync.rs` | [`estimate_sync_offset`]: video/mocap time offset from silhouettes | §4.2 |
 //! | `observe.rs` | [`Observer`]: silhouette walks of every needle | §4.3 |
-//! | `store.rs` | [`ObservationStore`], [`NeedleObservations`]: 4-byte observations | §4.3 |
+//! | `store.rs` | [`ObservationStore`], [`NeedleObservations`]: 3-byte observations, tagged by frame | §4.3 |
 //! | `params.rs` | [`ReconstructionParams`]: `F_near`, `F_min`, `W`, `N` | §6.3 |
 //! | `prototype_locations.rs` | [`farthest_point_prototypes`] | §5.2 |
 //! | `prototype_shapes.rs` | [`prototype_shapes`]: robust minimum, hole filling | §5.3 |
@@ -34,6 +34,7 @@
 //! | `reconstruct.rs` | [`NeedleModel`]: every primitive of the body | §5.3 (outer loop) |
 //! | `animate.rs` | [`animate()`]: posed needle endpoints | §5.4 |
 //! | `surface.rs` | [`primitive_meshes`], [`union_mesh`]: meshes, the union body | §3.2, §5.4 |
+//! | `pose_space.rs` | [`PoseSpaceModel`], [`SkinnedNeedles`]: the model as a residual over skinning | ours (pose-space deformation) |
 //! | `silhouette_error.rs` | [`SilhouetteScorer`]: the silhouette error | §6.2 |
 //! | `select.rs` | [`select_params`]: automatic parameter selection | §6.3 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | — |
@@ -119,6 +120,7 @@ mod error;
 mod nrbf;
 mod observe;
 mod params;
+mod pose_space;
 mod primitive;
 mod prototype_locations;
 mod prototype_shapes;
@@ -146,9 +148,12 @@ pub use params::{
     Neighbourhood, ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W,
     DEFAULT_MIN_NEAR, DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_RADIUS_FACTOR, DEFAULT_SEED,
 };
-pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
+pub use pose_space::{PoseSpaceModel, PoseSpaceReconstruction, SkinnedNeedles};
+pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec, MAX_NEEDLES_PER_PRIMITIVE};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
-pub use prototype_shapes::{grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes};
+pub use prototype_shapes::{
+    grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes, POOL_POSE_CELL_DEG,
+};
 pub use reconstruct::{NeedleModel, PrimitiveFitReport, Reconstruction};
 pub use select::{
     select_params, validation_error, Parameter, ParameterCurve, Selection, SelectionParams,

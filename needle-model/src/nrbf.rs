@@ -13,7 +13,7 @@ use skin_core::check;
 use crate::config::{check_samples, config_scale};
 use crate::params::ReconstructionParams;
 use crate::prototype_locations::farthest_point_prototypes;
-use crate::prototype_shapes::{prototype_shapes, NeighbourhoodStats, PrototypeShapes};
+use crate::prototype_shapes::{prototype_shapes_in_cells, NeighbourhoodStats, PrototypeShapes};
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
@@ -141,7 +141,7 @@ impl Nrbf {
     /// (`params.seed`), robust-minimum shapes, kernel scale from the samples.
     ///
     /// # Errors
-    /// Those of [`farthest_point_prototypes`], [`prototype_shapes`] and
+    /// Those of [`farthest_point_prototypes`], [`crate::prototype_shapes()`] and
     /// [`ReconstructionParams::validate`].
     pub fn fit(
         samples: &[f32],
@@ -150,10 +150,31 @@ impl Nrbf {
         adjacency: &[Vec<u16>],
         params: &ReconstructionParams,
     ) -> Result<NrbfFit> {
+        Self::fit_in_cells(samples, dim, observations, adjacency, params, None)
+    }
+
+    /// [`Nrbf::fit`] with the pool pose-share diagnostic in cells of side `pose_cell`
+    /// (configuration units), see [`crate::NeighbourhoodStats::pool_max_pose_share_median`].
+    pub(crate) fn fit_in_cells(
+        samples: &[f32],
+        dim: usize,
+        observations: &NeedleObservations,
+        adjacency: &[Vec<u16>],
+        params: &ReconstructionParams,
+        pose_cell: Option<f32>,
+    ) -> Result<NrbfFit> {
         params.validate()?;
         let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
         let locs = farthest_point_prototypes(samples, dim, params.prototype_count_n, &mut rng)?;
-        let shapes = prototype_shapes(samples, dim, observations, &locs.points, adjacency, params)?;
+        let shapes = prototype_shapes_in_cells(
+            samples,
+            dim,
+            observations,
+            &locs.points,
+            adjacency,
+            params,
+            pose_cell,
+        )?;
         let filled_needles = shapes.filled_needles.clone();
         let neighbourhood = shapes.neighbourhood;
         let scale = config_scale(samples, dim)?;
@@ -621,9 +642,8 @@ mod tests {
             lengths: vec![1.0; n],
             filled_needles: vec![],
             neighbourhood: NeighbourhoodStats {
-                radius: None,
                 estimates: n,
-                floor_bound: 0,
+                ..Default::default()
             },
         };
         assert!(matches!(

@@ -278,7 +278,8 @@ impl Observer {
 
     /// Walks every needle of the body through every camera's mask for one frame and appends
     /// the kept observations to `store` (one sample per primitive and camera that produced
-    /// observations).
+    /// observations), then ends the store's frame ([`ObservationStore::end_frame`]), so
+    /// samples know their frame.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] for a wrong number of masks or a mask whose size differs from
@@ -293,7 +294,9 @@ impl Observer {
     ) -> Result<ObserveStats> {
         self.check_masks(masks)?;
         let fk = self.skeleton.forward_kinematics(theta)?;
-        self.observe_fk(&fk, masks, store)
+        let stats = self.observe_fk(&fk, masks, store)?;
+        store.end_frame();
+        Ok(stats)
     }
 
     fn observe_fk(
@@ -326,7 +329,7 @@ impl Observer {
                     let w = self.walk(cam, mask, o, d, prim.max_length_m);
                     stats.count(&w);
                     if let Walk::Exit { length_m, .. } = w {
-                        // j < 65536: checked by NeedleBody::new.
+                        // j < MAX_NEEDLES_PER_PRIMITIVE: checked by NeedleBody::new.
                         obs.push((j as u16, length_m as f32));
                     }
                 }

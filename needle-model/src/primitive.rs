@@ -244,6 +244,10 @@ impl Primitive {
     }
 }
 
+/// Most needles a primitive can have (radial × axial): the observation store packs a needle
+/// index in 12 bits ([`crate::PackedObservation`]); Table 3.1's largest primitive has 900.
+pub const MAX_NEEDLES_PER_PRIMITIVE: usize = 4096;
+
 /// All primitives of a body, resolved against one skeleton.
 ///
 /// Deformable primitives: needles in rings around a bone axis (Sand 2003 §3.1–3.2, Table 3.1).
@@ -322,11 +326,11 @@ fn build_primitive(
             reason: format!("no joint named {:?} (primitive {:?})", s.carrier, s.name),
         })?;
     let n = s.radial.saturating_mul(s.axial);
-    if s.radial == 0 || s.axial == 0 || n > usize::from(u16::MAX) + 1 {
+    if s.radial == 0 || s.axial == 0 || n > MAX_NEEDLES_PER_PRIMITIVE {
         return Err(Error::InvalidParam {
             name: "radial/axial",
             reason: format!(
-                "{:?}: counts must be ≥ 1 with ≤ 65536 needles, got {} × {}",
+                "{:?}: counts must be ≥ 1 with ≤ {MAX_NEEDLES_PER_PRIMITIVE} needles, got {} × {}",
                 s.name, s.radial, s.axial
             ),
         });

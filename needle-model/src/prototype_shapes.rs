@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::{check_samples, config_scale, dist2};
 use crate::error::{Context, ResultExt};
 use crate::params::{Neighbourhood, ReconstructionParams};
+use crate::primitive::MAX_NEEDLES_PER_PRIMITIVE;
 use crate::store::NeedleObservations;
 use crate::{Error, Result};
 
@@ -18,13 +19,16 @@ use crate::{Error, Result};
 /// Used by [`prototype_shapes`] to fill never-observed needles.
 ///
 /// # Errors
-/// [`Error::InvalidParam`] if `radial · axial` is 0 or exceeds 65 536.
+/// [`Error::InvalidParam`] if `radial · axial` is 0 or exceeds
+/// [`MAX_NEEDLES_PER_PRIMITIVE`].
 pub fn grid_adjacency(radial: usize, axial: usize) -> Result<Vec<Vec<u16>>> {
     let n = radial.saturating_mul(axial);
-    if n == 0 || n > usize::from(u16::MAX) + 1 {
+    if n == 0 || n > MAX_NEEDLES_PER_PRIMITIVE {
         return Err(Error::InvalidParam {
             name: "radial × axial",
-            reason: format!("needle count must be in 1..=65536, got {radial} × {axial}"),
+            reason: format!(
+                "needle count must be in 1..={MAX_NEEDLES_PER_PRIMITIVE}, got {radial} × {axial}"
+            ),
         });
     }
     Ok((0..n)
@@ -46,7 +50,7 @@ pub fn grid_adjacency(radial: usize, axial: usize) -> Result<Vec<Vec<u16>>> {
             nb.into_iter()
                 .filter(|&x| x != j)
                 .map(|x| x as u16)
-                .collect() // < 65536
+                .collect() // < MAX_NEEDLES_PER_PRIMITIVE
         })
         .collect())
 }
@@ -81,7 +85,34 @@ pub struct NeighbourhoodStats {
     /// [`Neighbourhood::Capped`] (the ball held fewer than `min(min_near, m)` observations of
     /// the needle, an empty ball included); always 0 for [`Neighbourhood::Fraction`].
     pub floor_bound: usize,
+    /// Median over the estimates of the pool radius: the configuration-space distance from
+    /// the prototype to the farthest observation its estimate used (`None` when no estimate
+    /// walked a neighbourhood, e.g. the static model `F_near = 1`).
+    #[serde(default)]
+    pub pool_radius_median: Option<f32>,
+    /// [`Self::pool_radius_median`] in degrees of the primitive's driving joints
+    /// ([`crate::ConfigSpace::units_per_radian`]); filled by [`crate::NeedleModel::reconstruct`],
+    /// `None` when the configuration space's rate is unknown.
+    #[serde(default)]
+    pub pool_radius_deg_median: Option<f32>,
+    /// Median over the estimates (of every 4th needle) of the largest share of one pose in the
+    /// pool: the observations are binned in configuration-space cells the size of a 5° turn of
+    /// the driving joints ([`POOL_POSE_CELL_DEG`]) and the fullest cell's count is divided by the
+    /// pool's size. Near 1: one held pose makes the estimate (the failure the capped
+    /// neighbourhood exists to avoid); `None` when the cell size is unknown (as
+    /// [`Self::pool_radius_deg_median`]).
+    #[serde(default)]
+    pub pool_max_pose_share_median: Option<f32>,
 }
+
+/// Side of the pose cells of [`NeighbourhoodStats::pool_max_pose_share_median`], degrees of
+/// the driving joints (the 5° quantisation).
+pub const POOL_POSE_CELL_DEG: f64 = 5.0;
+
+/// The pose shares of [`NeighbourhoodStats::pool_max_pose_share_median`] are counted on every
+/// this-many-th needle (a hash per pool entry; the median over a quarter of the needles is
+/// the same figure at a quarter of the cost).
+const POOL_SHARE_NEEDLE_STRIDE: usize = 4;
 
 impl PrototypeShapes {
     /// The needle lengths of prototype `k` (panics if `k ≥ num_prototypes`, like slicing).
@@ -223,6 +254,29 @@ pub fn prototype_shapes(
     adjacency: &[Vec<u16>],
     params: &ReconstructionParams,
 ) -> Result<PrototypeShapes> {
+    prototype_shapes_in_cells(
+        samples,
+        dim,
+        observations,
+        prototype_points,
+        adjacency,
+        params,
+        None,
+    )
+}
+
+/// [`prototype_shapes`], with the pose-share diagnostic
+/// ([`NeighbourhoodStats::pool_max_pose_share_median`]) computed in cells of side
+/// `pose_cell` (configuration units) when given.
+pub(crate) fn prototype_shapes_in_cells(
+    samples: &[f32],
+    dim: usize,
+    observations: &NeedleObservations,
+    prototype_points: &[f32],
+    adjacency: &[Vec<u16>],
+    params: &ReconstructionParams,
+    pose_cell: Option<f32>,
+) -> Result<PrototypeShapes> {
     params.validate()?;
     let count = check_samples(samples, dim)?;
     if count >= PoseGroups::GROUP as usize {
@@ -292,6 +346,7 @@ pub fn prototype_shapes(
         }
     };
     let pose_groups = PoseGroups::new(samples, dim);
+    let cells = pose_cell.map(|c| pose_cells(samples, dim, c));
     let order: Vec<Vec<(f32, u32)>> = prototype_points
         .par_chunks_exact(dim)
         .map(|p| {
@@ -314,8 +369,8 @@ pub fn prototype_shapes(
         })
         .collect();
 
-    // Per needle: Some((N lengths, floor bound count)) or None when unobserved.
-    let per_needle: Vec<Option<(Vec<f32>, usize)>> = (0..num_needles)
+    // Per needle: its N estimates, or None when unobserved.
+    let per_needle: Vec<Option<NeedleEstimates>> = (0..num_needles)
         .into_par_iter()
         .map_init(Scratch::default, |scratch, j| {
             let (s, l) = observations.needle(j);
@@ -327,6 +382,9 @@ pub fn prototype_shapes(
                     tie,
                     cap,
                     &pose_groups,
+                    cells
+                        .as_deref()
+                        .filter(|_| j % POOL_SHARE_NEEDLE_STRIDE == 0),
                     s,
                     l,
                     params,
@@ -339,12 +397,15 @@ pub fn prototype_shapes(
     let mut lengths = vec![0f32; num_protos * num_needles];
     let mut known = vec![false; num_needles];
     let (mut estimates, mut floor_bound) = (0, 0);
-    for (j, v) in per_needle.iter().enumerate() {
-        if let Some((v, floored)) = v {
+    let (mut radii, mut shares) = (vec![], vec![]);
+    for (j, v) in per_needle.into_iter().enumerate() {
+        if let Some(v) = v {
             known[j] = true;
-            estimates += v.len();
-            floor_bound += floored;
-            for (k, &x) in v.iter().enumerate() {
+            estimates += v.lengths.len();
+            floor_bound += v.floored;
+            radii.extend(v.radii);
+            shares.extend(v.shares);
+            for (k, &x) in v.lengths.iter().enumerate() {
                 lengths[k * num_needles + j] = x;
             }
         }
@@ -399,8 +460,43 @@ pub fn prototype_shapes(
             radius: cap,
             estimates,
             floor_bound,
+            pool_radius_median: median_f32(&mut radii),
+            pool_radius_deg_median: None,
+            pool_max_pose_share_median: median_f32(&mut shares),
         },
     })
+}
+
+/// Median (upper middle) of `v`, reordered in place; `None` when empty.
+fn median_f32(v: &mut [f32]) -> Option<f32> {
+    let mid = v.len() / 2;
+    (!v.is_empty()).then(|| *v.select_nth_unstable_by(mid, f32::total_cmp).1)
+}
+
+/// Pose cell of every sample (`S × dim` row-major): a hash of its coordinates quantised to
+/// cells of side `cell`.
+fn pose_cells(samples: &[f32], dim: usize, cell: f32) -> Vec<u64> {
+    samples
+        .chunks_exact(dim)
+        .map(|row| {
+            row.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+                let q = (x / cell).floor() as i64 as u64;
+                (h ^ q).wrapping_mul(0x0100_0000_01b3).rotate_left(17)
+            })
+        })
+        .collect()
+}
+
+/// One needle's estimates from [`needle_prototype_lengths`].
+struct NeedleEstimates {
+    /// Length per prototype.
+    lengths: Vec<f32>,
+    /// Prototypes whose `min_near` floor bound.
+    floored: usize,
+    /// Pool radius per walked prototype ([`NeighbourhoodStats::pool_radius_median`]).
+    radii: Vec<f32>,
+    /// Largest pose share per walked prototype, when pose cells are given.
+    shares: Vec<f32>,
 }
 
 /// Samples whose configurations lie within this fraction of the data's RMS radius of the
@@ -461,6 +557,8 @@ struct Scratch {
     group_vals: Vec<Vec<f32>>,
     /// Large pose groups taken by the current prototype (each is one entry of the order).
     taken: Vec<u32>,
+    /// Observations per pose cell in the current pool.
+    cell_counts: std::collections::HashMap<u64, usize>,
 }
 
 /// §5.3 for one needle: the `F_min` percentile of its `F_near·m` nearest observations, for
@@ -473,18 +571,20 @@ struct Scratch {
 /// the samples are walked in distance order collecting this needle's observations until `n`
 /// are found, then on through samples tied with the last one (within `tie`). Expected
 /// walk length is `F_near·S` samples when the needle's visibility does not depend on pose,
-/// and at most `S` (a capped count costs one more walk, counting only).
+/// and at most `S` (a capped count costs one more walk, counting only). With `cells` (one pose
+/// cell per sample) each pool's largest pose share is recorded too.
 #[allow(clippy::too_many_arguments)]
 fn needle_prototype_lengths(
     order: &[Vec<(f32, u32)>],
     tie: f32,
     cap: Option<f32>,
     groups: &PoseGroups,
+    cells: Option<&[u64]>,
     sample_idx: &[u32],
     lengths: &[f32],
     params: &ReconstructionParams,
     scratch: &mut Scratch,
-) -> (Vec<f32>, usize) {
+) -> NeedleEstimates {
     let m = sample_idx.len();
     let (n_frac, floor) = match cap {
         None => (near_count(m, params.f_near, params.min_near), 0),
@@ -499,10 +599,12 @@ fn needle_prototype_lengths(
         // limits a fraction walk, and there is none.
         scratch.buf.clear();
         scratch.buf.extend_from_slice(lengths);
-        return (
-            vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()],
-            0,
-        );
+        return NeedleEstimates {
+            lengths: vec![robust_minimum(&mut scratch.buf, params.f_min); order.len()],
+            floored: 0,
+            radii: vec![],
+            shares: vec![],
+        };
     }
     let count = groups.group_of.len();
     let Scratch {
@@ -511,6 +613,7 @@ fn needle_prototype_lengths(
         buf,
         group_vals,
         taken,
+        cell_counts,
     } = scratch;
     ends.clear();
     ends.resize(count + 1, 0);
@@ -549,6 +652,7 @@ fn needle_prototype_lengths(
         }
     };
     let mut floored = 0;
+    let (mut radii, mut shares) = (vec![], vec![]);
     let out = order
         .iter()
         .map(|ord| {
@@ -572,11 +676,25 @@ fn needle_prototype_lengths(
             };
             buf.clear();
             taken.clear();
+            cell_counts.clear();
             let mut total = 0;
             let mut reach = f32::INFINITY;
+            let mut radius = 0f32;
             for &(d, s) in ord {
                 if d > reach {
                     break;
+                }
+                let len = entry_len(s);
+                if len > 0 {
+                    radius = d;
+                    if let Some(cells) = cells {
+                        let first = if s & PoseGroups::GROUP == 0 {
+                            s
+                        } else {
+                            groups.members[(s & !PoseGroups::GROUP) as usize][0]
+                        };
+                        *cell_counts.entry(cells[first as usize]).or_default() += len;
+                    }
                 }
                 if s & PoseGroups::GROUP == 0 {
                     let r = obs_of(s);
@@ -591,6 +709,10 @@ fn needle_prototype_lengths(
                     reach = d + tie;
                 }
             }
+            radii.push(radius);
+            if let Some(&most) = cell_counts.values().max() {
+                shares.push(most as f32 / total.max(1) as f32);
+            }
             let k = percentile_index(total, params.f_min);
             if taken.is_empty() {
                 *buf.select_nth_unstable_by(k, f32::total_cmp).1
@@ -602,7 +724,12 @@ fn needle_prototype_lengths(
             }
         })
         .collect();
-    (out, floored)
+    NeedleEstimates {
+        lengths: out,
+        floored,
+        radii,
+        shares,
+    }
 }
 
 /// The `k`-th smallest (0-based) of the union of sorted lists; `k` must be below their total

@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 use crate::nrbf::Nrbf;
 use crate::params::ReconstructionParams;
 use crate::primitive::NeedleBody;
-use crate::prototype_shapes::grid_adjacency;
-use crate::store::ObservationStore;
+use crate::prototype_shapes::{grid_adjacency, POOL_POSE_CELL_DEG};
+use crate::store::{NeedleObservations, ObservationStore};
 use crate::{Context, Error, Result, ResultExt};
 
 /// The reconstructed deformable body: one NRBF per primitive (Sand 2003 §5.1).
@@ -71,17 +71,35 @@ impl NeedleModel {
         body: &NeedleBody,
         params: &ReconstructionParams,
     ) -> Result<Reconstruction> {
-        let grids: Vec<(usize, usize)> = body
+        Self::reconstruct_observations(store, body, params, |p| store.by_needle(p))
+    }
+
+    /// [`NeedleModel::reconstruct`] with each primitive's per-needle observations from
+    /// `observations(p)` instead of the store's (the samples stay the store's): what the
+    /// model over skinning fits its residuals with ([`crate::PoseSpaceModel`]).
+    pub(crate) fn reconstruct_observations(
+        store: &ObservationStore,
+        body: &NeedleBody,
+        params: &ReconstructionParams,
+        observations: impl Fn(usize) -> Result<NeedleObservations> + Sync,
+    ) -> Result<Reconstruction> {
+        let grids: Vec<Grid> = body
             .primitives
             .iter()
-            .map(|p| (p.radial, p.axial))
+            .map(|p| Grid {
+                radial: p.radial,
+                axial: p.axial,
+                units_per_radian: p.config.units_per_radian,
+            })
             .collect();
-        Self::reconstruct_grids(store, &grids, params)
+        Self::reconstruct_in(store, &grids, params, observations)
     }
 
     /// Reconstructs every primitive of `store`; `grids[p] = (radial, axial)` gives primitive
     /// `p`'s ring-major needle grid. Primitive `p` uses seed `params.seed + p` for its random
-    /// first prototype, so results do not depend on the thread count.
+    /// first prototype, so results do not depend on the thread count. (Without the
+    /// configuration spaces' rates the neighbourhood statistics in degrees and pose shares
+    /// stay `None`; [`NeedleModel::reconstruct`] has them.)
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] if `grids` has the wrong length; [`Error::InvalidParam`] for
@@ -94,6 +112,23 @@ impl NeedleModel {
         grids: &[(usize, usize)],
         params: &ReconstructionParams,
     ) -> Result<Reconstruction> {
+        let grids: Vec<Grid> = grids
+            .iter()
+            .map(|&(radial, axial)| Grid {
+                radial,
+                axial,
+                units_per_radian: None,
+            })
+            .collect();
+        Self::reconstruct_in(store, &grids, params, |p| store.by_needle(p))
+    }
+
+    fn reconstruct_in(
+        store: &ObservationStore,
+        grids: &[Grid],
+        params: &ReconstructionParams,
+        observations: impl Fn(usize) -> Result<NeedleObservations> + Sync,
+    ) -> Result<Reconstruction> {
         params.validate()?;
         let count = store.primitive_count();
         if grids.len() != count {
@@ -105,7 +140,9 @@ impl NeedleModel {
         }
         let fits: Vec<(Nrbf, PrimitiveFitReport)> = (0..count)
             .into_par_iter()
-            .map(|p| fit_primitive(store, grids[p], p, params).at(Context::Primitive(p)))
+            .map(|p| {
+                fit_primitive(store, grids[p], p, params, &observations).at(Context::Primitive(p))
+            })
             .collect::<Result<_>>()?;
         let (primitives, reports) = fits.into_iter().unzip();
         Ok(Reconstruction {
@@ -137,14 +174,29 @@ impl NeedleModel {
     }
 }
 
-/// Fits primitive `p` of `store` on its `(radial, axial)` needle grid (the body of
+/// What reconstruction needs of a primitive's layout: its needle grid and the rate of its
+/// configuration space ([`crate::ConfigSpace::units_per_radian`]), if known.
+#[derive(Clone, Copy)]
+struct Grid {
+    radial: usize,
+    axial: usize,
+    units_per_radian: Option<f64>,
+}
+
+/// Fits primitive `p` of `store` on its needle grid from `observations(p)` (the body of
 /// [`NeedleModel::reconstruct_grids`]'s loop; errors get the primitive's context there).
 fn fit_primitive(
     store: &ObservationStore,
-    (radial, axial): (usize, usize),
+    grid: Grid,
     p: usize,
     params: &ReconstructionParams,
+    observations: impl Fn(usize) -> Result<NeedleObservations>,
 ) -> Result<(Nrbf, PrimitiveFitReport)> {
+    let Grid {
+        radial,
+        axial,
+        units_per_radian,
+    } = grid;
     if radial * axial != store.needle_count(p) {
         return Err(Error::SizeMismatch {
             what: "needle grid radial × axial vs store needle count",
@@ -157,16 +209,21 @@ fn fit_primitive(
             what: "the primitive has no samples".into(),
         });
     }
-    let obs = store.by_needle(p)?;
+    let obs = observations(p)?;
     let adjacency = grid_adjacency(radial, axial)?;
     let prim_params = params.with_seed(params.seed.wrapping_add(p as u64));
-    let fit = Nrbf::fit(
+    let cell = units_per_radian.map(|u| (u * POOL_POSE_CELL_DEG.to_radians()) as f32);
+    let mut fit = Nrbf::fit_in_cells(
         store.samples(p),
         store.config_dim(p),
         &obs,
         &adjacency,
         &prim_params,
+        cell,
     )?;
+    if let (Some(u), Some(r)) = (units_per_radian, fit.neighbourhood.pool_radius_median) {
+        fit.neighbourhood.pool_radius_deg_median = Some((r as f64 / u).to_degrees() as f32);
+    }
     log::debug!(
         "primitive {p}: {} samples, {} observations, {} prototypes, {} filled needles, \
          min_near floor bound in {} of {} estimates",

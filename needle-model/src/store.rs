@@ -6,20 +6,52 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Context, Error, Result, ResultExt};
+use crate::primitive::MAX_NEEDLES_PER_PRIMITIVE;
 
-/// Number of quantisation steps of a needle length (`u16::MAX`).
-const LENGTH_STEPS: f32 = u16::MAX as f32;
+/// Bits of the needle index in a [`PackedObservation`] (enough for
+/// [`MAX_NEEDLES_PER_PRIMITIVE`]); the other 12 of its 24 bits hold the quantised length.
+const NEEDLE_BITS: u32 = 12;
+const _: () = assert!(1 << NEEDLE_BITS == MAX_NEEDLES_PER_PRIMITIVE);
 
-/// One packed observation: needle index within the primitive and quantised length.
+/// Number of quantisation steps of a needle length (12 bits): a step of 0.07 mm on a 30 cm
+/// needle, some fifty times finer than a pixel of the cameras the method uses.
+const LENGTH_STEPS: f32 = ((1u32 << (24 - NEEDLE_BITS)) - 1) as f32;
+
+/// One packed observation: needle index within the primitive (12 bits) and quantised length
+/// (12 bits) in 3 bytes.
 ///
-/// Exactly 4 bytes; the sample it belongs to is implicit in its position in the store.
+/// The sample it belongs to is implicit in its position in the store. Three bytes rather
+/// than two `u16` (ours): with the configuration rows a store of four-byte observations
+/// comes to 4.15 bytes per observation on the studio's exercise, over the 4-byte budget; 12
+/// bits index Table 3.1's 900-needle primitives and keep a length step of 1/4095 of the
+/// primitive's maximum length.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[repr(C)]
-pub struct PackedObservation {
+#[repr(transparent)]
+pub struct PackedObservation([u8; 3]);
+
+impl PackedObservation {
+    /// Packs a needle index below [`MAX_NEEDLES_PER_PRIMITIVE`] and a length step count of
+    /// at most 4095 (higher bits are dropped: callers check the ranges).
+    fn pack(needle: u16, length_q: u16) -> Self {
+        let v = u32::from(needle) & 0xfff | (u32::from(length_q) & 0xfff) << NEEDLE_BITS;
+        let [a, b, c, _] = v.to_le_bytes();
+        Self([a, b, c])
+    }
+
+    fn unpacked(self) -> u32 {
+        let [a, b, c] = self.0;
+        u32::from_le_bytes([a, b, c, 0])
+    }
+
     /// Needle index within the primitive (ring-major order, see `primitive` module).
-    pub needle: u16,
+    pub fn needle(self) -> u16 {
+        (self.unpacked() & 0xfff) as u16
+    }
+
     /// Length in units of the primitive's [`ObservationStore::length_step_m`].
-    pub length_q: u16,
+    pub fn length_q(self) -> u16 {
+        (self.unpacked() >> NEEDLE_BITS) as u16
+    }
 }
 
 /// One decoded observation, as yielded by [`ObservationStore::observations`].
@@ -38,7 +70,8 @@ pub struct Observation {
 pub struct PrimitiveShape {
     /// Dimension `d` of the primitive's configuration space (§3.3, Table 3.1 "Dim.").
     pub config_dim: usize,
-    /// Number of needles of the primitive (radial × axial, Table 3.1); at most 65 536.
+    /// Number of needles of the primitive (radial × axial, Table 3.1); at most
+    /// [`MAX_NEEDLES_PER_PRIMITIVE`].
     pub needle_count: usize,
     /// Maximum needle length, metres (Table 3.1); sets the quantisation step.
     pub max_length_m: f64,
@@ -54,6 +87,9 @@ struct PrimitiveTable {
     samples: Vec<f32>,
     /// CSR offsets into `obs`; `sample_count + 1` entries, first is 0.
     sample_start: Vec<u32>,
+    /// Frame of each sample ([`ObservationStore::sample_frames`]).
+    #[serde(default)]
+    sample_frame: Vec<u32>,
     obs: Vec<PackedObservation>,
 }
 
@@ -243,6 +279,9 @@ impl<'de> Deserialize<'de> for NeedleObservations {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObservationStore {
     primitives: Vec<PrimitiveTable>,
+    /// Frames ended so far ([`ObservationStore::end_frame`]).
+    #[serde(default)]
+    frames: u32,
 }
 
 impl ObservationStore {
@@ -250,17 +289,21 @@ impl ObservationStore {
     ///
     /// # Errors
     /// [`Error::At`] with [`Context::Primitive`] around [`Error::InvalidParam`] (possibly as
-    /// [`Error::Core`]) if a primitive has `config_dim == 0`, more than 65 536 needles, or a
+    /// [`Error::Core`]) if a primitive has `config_dim == 0`, more than
+    /// [`MAX_NEEDLES_PER_PRIMITIVE`] needles, or a
     /// maximum length that is not finite and positive.
     pub fn new(shapes: &[PrimitiveShape]) -> Result<Self> {
         let mut primitives = Vec::with_capacity(shapes.len());
         for (p, s) in shapes.iter().enumerate() {
             let check = || -> Result<()> {
                 skin_core::check::nonzero("config_dim", s.config_dim)?;
-                if s.needle_count == 0 || s.needle_count > usize::from(u16::MAX) + 1 {
+                if s.needle_count == 0 || s.needle_count > MAX_NEEDLES_PER_PRIMITIVE {
                     return Err(Error::InvalidParam {
                         name: "needle_count",
-                        reason: format!("must be in 1..=65536, got {}", s.needle_count),
+                        reason: format!(
+                            "must be in 1..={MAX_NEEDLES_PER_PRIMITIVE}, got {}",
+                            s.needle_count
+                        ),
                     });
                 }
                 skin_core::check::positive("max_length_m", s.max_length_m)?;
@@ -273,10 +316,14 @@ impl ObservationStore {
                 length_step_m: (s.max_length_m as f32) / LENGTH_STEPS,
                 samples: Vec::new(),
                 sample_start: vec![0],
+                sample_frame: Vec::new(),
                 obs: Vec::new(),
             });
         }
-        Ok(Self { primitives })
+        Ok(Self {
+            primitives,
+            frames: 0,
+        })
     }
 
     /// Number of primitives.
@@ -360,8 +407,8 @@ impl ObservationStore {
                 .iter()
                 .map(move |o| Observation {
                     sample: s as u32,
-                    needle: o.needle,
-                    length_m: f32::from(o.length_q) * step,
+                    needle: o.needle(),
+                    length_m: f32::from(o.length_q()) * step,
                 })
         })
     }
@@ -375,7 +422,7 @@ impl ObservationStore {
         let t = self.table(p)?;
         let mut start = vec![0u32; t.needle_count + 1];
         for o in &t.obs {
-            start[usize::from(o.needle) + 1] += 1;
+            start[usize::from(o.needle()) + 1] += 1;
         }
         for j in 0..t.needle_count {
             start[j + 1] += start[j];
@@ -386,13 +433,13 @@ impl ObservationStore {
         let mut cursor: Vec<u32> = start[..t.needle_count].to_vec();
         for (s, w) in t.sample_start.windows(2).enumerate() {
             for o in &t.obs[w[0] as usize..w[1] as usize] {
-                let c = &mut cursor[usize::from(o.needle)];
+                let c = &mut cursor[usize::from(o.needle())];
                 sample[*c as usize] = s as u32;
-                length_m[*c as usize] = f32::from(o.length_q) * t.length_step_m;
+                length_m[*c as usize] = f32::from(o.length_q()) * t.length_step_m;
                 *c += 1;
             }
         }
-        // Offsets from a counting sort of the packed needles; lengths dequantised from u16.
+        // Offsets from a counting sort of the packed needles; lengths dequantised.
         Ok(NeedleObservations {
             start,
             sample,
@@ -401,8 +448,8 @@ impl ObservationStore {
     }
 
     /// Bytes stored per observation, amortised over the whole store: packed observations plus
-    /// configuration rows and sample offsets, divided by the number of observations
-    /// (`size_of::<PackedObservation>()` = 4 if the store is empty).
+    /// configuration rows, sample offsets and frame tags, divided by the number of observations
+    /// (`size_of::<PackedObservation>()` = 3 if the store is empty).
     pub fn bytes_per_observation(&self) -> f64 {
         let n = self.total_observations();
         let per_obs = std::mem::size_of::<PackedObservation>();
@@ -412,7 +459,10 @@ impl ObservationStore {
         let bytes: usize = self
             .primitives
             .iter()
-            .map(|t| t.obs.len() * per_obs + t.samples.len() * 4 + t.sample_start.len() * 4)
+            .map(|t| {
+                t.obs.len() * per_obs
+                    + (t.samples.len() + t.sample_start.len() + t.sample_frame.len()) * 4
+            })
             .sum();
         bytes as f64 / n as f64
     }
@@ -475,11 +525,8 @@ impl ObservationStore {
                     ),
                 });
             }
-            // In range 0..=65535 by the check above.
-            packed.push(PackedObservation {
-                needle,
-                length_q: q as u16,
-            });
+            // In range 0..=LENGTH_STEPS by the check above; the needle by the one before.
+            packed.push(PackedObservation::pack(needle, q as u16));
         }
         let end = t.obs.len() + packed.len();
         let end = u32::try_from(end).map_err(|_| Error::InvalidParam {
@@ -489,7 +536,26 @@ impl ObservationStore {
         t.samples.extend(config.iter().map(|&v| v as f32));
         t.obs.extend_from_slice(&packed);
         t.sample_start.push(end);
+        t.sample_frame.push(self.frames);
         Ok(true)
+    }
+
+    /// Ends the current frame: later samples belong to the next one. Samples are tagged with
+    /// the frame they were pushed in ([`Self::sample_frames`]), counted from 0 in the order
+    /// frames were ended; an appended store's frames follow this store's.
+    pub fn end_frame(&mut self) {
+        self.frames += 1;
+    }
+
+    /// Number of frames ended ([`Self::end_frame`]).
+    pub fn frame_count(&self) -> usize {
+        self.frames as usize
+    }
+
+    /// The frame of each sample of primitive `p` (empty if `p` is out of range): what ties a
+    /// sample to its pose θ, for the model over skinning ([`crate::PoseSpaceModel`]).
+    pub fn sample_frames(&self, p: usize) -> &[u32] {
+        self.primitives.get(p).map_or(&[], |t| &t.sample_frame)
     }
 
     /// Append all samples of `other` after this store's samples (used to merge per-frame
@@ -523,13 +589,23 @@ impl ObservationStore {
                 });
             }
         }
+        let frames = self
+            .frames
+            .checked_add(other.frames)
+            .ok_or(Error::InvalidParam {
+                name: "frame count",
+                reason: "more than u32::MAX frames".into(),
+            })?;
         for (a, b) in self.primitives.iter_mut().zip(&other.primitives) {
             let base = a.obs.len() as u32;
             a.samples.extend_from_slice(&b.samples);
             a.obs.extend_from_slice(&b.obs);
             a.sample_start
                 .extend(b.sample_start[1..].iter().map(|&o| o + base));
+            a.sample_frame
+                .extend(b.sample_frame.iter().map(|&f| f + self.frames));
         }
+        self.frames = frames;
         Ok(())
     }
 }
@@ -555,8 +631,37 @@ mod tests {
     }
 
     #[test]
-    fn packed_observation_is_four_bytes() {
-        assert_eq!(std::mem::size_of::<PackedObservation>(), 4);
+    fn packed_observation_is_three_bytes_and_round_trips() {
+        assert_eq!(std::mem::size_of::<PackedObservation>(), 3);
+        for (needle, q) in [(0, 0), (4095, 4095), (900, 1), (1, 2048)] {
+            let o = PackedObservation::pack(needle, q);
+            assert_eq!((o.needle(), o.length_q()), (needle, q));
+        }
+        let too_many = PrimitiveShape {
+            config_dim: 3,
+            needle_count: MAX_NEEDLES_PER_PRIMITIVE + 1,
+            max_length_m: 0.1,
+        };
+        assert!(ObservationStore::new(&[too_many]).is_err());
+    }
+
+    #[test]
+    fn samples_know_their_frames_across_appends() {
+        let mut a = ObservationStore::new(&shapes()).unwrap();
+        a.push_sample(0, &[0.0; 3], &[(1, 0.05)]).unwrap();
+        a.end_frame();
+        a.push_sample(0, &[1.0; 3], &[(1, 0.05)]).unwrap();
+        a.push_sample(1, &[1.0; 9], &[(2, 0.05)]).unwrap();
+        a.end_frame();
+        let mut b = ObservationStore::new(&shapes()).unwrap();
+        b.end_frame(); // a frame without observations
+        b.push_sample(0, &[2.0; 3], &[(3, 0.05)]).unwrap();
+        b.end_frame();
+        a.append(&b).unwrap();
+        assert_eq!(a.frame_count(), 4);
+        assert_eq!(a.sample_frames(0), &[0, 1, 3]);
+        assert_eq!(a.sample_frames(1), &[1]);
+        assert!(a.sample_frames(2).is_empty());
     }
 
     #[test]

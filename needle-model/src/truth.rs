@@ -11,6 +11,7 @@
 use std::collections::{HashMap, HashSet};
 
 use glam::DVec3;
+use rayon::prelude::*;
 use skin_core::math::Ray;
 use skin_core::mesh::{MeshQuery, TriMesh};
 use skin_core::studio::{FrameTruth, Performer};
@@ -61,6 +62,14 @@ pub struct PoseR2 {
     /// The same with each needle's mean error removed from its predictions: how well the
     /// predictor follows the pose, whatever its bias.
     pub r2_centred: f64,
+    /// RMS over the needle-frames of each needle's mean error, mm: the part of the error no
+    /// pose dependence can fix (the visual hull's bias). `bias_rms_mm² + centred_rms_mm²` is
+    /// the mean squared error.
+    pub bias_rms_mm: f64,
+    /// RMS of the errors with each needle's mean error removed, mm.
+    pub centred_rms_mm: f64,
+    /// RMS of the true lengths about each needle's mean, mm: how much the pose moves them.
+    pub pose_rms_mm: f64,
 }
 
 /// Length of the needle `origin + t·dir`, `t ∈ [0, max_m]`, inside `query`'s closed mesh:
@@ -128,6 +137,10 @@ pub struct Errors {
     pub pose_deforming_mm: Vec<f64>,
     /// The needle-frames of the pose-deforming needles (for [`Errors::pose_r2`]).
     pub pose_samples: Vec<NeedleSample>,
+    /// Every scored needle-frame in scoring order (frame by frame, each frame's
+    /// [`TestFrame::needles`] in order), parallel to [`Errors::all_mm`]: what the predictor
+    /// said, e.g. to draw its surface.
+    pub samples: Vec<NeedleSample>,
 }
 
 impl TestSet {
@@ -240,32 +253,43 @@ impl TestSet {
         &self,
         body: &NeedleBody,
         skeleton: &skin_core::skeleton::Skeleton,
-        mut surface: impl FnMut(&[f64]) -> Result<TriMesh>,
+        surface: impl Fn(&[f64]) -> Result<TriMesh> + Sync,
     ) -> Result<Errors> {
         let deforming = self.pose_deforming();
+        // Frames in parallel (a surface and its ray-cast tree per frame), pushed in order.
+        let lengths: Vec<Vec<f64>> = self
+            .frames
+            .par_iter()
+            .map(|f| {
+                let query = MeshQuery::new(&surface(&f.theta)?)?;
+                let fk = skeleton.forward_kinematics(&f.theta)?;
+                f.needles
+                    .iter()
+                    .map(|n| {
+                        let prim = body.primitives.get(n.primitive as usize).ok_or(
+                            Error::SizeMismatch {
+                                what: "body primitives vs test set",
+                                expected: n.primitive as usize + 1,
+                                got: body.primitives.len(),
+                            },
+                        )?;
+                        if n.needle as usize >= prim.needle_count() {
+                            return Err(Error::SizeMismatch {
+                                what: "primitive needles vs test set",
+                                expected: n.needle as usize + 1,
+                                got: prim.needle_count(),
+                            });
+                        }
+                        let t = fk.world_from_joint()[prim.carrier];
+                        let (o, d) = prim.needle_world(&t, n.needle as usize);
+                        Ok(exit_length(&query, o, d, 2.0 * prim.max_length_m)?.unwrap_or(0.0))
+                    })
+                    .collect()
+            })
+            .collect::<Result<_>>()?;
         let mut out = Errors::default();
-        for f in &self.frames {
-            let query = MeshQuery::new(&surface(&f.theta)?)?;
-            let fk = skeleton.forward_kinematics(&f.theta)?;
-            for n in &f.needles {
-                let prim =
-                    body.primitives
-                        .get(n.primitive as usize)
-                        .ok_or(Error::SizeMismatch {
-                            what: "body primitives vs test set",
-                            expected: n.primitive as usize + 1,
-                            got: body.primitives.len(),
-                        })?;
-                if n.needle as usize >= prim.needle_count() {
-                    return Err(Error::SizeMismatch {
-                        what: "primitive needles vs test set",
-                        expected: n.needle as usize + 1,
-                        got: prim.needle_count(),
-                    });
-                }
-                let t = fk.world_from_joint()[prim.carrier];
-                let (o, d) = prim.needle_world(&t, n.needle as usize);
-                let l = exit_length(&query, o, d, 2.0 * prim.max_length_m)?.unwrap_or(0.0);
+        for (f, l) in self.frames.iter().zip(&lengths) {
+            for (n, &l) in f.needles.iter().zip(l) {
                 out.push(n, l, &deforming);
             }
         }
@@ -274,12 +298,27 @@ impl TestSet {
 
     /// Errors of the LBS baseline (the skinned rest shape).
     pub fn lbs_errors(&self) -> Errors {
+        self.errors_of(|_, n| Ok::<_, std::convert::Infallible>(n.lbs_m))
+            .unwrap_or_else(|never| match never {})
+    }
+
+    /// Errors of any per-needle predictor: `predict(k, n)` is the predicted length (metres)
+    /// of needle-frame `n` of frame `k` ([`TestSet::frames`]).
+    ///
+    /// # Errors
+    /// The first error of `predict`.
+    pub fn errors_of<E>(
+        &self,
+        mut predict: impl FnMut(usize, &NeedleTruth) -> std::result::Result<f64, E>,
+    ) -> std::result::Result<Errors, E> {
         let deforming = self.pose_deforming();
         let mut out = Errors::default();
-        for n in self.frames.iter().flat_map(|f| &f.needles) {
-            out.push(n, n.lbs_m, &deforming);
+        for (k, f) in self.frames.iter().enumerate() {
+            for n in &f.needles {
+                out.push(n, predict(k, n)?, &deforming);
+            }
         }
-        out
+        Ok(out)
     }
 
     /// The pose-deforming needles: those whose non-skinning length (true minus LBS length)
@@ -306,21 +345,23 @@ impl Errors {
     /// [`TestSet::pose_deforming`].
     fn push(&mut self, n: &NeedleTruth, predicted_m: f64, deforming: &HashSet<NeedleKey>) {
         let e_mm = (predicted_m - n.true_m).abs() * 1e3;
+        let key = (n.primitive, n.needle);
+        let sample = NeedleSample {
+            key,
+            predicted_m,
+            true_m: n.true_m,
+        };
         self.all_mm.push(e_mm);
+        self.samples.push(sample);
         if n.near_joint {
             self.near_joints_mm.push(e_mm);
         }
         if (n.true_m - n.lbs_m).abs() > DEFORMING_M {
             self.deforming_mm.push(e_mm);
         }
-        let key = (n.primitive, n.needle);
         if deforming.contains(&key) {
             self.pose_deforming_mm.push(e_mm);
-            self.pose_samples.push(NeedleSample {
-                key,
-                predicted_m,
-                true_m: n.true_m,
-            });
+            self.pose_samples.push(sample);
         }
     }
 
@@ -333,23 +374,32 @@ impl Errors {
             let e = per.entry(s.key).or_insert((0.0, 0.0, 0.0));
             *e = (e.0 + 1.0, e.1 + s.true_m, e.2 + (s.predicted_m - s.true_m));
         }
-        let (mut total, mut residual, mut centred) = (0.0, 0.0, 0.0);
+        let (mut total, mut residual, mut centred, mut bias) = (0.0, 0.0, 0.0, 0.0);
         for s in &self.pose_samples {
             let (n, sum_true, sum_err) = per[&s.key];
             let err = s.predicted_m - s.true_m;
             total += (s.true_m - sum_true / n).powi(2);
             residual += err * err;
             centred += (err - sum_err / n).powi(2);
+            bias += (sum_err / n).powi(2);
         }
+        let count = self.pose_samples.len() as f64;
+        let rms_mm = |ss: f64| (ss / count).sqrt() * 1e3;
         if self.pose_samples.is_empty() || total <= 0.0 {
             return PoseR2 {
                 r2: f64::NAN,
                 r2_centred: f64::NAN,
+                bias_rms_mm: f64::NAN,
+                centred_rms_mm: f64::NAN,
+                pose_rms_mm: f64::NAN,
             };
         }
         PoseR2 {
             r2: 1.0 - residual / total,
             r2_centred: 1.0 - centred / total,
+            bias_rms_mm: rms_mm(bias),
+            centred_rms_mm: rms_mm(centred),
+            pose_rms_mm: rms_mm(total),
         }
     }
 }
@@ -394,12 +444,20 @@ mod tests {
         // once its mean error is removed (r2_centred = 0).
         let e = t.lbs_errors();
         assert_eq!(e.all_mm.len(), 6);
+        assert_eq!(e.samples.len(), 6);
+        assert_eq!(e.samples[2].key, (0, 0));
+        assert_eq!(e.samples[2].predicted_m, 0.05);
         assert_eq!(e.pose_deforming_mm.len(), 3);
         let r = e.pose_r2();
         // Truth 0, 3, 6 mm above 50 mm (mean 3): total = 9 + 0 + 9 = 18 mm²; errors 0, 3,
         // 6 mm: residual 45 mm², centred residual 18 mm².
         assert!((r.r2 - (1.0 - 45.0 / 18.0)).abs() < 1e-9, "{r:?}");
         assert!(r.r2_centred.abs() < 1e-9, "{r:?}");
+        // Mean error 3 mm on needle 0: bias² + centred² = (9 + 9 + 9 + 18) / 3 = 15 mm²,
+        // the mean squared error 45 / 3; the truth's pose RMS sqrt(18 / 3).
+        assert!((r.bias_rms_mm - 3.0).abs() < 1e-9, "{r:?}");
+        assert!((r.centred_rms_mm - 6f64.sqrt()).abs() < 1e-9, "{r:?}");
+        assert!((r.pose_rms_mm - 6f64.sqrt()).abs() < 1e-9, "{r:?}");
         // A biased LBS (every length 10 mm long) moves r2 but not r2_centred.
         let b = set(0.010).lbs_errors().pose_r2();
         assert!(b.r2 < r.r2);
