@@ -1,0 +1,37 @@
+//! # template-silhouette
+//!
+//! Mesh animation from multi-view silhouettes by tracking a skeleton in the visual hull and
+//! molding a rigged template to the silhouettes, after D. Vlasic, *Markerless Performance
+//! Capture* (MIT PhD thesis, 2010), Chapter 2 (and Vlasic, Baran, Matusik, Popović,
+//! *Articulated Mesh Animation from Multi-view Silhouettes*, SIGGRAPH 2008).
+//!
+//! The pipeline (§2.2): per frame, fit the skeleton to the visual hull (§2.3), deform the
+//! template with linear blend skinning, then adjust its surface to the silhouettes with
+//! Laplacian coordinates (§2.4, Algorithm 1).
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | file | stage | main items | paper |
+//! | --- | --- | --- | --- |
+//! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
+//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`VisualHull`], [`ConeDistance`], [`VisualHullParams`] | §2.3.2 |
+//! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
+//! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
+//!
+//! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
+//! says where ([`Error::At`] with a [`Context`]).
+#![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
+
+mod error;
+mod molding;
+mod template;
+mod visual_hull;
+
+pub use error::{Context, Error, Result, ResultExt};
+pub use molding::{Molding, SoftConstraint};
+pub use template::Template;
+pub use visual_hull::{
+    ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,
+    DEFAULT_COARSE_SPACING_M, DEFAULT_MARGIN_PX, DEFAULT_POLYGON_SPACING_M,
+};
