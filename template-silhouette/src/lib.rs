@@ -16,6 +16,8 @@
 //! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
 //! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`VisualHull`], [`ConeDistance`], [`VisualHullParams`] | §2.3.2 |
 //! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
+//! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
+//! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -25,11 +27,23 @@
 
 mod error;
 mod molding;
+mod shape;
+mod silhouette_constraints;
 mod template;
 mod visual_hull;
 
 pub use error::{Context, Error, Result, ResultExt};
 pub use molding::{Molding, SoftConstraint};
+pub use shape::{
+    temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
+    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_C,
+    DEFAULT_W_L_STEP,
+};
+pub use silhouette_constraints::{
+    contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,
+    SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
+    DEFAULT_NORMAL_SCALE,
+};
 pub use template::Template;
 pub use visual_hull::{
     ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,
