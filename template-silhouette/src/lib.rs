@@ -18,6 +18,7 @@
 //! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
+//! | `pose.rs` | the objective `w_D E_D + w_T E_T + w_R E_R + w_U E_U` as √-residuals with analytic Jacobians, bounded LM with joint limits, forward pass with `2θ_{t−1} − θ_{t−2}`, reverse pass | [`PoseModel`], [`fit_pose`], [`fit_frame`], [`track`], [`PoseParams`], [`UserRay`] | §2.3.1, §2.3.3 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -27,6 +28,7 @@
 
 mod error;
 mod molding;
+mod pose;
 mod shape;
 mod silhouette_constraints;
 mod template;
@@ -34,6 +36,12 @@ mod visual_hull;
 
 pub use error::{Context, Error, Result, ResultExt};
 pub use molding::{Molding, SoftConstraint};
+pub use pose::{
+    fit_frame, fit_pose, track, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams, PoseTerms,
+    PoseTrack, Temporal, UserRay, DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_GAMMA_WIDTH_M,
+    DEFAULT_REFINEMENT_ROUNDS, DEFAULT_SAMPLES_PER_BONE, DEFAULT_W_D, DEFAULT_W_R, DEFAULT_W_T,
+    DEFAULT_W_U,
+};
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
     DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_C,

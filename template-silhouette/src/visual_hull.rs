@@ -269,10 +269,15 @@ impl ConeDistance {
     /// nearest contour ray stored at `p`'s pixel (the scaling property of §2.3.2).
     ///
     /// # Errors
-    /// [`Error::NonFinite`] for a non-finite point.
+    /// [`Error::Core`] with skin-core's `NonFinite` for a non-finite point.
     pub fn sample(&self, p: DVec3) -> Result<ConeSample> {
+        Ok(self.sample_core(p)?)
+    }
+
+    /// [`Self::sample`] with skin-core's error type (for optimiser closures).
+    pub(crate) fn sample_core(&self, p: DVec3) -> skin_core::Result<ConeSample> {
         if !p.is_finite() {
-            return Err(Error::NonFinite {
+            return Err(skin_core::Error::NonFinite {
                 what: "visual-hull query point",
             });
         }
@@ -469,11 +474,15 @@ impl VisualHull {
     /// outside; `None` where some cone sees `p` as far outside.
     ///
     /// # Errors
-    /// [`Error::NonFinite`] for a non-finite point.
+    /// [`Error::Core`] with skin-core's `NonFinite` for a non-finite point.
     pub fn cone_field(&self, p: DVec3) -> Result<Option<(f64, DVec3, usize)>> {
+        Ok(self.cone_field_core(p)?)
+    }
+
+    fn cone_field_core(&self, p: DVec3) -> skin_core::Result<Option<(f64, DVec3, usize)>> {
         let mut best: Option<(f64, DVec3, usize)> = None;
         for (c, cone) in self.cones.iter().enumerate() {
-            match cone.sample(p)? {
+            match cone.sample_core(p)? {
                 ConeSample::Far => return Ok(None),
                 ConeSample::Near { signed_m, gradient } => {
                     if best.is_none_or(|b| signed_m < b.0) {
@@ -490,9 +499,14 @@ impl VisualHull {
     /// polygonal hull.
     ///
     /// # Errors
-    /// [`Error::NonFinite`] for a non-finite point.
+    /// [`Error::Core`] with skin-core's `NonFinite` for a non-finite point.
     pub fn distance(&self, p: DVec3) -> Result<HullDistance> {
-        if let Some((signed_m, gradient, camera)) = self.cone_field(p)? {
+        Ok(self.distance_core(p)?)
+    }
+
+    /// [`Self::distance`] with skin-core's error type (for optimiser closures).
+    pub(crate) fn distance_core(&self, p: DVec3) -> skin_core::Result<HullDistance> {
+        if let Some((signed_m, gradient, camera)) = self.cone_field_core(p)? {
             if signed_m >= 0.0 {
                 return Ok(HullDistance {
                     signed_m,
@@ -767,7 +781,7 @@ pub(crate) mod tests {
         let cone = ConeDistance::new(&cams[0], &good, 8).unwrap();
         assert!(matches!(
             cone.sample(DVec3::NAN),
-            Err(Error::NonFinite { .. })
+            Err(Error::Core(skin_core::Error::NonFinite { .. }))
         ));
         // Behind the camera: far outside, not an error.
         let behind = cams[0].centre() + (cams[0].centre() - C);
