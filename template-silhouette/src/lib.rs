@@ -19,14 +19,89 @@
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
 //! | `pose.rs` | the objective `w_D E_D + w_T E_T + w_R E_R + w_U E_U` as √-residuals with analytic Jacobians, bounded LM with joint limits, forward pass with `2θ_{t−1} − θ_{t−2}`, reverse pass | [`PoseModel`], [`fit_pose`], [`fit_frame`], [`track`], [`PoseParams`], [`UserRay`] | §2.3.1, §2.3.3 |
+//! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
 //! says where ([`Error::At`] with a [`Context`]).
+//!
+//! ## Quick start
+//!
+//! A procedural performer in fast motion, seen by the 8-camera ring at 200 × 150 px for
+//! three frames: visual hulls and contour rays per frame, the pose tracked through the hulls
+//! (the first frame's true pose stands in for the user's manual fit of the first frame,
+//! §2.3.3), then Algorithm 1 molds the template to the silhouettes.
+//!
+//! ```
+//! use skin_core::studio::{
+//!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
+//!     ProceduralBodyParams,
+//! };
+//! use template_silhouette::{
+//!     contour_rays, track, ContourRay, PoseFrame, PoseModel, PoseParams, ShapeEstimator,
+//!     ShapeFrame, ShapeParams, SilhouetteParams, Template, VisualHull, VisualHullParams,
+//! };
+//!
+//! let performer = procedural_performer(&ProceduralBodyParams::default())?;
+//! let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
+//! let rig = studio_ring(8, 200, 150)?;
+//! let cameras = rig.cameras.clone();
+//! let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+//! let capture = Capture::new(&performer, &motion, spec)?;
+//! let (mut masks, mut truth) = (Vec::new(), Vec::new());
+//! for frame in capture.frames_stepped(0..3, 1) {
+//!     let frame = frame?;
+//!     masks.push(frame.masks());
+//!     truth.push(frame.truth.theta);
+//! }
+//! let template = Template::new(
+//!     performer.template.clone(),
+//!     performer.skeleton.clone(),
+//!     performer.weights.clone(),
+//! )?;
+//!
+//! // §2.3.2 and §2.4.2: the observations of each frame.
+//! let hulls = masks
+//!     .iter()
+//!     .map(|m| VisualHull::new(&cameras, m, &VisualHullParams::default()))
+//!     .collect::<template_silhouette::Result<Vec<_>>>()?;
+//! let mut rays: Vec<Vec<ContourRay>> = Vec::new();
+//! for frame_masks in &masks {
+//!     let mut frame_rays = Vec::new();
+//!     for (camera, mask) in cameras.iter().zip(frame_masks) {
+//!         frame_rays.extend(contour_rays(camera, mask, &SilhouetteParams::default())?);
+//!     }
+//!     rays.push(frame_rays);
+//! }
+//!
+//! // §2.3: forward and reverse passes, with the refinement term from shape estimation.
+//! let params = PoseParams::default();
+//! let model = PoseModel::new(&template, &params)?;
+//! let mut shape = ShapeEstimator::new(template.clone(), ShapeParams::default())?;
+//! let frames: Vec<PoseFrame<'_>> = hulls
+//!     .iter()
+//!     .zip(&rays)
+//!     .map(|(hull, rays)| PoseFrame { hull, rays, user: &[] })
+//!     .collect();
+//! let poses = track(&model, &frames, &truth[0], Some(&mut shape), &params)?;
+//!
+//! // §2.4: Algorithm 1 on the tracked poses.
+//! let shape_frames: Vec<ShapeFrame<'_>> = poses
+//!     .poses
+//!     .iter()
+//!     .zip(&rays)
+//!     .map(|(theta, rays)| ShapeFrame { theta, rays })
+//!     .collect();
+//! let sequence = shape.estimate(&shape_frames)?;
+//! assert_eq!(sequence.frames.len(), 3);
+//! assert_eq!(sequence.iterations.len(), 6); // w_L = 0, 0.2, ..., 1
+//! # Ok::<(), template_silhouette::Error>(())
+//! ```
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
 mod error;
+mod metrics;
 mod molding;
 mod pose;
 mod shape;
@@ -35,6 +110,7 @@ mod template;
 mod visual_hull;
 
 pub use error::{Context, Error, Result, ResultExt};
+pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
 pub use pose::{
     fit_frame, fit_pose, track, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams, PoseTerms,

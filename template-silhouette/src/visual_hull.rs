@@ -433,16 +433,7 @@ impl VisualHull {
     /// [`ConeDistance::new`] wrapped in [`Error::At`] with the camera.
     pub fn new(cameras: &[Camera], masks: &[Mask], params: &VisualHullParams) -> Result<Self> {
         params.validate()?;
-        if cameras.len() != masks.len() {
-            return Err(Error::SizeMismatch {
-                what: "silhouettes vs cameras",
-                expected: cameras.len(),
-                got: masks.len(),
-            });
-        }
-        if cameras.is_empty() {
-            return Err(Error::Empty { what: "cameras" });
-        }
+        check_views(cameras, masks)?;
         let cones = cameras
             .par_iter()
             .zip(masks)
@@ -526,6 +517,21 @@ impl VisualHull {
             camera: None,
         })
     }
+}
+
+/// One silhouette per camera, and at least one camera.
+pub(crate) fn check_views(cameras: &[Camera], masks: &[Mask]) -> Result<()> {
+    if cameras.len() != masks.len() {
+        return Err(Error::SizeMismatch {
+            what: "silhouettes vs cameras",
+            expected: cameras.len(),
+            got: masks.len(),
+        });
+    }
+    if cameras.is_empty() {
+        return Err(Error::Empty { what: "cameras" });
+    }
+    Ok(())
 }
 
 /// Marching cubes of the signed cone field over the box the coarse occupancy finds.
