@@ -142,11 +142,11 @@ pub struct UserRay {
     pub ray: Ray,
 }
 
-/// A refinement target (§2.3.1, `E_R`): joint `joint` pulled to `target`.
+/// A refinement target (§2.3.1, `E_R`): an end effector pulled to `target`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct JointTarget {
-    /// Joint index.
-    pub joint: usize,
+    /// The end effector: a point on a bone (the joint itself has a zero offset).
+    pub point: AttachedPoint,
     /// Target position, world m.
     pub target: DVec3,
 }
@@ -158,7 +158,7 @@ pub struct PoseModel {
     samples: Vec<AttachedPoint>,
     radii_m: Vec<f64>,
     outside: Vec<usize>,
-    effectors: Vec<(usize, Vec<usize>)>,
+    effectors: Vec<(AttachedPoint, Vec<usize>)>,
 }
 
 impl PoseModel {
@@ -230,7 +230,14 @@ impl PoseModel {
                     .filter(|&(_, b)| b == j)
                     .map(|(v, _)| v)
                     .collect();
-                (!verts.is_empty()).then_some((j, verts))
+                // The effector is the leaf bone's tip (its end site: the top of the head,
+                // the hand's or foot's end), which the thesis pulls "into the extremities";
+                // a joint without end site is its own effector.
+                let point = AttachedPoint {
+                    joint: j,
+                    offset: skeleton.joints()[j].end_site.unwrap_or(DVec3::ZERO),
+                };
+                (!verts.is_empty()).then_some((point, verts))
             })
             .collect();
         Ok(PoseModel {
@@ -262,8 +269,9 @@ impl PoseModel {
         &self.outside
     }
 
-    /// End effectors: joint and the vertices nearly rigidly bound to it.
-    pub fn effectors(&self) -> &[(usize, Vec<usize>)] {
+    /// End effectors (the tip of each leaf bone) and the vertices nearly rigidly bound to
+    /// their joint.
+    pub fn effectors(&self) -> &[(AttachedPoint, Vec<usize>)] {
         &self.effectors
     }
 }
@@ -331,25 +339,19 @@ pub fn fit_pose(
         sk.check_pose("temporal neighbour pose", t)?;
     }
     let joints = sk.joint_count();
-    for j in terms
-        .refinement
-        .iter()
-        .map(|r| r.joint)
-        .chain(terms.user.iter().map(|u| u.joint))
-    {
-        skin_core::check::index("constraint joint", j, joints)?;
-    }
-    let (lower, upper) = bounds(sk);
     let joint_points: Vec<AttachedPoint> = terms
         .refinement
         .iter()
-        .map(|r| r.joint)
-        .chain(terms.user.iter().map(|u| u.joint))
-        .map(|joint| AttachedPoint {
-            joint,
+        .map(|r| r.point)
+        .chain(terms.user.iter().map(|u| AttachedPoint {
+            joint: u.joint,
             offset: DVec3::ZERO,
-        })
+        }))
         .collect();
+    for p in &joint_points {
+        skin_core::check::index("constraint joint", p.joint, joints)?;
+    }
+    let (lower, upper) = bounds(sk);
     let x0 = DVector::from_column_slice(theta0);
     let report = levenberg_marquardt_bounded(
         &x0,
@@ -545,19 +547,18 @@ pub fn fit_frame(
         let lbs = shape.template().skin(&theta0)?;
         let (moved, _) = shape.refine(&theta0, &lbs, 1.0, frame.rays)?;
         let fk = model.skeleton.forward_kinematics(&theta0)?;
-        let q0 = fk.joint_positions();
-        let targets: Vec<JointTarget> = model
+        let targets = model
             .effectors
             .iter()
-            .map(|(j, verts)| {
+            .map(|(point, verts)| {
                 let dm: DVec3 =
                     verts.iter().map(|&v| moved[v] - lbs[v]).sum::<DVec3>() / verts.len() as f64;
-                JointTarget {
-                    joint: *j,
-                    target: q0[*j] + dm,
-                }
+                Ok(JointTarget {
+                    point: *point,
+                    target: fk.point(point)? + dm,
+                })
             })
-            .collect();
+            .collect::<Result<Vec<_>>>()?;
         let refined = PoseTerms {
             refinement: &targets,
             ..terms
@@ -569,7 +570,8 @@ pub fn fit_frame(
 
 /// Tracks a sequence (§2.3.3): the forward pass from `first_guess` with the linear
 /// prediction `2θ_{t−1} − θ_{t−2}` (clamped to the joint limits), then the reverse pass from
-/// the forward solutions with both temporal neighbours.
+/// the forward solutions with both temporal neighbours. `first_guess` stands for the user's
+/// fit of the first frame and is that frame's temporal neighbour in the forward pass.
 ///
 /// # Errors
 /// [`Error::Empty`] for no frame; errors of [`fit_frame`] wrapped with the frame.
@@ -600,7 +602,10 @@ pub fn track(
             }
         };
         let temporal = Temporal {
-            previous: forward.last().map(Vec::as_slice),
+            // Frame 0: the first guess is the user's fit of the first frame (§2.3.3: "the
+            // first frame ... needs manual constraints"), so it anchors E_T there too;
+            // otherwise DOFs the hull does not see (a head's twist) drift from it.
+            previous: Some(forward.last().map_or(first_guess, Vec::as_slice)),
             next: None,
         };
         let fit = fit_frame(model, frame, temporal, &guess, shape.as_deref_mut(), params)
@@ -722,7 +727,10 @@ mod tests {
             ray: Ray::new(origin, (DVec3::new(0.0, 1.0, 0.0) - origin).normalize()),
         }];
         let refinement = [JointTarget {
-            joint: 3,
+            point: AttachedPoint {
+                joint: 3,
+                offset: DVec3::new(0.0, 0.1, 0.02),
+            },
             target: DVec3::new(0.1, 1.2, 0.0),
         }];
         let terms = PoseTerms {
@@ -734,13 +742,13 @@ mod tests {
             refinement: &refinement,
             user: &user,
         };
-        let points: Vec<AttachedPoint> = [3, 5]
-            .iter()
-            .map(|&joint| AttachedPoint {
-                joint,
+        let points = [
+            refinement[0].point,
+            AttachedPoint {
+                joint: 5,
                 offset: DVec3::ZERO,
-            })
-            .collect();
+            },
+        ];
         let mut theta = st.truth.clone();
         theta[7] += 0.05;
         let mut j = DMatrix::zeros(0, 0);
