@@ -826,4 +826,69 @@ mod tests {
         assert!(after < 0.5 * before, "{after} m (start {before} m)");
         assert!(sk.limit_violations(&fit.theta).unwrap().is_empty());
     }
+
+    /// §2.3.1 user term: a ray from camera 0 through a point 10 cm beside the true wrist pulls
+    /// the wrist onto it (w_U = 5000 overrides the depth term), and removing it lets the
+    /// wrist go back.
+    #[test]
+    fn a_user_ray_moves_the_joint_onto_it() {
+        let st = studio(20);
+        let sk = st.template.skeleton();
+        let params = PoseParams::default();
+        let model = PoseModel::new(&st.template, &params).unwrap();
+        let wrist = sk.joint_index("l_wrist").unwrap();
+        let truth_fk = sk.forward_kinematics(&st.truth).unwrap();
+        let target = truth_fk.joint_positions()[wrist] + DVec3::new(0.0, 0.1, 0.0);
+        let origin = st.cameras[0].centre();
+        let user = [UserRay {
+            joint: wrist,
+            ray: Ray::new(origin, (target - origin).normalize()),
+        }];
+        let fit = |user: &[UserRay]| {
+            let terms = PoseTerms {
+                hull: &st.hull,
+                temporal: Temporal {
+                    previous: Some(&st.truth),
+                    next: None,
+                },
+                refinement: &[],
+                user,
+            };
+            fit_pose(&model, &terms, &st.truth, &params).unwrap().theta
+        };
+        let off_ray = |theta: &[f64]| {
+            let q = sk.forward_kinematics(theta).unwrap().joint_positions()[wrist];
+            (q - origin).cross(user[0].ray.direction).length()
+        };
+        let (with, without) = (fit(&user), fit(&[]));
+        assert!(off_ray(&with) < 0.01, "{} m off the ray", off_ray(&with));
+        assert!(
+            off_ray(&without) > 0.05,
+            "{} m off the ray",
+            off_ray(&without)
+        );
+    }
+
+    /// A skeleton partly outside its template: those samples get radius 0 and are listed.
+    #[test]
+    fn samples_outside_the_template_are_reported() {
+        let st = studio(0);
+        let mut joints = st.template.skeleton().joints().to_vec();
+        // Move the left arm's chain 30 cm out of the body.
+        let shoulder = st.template.skeleton().joint_index("l_shoulder").unwrap();
+        joints[shoulder].offset += DVec3::new(0.3, 0.0, 0.0);
+        let sk = Skeleton::new(joints).unwrap();
+        let t = Template::new(
+            st.template.mesh().clone(),
+            sk,
+            st.template.weights().clone(),
+        )
+        .unwrap();
+        let model = PoseModel::new(&t, &PoseParams::default()).unwrap();
+        assert!(!model.outside_samples().is_empty());
+        assert!(model
+            .outside_samples()
+            .iter()
+            .all(|&i| model.radii_m()[i] == 0.0));
+    }
 }
