@@ -19,6 +19,7 @@
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
 //! | `pose.rs` | the objective `w_D E_D + w_T E_T + w_R E_R + w_U E_U` as √-residuals with analytic Jacobians, bounded LM with joint limits, forward pass with `2θ_{t−1} − θ_{t−2}`, reverse pass | [`PoseModel`], [`fit_pose`], [`fit_frame`], [`track`], [`PoseParams`], [`UserRay`] | §2.3.1, §2.3.3 |
+//! | `pipeline.rs` | one frame's observations; the whole sequence (pose, then shape) | [`FrameObservation`], [`capture_sequence`], [`SequenceCapture`] | §2.2, Figure 2-3 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
@@ -38,8 +39,8 @@
 //!     ProceduralBodyParams,
 //! };
 //! use template_silhouette::{
-//!     contour_rays, track, ContourRay, PoseFrame, PoseModel, PoseParams, ShapeEstimator,
-//!     ShapeFrame, ShapeParams, SilhouetteParams, Template, VisualHull, VisualHullParams,
+//!     capture_sequence, FrameObservation, PoseParams, ShapeParams, SilhouetteParams, Template,
+//!     VisualHullParams,
 //! };
 //!
 //! let performer = procedural_performer(&ProceduralBodyParams::default())?;
@@ -48,53 +49,37 @@
 //! let cameras = rig.cameras.clone();
 //! let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
 //! let capture = Capture::new(&performer, &motion, spec)?;
-//! let (mut masks, mut truth) = (Vec::new(), Vec::new());
+//! let (mut observations, mut first_pose) = (Vec::new(), None);
 //! for frame in capture.frames_stepped(0..3, 1) {
 //!     let frame = frame?;
-//!     masks.push(frame.masks());
-//!     truth.push(frame.truth.theta);
+//!     // §2.3.2 and §2.4.2: the visual hull and the contour rays of the frame.
+//!     observations.push(FrameObservation::new(
+//!         &cameras,
+//!         &frame.masks(),
+//!         &VisualHullParams::default(),
+//!         &SilhouetteParams::default(),
+//!     )?);
+//!     first_pose.get_or_insert(frame.truth.theta);
 //! }
 //! let template = Template::new(
 //!     performer.template.clone(),
 //!     performer.skeleton.clone(),
 //!     performer.weights.clone(),
 //! )?;
+//! let first_guess = first_pose.unwrap_or_default();
 //!
-//! // §2.3.2 and §2.4.2: the observations of each frame.
-//! let hulls = masks
-//!     .iter()
-//!     .map(|m| VisualHull::new(&cameras, m, &VisualHullParams::default()))
-//!     .collect::<template_silhouette::Result<Vec<_>>>()?;
-//! let mut rays: Vec<Vec<ContourRay>> = Vec::new();
-//! for frame_masks in &masks {
-//!     let mut frame_rays = Vec::new();
-//!     for (camera, mask) in cameras.iter().zip(frame_masks) {
-//!         frame_rays.extend(contour_rays(camera, mask, &SilhouetteParams::default())?);
-//!     }
-//!     rays.push(frame_rays);
-//! }
-//!
-//! // §2.3: forward and reverse passes, with the refinement term from shape estimation.
-//! let params = PoseParams::default();
-//! let model = PoseModel::new(&template, &params)?;
-//! let mut shape = ShapeEstimator::new(template.clone(), ShapeParams::default())?;
-//! let frames: Vec<PoseFrame<'_>> = hulls
-//!     .iter()
-//!     .zip(&rays)
-//!     .map(|(hull, rays)| PoseFrame { hull, rays, user: &[] })
-//!     .collect();
-//! let poses = track(&model, &frames, &truth[0], Some(&mut shape), &params)?;
-//!
-//! // §2.4: Algorithm 1 on the tracked poses.
-//! let shape_frames: Vec<ShapeFrame<'_>> = poses
-//!     .poses
-//!     .iter()
-//!     .zip(&rays)
-//!     .map(|(theta, rays)| ShapeFrame { theta, rays })
-//!     .collect();
-//! let sequence = shape.estimate(&shape_frames)?;
-//! assert_eq!(sequence.frames.len(), 3);
-//! assert_eq!(sequence.iterations.len(), 6); // w_L = 0, 0.2, ..., 1
+//! // §2.3 then §2.4: forward and reverse passes with the refinement term, then Algorithm 1.
+//! let result = capture_sequence(
+//!     &template,
+//!     &observations,
+//!     &first_guess,
+//!     &[], // no user rays
+//!     &PoseParams::default(),
+//!     &ShapeParams::default(),
+//! )?;
+//! assert_eq!(result.poses.poses.len(), 3);
+//! assert_eq!(result.shapes.frames.len(), 3);
+//! assert_eq!(result.shapes.iterations.len(), 6); // w_L = 0, 0.2, ..., 1
 //! # Ok::<(), template_silhouette::Error>(())
 //! ```
 #![warn(missing_docs)]
@@ -103,6 +88,7 @@
 mod error;
 mod metrics;
 mod molding;
+mod pipeline;
 mod pose;
 mod shape;
 mod silhouette_constraints;
@@ -112,6 +98,7 @@ mod visual_hull;
 pub use error::{Context, Error, Result, ResultExt};
 pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
+pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
 pub use pose::{
     fit_frame, fit_pose, track, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams, PoseTerms,
     PoseTrack, Temporal, UserRay, DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_GAMMA_WIDTH_M,

@@ -18,7 +18,7 @@
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::{DMat3, DVec3};
-use skin_core::mesh::{LaplacianParams, SurfacePoint, TriMesh};
+use skin_core::mesh::{LaplacianParams, SurfacePoint};
 
 use crate::error::{Context, Error, Result, ResultExt};
 use crate::molding::{Molding, SoftConstraint};
@@ -201,14 +201,6 @@ impl ShapeEstimator {
         &self.params
     }
 
-    /// The template mesh with other vertex positions.
-    pub fn mesh_with(&self, vertices: Vec<DVec3>) -> TriMesh {
-        TriMesh {
-            vertices,
-            faces: self.template.mesh().faces.clone(),
-        }
-    }
-
     fn vertex_constraint(&self, v: usize, target: DVec3) -> SoftConstraint {
         SoftConstraint {
             point: self.corners[v],
@@ -281,7 +273,7 @@ impl ShapeEstimator {
             });
         }
         let coords = self.rotated_coordinates(theta)?;
-        let mesh = self.mesh_with(current.to_vec());
+        let mesh = self.template.mesh_with(current.to_vec());
         let sil = silhouette_constraints(&mesh, rays, &self.params.silhouette)?;
         let cons: Vec<SoftConstraint> = sil
             .iter()
@@ -455,10 +447,7 @@ mod tests {
                 *posed + wfr[1].matrix3 * (bump * radial)
             })
             .collect();
-        let truth_mesh = TriMesh {
-            vertices: truth,
-            faces: t.mesh().faces.clone(),
-        };
+        let truth_mesh = t.mesh_with(truth);
         let cams = ring(8, 640, 480);
         let mut rays = Vec::new();
         for cam in &cams {

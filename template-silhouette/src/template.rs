@@ -60,6 +60,14 @@ impl Template {
         &self.weights
     }
 
+    /// The template's faces with other vertex positions (a shape estimate, a skinned pose).
+    pub fn mesh_with(&self, vertices: Vec<DVec3>) -> TriMesh {
+        TriMesh {
+            vertices,
+            faces: self.mesh.faces.clone(),
+        }
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.mesh.vertex_count()

@@ -61,8 +61,10 @@ pub struct VisualHullParams {
     /// the default 0.08 m cell's 0.07 m half-diagonal is 39 px. Default:
     /// [`DEFAULT_MARGIN_PX`] = 48.
     pub margin_px: u32,
-    /// The capture volume searched for the hull, world metres. Default: x, z in ±2.5 m and
-    /// y in −0.5…2.5 m (+Y up), larger than the 8-camera studios of §2.5.1.
+    /// The capture volume searched for the hull, world metres; the polygonal hull is clipped
+    /// to it. Default: x, z in ±2.5 m and y in −1.5…2.5 m (+Y up): larger than the 8-camera
+    /// studios of §2.5.1, for a performer standing on y = 0 or centred on its pelvis (the
+    /// MakeHuman template).
     pub volume: BoundingBox,
     /// Node spacing of the coarse occupancy grid over [`Self::volume`], m. A coarse node is
     /// kept when it is within its cell's half-diagonal of every cone, which no cell touching
@@ -81,7 +83,7 @@ impl Default for VisualHullParams {
         VisualHullParams {
             margin_px: DEFAULT_MARGIN_PX,
             volume: BoundingBox {
-                min: DVec3::new(-2.5, -0.5, -2.5),
+                min: DVec3::new(-2.5, -1.5, -2.5),
                 max: DVec3::new(2.5, 2.5, 2.5),
             },
             coarse_spacing_m: DEFAULT_COARSE_SPACING_M,
