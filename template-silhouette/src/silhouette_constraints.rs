@@ -21,6 +21,11 @@
 //! about 1–2 cm, are finer than the contour sampling); the normal test filters candidates
 //! before the closest one is chosen, so the back of a thin limb never wins over its front;
 //! the deepest point is the best of a fixed number of samples of the inside interval.
+//!
+//! The candidate search is exact but indexed: per camera centre, the vertices sit in a 2-D
+//! grid of normalised image coordinates, and a ray reads only the cells within the distance
+//! at which a vertex could still pass the 5 cm test (falling back to all vertices in the one
+//! case the bound does not settle); a test checks it finds what the full search finds.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -205,10 +210,46 @@ pub fn silhouette_constraints(
     let normals = vertex_normals(mesh, NormalWeighting::Angle)?;
     let query = MeshQuery::new(mesh)?;
     let min_cos = params.max_normal_angle_deg.to_radians().cos();
+    // A vertex that can be accepted is within this distance of its ray (scaled by
+    // `normal_scale` along the normal, 1 across): the radius of the candidate search.
+    let reach =
+        params.max_distance_m * (1.0 / (params.normal_scale * params.normal_scale) + 1.0).sqrt();
+    // Rays of one camera share its centre: one index of the vertices per centre.
+    let mut origins: Vec<DVec3> = Vec::new();
+    for r in rays {
+        if !origins.contains(&r.origin) {
+            origins.push(r.origin);
+        }
+    }
+    let views: Vec<Option<ViewIndex>> = origins
+        .iter()
+        .map(|o| {
+            let dirs: Vec<DVec3> = rays
+                .iter()
+                .filter(|r| r.origin == *o)
+                .map(|r| r.direction)
+                .collect();
+            ViewIndex::new(&mesh.vertices, *o, &dirs, reach)
+        })
+        .collect();
+    let search = Search {
+        mesh,
+        normals: &normals,
+        query: &query,
+        params,
+        min_cos,
+        reach,
+    };
     let found = rays
         .par_iter()
         .enumerate()
-        .map(|(r, ray)| constrain(mesh, &normals, &query, r, ray, params, min_cos))
+        .map(|(r, ray)| {
+            let view = origins
+                .iter()
+                .position(|o| *o == ray.origin)
+                .and_then(|v| views[v].as_ref());
+            search.constrain(r, ray, view)
+        })
         .collect::<Result<Vec<_>>>()?;
     Ok(found.into_iter().flatten().collect())
 }
@@ -220,56 +261,195 @@ fn scaled_sq(e: DVec3, normal: DVec3, scale: f64) -> f64 {
     (e - en * normal).length_squared() + (scale * en) * (scale * en)
 }
 
-fn constrain(
-    mesh: &TriMesh,
-    normals: &[DVec3],
-    query: &MeshQuery,
-    r: usize,
-    ray: &ContourRay,
-    params: &SilhouetteParams,
+/// The vertices seen from one camera centre in a 2-D grid of normalised coordinates
+/// `(p·e₁/z, p·e₂/z)`, `z = p·w`, `w` the mean ray direction. For a ray of normalised
+/// direction `m`, a point at depth `z` within distance `R` of the ray has `|n − m| ≤
+/// R |(m, 1)| / z` (the first two components of `(n, 1) × (m, 1)` bound its length), so the
+/// cells around `m` of size `R max|(m, 1)| / z_min` hold every vertex that can be accepted.
+struct ViewIndex {
+    origin: DVec3,
+    basis: [DVec3; 3],
+    cell: f64,
+    lo: DVec2,
+    dims: [usize; 2],
+    cells: Vec<Vec<u32>>,
+    /// Vertices at depth below `NEAR_M` (or behind): always candidates.
+    near: Vec<u32>,
+}
+
+/// Depth below which a vertex is not put in the grid, m.
+const NEAR_M: f64 = 0.05;
+/// Largest grid side, cells (a finer grid is not worth its memory).
+const MAX_GRID_SIDE: usize = 4096;
+/// Rays closer than this cosine to the grid's plane are searched by brute force.
+const MIN_RAY_COS: f64 = 0.1;
+
+impl ViewIndex {
+    fn new(vertices: &[DVec3], origin: DVec3, dirs: &[DVec3], reach: f64) -> Option<Self> {
+        let w = dirs.iter().copied().sum::<DVec3>().try_normalize()?;
+        let e1 = w.any_orthonormal_vector();
+        let basis = [e1, w.cross(e1), w];
+        let mut near = Vec::new();
+        let mut pts = Vec::with_capacity(vertices.len());
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        let mut z_min = f64::INFINITY;
+        for (i, x) in vertices.iter().enumerate() {
+            let p = *x - origin;
+            let z = p.dot(w);
+            if z <= NEAR_M {
+                near.push(i as u32);
+                continue;
+            }
+            let n = DVec2::new(p.dot(basis[0]) / z, p.dot(basis[1]) / z);
+            lo = lo.min(n);
+            hi = hi.max(n);
+            z_min = z_min.min(z);
+            pts.push((i as u32, n));
+        }
+        let mut widest: f64 = 1.0;
+        for d in dirs {
+            let c = d.dot(w);
+            if c < MIN_RAY_COS {
+                return None;
+            }
+            widest = widest
+                .max(DVec2::new(d.dot(basis[0]) / c, d.dot(basis[1]) / c).length_squared() + 1.0);
+        }
+        if pts.is_empty() {
+            return None;
+        }
+        let cell = reach * widest.sqrt() / z_min;
+        let span = (hi - lo) / cell;
+        let dims = [span.x as usize + 1, span.y as usize + 1];
+        if dims[0] > MAX_GRID_SIDE || dims[1] > MAX_GRID_SIDE {
+            return None;
+        }
+        let mut cells = vec![Vec::new(); dims[0] * dims[1]];
+        for (i, n) in pts {
+            let c = ((n - lo) / cell).as_uvec2();
+            cells[c.y as usize * dims[0] + c.x as usize].push(i);
+        }
+        Some(ViewIndex {
+            origin,
+            basis,
+            cell,
+            lo,
+            dims,
+            cells,
+            near,
+        })
+    }
+
+    /// Candidate vertices for a ray from this view's centre (`None`: search all).
+    fn candidates(&self, u: DVec3) -> Option<Vec<u32>> {
+        let c = u.dot(self.basis[2]);
+        if c < MIN_RAY_COS {
+            return None;
+        }
+        let m = DVec2::new(u.dot(self.basis[0]) / c, u.dot(self.basis[1]) / c);
+        let g = ((m - self.lo) / self.cell).floor();
+        let mut out = self.near.clone();
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (x, y) = (g.x as i64 + dx, g.y as i64 + dy);
+                if x >= 0 && y >= 0 && (x as usize) < self.dims[0] && (y as usize) < self.dims[1] {
+                    out.extend_from_slice(&self.cells[y as usize * self.dims[0] + x as usize]);
+                }
+            }
+        }
+        Some(out)
+    }
+}
+
+/// What every ray's search reads.
+struct Search<'a> {
+    mesh: &'a TriMesh,
+    normals: &'a [DVec3],
+    query: &'a MeshQuery,
+    params: &'a SilhouetteParams,
     min_cos: f64,
-) -> Result<Option<SilhouetteConstraint>> {
-    let (o, u, n) = (ray.origin, ray.direction, ray.normal);
-    let perp = |x: DVec3| {
-        let rel = x - o;
-        rel - rel.dot(u) * u
-    };
-    let deepest = deepest_point(query, Ray::new(o, u), params.depth_samples)?;
-    let (case, metric): (RayCase, Box<dyn Fn(DVec3) -> f64>) = match deepest {
-        None => (
-            RayCase::Outside,
-            Box::new(|x| scaled_sq(perp(x), n, params.normal_scale)),
-        ),
-        Some(q) => (
-            RayCase::Inside,
-            Box::new(move |x| scaled_sq(x - q, n, params.normal_scale)),
-        ),
-    };
-    let mut best: Option<(f64, usize)> = None;
-    for (i, (x, nx)) in mesh.vertices.iter().zip(normals).enumerate() {
-        if nx.dot(n) < min_cos || (*x - o).dot(u) <= 0.0 {
-            continue;
+    reach: f64,
+}
+
+impl Search<'_> {
+    /// The best vertex by `metric` among `candidates` (all vertices for `None`), ties to the
+    /// lowest index so the result does not depend on the order of the candidates.
+    fn best(
+        &self,
+        ray: &ContourRay,
+        candidates: Option<&[u32]>,
+        metric: &dyn Fn(DVec3) -> f64,
+    ) -> Option<(f64, usize)> {
+        let (o, u, n) = (ray.origin, ray.direction, ray.normal);
+        let mut best: Option<(f64, usize)> = None;
+        let mut consider = |i: usize| {
+            let (x, nx) = (self.mesh.vertices[i], self.normals[i]);
+            if nx.dot(n) < self.min_cos || (x - o).dot(u) <= 0.0 {
+                return;
+            }
+            let m = metric(x);
+            if best.is_none_or(|b| m < b.0 || (m == b.0 && i < b.1)) {
+                best = Some((m, i));
+            }
+        };
+        match candidates {
+            Some(c) => c.iter().for_each(|&i| consider(i as usize)),
+            None => (0..self.mesh.vertices.len()).for_each(consider),
         }
-        let m = metric(*x);
-        if best.is_none_or(|b| m < b.0) {
-            best = Some((m, i));
+        best
+    }
+
+    fn constrain(
+        &self,
+        r: usize,
+        ray: &ContourRay,
+        view: Option<&ViewIndex>,
+    ) -> Result<Option<SilhouetteConstraint>> {
+        let params = self.params;
+        let (o, u, n) = (ray.origin, ray.direction, ray.normal);
+        let perp = |x: DVec3| {
+            let rel = x - o;
+            rel - rel.dot(u) * u
+        };
+        let candidates = view.filter(|v| v.origin == o).and_then(|v| v.candidates(u));
+        let deepest = deepest_point(self.query, Ray::new(o, u), params.depth_samples)?;
+        let best = match deepest {
+            None => {
+                // Exact: a vertex the 5 cm test accepts lies within `reach` of the ray.
+                let metric = |x: DVec3| scaled_sq(perp(x), n, params.normal_scale);
+                let best = self.best(ray, candidates.as_deref(), &metric);
+                best.map(|b| (RayCase::Outside, b.1))
+            }
+            Some(q) => {
+                // A vertex farther than `reach` from the ray is farther than
+                // `normal_scale · reach` from q in the metric; when the candidates' best is
+                // not nearer than that, search every vertex.
+                let metric = |x: DVec3| scaled_sq(x - q, n, params.normal_scale);
+                let bound = params.normal_scale * self.reach;
+                let best = match self.best(ray, candidates.as_deref(), &metric) {
+                    Some(b) if b.0 < bound * bound => Some(b),
+                    _ if candidates.is_some() => self.best(ray, None, &metric),
+                    b => b,
+                };
+                best.map(|b| (RayCase::Inside, b.1))
+            }
+        };
+        let Some((case, vertex)) = best else {
+            return Ok(None);
+        };
+        let x = self.mesh.vertices[vertex];
+        let scaled = scaled_sq(perp(x), n, params.normal_scale).sqrt();
+        if scaled > params.max_distance_m {
+            return Ok(None);
         }
+        Ok(Some(SilhouetteConstraint {
+            ray: r,
+            vertex,
+            target: o + (x - o).dot(u) * u,
+            scaled_distance_m: scaled,
+            case,
+        }))
     }
-    let Some((_, vertex)) = best else {
-        return Ok(None);
-    };
-    let x = mesh.vertices[vertex];
-    let scaled = scaled_sq(perp(x), n, params.normal_scale).sqrt();
-    if scaled > params.max_distance_m {
-        return Ok(None);
-    }
-    Ok(Some(SilhouetteConstraint {
-        ray: r,
-        vertex,
-        target: o + (x - o).dot(u) * u,
-        scaled_distance_m: scaled,
-        case,
-    }))
 }
 
 /// The point of `ray` deepest inside the mesh on its first inside interval (the sample of
@@ -378,6 +558,41 @@ mod tests {
         assert!(cons.len() > rays.len() / 2);
         let cons = silhouette_constraints(&sphere(c, 0.08), &rays, &Default::default()).unwrap();
         assert!(cons.is_empty(), "{}", cons.len());
+    }
+
+    #[test]
+    fn the_candidate_index_finds_what_the_full_search_finds() {
+        let (c, r) = (DVec3::new(0.0, 1.0, 0.0), 0.3);
+        let cams = ring(4, 320, 240);
+        let rays: Vec<ContourRay> = cams
+            .iter()
+            .flat_map(|cam| {
+                contour_rays(cam, &sphere_mask(cam, c, r), &Default::default()).unwrap()
+            })
+            .collect();
+        let params = SilhouetteParams::default();
+        for radius in [0.2, 0.27, 0.33] {
+            // An off-centre sphere, so rays of every case and distance occur.
+            let mesh = sphere(c + DVec3::new(0.05, -0.03, 0.02), radius);
+            let indexed = silhouette_constraints(&mesh, &rays, &params).unwrap();
+            let normals = vertex_normals(&mesh, NormalWeighting::Angle).unwrap();
+            let query = MeshQuery::new(&mesh).unwrap();
+            let search = Search {
+                mesh: &mesh,
+                normals: &normals,
+                query: &query,
+                params: &params,
+                min_cos: 0.0,
+                reach: 0.05 * (16.0f64 + 1.0).sqrt(),
+            };
+            let full: Vec<SilhouetteConstraint> = rays
+                .iter()
+                .enumerate()
+                .filter_map(|(i, ray)| search.constrain(i, ray, None).unwrap())
+                .collect();
+            assert!(!full.is_empty());
+            assert_eq!(indexed, full, "radius {radius}");
+        }
     }
 
     #[test]
