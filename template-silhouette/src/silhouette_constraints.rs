@@ -494,6 +494,20 @@ mod tests {
         m
     }
 
+    const SPHERE_CENTRE: DVec3 = DVec3::new(0.0, 1.0, 0.0);
+    const SPHERE_RADIUS: f64 = 0.3;
+
+    /// The contour rays of a 0.3 m sphere seen by four cameras at 320 × 240.
+    fn sphere_rays() -> Vec<ContourRay> {
+        ring(4, 320, 240)
+            .iter()
+            .flat_map(|cam| {
+                let mask = sphere_mask(cam, SPHERE_CENTRE, SPHERE_RADIUS);
+                contour_rays(cam, &mask, &Default::default()).unwrap()
+            })
+            .collect()
+    }
+
     #[test]
     fn contour_rays_are_tangent_to_the_sphere_with_outward_normals() {
         let (c, r) = (DVec3::new(0.0, 1.0, 0.0), 0.3);
@@ -515,14 +529,8 @@ mod tests {
 
     #[test]
     fn too_small_and_too_large_shapes_are_pulled_to_the_rays() {
-        let (c, r) = (DVec3::new(0.0, 1.0, 0.0), 0.3);
-        let cams = ring(4, 320, 240);
-        let rays: Vec<ContourRay> = cams
-            .iter()
-            .flat_map(|cam| {
-                contour_rays(cam, &sphere_mask(cam, c, r), &Default::default()).unwrap()
-            })
-            .collect();
+        let (c, r) = (SPHERE_CENTRE, SPHERE_RADIUS);
+        let rays = sphere_rays();
         for (radius, case) in [(0.27, RayCase::Outside), (0.33, RayCase::Inside)] {
             let mesh = sphere(c, radius);
             let cons = silhouette_constraints(&mesh, &rays, &Default::default()).unwrap();
@@ -562,14 +570,8 @@ mod tests {
 
     #[test]
     fn the_candidate_index_finds_what_the_full_search_finds() {
-        let (c, r) = (DVec3::new(0.0, 1.0, 0.0), 0.3);
-        let cams = ring(4, 320, 240);
-        let rays: Vec<ContourRay> = cams
-            .iter()
-            .flat_map(|cam| {
-                contour_rays(cam, &sphere_mask(cam, c, r), &Default::default()).unwrap()
-            })
-            .collect();
+        let c = SPHERE_CENTRE;
+        let rays = sphere_rays();
         let params = SilhouetteParams::default();
         for radius in [0.2, 0.27, 0.33] {
             // An off-centre sphere, so rays of every case and distance occur.
