@@ -24,15 +24,15 @@ use clap::Parser;
 use serde_json::json;
 
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
-use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::math::{DVec3, Ray};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, preview, Capture, CaptureSpec, DeformationParams,
     ExerciseParams, Paint, PreviewPanel,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, fit_pose, silhouette_error_pct, FrameObservation, PoseModel,
-    PoseParams, PoseTerms, ShapeParams, SilhouetteParams, Template, Temporal, VisualHullParams,
+    capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseEditor,
+    PoseModel, PoseParams, ShapeParams, SilhouetteParams, Template, UserRay, VisualHullParams,
 };
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -123,20 +123,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         shape_s / n
     ));
 
-    // A user correction's re-optimisation: one frame's fit (§2.3.3, "several times per second").
-    let t0 = Instant::now();
+    // A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
+    // up in camera 0's view, the frame re-optimised at once; then the ray is removed again.
     let model = PoseModel::new(&template, &params)?;
-    let terms = PoseTerms {
-        hull: &observations[1].hull,
-        temporal: Temporal {
-            previous: Some(&poses.poses[0]),
-            next: None,
-        },
-        refinement: &[],
-        user: &[],
-    };
-    fit_pose(&model, &terms, &poses.poses[1], &params)?;
+    let mut editor = PoseEditor::new(&model, &observations, poses.poses.clone(), params.clone())?;
+    let mid = frames.len() / 2;
+    let wrist = sk.joint_index("l_wrist").ok_or("no l_wrist")?;
+    let q = sk.forward_kinematics(&poses.poses[mid])?.joint_positions()[wrist];
+    let eye = cameras[0].centre();
+    let ray = Ray::new(eye, (q + DVec3::new(0.0, 0.05, 0.0) - eye).normalize());
+    let t0 = Instant::now();
+    editor.add_user_ray(mid, UserRay { joint: wrist, ray })?;
     let reoptimise_ms = 1e3 * t0.elapsed().as_secs_f64();
+    editor.remove_user_ray(mid, 0)?;
 
     // Scores.
     let stage = run.stage("score", Some(frames.len() as u64));

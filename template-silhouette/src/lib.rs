@@ -20,6 +20,7 @@
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
 //! | `pose.rs` | the objective `w_D E_D + w_T E_T + w_R E_R + w_U E_U` as √-residuals with analytic Jacobians, bounded LM with joint limits, forward pass with `2θ_{t−1} − θ_{t−2}`, reverse pass | [`PoseModel`], [`fit_pose`], [`fit_frame`], [`track`], [`PoseParams`], [`UserRay`] | §2.3.1, §2.3.3 |
 //! | `pipeline.rs` | one frame's observations; the whole sequence (pose, then shape) | [`FrameObservation`], [`capture_sequence`], [`SequenceCapture`] | §2.2, Figure 2-3 |
+//! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
@@ -86,6 +87,7 @@
 #![warn(unnameable_types, unreachable_pub)]
 
 mod error;
+mod interactive;
 mod metrics;
 mod molding;
 mod pipeline;
@@ -96,6 +98,7 @@ mod template;
 mod visual_hull;
 
 pub use error::{Context, Error, Result, ResultExt};
+pub use interactive::PoseEditor;
 pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
 pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};

@@ -639,7 +639,7 @@ pub fn track(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::visual_hull::VisualHullParams;
     use skin_core::math::DVec3;
@@ -664,15 +664,17 @@ mod tests {
         assert!(gamma(1e3, s).0.is_finite() && gamma(-1e3, s).0.is_finite());
     }
 
-    struct Studio {
-        template: Template,
-        hull: VisualHull,
-        truth: Vec<f64>,
-        cameras: Vec<skin_core::camera::Camera>,
+    /// One studio frame: template, hull, true pose, cameras and silhouettes.
+    pub(crate) struct Studio {
+        pub(crate) template: Template,
+        pub(crate) hull: VisualHull,
+        pub(crate) truth: Vec<f64>,
+        pub(crate) cameras: Vec<skin_core::camera::Camera>,
+        pub(crate) masks: Vec<skin_core::image::Mask>,
     }
 
     /// The procedural performer at one frame of the fast motion, seen by the 8-camera ring.
-    fn studio(frame: usize) -> Studio {
+    pub(crate) fn studio(frame: usize) -> Studio {
         let performer = procedural_performer(&ProceduralBodyParams::default()).unwrap();
         let motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();
         let truth = motion.frame(frame).to_vec();
@@ -702,6 +704,7 @@ mod tests {
             hull,
             truth,
             cameras,
+            masks,
         }
     }
 
