@@ -28,7 +28,7 @@
 //! caller's guess), then a reverse pass that starts each frame from its forward solution and
 //! penalises deviation from both neighbours. With a [`ShapeEstimator`] the refinement term
 //! is applied: an initial fit with `w_R = 0`, then twice one shape solve and a refit with the
-//! end effectors pulled by `Δm_j`.
+//! end effectors pulled by `Δm_j`; the reverse pass reuses the forward pass's targets.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -528,7 +528,7 @@ pub fn fit_frame(
     theta0: &[f64],
     shape: Option<&mut ShapeEstimator>,
     params: &PoseParams,
-) -> Result<PoseFit> {
+) -> Result<FrameFit> {
     let terms = PoseTerms {
         hull: frame.hull,
         temporal,
@@ -536,11 +536,12 @@ pub fn fit_frame(
         user: frame.user,
     };
     let mut fit = fit_pose(model, &terms, theta0, params)?;
+    let mut refinement = Vec::new();
     let Some(shape) = shape else {
-        return Ok(fit);
+        return Ok(FrameFit { fit, refinement });
     };
     if params.w_r == 0.0 || model.effectors.is_empty() {
-        return Ok(fit);
+        return Ok(FrameFit { fit, refinement });
     }
     for _ in 0..params.refinement_rounds {
         let theta0 = fit.theta.clone();
@@ -564,14 +565,26 @@ pub fn fit_frame(
             ..terms
         };
         fit = fit_pose(model, &refined, &theta0, params)?;
+        refinement = targets;
     }
-    Ok(fit)
+    Ok(FrameFit { fit, refinement })
+}
+
+/// One frame's fit by [`fit_frame`] with the refinement targets of its last round.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameFit {
+    /// The solution.
+    pub fit: PoseFit,
+    /// The `E_R` targets the solution was refitted with (empty without refinement).
+    pub refinement: Vec<JointTarget>,
 }
 
 /// Tracks a sequence (§2.3.3): the forward pass from `first_guess` with the linear
 /// prediction `2θ_{t−1} − θ_{t−2}` (clamped to the joint limits), then the reverse pass from
 /// the forward solutions with both temporal neighbours. `first_guess` stands for the user's
-/// fit of the first frame and is that frame's temporal neighbour in the forward pass.
+/// fit of the first frame and is that frame's temporal neighbour in the forward pass. The
+/// reverse pass reuses each frame's refinement targets from the forward pass instead of new
+/// shape solves (§2.5.2: the backward pass is cheaper, "some computations are reused").
 ///
 /// # Errors
 /// [`Error::Empty`] for no frame; errors of [`fit_frame`] wrapped with the frame.
@@ -587,6 +600,7 @@ pub fn track(
     }
     let sk = &model.skeleton;
     let mut forward: Vec<Vec<f64>> = Vec::with_capacity(frames.len());
+    let mut targets: Vec<Vec<JointTarget>> = Vec::with_capacity(frames.len());
     for (t, frame) in frames.iter().enumerate() {
         let guess = match t {
             0 => first_guess.to_vec(),
@@ -608,9 +622,10 @@ pub fn track(
             previous: Some(forward.last().map_or(first_guess, Vec::as_slice)),
             next: None,
         };
-        let fit = fit_frame(model, frame, temporal, &guess, shape.as_deref_mut(), params)
+        let done = fit_frame(model, frame, temporal, &guess, shape.as_deref_mut(), params)
             .at(Context::Frame(t))?;
-        forward.push(fit.theta);
+        forward.push(done.fit.theta);
+        targets.push(done.refinement);
     }
     let mut poses = forward.clone();
     for t in (0..frames.len()).rev() {
@@ -624,15 +639,13 @@ pub fn track(
             previous: prev.as_deref(),
             next: next.as_deref(),
         };
-        let fit = fit_frame(
-            model,
-            &frame,
+        let terms = PoseTerms {
+            hull: frame.hull,
             temporal,
-            &forward[t],
-            shape.as_deref_mut(),
-            params,
-        )
-        .at(Context::Frame(t))?;
+            refinement: &targets[t],
+            user: frame.user,
+        };
+        let fit = fit_pose(model, &terms, &forward[t], params).at(Context::Frame(t))?;
         poses[t] = fit.theta;
     }
     Ok(PoseTrack { forward, poses })
