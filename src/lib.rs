@@ -9,3 +9,6 @@ pub use skin_core as core;
 
 #[doc(inline)]
 pub use needle_model as needle;
+
+#[doc(inline)]
+pub use template_silhouette as template;

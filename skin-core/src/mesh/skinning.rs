@@ -10,8 +10,70 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::TriMesh;
 use crate::math::{DAffine3, DMat3, DVec3};
+use crate::skeleton::Skeleton;
 use crate::{Error, Result};
+
+/// A mesh bound to a skeleton for linear blend skinning: the checked sizes of a rig and its
+/// bind matrices `joint_from_world_rest` (the inverse joint frames of the rest pose θ = 0),
+/// shared by the studio's performer and the template of Vlasic 2010 §2.2.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkinBinding {
+    joint_from_world_rest: Vec<DAffine3>,
+}
+
+impl SkinBinding {
+    /// Checks that `mesh` is valid and not empty and that `weights` has one row per vertex
+    /// and one bone per joint, then computes the bind matrices at θ = 0.
+    ///
+    /// # Errors
+    /// The mesh's validation errors; [`Error::Empty`] for a mesh without vertices;
+    /// [`Error::SizeMismatch`] for weights of another mesh or skeleton; errors of forward
+    /// kinematics.
+    pub fn new(mesh: &TriMesh, skeleton: &Skeleton, weights: &SkinWeights) -> Result<Self> {
+        mesh.validate()?;
+        if mesh.vertices.is_empty() {
+            return Err(Error::Empty {
+                what: "skinned mesh (no vertices)",
+            });
+        }
+        if weights.vertex_count() != mesh.vertex_count() {
+            return Err(Error::SizeMismatch {
+                what: "skin weight rows vs mesh vertices",
+                expected: mesh.vertex_count(),
+                got: weights.vertex_count(),
+            });
+        }
+        if weights.bone_count() != skeleton.joint_count() {
+            return Err(Error::SizeMismatch {
+                what: "skin weight bones vs skeleton joints",
+                expected: skeleton.joint_count(),
+                got: weights.bone_count(),
+            });
+        }
+        let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
+        Ok(SkinBinding {
+            joint_from_world_rest: rest
+                .world_from_joint()
+                .iter()
+                .map(|t| t.inverse())
+                .collect(),
+        })
+    }
+
+    /// The skinning transforms `world_from_rest[j] = world_from_joint[j] ·
+    /// joint_from_world_rest[j]` that map rest-pose coordinates to the pose whose joint
+    /// frames are `world_from_joint` (what [`skin`] takes). Extra or missing frames are
+    /// ignored (the result has `min(len, joint count)` entries).
+    pub fn world_from_rest(&self, world_from_joint: &[DAffine3]) -> Vec<DAffine3> {
+        world_from_joint
+            .iter()
+            .zip(&self.joint_from_world_rest)
+            .map(|(w, r)| *w * *r)
+            .collect()
+    }
+}
 
 /// Sparse skinning weights: for each vertex a short list of `(bone, weight)` pairs, weights
 /// positive and summing to one (compressed row storage).
@@ -228,6 +290,42 @@ mod tests {
             .map(|i| vec![(0, 10.0 - i as f64), (1, i as f64 + 0.5), (0, 0.5)])
             .collect();
         (rest, SkinWeights::from_lists(&lists, 2).unwrap())
+    }
+
+    #[test]
+    fn binding_checks_sizes_and_maps_rest_to_pose() {
+        use crate::skeleton::{Dof, Joint};
+        let root = Joint::new(
+            "root",
+            None,
+            DVec3::new(0.0, 1.0, 0.0),
+            vec![Dof::rotation("rz", DVec3::Z, None)],
+        );
+        let skeleton = Skeleton::new(vec![root]).unwrap();
+        let mesh = crate::mesh::shapes::icosphere(0).unwrap();
+        let one = |n: usize| SkinWeights::from_lists(&vec![vec![(0, 1.0)]; n], 1).unwrap();
+        let b = SkinBinding::new(&mesh, &skeleton, &one(mesh.vertex_count())).unwrap();
+        // θ = 0: identity; a turn about the joint at (0, 1, 0) keeps that point fixed.
+        let fk = skeleton.forward_kinematics(&[0.0]).unwrap();
+        let t = b.world_from_rest(fk.world_from_joint());
+        assert!(t[0].abs_diff_eq(DAffine3::IDENTITY, 1e-12));
+        let fk = skeleton.forward_kinematics(&[1.0]).unwrap();
+        let t = b.world_from_rest(fk.world_from_joint());
+        assert!((t[0].transform_point3(DVec3::Y) - DVec3::Y).length() < 1e-12);
+        assert!(matches!(
+            SkinBinding::new(&mesh, &skeleton, &one(3)),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let two = SkinWeights::from_lists(&vec![vec![(1, 1.0)]; mesh.vertex_count()], 2).unwrap();
+        assert!(matches!(
+            SkinBinding::new(&mesh, &skeleton, &two),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let empty = TriMesh {
+            vertices: vec![],
+            faces: vec![],
+        };
+        assert!(SkinBinding::new(&empty, &skeleton, &one(0)).is_err());
     }
 
     #[test]

@@ -158,6 +158,80 @@ impl LmReport {
 pub fn levenberg_marquardt<R, J>(
     x0: &DVector<f64>,
     params: &LmParams,
+    residual: R,
+    jacobian: J,
+) -> Result<LmReport>
+where
+    R: FnMut(&DVector<f64>) -> Result<DVector<f64>>,
+    J: FnMut(&DVector<f64>) -> Result<DMatrix<f64>>,
+{
+    lm_core(x0, None, params, residual, jacobian)
+}
+
+/// [`levenberg_marquardt`] with box constraints `lower ≤ x ≤ upper` (infinite bounds
+/// allowed), by projection with an active set (the projected Levenberg–Marquardt of Kanzow,
+/// Yamashita & Fukushima 2004, with the active set of Bertsekas 1982): `x0` is first clamped
+/// into the box; at each iteration the parameters at a bound whose gradient points out of the
+/// box are held fixed, the damped step of the others is solved, and the trial point is
+/// clamped into the box. The gain ratio compares the actual decrease with the quadratic
+/// model's prediction for the *projected* step, and the gradient test uses the free
+/// parameters only, so a minimum on a bound is recognised. For joint limits (Vlasic 2010
+/// §2.3.1: "Joint limits constrain it to lie in a range") and any other box.
+///
+/// # Errors
+/// As [`levenberg_marquardt`]; [`Error::SizeMismatch`] for bounds of another length;
+/// [`Error::InvalidParam`] for a NaN bound or a lower bound above its upper bound.
+///
+/// # Example
+/// ```
+/// use nalgebra::{dvector, DMatrix, DVector};
+/// use skin_core::optim::{levenberg_marquardt_bounded, LmParams};
+/// // Minimum of (x − 2)² + (y + 1)² in the box [0, 1] × [−5, 5]: (1, −1).
+/// let r = |x: &DVector<f64>| Ok(dvector![x[0] - 2.0, x[1] + 1.0]);
+/// let j = |_: &DVector<f64>| Ok(DMatrix::identity(2, 2));
+/// let (lo, hi) = (dvector![0.0, -5.0], dvector![1.0, 5.0]);
+/// let report = levenberg_marquardt_bounded(&dvector![0.5, 3.0], &lo, &hi, &LmParams::default(), r, j)?;
+/// assert!((report.x[0] - 1.0).abs() < 1e-12 && (report.x[1] + 1.0).abs() < 1e-9);
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+pub fn levenberg_marquardt_bounded<R, J>(
+    x0: &DVector<f64>,
+    lower: &DVector<f64>,
+    upper: &DVector<f64>,
+    params: &LmParams,
+    residual: R,
+    jacobian: J,
+) -> Result<LmReport>
+where
+    R: FnMut(&DVector<f64>) -> Result<DVector<f64>>,
+    J: FnMut(&DVector<f64>) -> Result<DMatrix<f64>>,
+{
+    for (what, b) in [("lower bounds", lower), ("upper bounds", upper)] {
+        if b.len() != x0.len() {
+            return Err(Error::SizeMismatch {
+                what,
+                expected: x0.len(),
+                got: b.len(),
+            });
+        }
+    }
+    for (j, (l, u)) in lower.iter().zip(upper.iter()).enumerate() {
+        if l.is_nan() || u.is_nan() || l > u {
+            return Err(Error::InvalidParam {
+                name: "bounds",
+                reason: format!("parameter {j}: lower bound {l} must be <= upper bound {u}"),
+            });
+        }
+    }
+    lm_core(x0, Some((lower, upper)), params, residual, jacobian)
+}
+
+/// The iteration of [`levenberg_marquardt`] and [`levenberg_marquardt_bounded`]; without
+/// bounds it is the plain method, operation for operation.
+fn lm_core<R, J>(
+    x0: &DVector<f64>,
+    bounds: Option<(&DVector<f64>, &DVector<f64>)>,
+    params: &LmParams,
     mut residual: R,
     mut jacobian: J,
 ) -> Result<LmReport>
@@ -173,7 +247,15 @@ where
     }
     all_finite("initial parameters", x0.iter())?;
     let n = x0.len();
+    let project = |x: &mut DVector<f64>| {
+        if let Some((lo, hi)) = bounds {
+            for j in 0..x.len() {
+                x[j] = x[j].clamp(lo[j], hi[j]);
+            }
+        }
+    };
     let mut x = x0.clone();
+    project(&mut x);
     let mut r = residual(&x)?;
     all_finite("residuals at the initial parameters", r.iter())?;
     let m = r.len();
@@ -197,8 +279,22 @@ where
             });
         }
         all_finite("Jacobian", jac.iter())?;
-        let jtj = jac.tr_mul(&jac);
-        let g = jac.tr_mul(&r);
+        let mut jtj = jac.tr_mul(&jac);
+        let mut g = jac.tr_mul(&r);
+        // Active set: parameters on a bound whose descent direction −g leaves the box stay.
+        let mut fixed = vec![false; n];
+        if let Some((lo, hi)) = bounds {
+            for j in 0..n {
+                fixed[j] = (x[j] <= lo[j] && g[j] > 0.0) || (x[j] >= hi[j] && g[j] < 0.0);
+            }
+        }
+        let full_jtj = jtj.clone();
+        let full_g = g.clone();
+        for j in (0..n).filter(|&j| fixed[j]) {
+            jtj.row_mut(j).fill(0.0);
+            jtj.column_mut(j).fill(0.0);
+            g[j] = 0.0;
+        }
         for j in 0..n {
             scale[j] = scale[j].max(jtj[(j, j)].sqrt());
         }
@@ -216,8 +312,13 @@ where
                 a[(j, j)] += lambda * d[j] * d[j];
             }
             let step = a.cholesky().map(|c| c.solve(&(-&g)));
-            if let Some(h) = step.filter(|h| h.iter().all(|v| v.is_finite())) {
-                let x_new = &x + &h;
+            if let Some(mut h) = step.filter(|h| h.iter().all(|v| v.is_finite())) {
+                let mut x_new = &x + &h;
+                project(&mut x_new);
+                let projected = x_new != &x + &h;
+                if projected {
+                    h = &x_new - &x;
+                }
                 let trial = residual(&x_new);
                 residual_evaluations += 1;
                 let r_new = trial
@@ -225,9 +326,14 @@ where
                     .filter(|r_new| r_new.len() == m && r_new.iter().all(|v| v.is_finite()));
                 if let Some(r_new) = r_new {
                     let cost_new = 0.5 * r_new.norm_squared();
-                    // Predicted decrease of the quadratic model: ½hᵀ(λDh − g).
-                    let dh = h.component_mul(&d).component_mul(&d) * lambda;
-                    let predicted = 0.5 * h.dot(&(dh - &g));
+                    // Predicted decrease of the quadratic model: ½hᵀ(λDh − g) for the
+                    // solved step; −gᵀh − ½hᵀJᵀJh for a step the bounds cut.
+                    let predicted = if projected {
+                        -full_g.dot(&h) - 0.5 * h.dot(&(&full_jtj * &h))
+                    } else {
+                        let dh = h.component_mul(&d).component_mul(&d) * lambda;
+                        0.5 * h.dot(&(dh - &g))
+                    };
                     let actual = cost - cost_new;
                     if actual > 0.0 && predicted > 0.0 {
                         let rho = actual / predicted;
@@ -319,6 +425,75 @@ mod tests {
         assert!(a.termination.converged());
         let b = levenberg_marquardt_numeric(&dvector![-1.2, 1.0], &p, rosenbrock_residual).unwrap();
         assert!((b.x - dvector![1.0, 1.0]).amax() < 1e-8);
+    }
+
+    #[test]
+    fn bounded_rosenbrock_stops_on_the_bound_and_free_minimum_is_unchanged() {
+        // Rosenbrock's minimum (1, 1) is outside x₀ ≤ 0.5: the constrained minimum lies on
+        // x₀ = 0.5 with x₁ = x₀² = 0.25 (the second residual then cannot vanish).
+        let p = LmParams::default();
+        let (lo, hi) = (dvector![-2.0, -2.0], dvector![0.5, 2.0]);
+        let a = levenberg_marquardt_bounded(
+            &dvector![-1.2, 1.0],
+            &lo,
+            &hi,
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        )
+        .unwrap();
+        assert!((a.x[0] - 0.5).abs() < 1e-12, "{:?}", a.x);
+        assert!((a.x[1] - 0.25).abs() < 1e-8, "{:?}", a.x);
+        assert!(a.termination.converged(), "{:?}", a.termination);
+        // Wide bounds: the same path as the unbounded method.
+        let inf = f64::INFINITY;
+        let b = levenberg_marquardt_bounded(
+            &dvector![-1.2, 1.0],
+            &dvector![-inf, -inf],
+            &dvector![inf, inf],
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        )
+        .unwrap();
+        let c = levenberg_marquardt(
+            &dvector![-1.2, 1.0],
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        )
+        .unwrap();
+        assert_eq!(b.x, c.x);
+        assert_eq!(b.iterations, c.iterations);
+        // x0 outside the box is clamped; bad bounds are errors.
+        let d = levenberg_marquardt_bounded(
+            &dvector![3.0, 1.0],
+            &lo,
+            &hi,
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        )
+        .unwrap();
+        assert!(d.x[0] <= 0.5);
+        let bad = levenberg_marquardt_bounded(
+            &dvector![0.0, 0.0],
+            &dvector![1.0, 0.0],
+            &dvector![0.0, 1.0],
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        );
+        assert!(matches!(bad, Err(Error::InvalidParam { .. })));
+        let bad = levenberg_marquardt_bounded(
+            &dvector![0.0, 0.0],
+            &dvector![0.0],
+            &hi,
+            &p,
+            rosenbrock_residual,
+            rosenbrock_jacobian,
+        );
+        assert!(matches!(bad, Err(Error::SizeMismatch { .. })));
     }
 
     #[test]

@@ -17,7 +17,10 @@ mod lm;
 mod nelder_mead;
 mod numeric;
 
-pub use lm::{levenberg_marquardt, levenberg_marquardt_numeric, LmParams, LmReport, LmTermination};
+pub use lm::{
+    levenberg_marquardt, levenberg_marquardt_bounded, levenberg_marquardt_numeric, LmParams,
+    LmReport, LmTermination,
+};
 pub use nelder_mead::{nelder_mead, nelder_mead_with_steps, NelderMeadParams, NelderMeadReport};
 pub use numeric::numeric_jacobian;
 

@@ -10,9 +10,9 @@ use super::garment::Garment;
 use super::texture::Material;
 use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
-use crate::mesh::{skin, SkinWeights, TriMesh};
+use crate::mesh::{skin, SkinBinding, SkinWeights, TriMesh};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
-use crate::{Error, Result};
+use crate::Result;
 use serde::{Deserialize, Serialize};
 
 /// A rigged performer with known non-skinning deformation.
@@ -41,8 +41,8 @@ pub struct Performer {
     /// Number of body vertices and faces (the template's first; a garment's follow).
     body_vertex_count: usize,
     body_face_count: usize,
-    /// Inverse rest frames `joint_from_world` at θ = 0 (the LBS bind matrices).
-    joint_from_world_rest: Vec<DAffine3>,
+    /// The LBS bind matrices (inverse rest frames at θ = 0).
+    binding: SkinBinding,
 }
 
 /// One posed frame: skinned and true surfaces and the skeleton's state.
@@ -84,9 +84,8 @@ impl Performer {
     /// Builds a performer and precomputes its deformation.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] unless `weights` has one row per vertex and one bone per joint;
-    /// [`Error::Empty`] for a template without vertices; the template's own validation errors;
-    /// as [`DeformationModel::new`].
+    /// As [`SkinBinding::new`] (an invalid or empty template, weights without one row per
+    /// vertex and one bone per joint); as [`DeformationModel::new`].
     pub fn new(
         name: impl Into<String>,
         template: TriMesh,
@@ -94,26 +93,7 @@ impl Performer {
         weights: SkinWeights,
         params: &DeformationParams,
     ) -> Result<Self> {
-        template.validate()?;
-        if template.vertices.is_empty() {
-            return Err(Error::Empty {
-                what: "performer template",
-            });
-        }
-        if weights.vertex_count() != template.vertex_count() {
-            return Err(Error::SizeMismatch {
-                what: "skin weight rows vs template vertices",
-                expected: template.vertex_count(),
-                got: weights.vertex_count(),
-            });
-        }
-        if weights.bone_count() != skeleton.joint_count() {
-            return Err(Error::SizeMismatch {
-                what: "skin weight bones vs skeleton joints",
-                expected: skeleton.joint_count(),
-                got: weights.bone_count(),
-            });
-        }
+        let binding = SkinBinding::new(&template, &skeleton, &weights)?;
         let (body_vertex_count, body_face_count) = (template.vertex_count(), template.face_count());
         let deformation = DeformationModel::new(params, &skeleton, &template.vertices, &weights)?;
         let garment = params
@@ -138,12 +118,6 @@ impl Performer {
                 )
             })
             .transpose()?;
-        let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
-        let joint_from_world_rest = rest
-            .world_from_joint()
-            .iter()
-            .map(|t| t.inverse())
-            .collect();
         Ok(Performer {
             name: name.into(),
             template,
@@ -154,7 +128,7 @@ impl Performer {
             wrinkles,
             body_vertex_count,
             body_face_count,
-            joint_from_world_rest,
+            binding,
         })
     }
 
@@ -223,11 +197,7 @@ impl Performer {
     /// surface attached to this performer's rest pose. Extra or missing frames are ignored
     /// (the result has `min(len, joint count)` entries).
     pub fn world_from_rest(&self, world_from_joint: &[DAffine3]) -> Vec<DAffine3> {
-        world_from_joint
-            .iter()
-            .zip(&self.joint_from_world_rest)
-            .map(|(w, r)| *w * *r)
-            .collect()
+        self.binding.world_from_rest(world_from_joint)
     }
 
     /// Poses the performer at θ: forward kinematics, LBS, then the non-skinning deformation
@@ -238,8 +208,9 @@ impl Performer {
     /// the first).
     ///
     /// # Errors
-    /// As [`Skeleton::check_pose`]; [`Error::InvalidParam`] for a bad `dt_s` after the first
-    /// frame; [`Error::SizeMismatch`] for a state of another performer; as [`Garment::step`].
+    /// As [`Skeleton::check_pose`]; [`crate::Error::InvalidParam`] for a bad `dt_s` after the
+    /// first frame; [`crate::Error::SizeMismatch`] for a state of another performer; as
+    /// [`Garment::step`].
     pub fn pose(
         &self,
         theta: &[f64],

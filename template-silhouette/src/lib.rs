@@ -1,0 +1,125 @@
+//! # template-silhouette
+//!
+//! Mesh animation from multi-view silhouettes by tracking a skeleton in the visual hull and
+//! molding a rigged template to the silhouettes, after D. Vlasic, *Markerless Performance
+//! Capture* (MIT PhD thesis, 2010), Chapter 2 (and Vlasic, Baran, Matusik, Popović,
+//! *Articulated Mesh Animation from Multi-view Silhouettes*, SIGGRAPH 2008).
+//!
+//! The pipeline (§2.2): per frame, fit the skeleton to the visual hull (§2.3), deform the
+//! template with linear blend skinning, then adjust its surface to the silhouettes with
+//! Laplacian coordinates (§2.4, Algorithm 1).
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | file | stage | main items | paper |
+//! | --- | --- | --- | --- |
+//! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
+//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`VisualHull`], [`ConeDistance`], [`VisualHullParams`] | §2.3.2 |
+//! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
+//! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
+//! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
+//! | `pose.rs` | the objective `w_D E_D + w_T E_T + w_R E_R + w_U E_U` as √-residuals with analytic Jacobians, bounded LM with joint limits, forward pass with `2θ_{t−1} − θ_{t−2}`, reverse pass | [`PoseModel`], [`fit_pose`], [`fit_frame`], [`track`], [`PoseParams`], [`UserRay`] | §2.3.1, §2.3.3 |
+//! | `pipeline.rs` | one frame's observations; the whole sequence (pose, then shape) | [`FrameObservation`], [`capture_sequence`], [`SequenceCapture`] | §2.2, Figure 2-3 |
+//! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
+//! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
+//! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
+//!
+//! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
+//! says where ([`Error::At`] with a [`Context`]).
+//!
+//! ## Quick start
+//!
+//! A procedural performer in fast motion, seen by the 8-camera ring at 200 × 150 px for
+//! three frames: visual hulls and contour rays per frame, the pose tracked through the hulls
+//! (the first frame's true pose stands in for the user's manual fit of the first frame,
+//! §2.3.3), then Algorithm 1 molds the template to the silhouettes.
+//!
+//! ```
+//! use skin_core::studio::{
+//!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
+//!     ProceduralBodyParams,
+//! };
+//! use template_silhouette::{
+//!     capture_sequence, FrameObservation, PoseParams, ShapeParams, SilhouetteParams, Template,
+//!     VisualHullParams,
+//! };
+//!
+//! let performer = procedural_performer(&ProceduralBodyParams::default())?;
+//! let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
+//! let rig = studio_ring(8, 200, 150)?;
+//! let cameras = rig.cameras.clone();
+//! let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+//! let capture = Capture::new(&performer, &motion, spec)?;
+//! let (mut observations, mut first_pose) = (Vec::new(), None);
+//! for frame in capture.frames_stepped(0..3, 1) {
+//!     let frame = frame?;
+//!     // §2.3.2 and §2.4.2: the visual hull and the contour rays of the frame.
+//!     observations.push(FrameObservation::new(
+//!         &cameras,
+//!         &frame.masks(),
+//!         &VisualHullParams::default(),
+//!         &SilhouetteParams::default(),
+//!     )?);
+//!     first_pose.get_or_insert(frame.truth.theta);
+//! }
+//! let template = Template::new(
+//!     performer.template.clone(),
+//!     performer.skeleton.clone(),
+//!     performer.weights.clone(),
+//! )?;
+//! let first_guess = first_pose.unwrap_or_default();
+//!
+//! // §2.3 then §2.4: forward and reverse passes with the refinement term, then Algorithm 1.
+//! let result = capture_sequence(
+//!     &template,
+//!     &observations,
+//!     &first_guess,
+//!     &[], // no user rays
+//!     &PoseParams::default(),
+//!     &ShapeParams::default(),
+//! )?;
+//! assert_eq!(result.poses.poses.len(), 3);
+//! assert_eq!(result.shapes.frames.len(), 3);
+//! assert_eq!(result.shapes.iterations.len(), 6); // w_L = 0, 0.2, ..., 1
+//! # Ok::<(), template_silhouette::Error>(())
+//! ```
+#![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
+
+mod error;
+mod interactive;
+mod metrics;
+mod molding;
+mod pipeline;
+mod pose;
+mod shape;
+mod silhouette_constraints;
+mod template;
+mod visual_hull;
+
+pub use error::{Context, Error, Result, ResultExt};
+pub use interactive::PoseEditor;
+pub use metrics::{edge_error_pct, silhouette_error_pct};
+pub use molding::{Molding, SoftConstraint};
+pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
+pub use pose::{
+    fit_frame, fit_pose, track, FrameFit, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams,
+    PoseTerms, PoseTrack, Temporal, UserRay, DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_GAMMA_WIDTH_M,
+    DEFAULT_REFINEMENT_ROUNDS, DEFAULT_SAMPLES_PER_BONE, DEFAULT_W_D, DEFAULT_W_R, DEFAULT_W_T,
+    DEFAULT_W_U,
+};
+pub use shape::{
+    temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
+    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_C,
+    DEFAULT_W_L_STEP,
+};
+pub use silhouette_constraints::{
+    contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,
+    SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
+    DEFAULT_NORMAL_SCALE,
+};
+pub use template::Template;
+pub use visual_hull::{
+    ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,
+    DEFAULT_COARSE_SPACING_M, DEFAULT_MARGIN_PX, DEFAULT_POLYGON_SPACING_M,
+};

@@ -1,0 +1,180 @@
+//! The rigged template (Vlasic 2010 §2.2, §2.5.1): a mesh, the skeleton embedded in it and
+//! linear-blend-skinning weights, valid by construction.
+
+use serde::{Deserialize, Serialize};
+use skin_core::math::{DAffine3, DVec3};
+use skin_core::mesh::{skin, SkinBinding, SkinWeights, TriMesh};
+use skin_core::skeleton::{ForwardKinematics, Skeleton};
+
+use crate::error::{Error, Result};
+
+/// A template mesh rigged with a skeleton (§2.2): "the skeleton is positioned within the
+/// template mesh and each vertex is assigned a weight that is used to deform the template
+/// with linear blend skinning". The mesh is in the skeleton's rest pose θ = 0.
+///
+/// Invariants (checked by [`Template::new`]): a valid mesh with faces, one weight row per
+/// vertex, one weight column per joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Template {
+    mesh: TriMesh,
+    skeleton: Skeleton,
+    weights: SkinWeights,
+    /// The LBS bind matrices.
+    binding: SkinBinding,
+}
+
+impl Template {
+    /// Checks and binds a template: the bind matrices are the inverse joint frames of the
+    /// rest pose θ = 0.
+    ///
+    /// # Errors
+    /// As [`SkinBinding::new`] (invalid mesh, weights of another mesh or skeleton);
+    /// [`Error::Empty`] for a mesh without faces.
+    pub fn new(mesh: TriMesh, skeleton: Skeleton, weights: SkinWeights) -> Result<Self> {
+        let binding = SkinBinding::new(&mesh, &skeleton, &weights)?;
+        if mesh.faces.is_empty() {
+            return Err(Error::Empty {
+                what: "template mesh faces",
+            });
+        }
+        Ok(Template {
+            mesh,
+            skeleton,
+            weights,
+            binding,
+        })
+    }
+
+    /// The template mesh in the rest pose, metres.
+    pub fn mesh(&self) -> &TriMesh {
+        &self.mesh
+    }
+
+    /// The embedded skeleton.
+    pub fn skeleton(&self) -> &Skeleton {
+        &self.skeleton
+    }
+
+    /// The skinning weights (bones = joints).
+    pub fn weights(&self) -> &SkinWeights {
+        &self.weights
+    }
+
+    /// The template's faces with other vertex positions (a shape estimate, a skinned pose).
+    pub fn mesh_with(&self, vertices: Vec<DVec3>) -> TriMesh {
+        TriMesh {
+            vertices,
+            faces: self.mesh.faces.clone(),
+        }
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+
+    /// The skinning transforms `world_from_rest[j] = world_from_joint[j] ·
+    /// joint_from_world_rest[j]` of a posed skeleton.
+    pub fn world_from_rest(&self, fk: &ForwardKinematics) -> Vec<DAffine3> {
+        self.binding.world_from_rest(fk.world_from_joint())
+    }
+
+    /// The template posed at θ by linear blend skinning ("LBS" of Figure 2-3).
+    ///
+    /// # Errors
+    /// As [`Skeleton::check_pose`].
+    pub fn skin(&self, theta: &[f64]) -> Result<Vec<DVec3>> {
+        let fk = self.skeleton.forward_kinematics(theta)?;
+        Ok(skin(
+            &self.mesh.vertices,
+            &self.weights,
+            &self.world_from_rest(&fk),
+        )?)
+    }
+
+    /// The vertices whose largest weight is at least `min_weight` (the *nearly-rigid*
+    /// vertices of §2.4.2 for `min_weight` = 0.95), with that bone.
+    pub fn nearly_rigid(&self, min_weight: f64) -> Vec<(usize, usize)> {
+        (0..self.vertex_count())
+            .filter_map(|i| {
+                self.weights
+                    .influences(i)
+                    .find(|&(_, w)| w >= min_weight)
+                    .map(|(b, _)| (i, b as usize))
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use skin_core::mesh::shapes;
+    use skin_core::skeleton::{Dof, Joint};
+
+    /// A two-joint skeleton (root with a translation and a bend about z; a child 0.5 m up)
+    /// in a capsule-like subdivided box, weights by height.
+    pub(crate) fn bendy() -> Template {
+        let mut mesh = shapes::icosphere(3).unwrap();
+        for v in &mut mesh.vertices {
+            *v = DVec3::new(0.15 * v.x, 0.5 + 0.5 * v.y, 0.15 * v.z);
+        }
+        let root = Joint::new(
+            "root",
+            None,
+            DVec3::ZERO,
+            vec![
+                Dof::translation("tx", DVec3::X, None),
+                Dof::rotation("rz", DVec3::Z, None),
+            ],
+        );
+        let child = Joint::new(
+            "child",
+            Some(0),
+            DVec3::new(0.0, 0.5, 0.0),
+            vec![Dof::rotation("bend", DVec3::Z, None)],
+        );
+        let skeleton = Skeleton::new(vec![root, child]).unwrap();
+        let lists: Vec<Vec<(u32, f64)>> = mesh
+            .vertices
+            .iter()
+            .map(|v| {
+                let t = ((v.y - 0.4) / 0.2).clamp(0.0, 1.0);
+                vec![(0, 1.0 - t), (1, t)]
+            })
+            .collect();
+        let weights = SkinWeights::from_lists(&lists, 2).unwrap();
+        Template::new(mesh, skeleton, weights).unwrap()
+    }
+
+    #[test]
+    fn rest_pose_skins_to_the_template_and_rigid_vertices_follow_their_bone() {
+        let t = bendy();
+        let rest = t.skin(&t.skeleton().rest_pose()).unwrap();
+        for (a, b) in rest.iter().zip(&t.mesh().vertices) {
+            assert!((*a - *b).length() < 1e-12);
+        }
+        let rigid = t.nearly_rigid(0.95);
+        assert!(!rigid.is_empty() && rigid.len() < t.vertex_count());
+        assert!(rigid
+            .iter()
+            .all(|&(i, b)| (b == 0) == (t.mesh().vertices[i].y < 0.5)));
+    }
+
+    #[test]
+    fn mismatched_weights_are_rejected() {
+        let t = bendy();
+        let short = SkinWeights::from_lists(&[vec![(0, 1.0)]], 2).unwrap();
+        let e = Template::new(t.mesh().clone(), t.skeleton().clone(), short).unwrap_err();
+        assert!(
+            matches!(e, Error::Core(skin_core::Error::SizeMismatch { .. })),
+            "{e}"
+        );
+        let no_faces = TriMesh {
+            vertices: t.mesh().vertices.clone(),
+            faces: vec![],
+        };
+        let e = Template::new(no_faces, t.skeleton().clone(), t.weights().clone()).unwrap_err();
+        assert!(matches!(e, Error::Empty { .. }), "{e}");
+    }
+}

@@ -1,0 +1,145 @@
+//! Small end-to-end validation of template-silhouette on the studio (the CI-sized version of
+//! the coming `examples/template_capture`): the MakeHuman performer (body only, no skirt) in
+//! the exercise motion, seen by an 8-camera ring; pose tracking in the visual hulls (§2.3)
+//! then Algorithm 1 (§2.4),
+//! scored against the performer's true posed mesh and against linear blend skinning driven by
+//! the same estimated poses and by the true poses.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+use std::time::Instant;
+
+use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::stats::{mean, rms};
+use dynamic_shapes::core::studio::{
+    exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
+};
+use dynamic_shapes::template::{
+    capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
+    ShapeParams, SilhouetteParams, Template, VisualHullParams,
+};
+
+/// RMS distance between corresponding vertices, mm.
+fn rms_mm(a: &[DVec3], b: &[DVec3]) -> f64 {
+    let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| x.distance(*y)).collect();
+    1e3 * rms(&d)
+}
+
+#[test]
+fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman").unwrap(),
+        &DeformationParams::default(),
+    )
+    .unwrap();
+    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
+    // The ring of §2.5.1 around the performer (the MakeHuman template is centred on its
+    // pelvis, not standing on y = 0): 8 cameras 3.5 m away, slightly above the pelvis.
+    let root = performer
+        .skeleton
+        .forward_kinematics(motion.frame(0))
+        .unwrap()
+        .joint_positions()[0];
+    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 480, 360).unwrap();
+    let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
+    let cameras = rig.cameras.clone();
+    let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let frames: Vec<_> = capture
+        .frames_stepped(40..56, 2)
+        .map(|f| f.unwrap())
+        .collect();
+    let template = Template::new(
+        performer.template.clone(),
+        performer.skeleton.clone(),
+        performer.weights.clone(),
+    )
+    .unwrap();
+    let sk = template.skeleton();
+
+    let start = Instant::now();
+    let masks: Vec<_> = frames.iter().map(|f| f.masks()).collect();
+    let observations: Vec<FrameObservation> = masks
+        .iter()
+        .map(|m| {
+            FrameObservation::new(
+                &cameras,
+                m,
+                &VisualHullParams::default(),
+                &SilhouetteParams::default(),
+            )
+            .unwrap()
+        })
+        .collect();
+    let observe_s = start.elapsed().as_secs_f64();
+
+    // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0.
+    let result = capture_sequence(
+        &template,
+        &observations,
+        &frames[0].truth.theta,
+        &[],
+        &PoseParams::default(),
+        &ShapeParams::default(),
+    )
+    .unwrap();
+    let (poses, seq) = (&result.poses, &result.shapes);
+    let (pose_s, shape_s) = (result.pose_seconds, result.shape_seconds);
+
+    let n = frames.len() as f64;
+    let (mut joint_mm, mut method_mm, mut lbs_mm, mut lbs_true_mm) = (0.0, 0.0, 0.0, 0.0);
+    let (mut sil_method, mut sil_lbs, mut edge, mut lbs_edge, mut true_edge) =
+        (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (t, f) in frames.iter().enumerate() {
+        let truth = &f.truth.posed.true_vertices;
+        let est = sk.forward_kinematics(&poses.poses[t]).unwrap();
+        let tru = sk.forward_kinematics(&f.truth.theta).unwrap();
+        joint_mm += 1e3
+            * est
+                .joint_positions()
+                .iter()
+                .zip(tru.joint_positions())
+                .map(|(a, b)| (*a - b).length())
+                .sum::<f64>()
+            / sk.joint_count() as f64;
+        let lbs = template.skin(&poses.poses[t]).unwrap();
+        method_mm += rms_mm(&seq.frames[t], truth);
+        lbs_mm += rms_mm(&lbs, truth);
+        lbs_true_mm += rms_mm(&template.skin(&f.truth.theta).unwrap(), truth);
+        let mesh = template.mesh_with(seq.frames[t].clone());
+        sil_method += mean(&silhouette_error_pct(&mesh, &cameras, &masks[t]).unwrap());
+        sil_lbs +=
+            mean(&silhouette_error_pct(&template.mesh_with(lbs), &cameras, &masks[t]).unwrap());
+        edge += edge_error_pct(template.mesh(), &seq.frames[t]).unwrap();
+        lbs_edge +=
+            edge_error_pct(template.mesh(), &template.skin(&poses.poses[t]).unwrap()).unwrap();
+        true_edge += edge_error_pct(template.mesh(), truth).unwrap();
+    }
+    let figures = [
+        ("joint_error_mm", joint_mm / n),
+        ("vertex_rms_mm", method_mm / n),
+        ("lbs_vertex_rms_mm", lbs_mm / n),
+        ("lbs_true_pose_vertex_rms_mm", lbs_true_mm / n),
+        ("silhouette_error_pct", sil_method / n),
+        ("lbs_silhouette_error_pct", sil_lbs / n),
+        ("edge_error_pct", edge / n),
+        ("lbs_edge_error_pct", lbs_edge / n),
+        ("true_edge_error_pct", true_edge / n),
+        ("observe_s_per_frame", observe_s / n),
+        ("pose_s_per_frame", pose_s / n),
+        ("shape_s_per_frame", shape_s / n),
+    ];
+    for (k, v) in figures {
+        println!("{k}: {v:.3}");
+    }
+    let get = |k: &str| figures.iter().find(|f| f.0 == k).unwrap().1;
+    // Measured (8 frames, 480 × 360): joints 11.9 mm; silhouettes 3.8 % against 10.4 % for
+    // skinning with the same poses; vertices 22.9 mm against 20.6 mm for that skinning (the
+    // pose dominates: skinning with the true poses is 1.1 mm from this body-only truth); edges
+    // 15.8 % against 3 % for skinning (the thesis: 8.7–13.3 %).
+    assert!(get("joint_error_mm") < 20.0);
+    assert!(get("silhouette_error_pct") < 0.5 * get("lbs_silhouette_error_pct"));
+    assert!(get("vertex_rms_mm") < 35.0);
+    assert!(get("vertex_rms_mm") < 1.25 * get("lbs_vertex_rms_mm"));
+    assert!(get("edge_error_pct") < 20.0);
+}
