@@ -6,9 +6,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use skin_core::math::DAffine3;
 use skin_core::mesh::{bone_heat_weights, skin, BoneSegment, HeatWeightsParams, MeshQuery};
-use skin_core::mesh::{SkinWeights, TriMesh};
+use skin_core::mesh::{SkinBinding, SkinWeights, TriMesh};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 use crate::animate::animate;
@@ -36,8 +35,8 @@ pub struct SkinnedNeedles {
     weights: SkinWeights,
     /// First endpoint of each primitive, plus the total.
     offsets: Vec<usize>,
-    /// Inverse rest joint frames (`joint_from_world` at θ = 0), the LBS bind matrices.
-    joint_from_world_rest: Vec<DAffine3>,
+    /// The captured surface's binding to the skeleton (its LBS bind matrices).
+    binding: SkinBinding,
 }
 
 /// Bone segments of `skeleton` at rest for bone-heat weights: joint `j`'s bone runs from its
@@ -98,12 +97,11 @@ impl SkinnedNeedles {
             offsets.push(offsets[offsets.len() - 1] + p.endpoints.len());
         }
         let weights = blend_weights(&mesh, &vertex_weights, &endpoints, bones.len())?;
-        let fk = skeleton.forward_kinematics(&skeleton.rest_pose())?;
         Ok(Self {
             endpoints,
             weights,
             offsets,
-            joint_from_world_rest: fk.world_from_joint().iter().map(|t| t.inverse()).collect(),
+            binding: SkinBinding::new(&mesh, skeleton, &vertex_weights)?,
         })
     }
 
@@ -111,24 +109,23 @@ impl SkinnedNeedles {
     /// behind the bone axis) of every primitive at the pose of `fk`.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for a body or skeleton other than the one it was built for.
+    /// [`Error::SizeMismatch`] (or its skin-core form from [`skin`]) for a body or skeleton
+    /// other than the one it was built for.
     pub fn lengths(&self, body: &NeedleBody, fk: &ForwardKinematics) -> Result<Vec<Vec<f32>>> {
         let world = fk.world_from_joint();
-        if world.len() != self.joint_from_world_rest.len()
-            || body.primitives.len() + 1 != self.offsets.len()
-        {
+        if body.primitives.len() + 1 != self.offsets.len() {
             return Err(Error::SizeMismatch {
-                what: "skinned needles: joints or primitives of another body",
-                expected: self.joint_from_world_rest.len(),
-                got: world.len(),
+                what: "skinned needles: primitives of another body",
+                expected: self.offsets.len() - 1,
+                got: body.primitives.len(),
             });
         }
-        let world_from_rest: Vec<DAffine3> = world
-            .iter()
-            .zip(&self.joint_from_world_rest)
-            .map(|(w, r)| *w * *r)
-            .collect();
-        let posed = skin(&self.endpoints, &self.weights, &world_from_rest)?;
+        // `skin` checks the joint count against the weights' bones.
+        let posed = skin(
+            &self.endpoints,
+            &self.weights,
+            &self.binding.world_from_rest(world),
+        )?;
         body.primitives
             .iter()
             .enumerate()
