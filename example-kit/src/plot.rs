@@ -704,6 +704,25 @@ pub fn stacked(rows: &[RgbImage]) -> Result<RgbImage> {
     Ok(out)
 }
 
+/// Error colour map: blue (0) → green → yellow → red (≥ `max`); grey for no value (pair it
+/// with a [`ColourBar`] whose ramp is `|t| error_colour(Some(t * max), max)`).
+pub fn error_colour(e: Option<f64>, max: f64) -> [u8; 3] {
+    let Some(e) = e.filter(|e| e.is_finite()) else {
+        return [170, 170, 170];
+    };
+    let t = (e / max).clamp(0.0, 1.0);
+    let stops = [
+        (0.0, [40.0, 80.0, 230.0]),
+        (0.33, [40.0, 200.0, 80.0]),
+        (0.66, [240.0, 220.0, 40.0]),
+        (1.0, [230.0, 30.0, 30.0]),
+    ];
+    let k = stops.windows(2).position(|w| t <= w[1].0).unwrap_or(2);
+    let ((t0, c0), (t1, c1)) = (stops[k], stops[k + 1]);
+    let u = (t - t0) / (t1 - t0);
+    [0, 1, 2].map(|i| (c0[i] + (c1[i] - c0[i]) * u) as u8)
+}
+
 /// The scale of a false-colour picture.
 pub struct ColourBar<'a> {
     /// What the colours measure, with the unit, e.g. `"needle error (mm)"`.

@@ -1,6 +1,5 @@
-//! The error colour map of `needle_capture`'s preview renders (its scale is drawn as a colour
-//! bar by `example_kit::plot::with_colour_bar`; the line plots are `example_kit::plot`
-//! charts), and the flexed-elbow figure.
+//! The error colouring of `needle_capture`'s preview renders (`example_kit::plot::error_colour`,
+//! its scale drawn by `example_kit::plot::with_colour_bar`), and the flexed-elbow figure.
 
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::studio::{preview, DeformationState, Paint, Performer, PreviewPanel};
@@ -8,29 +7,11 @@ use dynamic_shapes::needle::truth::TestSet;
 use dynamic_shapes::needle::{
     animate, merged_mesh, primitive_meshes, NeedleBody, NeedleModel, SkinnedShape,
 };
-use example_kit::plot::{self as kplot, ColourBar};
+use example_kit::plot::{self as kplot, error_colour, ColourBar};
 use example_kit::Run;
 use image::RgbImage;
 
 use super::{Res, Test, ERROR_MAP_MAX_MM};
-
-/// Error colour map: blue (0) → green → yellow → red (≥ `max`); grey for no value.
-pub fn error_colour(e: Option<f64>, max: f64) -> [u8; 3] {
-    let Some(e) = e.filter(|e| e.is_finite()) else {
-        return [170, 170, 170];
-    };
-    let t = (e / max).clamp(0.0, 1.0);
-    let stops = [
-        (0.0, [40.0, 80.0, 230.0]),
-        (0.33, [40.0, 200.0, 80.0]),
-        (0.66, [240.0, 220.0, 40.0]),
-        (1.0, [230.0, 30.0, 30.0]),
-    ];
-    let k = stops.windows(2).position(|w| t <= w[1].0).unwrap_or(2);
-    let ((t0, c0), (t1, c1)) = (stops[k], stops[k + 1]);
-    let u = (t - t0) / (t1 - t0);
-    [0, 1, 2].map(|i| (c0[i] + (c1[i] - c0[i]) * u) as u8)
-}
 
 /// Per-vertex colours of the per-primitive `meshes` from each primitive's needle errors (mm;
 /// `None`: not scored). Needle endpoints come first in each primitive mesh; cap centres are

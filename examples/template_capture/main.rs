@@ -11,6 +11,8 @@
 //! Writes under `out/template_capture/`:
 //! * `figure_2_7.png`: one frame, like the thesis' Figure 2-7 — template, visual hull,
 //!   skinning with the estimated pose, the molded result, the truth.
+//! * `vertex_error.png`: the same frame, skinning with the estimated pose and the molded
+//!   result, each vertex coloured by its distance to the true vertex, with a colour bar (mm).
 //! * `silhouette_error.png`: per-frame silhouette error (%) of the result and of skinning.
 //! * `figures.json`, `manifest.json`; progress on stderr; last stdout line one JSON object.
 //!
@@ -34,8 +36,11 @@ use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseEditor,
     PoseModel, PoseParams, ShapeParams, SilhouetteParams, Template, UserRay, VisualHullParams,
 };
-use example_kit::plot::{Chart, Series, Style};
+use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
+
+/// Vertex error at the top of `vertex_error.png`'s colour scale, mm.
+const VERTEX_ERROR_MAX_MM: f64 = 50.0;
 
 /// RMS distance between corresponding vertices, mm.
 fn rms_mm(a: &[DVec3], b: &[DVec3]) -> f64 {
@@ -211,6 +216,51 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "figure_2_7.png",
         &img,
         "One frame: template, visual hull, skinning with the estimated pose, the molded result, the truth",
+    )?;
+    // The same frame coloured by each vertex's distance to the truth.
+    let truth = &frames[t].truth.posed.true_vertices;
+    let colours = |v: &[DVec3]| -> Vec<[u8; 3]> {
+        v.iter()
+            .zip(truth)
+            .map(|(a, b)| error_colour(Some(1e3 * a.distance(*b)), VERTEX_ERROR_MAX_MM))
+            .collect()
+    };
+    let (lbs_colours, result_colours) = (colours(&lbs_mesh.vertices), colours(&result.vertices));
+    let img = preview(
+        &[
+            PreviewPanel {
+                mesh: &lbs_mesh,
+                paint: Paint::PerVertex(&lbs_colours),
+            },
+            PreviewPanel {
+                mesh: &result,
+                paint: Paint::PerVertex(&result_colours),
+            },
+        ],
+        400,
+    )?;
+    let ramp = |x: f64| error_colour(Some(x * VERTEX_ERROR_MAX_MM), VERTEX_ERROR_MAX_MM);
+    let img = example_kit::plot::with_colour_bar(
+        &img,
+        &ColourBar {
+            label: "distance to the true vertex (mm)",
+            min: 0.0,
+            max: VERTEX_ERROR_MAX_MM,
+            ramp: &ramp,
+            note: Some("top: ≥ 50 mm"),
+        },
+    )?;
+    let img = example_kit::plot::titled(
+        &img,
+        &format!("Frame {t}: vertex error against the truth"),
+        Some("left: LBS with the tracked pose; right: the molded result"),
+    )?;
+    run.save_picture(
+        "vertex_error.png",
+        &img,
+        "The frame of figure_2_7.png, each vertex coloured by its distance to the true vertex \
+         (colour bar in mm): skinning with the tracked pose (left) and the molded result \
+         (right)",
     )?;
     let pts = |v: &[f64]| v.iter().enumerate().map(|(i, e)| (i as f64, *e)).collect();
     let chart = Chart::new(
