@@ -142,6 +142,61 @@ pub(crate) fn matmul(a: &DMatrix<f64>, transpose_a: bool, b: &DMatrix<f64>) -> D
     out
 }
 
+/// Panics unless the strided view is non-empty and its last element lies inside `len`.
+fn check_strided(
+    len: usize,
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) {
+    assert!(nrows > 0 && ncols > 0, "strided view: empty");
+    let last = offset + (nrows - 1) * row_stride + (ncols - 1) * col_stride;
+    assert!(last < len, "strided view out of bounds");
+}
+
+/// The `nrows × ncols` faer view of `s` whose element `(i, j)` is
+/// `s[offset + i·row_stride + j·col_stride]` (e.g. one `r`-slice of a row-major tensor block).
+///
+/// # Panics
+/// If the view would reach past the end of `s` (a caller bug; checked because the view is
+/// built from raw parts).
+pub(crate) fn strided_ref(
+    s: &[f64],
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) -> MatRef<'_, f64> {
+    check_strided(s.len(), offset, (nrows, ncols), (row_stride, col_stride));
+    let (rs, cs) = (row_stride as isize, col_stride as isize);
+    // SAFETY: every element (i, j), i < nrows, j < ncols, is at offset + i·rs + j·cs, at
+    // most the last element, which `check_strided` put inside the borrowed slice, whose
+    // lifetime the view carries; strides fit isize as they are bounded by the slice length.
+    unsafe { MatRef::from_raw_parts(s.as_ptr().add(offset), nrows, ncols, rs, cs) }
+}
+
+/// Mutable version of [`strided_ref`]; the view must not alias itself, which holds when
+/// `col_stride · ncols ≤ row_stride` (the columns of a row do not reach the next row).
+///
+/// # Panics
+/// If the view would reach past the end of `s` or could alias itself.
+pub(crate) fn strided_mut(
+    s: &mut [f64],
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) -> MatMut<'_, f64> {
+    assert!(col_stride >= 1, "strided view: zero column stride");
+    assert!(
+        nrows == 1 || col_stride * ncols <= row_stride,
+        "strided view would alias itself"
+    );
+    check_strided(s.len(), offset, (nrows, ncols), (row_stride, col_stride));
+    let (rs, cs) = (row_stride as isize, col_stride as isize);
+    // SAFETY: in bounds as in `strided_ref`; distinct (i, j) map to distinct offsets because
+    // j·cs < ncols·cs ≤ rs, and the exclusive borrow of `s` is carried by the view.
+    unsafe { MatMut::from_raw_parts_mut(s.as_mut_ptr().add(offset), nrows, ncols, rs, cs) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,8 +12,9 @@ use crate::{check, Result};
 pub struct HooiParams {
     /// Maximum number of sweeps over the decomposed modes. Default 100.
     pub max_iterations: usize,
-    /// Stop when the relative error changes by less than this between two sweeps (as
-    /// TensorLy: from the second sweep on). Default 1e-4.
+    /// Stop when the relative error changes by less than this between two consecutive
+    /// sweeps, checked from the third sweep on (TensorLy's rule, so both stop after the same
+    /// number of sweeps). Default 1e-4.
     pub tolerance: f64,
     /// How each factor is computed (also for the HOSVD start). Default [`FactorMethod::Auto`].
     pub method: FactorMethod,
@@ -84,21 +85,38 @@ pub fn hooi(x: &Tensor, ranks: &[Option<usize>], params: &HooiParams) -> Result<
         }
         let mut last: Option<(usize, Tensor)> = None;
         for &(n, r) in &modes {
-            let y = project(x, &factors, Some(n))?;
+            // A mode kept at full rank has a square orthogonal factor: projecting on it
+            // rotates that mode only and changes neither mode n's Gram matrix nor ‖𝒞‖, so
+            // the update skips it (exact, and the full-rank mode of the order-4 peer
+            // workload would otherwise cost a third of each sweep).
+            let skip: Vec<Option<DMatrix<f64>>> = factors
+                .iter()
+                .enumerate()
+                .map(|(m, f)| {
+                    f.as_ref()
+                        .filter(|u| m == n || u.nrows() > u.ncols())
+                        .cloned()
+                })
+                .collect();
+            let y = project(x, &skip, Some(n))?;
             factors[n] = Some(leading_factor(&y, n, r, params.method)?);
             last = Some((n, y));
         }
         if let Some((n, y)) = last {
-            let u: Option<&DMatrix<f64>> = factors[n].as_ref();
-            if let Some(u) = u {
-                core = y.mode_product(n, &u.transpose())?;
+            // 𝒞 = 𝒯 ×ₘ Ǔₘᵀ (Eq. 5.1): the last projection lacks mode n and the skipped
+            // full-rank modes.
+            let mut c = y;
+            for (m, f) in factors.iter().enumerate() {
+                if let Some(u) = f.as_ref().filter(|u| m == n || u.nrows() == u.ncols()) {
+                    c = c.mode_product(m, &u.transpose())?;
+                }
             }
+            core = c;
         }
         let err = error_from_core(norm_x, &core);
-        let done = errors
-            .last()
-            .is_some_and(|&prev: &f64| (prev - err).abs() < params.tolerance);
         errors.push(err);
+        // TensorLy's rule: compare the last two errors from the third sweep on.
+        let done = errors.len() >= 3 && (errors[errors.len() - 2] - err).abs() < params.tolerance;
         if done {
             converged = true;
             break;

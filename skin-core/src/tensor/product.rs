@@ -5,7 +5,8 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use super::dense::Tensor;
-use super::unfold::{mode_mismatch, GEMM_WORK};
+use super::unfold::{gemm, mode_mismatch, BLOCK_ELEMS, GEMM_WORK};
+use crate::faer_bridge::{strided_mut, strided_ref};
 use crate::{check, Result};
 
 impl Tensor {
@@ -34,31 +35,30 @@ impl Tensor {
         }
         let work = rows * d * right;
         let mut out = vec![0.0; shape.iter().product()];
-        let min_len = (GEMM_WORK / work.max(1)).max(1);
-        out.par_chunks_exact_mut(rows * right)
-            .zip(self.data().par_chunks_exact(d * right))
-            .with_min_len(min_len)
+        let slabs = (BLOCK_ELEMS / (d * right)).max(1);
+        let mt = faer::MatRef::from_column_major_slice(m.as_slice(), rows, d).transpose();
+        out.par_chunks_mut(slabs * rows * right)
+            .zip(self.data().par_chunks(slabs * d * right))
             .for_each(|(y, x)| {
+                let nb = x.len() / (d * right);
                 if work >= GEMM_WORK {
-                    // Yₗ row-major (m × R) is Yₗᵀ column-major (R × m) = Xₗᵀ Mᵀ.
-                    let xt = faer::MatRef::from_column_major_slice(x, right, d);
-                    let mt =
-                        faer::MatRef::from_column_major_slice(m.as_slice(), rows, d).transpose();
-                    let yt = faer::MatMut::from_column_major_slice_mut(y, right, rows);
-                    faer::linalg::matmul::matmul(
-                        yt,
-                        faer::Accum::Replace,
-                        xt,
-                        mt,
-                        1.0,
-                        faer::Par::Seq,
-                    );
+                    // One GEMM per slab: Yₗ row-major (m × R) is Yₗᵀ column-major
+                    // (R × m) = Xₗᵀ Mᵀ.
+                    for (ys, xs) in y
+                        .chunks_exact_mut(rows * right)
+                        .zip(x.chunks_exact(d * right))
+                    {
+                        let xt = faer::MatRef::from_column_major_slice(xs, right, d);
+                        let yt = faer::MatMut::from_column_major_slice_mut(ys, right, rows);
+                        gemm(yt, faer::Accum::Replace, xt, mt);
+                    }
                 } else {
-                    for (j, yj) in y.chunks_exact_mut(right).enumerate() {
-                        for (i, xi) in x.chunks_exact(right).enumerate() {
-                            let a = m[(j, i)];
-                            yj.iter_mut().zip(xi).for_each(|(yv, xv)| *yv += a * xv);
-                        }
+                    // Small slabs: one GEMM per trailing index r over the block's slabs,
+                    // Y[·, ·, r] (nb × m) = X[·, ·, r] (nb × dₙ) Mᵀ, on strided views.
+                    for r in 0..right {
+                        let xr = strided_ref(x, r, (nb, d), (d * right, right));
+                        let yr = strided_mut(y, r, (nb, rows), (rows * right, right));
+                        gemm(yr, faer::Accum::Replace, xr, mt);
                     }
                 }
             });

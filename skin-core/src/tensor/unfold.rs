@@ -14,10 +14,25 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use super::dense::Tensor;
+use crate::faer_bridge::strided_ref;
 use crate::{check, Error, Result};
 
-/// Above this many multiply–adds per slab, slab products go through faer's GEMM.
+/// Above this many multiply–adds per slab, products and Gram matrices run one GEMM per slab;
+/// below it, one strided GEMM per trailing index over a block of slabs.
 pub(crate) const GEMM_WORK: usize = 1 << 15;
+
+/// Elements per block of consecutive slabs handed to one rayon task (fits in L2 cache).
+pub(crate) const BLOCK_ELEMS: usize = 1 << 16;
+
+/// `dst (+)= lhs · rhs` with faer's sequential GEMM (parallelism is over blocks of slabs).
+pub(crate) fn gemm(
+    dst: faer::MatMut<'_, f64>,
+    accum: faer::Accum,
+    lhs: faer::MatRef<'_, f64>,
+    rhs: faer::MatRef<'_, f64>,
+) {
+    faer::linalg::matmul::matmul(dst, accum, lhs, rhs, 1.0, faer::Par::Seq);
+}
 
 impl Tensor {
     /// The mode-`n` unfolding `X₍ₙ₎` (`dₙ × Π_{k≠n} dₖ`; column ordering in the module docs).
@@ -75,34 +90,28 @@ impl Tensor {
     /// [`Error::IndexOutOfRange`] if `n ≥ N`.
     pub fn gram(&self, n: usize) -> Result<DMatrix<f64>> {
         let (_, d, right) = self.split(n)?;
-        let slab = d * right;
-        let min_len = (GEMM_WORK / (d * d * right).max(1)).max(1);
+        let slabs = (BLOCK_ELEMS / (d * right)).max(1);
         let lower = self
             .data()
-            .par_chunks_exact(slab)
-            .with_min_len(min_len)
+            .par_chunks(slabs * d * right)
             .fold(
                 || vec![0.0; d * d],
-                |mut acc, s| {
+                |mut acc, x| {
+                    let nb = x.len() / (d * right);
                     if d * d * right >= GEMM_WORK {
-                        let st = faer::MatRef::from_column_major_slice(s, right, d);
-                        let mut g = faer::MatMut::from_column_major_slice_mut(&mut acc, d, d);
-                        faer::linalg::matmul::matmul(
-                            g.as_mut(),
-                            faer::Accum::Add,
-                            st.transpose(),
-                            st,
-                            1.0,
-                            faer::Par::Seq,
-                        );
+                        // One GEMM per slab: Sₗ Sₗᵀ with Sₗᵀ the column-major R × dₙ view.
+                        for s in x.chunks_exact(d * right) {
+                            let st = faer::MatRef::from_column_major_slice(s, right, d);
+                            let g = faer::MatMut::from_column_major_slice_mut(&mut acc, d, d);
+                            gemm(g, faer::Accum::Add, st.transpose(), st);
+                        }
                     } else {
-                        for i in 0..d {
-                            let ri = &s[i * right..(i + 1) * right];
-                            for j in 0..=i {
-                                let rj = &s[j * right..(j + 1) * right];
-                                acc[j * d + i] +=
-                                    ri.iter().zip(rj).map(|(a, b)| a * b).sum::<f64>();
-                            }
+                        // Small slabs: Σ_r X[·, ·, r]ᵀ X[·, ·, r] over the block's slabs
+                        // (strided views).
+                        for r in 0..right {
+                            let xr = strided_ref(x, r, (nb, d), (d * right, right));
+                            let g = faer::MatMut::from_column_major_slice_mut(&mut acc, d, d);
+                            gemm(g, faer::Accum::Add, xr.transpose(), xr);
                         }
                     }
                     acc
@@ -115,7 +124,7 @@ impl Tensor {
                     a
                 },
             );
-        // Symmetrise from the lower triangle (the GEMM path fills both, identically).
+        // faer fills both triangles; symmetrise exactly from the lower one.
         Ok(DMatrix::from_fn(d, d, |i, j| {
             if i >= j {
                 lower[j * d + i]
