@@ -9,6 +9,8 @@
 //! `X = Xc + 0.01 ‖Xc‖ / ‖E0‖ · E0` with `E0 = normal(20, X.shape)`. HOSVD = no sweep; HOOI
 //! = TensorLy's defaults (≤ 100 sweeps, tol 1e-4 on the change of the relative error).
 //! Input generation is not timed. The relative errors are printed once per variant.
+//! `tucker_huge_mode` factors the 30000-long mode 0 at rank 10 by thin SVD and by the
+//! randomized range finder.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // `criterion_group!` generates an undocumented `pub fn benches`.
@@ -17,7 +19,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::DMatrix;
 use skin_core::random::SplitMix64;
-use skin_core::tensor::{hooi, hosvd, FactorMethod, HooiParams, Tensor};
+use skin_core::tensor::{hooi, hosvd, FactorMethod, HooiParams, RandomizedParams, Tensor};
 use std::hint::black_box;
 
 const N: usize = 30_000;
@@ -93,6 +95,30 @@ fn bench(cr: &mut Criterion) {
         });
         g.finish();
     }
+    // The huge mode: factor of mode 0 (N = 30000 rows, unfolding 30000 × 150) at rank 10 of
+    // the order-3 input, by the thin SVD (what `Auto` picks for this tall unfolding) and by
+    // the randomized range finder.
+    let w = workload(&[10, 15], &[6, 9]);
+    let ranks = [Some(10), None, None];
+    let mut g = cr.benchmark_group("tucker_huge_mode");
+    g.sample_size(10);
+    for (name, method) in [
+        ("svd", FactorMethod::Svd),
+        (
+            "randomized",
+            FactorMethod::Randomized(RandomizedParams::default()),
+        ),
+    ] {
+        let t = hosvd(&w.x, &ranks, method).unwrap();
+        println!(
+            "tucker_huge_mode {name}: rank 10 rel_err_vs_input {:.10e}",
+            t.reconstruct().unwrap().relative_error(&w.x).unwrap()
+        );
+        g.bench_function(name, |b| {
+            b.iter(|| hosvd(black_box(&w.x), &ranks, method).unwrap())
+        });
+    }
+    g.finish();
 }
 
 criterion_group!(benches, bench);
