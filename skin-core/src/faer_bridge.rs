@@ -10,9 +10,11 @@
 #![allow(dead_code)]
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{MatMut, MatRef};
+use faer::{Accum, MatMut, MatRef, Par, Side};
 use nalgebra::DMatrix;
 use nalgebra_sparse::CscMatrix;
+
+use crate::{Error, Result};
 
 /// Zero-copy faer view of a `CscMatrix`.
 ///
@@ -75,6 +77,124 @@ pub(crate) fn faer_to_csc(m: SparseColMatRef<'_, usize, f64>) -> CscMatrix<f64> 
     }
     CscMatrix::try_from_csc_data(m.nrows(), ncols, col_offsets, row_indices, values)
         .expect("faer sparse matrices have no duplicate entries in a column")
+}
+
+/// Eigenvectors of the symmetric matrix `g` for its `k` largest eigenvalues, largest first,
+/// as the columns of an `n × k` matrix, with those eigenvalues (faer's self-adjoint
+/// eigensolver; only the lower triangle of `g` is read).
+///
+/// # Errors
+/// [`Error::NoConvergence`] if faer's eigensolver does not converge.
+pub(crate) fn sym_top_eigen(g: &DMatrix<f64>, k: usize) -> Result<(DMatrix<f64>, Vec<f64>)> {
+    let evd = dmatrix_as_faer(g)
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|_| Error::NoConvergence {
+            what: "self-adjoint eigendecomposition",
+            iterations: 0,
+        })?;
+    let (u, s) = (evd.U(), evd.S());
+    let n = g.nrows();
+    let k = k.min(n);
+    // faer sorts eigenvalues in non-decreasing order: the largest are the last columns.
+    let vectors = DMatrix::from_fn(n, k, |i, j| u[(i, n - 1 - j)]);
+    let values = (0..k).map(|j| s[n - 1 - j]).collect();
+    Ok((vectors, values))
+}
+
+/// The first `k` left singular vectors of `m` (faer's thin SVD), as an `nrows × k` matrix.
+///
+/// # Errors
+/// [`Error::NoConvergence`] if faer's SVD does not converge.
+pub(crate) fn thin_svd_left(m: &DMatrix<f64>, k: usize) -> Result<DMatrix<f64>> {
+    let svd = dmatrix_as_faer(m)
+        .thin_svd()
+        .map_err(|_| Error::NoConvergence {
+            what: "thin SVD",
+            iterations: 0,
+        })?;
+    let u = svd.U();
+    let k = k.min(u.ncols());
+    Ok(DMatrix::from_fn(m.nrows(), k, |i, j| u[(i, j)]))
+}
+
+/// An orthonormal basis of the column space of the tall matrix `m` (`nrows ≥ ncols`): the
+/// thin `Q` of faer's Householder QR.
+pub(crate) fn thin_q(m: &DMatrix<f64>) -> DMatrix<f64> {
+    faer_to_dmatrix(dmatrix_as_faer(m).qr().compute_thin_Q().as_ref())
+}
+
+/// `aᵀ b` or `a b` (by `transpose_a`) with faer's matrix product, single-threaded.
+pub(crate) fn matmul(a: &DMatrix<f64>, transpose_a: bool, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let lhs = if transpose_a {
+        dmatrix_as_faer(a).transpose()
+    } else {
+        dmatrix_as_faer(a)
+    };
+    let mut out = DMatrix::zeros(lhs.nrows(), b.ncols());
+    faer::linalg::matmul::matmul(
+        dmatrix_as_faer_mut(&mut out),
+        Accum::Replace,
+        lhs,
+        dmatrix_as_faer(b),
+        1.0,
+        Par::Seq,
+    );
+    out
+}
+
+/// Panics unless the strided view is non-empty and its last element lies inside `len`.
+fn check_strided(
+    len: usize,
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) {
+    assert!(nrows > 0 && ncols > 0, "strided view: empty");
+    let last = offset + (nrows - 1) * row_stride + (ncols - 1) * col_stride;
+    assert!(last < len, "strided view out of bounds");
+}
+
+/// The `nrows × ncols` faer view of `s` whose element `(i, j)` is
+/// `s[offset + i·row_stride + j·col_stride]` (e.g. one `r`-slice of a row-major tensor block).
+///
+/// # Panics
+/// If the view would reach past the end of `s` (a caller bug; checked because the view is
+/// built from raw parts).
+pub(crate) fn strided_ref(
+    s: &[f64],
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) -> MatRef<'_, f64> {
+    check_strided(s.len(), offset, (nrows, ncols), (row_stride, col_stride));
+    let (rs, cs) = (row_stride as isize, col_stride as isize);
+    // SAFETY: every element (i, j), i < nrows, j < ncols, is at offset + i·rs + j·cs, at
+    // most the last element, which `check_strided` put inside the borrowed slice, whose
+    // lifetime the view carries; strides fit isize as they are bounded by the slice length.
+    unsafe { MatRef::from_raw_parts(s.as_ptr().add(offset), nrows, ncols, rs, cs) }
+}
+
+/// Mutable version of [`strided_ref`]; the view must not alias itself, which holds when
+/// `col_stride · ncols ≤ row_stride` (the columns of a row do not reach the next row).
+///
+/// # Panics
+/// If the view would reach past the end of `s` or could alias itself.
+pub(crate) fn strided_mut(
+    s: &mut [f64],
+    offset: usize,
+    (nrows, ncols): (usize, usize),
+    (row_stride, col_stride): (usize, usize),
+) -> MatMut<'_, f64> {
+    assert!(col_stride >= 1, "strided view: zero column stride");
+    assert!(
+        nrows == 1 || col_stride * ncols <= row_stride,
+        "strided view would alias itself"
+    );
+    check_strided(s.len(), offset, (nrows, ncols), (row_stride, col_stride));
+    let (rs, cs) = (row_stride as isize, col_stride as isize);
+    // SAFETY: in bounds as in `strided_ref`; distinct (i, j) map to distinct offsets because
+    // j·cs < ncols·cs ≤ rs, and the exclusive borrow of `s` is carried by the view.
+    unsafe { MatMut::from_raw_parts_mut(s.as_mut_ptr().add(offset), nrows, ncols, rs, cs) }
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@
 //! | [`lsq`] | sparse least squares with several right-hand sides and symbolic reuse | Vlasic Eq. 2.1, 2.2, 3.3, 3.4 |
 //! | [`raster`] | CPU rasteriser: silhouette masks, depth along the ray, camera-space normals, triangle ids and barycentrics, exact under radial distortion | Sand §6.2 (silhouette error) |
 //! | [`stats`] | mean, median, percentiles (NumPy's interpolation), RMS of samples | |
+//! | [`tensor`] | dense N-mode tensors, unfolding, mode-n products, truncated HOSVD and HOOI (Tucker) | Vlasic Eq. 5.1–5.4 |
 //! | [`check`] | input checks: finite, positive, in range, index in bounds | |
 //! | [`random`] | the counter-based SplitMix64 stream of the peer benchmarks (bit-exact inputs, order-independent noise) | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
@@ -33,6 +34,7 @@ pub mod skeleton;
 pub mod stats;
 #[cfg(feature = "studio")]
 pub mod studio;
+pub mod tensor;
 
 mod faer_bridge;
 
