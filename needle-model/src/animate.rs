@@ -100,9 +100,7 @@ fn animate_primitive(
             expected: prim.carrier + 1,
             got: fk.world_from_joint().len(),
         })?;
-    let config = prim.config.point(fk)?;
-    let config32: Vec<f32> = config.iter().map(|&v| v as f32).collect();
-    let lengths32 = model.needle_lengths(p, &config32)?;
+    let lengths32 = model.needle_lengths(p, &prim.config.point_f32(fk)?)?;
     if lengths32.len() != prim.needle_count() {
         return Err(Error::SizeMismatch {
             what: "model needle lengths vs primitive needles",

@@ -288,6 +288,15 @@ impl ConfigSpace {
         self.point_into(fk, &mut out)?;
         Ok(out)
     }
+
+    /// [`Self::point`] in `f32`, the precision of the store's configuration rows and the
+    /// input of [`crate::NeedleModel::needle_lengths`].
+    ///
+    /// # Errors
+    /// As [`Self::point_into`].
+    pub fn point_f32(&self, fk: &ForwardKinematics) -> Result<Vec<f32>> {
+        Ok(self.point(fk)?.iter().map(|&v| v as f32).collect())
+    }
 }
 
 // Configuration points as flat rows (`S × dim` row-major `f32`), the form the store keeps

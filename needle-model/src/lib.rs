@@ -96,7 +96,7 @@
 //! // §5.4: the needle lengths of the first primitive in the first frame's pose.
 //! let fk = skeleton.forward_kinematics(&thetas[0])?;
 //! let primitive = &observer.body().primitives[0];
-//! let x: Vec<f32> = primitive.config.point(&fk)?.iter().map(|&v| v as f32).collect();
+//! let x = primitive.config.point_f32(&fk)?;
 //! let lengths_m = rec.model.needle_lengths(0, &x)?;
 //! assert_eq!(lengths_m.len(), primitive.needle_count());
 //! assert!(lengths_m.iter().all(|&l| l >= 0.0 && f64::from(l) <= primitive.max_length_m));

@@ -13,7 +13,7 @@ use skin_core::skeleton::{ForwardKinematics, Skeleton};
 use crate::animate::animate;
 use crate::params::ReconstructionParams;
 use crate::primitive::NeedleBody;
-use crate::reconstruct::{NeedleModel, Reconstruction};
+use crate::reconstruct::{NeedleModel, PrimitiveFitReport, Reconstruction};
 use crate::store::{NeedleObservations, ObservationStore};
 use crate::surface::{union_mesh, SurfaceParams};
 use crate::{Context, Error, Result, ResultExt};
@@ -217,8 +217,9 @@ pub struct PoseSpaceReconstruction {
     pub model: PoseSpaceModel,
     /// The plain model whose rest shape is skinned (as [`NeedleModel::reconstruct`]).
     pub plain: Reconstruction,
-    /// The residual NRBF's fit (its reports).
-    pub residual: Reconstruction,
+    /// One report per primitive of the residual NRBF's fit (the model is
+    /// [`PoseSpaceModel::residual`]).
+    pub residual_reports: Vec<PrimitiveFitReport>,
 }
 
 impl PoseSpaceModel {
@@ -281,10 +282,10 @@ impl PoseSpaceModel {
         Ok(PoseSpaceReconstruction {
             model: PoseSpaceModel {
                 skinned,
-                residual: residual.model.clone(),
+                residual: residual.model,
             },
             plain,
-            residual,
+            residual_reports: residual.reports,
         })
     }
 
@@ -303,8 +304,9 @@ impl PoseSpaceModel {
         let fk = skeleton.forward_kinematics(theta)?;
         let mut out = self.skinned.lengths(body, &fk)?;
         for (p, (prim, base)) in body.primitives.iter().zip(&mut out).enumerate() {
-            let config: Vec<f32> = prim.config.point(&fk)?.iter().map(|&v| v as f32).collect();
-            let r = self.residual.needle_lengths(p, &config)?;
+            let r = self
+                .residual
+                .needle_lengths(p, &prim.config.point_f32(&fk)?)?;
             for (b, r) in base.iter_mut().zip(r) {
                 *b += r;
             }
@@ -453,13 +455,7 @@ mod tests {
             let t = truth(theta);
             let a = fit.model.lengths(&body, &sk, theta).unwrap();
             for (p, prim) in body.primitives.iter().enumerate() {
-                let config: Vec<f32> = prim
-                    .config
-                    .point(&fk)
-                    .unwrap()
-                    .iter()
-                    .map(|&v| v as f32)
-                    .collect();
+                let config = prim.config.point_f32(&fk).unwrap();
                 let b = fit.plain.model.needle_lengths(p, &config).unwrap();
                 for j in 0..prim.needle_count() {
                     let t = t[p][j].clamp(0.001, prim.max_length_m as f32 - 0.001);

@@ -150,8 +150,7 @@ pub(crate) fn prototype_spacing(points: &[f32], dim: usize) -> Option<f32> {
                 .sqrt()
         })
         .collect();
-    let mid = nearest.len() / 2;
-    Some(*nearest.select_nth_unstable_by(mid, f32::total_cmp).1)
+    median_f32(&mut nearest)
 }
 
 /// Number of nearest observations a capped neighbourhood uses ([`Neighbourhood::Capped`]):
@@ -696,14 +695,11 @@ fn needle_prototype_lengths(
                         *cell_counts.entry(cells[first as usize]).or_default() += len;
                     }
                 }
+                total += len;
                 if s & PoseGroups::GROUP == 0 {
-                    let r = obs_of(s);
-                    total += r.len();
-                    buf.extend_from_slice(&vals[r]);
+                    buf.extend_from_slice(&vals[obs_of(s)]);
                 } else {
-                    let g = s & !PoseGroups::GROUP;
-                    taken.push(g);
-                    total += group_vals[g as usize].len();
+                    taken.push(s & !PoseGroups::GROUP);
                 }
                 if total >= n && reach.is_infinite() {
                     reach = d + tie;

@@ -190,8 +190,7 @@ impl TestSet {
             needles: vec![],
         };
         for (p, prim) in body.primitives.iter().enumerate() {
-            let cfg = prim.config.point(&fk)?;
-            frame.config.push(cfg.iter().map(|&x| x as f32).collect());
+            frame.config.push(prim.config.point_f32(&fk)?);
             let t = fk.world_from_joint()[prim.carrier];
             for j in 0..prim.needle_count() {
                 let (o, d) = prim.needle_world(&t, j);
