@@ -1,10 +1,14 @@
 //! Geometry vocabulary: `glam` f64 types used at every public boundary (points, directions,
-//! rotations, rigid transforms), and the [`Ray`] shared by cameras and mesh queries. Linear
+//! rotations, rigid transforms), the [`Ray`] shared by cameras and mesh queries, and least-squares
+//! alignment of point sets ([`fit_similarity`]). Linear
 //! algebra (state vectors, Jacobians, covariances) uses `nalgebra` instead; see DESIGN.md
 //! "Two vocabularies".
 
+mod similarity;
+
 pub use glam::{DAffine3, DMat3, DMat4, DQuat, DVec2, DVec3, DVec4};
 use serde::{Deserialize, Serialize};
+pub use similarity::{fit_similarity, Alignment, Similarity};
 
 /// A ray `origin + t·direction`, `t ≥ 0`: the pixel rays of [`crate::camera::Camera::ray`]
 /// and the queries of [`crate::mesh::MeshQuery::cast_ray`].

@@ -103,8 +103,9 @@ pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
 pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
 pub use pose::{
-    fit_frame, fit_pose, track, FrameFit, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams,
-    PoseTerms, PoseTrack, Temporal, UserRay, DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_GAMMA_WIDTH_M,
+    fit_frame, fit_pose, track, Effector, EffectorTargets, FrameFit, JointTarget, PoseFit,
+    PoseFrame, PoseModel, PoseParams, PoseTerms, PoseTrack, Temporal, UserRay,
+    DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_EFFECTOR_TARGETS, DEFAULT_GAMMA_WIDTH_M,
     DEFAULT_REFINEMENT_ROUNDS, DEFAULT_SAMPLES_PER_BONE, DEFAULT_W_D, DEFAULT_W_R, DEFAULT_W_T,
     DEFAULT_W_U,
 };

@@ -2,8 +2,11 @@
 //!
 //! The core type is [`TriMesh`]: vertex positions (`DVec3`, metres) and faces (`[u32; 3]`,
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
-//! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics.
+//! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics;
+//! with the feature `gltf`, glTF 2.0 export of mesh sequences ([`write_gltf_animation`]).
 
+#[cfg(feature = "gltf")]
+mod gltf;
 mod heat_weights;
 mod laplacian;
 mod marching_cubes;
@@ -19,6 +22,8 @@ mod surface_point;
 mod topology;
 mod trimesh;
 
+#[cfg(feature = "gltf")]
+pub use gltf::{save_gltf_animation, write_gltf_animation, MeshSequence};
 pub use heat_weights::{
     bone_heat_weights, bone_heat_weights_dense, BoneSegment, HeatWeightsParams,
     DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
