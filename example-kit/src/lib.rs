@@ -67,9 +67,31 @@ pub fn data_path(relative: &str) -> std::io::Result<PathBuf> {
     }
 }
 
+/// Peak resident memory of this process so far, MB (Linux `VmHWM`; `None` elsewhere or when
+/// `/proc/self/status` cannot be read).
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn peak_memory_is_read_on_linux() {
+        // Touch every page of 64 MB so that it is resident.
+        let mut big = vec![0u8; 64 << 20];
+        for i in (0..big.len()).step_by(4096) {
+            big[i] = 1;
+        }
+        std::hint::black_box(&big);
+        let mb = peak_rss_mb().unwrap();
+        assert!(mb >= 64.0 && mb.is_finite(), "{mb} MB");
+        drop(big);
+    }
 
     #[test]
     fn finds_the_shipped_data_and_names_missing_files() {

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::{DAffine3, DVec3};
-use skin_core::mesh::{skin, SkinBinding, SkinWeights, TriMesh};
+use skin_core::mesh::{skin, EdgeTopology, SkinBinding, SkinWeights, TriMesh};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 use crate::error::{Error, Result};
@@ -12,8 +12,9 @@ use crate::error::{Error, Result};
 /// template mesh and each vertex is assigned a weight that is used to deform the template
 /// with linear blend skinning". The mesh is in the skeleton's rest pose θ = 0.
 ///
-/// Invariants (checked by [`Template::new`]): a valid mesh with faces, one weight row per
-/// vertex, one weight column per joint.
+/// Invariants (checked by [`Template::new`]): a valid mesh with faces and no non-manifold
+/// edge, one weight row per vertex, one weight column per joint. Open boundaries (a skirt's
+/// hem and waistband) and several components (a body and its garment) are allowed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Template {
     mesh: TriMesh,
@@ -29,12 +30,27 @@ impl Template {
     ///
     /// # Errors
     /// As [`SkinBinding::new`] (invalid mesh, weights of another mesh or skeleton);
-    /// [`Error::Empty`] for a mesh without faces.
+    /// [`Error::Empty`] for a mesh without faces; [`Error::InvalidParam`] for a mesh with an
+    /// edge shared by three or more faces: the cotangent Laplacian coordinates of §2.4.1 (each
+    /// vertex against its one-ring) and the inside tests of the depth term's radii (§2.3.1)
+    /// need a surface whose every edge borders one or two faces.
     pub fn new(mesh: TriMesh, skeleton: Skeleton, weights: SkinWeights) -> Result<Self> {
         let binding = SkinBinding::new(&mesh, &skeleton, &weights)?;
         if mesh.faces.is_empty() {
             return Err(Error::Empty {
                 what: "template mesh faces",
+            });
+        }
+        let non_manifold = EdgeTopology::new(&mesh)?.non_manifold_edges();
+        if let Some(e) = non_manifold.first() {
+            return Err(Error::InvalidParam {
+                name: "template",
+                reason: format!(
+                    "{} edges are shared by three or more faces (the first joins vertices {}                      and {}); split or remove the extra faces",
+                    non_manifold.len(),
+                    e[0],
+                    e[1]
+                ),
             });
         }
         Ok(Template {
@@ -159,6 +175,31 @@ pub(crate) mod tests {
         assert!(rigid
             .iter()
             .all(|&(i, b)| (b == 0) == (t.mesh().vertices[i].y < 0.5)));
+    }
+
+    #[test]
+    fn a_non_manifold_template_is_rejected_and_an_open_one_accepted() {
+        let t = bendy();
+        // A fin: a new vertex and a face on an existing edge make it shared by three faces.
+        let mut mesh = t.mesh().clone();
+        let [a, b, _] = mesh.faces[0];
+        mesh.vertices.push(DVec3::new(0.5, 0.5, 0.5));
+        let fin = (mesh.vertices.len() - 1) as u32;
+        mesh.faces.push([a, b, fin]);
+        let mut lists: Vec<Vec<(u32, f64)>> = (0..t.vertex_count())
+            .map(|i| t.weights().influences(i).collect())
+            .collect();
+        lists.push(vec![(0, 1.0)]);
+        let weights = SkinWeights::from_lists(&lists, 2).unwrap();
+        let e = Template::new(mesh, t.skeleton().clone(), weights).unwrap_err();
+        assert!(
+            matches!(&e, Error::InvalidParam { name: "template", reason } if reason.contains("three or more faces")),
+            "{e}"
+        );
+        // Removing a face opens a hole: an open template (a skirt) is fine.
+        let mut open = t.mesh().clone();
+        open.faces.pop();
+        assert!(Template::new(open, t.skeleton().clone(), t.weights().clone()).is_ok());
     }
 
     #[test]
