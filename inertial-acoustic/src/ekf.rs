@@ -50,6 +50,10 @@ pub struct DistanceMeasurement {
     pub distance_m: f64,
     /// Confidence `w_s · w_t` in [0, 1] (the filter multiplies in `w_a`).
     pub confidence: f64,
+    /// How long before the frame it is processed at the pulse was emitted, seconds (0 to one
+    /// frame step plus the flight time); the filter predicts the distance at that time from
+    /// the frame's pose and rates (`d − age · ḋ`).
+    pub age_s: f64,
 }
 
 /// Everything observed in one 140 Hz frame: one optional inertial reading per board (`None`
@@ -301,7 +305,7 @@ impl SkeletalEkf {
                 .at(Context::Sensor(m.sensor))?;
             skin_core::check::index("distance source", m.source, self.suit.sources().len())
                 .at(Context::Source(m.source))?;
-            if !(m.distance_m.is_finite() && m.confidence.is_finite()) {
+            if !(m.distance_m.is_finite() && m.confidence.is_finite() && m.age_s.is_finite()) {
                 return Err(Error::NonFinite {
                     what: "distance measurement",
                 })
@@ -667,12 +671,29 @@ impl SkeletalEkf {
                 for &k in cj {
                     self.dense[k] -= u.dot(colv(3 * (nb + m.source), k));
                 }
+                // Distance at the pulse's time: d − age · ḋ, ḋ = uᵀ(J_i − J_j) θ̇ (its
+                // θ-derivative through u and J is left out: age · ḋ is millimetres).
+                let age = m.age_s.max(0.0);
+                let d_rate: f64 = self
+                    .dense
+                    .iter()
+                    .zip(&self.theta_dot)
+                    .map(|(a, b)| a * b)
+                    .sum();
                 self.row.clear();
                 for (k, &v) in self.dense.iter().enumerate() {
                     if let Some(s) = self.slot[k] {
                         self.row.push(s, v);
                     }
                 }
+                if age > 0.0 {
+                    for (k, &v) in self.dense.iter().enumerate() {
+                        if let Some(s) = self.slot[k] {
+                            self.row.push(self.nf + s, -age * v);
+                        }
+                    }
+                }
+                let d = d - age * d_rate;
                 let sigma = self.params.distance_sigma_m / w;
                 if self.scalar_update(m.distance_m - d, sigma * sigma, self.params.distance_gate_sigma)
                 {

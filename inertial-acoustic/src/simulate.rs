@@ -59,7 +59,10 @@ pub struct SimulationParams {
     pub gyro_bias_walk: f64,
     /// Accelerometer range (full scale of the 12-bit count), m/s². Default: ±6 g.
     pub accel_range: f64,
-    /// Gyroscope range, rad/s. Default: ±8.7 (500 °/s).
+    /// Gyroscope range, rad/s. Default: ±20 (1150 °/s). The 6-bit delta code slews at most
+    /// 31 counts per frame, i.e. `31 · 2 · range / 4096 · 140` per second: 42 rad/s² at this
+    /// range; at ±8.7 rad/s (500 °/s) it is 18 rad/s², below the exercise motion's angular
+    /// accelerations, and the slew lag alone costs the shoulders tens of degrees.
     pub gyro_range: f64,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
     pub bit_error_rate: f64,
@@ -103,7 +106,7 @@ impl Default for SimulationParams {
             scale_sd: 0.03,
             gyro_bias_walk: 0.0005,
             accel_range: 6.0 * GRAVITY_M_S2,
-            gyro_range: 8.7,
+            gyro_range: 20.0,
             bit_error_rate: 2e-4,
             placement_sd_m: 0.01,
             placement_sd_deg: 3.0,
@@ -383,6 +386,8 @@ pub struct SimulatedRecording {
     pub inertial_s: f64,
     /// Detected minus true distance of every used pulse with a clear line of sight, metres.
     pub los_distance_errors_m: Vec<f64>,
+    /// Every detection: (detected − true distance in metres, confidence, line of sight clear).
+    pub detections: Vec<(f64, f64, bool)>,
     /// Pulses heard (detections) and emitted (per microphone).
     pub pulses_heard: usize,
     /// Pulses emitted × microphones.
@@ -830,6 +835,7 @@ impl SuitSimulator {
             ultrasound_s: 0.0,
             inertial_s,
             los_distance_errors_m: Vec::new(),
+            detections: Vec::new(),
             pulses_heard: 0,
             pulses_total: 0,
             inertial_frames_flagged: flagged,
@@ -906,17 +912,23 @@ impl SuitSimulator {
                         source: j,
                         distance_m: d,
                         confidence: w,
+                        age_s: 0.0,
                     }
                 });
                 rec.ultrasound_s += t0.elapsed().as_secs_f64();
                 if let Some(m) = measurement {
                     rec.pulses_heard += 1;
+                    rec.detections
+                        .push((m.distance_m - r, m.confidence, !occluded && cos > 0.0));
                     if !occluded && cos > 0.0 && m.confidence >= 0.5 {
                         rec.los_distance_errors_m.push(m.distance_m - r);
                     }
                     let k = ((t_s + m.distance_m.max(0.0) / c) / dt).ceil() as usize;
                     if let Some(f) = rec.frames.get_mut(k) {
-                        f.distances.push(m);
+                        f.distances.push(DistanceMeasurement {
+                            age_s: k as f64 * dt - t_s,
+                            ..m
+                        });
                     }
                 }
             }
@@ -962,4 +974,92 @@ mod tests {
         assert!(r.gyro_rad_s.length() < 0.05);
         assert!(rec.pulses_heard > 0);
     }
+}
+
+/// One filter run over a simulated recording, scored against its truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilterRun {
+    /// Sensor combination label (Table 4.1), e.g. `"A+G+D"`.
+    pub sensors: String,
+    /// Whether the root transform was supplied.
+    pub root_supplied: bool,
+    /// Per evaluated joint, per frame after the rest hold: orientation error, degrees.
+    pub errors_deg: Vec<Vec<f64>>,
+    /// Per evaluated joint: mean and standard deviation.
+    pub stats: Vec<crate::ErrorStats>,
+    /// Frames at which the filter diverged and was reset.
+    pub diverged_frames: usize,
+    /// Seconds of EKF compute (initialisation and steps).
+    pub ekf_s: f64,
+    /// Distances used.
+    pub distances_used: usize,
+}
+
+/// Initialises (§4.4.4, on the rest hold) and runs the EKF over `rec` with `params`,
+/// supplying the root DOFs if `root_supplied`, and scores `joints` against the truth on every
+/// frame after the rest hold.
+///
+/// # Errors
+/// As [`crate::initialise`], [`crate::SkeletalEkf::new`] and [`crate::SkeletalEkf::step`]
+/// (with the frame in [`Error::At`]); [`Error::Empty`] for a recording no longer than its rest
+/// hold.
+pub fn run_filter(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    joints: &[usize],
+) -> Result<FilterRun> {
+    use crate::{initialise, joint_orientation_errors_deg, ErrorStats, SkeletalEkf};
+    if rec.frames.len() <= rec.rest_frames + 1 {
+        return Err(Error::Empty {
+            what: "frames after the rest hold",
+        });
+    }
+    let t0 = Instant::now();
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = initialise(skeleton, &rec.nominal_suit, rest_pose, &rest)?;
+    let known: Vec<usize> = if root_supplied {
+        skeleton.joint_dofs(0).collect()
+    } else {
+        Vec::new()
+    };
+    let mut ekf = SkeletalEkf::new(skeleton.clone(), init.suit, rest_pose, params, &known)?
+        .with_gyro_offsets(init.gyro_offsets)?;
+    let mut errors = vec![Vec::new(); joints.len()];
+    let (mut diverged, mut used) = (0, 0);
+    let mut scoring_s = 0.0;
+    for (k, f) in rec.frames.iter().enumerate() {
+        let r = ekf
+            .step(f, root_supplied.then(|| &rec.root[k]))
+            .at(Context::Frame(k))?;
+        diverged += usize::from(r.diverged);
+        used += r.distances_used;
+        if k >= rec.rest_frames {
+            let ts = Instant::now();
+            let e = joint_orientation_errors_deg(skeleton, ekf.theta(), &rec.truth[k].theta, joints)?;
+            for (acc, v) in errors.iter_mut().zip(e) {
+                acc.push(v);
+            }
+            scoring_s += ts.elapsed().as_secs_f64();
+        }
+    }
+    let ekf_s = t0.elapsed().as_secs_f64() - scoring_s;
+    let stats = errors
+        .iter()
+        .map(|e| ErrorStats::of(e))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(FilterRun {
+        sensors: params.sensors.label(),
+        root_supplied,
+        errors_deg: errors,
+        stats,
+        diverged_frames: diverged,
+        ekf_s,
+        distances_used: used,
+    })
 }
