@@ -235,6 +235,15 @@ pub fn prepare_motion(
     params.validate()?;
     let h = motion.frame_time_s;
     let mut frames = motion.frames.clone();
+    // Unwrap rotation DOFs (mocap decompositions jump by 2π), so splines do not swing round.
+    for d in 0..frames.nrows() {
+        if skeleton.is_rotation(d) {
+            for k in 1..frames.ncols() {
+                let jump = frames[(d, k)] - frames[(d, k - 1)];
+                frames[(d, k)] -= TAU * (jump / TAU).round();
+            }
+        }
+    }
     for _ in 0..params.smoothing_passes {
         let prev = frames.clone();
         let n = prev.ncols();
@@ -1062,4 +1071,124 @@ pub fn run_filter(
         ekf_s,
         distances_used: used,
     })
+}
+
+/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
+/// and without the root transform supplied, on one recording, with `params` otherwise.
+///
+/// # Errors
+/// As [`run_filter`].
+pub fn table_4_1(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    joints: &[usize],
+) -> Result<Vec<FilterRun>> {
+    let mut out = Vec::with_capacity(14);
+    for sensors in crate::SensorSet::table_4_1() {
+        for root in [true, false] {
+            out.push(run_filter(
+                skeleton,
+                rec,
+                params.with_sensors(sensors),
+                root,
+                joints,
+            )?);
+        }
+    }
+    Ok(out)
+}
+
+/// A tuning grid point and its score.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TuningPoint {
+    /// Process noise σ (per frame), rad/s².
+    pub process_sigma: f64,
+    /// Accelerometer σ, m/s².
+    pub accelerometer_sigma: f64,
+    /// Distance innovation gate, standard deviations (0: none).
+    pub distance_gate_sigma: f64,
+    /// Mean over the evaluated joints of the mean orientation error, degrees (A+G+D, root
+    /// supplied).
+    pub score_deg: f64,
+}
+
+/// Hand tuning made reproducible (§4.4.1: "We hand tune the standard deviation of the noise
+/// term by tracking several motions"): every combination of the three grids, scored with all
+/// sensors and the root supplied on a tuning recording; returns the points, best first.
+///
+/// # Errors
+/// As [`run_filter`]; [`Error::Empty`] for an empty grid.
+pub fn tune(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    base: crate::FilterParams,
+    joints: &[usize],
+    process_sigmas: &[f64],
+    accelerometer_sigmas: &[f64],
+    gates: &[f64],
+) -> Result<Vec<TuningPoint>> {
+    let mut out = Vec::new();
+    for &q in process_sigmas {
+        for &sa in accelerometer_sigmas {
+            for &gate in gates {
+                let p = crate::FilterParams {
+                    process_sigma: q,
+                    accelerometer_sigma: sa,
+                    distance_gate_sigma: gate,
+                    sensors: crate::SensorSet::ALL,
+                    ..base
+                };
+                let r = run_filter(skeleton, rec, p, true, joints)?;
+                let score = r.stats.iter().map(|s| s.mean_deg).sum::<f64>() / r.stats.len() as f64;
+                out.push(TuningPoint {
+                    process_sigma: q,
+                    accelerometer_sigma: sa,
+                    distance_gate_sigma: gate,
+                    score_deg: score,
+                });
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::Empty {
+            what: "tuning grid",
+        });
+    }
+    out.sort_by(|a, b| a.score_deg.total_cmp(&b.score_deg));
+    Ok(out)
+}
+
+/// A treadmill-like motion (Figure 4-7) from a walk: the root's horizontal translation is
+/// removed (the treadmill), its yaw held at the first frame's, and the walk is played forward
+/// and backward until `duration_s` (continuous, no jumps).
+///
+/// # Errors
+/// As [`Motion::check_for`]; [`Error::InvalidParam`] for a skeleton without the human root
+/// DOFs or a non-positive duration.
+pub fn treadmill_motion(skeleton: &Skeleton, walk: &Motion, duration_s: f64) -> Result<Motion> {
+    walk.check_for(skeleton)?;
+    positive("duration_s", duration_s)?;
+    let find = |name: &'static str| {
+        skeleton.dof_index(name).ok_or(Error::InvalidParam {
+            name: "skeleton",
+            reason: format!("no DOF {name}"),
+        })
+    };
+    let (tx, tz, yaw) = (find("pelvis.tx")?, find("pelvis.tz")?, find("pelvis.yaw")?);
+    let n = walk.frame_count();
+    let total = (duration_s / walk.frame_time_s).round() as usize + 1;
+    let period = 2 * (n - 1).max(1);
+    let mut frames = DMatrix::zeros(skeleton.dof_count(), total);
+    for k in 0..total {
+        let m = k % period;
+        let src = if m < n { m } else { period - m };
+        for d in 0..skeleton.dof_count() {
+            frames[(d, k)] = walk.frames[(d, src)];
+        }
+        frames[(tx, k)] = walk.frames[(tx, 0)];
+        frames[(tz, k)] = walk.frames[(tz, 0)];
+        frames[(yaw, k)] = walk.frames[(yaw, 0)];
+    }
+    Ok(Motion::new(walk.frame_time_s, frames)?)
 }

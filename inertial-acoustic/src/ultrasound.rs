@@ -46,18 +46,6 @@ impl Biquad {
         }
     }
 
-    /// Filters `x` in place from rest (transposed direct form II).
-    fn run(&self, x: &mut [f64]) {
-        let (mut s1, mut s2) = (0.0, 0.0);
-        let [b0, b1, b2] = self.b;
-        let [a1, a2] = self.a;
-        for v in x.iter_mut() {
-            let y = b0 * *v + s1;
-            s1 = b1 * *v - a1 * y + s2;
-            s2 = b2 * *v - a2 * y;
-            *v = y;
-        }
-    }
 }
 
 /// A pulse found in one frame.
@@ -132,15 +120,22 @@ impl PulseDetector {
             });
         }
         out.clear();
-        out.extend(frame.iter().map(|&v| f64::from(v)));
-        for s in &self.band {
-            s.run(out);
-        }
-        for v in out.iter_mut() {
-            *v *= *v;
-        }
-        for s in &self.envelope {
-            s.run(out);
+        out.reserve(frame.len());
+        // The four sections in one pass (states in registers): band-pass, band-pass, square,
+        // low-pass, low-pass.
+        let [b0, b1] = &self.band;
+        let [l0, l1] = &self.envelope;
+        let mut st = [[0.0f64; 2]; 4];
+        let step = |q: &Biquad, s: &mut [f64; 2], x: f64| {
+            let y = q.b[0] * x + s[0];
+            s[0] = q.b[1] * x - q.a[0] * y + s[1];
+            s[1] = q.b[2] * x - q.a[1] * y;
+            y
+        };
+        for &v in frame {
+            let [s0, s1, s2, s3] = &mut st;
+            let x = step(b1, s1, step(b0, s0, f64::from(v)));
+            out.push(step(l1, s3, step(l0, s2, x * x)));
         }
         Ok(())
     }
@@ -159,8 +154,10 @@ impl PulseDetector {
     }
 
     fn find(&mut self, env: &[f64]) -> Option<Detection> {
+        // Noise power: the median of every fourth sample (the pulse and its echoes cover a
+        // small part of the frame).
         self.sorted.clear();
-        self.sorted.extend(env.iter().map(|v| v.abs()));
+        self.sorted.extend(env.iter().step_by(4).map(|v| v.abs()));
         let mid = self.sorted.len() / 2;
         let noise = *self
             .sorted
