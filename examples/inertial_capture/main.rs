@@ -27,8 +27,7 @@ use serde_json::{json, Value};
 
 use dynamic_shapes::core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
 use dynamic_shapes::core::studio::{
-    exercise_motion, play_bvh, range_of_motion, ExerciseParams, RangeOfMotionParams,
-    RetargetParams,
+    exercise_motion, play_bvh, range_of_motion, ExerciseParams, RangeOfMotionParams, RetargetParams,
 };
 use dynamic_shapes::inertial::simulate::{
     prepare_motion, run_filter, table_4_1, treadmill_motion, tune, FilterRun, SimulatedRecording,
@@ -94,9 +93,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cal = sim.calibrate_offsets(3)?;
     let loo_mm: Vec<f64> = cal.loo_abs_errors_m.iter().map(|e| 1e3 * e).collect();
     let dist_mean = loo_mm.iter().sum::<f64>() / loo_mm.len() as f64;
-    let dist_sd = (loo_mm.iter().map(|e| (e - dist_mean).powi(2)).sum::<f64>()
-        / loo_mm.len() as f64)
-        .sqrt();
+    let dist_sd =
+        (loo_mm.iter().map(|e| (e - dist_mean).powi(2)).sum::<f64>() / loo_mm.len() as f64).sqrt();
     stage.finish(format!("{dist_mean:.2} ± {dist_sd:.2} mm"));
 
     // Tuning on a separate clip (another exercise seed).
@@ -125,7 +123,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let best = grid[0];
     let paper_point = grid
         .iter()
-        .find(|g| g.process_sigma == 0.04 && g.accelerometer_sigma == 0.02 && g.distance_gate_sigma == 0.0)
+        .find(|g| {
+            g.process_sigma == 0.04 && g.accelerometer_sigma == 0.02 && g.distance_gate_sigma == 0.0
+        })
         .copied();
     let params = FilterParams {
         process_sigma: best.process_sigma,
@@ -147,7 +147,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rom_full = range_of_motion(&skeleton, &RangeOfMotionParams::default())?;
     let rom = if rom_s.is_finite() {
         let n = ((rom_s / rom_full.frame_time_s) as usize + 1).min(rom_full.frame_count());
-        Motion::new(rom_full.frame_time_s, rom_full.frames.columns(0, n).into_owned())?
+        Motion::new(
+            rom_full.frame_time_s,
+            rom_full.frames.columns(0, n).into_owned(),
+        )?
     } else {
         rom_full
     };
@@ -163,7 +166,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut us_s, mut in_s, mut ekf_s, mut motion_s) = (0.0, 0.0, 0.0, 0.0);
     let mut los_errors = Vec::new();
     let mut main_table = Vec::new();
-    for (name, motion) in [("exercise", &exercise), ("range_of_motion", &rom), ("cmu_walk", &walk)] {
+    for (name, motion) in [
+        ("exercise", &exercise),
+        ("range_of_motion", &rom),
+        ("cmu_walk", &walk),
+    ] {
         let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets);
         let table = table_4_1(&skeleton, &rec, params, &joints)?;
         let seconds = (rec.frames.len() - 1) as f64 / 140.0;
@@ -208,13 +215,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let l_shoulder = [skeleton.joint_index("l_shoulder").unwrap()];
     let last = (5.0 * 140.0) as usize;
     let mut drift = Vec::new();
-    for sensors in [SensorSet::ALL, SensorSet { distances: false, ..SensorSet::ALL }] {
-        let r = run_filter(&skeleton, &rec, params.with_sensors(sensors), true, &l_shoulder)?;
+    for sensors in [
+        SensorSet::ALL,
+        SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        },
+    ] {
+        let r = run_filter(
+            &skeleton,
+            &rec,
+            params.with_sensors(sensors),
+            true,
+            &l_shoulder,
+        )?;
         let e = &r.errors_deg[0];
         let tail = &e[e.len().saturating_sub(last)..];
         drift.push((tail.iter().sum::<f64>() / tail.len() as f64, e.clone()));
     }
-    stage.finish(format!("with D {:.1}°, without {:.1}°", drift[0].0, drift[1].0));
+    stage.finish(format!(
+        "with D {:.1}°, without {:.1}°",
+        drift[0].0, drift[1].0
+    ));
 
     // Plots.
     let colours = [[40, 90, 200], [220, 120, 40], [40, 160, 80]];
@@ -231,8 +253,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .enumerate()
                 .map(|(i, r)| ((i + 1) as f64, r.stats[j].mean_deg))
                 .collect();
-            let style = if root { Style::LineMarkers } else { Style::Dashed };
-            let l = if root { format!("{label}, root supplied") } else { format!("{label}, root free") };
+            let style = if root {
+                Style::LineMarkers
+            } else {
+                Style::Dashed
+            };
+            let l = if root {
+                format!("{label}, root supplied")
+            } else {
+                format!("{label}, root free")
+            };
             chart = chart.with(Series::new(l, colours[j], style, pts));
         }
     }
@@ -242,15 +272,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &chart.draw()?,
         "Mean orientation error of neck, right shoulder and left hip for every sensor combination",
     )?;
-    let pts = |e: &[f64]| e.iter().enumerate().map(|(i, v)| (i as f64 / 140.0, *v)).collect();
+    let pts = |e: &[f64]| {
+        e.iter()
+            .enumerate()
+            .map(|(i, v)| (i as f64 / 140.0, *v))
+            .collect()
+    };
     let chart = Chart::new(
         "Treadmill-like walk (Figure 4-7): left shoulder orientation error",
         "time (s)",
         "orientation error (deg)",
     )
-    .with(Series::new("A+G+D", [40, 90, 200], Style::Line, pts(&drift[0].1)))
-    .with(Series::new("A+G (no distances)", [220, 60, 40], Style::Line, pts(&drift[1].1)));
-    run.save_picture("drift.png", &chart.draw()?, "Left shoulder error with and without distances")?;
+    .with(Series::new(
+        "A+G+D",
+        [40, 90, 200],
+        Style::Line,
+        pts(&drift[0].1),
+    ))
+    .with(Series::new(
+        "A+G (no distances)",
+        [220, 60, 40],
+        Style::Line,
+        pts(&drift[1].1),
+    ));
+    run.save_picture(
+        "drift.png",
+        &chart.draw()?,
+        "Left shoulder error with and without distances",
+    )?;
 
     let agd = main_table
         .iter()
@@ -259,9 +308,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let los_mean = los_errors.iter().sum::<f64>() / los_errors.len().max(1) as f64;
     let compute_s = us_s + in_s + ekf_s;
     for h in [
-        Headline::new("distance_error_mean_mm", "distance error (LOO, static)", "mm")
-            .goal(Goal::AtMost(2.5))
-            .note("thesis 2.35"),
+        Headline::new(
+            "distance_error_mean_mm",
+            "distance error (LOO, static)",
+            "mm",
+        )
+        .goal(Goal::AtMost(2.5))
+        .note("thesis 2.35"),
         Headline::new("distance_error_sd_mm", "distance error SD", "mm")
             .goal(Goal::AtMost(2.0))
             .note("thesis 1.92"),
@@ -275,7 +328,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .goal(Goal::AtMost(3.0))
             .note("thesis 6.6"),
         Headline::new("drift_with_d_deg", "treadmill left shoulder, with D", "deg"),
-        Headline::new("drift_without_d_deg", "treadmill left shoulder, without D", "deg"),
+        Headline::new(
+            "drift_without_d_deg",
+            "treadmill left shoulder, without D",
+            "deg",
+        ),
         Headline::new("realtime_factor", "motion seconds per compute second", "")
             .goal(Goal::AtLeast(10.0)),
     ] {

@@ -111,7 +111,11 @@ impl Row {
         }
     }
     fn dot(&self, x: &[f64]) -> f64 {
-        self.idx.iter().zip(&self.val).map(|(&i, &v)| v * x[i]).sum()
+        self.idx
+            .iter()
+            .zip(&self.val)
+            .map(|(&i, &v)| v * x[i])
+            .sum()
     }
 }
 
@@ -294,7 +298,11 @@ impl SkeletalEkf {
     /// not match the known DOFs; [`Error::IndexOutOfRange`] (in [`Error::At`] naming the
     /// distance's sensor) for a bad sensor or source index; [`Error::NonFinite`] for non-finite
     /// known values or distances.
-    pub fn step(&mut self, obs: &FrameObservations, known: Option<&KnownDofs>) -> Result<StepReport> {
+    pub fn step(
+        &mut self,
+        obs: &FrameObservations,
+        known: Option<&KnownDofs>,
+    ) -> Result<StepReport> {
         skin_core::check::same_size(
             "inertial readings per board",
             self.suit.boards().len(),
@@ -473,7 +481,11 @@ impl SkeletalEkf {
     }
 
     /// Eq. 4.3: `z = Rᵀ J_ω θ̇`; `∂z/∂θ̇ = J_ω,local`, `∂z/∂θ = ∂(J_ω θ̇)/∂θ` (local axes).
-    fn update_gyroscopes(&mut self, obs: &FrameObservations, report: &mut StepReport) -> Result<()> {
+    fn update_gyroscopes(
+        &mut self,
+        obs: &FrameObservations,
+        report: &mut StepReport,
+    ) -> Result<()> {
         self.linearise()?;
         let mut mb = std::mem::take(&mut self.mb);
         let res = self.gyro_rows(obs, report, &mut mb);
@@ -507,9 +519,11 @@ impl SkeletalEkf {
                 continue;
             };
             let z = reading.gyro_rad_s - self.gyro_offsets[b];
-            let pred =
-                self.rates
-                    .frame_angular_velocity(&self.fk, &self.frames[b], AngularFrame::Local)?;
+            let pred = self.rates.frame_angular_velocity(
+                &self.fk,
+                &self.frames[b],
+                AngularFrame::Local,
+            )?;
             let chain = self.skeleton.chain_dofs(self.frames[b].joint).to_vec();
             for axis in 0..3 {
                 self.row.clear();
@@ -560,8 +574,12 @@ impl SkeletalEkf {
             dt,
             dd,
         )?;
-        self.skeleton
-            .point_jacobian_product_jacobians_into(&self.fk, &self.theta_ddot, pts, djy)?;
+        self.skeleton.point_jacobian_product_jacobians_into(
+            &self.fk,
+            &self.theta_ddot,
+            pts,
+            djy,
+        )?;
         self.skeleton.point_bias_accelerations_into(
             &self.fk,
             &self.rates,
@@ -695,8 +713,11 @@ impl SkeletalEkf {
                 }
                 let d = d - age * d_rate;
                 let sigma = self.params.distance_sigma_m / w;
-                if self.scalar_update(m.distance_m - d, sigma * sigma, self.params.distance_gate_sigma)
-                {
+                if self.scalar_update(
+                    m.distance_m - d,
+                    sigma * sigma,
+                    self.params.distance_gate_sigma,
+                ) {
                     report.distances_used += 1;
                 } else {
                     report.distances_rejected += 1;

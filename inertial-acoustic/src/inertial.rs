@@ -191,10 +191,10 @@ impl DeltaCodec {
             }
             return None;
         }
-        for c in 0..CHANNELS {
-            self.recon[c] += deltas[c];
-            self.last_delta[c] = deltas[c];
+        for (r, d) in self.recon.iter_mut().zip(&deltas) {
+            *r += d;
         }
+        self.last_delta = deltas;
         Some((self.recon, corrected))
     }
 }

@@ -25,11 +25,13 @@
 use crate::ekf::{DistanceMeasurement, FrameObservations, InertialReading, KnownDofs};
 use crate::inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 use crate::params::{
-    UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_CYCLES,
-    PULSE_INTERVAL_S, SAMPLES_PER_PULSE,
+    UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S,
+    SAMPLES_PER_PULSE,
 };
 use crate::suit::{SensorBoard, Suit, UltrasonicSource};
-use crate::ultrasound::{calibrate_offsets, leave_one_out_errors_m, CalibrationShot, PulseDetector};
+use crate::ultrasound::{
+    calibrate_offsets, leave_one_out_errors_m, CalibrationShot, PulseDetector,
+};
 use crate::{Context, Error, Result, ResultExt};
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
@@ -215,8 +217,10 @@ impl SmoothMotion {
         for d in 0..self.y.nrows() {
             let (y0, y1) = (self.y[(d, i)], self.y[(d, (i + 1).min(n - 1))]);
             let (m0, m1) = (self.m[(d, i)], self.m[(d, (i + 1).min(n - 1))]);
-            theta[d] = a * y0 + b * y1 + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6.0;
-            rate[d] = (y1 - y0) / h + ((1.0 - 3.0 * a * a) * m0 + (3.0 * b * b - 1.0) * m1) * h / 6.0;
+            theta[d] =
+                a * y0 + b * y1 + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6.0;
+            rate[d] =
+                (y1 - y0) / h + ((1.0 - 3.0 * a * a) * m0 + (3.0 * b * b - 1.0) * m1) * h / 6.0;
             acc[d] = a * m0 + b * m1;
         }
     }
@@ -249,7 +253,8 @@ pub fn prepare_motion(
         let n = prev.ncols();
         for k in 1..n.saturating_sub(1) {
             for d in 0..prev.nrows() {
-                frames[(d, k)] = 0.25 * prev[(d, k - 1)] + 0.5 * prev[(d, k)] + 0.25 * prev[(d, k + 1)];
+                frames[(d, k)] =
+                    0.25 * prev[(d, k - 1)] + 0.5 * prev[(d, k)] + 0.25 * prev[(d, k + 1)];
             }
         }
     }
@@ -516,7 +521,12 @@ impl SuitSimulator {
     }
 
     /// Garment position of board `b` at pose θ (placement error plus skin slide), world.
-    fn board_position(&self, fk: &skin_core::skeleton::ForwardKinematics, theta: &[f64], b: usize) -> Result<DVec3> {
+    fn board_position(
+        &self,
+        fk: &skin_core::skeleton::ForwardKinematics,
+        theta: &[f64],
+        b: usize,
+    ) -> Result<DVec3> {
         let board = &self.true_suit.boards()[b];
         let slide: f64 = self
             .skeleton
@@ -622,7 +632,6 @@ impl SuitSimulator {
             snr_db_at_90cm: snr,
         })
     }
-
 }
 
 /// Per-frame geometry kept for the ultrasonic pass.
@@ -736,9 +745,18 @@ impl SuitSimulator {
             motion.eval(t, &mut th, &mut rate, &mut acc);
             motion.eval(t + h, &mut th_p, &mut scratch_r, &mut scratch_a);
             motion.eval(t - h, &mut th_m, &mut scratch_r, &mut scratch_a);
-            let fk = self.skeleton.forward_kinematics(&th).at(Context::Frame(k))?;
-            let fk_p = self.skeleton.forward_kinematics(&th_p).at(Context::Frame(k))?;
-            let fk_m = self.skeleton.forward_kinematics(&th_m).at(Context::Frame(k))?;
+            let fk = self
+                .skeleton
+                .forward_kinematics(&th)
+                .at(Context::Frame(k))?;
+            let fk_p = self
+                .skeleton
+                .forward_kinematics(&th_p)
+                .at(Context::Frame(k))?;
+            let fk_m = self
+                .skeleton
+                .forward_kinematics(&th_m)
+                .at(Context::Frame(k))?;
             let rates = self.skeleton.rates(&th, &rate, &fk).at(Context::Frame(k))?;
             let mut readings = Vec::with_capacity(nb);
             let mut board_pos = Vec::with_capacity(nb);
@@ -884,21 +902,29 @@ impl SuitSimulator {
             let j = slot % ns;
             let kf = t_s / dt;
             let k0 = kf.floor() as usize;
-            let g = lerp_geometry(&geometry[k0], &geometry[(k0 + 1).min(geometry.len() - 1)], kf - k0 as f64);
-            for i in 0..nb {
+            let g = lerp_geometry(
+                &geometry[k0],
+                &geometry[(k0 + 1).min(geometry.len() - 1)],
+                kf - k0 as f64,
+            );
+            for (i, &mic_joint) in board_joint.iter().enumerate() {
                 self.background(&mut frame, rng, normal);
                 let (pi, pj) = (g.boards[i], g.sources[j]);
                 let diff = pi - pj;
                 let r = diff.length().max(1e-3);
                 let cos = g.normals[j].dot(diff) / r;
                 let occluded = self.capsules.iter().zip(&g.capsules).any(|(cap, seg)| {
-                    cap.joint != board_joint[i]
+                    cap.joint != mic_joint
                         && cap.joint != source_joint[j]
                         && segment_distance(pi, pj, seg.0, seg.1) < cap.radius
                 });
                 let amp = self.params.source_amplitude / r
                     * Self::directivity(cos)
-                    * if occluded { self.params.occlusion_factor } else { 1.0 };
+                    * if occluded {
+                        self.params.occlusion_factor
+                    } else {
+                        1.0
+                    };
                 let lag = self.source_lags_s[j];
                 Self::add_burst(&mut frame, r / c + lag, amp, fs);
                 let mirror = DVec3::new(pi.x, -pi.y, pi.z);
@@ -959,12 +985,19 @@ mod tests {
         let s = SmoothMotion::new(h, y);
         let (mut a, mut b, mut c) = ([0.0], [0.0], [0.0]);
         s.eval(1.0, &mut a, &mut b, &mut c);
-        assert!((a[0] - 1.0).abs() < 1e-4 && (b[0] - 2.0).abs() < 1e-3 && (c[0] - 2.0).abs() < 0.02);
+        assert!(
+            (a[0] - 1.0).abs() < 1e-4 && (b[0] - 2.0).abs() < 1e-3 && (c[0] - 2.0).abs() < 0.02
+        );
     }
 
     #[test]
     fn segment_distance_cases() {
-        let d = segment_distance(DVec3::ZERO, DVec3::X, DVec3::new(0.5, 1.0, -1.0), DVec3::new(0.5, 1.0, 1.0));
+        let d = segment_distance(
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(0.5, 1.0, -1.0),
+            DVec3::new(0.5, 1.0, 1.0),
+        );
         assert!((d - 1.0).abs() < 1e-12);
     }
 
@@ -979,7 +1012,11 @@ mod tests {
         let motion = prepare_motion(&s, &still, &SimulationParams::default()).unwrap();
         let rec = sim.record(&motion, &cal.offsets).unwrap();
         let r = rec.frames[10].inertial[0].unwrap();
-        assert!((r.accel_m_s2.length() - GRAVITY_M_S2).abs() < 0.3, "{}", r.accel_m_s2);
+        assert!(
+            (r.accel_m_s2.length() - GRAVITY_M_S2).abs() < 0.3,
+            "{}",
+            r.accel_m_s2
+        );
         assert!(r.gyro_rad_s.length() < 0.05);
         assert!(rec.pulses_heard > 0);
     }
@@ -1050,7 +1087,8 @@ pub fn run_filter(
         used += r.distances_used;
         if k >= rec.rest_frames {
             let ts = Instant::now();
-            let e = joint_orientation_errors_deg(skeleton, ekf.theta(), &rec.truth[k].theta, joints)?;
+            let e =
+                joint_orientation_errors_deg(skeleton, ekf.theta(), &rec.truth[k].theta, joints)?;
             for (acc, v) in errors.iter_mut().zip(e) {
                 acc.push(v);
             }

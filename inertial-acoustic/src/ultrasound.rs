@@ -45,7 +45,6 @@ impl Biquad {
             a: [-2.0 * c / a0, (1.0 - alpha) / a0],
         }
     }
-
 }
 
 /// A pulse found in one frame.
@@ -171,16 +170,20 @@ impl PulseDetector {
         let mut i = start;
         while i + 1 < env.len() {
             let ahead = (i + 6).min(env.len() - 1);
-            let (best, best_v) = env[i + 1..=ahead]
-                .iter()
-                .enumerate()
-                .fold((i, env[i]), |acc, (k, &v)| {
-                    if v > acc.1 {
-                        (i + 1 + k, v)
-                    } else {
-                        acc
-                    }
-                });
+            let (best, best_v) =
+                env[i + 1..=ahead]
+                    .iter()
+                    .enumerate()
+                    .fold(
+                        (i, env[i]),
+                        |acc, (k, &v)| {
+                            if v > acc.1 {
+                                (i + 1 + k, v)
+                            } else {
+                                acc
+                            }
+                        },
+                    );
             if best_v <= env[peak_i] {
                 break;
             }

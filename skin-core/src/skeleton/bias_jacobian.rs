@@ -91,7 +91,12 @@ impl Skeleton {
     ) -> Result<()> {
         self.check_rates(fk, theta_dot)?;
         let (rows, cols) = (3 * points.len(), self.dof_count());
-        check_shape("d(Jdot thetadot)/dtheta rows x columns", d_theta, rows, cols)?;
+        check_shape(
+            "d(Jdot thetadot)/dtheta rows x columns",
+            d_theta,
+            rows,
+            cols,
+        )?;
         check_shape(
             "d(Jdot thetadot)/dthetadot rows x columns",
             d_theta_dot,

@@ -174,7 +174,11 @@ fn check(c: &Case) {
     let mut jy = DMatrix::zeros(rows, n);
     s.point_jacobian_product_jacobians_into(&fk, &c.y, &c.points, &mut jy)
         .unwrap();
-    assert_fd(&jy, |d, h| j_times(c, &shifted(&c.theta, d, h)), "d(J y)/dtheta");
+    assert_fd(
+        &jy,
+        |d, h| j_times(c, &shifted(&c.theta, d, h)),
+        "d(J y)/dtheta",
+    );
     for axes in [AngularFrame::World, AngularFrame::Local] {
         let mut g = DMatrix::zeros(3 * c.frames.len(), n);
         s.frame_angular_velocity_jacobians_into(&fk, &c.theta_dot, &c.frames, axes, &mut g)
