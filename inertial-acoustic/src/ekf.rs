@@ -92,6 +92,10 @@ pub struct StepReport {
     pub distances_rejected: usize,
 }
 
+/// A sensor type's observation rows, run with the board Jacobian buffers.
+type BoardRows =
+    fn(&mut SkeletalEkf, &FrameObservations, &mut StepReport, &mut [DMatrix<f64>]) -> Result<()>;
+
 /// Scratch of one sparse observation row.
 #[derive(Debug, Clone, Default)]
 struct Row {
@@ -344,10 +348,10 @@ impl SkeletalEkf {
         let sensors = self.params.sensors;
         let result = (|| -> Result<()> {
             if sensors.gyroscopes {
-                self.update_gyroscopes(obs, &mut report)?;
+                self.with_board_buffers(obs, &mut report, Self::gyro_rows)?;
             }
             if sensors.accelerometers {
-                self.update_accelerometers(obs, &mut report)?;
+                self.with_board_buffers(obs, &mut report, Self::accel_rows)?;
             }
             if sensors.distances {
                 self.update_distances(obs, &mut report)?;
@@ -480,19 +484,22 @@ impl SkeletalEkf {
         obs.inertial[b].filter(|r| r.gyro_rad_s.is_finite() && r.accel_m_s2.is_finite())
     }
 
-    /// Eq. 4.3: `z = Rᵀ J_ω θ̇`; `∂z/∂θ̇ = J_ω,local`, `∂z/∂θ = ∂(J_ω θ̇)/∂θ` (local axes).
-    fn update_gyroscopes(
+    /// Re-linearises, then runs `rows` (gyroscope or accelerometer rows) with the board
+    /// Jacobian buffers lent out of `self`.
+    fn with_board_buffers(
         &mut self,
         obs: &FrameObservations,
         report: &mut StepReport,
+        rows: BoardRows,
     ) -> Result<()> {
         self.linearise()?;
         let mut mb = std::mem::take(&mut self.mb);
-        let res = self.gyro_rows(obs, report, &mut mb);
+        let res = rows(self, obs, report, &mut mb);
         self.mb = mb;
         res
     }
 
+    /// Eq. 4.3: `z = Rᵀ J_ω θ̇`; `∂z/∂θ̇ = J_ω,local`, `∂z/∂θ = ∂(J_ω θ̇)/∂θ` (local axes).
     fn gyro_rows(
         &mut self,
         obs: &FrameObservations,
@@ -543,18 +550,6 @@ impl SkeletalEkf {
 
     /// Eq. 4.2: `z = Rᵀ (J θ̈ + J̇θ̇ − g)`; `∂z/∂θ̈ = Rᵀ J`, `∂z/∂θ̇ = Rᵀ ∂(J̇θ̇)/∂θ̇`,
     /// `∂z/∂θ_m = Rᵀ (∂(Jθ̈)/∂θ_m + ∂(J̇θ̇)/∂θ_m − g_m × (a − g))`.
-    fn update_accelerometers(
-        &mut self,
-        obs: &FrameObservations,
-        report: &mut StepReport,
-    ) -> Result<()> {
-        self.linearise()?;
-        let mut mb = std::mem::take(&mut self.mb);
-        let res = self.accel_rows(obs, report, &mut mb);
-        self.mb = mb;
-        res
-    }
-
     fn accel_rows(
         &mut self,
         obs: &FrameObservations,

@@ -21,35 +21,14 @@
 //! allocation. Columns of DOFs off the chain are zero.
 
 use super::fk::{AttachedFrame, AttachedPoint, ForwardKinematics};
-use super::jacobian::AngularFrame;
+use super::jacobian::{check_out, put3, AngularFrame};
 use super::model::Skeleton;
 use crate::math::{DMat3, DVec3};
-use crate::{Error, Result};
+use crate::Result;
 use nalgebra::DMatrix;
 
 /// Longest chain handled without heap allocation (longer chains allocate scratch).
 const STACK_CHAIN: usize = 48;
-
-fn check_shape(what: &'static str, out: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
-    for (expected, got) in [(rows, out.nrows()), (cols, out.ncols())] {
-        if expected != got {
-            return Err(Error::SizeMismatch {
-                what,
-                expected,
-                got,
-            });
-        }
-    }
-    Ok(())
-}
-
-#[inline]
-fn put3(data: &mut [f64], nrows: usize, row: usize, col: usize, v: DVec3) {
-    let base = col * nrows + row;
-    data[base] = v.x;
-    data[base + 1] = v.y;
-    data[base + 2] = v.z;
-}
 
 /// Per-chain-DOF generator g and positional column J of a point p.
 #[inline]
@@ -91,13 +70,13 @@ impl Skeleton {
     ) -> Result<()> {
         self.check_rates(fk, theta_dot)?;
         let (rows, cols) = (3 * points.len(), self.dof_count());
-        check_shape(
+        check_out(
             "d(Jdot thetadot)/dtheta rows x columns",
             d_theta,
             rows,
             cols,
         )?;
-        check_shape(
+        check_out(
             "d(Jdot thetadot)/dthetadot rows x columns",
             d_theta_dot,
             rows,
@@ -184,7 +163,7 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         self.check_rates(fk, y)?;
-        check_shape(
+        check_out(
             "d(J y)/dtheta rows x columns",
             out,
             3 * points.len(),
@@ -233,7 +212,7 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         self.check_rates(fk, theta_dot)?;
-        check_shape(
+        check_out(
             "d(J_w thetadot)/dtheta rows x columns",
             out,
             3 * frames.len(),
