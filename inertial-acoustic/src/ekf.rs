@@ -9,8 +9,8 @@
 //! **Structure.** `F = [[I, Δt I, 0], [0, I, Δt I], [0, 0, I]]` is applied to P block-wise in
 //! O(N²) (two column and two row axpys) instead of two dense products; the process noise
 //! enters the θ̈ block only (`W = [0; 0; I]`). Observation rows are sparse (only the DOFs on
-//! the sensor's chain), so `P Hᵀ` costs O(N · chain) and each scalar update one symmetric
-//! rank-1 downdate.
+//! the sensor's chain), so `P Hᵀ` costs O(N · chain) and each scalar update one rank-1
+//! downdate of P's lower triangle (mirrored once per frame before the time update).
 //!
 //! **Known DOFs.** DOFs listed as known (the root transform, as in the thesis's Vicon
 //! comparison) are not in the state; their θ, θ̇, θ̈ are supplied every frame.
@@ -380,6 +380,7 @@ impl SkeletalEkf {
 
     /// Eq. 4.5–4.6 with the block form of F.
     fn predict(&mut self) {
+        self.symmetrise();
         let nf = self.nf;
         let dt = self.params.frame_time_s;
         for i in 0..nf {
@@ -447,11 +448,16 @@ impl SkeletalEkf {
             *d = x - x0;
         }
         let innov = residual0 - self.row.dot(&self.dx);
+        // Only the lower triangle of P is kept current between time updates (symmetry):
+        // column i of P is its lower part below the diagonal and row i to the left of it.
         let data = self.p.as_slice();
         self.ph.fill(0.0);
         for (&i, &v) in self.row.idx.iter().zip(&self.row.val) {
-            let col = &data[i * n..(i + 1) * n];
-            for (p, c) in self.ph.iter_mut().zip(col) {
+            for (r, p) in self.ph[..i].iter_mut().enumerate() {
+                *p += v * data[r * n + i];
+            }
+            let col = &data[i * n + i..(i + 1) * n];
+            for (p, c) in self.ph[i..].iter_mut().zip(col) {
                 *p += v * c;
             }
         }
@@ -472,12 +478,23 @@ impl SkeletalEkf {
             if f == 0.0 {
                 continue;
             }
-            let col = &mut data[c * n..(c + 1) * n];
-            for (p, h) in col.iter_mut().zip(&self.ph) {
+            let col = &mut data[c * n + c..(c + 1) * n];
+            for (p, h) in col.iter_mut().zip(&self.ph[c..]) {
                 *p -= h * f;
             }
         }
         true
+    }
+
+    /// Copies the lower triangle of P onto the upper (after a run of scalar updates).
+    fn symmetrise(&mut self) {
+        let n = 3 * self.nf;
+        let data = self.p.as_mut_slice();
+        for c in 1..n {
+            for r in 0..c {
+                data[c * n + r] = data[r * n + c];
+            }
+        }
     }
 
     fn inertial_reading(&self, obs: &FrameObservations, b: usize) -> Option<InertialReading> {
