@@ -58,8 +58,8 @@ impl Skeleton {
     /// chains of up to 48 DOFs.
     ///
     /// # Errors
-    /// [`Error::SizeMismatch`] for wrongly sized outputs or `fk`; as [`Skeleton::check_pose`]
-    /// for θ̇; [`Error::IndexOutOfRange`] for a bad joint index.
+    /// [`crate::Error::SizeMismatch`] for wrongly sized outputs or `fk`; as [`Skeleton::check_pose`]
+    /// for θ̇; [`crate::Error::IndexOutOfRange`] for a bad joint index.
     pub fn point_bias_acceleration_jacobians_into(
         &self,
         fk: &ForwardKinematics,
