@@ -30,6 +30,20 @@ use nalgebra::DMatrix;
 /// Longest chain handled without heap allocation (longer chains allocate scratch).
 const STACK_CHAIN: usize = 48;
 
+/// Checks `out` is `rows × dof_count`, zeroes it and returns its row count and column-major
+/// data.
+fn zeroed<'a>(
+    skeleton: &Skeleton,
+    what: &'static str,
+    out: &'a mut DMatrix<f64>,
+    rows: usize,
+) -> Result<(usize, &'a mut [f64])> {
+    check_out(what, out, rows, skeleton.dof_count())?;
+    let data = out.as_mut_slice();
+    data.fill(0.0);
+    Ok((rows, data))
+}
+
 /// Per-chain-DOF generator g and positional column J of a point p.
 #[inline]
 fn generator_and_column(
@@ -69,24 +83,11 @@ impl Skeleton {
         d_theta_dot: &mut DMatrix<f64>,
     ) -> Result<()> {
         self.check_rates(fk, theta_dot)?;
-        let (rows, cols) = (3 * points.len(), self.dof_count());
-        check_out(
-            "d(Jdot thetadot)/dtheta rows x columns",
-            d_theta,
-            rows,
-            cols,
-        )?;
-        check_out(
-            "d(Jdot thetadot)/dthetadot rows x columns",
-            d_theta_dot,
-            rows,
-            cols,
-        )?;
-        let nrows = rows;
-        let dt = d_theta.as_mut_slice();
-        let dd = d_theta_dot.as_mut_slice();
-        dt.fill(0.0);
-        dd.fill(0.0);
+        let rows = 3 * points.len();
+        let what = "d(Jdot thetadot)/dtheta rows x columns";
+        let (nrows, dt) = zeroed(self, what, d_theta, rows)?;
+        let what = "d(Jdot thetadot)/dthetadot rows x columns";
+        let (_, dd) = zeroed(self, what, d_theta_dot, rows)?;
         let mut heap: Vec<[DVec3; 4]> = Vec::new();
         let mut stack = [[DVec3::ZERO; 4]; STACK_CHAIN];
         for (i, pt) in points.iter().enumerate() {
@@ -163,15 +164,7 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         self.check_rates(fk, y)?;
-        check_out(
-            "d(J y)/dtheta rows x columns",
-            out,
-            3 * points.len(),
-            self.dof_count(),
-        )?;
-        let nrows = out.nrows();
-        let data = out.as_mut_slice();
-        data.fill(0.0);
+        let (nrows, data) = zeroed(self, "d(J y)/dtheta rows x columns", out, 3 * points.len())?;
         for (i, pt) in points.iter().enumerate() {
             let p = fk.point(pt)?;
             let chain = self.chain_dofs(pt.joint);
@@ -212,15 +205,8 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
     ) -> Result<()> {
         self.check_rates(fk, theta_dot)?;
-        check_out(
-            "d(J_w thetadot)/dtheta rows x columns",
-            out,
-            3 * frames.len(),
-            self.dof_count(),
-        )?;
-        let nrows = out.nrows();
-        let data = out.as_mut_slice();
-        data.fill(0.0);
+        let what = "d(J_w thetadot)/dtheta rows x columns";
+        let (nrows, data) = zeroed(self, what, out, 3 * frames.len())?;
         for (i, f) in frames.iter().enumerate() {
             let to_local = fk.frame_rotation(f)?.inverse();
             let chain = self.chain_dofs(f.joint);
