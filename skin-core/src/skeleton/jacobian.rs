@@ -139,7 +139,12 @@ fn check_joint(fk: &ForwardKinematics, joint: usize) -> Result<usize> {
     fk.frame_of(joint, "attached joint").map(|_| joint)
 }
 
-fn check_out(what: &'static str, out: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
+pub(super) fn check_out(
+    what: &'static str,
+    out: &DMatrix<f64>,
+    rows: usize,
+    cols: usize,
+) -> Result<()> {
     if out.nrows() != rows {
         return Err(Error::SizeMismatch {
             what,
@@ -169,7 +174,7 @@ fn check_len(what: &'static str, expected: usize, got: usize) -> Result<()> {
 }
 
 #[inline]
-fn put3(data: &mut [f64], nrows: usize, row: usize, col: usize, v: DVec3) {
+pub(super) fn put3(data: &mut [f64], nrows: usize, row: usize, col: usize, v: DVec3) {
     let base = col * nrows + row;
     data[base] = v.x;
     data[base + 1] = v.y;

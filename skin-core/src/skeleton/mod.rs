@@ -14,7 +14,11 @@
 //! * [`Skeleton::point_jacobians_into`], [`Skeleton::frame_jacobians_into`] (world or
 //!   [`AngularFrame::Local`] axes), [`Skeleton::rates_into`] → [`JointRates`],
 //!   [`Skeleton::point_bias_accelerations_into`] (`J̇θ̇`),
-//!   [`Skeleton::frame_bias_accelerations_into`] (`J̇_ω θ̇`), and the full `J̇` matrices.
+//!   [`Skeleton::frame_bias_accelerations_into`] (`J̇_ω θ̇`), and the full `J̇` matrices;
+//!   their pose derivatives for EKF observation Jacobians:
+//!   [`Skeleton::point_bias_acceleration_jacobians_into`] (`∂(J̇θ̇)/∂θ`, `∂(J̇θ̇)/∂θ̇`),
+//!   [`Skeleton::point_jacobian_product_jacobians_into`] (`∂(Jy)/∂θ`),
+//!   [`Skeleton::frame_angular_velocity_jacobians_into`] (`∂(J_ω θ̇)/∂θ`).
 //!   All `_into` forms write preallocated buffers and do not allocate.
 //! * [`human_skeleton`]: 42 DOFs, 19 joints, 1.75 m.
 //! * [`parse_bvh`], [`read_bvh`], [`write_bvh`], [`to_bvh_string`]: BVH files ↔
@@ -34,6 +38,7 @@
 //! # Ok::<(), skin_core::Error>(())
 //! ```
 
+mod bias_jacobian;
 mod bvh;
 mod bvh_export;
 mod dof;

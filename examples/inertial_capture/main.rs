@@ -1,0 +1,366 @@
+//! Validation of inertial-acoustic (Vlasic 2010 thesis, Chapter 4) on the synthetic studio.
+//!
+//! The thesis's suit (18 boards, 8 sources) is simulated on studio motions down to its raw
+//! signals — 12-bit inertial counts through the 6-bit delta code with error correction and
+//! scrambling, 140 kHz microphone frames with 10-cycle 40 kHz pulses — and processed by the
+//! crate: ultrasonic detection (§4.3.1), calibration (§4.3.3), initialisation (§4.4.4) and the
+//! skeletal EKF (§4.4).
+//!
+//! * Distance accuracy as §4.3.3 measures it: static placements 30–90 cm apart, per-source
+//!   offsets, leave-one-out errors (`distance_error_mean_mm`, `_sd_mm`).
+//! * Filter noise levels tuned on a separate tuning clip (exercise motion, another seed) on a
+//!   grid, then frozen (§4.4.1 "hand tuned").
+//! * Table 4.1: neck, right shoulder, left hip orientation errors for A, A+D, D, G, G+D, A+G,
+//!   A+G+D, with and without the root transform supplied, on the exercise motion (30 s), its
+//!   range of motion and the CMU walk (8 s) — `table_4_1.png`, `figures.json`.
+//! * Figure 4-7: a treadmill-like run (the CMU walk in place, 60 s) with and without
+//!   distances: left-shoulder error over the last 5 s (`drift_*_deg`, `drift.png`).
+//! * Speed: `realtime_factor` = seconds of motion per second of compute for ultrasonic
+//!   processing + inertial decoding + EKF (A+G+D, root supplied), one core, per stage too.
+//!
+//! `cargo run --release --example inertial_capture [-- --quick]` (`--quick`: 10 s exercise,
+//! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+use clap::Parser;
+use serde_json::{json, Value};
+
+use dynamic_shapes::core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
+use dynamic_shapes::core::studio::{
+    exercise_motion, play_bvh, range_of_motion, ExerciseParams, RangeOfMotionParams, RetargetParams,
+};
+use dynamic_shapes::inertial::simulate::{
+    prepare_motion, run_filter, table_4_1, treadmill_motion, tune, FilterRun, SimulatedRecording,
+    SimulationParams, SuitSimulator,
+};
+use dynamic_shapes::inertial::{FilterParams, SensorSet};
+use example_kit::plot::{Chart, Series, Style};
+use example_kit::{Goal, Headline, Run};
+
+const JOINTS: [&str; 3] = ["neck", "r_shoulder", "l_hip"];
+
+fn record(
+    sim: &SuitSimulator,
+    skeleton: &Skeleton,
+    motion: &Motion,
+    params: &SimulationParams,
+    offsets: &[f64],
+) -> SimulatedRecording {
+    let smooth = prepare_motion(skeleton, motion, params).unwrap();
+    sim.record(&smooth, offsets).unwrap()
+}
+
+fn run_json(r: &FilterRun) -> Value {
+    json!({
+        "sensors": r.sensors,
+        "root_supplied": r.root_supplied,
+        "neck": {"mean_deg": r.stats[0].mean_deg, "sd_deg": r.stats[0].sd_deg},
+        "right_shoulder": {"mean_deg": r.stats[1].mean_deg, "sd_deg": r.stats[1].sd_deg},
+        "left_hip": {"mean_deg": r.stats[2].mean_deg, "sd_deg": r.stats[2].sd_deg},
+        "diverged_frames": r.diverged_frames,
+        "distances_used": r.distances_used,
+        "ekf_s": r.ekf_s,
+    })
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = example_kit::cli::Args::parse();
+    let quick = args.common.quick;
+    let (exercise_s, rom_s, treadmill_s) = if quick {
+        (10.0, 10.0, 20.0)
+    } else {
+        (30.0, f64::INFINITY, 60.0)
+    };
+    let mut run = Run::start(
+        "inertial_capture",
+        &args.common,
+        &format!(
+            "The thesis's suit simulated to raw signals on the exercise motion ({exercise_s} s), \
+             the range of motion and the CMU walk; ultrasonic and inertial processing and the \
+             skeletal EKF (Vlasic 2010 Ch. 4)"
+        ),
+    )?;
+    let skeleton = human_skeleton(&HumanParams::default())?;
+    let joints: Vec<usize> = JOINTS
+        .iter()
+        .map(|n| skeleton.joint_index(n).unwrap())
+        .collect();
+    let sim_params = SimulationParams::default();
+    let sim = SuitSimulator::new(&skeleton, sim_params)?;
+
+    // §4.3.3: offsets from static placements; leave-one-out distance errors.
+    let stage = run.stage("offset calibration", None);
+    let cal = sim.calibrate_offsets(3)?;
+    let loo_mm: Vec<f64> = cal.loo_abs_errors_m.iter().map(|e| 1e3 * e).collect();
+    let dist_mean = loo_mm.iter().sum::<f64>() / loo_mm.len() as f64;
+    let dist_sd =
+        (loo_mm.iter().map(|e| (e - dist_mean).powi(2)).sum::<f64>() / loo_mm.len() as f64).sqrt();
+    stage.finish(format!("{dist_mean:.2} ± {dist_sd:.2} mm"));
+
+    // Tuning on a separate clip (another exercise seed).
+    let stage = run.stage("tuning grid", None);
+    let tune_motion = exercise_motion(
+        &skeleton,
+        &ExerciseParams::default()
+            .with_duration_s(if quick { 6.0 } else { 10.0 })
+            .with_seed(29),
+    )?;
+    let tune_rec = record(&sim, &skeleton, &tune_motion, &sim_params, &cal.offsets);
+    let (qs, sas, gates): (&[f64], &[f64], &[f64]) = if quick {
+        (&[0.04, 20.0], &[0.02, 2.0], &[0.0, 4.0])
+    } else {
+        (&[0.04, 4.0, 20.0, 100.0], &[0.02, 0.3, 2.0], &[0.0, 4.0])
+    };
+    let grid = tune(
+        &skeleton,
+        &tune_rec,
+        FilterParams::default(),
+        &joints,
+        qs,
+        sas,
+        gates,
+    )?;
+    let best = grid[0];
+    let paper_point = grid
+        .iter()
+        .find(|g| {
+            g.process_sigma == 0.04 && g.accelerometer_sigma == 0.02 && g.distance_gate_sigma == 0.0
+        })
+        .copied();
+    let params = FilterParams {
+        process_sigma: best.process_sigma,
+        accelerometer_sigma: best.accelerometer_sigma,
+        distance_gate_sigma: best.distance_gate_sigma,
+        ..FilterParams::default()
+    };
+    stage.finish(format!(
+        "q {} σa {} gate {}: {:.2}°",
+        best.process_sigma, best.accelerometer_sigma, best.distance_gate_sigma, best.score_deg
+    ));
+
+    // The evaluation motions.
+    let stage = run.stage("simulate and filter", None);
+    let exercise = exercise_motion(
+        &skeleton,
+        &ExerciseParams::default().with_duration_s(exercise_s),
+    )?;
+    let rom_full = range_of_motion(&skeleton, &RangeOfMotionParams::default())?;
+    let rom = if rom_s.is_finite() {
+        let n = ((rom_s / rom_full.frame_time_s) as usize + 1).min(rom_full.frame_count());
+        Motion::new(
+            rom_full.frame_time_s,
+            rom_full.frames.columns(0, n).into_owned(),
+        )?
+    } else {
+        rom_full
+    };
+    let walk = play_bvh(
+        example_kit::data_path("mocap-cmu/131_01.bvh")?,
+        &BvhParams::default(),
+        &skeleton,
+        1.0 / 120.0,
+        &RetargetParams::default(),
+    )?
+    .motion;
+    let mut tables = Vec::new();
+    let (mut us_s, mut in_s, mut ekf_s, mut motion_s) = (0.0, 0.0, 0.0, 0.0);
+    let mut los_errors = Vec::new();
+    let mut main_table = Vec::new();
+    for (name, motion) in [
+        ("exercise", &exercise),
+        ("range_of_motion", &rom),
+        ("cmu_walk", &walk),
+    ] {
+        let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets);
+        let table = table_4_1(&skeleton, &rec, params, &joints)?;
+        let seconds = (rec.frames.len() - 1) as f64 / 140.0;
+        let agd = table
+            .iter()
+            .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+            .unwrap();
+        us_s += rec.ultrasound_s;
+        in_s += rec.inertial_s;
+        ekf_s += agd.ekf_s;
+        motion_s += seconds;
+        los_errors.extend(rec.los_distance_errors_m.iter().map(|e| 1e3 * e.abs()));
+        stage.println(format!(
+            "{name}: {seconds:.1} s, A+G+D with root {:.1}/{:.1}/{:.1}°, heard {}/{} pulses, \
+             {} inertial frames flagged",
+            agd.stats[0].mean_deg,
+            agd.stats[1].mean_deg,
+            agd.stats[2].mean_deg,
+            rec.pulses_heard,
+            rec.pulses_total,
+            rec.inertial_frames_flagged
+        ));
+        if name == "exercise" {
+            main_table = table.clone();
+        }
+        tables.push(json!({
+            "motion": name,
+            "seconds": seconds,
+            "pulses_heard": rec.pulses_heard,
+            "pulses_total": rec.pulses_total,
+            "inertial_frames_flagged": rec.inertial_frames_flagged,
+            "bits_corrected": rec.bits_corrected,
+            "runs": table.iter().map(run_json).collect::<Vec<_>>(),
+        }));
+    }
+    stage.finish("");
+
+    // Figure 4-7: treadmill-like drift, with and without distances.
+    let stage = run.stage("treadmill drift", None);
+    let tread = treadmill_motion(&skeleton, &walk, treadmill_s)?;
+    let rec = record(&sim, &skeleton, &tread, &sim_params, &cal.offsets);
+    let l_shoulder = [skeleton.joint_index("l_shoulder").unwrap()];
+    let last = (5.0 * 140.0) as usize;
+    let mut drift = Vec::new();
+    for sensors in [
+        SensorSet::ALL,
+        SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        },
+    ] {
+        let r = run_filter(
+            &skeleton,
+            &rec,
+            params.with_sensors(sensors),
+            true,
+            &l_shoulder,
+        )?;
+        let e = &r.errors_deg[0];
+        let tail = &e[e.len().saturating_sub(last)..];
+        drift.push((tail.iter().sum::<f64>() / tail.len() as f64, e.clone()));
+    }
+    stage.finish(format!(
+        "with D {:.1}°, without {:.1}°",
+        drift[0].0, drift[1].0
+    ));
+
+    // Plots.
+    let colours = [[40, 90, 200], [220, 120, 40], [40, 160, 80]];
+    let mut chart = Chart::new(
+        "Table 4.1 on the simulated exercise motion (root supplied: solid, free: dashed)",
+        "sensor combination (1 A, 2 A+D, 3 D, 4 G, 5 G+D, 6 A+G, 7 A+G+D)",
+        "mean orientation error (deg)",
+    );
+    for (j, label) in ["neck", "right shoulder", "left hip"].iter().enumerate() {
+        for root in [true, false] {
+            let pts = main_table
+                .iter()
+                .filter(|r| r.root_supplied == root)
+                .enumerate()
+                .map(|(i, r)| ((i + 1) as f64, r.stats[j].mean_deg))
+                .collect();
+            let style = if root {
+                Style::LineMarkers
+            } else {
+                Style::Dashed
+            };
+            let l = if root {
+                format!("{label}, root supplied")
+            } else {
+                format!("{label}, root free")
+            };
+            chart = chart.with(Series::new(l, colours[j], style, pts));
+        }
+    }
+    chart.size = (900, 520);
+    run.save_picture(
+        "table_4_1.png",
+        &chart.draw()?,
+        "Mean orientation error of neck, right shoulder and left hip for every sensor combination",
+    )?;
+    let pts = |e: &[f64]| {
+        e.iter()
+            .enumerate()
+            .map(|(i, v)| (i as f64 / 140.0, *v))
+            .collect()
+    };
+    let chart = Chart::new(
+        "Treadmill-like walk (Figure 4-7): left shoulder orientation error",
+        "time (s)",
+        "orientation error (deg)",
+    )
+    .with(Series::new(
+        "A+G+D",
+        [40, 90, 200],
+        Style::Line,
+        pts(&drift[0].1),
+    ))
+    .with(Series::new(
+        "A+G (no distances)",
+        [220, 60, 40],
+        Style::Line,
+        pts(&drift[1].1),
+    ));
+    run.save_picture(
+        "drift.png",
+        &chart.draw()?,
+        "Left shoulder error with and without distances",
+    )?;
+
+    let agd = main_table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .unwrap();
+    let los_mean = los_errors.iter().sum::<f64>() / los_errors.len().max(1) as f64;
+    let compute_s = us_s + in_s + ekf_s;
+    for h in [
+        Headline::new(
+            "distance_error_mean_mm",
+            "distance error (LOO, static)",
+            "mm",
+        )
+        .goal(Goal::AtMost(2.5))
+        .note("thesis 2.35"),
+        Headline::new("distance_error_sd_mm", "distance error SD", "mm")
+            .goal(Goal::AtMost(2.0))
+            .note("thesis 1.92"),
+        Headline::new("agd_neck_deg", "A+G+D neck (root supplied)", "deg")
+            .goal(Goal::AtMost(3.0))
+            .note("thesis 5.7"),
+        Headline::new("agd_shoulder_deg", "A+G+D right shoulder", "deg")
+            .goal(Goal::AtMost(3.0))
+            .note("thesis 8.0"),
+        Headline::new("agd_hip_deg", "A+G+D left hip", "deg")
+            .goal(Goal::AtMost(3.0))
+            .note("thesis 6.6"),
+        Headline::new("drift_with_d_deg", "treadmill left shoulder, with D", "deg"),
+        Headline::new(
+            "drift_without_d_deg",
+            "treadmill left shoulder, without D",
+            "deg",
+        ),
+        Headline::new("realtime_factor", "motion seconds per compute second", "")
+            .goal(Goal::AtLeast(10.0)),
+    ] {
+        run.headline(h);
+    }
+    run.finish(json!({
+        "distance_error_mean_mm": dist_mean,
+        "distance_error_sd_mm": dist_sd,
+        "calibration_snr_db_at_90cm": cal.snr_db_at_90cm,
+        "in_motion_los_distance_error_mean_mm": los_mean,
+        "agd_neck_deg": agd.stats[0].mean_deg,
+        "agd_shoulder_deg": agd.stats[1].mean_deg,
+        "agd_hip_deg": agd.stats[2].mean_deg,
+        "drift_with_d_deg": drift[0].0,
+        "drift_without_d_deg": drift[1].0,
+        "realtime_factor": motion_s / compute_s,
+        "realtime_factor_ultrasound": motion_s / us_s,
+        "realtime_factor_inertial_decoding": motion_s / in_s,
+        "realtime_factor_ekf": motion_s / ekf_s,
+        "motion_seconds": motion_s,
+        "tuned": {"process_sigma": best.process_sigma, "accelerometer_sigma": best.accelerometer_sigma,
+                  "distance_gate_sigma": best.distance_gate_sigma, "score_deg": best.score_deg},
+        "paper_noise_score_deg": paper_point.map(|p| p.score_deg),
+        "tuning_grid": grid.iter().map(|g| json!({"process_sigma": g.process_sigma,
+            "accelerometer_sigma": g.accelerometer_sigma, "distance_gate_sigma": g.distance_gate_sigma,
+            "score_deg": g.score_deg})).collect::<Vec<_>>(),
+        "table_4_1": tables,
+        "quick": quick,
+    }))?;
+    Ok(())
+}

@@ -1,0 +1,741 @@
+//! The skeletal extended Kalman filter (§4.4): state `x = (θ, θ̇, θ̈)` of the skeleton's free
+//! DOFs, dynamics Eq. 4.1 (`θ += Δt θ̇`, `θ̇ += Δt θ̈`, `θ̈ += w`), observations of
+//! gyroscopes (Eq. 4.3), accelerometers (Eq. 4.2) and distances (Eq. 4.4) processed
+//! sequentially per sensor type, each scalar reading on its own (Eq. 4.7–4.9 with a scalar
+//! `H P Hᵀ + R`), with analytic Jacobians from `skin_core::skeleton` (re-linearised once per
+//! sensor type; within a type each scalar's innovation is corrected to first order for the
+//! updates before it).
+//!
+//! **Structure.** `F = [[I, Δt I, 0], [0, I, Δt I], [0, 0, I]]` is applied to P block-wise in
+//! O(N²) (two column and two row axpys) instead of two dense products; the process noise
+//! enters the θ̈ block only (`W = [0; 0; I]`). Observation rows are sparse (only the DOFs on
+//! the sensor's chain), so `P Hᵀ` costs O(N · chain) and each scalar update one rank-1
+//! downdate of P's lower triangle (mirrored once per frame before the time update).
+//!
+//! **Known DOFs.** DOFs listed as known (the root transform, as in the thesis's Vicon
+//! comparison) are not in the state; their θ, θ̇, θ̈ are supplied every frame.
+//!
+//! **Divergence.** A non-finite state or covariance, or a joint rate above
+//! [`FilterParams::divergence_rate`], resets the filter to the last good pose at rest with
+//! the initial covariance, and the frame's [`StepReport::diverged`] is set: the filter never
+//! emits a NaN pose.
+
+use crate::params::FilterParams;
+use crate::suit::Suit;
+use crate::{Context, Error, Result, ResultExt};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+use skin_core::math::{DQuat, DVec3};
+use skin_core::skeleton::{
+    AngularFrame, AttachedFrame, AttachedPoint, ForwardKinematics, JointRates, Skeleton,
+};
+
+/// One board's inertial reading in its own axes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct InertialReading {
+    /// Gyroscope, rad/s.
+    pub gyro_rad_s: DVec3,
+    /// Accelerometer (specific force: reads +g upwards at rest), m/s².
+    pub accel_m_s2: DVec3,
+}
+
+/// A distance from one pulse (§4.3.1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DistanceMeasurement {
+    /// Sensor board (microphone) index.
+    pub sensor: usize,
+    /// Ultrasonic source index.
+    pub source: usize,
+    /// Distance, metres.
+    pub distance_m: f64,
+    /// Confidence `w_s · w_t` in [0, 1] (the filter multiplies in `w_a`).
+    pub confidence: f64,
+    /// How long before the frame it is processed at the pulse was emitted, seconds (0 to one
+    /// frame step plus the flight time); the filter predicts the distance at that time from
+    /// the frame's pose and rates (`d − age · ḋ`).
+    pub age_s: f64,
+}
+
+/// Everything observed in one 140 Hz frame: one optional inertial reading per board (`None`
+/// for a dropped or uncorrectable frame) and the distances measured since the previous frame.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameObservations {
+    /// Per board, in suit order.
+    pub inertial: Vec<Option<InertialReading>>,
+    /// Distances measured between the previous frame and this one.
+    pub distances: Vec<DistanceMeasurement>,
+}
+
+/// θ, θ̇, θ̈ of the known DOFs for one frame, in the order they were declared.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct KnownDofs {
+    /// Values (rad or m).
+    pub theta: Vec<f64>,
+    /// Rates.
+    pub theta_dot: Vec<f64>,
+    /// Accelerations.
+    pub theta_ddot: Vec<f64>,
+}
+
+/// What one [`SkeletalEkf::step`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StepReport {
+    /// The filter diverged and was reset this frame.
+    pub diverged: bool,
+    /// Scalar inertial readings used.
+    pub inertial_used: usize,
+    /// Inertial readings skipped (missing or non-finite).
+    pub inertial_skipped: usize,
+    /// Distances used.
+    pub distances_used: usize,
+    /// Distances not used (low confidence, source facing away, gate).
+    pub distances_rejected: usize,
+}
+
+/// A sensor type's observation rows, run with the board Jacobian buffers.
+type BoardRows =
+    fn(&mut SkeletalEkf, &FrameObservations, &mut StepReport, &mut [DMatrix<f64>]) -> Result<()>;
+
+/// Scratch of one sparse observation row.
+#[derive(Debug, Clone, Default)]
+struct Row {
+    idx: Vec<usize>,
+    val: Vec<f64>,
+}
+
+impl Row {
+    fn clear(&mut self) {
+        self.idx.clear();
+        self.val.clear();
+    }
+    fn push(&mut self, i: usize, v: f64) {
+        if v != 0.0 {
+            self.idx.push(i);
+            self.val.push(v);
+        }
+    }
+    fn dot(&self, x: &[f64]) -> f64 {
+        self.idx
+            .iter()
+            .zip(&self.val)
+            .map(|(&i, &v)| v * x[i])
+            .sum()
+    }
+}
+
+/// The filter. Build with [`SkeletalEkf::new`], feed one [`FrameObservations`] per frame.
+#[derive(Debug, Clone)]
+pub struct SkeletalEkf {
+    skeleton: Skeleton,
+    suit: Suit,
+    params: FilterParams,
+    known: Vec<usize>,
+    /// State slot of each DOF (`None`: known).
+    slot: Vec<Option<usize>>,
+    nf: usize,
+    x: DVector<f64>,
+    p: DMatrix<f64>,
+    p0: DMatrix<f64>,
+    good_theta: DVector<f64>,
+    theta: Vec<f64>,
+    theta_dot: Vec<f64>,
+    theta_ddot: Vec<f64>,
+    gyro_offsets: Vec<DVec3>,
+    points: Vec<AttachedPoint>,
+    frames: Vec<AttachedFrame>,
+    fk: ForwardKinematics,
+    rates: JointRates,
+    /// Four `3·boards × dof_count` Jacobian buffers.
+    mb: Vec<DMatrix<f64>>,
+    /// `3·(boards + sources) × dof_count` positional Jacobians.
+    mp: DMatrix<f64>,
+    bias: Vec<DVec3>,
+    x0: DVector<f64>,
+    dx: Vec<f64>,
+    ph: Vec<f64>,
+    row: Row,
+    dense: Vec<f64>,
+}
+
+impl SkeletalEkf {
+    /// A filter at `initial_pose` (the rest pose the subject holds, §4.4.4) at rest, with the
+    /// DOFs in `known` (e.g. `skeleton.joint_dofs(0)` for the root transform) supplied per
+    /// frame instead of estimated.
+    ///
+    /// # Errors
+    /// As [`FilterParams::validate`]; as [`Skeleton::check_pose`] for the pose;
+    /// [`Error::IndexOutOfRange`] for a known DOF index or a suit joint outside the skeleton;
+    /// [`Error::Empty`] if every DOF is known.
+    pub fn new(
+        skeleton: Skeleton,
+        suit: Suit,
+        initial_pose: &[f64],
+        params: FilterParams,
+        known: &[usize],
+    ) -> Result<Self> {
+        params.validate()?;
+        skeleton.check_pose("initial_pose", initial_pose)?;
+        let n = skeleton.dof_count();
+        let nj = skeleton.joint_count();
+        for b in suit.boards() {
+            skin_core::check::index("board joint", b.joint, nj)?;
+        }
+        for s in suit.sources() {
+            skin_core::check::index("source joint", s.joint, nj)?;
+        }
+        let mut slot = vec![Some(0); n];
+        for &d in known {
+            skin_core::check::index("known DOF", d, n)?;
+            slot[d] = None;
+        }
+        let mut nf = 0;
+        for s in slot.iter_mut() {
+            if s.is_some() {
+                *s = Some(nf);
+                nf += 1;
+            }
+        }
+        if nf == 0 {
+            return Err(Error::Empty {
+                what: "free DOFs (every DOF is known)",
+            });
+        }
+        let big_n = 3 * nf;
+        let mut x = DVector::zeros(big_n);
+        for (d, s) in slot.iter().enumerate() {
+            if let Some(s) = s {
+                x[*s] = initial_pose[d];
+            }
+        }
+        let (s0, s1, s2) = params.initial_sigma;
+        let p0 = DMatrix::from_fn(big_n, big_n, |i, j| {
+            if i != j {
+                0.0
+            } else if i < nf {
+                s0 * s0
+            } else if i < 2 * nf {
+                s1 * s1
+            } else {
+                s2 * s2
+            }
+        });
+        let points: Vec<AttachedPoint> = suit
+            .boards()
+            .iter()
+            .map(|b| b.point())
+            .chain(suit.sources().iter().map(|s| s.point()))
+            .collect();
+        let frames: Vec<AttachedFrame> = suit.boards().iter().map(|b| b.frame()).collect();
+        let rows = 3 * points.len();
+        Ok(SkeletalEkf {
+            fk: ForwardKinematics::new(&skeleton),
+            rates: JointRates::new(&skeleton),
+            mb: vec![DMatrix::zeros(3 * frames.len(), n); 4],
+            mp: DMatrix::zeros(rows, n),
+            bias: vec![DVec3::ZERO; points.len()],
+            gyro_offsets: vec![DVec3::ZERO; suit.boards().len()],
+            theta: initial_pose.to_vec(),
+            theta_dot: vec![0.0; n],
+            theta_ddot: vec![0.0; n],
+            good_theta: x.rows(0, nf).into_owned(),
+            x0: x.clone(),
+            dx: vec![0.0; big_n],
+            ph: vec![0.0; big_n],
+            row: Row::default(),
+            dense: vec![0.0; n],
+            x,
+            p: p0.clone(),
+            p0,
+            known: known.to_vec(),
+            slot,
+            nf,
+            points,
+            frames,
+            skeleton,
+            suit,
+            params,
+        })
+    }
+
+    /// With per-board gyroscope offsets (rad/s, subtracted from every reading; §4.4.4).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] unless one per board; [`Error::NonFinite`] for NaN offsets.
+    pub fn with_gyro_offsets(mut self, offsets: Vec<DVec3>) -> Result<Self> {
+        skin_core::check::same_size("gyro offsets", self.suit.boards().len(), offsets.len())?;
+        if offsets.iter().any(|o| !o.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "gyro offsets",
+            });
+        }
+        self.gyro_offsets = offsets;
+        Ok(self)
+    }
+
+    /// Number of estimated DOFs (the state has three times as many entries).
+    pub fn free_dof_count(&self) -> usize {
+        self.nf
+    }
+
+    /// The current full pose θ (known DOFs as last supplied).
+    pub fn theta(&self) -> &[f64] {
+        &self.theta
+    }
+
+    /// The current full rates θ̇.
+    pub fn theta_dot(&self) -> &[f64] {
+        &self.theta_dot
+    }
+
+    /// The suit the filter uses.
+    pub fn suit(&self) -> &Suit {
+        &self.suit
+    }
+
+    /// One frame: time update (Eq. 4.5–4.6), then gyroscopes, accelerometers and distances
+    /// (Eq. 4.7–4.9) as enabled in [`FilterParams::sensors`]. Missing and non-finite inertial
+    /// readings are skipped and counted; distances are gated by confidence and by the source's
+    /// field of view (`w_a`, §4.3.1).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if `obs.inertial` has not one entry per board or `known` does
+    /// not match the known DOFs; [`Error::IndexOutOfRange`] (in [`Error::At`] naming the
+    /// distance's sensor) for a bad sensor or source index; [`Error::NonFinite`] for non-finite
+    /// known values or distances.
+    pub fn step(
+        &mut self,
+        obs: &FrameObservations,
+        known: Option<&KnownDofs>,
+    ) -> Result<StepReport> {
+        skin_core::check::same_size(
+            "inertial readings per board",
+            self.suit.boards().len(),
+            obs.inertial.len(),
+        )?;
+        for m in &obs.distances {
+            skin_core::check::index("distance sensor", m.sensor, self.suit.boards().len())
+                .at(Context::Sensor(m.sensor))?;
+            skin_core::check::index("distance source", m.source, self.suit.sources().len())
+                .at(Context::Source(m.source))?;
+            if !(m.distance_m.is_finite() && m.confidence.is_finite() && m.age_s.is_finite()) {
+                return Err(Error::NonFinite {
+                    what: "distance measurement",
+                })
+                .at(Context::Sensor(m.sensor));
+            }
+        }
+        let nk = self.known.len();
+        match known {
+            Some(k) => {
+                for (what, v) in [
+                    ("known theta", &k.theta),
+                    ("known theta_dot", &k.theta_dot),
+                    ("known theta_ddot", &k.theta_ddot),
+                ] {
+                    skin_core::check::same_size(what, nk, v.len())?;
+                    skin_core::check::all_finite(what, v.iter())?;
+                }
+                for (i, &d) in self.known.iter().enumerate() {
+                    self.theta[d] = k.theta[i];
+                    self.theta_dot[d] = k.theta_dot[i];
+                    self.theta_ddot[d] = k.theta_ddot[i];
+                }
+            }
+            None => skin_core::check::same_size("known DOF values", nk, 0)?,
+        }
+        let mut report = StepReport::default();
+        self.predict();
+        let sensors = self.params.sensors;
+        let result = (|| -> Result<()> {
+            if sensors.gyroscopes {
+                self.with_board_buffers(obs, &mut report, Self::gyro_rows)?;
+            }
+            if sensors.accelerometers {
+                self.with_board_buffers(obs, &mut report, Self::accel_rows)?;
+            }
+            if sensors.distances {
+                self.update_distances(obs, &mut report)?;
+            }
+            Ok(())
+        })();
+        if !sensors.gyroscopes || !sensors.accelerometers {
+            report.inertial_skipped += obs.inertial.iter().filter(|r| r.is_none()).count();
+        }
+        let nf = self.nf;
+        let rate_ok = (nf..2 * nf).all(|i| self.x[i].abs() <= self.params.divergence_rate);
+        let finite = self.x.iter().all(|v| v.is_finite())
+            && (0..3 * nf).all(|i| self.p[(i, i)].is_finite() && self.p[(i, i)] >= 0.0);
+        if result.is_err() || !rate_ok || !finite {
+            // A skin-core error here means a non-finite pose reached FK: divergence too.
+            report.diverged = true;
+            self.x.fill(0.0);
+            self.x.rows_mut(0, nf).copy_from(&self.good_theta);
+            self.p.copy_from(&self.p0);
+        } else {
+            self.good_theta.copy_from(&self.x.rows(0, nf));
+        }
+        self.sync_full();
+        Ok(report)
+    }
+
+    /// Eq. 4.5–4.6 with the block form of F.
+    fn predict(&mut self) {
+        self.symmetrise();
+        let nf = self.nf;
+        let dt = self.params.frame_time_s;
+        for i in 0..nf {
+            self.x[i] += dt * self.x[nf + i];
+            self.x[nf + i] += dt * self.x[2 * nf + i];
+        }
+        let n = 3 * nf;
+        let data = self.p.as_mut_slice();
+        // Rows (F P): within each column, block 0 += Δt block 1, then block 1 += Δt block 2.
+        for c in 0..n {
+            let col = &mut data[c * n..(c + 1) * n];
+            for i in 0..nf {
+                col[i] += dt * col[nf + i];
+            }
+            for i in 0..nf {
+                col[nf + i] += dt * col[2 * nf + i];
+            }
+        }
+        // Columns ((F P) Fᵀ): column i += Δt column nf + i, then column nf + i += Δt column
+        // 2nf + i.
+        for blk in 0..2 {
+            for i in 0..nf {
+                let (a, b) = (blk * nf + i, (blk + 1) * nf + i);
+                let (head, tail) = data.split_at_mut(b * n);
+                let dst = &mut head[a * n..(a + 1) * n];
+                let src = &tail[..n];
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += dt * s;
+                }
+            }
+        }
+        let q = self.params.process_sigma.powi(2);
+        for i in 0..nf {
+            self.p[(2 * nf + i, 2 * nf + i)] += q;
+        }
+    }
+
+    /// Full θ, θ̇, θ̈ from the state (known entries untouched).
+    fn sync_full(&mut self) {
+        let nf = self.nf;
+        for (d, s) in self.slot.iter().enumerate() {
+            if let Some(s) = *s {
+                self.theta[d] = self.x[s];
+                self.theta_dot[d] = self.x[nf + s];
+                self.theta_ddot[d] = self.x[2 * nf + s];
+            }
+        }
+    }
+
+    /// Re-linearisation point of one sensor type: FK and rates at the current state.
+    fn linearise(&mut self) -> Result<()> {
+        self.sync_full();
+        self.skeleton
+            .forward_kinematics_into(&self.theta, &mut self.fk)?;
+        self.skeleton
+            .rates_into(&self.theta, &self.theta_dot, &self.fk, &mut self.rates)?;
+        self.x0.copy_from(&self.x);
+        Ok(())
+    }
+
+    /// One scalar update (Eq. 4.7–4.9): `z − h(x₀) − H (x − x₀)` as innovation.
+    fn scalar_update(&mut self, residual0: f64, r: f64, gate_sigma: f64) -> bool {
+        let n = 3 * self.nf;
+        for (d, (x, x0)) in self.dx.iter_mut().zip(self.x.iter().zip(self.x0.iter())) {
+            *d = x - x0;
+        }
+        let innov = residual0 - self.row.dot(&self.dx);
+        // Only the lower triangle of P is kept current between time updates (symmetry):
+        // column i of P is its lower part below the diagonal and row i to the left of it.
+        let data = self.p.as_slice();
+        self.ph.fill(0.0);
+        for (&i, &v) in self.row.idx.iter().zip(&self.row.val) {
+            for (r, p) in self.ph[..i].iter_mut().enumerate() {
+                *p += v * data[r * n + i];
+            }
+            let col = &data[i * n + i..(i + 1) * n];
+            for (p, c) in self.ph[i..].iter_mut().zip(col) {
+                *p += v * c;
+            }
+        }
+        let s = self.row.dot(&self.ph) + r;
+        if s.is_nan() || s <= 0.0 {
+            return false;
+        }
+        if gate_sigma > 0.0 && innov * innov > gate_sigma * gate_sigma * s {
+            return false;
+        }
+        let k_scale = innov / s;
+        for (x, p) in self.x.iter_mut().zip(&self.ph) {
+            *x += p * k_scale;
+        }
+        let data = self.p.as_mut_slice();
+        for c in 0..n {
+            let f = self.ph[c] / s;
+            if f == 0.0 {
+                continue;
+            }
+            let col = &mut data[c * n + c..(c + 1) * n];
+            for (p, h) in col.iter_mut().zip(&self.ph[c..]) {
+                *p -= h * f;
+            }
+        }
+        true
+    }
+
+    /// Copies the lower triangle of P onto the upper (after a run of scalar updates).
+    fn symmetrise(&mut self) {
+        let n = 3 * self.nf;
+        let data = self.p.as_mut_slice();
+        for c in 1..n {
+            for r in 0..c {
+                data[c * n + r] = data[r * n + c];
+            }
+        }
+    }
+
+    fn inertial_reading(&self, obs: &FrameObservations, b: usize) -> Option<InertialReading> {
+        obs.inertial[b].filter(|r| r.gyro_rad_s.is_finite() && r.accel_m_s2.is_finite())
+    }
+
+    /// Re-linearises, then runs `rows` (gyroscope or accelerometer rows) with the board
+    /// Jacobian buffers lent out of `self`.
+    fn with_board_buffers(
+        &mut self,
+        obs: &FrameObservations,
+        report: &mut StepReport,
+        rows: BoardRows,
+    ) -> Result<()> {
+        self.linearise()?;
+        let mut mb = std::mem::take(&mut self.mb);
+        let res = rows(self, obs, report, &mut mb);
+        self.mb = mb;
+        res
+    }
+
+    /// Eq. 4.3: `z = Rᵀ J_ω θ̇`; `∂z/∂θ̇ = J_ω,local`, `∂z/∂θ = ∂(J_ω θ̇)/∂θ` (local axes).
+    fn gyro_rows(
+        &mut self,
+        obs: &FrameObservations,
+        report: &mut StepReport,
+        mb: &mut [DMatrix<f64>],
+    ) -> Result<()> {
+        let nb = self.frames.len();
+        let [jw3, dw3, ..] = mb else {
+            return Ok(());
+        };
+        self.skeleton
+            .frame_jacobians_into(&self.fk, &self.frames, AngularFrame::Local, jw3)?;
+        self.skeleton.frame_angular_velocity_jacobians_into(
+            &self.fk,
+            &self.theta_dot,
+            &self.frames,
+            AngularFrame::Local,
+            dw3,
+        )?;
+        let r = self.params.gyroscope_sigma.powi(2);
+        for b in 0..nb {
+            let Some(reading) = self.inertial_reading(obs, b) else {
+                report.inertial_skipped += 1;
+                continue;
+            };
+            let z = reading.gyro_rad_s - self.gyro_offsets[b];
+            let pred = self.rates.frame_angular_velocity(
+                &self.fk,
+                &self.frames[b],
+                AngularFrame::Local,
+            )?;
+            let chain = self.skeleton.chain_dofs(self.frames[b].joint).to_vec();
+            for axis in 0..3 {
+                self.row.clear();
+                for &d in &chain {
+                    if let Some(s) = self.slot[d] {
+                        self.row.push(s, dw3[(3 * b + axis, d)]);
+                        self.row.push(self.nf + s, jw3[(3 * b + axis, d)]);
+                    }
+                }
+                if self.scalar_update(z[axis] - pred[axis], r, 0.0) {
+                    report.inertial_used += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Eq. 4.2: `z = Rᵀ (J θ̈ + J̇θ̇ − g)`; `∂z/∂θ̈ = Rᵀ J`, `∂z/∂θ̇ = Rᵀ ∂(J̇θ̇)/∂θ̇`,
+    /// `∂z/∂θ_m = Rᵀ (∂(Jθ̈)/∂θ_m + ∂(J̇θ̇)/∂θ_m − g_m × (a − g))`.
+    fn accel_rows(
+        &mut self,
+        obs: &FrameObservations,
+        report: &mut StepReport,
+        mb: &mut [DMatrix<f64>],
+    ) -> Result<()> {
+        let nb = self.frames.len();
+        let pts = &self.points[..nb];
+        let [j, dt, dd, djy] = mb else {
+            return Ok(());
+        };
+        self.skeleton.point_jacobians_into(&self.fk, pts, j)?;
+        self.skeleton.point_bias_acceleration_jacobians_into(
+            &self.fk,
+            &self.theta_dot,
+            pts,
+            dt,
+            dd,
+        )?;
+        self.skeleton.point_jacobian_product_jacobians_into(
+            &self.fk,
+            &self.theta_ddot,
+            pts,
+            djy,
+        )?;
+        self.skeleton.point_bias_accelerations_into(
+            &self.fk,
+            &self.rates,
+            pts,
+            &mut self.bias[..nb],
+        )?;
+        let up = DVec3::new(0.0, self.params.gravity_m_s2, 0.0);
+        let r = self.params.accelerometer_sigma.powi(2);
+        let axes = self.fk.dof_axes_world().to_vec();
+        for b in 0..nb {
+            let Some(reading) = self.inertial_reading(obs, b) else {
+                report.inertial_skipped += 1;
+                continue;
+            };
+            let chain = self.skeleton.chain_dofs(self.frames[b].joint);
+            let col = |m: &DMatrix<f64>, d: usize| {
+                DVec3::new(m[(3 * b, d)], m[(3 * b + 1, d)], m[(3 * b + 2, d)])
+            };
+            let mut a = self.bias[b];
+            for &d in chain {
+                a += col(j, d) * self.theta_ddot[d];
+            }
+            let f = a + up;
+            let to_local: DQuat = self.fk.frame_rotation(&self.frames[b])?.inverse();
+            let pred = to_local * f;
+            // Local-axis columns per chain DOF: (θ, θ̇, θ̈).
+            let cols: Vec<(usize, DVec3, DVec3, DVec3)> = chain
+                .iter()
+                .filter_map(|&d| {
+                    self.slot[d].map(|s| {
+                        let g = if self.skeleton.is_rotation(d) {
+                            axes[d]
+                        } else {
+                            DVec3::ZERO
+                        };
+                        let h_theta = to_local * (col(djy, d) + col(dt, d) - g.cross(f));
+                        (s, h_theta, to_local * col(dd, d), to_local * col(j, d))
+                    })
+                })
+                .collect();
+            let z = reading.accel_m_s2;
+            for axis in 0..3 {
+                self.row.clear();
+                for &(s, ht, hd, hdd) in &cols {
+                    self.row.push(s, ht[axis]);
+                    self.row.push(self.nf + s, hd[axis]);
+                    self.row.push(2 * self.nf + s, hdd[axis]);
+                }
+                if self.scalar_update(z[axis] - pred[axis], r, 0.0) {
+                    report.inertial_used += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Eq. 4.4: `z = ‖p_i − p_j‖`, `∂z/∂θ = uᵀ (J_i − J_j)`, σ = σ_d / (w_s w_t w_a).
+    fn update_distances(&mut self, obs: &FrameObservations, report: &mut StepReport) -> Result<()> {
+        if obs.distances.is_empty() {
+            return Ok(());
+        }
+        self.linearise()?;
+        let mut jv = std::mem::take(&mut self.mp);
+        let res = self.distance_rows(obs, report, &mut jv);
+        self.mp = jv;
+        res
+    }
+
+    fn distance_rows(
+        &mut self,
+        obs: &FrameObservations,
+        report: &mut StepReport,
+        jv: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        {
+            self.skeleton
+                .point_jacobians_into(&self.fk, &self.points, jv)?;
+            let nb = self.frames.len();
+            for m in &obs.distances {
+                let src = &self.suit.sources()[m.source];
+                let pi = self.fk.point(&self.points[m.sensor])?;
+                let pj = self.fk.point(&self.points[nb + m.source])?;
+                let normal = self.fk.world_from_joint()[src.joint].matrix3 * src.normal;
+                let diff = pi - pj;
+                let d = diff.length();
+                let w = if normal.dot(diff) > 0.0 {
+                    m.confidence.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                if w < self.params.min_confidence || d < 1e-6 {
+                    report.distances_rejected += 1;
+                    continue;
+                }
+                let u = diff / d;
+                self.dense.fill(0.0);
+                let (ci, cj) = (
+                    self.skeleton.chain_dofs(self.points[m.sensor].joint),
+                    self.skeleton.chain_dofs(self.points[nb + m.source].joint),
+                );
+                let colv = |row: usize, k: usize| {
+                    DVec3::new(jv[(row, k)], jv[(row + 1, k)], jv[(row + 2, k)])
+                };
+                for &k in ci {
+                    self.dense[k] += u.dot(colv(3 * m.sensor, k));
+                }
+                for &k in cj {
+                    self.dense[k] -= u.dot(colv(3 * (nb + m.source), k));
+                }
+                // Distance at the pulse's time: d − age · ḋ, ḋ = uᵀ(J_i − J_j) θ̇ (its
+                // θ-derivative through u and J is left out: age · ḋ is millimetres).
+                let age = m.age_s.max(0.0);
+                let d_rate: f64 = self
+                    .dense
+                    .iter()
+                    .zip(&self.theta_dot)
+                    .map(|(a, b)| a * b)
+                    .sum();
+                self.row.clear();
+                for (k, &v) in self.dense.iter().enumerate() {
+                    if let Some(s) = self.slot[k] {
+                        self.row.push(s, v);
+                    }
+                }
+                if age > 0.0 {
+                    for (k, &v) in self.dense.iter().enumerate() {
+                        if let Some(s) = self.slot[k] {
+                            self.row.push(self.nf + s, -age * v);
+                        }
+                    }
+                }
+                let d = d - age * d_rate;
+                let sigma = self.params.distance_sigma_m / w;
+                if self.scalar_update(
+                    m.distance_m - d,
+                    sigma * sigma,
+                    self.params.distance_gate_sigma,
+                ) {
+                    report.distances_used += 1;
+                } else {
+                    report.distances_rejected += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,72 @@
+//! Evaluation (§4.5, Table 4.1): the orientation difference of a joint between two poses —
+//! the angle of `R_a R_bᵀ` for the joint's rotation relative to its parent — and its mean and
+//! standard deviation over a sequence.
+
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use skin_core::math::DQuat;
+use skin_core::skeleton::{ForwardKinematics, Skeleton};
+
+/// Mean and standard deviation of an error, degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ErrorStats {
+    /// Mean, degrees.
+    pub mean_deg: f64,
+    /// Standard deviation (population), degrees.
+    pub sd_deg: f64,
+}
+
+impl ErrorStats {
+    /// Stats of `values` (degrees).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] without values; [`Error::NonFinite`] for NaN.
+    pub fn of(values: &[f64]) -> Result<Self> {
+        if values.is_empty() {
+            return Err(Error::Empty { what: "errors" });
+        }
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { what: "errors" });
+        }
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        Ok(ErrorStats {
+            mean_deg: mean,
+            sd_deg: var.sqrt(),
+        })
+    }
+}
+
+fn local_rotation(fk: &ForwardKinematics, skeleton: &Skeleton, j: usize) -> DQuat {
+    let w = fk.world_from_joint();
+    let child = DQuat::from_mat3(&w[j].matrix3);
+    match skeleton.joints()[j].parent {
+        Some(p) => DQuat::from_mat3(&w[p].matrix3).inverse() * child,
+        None => child,
+    }
+}
+
+/// Orientation difference, degrees, of each joint in `joints` (its rotation relative to its
+/// parent) between poses `a` and `b`.
+///
+/// # Errors
+/// As [`Skeleton::forward_kinematics`]; [`Error::Core`] index error for a bad joint.
+pub fn joint_orientation_errors_deg(
+    skeleton: &Skeleton,
+    a: &[f64],
+    b: &[f64],
+    joints: &[usize],
+) -> Result<Vec<f64>> {
+    let fa = skeleton.forward_kinematics(a)?;
+    let fb = skeleton.forward_kinematics(b)?;
+    joints
+        .iter()
+        .map(|&j| {
+            skin_core::check::index("joint", j, skeleton.joint_count())?;
+            let qa = local_rotation(&fa, skeleton, j);
+            let qb = local_rotation(&fb, skeleton, j);
+            Ok(qa.angle_between(qb).to_degrees())
+        })
+        .collect()
+}

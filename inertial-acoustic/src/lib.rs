@@ -1,0 +1,96 @@
+//! # inertial-acoustic
+//!
+//! Wearable motion capture from gyroscopes, accelerometers and ultrasonic time of flight,
+//! after D. Vlasic, *Dynamic Shape Capture* (MIT PhD thesis, 2010), Chapter 4 (and Vlasic et
+//! al., *Practical Motion Capture in Everyday Surroundings*, SIGGRAPH 2007).
+//!
+//! Eighteen sensor boards on the garment each carry a 3-axis gyroscope, a 3-axis
+//! accelerometer and a microphone; eight ultrasonic sources pulse in turn every 8 ms. The
+//! microphone streams give distances (§4.3.1), the inertial stream rates and accelerations
+//! (§4.3.2), and an extended Kalman filter over the skeleton's joint angles, rates and
+//! accelerations fuses them into poses at 140 Hz (§4.4).
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | Stage | File | Main items | Thesis |
+//! |---|---|---|---|
+//! | parameters | `params.rs` | [`UltrasoundParams`], [`FilterParams`], [`SensorSet`] | §4.2–4.4 |
+//! | suit | `suit.rs` | [`Suit`], [`SensorBoard`], [`UltrasonicSource`] | §4.2.1 |
+//! | ultrasonic processing | `ultrasound.rs` | [`PulseDetector`], [`calibrate_offsets`] | §4.3.1, §4.3.3 |
+//! | inertial processing | `inertial.rs` | [`AxisCalibration`], [`DeltaCodec`] | §4.2.3, §4.3.2–4.3.3 |
+//! | initialisation | `initialise.rs` | [`initialise`] | §4.4.4 |
+//! | pose estimation | `ekf.rs` | [`SkeletalEkf`], [`FrameObservations`] | §4.4.1–4.4.3 |
+//! | evaluation | `evaluate.rs` | [`joint_orientation_errors_deg`], [`ErrorStats`] | §4.5 |
+//!
+//! The derivatives the accelerometer rows need (`∂(J̇θ̇)/∂θ`, `∂(J̇θ̇)/∂θ̇`) live in
+//! `skin_core::skeleton` (`Skeleton::point_bias_acceleration_jacobians_into`).
+//!
+//! Validation equipment sits behind the cargo feature `validation`: the module `simulate`
+//! (inertial readings with noise, bias, scale and quantisation, and raw 140 kHz microphone
+//! streams with 10-cycle 40 kHz pulses, 1/r amplitude, directivity, body occlusion, a floor
+//! reflection and noise, all driven by studio motions).
+//!
+//! Errors are one [`Error`]; an error inside a loop over frames, boards or sources says where
+//! ([`Error::At`] with a [`Context`]).
+//!
+//! ## Quick start
+//!
+//! A still subject in the rest pose: the filter, fed the readings a still suit gives
+//! (gravity on the accelerometers, zero rates), stays at the rest pose.
+//!
+//! ```
+//! use inertial_acoustic::{FilterParams, FrameObservations, InertialReading, SkeletalEkf, Suit};
+//! use skin_core::math::DVec3;
+//! use skin_core::skeleton::{human_skeleton, HumanParams};
+//!
+//! let skeleton = human_skeleton(&HumanParams::default())?;
+//! let suit = Suit::vlasic(&skeleton)?;
+//! let rest = skeleton.rest_pose();
+//! let fk = skeleton.forward_kinematics(&rest)?;
+//! let still: Vec<Option<InertialReading>> = suit
+//!     .boards()
+//!     .iter()
+//!     .map(|b| {
+//!         let up = fk.frame_rotation(&b.frame()).map(|q| q.inverse() * DVec3::Y * 9.80665);
+//!         up.map(|a| Some(InertialReading { gyro_rad_s: DVec3::ZERO, accel_m_s2: a }))
+//!     })
+//!     .collect::<Result<_, _>>()?;
+//! let root = skeleton.joint_dofs(0).collect::<Vec<_>>();
+//! let mut ekf = SkeletalEkf::new(skeleton, suit, &rest, FilterParams::default(), &[])?;
+//! let obs = FrameObservations { inertial: still, distances: vec![] };
+//! for _ in 0..140 {
+//!     let report = ekf.step(&obs, None)?;
+//!     assert!(!report.diverged);
+//! }
+//! assert!(ekf.theta().iter().skip(root.len()).all(|v| v.abs() < 1e-3));
+//! # Ok::<(), inertial_acoustic::Error>(())
+//! ```
+#![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
+
+mod ekf;
+mod error;
+mod evaluate;
+mod inertial;
+mod initialise;
+mod params;
+#[cfg(feature = "validation")]
+pub mod simulate;
+mod suit;
+mod ultrasound;
+
+pub use ekf::{
+    DistanceMeasurement, FrameObservations, InertialReading, KnownDofs, SkeletalEkf, StepReport,
+};
+pub use error::{Context, Error, Result, ResultExt};
+pub use evaluate::{joint_orientation_errors_deg, ErrorStats};
+pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
+pub use initialise::{initialise, Initialisation};
+pub use params::{
+    FilterParams, SensorSet, UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ,
+    MIC_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S, SAMPLES_PER_PULSE, SPEED_OF_SOUND_M_S,
+};
+pub use suit::{SensorBoard, Suit, UltrasonicSource};
+pub use ultrasound::{
+    calibrate_offsets, leave_one_out_errors_m, CalibrationShot, Detection, PulseDetector,
+};

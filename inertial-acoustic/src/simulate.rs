@@ -1,0 +1,1232 @@
+//! Validation equipment: the suit simulated on a studio motion, down to the raw signals the
+//! thesis's hardware records, then processed by this crate's own signal processing.
+//!
+//! * **Motion.** The motion is smoothed (binomial passes), preceded by a rest-pose hold and
+//!   a smooth blend into its first frame (§4.4.4's rest pose), and interpolated by natural
+//!   cubic splines so θ, θ̇, θ̈ exist at any time.
+//! * **Garment.** Each board and source sits where [`Suit::vlasic`] puts it, off by a random
+//!   placement error (position and orientation) the filter does not know, and slides along its
+//!   bone with the bone's joint angles (skin and garment motion; see the docs for why this
+//!   stands in for the studio's pose-driven deformation).
+//! * **Inertial.** Accelerations by second differences of the true garment positions (an
+//!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities from the
+//!   skeleton's rates; the paper's white noise (0.02 m/s², 0.002 rad/s), per-axis zero and
+//!   slope errors, a gyroscope bias random walk, 12-bit counts (four 10-bit samples
+//!   accumulated), 6-bit delta modulation with error-correcting code and scrambling, random bit
+//!   errors; decoded and calibrated by the §4.3.3 procedure (±g poses and ±45 rpm turntable
+//!   runs simulated with the same errors).
+//! * **Ultrasonic.** Round-robin pulses every 8 ms; per microphone and pulse a 1,120-sample
+//!   frame at 140 kHz: 10-cycle 40 kHz piezo bursts (exponential ring-up and ring-down),
+//!   amplitude ∝ 1/r, cosine-like source directivity with a weak back lobe, a floor reflection,
+//!   body occlusion (capsules around the bones), the 13 kbit/s digital stream multiplexed on
+//!   the same wire, white noise; processed by [`PulseDetector`] with per-source offsets
+//!   calibrated from static placements 30–90 cm apart.
+
+use crate::ekf::{DistanceMeasurement, FrameObservations, InertialReading, KnownDofs};
+use crate::inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
+use crate::params::{
+    UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S,
+    SAMPLES_PER_PULSE,
+};
+use crate::suit::{SensorBoard, Suit, UltrasonicSource};
+use crate::ultrasound::{
+    calibrate_offsets, leave_one_out_errors_m, CalibrationShot, PulseDetector,
+};
+use crate::{Context, Error, Result, ResultExt};
+use nalgebra::DMatrix;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
+use skin_core::check::{non_negative, positive};
+use skin_core::math::{DQuat, DVec3};
+use skin_core::skeleton::{AngularFrame, Motion, Skeleton};
+use std::f64::consts::{PI, TAU};
+use std::time::Instant;
+
+/// Parameters of the simulated suit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SimulationParams {
+    /// Accelerometer white noise, m/s². Default: 0.02 (§4.4.2).
+    pub accel_noise: f64,
+    /// Gyroscope white noise, rad/s. Default: 0.002 (§4.4.2).
+    pub gyro_noise: f64,
+    /// Spread of the accelerometers' zero offsets before calibration, m/s². Default: 0.5.
+    pub accel_zero_sd: f64,
+    /// Spread of the gyroscopes' zero offsets before calibration, rad/s. Default: 0.1.
+    pub gyro_zero_sd: f64,
+    /// Spread of the scale (slope) errors, relative. Default: 0.03.
+    pub scale_sd: f64,
+    /// Gyroscope bias random walk, rad/s per √s. Default: 0.0005.
+    pub gyro_bias_walk: f64,
+    /// Accelerometer range (full scale of the 12-bit count), m/s². Default: ±6 g.
+    pub accel_range: f64,
+    /// Gyroscope range, rad/s. Default: ±20 (1150 °/s). The 6-bit delta code slews at most
+    /// 31 counts per frame, i.e. `31 · 2 · range / 4096 · 140` per second: 42 rad/s² at this
+    /// range; at ±8.7 rad/s (500 °/s) it is 18 rad/s², below the exercise motion's angular
+    /// accelerations, and the slew lag alone costs the shoulders tens of degrees.
+    pub gyro_range: f64,
+    /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
+    pub bit_error_rate: f64,
+    /// Garment placement error: position, metres (per axis). Default: 0.01.
+    pub placement_sd_m: f64,
+    /// Garment placement error: orientation, degrees (per axis). Default: 3.
+    pub placement_sd_deg: f64,
+    /// Skin and garment slide along the bone per radian of the bone's joint angles, metres.
+    /// Default: 0.01.
+    pub skin_slide_m_per_rad: f64,
+    /// Source amplitude at 1 m on its axis (microphone units). Default: 1.
+    pub source_amplitude: f64,
+    /// White noise of the microphone channel (same units). Default: 0.01 (40 dB below the
+    /// on-axis signal at 1 m).
+    pub mic_noise: f64,
+    /// Floor reflection coefficient. Default: 0.4.
+    pub floor_reflection: f64,
+    /// Amplitude factor behind the body (diffraction around an occluding bone). Default: 0.03.
+    pub occlusion_factor: f64,
+    /// Amplitude of the multiplexed digital stream on the microphone wire. Default: 0.05.
+    pub digital_crosstalk: f64,
+    /// Rest-pose hold before the motion (§4.4.4), seconds. Default: 1.5.
+    pub rest_s: f64,
+    /// Blend from the rest pose into the motion's first frame, seconds. Default: 1.0.
+    pub blend_s: f64,
+    /// Binomial [1, 2, 1]/4 smoothing passes over the motion frames. Default: 2.
+    pub smoothing_passes: usize,
+    /// Whether to simulate and process the ultrasonic subsystem. Default: true.
+    pub ultrasound: bool,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for SimulationParams {
+    fn default() -> Self {
+        SimulationParams {
+            accel_noise: 0.02,
+            gyro_noise: 0.002,
+            accel_zero_sd: 0.5,
+            gyro_zero_sd: 0.1,
+            scale_sd: 0.03,
+            gyro_bias_walk: 0.0005,
+            accel_range: 6.0 * GRAVITY_M_S2,
+            gyro_range: 20.0,
+            bit_error_rate: 2e-4,
+            placement_sd_m: 0.01,
+            placement_sd_deg: 3.0,
+            skin_slide_m_per_rad: 0.01,
+            source_amplitude: 1.0,
+            mic_noise: 0.01,
+            floor_reflection: 0.4,
+            occlusion_factor: 0.03,
+            digital_crosstalk: 0.05,
+            rest_s: 1.5,
+            blend_s: 1.0,
+            smoothing_passes: 2,
+            ultrasound: true,
+            seed: 1,
+        }
+    }
+}
+
+impl SimulationParams {
+    /// With `seed` replaced.
+    pub fn with_seed(self, seed: u64) -> Self {
+        SimulationParams { seed, ..self }
+    }
+
+    /// With the ultrasonic subsystem on or off.
+    pub fn with_ultrasound(self, ultrasound: bool) -> Self {
+        SimulationParams { ultrasound, ..self }
+    }
+
+    fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("accel_noise", self.accel_noise),
+            ("gyro_noise", self.gyro_noise),
+            ("accel_zero_sd", self.accel_zero_sd),
+            ("gyro_zero_sd", self.gyro_zero_sd),
+            ("scale_sd", self.scale_sd),
+            ("gyro_bias_walk", self.gyro_bias_walk),
+            ("bit_error_rate", self.bit_error_rate),
+            ("placement_sd_m", self.placement_sd_m),
+            ("placement_sd_deg", self.placement_sd_deg),
+            ("skin_slide_m_per_rad", self.skin_slide_m_per_rad),
+            ("mic_noise", self.mic_noise),
+            ("floor_reflection", self.floor_reflection),
+            ("occlusion_factor", self.occlusion_factor),
+            ("digital_crosstalk", self.digital_crosstalk),
+            ("blend_s", self.blend_s),
+        ] {
+            non_negative(name, v)?;
+        }
+        positive("accel_range", self.accel_range)?;
+        positive("gyro_range", self.gyro_range)?;
+        positive("source_amplitude", self.source_amplitude)?;
+        positive("rest_s", self.rest_s)?;
+        Ok(())
+    }
+}
+
+/// Natural cubic splines through every DOF of a motion.
+#[derive(Debug, Clone)]
+pub struct SmoothMotion {
+    h: f64,
+    y: DMatrix<f64>,
+    m: DMatrix<f64>,
+}
+
+impl SmoothMotion {
+    /// Splines through `frames` (DOFs × frames) spaced `h` seconds.
+    fn new(h: f64, y: DMatrix<f64>) -> Self {
+        let (nd, n) = y.shape();
+        let mut m = DMatrix::zeros(nd, n);
+        if n >= 3 {
+            // Tridiagonal system (h/6, 2h/3, h/6) M = Δ²y / h, natural ends; Thomas algorithm.
+            let mut c = vec![0.0; n];
+            let mut dd = vec![0.0; n];
+            for d in 0..nd {
+                c[0] = 0.0;
+                dd[0] = 0.0;
+                for i in 1..n - 1 {
+                    let rhs = (y[(d, i + 1)] - 2.0 * y[(d, i)] + y[(d, i - 1)]) * 6.0 / (h * h);
+                    let denom = 4.0 - c[i - 1];
+                    c[i] = 1.0 / denom;
+                    dd[i] = (rhs - dd[i - 1]) / denom;
+                }
+                m[(d, n - 1)] = 0.0;
+                for i in (1..n - 1).rev() {
+                    m[(d, i)] = dd[i] - c[i] * m[(d, i + 1)];
+                }
+            }
+        }
+        SmoothMotion { h, y, m }
+    }
+
+    /// Duration, seconds.
+    pub fn duration_s(&self) -> f64 {
+        self.h * (self.y.ncols().saturating_sub(1)) as f64
+    }
+
+    /// θ, θ̇, θ̈ at time `t` (clamped into the motion).
+    pub fn eval(&self, t: f64, theta: &mut [f64], rate: &mut [f64], acc: &mut [f64]) {
+        let n = self.y.ncols();
+        let h = self.h;
+        let s = (t / h).clamp(0.0, (n - 1) as f64);
+        let i = (s.floor() as usize).min(n.saturating_sub(2));
+        let u = s - i as f64;
+        let (a, b) = (1.0 - u, u);
+        for d in 0..self.y.nrows() {
+            let (y0, y1) = (self.y[(d, i)], self.y[(d, (i + 1).min(n - 1))]);
+            let (m0, m1) = (self.m[(d, i)], self.m[(d, (i + 1).min(n - 1))]);
+            theta[d] =
+                a * y0 + b * y1 + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6.0;
+            rate[d] =
+                (y1 - y0) / h + ((1.0 - 3.0 * a * a) * m0 + (3.0 * b * b - 1.0) * m1) * h / 6.0;
+            acc[d] = a * m0 + b * m1;
+        }
+    }
+}
+
+/// The motion the suit performs: `motion` smoothed, after a rest hold and a blend.
+///
+/// # Errors
+/// As [`Motion::check_for`].
+pub fn prepare_motion(
+    skeleton: &Skeleton,
+    motion: &Motion,
+    params: &SimulationParams,
+) -> Result<SmoothMotion> {
+    motion.check_for(skeleton)?;
+    params.validate()?;
+    let h = motion.frame_time_s;
+    let mut frames = motion.frames.clone();
+    // Unwrap rotation DOFs (mocap decompositions jump by 2π), so splines do not swing round.
+    for d in 0..frames.nrows() {
+        if skeleton.is_rotation(d) {
+            for k in 1..frames.ncols() {
+                let jump = frames[(d, k)] - frames[(d, k - 1)];
+                frames[(d, k)] -= TAU * (jump / TAU).round();
+            }
+        }
+    }
+    for _ in 0..params.smoothing_passes {
+        let prev = frames.clone();
+        let n = prev.ncols();
+        for k in 1..n.saturating_sub(1) {
+            for d in 0..prev.nrows() {
+                frames[(d, k)] =
+                    0.25 * prev[(d, k - 1)] + 0.5 * prev[(d, k)] + 0.25 * prev[(d, k + 1)];
+            }
+        }
+    }
+    let nd = skeleton.dof_count();
+    let root: Vec<usize> = skeleton.joint_dofs(0).collect();
+    let first: Vec<f64> = frames.column(0).iter().copied().collect();
+    let mut rest = first.clone();
+    for (d, v) in rest.iter_mut().enumerate() {
+        if !root.contains(&d) {
+            *v = 0.0;
+        }
+    }
+    let n_rest = (params.rest_s / h).round() as usize;
+    let n_blend = (params.blend_s / h).round() as usize;
+    let n = n_rest + n_blend + frames.ncols();
+    let mut y = DMatrix::zeros(nd, n);
+    for k in 0..n {
+        for d in 0..nd {
+            y[(d, k)] = if k < n_rest {
+                rest[d]
+            } else if k < n_rest + n_blend {
+                let u = (k - n_rest) as f64 / n_blend.max(1) as f64;
+                let s = u * u * (3.0 - 2.0 * u);
+                rest[d] + s * (first[d] - rest[d])
+            } else {
+                frames[(d, k - n_rest - n_blend)]
+            };
+        }
+    }
+    Ok(SmoothMotion::new(h, y))
+}
+
+/// Per-axis true analogue front end of one board channel.
+#[derive(Debug, Clone, Copy)]
+struct Channel {
+    zero: f64,
+    slope: f64,
+    noise: f64,
+}
+
+impl Channel {
+    /// 12-bit count of `value` (four noisy 10-bit samples accumulated, §4.2.3).
+    fn count(&self, value: f64, rng: &mut ChaCha8Rng, normal: &Normal<f64>) -> i32 {
+        let mut acc = 0i32;
+        for _ in 0..4 {
+            let v = self.zero + self.slope * (value + self.noise * normal.sample(rng));
+            acc += ((v / 4.0).round() as i32).clamp(0, 1023);
+        }
+        acc
+    }
+}
+
+/// A capsule of the body (occlusion model).
+#[derive(Debug, Clone, Copy)]
+struct Capsule {
+    joint: usize,
+    tip: DVec3,
+    radius: f64,
+}
+
+fn capsule_radius(name: &str) -> f64 {
+    let base = name.trim_start_matches("l_").trim_start_matches("r_");
+    match base {
+        "pelvis" | "spine" | "chest" => 0.10,
+        "neck" => 0.05,
+        "head" => 0.08,
+        "clavicle" => 0.04,
+        "shoulder" => 0.04,
+        "elbow" => 0.035,
+        "wrist" => 0.025,
+        "hip" => 0.065,
+        "knee" => 0.045,
+        "ankle" => 0.035,
+        _ => 0.04,
+    }
+}
+
+/// Closest distance between segments [p0, p1] and [q0, q1].
+fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.dot(d1), d2.dot(d2), d2.dot(r));
+    let (s, t);
+    if a <= 1e-12 && e <= 1e-12 {
+        return r.length();
+    }
+    if a <= 1e-12 {
+        s = 0.0;
+        t = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = d1.dot(r);
+        if e <= 1e-12 {
+            t = 0.0;
+            s = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = d1.dot(d2);
+            let denom = a * e - b * b;
+            let s0 = if denom > 1e-12 {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let t0 = (b * s0 + f) / e;
+            if t0 < 0.0 {
+                t = 0.0;
+                s = (-c / a).clamp(0.0, 1.0);
+            } else if t0 > 1.0 {
+                t = 1.0;
+                s = ((b - c) / a).clamp(0.0, 1.0);
+            } else {
+                t = t0;
+                s = s0;
+            }
+        }
+    }
+    ((p0 + d1 * s) - (q0 + d2 * t)).length()
+}
+
+/// One 140 Hz frame of truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthFrame {
+    /// True pose θ.
+    pub theta: Vec<f64>,
+}
+
+/// A simulated and processed recording.
+#[derive(Debug, Clone)]
+pub struct SimulatedRecording {
+    /// The processed observations, one per 140 Hz frame.
+    pub frames: Vec<FrameObservations>,
+    /// The true pose of every frame.
+    pub truth: Vec<TruthFrame>,
+    /// The root DOFs' θ, θ̇, θ̈ of every frame (the thesis's root transform input).
+    pub root: Vec<KnownDofs>,
+    /// Frames of the rest-pose hold at the start.
+    pub rest_frames: usize,
+    /// The nominal suit (what the filter is told).
+    pub nominal_suit: Suit,
+    /// The true suit at the rest pose (with placement errors).
+    pub true_suit: Suit,
+    /// Seconds spent in ultrasonic processing (filters, detection, confidences).
+    pub ultrasound_s: f64,
+    /// Seconds spent in inertial decoding (descrambling, ECC, delta decoding, calibration).
+    pub inertial_s: f64,
+    /// Detected minus true distance of every used pulse with a clear line of sight, metres.
+    pub los_distance_errors_m: Vec<f64>,
+    /// Every detection: (detected − true distance in metres, confidence, line of sight clear).
+    pub detections: Vec<(f64, f64, bool)>,
+    /// Pulses heard (detections) and emitted (per microphone).
+    pub pulses_heard: usize,
+    /// Pulses emitted × microphones.
+    pub pulses_total: usize,
+    /// Inertial frames flagged by the error-correcting code (dropped).
+    pub inertial_frames_flagged: usize,
+    /// Bit errors corrected by the code.
+    pub bits_corrected: usize,
+}
+
+/// Static offset calibration of the sources (§4.3.3).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OffsetCalibration {
+    /// Per-source offset, samples.
+    pub offsets: Vec<f64>,
+    /// Leave-one-out absolute distance errors, metres.
+    pub loo_abs_errors_m: Vec<f64>,
+    /// Signal-to-noise ratio at the farthest placement (0.9 m, on axis): peak amplitude over
+    /// noise RMS, dB.
+    pub snr_db_at_90cm: f64,
+}
+
+/// The simulated suit.
+#[derive(Debug, Clone)]
+pub struct SuitSimulator {
+    skeleton: Skeleton,
+    nominal: Suit,
+    true_suit: Suit,
+    params: SimulationParams,
+    ultrasound: UltrasoundParams,
+    capsules: Vec<Capsule>,
+    slide_dir: Vec<DVec3>,
+    /// Per-source electrical delay, seconds (why calibrated offsets differ between sources).
+    source_lags_s: Vec<f64>,
+}
+
+impl SuitSimulator {
+    /// The thesis's suit on `skeleton` with random placement errors.
+    ///
+    /// # Errors
+    /// As [`Suit::vlasic`]; [`Error::Core`] for invalid parameters.
+    pub fn new(skeleton: &Skeleton, params: SimulationParams) -> Result<Self> {
+        params.validate()?;
+        let nominal = Suit::vlasic(skeleton)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
+        let normal = Normal::new(0.0, 1.0).map_err(|e| Error::InvalidParam {
+            name: "normal",
+            reason: e.to_string(),
+        })?;
+        let mut g3 = |s: f64| {
+            DVec3::new(
+                normal.sample(&mut rng),
+                normal.sample(&mut rng),
+                normal.sample(&mut rng),
+            ) * s
+        };
+        let boards: Vec<SensorBoard> = nominal
+            .boards()
+            .iter()
+            .map(|b| SensorBoard {
+                offset: b.offset + g3(params.placement_sd_m),
+                joint_from_sensor: b.joint_from_sensor
+                    * DQuat::from_scaled_axis(g3(params.placement_sd_deg.to_radians())),
+                ..b.clone()
+            })
+            .collect();
+        let sources: Vec<UltrasonicSource> = nominal
+            .sources()
+            .iter()
+            .map(|s| UltrasonicSource {
+                offset: s.offset + g3(0.5 * params.placement_sd_m),
+                ..s.clone()
+            })
+            .collect();
+        let true_suit = Suit::new(skeleton, boards, sources)?;
+        let mut capsules = Vec::new();
+        for (j, joint) in skeleton.joints().iter().enumerate() {
+            let r = capsule_radius(&joint.name);
+            if let Some(e) = joint.end_site {
+                capsules.push(Capsule {
+                    joint: j,
+                    tip: e,
+                    radius: r,
+                });
+            }
+            for c in skeleton.children(j) {
+                capsules.push(Capsule {
+                    joint: j,
+                    tip: skeleton.joints()[c].offset,
+                    radius: r,
+                });
+            }
+        }
+        let source_lags_s = (0..nominal.sources().len())
+            .map(|_| 20e-6 + 10e-6 * rng.random::<f64>())
+            .collect();
+        let slide_dir = nominal
+            .boards()
+            .iter()
+            .map(|b| b.offset.normalize_or_zero())
+            .collect();
+        Ok(SuitSimulator {
+            skeleton: skeleton.clone(),
+            nominal,
+            true_suit,
+            params,
+            ultrasound: UltrasoundParams::default(),
+            capsules,
+            slide_dir,
+            source_lags_s,
+        })
+    }
+
+    /// The nominal suit (what the filter is told).
+    pub fn nominal_suit(&self) -> &Suit {
+        &self.nominal
+    }
+
+    /// Garment position of board `b` at pose θ (placement error plus skin slide), world.
+    fn board_position(
+        &self,
+        fk: &skin_core::skeleton::ForwardKinematics,
+        theta: &[f64],
+        b: usize,
+    ) -> Result<DVec3> {
+        let board = &self.true_suit.boards()[b];
+        let slide: f64 = self
+            .skeleton
+            .joint_dofs(board.joint)
+            .filter(|&d| self.skeleton.is_rotation(d))
+            .map(|d| theta[d])
+            .sum::<f64>()
+            * self.params.skin_slide_m_per_rad;
+        let mut p = board.point();
+        p.offset += self.slide_dir[b] * slide;
+        Ok(fk.point(&p)?)
+    }
+
+    /// The piezo burst: 10 cycles with exponential ring-up, then ring-down (τ = 60 µs).
+    fn burst(t: f64) -> f64 {
+        const TAU_S: f64 = 60e-6;
+        let len = PULSE_CYCLES as f64 / CARRIER_HZ;
+        if t < 0.0 {
+            return 0.0;
+        }
+        let env = if t < len {
+            1.0 - (-t / TAU_S).exp()
+        } else {
+            (1.0 - (-len / TAU_S).exp()) * (-(t - len) / TAU_S).exp()
+        };
+        env * (TAU * CARRIER_HZ * t).sin()
+    }
+
+    /// Adds a burst arriving `delay_s` after the frame start with `amplitude`.
+    fn add_burst(frame: &mut [f32], delay_s: f64, amplitude: f64, fs: f64) {
+        let start = (delay_s * fs).floor().max(0.0) as usize;
+        let end = (start + 200).min(frame.len());
+        for (n, v) in frame.iter_mut().enumerate().take(end).skip(start) {
+            *v += (amplitude * Self::burst(n as f64 / fs - delay_s)) as f32;
+        }
+    }
+
+    /// Noise plus the multiplexed digital stream (13 kbit/s).
+    fn background(&self, frame: &mut [f32], rng: &mut ChaCha8Rng, normal: &Normal<f64>) {
+        let fs = self.ultrasound.sample_rate_hz;
+        let samples_per_bit = fs / 13_000.0;
+        let mut bit = 0.0;
+        let mut next_bit = 0.0;
+        for (n, v) in frame.iter_mut().enumerate() {
+            if n as f64 >= next_bit {
+                bit = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                next_bit += samples_per_bit;
+            }
+            *v = (self.params.mic_noise * normal.sample(rng) + self.params.digital_crosstalk * bit)
+                as f32;
+        }
+    }
+
+    /// Source directivity: `0.2 + 0.8 cos` in front, a weak back lobe (0.05) behind.
+    fn directivity(cos_angle: f64) -> f64 {
+        if cos_angle > 0.0 {
+            0.2 + 0.8 * cos_angle
+        } else {
+            0.05
+        }
+    }
+
+    /// Static calibration (§4.3.3): every source with a microphone at 7 distances from 30 to
+    /// 90 cm, at random angles within 60° of its axis, no body, a bench (no floor echo).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if a source is never detected on the bench.
+    pub fn calibrate_offsets(&self, seed: u64) -> Result<OffsetCalibration> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let normal = Normal::new(0.0, 1.0).map_err(|e| Error::InvalidParam {
+            name: "normal",
+            reason: e.to_string(),
+        })?;
+        let mut det = PulseDetector::new(self.ultrasound)?;
+        let fs = self.ultrasound.sample_rate_hz;
+        let c = self.ultrasound.speed_of_sound_m_s;
+        let ns = self.nominal.sources().len();
+        let mut shots = Vec::new();
+        let mut frame = vec![0f32; SAMPLES_PER_PULSE];
+        for s in 0..ns {
+            let lag_s = self.source_lags_s[s];
+            for i in 0..7 {
+                let d = 0.3 + 0.1 * i as f64;
+                let angle = (rng.random::<f64>() * 60.0).to_radians();
+                self.background(&mut frame, &mut rng, &normal);
+                let amp = self.params.source_amplitude / d * Self::directivity(angle.cos());
+                Self::add_burst(&mut frame, d / c + lag_s, amp, fs);
+                if let Some(x) = det.detect(&frame).at(Context::Source(s))? {
+                    shots.push(CalibrationShot {
+                        source: s,
+                        inflection_sample: x.inflection_sample,
+                        distance_m: d,
+                    });
+                }
+            }
+        }
+        let offsets = calibrate_offsets(&shots, ns, &self.ultrasound)?;
+        let loo = leave_one_out_errors_m(&shots, ns, &self.ultrasound)?;
+        let snr = 20.0 * (self.params.source_amplitude / 0.9 / self.params.mic_noise).log10();
+        Ok(OffsetCalibration {
+            offsets,
+            loo_abs_errors_m: loo.iter().map(|e| e.abs()).collect(),
+            snr_db_at_90cm: snr,
+        })
+    }
+}
+
+/// Per-frame geometry kept for the ultrasonic pass.
+struct Geometry {
+    boards: Vec<DVec3>,
+    sources: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    capsules: Vec<(DVec3, DVec3)>,
+}
+
+fn lerp_geometry(a: &Geometry, b: &Geometry, u: f64) -> Geometry {
+    let l = |x: &[DVec3], y: &[DVec3]| -> Vec<DVec3> {
+        x.iter().zip(y).map(|(p, q)| p.lerp(*q, u)).collect()
+    };
+    Geometry {
+        boards: l(&a.boards, &b.boards),
+        sources: l(&a.sources, &b.sources),
+        normals: l(&a.normals, &b.normals),
+        capsules: a
+            .capsules
+            .iter()
+            .zip(&b.capsules)
+            .map(|(p, q)| (p.0.lerp(q.0, u), p.1.lerp(q.1, u)))
+            .collect(),
+    }
+}
+
+impl SuitSimulator {
+    /// The whole recording of `motion` (see the module docs), processed from the raw signals
+    /// with per-source `offsets` (from [`SuitSimulator::calibrate_offsets`]).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] for offsets not one per source; errors of the skeleton, the
+    /// codec or the detector (with the frame in [`Error::At`]).
+    pub fn record(&self, motion: &SmoothMotion, offsets: &[f64]) -> Result<SimulatedRecording> {
+        let ns = self.nominal.sources().len();
+        let nb = self.nominal.boards().len();
+        skin_core::check::same_size("source offsets", ns, offsets.len())?;
+        let mut rng = ChaCha8Rng::seed_from_u64(self.params.seed.wrapping_mul(0x9E37_79B9));
+        let normal = Normal::new(0.0, 1.0).map_err(|e| Error::InvalidParam {
+            name: "normal",
+            reason: e.to_string(),
+        })?;
+        let p = &self.params;
+        let dt = 1.0 / INERTIAL_RATE_HZ;
+        let n_frames = (motion.duration_s() / dt).floor() as usize + 1;
+        let nd = self.skeleton.dof_count();
+        // Front ends: per board 3 gyro + 3 accel channels.
+        let mut channels = Vec::with_capacity(nb);
+        for _ in 0..nb {
+            let mut ch = [Channel {
+                zero: 0.0,
+                slope: 0.0,
+                noise: 0.0,
+            }; CHANNELS];
+            for (c, x) in ch.iter_mut().enumerate() {
+                let (range, zero_sd, noise) = if c < 3 {
+                    (p.gyro_range, p.gyro_zero_sd, p.gyro_noise)
+                } else {
+                    (p.accel_range, p.accel_zero_sd, p.accel_noise)
+                };
+                let slope = 4096.0 / (2.0 * range) * (1.0 + p.scale_sd * normal.sample(&mut rng));
+                *x = Channel {
+                    zero: 2048.0 + slope * zero_sd * normal.sample(&mut rng),
+                    slope,
+                    noise,
+                };
+            }
+            channels.push(ch);
+        }
+        // §4.3.3 calibration runs: 2 s per orientation.
+        let mut calib = Vec::with_capacity(nb);
+        for ch in &channels {
+            let mut cal = [AxisCalibration {
+                zero: 2048.0,
+                slope: 1.0,
+            }; CHANNELS];
+            for (c, x) in ch.iter().enumerate() {
+                let reference = if c < 3 { 1.5 * PI } else { GRAVITY_M_S2 };
+                let mut mean = |v: f64| {
+                    (0..280)
+                        .map(|_| f64::from(x.count(v, &mut rng, &normal)))
+                        .sum::<f64>()
+                        / 280.0
+                };
+                let (plus, minus) = (mean(reference), mean(-reference));
+                cal[c] = AxisCalibration::from_opposite(plus, minus, reference)
+                    .at(Context::Sensor(calib.len()))?;
+            }
+            calib.push(cal);
+        }
+        let mut encoders = vec![DeltaCodec::new(); nb];
+        let mut decoders = vec![DeltaCodec::new(); nb];
+        // Prime the codecs at the first frame's values (the link runs before the recording).
+        let mut gyro_bias = vec![DVec3::ZERO; nb];
+        let (mut th, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
+        let (mut th_p, mut th_m) = (vec![0.0; nd], vec![0.0; nd]);
+        let (mut scratch_r, mut scratch_a) = (vec![0.0; nd], vec![0.0; nd]);
+        let root: Vec<usize> = self.skeleton.joint_dofs(0).collect();
+        let h = 1e-3;
+        let up = DVec3::new(0.0, GRAVITY_M_S2, 0.0);
+        let mut out_frames = Vec::with_capacity(n_frames);
+        let mut truth = Vec::with_capacity(n_frames);
+        let mut roots = Vec::with_capacity(n_frames);
+        let mut geometry = Vec::with_capacity(n_frames);
+        let mut inertial_s = 0.0;
+        let (mut flagged, mut corrected) = (0usize, 0usize);
+        let frames_true: Vec<_> = self.true_suit.boards().iter().map(|b| b.frame()).collect();
+        for k in 0..n_frames {
+            let t = k as f64 * dt;
+            motion.eval(t, &mut th, &mut rate, &mut acc);
+            motion.eval(t + h, &mut th_p, &mut scratch_r, &mut scratch_a);
+            motion.eval(t - h, &mut th_m, &mut scratch_r, &mut scratch_a);
+            let fk = self
+                .skeleton
+                .forward_kinematics(&th)
+                .at(Context::Frame(k))?;
+            let fk_p = self
+                .skeleton
+                .forward_kinematics(&th_p)
+                .at(Context::Frame(k))?;
+            let fk_m = self
+                .skeleton
+                .forward_kinematics(&th_m)
+                .at(Context::Frame(k))?;
+            let rates = self.skeleton.rates(&th, &rate, &fk).at(Context::Frame(k))?;
+            let mut readings = Vec::with_capacity(nb);
+            let mut board_pos = Vec::with_capacity(nb);
+            for b in 0..nb {
+                let pos = self.board_position(&fk, &th, b)?;
+                let a = (self.board_position(&fk_p, &th_p, b)? - 2.0 * pos
+                    + self.board_position(&fk_m, &th_m, b)?)
+                    / (h * h);
+                board_pos.push(pos);
+                let to_local = fk.frame_rotation(&frames_true[b])?.inverse();
+                let f = to_local * (a + up);
+                let w = rates.frame_angular_velocity(&fk, &frames_true[b], AngularFrame::Local)?;
+                gyro_bias[b] += DVec3::new(
+                    normal.sample(&mut rng),
+                    normal.sample(&mut rng),
+                    normal.sample(&mut rng),
+                ) * (p.gyro_bias_walk * dt.sqrt());
+                let values = [
+                    w.x + gyro_bias[b].x,
+                    w.y + gyro_bias[b].y,
+                    w.z + gyro_bias[b].z,
+                    f.x,
+                    f.y,
+                    f.z,
+                ];
+                let mut counts = [0i32; CHANNELS];
+                for c in 0..CHANNELS {
+                    counts[c] = channels[b][c].count(values[c], &mut rng, &normal);
+                }
+                if k == 0 {
+                    // Lock both codec ends onto the first counts (a link already running).
+                    for _ in 0..160 {
+                        let bits = encoders[b].encode(&counts)?;
+                        let _ = decoders[b].decode(&bits);
+                    }
+                }
+                let mut bits = encoders[b].encode(&counts).at(Context::Sensor(b))?;
+                for bit in bits.iter_mut().take(FRAME_BITS) {
+                    if p.bit_error_rate > 0.0 && rng.random_bool(p.bit_error_rate.min(1.0)) {
+                        *bit ^= true;
+                    }
+                }
+                let t0 = Instant::now();
+                let decoded = decoders[b].decode(&bits);
+                let reading = decoded.map(|(cnt, fixed)| {
+                    corrected += fixed;
+                    let v = |c: usize| calib[b][c].value(f64::from(cnt[c]));
+                    InertialReading {
+                        gyro_rad_s: DVec3::new(v(0), v(1), v(2)),
+                        accel_m_s2: DVec3::new(v(3), v(4), v(5)),
+                    }
+                });
+                inertial_s += t0.elapsed().as_secs_f64();
+                if reading.is_none() {
+                    flagged += 1;
+                }
+                readings.push(reading);
+            }
+            let sources: Vec<DVec3> = self
+                .true_suit
+                .sources()
+                .iter()
+                .map(|s| fk.point(&s.point()))
+                .collect::<std::result::Result<_, _>>()?;
+            let normals = self
+                .true_suit
+                .sources()
+                .iter()
+                .map(|s| fk.world_from_joint()[s.joint].matrix3 * s.normal)
+                .collect();
+            let capsules = self
+                .capsules
+                .iter()
+                .map(|c| {
+                    let w = fk.world_from_joint()[c.joint];
+                    (w.translation, w.transform_point3(c.tip))
+                })
+                .collect();
+            geometry.push(Geometry {
+                boards: board_pos,
+                sources,
+                normals,
+                capsules,
+            });
+            truth.push(TruthFrame { theta: th.clone() });
+            roots.push(KnownDofs {
+                theta: root.iter().map(|&d| th[d]).collect(),
+                theta_dot: root.iter().map(|&d| rate[d]).collect(),
+                theta_ddot: root.iter().map(|&d| acc[d]).collect(),
+            });
+            out_frames.push(FrameObservations {
+                inertial: readings,
+                distances: Vec::new(),
+            });
+        }
+        let mut rec = SimulatedRecording {
+            frames: out_frames,
+            truth,
+            root: roots,
+            rest_frames: (p.rest_s / dt).floor() as usize,
+            nominal_suit: self.nominal.clone(),
+            true_suit: self.true_suit.clone(),
+            ultrasound_s: 0.0,
+            inertial_s,
+            los_distance_errors_m: Vec::new(),
+            detections: Vec::new(),
+            pulses_heard: 0,
+            pulses_total: 0,
+            inertial_frames_flagged: flagged,
+            bits_corrected: corrected,
+        };
+        if p.ultrasound {
+            self.ultrasonic_pass(&geometry, offsets, &mut rec, &mut rng, &normal)?;
+        }
+        Ok(rec)
+    }
+
+    fn ultrasonic_pass(
+        &self,
+        geometry: &[Geometry],
+        offsets: &[f64],
+        rec: &mut SimulatedRecording,
+        rng: &mut ChaCha8Rng,
+        normal: &Normal<f64>,
+    ) -> Result<()> {
+        let dt = 1.0 / INERTIAL_RATE_HZ;
+        let fs = self.ultrasound.sample_rate_hz;
+        let c = self.ultrasound.speed_of_sound_m_s;
+        let ns = self.nominal.sources().len();
+        let nb = self.nominal.boards().len();
+        let duration = (geometry.len() - 1) as f64 * dt;
+        let mut det = PulseDetector::new(self.ultrasound)?;
+        let mut previous: Vec<Option<f64>> = vec![None; nb * ns];
+        let mut frame = vec![0f32; SAMPLES_PER_PULSE];
+        let board_joint: Vec<usize> = self.true_suit.boards().iter().map(|b| b.joint).collect();
+        let source_joint: Vec<usize> = self.true_suit.sources().iter().map(|s| s.joint).collect();
+        let mut slot = 0usize;
+        loop {
+            let t_s = slot as f64 * PULSE_INTERVAL_S;
+            if t_s + PULSE_INTERVAL_S > duration {
+                break;
+            }
+            let j = slot % ns;
+            let kf = t_s / dt;
+            let k0 = kf.floor() as usize;
+            let g = lerp_geometry(
+                &geometry[k0],
+                &geometry[(k0 + 1).min(geometry.len() - 1)],
+                kf - k0 as f64,
+            );
+            for (i, &mic_joint) in board_joint.iter().enumerate() {
+                self.background(&mut frame, rng, normal);
+                let (pi, pj) = (g.boards[i], g.sources[j]);
+                let diff = pi - pj;
+                let r = diff.length().max(1e-3);
+                let cos = g.normals[j].dot(diff) / r;
+                let occluded = self.capsules.iter().zip(&g.capsules).any(|(cap, seg)| {
+                    cap.joint != mic_joint
+                        && cap.joint != source_joint[j]
+                        && segment_distance(pi, pj, seg.0, seg.1) < cap.radius
+                });
+                let amp = self.params.source_amplitude / r
+                    * Self::directivity(cos)
+                    * if occluded {
+                        self.params.occlusion_factor
+                    } else {
+                        1.0
+                    };
+                let lag = self.source_lags_s[j];
+                Self::add_burst(&mut frame, r / c + lag, amp, fs);
+                let mirror = DVec3::new(pi.x, -pi.y, pi.z);
+                let dm = mirror - pj;
+                let rm = dm.length().max(1e-3);
+                let amp_m = self.params.floor_reflection * self.params.source_amplitude / rm
+                    * Self::directivity(g.normals[j].dot(dm) / rm);
+                Self::add_burst(&mut frame, rm / c + lag, amp_m, fs);
+                rec.pulses_total += 1;
+                let t0 = Instant::now();
+                let detection = det.detect(&frame).at(Context::Frame(slot))?;
+                let measurement = detection.map(|x| {
+                    let d = det.distance_m(&x, offsets[j]);
+                    let pair = i * ns + j;
+                    let w = det.strength_confidence(&x, d)
+                        * det.continuity_confidence(d, previous[pair]);
+                    previous[pair] = Some(d);
+                    DistanceMeasurement {
+                        sensor: i,
+                        source: j,
+                        distance_m: d,
+                        confidence: w,
+                        age_s: 0.0,
+                    }
+                });
+                rec.ultrasound_s += t0.elapsed().as_secs_f64();
+                if let Some(m) = measurement {
+                    rec.pulses_heard += 1;
+                    rec.detections
+                        .push((m.distance_m - r, m.confidence, !occluded && cos > 0.0));
+                    if !occluded && cos > 0.0 && m.confidence >= 0.5 {
+                        rec.los_distance_errors_m.push(m.distance_m - r);
+                    }
+                    let k = ((t_s + m.distance_m.max(0.0) / c) / dt).ceil() as usize;
+                    if let Some(f) = rec.frames.get_mut(k) {
+                        f.distances.push(DistanceMeasurement {
+                            age_s: k as f64 * dt - t_s,
+                            ..m
+                        });
+                    }
+                }
+            }
+            slot += 1;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skin_core::skeleton::{human_skeleton, HumanParams};
+
+    #[test]
+    fn spline_reproduces_a_parabola_inside() {
+        let h = 0.05;
+        let y = DMatrix::from_fn(1, 41, |_, k| (k as f64 * h).powi(2));
+        let s = SmoothMotion::new(h, y);
+        let (mut a, mut b, mut c) = ([0.0], [0.0], [0.0]);
+        s.eval(1.0, &mut a, &mut b, &mut c);
+        assert!(
+            (a[0] - 1.0).abs() < 1e-4 && (b[0] - 2.0).abs() < 1e-3 && (c[0] - 2.0).abs() < 0.02
+        );
+    }
+
+    #[test]
+    fn segment_distance_cases() {
+        let d = segment_distance(
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(0.5, 1.0, -1.0),
+            DVec3::new(0.5, 1.0, 1.0),
+        );
+        assert!((d - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn still_suit_reads_gravity_and_bench_calibration_is_millimetric() {
+        let s = human_skeleton(&HumanParams::default()).unwrap();
+        let sim = SuitSimulator::new(&s, SimulationParams::default()).unwrap();
+        let cal = sim.calibrate_offsets(3).unwrap();
+        let mean = cal.loo_abs_errors_m.iter().sum::<f64>() / cal.loo_abs_errors_m.len() as f64;
+        assert!(mean < 0.0025, "LOO mean {mean}");
+        let still = Motion::new(1.0 / 30.0, DMatrix::zeros(s.dof_count(), 10)).unwrap();
+        let motion = prepare_motion(&s, &still, &SimulationParams::default()).unwrap();
+        let rec = sim.record(&motion, &cal.offsets).unwrap();
+        let r = rec.frames[10].inertial[0].unwrap();
+        assert!(
+            (r.accel_m_s2.length() - GRAVITY_M_S2).abs() < 0.3,
+            "{}",
+            r.accel_m_s2
+        );
+        assert!(r.gyro_rad_s.length() < 0.05);
+        assert!(rec.pulses_heard > 0);
+    }
+}
+
+/// One filter run over a simulated recording, scored against its truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilterRun {
+    /// Sensor combination label (Table 4.1), e.g. `"A+G+D"`.
+    pub sensors: String,
+    /// Whether the root transform was supplied.
+    pub root_supplied: bool,
+    /// Per evaluated joint, per frame after the rest hold: orientation error, degrees.
+    pub errors_deg: Vec<Vec<f64>>,
+    /// Per evaluated joint: mean and standard deviation.
+    pub stats: Vec<crate::ErrorStats>,
+    /// Frames at which the filter diverged and was reset.
+    pub diverged_frames: usize,
+    /// Seconds of EKF compute (initialisation and steps).
+    pub ekf_s: f64,
+    /// Distances used.
+    pub distances_used: usize,
+}
+
+/// Initialises (§4.4.4, on the rest hold) and runs the EKF over `rec` with `params`,
+/// supplying the root DOFs if `root_supplied`, and scores `joints` against the truth on every
+/// frame after the rest hold.
+///
+/// # Errors
+/// As [`crate::initialise`], [`crate::SkeletalEkf::new`] and [`crate::SkeletalEkf::step`]
+/// (with the frame in [`Error::At`]); [`Error::Empty`] for a recording no longer than its rest
+/// hold.
+pub fn run_filter(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    joints: &[usize],
+) -> Result<FilterRun> {
+    use crate::{initialise, joint_orientation_errors_deg, ErrorStats, SkeletalEkf};
+    if rec.frames.len() <= rec.rest_frames + 1 {
+        return Err(Error::Empty {
+            what: "frames after the rest hold",
+        });
+    }
+    let t0 = Instant::now();
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = initialise(skeleton, &rec.nominal_suit, rest_pose, &rest)?;
+    let known: Vec<usize> = if root_supplied {
+        skeleton.joint_dofs(0).collect()
+    } else {
+        Vec::new()
+    };
+    let mut ekf = SkeletalEkf::new(skeleton.clone(), init.suit, rest_pose, params, &known)?
+        .with_gyro_offsets(init.gyro_offsets)?;
+    let mut errors = vec![Vec::new(); joints.len()];
+    let (mut diverged, mut used) = (0, 0);
+    let mut scoring_s = 0.0;
+    for (k, f) in rec.frames.iter().enumerate() {
+        let r = ekf
+            .step(f, root_supplied.then(|| &rec.root[k]))
+            .at(Context::Frame(k))?;
+        diverged += usize::from(r.diverged);
+        used += r.distances_used;
+        if k >= rec.rest_frames {
+            let ts = Instant::now();
+            let e =
+                joint_orientation_errors_deg(skeleton, ekf.theta(), &rec.truth[k].theta, joints)?;
+            for (acc, v) in errors.iter_mut().zip(e) {
+                acc.push(v);
+            }
+            scoring_s += ts.elapsed().as_secs_f64();
+        }
+    }
+    let ekf_s = t0.elapsed().as_secs_f64() - scoring_s;
+    let stats = errors
+        .iter()
+        .map(|e| ErrorStats::of(e))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(FilterRun {
+        sensors: params.sensors.label(),
+        root_supplied,
+        errors_deg: errors,
+        stats,
+        diverged_frames: diverged,
+        ekf_s,
+        distances_used: used,
+    })
+}
+
+/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
+/// and without the root transform supplied, on one recording, with `params` otherwise.
+///
+/// # Errors
+/// As [`run_filter`].
+pub fn table_4_1(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    joints: &[usize],
+) -> Result<Vec<FilterRun>> {
+    let mut out = Vec::with_capacity(14);
+    for sensors in crate::SensorSet::table_4_1() {
+        for root in [true, false] {
+            out.push(run_filter(
+                skeleton,
+                rec,
+                params.with_sensors(sensors),
+                root,
+                joints,
+            )?);
+        }
+    }
+    Ok(out)
+}
+
+/// A tuning grid point and its score.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TuningPoint {
+    /// Process noise σ (per frame), rad/s².
+    pub process_sigma: f64,
+    /// Accelerometer σ, m/s².
+    pub accelerometer_sigma: f64,
+    /// Distance innovation gate, standard deviations (0: none).
+    pub distance_gate_sigma: f64,
+    /// Mean over the evaluated joints of the mean orientation error, degrees (A+G+D, root
+    /// supplied).
+    pub score_deg: f64,
+}
+
+/// Hand tuning made reproducible (§4.4.1: "We hand tune the standard deviation of the noise
+/// term by tracking several motions"): every combination of the three grids, scored with all
+/// sensors and the root supplied on a tuning recording; returns the points, best first.
+///
+/// # Errors
+/// As [`run_filter`]; [`Error::Empty`] for an empty grid.
+pub fn tune(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    base: crate::FilterParams,
+    joints: &[usize],
+    process_sigmas: &[f64],
+    accelerometer_sigmas: &[f64],
+    gates: &[f64],
+) -> Result<Vec<TuningPoint>> {
+    let mut out = Vec::new();
+    for &q in process_sigmas {
+        for &sa in accelerometer_sigmas {
+            for &gate in gates {
+                let p = crate::FilterParams {
+                    process_sigma: q,
+                    accelerometer_sigma: sa,
+                    distance_gate_sigma: gate,
+                    sensors: crate::SensorSet::ALL,
+                    ..base
+                };
+                let r = run_filter(skeleton, rec, p, true, joints)?;
+                let score = r.stats.iter().map(|s| s.mean_deg).sum::<f64>() / r.stats.len() as f64;
+                out.push(TuningPoint {
+                    process_sigma: q,
+                    accelerometer_sigma: sa,
+                    distance_gate_sigma: gate,
+                    score_deg: score,
+                });
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::Empty {
+            what: "tuning grid",
+        });
+    }
+    out.sort_by(|a, b| a.score_deg.total_cmp(&b.score_deg));
+    Ok(out)
+}
+
+/// A treadmill-like motion (Figure 4-7) from a walk: the root's horizontal translation is
+/// removed (the treadmill), its yaw held at the first frame's, and the walk is played forward
+/// and backward until `duration_s` (continuous, no jumps).
+///
+/// # Errors
+/// As [`Motion::check_for`]; [`Error::InvalidParam`] for a skeleton without the human root
+/// DOFs or a non-positive duration.
+pub fn treadmill_motion(skeleton: &Skeleton, walk: &Motion, duration_s: f64) -> Result<Motion> {
+    walk.check_for(skeleton)?;
+    positive("duration_s", duration_s)?;
+    let find = |name: &'static str| {
+        skeleton.dof_index(name).ok_or(Error::InvalidParam {
+            name: "skeleton",
+            reason: format!("no DOF {name}"),
+        })
+    };
+    let (tx, tz, yaw) = (find("pelvis.tx")?, find("pelvis.tz")?, find("pelvis.yaw")?);
+    let n = walk.frame_count();
+    let total = (duration_s / walk.frame_time_s).round() as usize + 1;
+    let period = 2 * (n - 1).max(1);
+    let mut frames = DMatrix::zeros(skeleton.dof_count(), total);
+    for k in 0..total {
+        let m = k % period;
+        let src = if m < n { m } else { period - m };
+        for d in 0..skeleton.dof_count() {
+            frames[(d, k)] = walk.frames[(d, src)];
+        }
+        frames[(tx, k)] = walk.frames[(tx, 0)];
+        frames[(tz, k)] = walk.frames[(tz, 0)];
+        frames[(yaw, k)] = walk.frames[(yaw, 0)];
+    }
+    Ok(Motion::new(walk.frame_time_s, frames)?)
+}

@@ -1,0 +1,180 @@
+//! inertial-acoustic end to end on the studio: the thesis's suit simulated down to raw
+//! signals on the exercise motion, processed by the crate, scored against the true poses.
+//! Accuracy is asserted with honest bounds (the figures are in docs/inertial-acoustic.md);
+//! the ranking of sensor combinations is measured, and the full set must beat the
+//! combinations that could have won.
+#![allow(clippy::unwrap_used)] // not library code
+
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::skeleton::{human_skeleton, HumanParams, Skeleton};
+use dynamic_shapes::core::studio::{exercise_motion, ExerciseParams};
+use dynamic_shapes::inertial::simulate::{
+    prepare_motion, run_filter, table_4_1, SimulatedRecording, SimulationParams, SuitSimulator,
+};
+use dynamic_shapes::inertial::{
+    Context, DistanceMeasurement, Error, FilterParams, FrameObservations, InertialReading,
+    SensorSet, SkeletalEkf, Suit,
+};
+
+/// The filter noise levels the example's tuning grid selects on its separate tuning clip
+/// (process σ 20 rad/s² per frame, accelerometer σ 2 m/s², distance gate 4σ).
+fn tuned() -> FilterParams {
+    FilterParams::default()
+        .with_process_sigma(20.0)
+        .with_measurement_sigmas(2.0, 0.002, 0.0025)
+        .with_distance_gate_sigma(4.0)
+}
+
+fn joints(s: &Skeleton) -> Vec<usize> {
+    ["neck", "r_shoulder", "l_hip"]
+        .iter()
+        .map(|n| s.joint_index(n).unwrap())
+        .collect()
+}
+
+fn recording(s: &Skeleton, seconds: f64, params: SimulationParams) -> (SimulatedRecording, f64) {
+    let sim = SuitSimulator::new(s, params).unwrap();
+    let cal = sim.calibrate_offsets(3).unwrap();
+    let loo = cal.loo_abs_errors_m.iter().sum::<f64>() / cal.loo_abs_errors_m.len() as f64;
+    let motion = exercise_motion(s, &ExerciseParams::default().with_duration_s(seconds)).unwrap();
+    let smooth = prepare_motion(s, &motion, &params).unwrap();
+    (sim.record(&smooth, &cal.offsets).unwrap(), loo)
+}
+
+#[test]
+fn exercise_motion_table_4_1_from_raw_signals() {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    let (rec, loo_m) = recording(&s, 8.0, SimulationParams::default());
+    // §4.3.3 distances: static calibration and in-motion line-of-sight pulses.
+    assert!(loo_m < 0.0025, "leave-one-out distance error {loo_m} m");
+    let los = &rec.los_distance_errors_m;
+    let los_mean = los.iter().map(|e| e.abs()).sum::<f64>() / los.len() as f64;
+    assert!(
+        los.len() > 1000 && los_mean < 0.005,
+        "{} LOS pulses, mean {los_mean}",
+        los.len()
+    );
+
+    let j = joints(&s);
+    let table: Vec<_> = table_4_1(&s, &rec, tuned(), &j)
+        .unwrap()
+        .into_iter()
+        .filter(|r| r.root_supplied)
+        .collect();
+    let score = |label: &str| {
+        let r = table.iter().find(|r| r.sensors == label).unwrap();
+        r.stats.iter().map(|st| st.mean_deg).sum::<f64>() / 3.0
+    };
+    for r in &table {
+        assert!(r.errors_deg.iter().flatten().all(|e| e.is_finite()));
+    }
+    let agd = table.iter().find(|r| r.sensors == "A+G+D").unwrap();
+    let (neck, shoulder, hip) = (
+        agd.stats[0].mean_deg,
+        agd.stats[1].mean_deg,
+        agd.stats[2].mean_deg,
+    );
+    assert!(
+        neck < 5.0 && shoulder < 12.0 && hip < 8.0,
+        "A+G+D {neck} {shoulder} {hip}"
+    );
+    assert_eq!(agd.diverged_frames, 0);
+    // The ranking comes from the data: the full set beats accelerometers alone, distances
+    // alone and their pair by far, and is within 1.5× of whichever combination is best.
+    let best = table
+        .iter()
+        .map(|r| r.stats.iter().map(|st| st.mean_deg).sum::<f64>() / 3.0)
+        .fold(f64::INFINITY, f64::min);
+    for weak in ["A", "D", "A+D"] {
+        assert!(score("A+G+D") * 4.0 < score(weak), "A+G+D vs {weak}");
+    }
+    assert!(
+        score("A+G+D") <= 1.5 * best,
+        "A+G+D {} best {best}",
+        score("A+G+D")
+    );
+
+    // A source that is never heard (the hat's): the filter runs on the other seven.
+    let mut deaf = rec.clone();
+    for f in &mut deaf.frames {
+        f.distances.retain(|m| m.source != 7);
+    }
+    let r = run_filter(&s, &deaf, tuned(), true, &j).unwrap();
+    assert!(r.stats.iter().all(|st| st.mean_deg < 15.0), "{:?}", r.stats);
+}
+
+#[test]
+fn corrupted_link_and_bad_inputs() {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    // A noisy link: the code corrects single errors and flags the rest; the filter runs on.
+    let params = SimulationParams {
+        bit_error_rate: 0.01,
+        ..SimulationParams::default()
+    }
+    .with_ultrasound(false);
+    let (rec, _) = recording(&s, 3.0, params);
+    assert!(rec.inertial_frames_flagged > 0 && rec.bits_corrected > 0);
+    let gyro_accel = tuned().with_sensors(SensorSet {
+        distances: false,
+        ..SensorSet::ALL
+    });
+    let r = run_filter(&s, &rec, gyro_accel, true, &joints(&s)).unwrap();
+    assert!(r.stats.iter().all(|st| st.mean_deg < 20.0), "{:?}", r.stats);
+
+    // NaN readings are skipped and counted; bad indices are errors naming the sensor.
+    let suit = Suit::vlasic(&s).unwrap();
+    let nb = suit.boards().len();
+    let mut ekf = SkeletalEkf::new(s.clone(), suit, &s.rest_pose(), tuned(), &[]).unwrap();
+    let nan = InertialReading {
+        gyro_rad_s: DVec3::NAN,
+        accel_m_s2: DVec3::ZERO,
+    };
+    let obs = FrameObservations {
+        inertial: vec![Some(nan); nb],
+        distances: vec![],
+    };
+    let report = ekf.step(&obs, None).unwrap();
+    assert_eq!(report.inertial_used, 0);
+    assert!(report.inertial_skipped >= nb);
+    let bad = FrameObservations {
+        inertial: vec![None; nb],
+        distances: vec![DistanceMeasurement {
+            sensor: 99,
+            source: 0,
+            distance_m: 0.5,
+            confidence: 1.0,
+            age_s: 0.0,
+        }],
+    };
+    let e = ekf.step(&bad, None).unwrap_err();
+    assert_eq!(e.contexts(), [Context::Sensor(99)]);
+    assert!(matches!(e.root(), Error::Core(_)));
+    let short = FrameObservations {
+        inertial: vec![None; 3],
+        distances: vec![],
+    };
+    assert!(ekf.step(&short, None).is_err());
+
+    // A diverging filter (absurd readings) is reset and flagged, never a NaN pose.
+    let wild = InertialReading {
+        gyro_rad_s: DVec3::splat(1e6),
+        accel_m_s2: DVec3::splat(1e7),
+    };
+    let obs = FrameObservations {
+        inertial: vec![Some(wild); nb],
+        distances: vec![],
+    };
+    let mut flagged = false;
+    for _ in 0..5 {
+        flagged |= ekf.step(&obs, None).unwrap().diverged;
+        assert!(ekf.theta().iter().all(|v| v.is_finite()));
+    }
+    assert!(flagged);
+
+    // A sensor on a bone the skeleton lacks.
+    let small = Skeleton::new(s.joints()[..5].to_vec()).unwrap();
+    assert!(matches!(
+        Suit::vlasic(&small),
+        Err(Error::MissingBone { .. })
+    ));
+}
