@@ -24,8 +24,13 @@ pub struct CameraObservation {
     pub camera: usize,
     /// Silhouette: set on the performer.
     pub mask: Mask,
-    /// Shaded image (linear radiance, with the spec's noise), when the spec has lighting.
+    /// Shaded image (linear radiance, with the spec's noise), when the spec has lighting
+    /// (under light patterns: this frame's pattern, or the first with
+    /// [`super::PatternSchedule::AllEachFrame`]).
     pub shaded: Option<Rgb32FImage>,
+    /// One shaded image per light pattern with [`super::PatternSchedule::AllEachFrame`];
+    /// empty otherwise.
+    pub patterns: Vec<Rgb32FImage>,
 }
 
 /// The ground-truth buffers of one camera view (rig order), each present when the capture's
