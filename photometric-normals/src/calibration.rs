@@ -204,9 +204,12 @@ fn check_in_view(camera: &Camera, s: &CalibrationSphere) -> Result<()> {
         let phi = std::f64::consts::TAU * j as f64 / 64.0;
         let dir = axis * cos_a + (e1 * phi.cos() + e2 * phi.sin()) * sin_a;
         let p = c + dir * dist * cos_a;
-        let inside = camera
-            .project(p)
-            .is_ok_and(|px| px.x >= 0.0 && px.y >= 0.0 && px.x <= (k.width - 1) as f64 && px.y <= (k.height - 1) as f64);
+        let inside = camera.project(p).is_ok_and(|px| {
+            px.x >= 0.0
+                && px.y >= 0.0
+                && px.x <= (k.width - 1) as f64
+                && px.y <= (k.height - 1) as f64
+        });
         if !inside {
             return Err(Error::OutOfView {
                 reason: format!(

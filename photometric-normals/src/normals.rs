@@ -115,7 +115,8 @@ impl NormalMap {
                 return Rgb([0, 0, 0]);
             }
             let n = self.normals[i];
-            let c = [n.x, -n.y, -n.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round().clamp(0.0, 255.0) as u8);
+            let c = [n.x, -n.y, -n.z]
+                .map(|v| ((v + 1.0) * 0.5 * 255.0).round().clamp(0.0, 255.0) as u8);
             Rgb(c)
         })
     }

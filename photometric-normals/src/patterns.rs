@@ -369,6 +369,9 @@ mod tests {
         assert!(e.trusted(1.0, 1.5));
         assert!(!e.trusted(0.05, 0.5), "dark: 0.025 normalised");
         assert!(!e.trusted(1.0, 1.95), "saturated: 0.975 normalised");
-        assert!(Exposure::default().with_white_level(0.0).validate().is_err());
+        assert!(Exposure::default()
+            .with_white_level(0.0)
+            .validate()
+            .is_err());
     }
 }

@@ -8,12 +8,11 @@ use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
-use skin_core::mesh::{MeshQuery, TriMesh};
+use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams, RenderedView};
 use skin_core::stats::{mean, median};
 use skin_core::studio::shading::{
-    shade, shade_patterns, vertices_seen, Albedo, DomeParams, Light, LightVisibility, Shadows,
-    DEFAULT_SHADOW_BIAS_M,
+    shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
 use skin_core::studio::{FineSurface, LightPatterns, PatternSchedule, ViewTruth};
 
@@ -95,7 +94,10 @@ pub fn render_sphere_patterns(
 ///
 /// # Errors
 /// As [`render_sphere_patterns`] and [`LookupTable::from_sphere`].
-#[allow(clippy::too_many_arguments, reason = "the calibration set-up, spelled out")]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the calibration set-up, spelled out"
+)]
 pub fn calibrate_camera(
     camera: &Camera,
     lights: &[Light],
@@ -115,11 +117,12 @@ pub fn calibrate_camera(
                 radius_m,
             };
             let images = render_sphere_patterns(camera, &sphere, lights, centre, albedo)?;
-            LookupTable::from_sphere(camera, &sphere, &images, DVec3::Y, params)
-                .map_err(|e| Error::At {
+            LookupTable::from_sphere(camera, &sphere, &images, DVec3::Y, params).map_err(|e| {
+                Error::At {
                     at: skin_core::Context::Frame(i),
                     source: Box::new(e),
-                })
+                }
+            })
         })
         .collect::<Result<Vec<_>>>()?;
     HeightCalibration::new(tables)
@@ -245,17 +248,21 @@ fn view_of(view: &ViewTruth) -> Result<RenderedView> {
 
 /// Per pixel, the fraction of its unoccluded dome irradiance that reaches it with cast
 /// shadows (1 unshadowed; NaN on background): the "shadowed concavities" are the
-/// pixels below 0.9. `mesh` is the mesh the camera saw ([`skin_core::studio::FrameTruth`]).
+/// pixels below 0.9. `mesh` is the mesh the camera saw ([`skin_core::studio::FrameTruth`]),
+/// `visibility` the frame's ([`skin_core::studio::CaptureFrame::light_visibility`]).
 ///
 /// # Errors
-/// [`Error::Empty`] without triangle/barycentric truth; shading and visibility errors.
-pub fn dome_power_fraction(view: &ViewTruth, mesh: &TriMesh, lights: &[Light]) -> Result<Vec<f32>> {
+/// [`Error::Empty`] without triangle/barycentric truth; shading errors (e.g. a visibility of
+/// another mesh or light set).
+pub fn dome_power_fraction(
+    view: &ViewTruth,
+    mesh: &TriMesh,
+    lights: &[Light],
+    visibility: &LightVisibility,
+) -> Result<Vec<f32>> {
     let v = view_of(view)?;
-    let query = MeshQuery::new(mesh)?;
-    let needed = vertices_seen(mesh, &[&v])?;
-    let vis = LightVisibility::compute_for(mesh, &query, lights, DEFAULT_SHADOW_BIAS_M, Some(&needed))?;
     let white = Albedo::Uniform([1.0; 3]);
-    let lit = shade(&v, mesh, lights, &white, &Shadows::PerVertex(&vis))?;
+    let lit = shade(&v, mesh, lights, &white, &Shadows::PerVertex(visibility))?;
     let open = shade(&v, mesh, lights, &white, &Shadows::None)?;
     Ok(lit
         .radiance

@@ -6,6 +6,7 @@ use image::{ImageBuffer, LumaA, Rgb32FImage};
 use crate::image::{GrayF32Image, Mask};
 use crate::mesh::TriMesh;
 use crate::raster::{buffer_image, RenderedView};
+use crate::studio::shading::LightVisibility;
 use crate::studio::{FineSurface, Performer, PosedFrame};
 use crate::Result;
 
@@ -132,6 +133,10 @@ pub struct CaptureFrame {
     pub observations: Vec<CameraObservation>,
     /// The ground truth.
     pub truth: FrameTruth,
+    /// The per-vertex light visibility the shading used (lighting with shadows only), for
+    /// analyses of the shadows (e.g. which pixels receive less than their unoccluded power).
+    /// Its vertices are those of [`FrameTruth::rendered_mesh`].
+    pub light_visibility: Option<LightVisibility>,
 }
 
 impl CaptureFrame {

@@ -248,6 +248,7 @@ impl<'a> Capture<'a> {
             .map(|(i, r)| r.render(mesh, &self.render).at(Context::Camera(i)))
             .collect::<Result<Vec<RenderedView>>>()
             .at(Context::Frame(index))?;
+        let mut light_visibility = None;
         let shaded = match &self.spec.lighting {
             None => vec![Vec::new(); views.len()],
             Some(lighting) => {
@@ -289,7 +290,7 @@ impl<'a> Capture<'a> {
                         }
                         PatternSchedule::AllEachFrame => p.weights.clone(),
                     });
-                views
+                let images = views
                     .par_iter()
                     .enumerate()
                     .map(|(i, v)| {
@@ -312,7 +313,9 @@ impl<'a> Capture<'a> {
                             .map(ShadedView::to_image)
                             .collect::<Result<Vec<_>>>()
                     })
-                    .collect::<Result<Vec<_>>>()?
+                    .collect::<Result<Vec<_>>>()?;
+                light_visibility = vis;
+                images
             }
         };
         let every_frame = self
@@ -349,6 +352,7 @@ impl<'a> Capture<'a> {
                 fine,
                 views,
             },
+            light_visibility,
         })
     }
 }
