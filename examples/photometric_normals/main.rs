@@ -67,10 +67,22 @@ struct Args {
     /// No cast shadows.
     #[arg(long)]
     no_shadows: bool,
+    /// Only the optical-flow peer workload at 1024² (for a side-by-side run with
+    /// `bench/peers/flow.py`); prints one JSON line.
+    #[arg(long)]
+    flow_only: bool,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    if args.flow_only {
+        let (ms, epe, epe_interior) = peer_flow_workload(1024, 10)?;
+        println!(
+            "{}",
+            json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior})
+        );
+        return Ok(());
+    }
     let quick = args.common.quick;
     let (n_cams, size) = if quick { (2, 256) } else { (8, 1024) };
     let mut run = Run::start(
@@ -289,7 +301,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
     }
 
+    let stage = run.stage("flow (peer workload)", None);
+    let flow_n = if quick { 256 } else { 1024 };
+    let (flow_ms, flow_epe_px, flow_epe_interior_px) =
+        peer_flow_workload(flow_n, if quick { 3 } else { 10 })?;
+    stage.finish(format!(
+        "{flow_n}² pair: {flow_ms:.0} ms, EPE {flow_epe_px:.3} px (interior {flow_epe_interior_px:.3} px)"
+    ));
+
     let figures = json!({
+        "flow_size_px": flow_n,
+        "flow_ms": flow_ms,
+        "flow_epe_px": flow_epe_px,
+        "flow_epe_interior_px": flow_epe_interior_px,
         "cameras": n_cams,
         "size_px": size,
         "lights": lights.len(),
@@ -343,6 +367,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "deg",
         ),
         Headline::new("valid_fraction", "valid normals on the body", ""),
+        Headline::new("flow_ms", "optical flow per pair (peer workload)", "ms")
+            .note("goal: ≤ 2× OpenCV DIS medium at 1024² (54 ms in bench/peers)"),
+        Headline::new("flow_epe_px", "optical flow EPE (peer workload)", "px")
+            .note("goal: ≤ OpenCV DIS medium at 1024² (0.058 px)"),
         Headline::new(
             "normals_ms_per_view_1024",
             "normals per 1024² view (scaled from the run's size)",
@@ -354,6 +382,94 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     run.finish(figures)?;
     Ok(())
+}
+
+/// The flow workload of `bench/peers/flow.py` regenerated (its README, §7): a 64-sine texture
+/// quantised to 8 bits, the second image warped analytically, the forward flow by 20
+/// fixed-point iterations. Returns the median time of `reps` runs (after one warm-up), ms, the
+/// mean EPE over pixels whose target is inside, px, and the same without a 32 px border.
+fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
+    use dynamic_shapes::core::image::GrayF32Image;
+    use dynamic_shapes::core::random::SplitMix64;
+    use dynamic_shapes::photometric::{dense_flow, FlowParams};
+    use std::f64::consts::TAU;
+    const K: usize = 64;
+    let rho: Vec<f64> = SplitMix64::new(70)
+        .uniform(K)
+        .iter()
+        .map(|u| 0.01 + 0.14 * u)
+        .collect();
+    let th: Vec<f64> = SplitMix64::new(71)
+        .uniform(K)
+        .iter()
+        .map(|u| TAU * u)
+        .collect();
+    let ph: Vec<f64> = SplitMix64::new(72)
+        .uniform(K)
+        .iter()
+        .map(|u| TAU * u)
+        .collect();
+    let tex = |x: f64, y: f64| -> f32 {
+        let mut t = 0.0;
+        for k in 0..K {
+            t += (TAU * (rho[k] * th[k].cos() * x + rho[k] * th[k].sin() * y) + ph[k]).sin();
+        }
+        ((128.0 + 32.0 * t / (K as f64 / 2.0).sqrt() + 0.5)
+            .floor()
+            .clamp(0.0, 255.0)
+            / 255.0) as f32
+    };
+    let nf = f64::from(n);
+    let s = nf / 1024.0;
+    let warp = |x: f64, y: f64| {
+        let (cx, cy) = (x / nf, y / nf);
+        [
+            s * (6.0 * (TAU * 1.5 * cy + 0.3).sin() + 3.0 * (TAU * cx).cos()),
+            s * (5.0 * (TAU * 2.0 * cx).cos() - 4.0 * (TAU * (cy + 0.25)).sin()),
+        ]
+    };
+    let i1 = GrayF32Image::from_fn(n, n, |x, y| image::Luma([tex(f64::from(x), f64::from(y))]));
+    let i2 = GrayF32Image::from_fn(n, n, |x, y| {
+        let w = warp(f64::from(x), f64::from(y));
+        image::Luma([tex(f64::from(x) - w[0], f64::from(y) - w[1])])
+    });
+    let params = FlowParams::default();
+    dense_flow(&i1, &i2, &params)?;
+    let mut times = Vec::new();
+    let mut flow = None;
+    for _ in 0..reps {
+        let t = Instant::now();
+        flow = Some(dense_flow(&i1, &i2, &params)?);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let flow = flow.ok_or("at least one rep")?;
+    let (mut e, mut c, mut ei, mut ci) = (0.0, 0usize, 0.0, 0usize);
+    for y in 0..n {
+        for x in 0..n {
+            let (px, py) = (f64::from(x), f64::from(y));
+            let mut u = warp(px, py);
+            for _ in 0..20 {
+                u = warp(px + u[0], py + u[1]);
+            }
+            let (tx, ty) = (px + u[0], py + u[1]);
+            if !(0.0..=nf - 1.0).contains(&tx) || !(0.0..=nf - 1.0).contains(&ty) {
+                continue;
+            }
+            let f = flow.u[(y * n + x) as usize];
+            let d = ((f64::from(f[0]) - u[0]).powi(2) + (f64::from(f[1]) - u[1]).powi(2)).sqrt();
+            e += d;
+            c += 1;
+            if x >= 32 && y >= 32 && x < n - 32 && y < n - 32 {
+                ei += d;
+                ci += 1;
+            }
+        }
+    }
+    Ok((
+        dynamic_shapes::core::stats::median(&times),
+        e / c.max(1) as f64,
+        ei / ci.max(1) as f64,
+    ))
 }
 
 /// Per-pixel scores of all cameras, concatenated.

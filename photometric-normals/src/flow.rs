@@ -279,25 +279,32 @@ fn patch_search(a: &Img, b: &Img, init: &[[f32; 2]], p: &FlowParams) -> Vec<[f32
             if det.abs() < 1e-12 {
                 return u;
             }
-            for _ in 0..p.grad_iters {
-                // Mean-normalised residual (robust to a brightness change).
-                let mut mean_w = 0.0f32;
-                for y in y0..y0 + ps {
-                    for x in x0..x0 + ps {
-                        mean_w += b.sample(x as f32 + u[0], y as f32 + u[1]);
-                    }
+            // Σ g and Σ g (T − mean T) of the template, for the mean-normalised residual
+            // e = (W − mean W) − (T − mean T) in one pass over the warped patch W.
+            let (mut sgx, mut sgy, mut tgx, mut tgy) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for y in y0..y0 + ps {
+                for x in x0..x0 + ps {
+                    let i = y * a.w + x;
+                    sgx += gx[i];
+                    sgy += gy[i];
+                    tgx += gx[i] * (a.p[i] - mean_t);
+                    tgy += gy[i] * (a.p[i] - mean_t);
                 }
-                mean_w /= n;
-                let (mut bx, mut by) = (0.0f32, 0.0f32);
+            }
+            for _ in 0..p.grad_iters {
+                let (mut sw, mut wgx, mut wgy) = (0.0f32, 0.0f32, 0.0f32);
                 for y in y0..y0 + ps {
                     for x in x0..x0 + ps {
                         let i = y * a.w + x;
-                        let e = (b.sample(x as f32 + u[0], y as f32 + u[1]) - mean_w)
-                            - (a.p[i] - mean_t);
-                        bx += gx[i] * e;
-                        by += gy[i] * e;
+                        let wv = b.sample(x as f32 + u[0], y as f32 + u[1]);
+                        sw += wv;
+                        wgx += gx[i] * wv;
+                        wgy += gy[i] * wv;
                     }
                 }
+                let mean_w = sw / n;
+                let bx = wgx - mean_w * sgx - tgx;
+                let by = wgy - mean_w * sgy - tgy;
                 let du = [(h22 * bx - h12 * by) / det, (h11 * by - h12 * bx) / det];
                 u = [u[0] - du[0], u[1] - du[1]];
                 if du[0] * du[0] + du[1] * du[1] < 1e-6 {
@@ -309,21 +316,23 @@ fn patch_search(a: &Img, b: &Img, init: &[[f32; 2]], p: &FlowParams) -> Vec<[f32
         .collect();
     // Densification: each pixel averages the patches covering it, weighted by 1/max(1, |e|)
     // (intensity errors scaled to 8-bit units).
+    // The patches covering each column and row (index ranges into `xs` / `ys`).
+    let covering = |starts: &[usize], len: usize| -> Vec<std::ops::Range<usize>> {
+        (0..len)
+            .map(|x| {
+                let lo = starts.partition_point(|&s| s + ps <= x);
+                let hi = starts.partition_point(|&s| s <= x);
+                lo..hi
+            })
+            .collect()
+    };
+    let (cx, cy) = (covering(&xs, a.w), covering(&ys, a.h));
     let mut out = vec![[0.0f32; 2]; a.w * a.h];
     out.par_chunks_mut(a.w).enumerate().for_each(|(y, row)| {
-        let py: Vec<usize> = ys
-            .iter()
-            .enumerate()
-            .filter(|(_, &s)| y >= s && y < s + ps)
-            .map(|(j, _)| j)
-            .collect();
         for (x, o) in row.iter_mut().enumerate() {
             let (mut sw, mut su, mut sv) = (0.0f32, 0.0f32, 0.0f32);
-            for &j in &py {
-                for (k, &sx) in xs.iter().enumerate() {
-                    if x < sx || x >= sx + ps {
-                        continue;
-                    }
+            for j in cy[y].clone() {
+                for k in cx[x].clone() {
                     let f = flows[j * xs.len() + k];
                     let e = (b.sample(x as f32 + f[0], y as f32 + f[1]) - a.p[y * a.w + x]).abs()
                         * 255.0;
