@@ -129,9 +129,9 @@ pub fn grey(image: &Rgb32FImage) -> GrayF32Image {
     })
 }
 
-/// Camera exposure: the linear intensity at which the sensor saturates (normalised intensity
-/// 1) and the range of normalised intensities trusted for normals (§3.2.3, "Impact of
-/// Albedo").
+/// Camera exposure: the linear intensity at which the sensor saturates (normalised
+/// intensity one) and the range of normalised intensities trusted for normals (§3.2.3,
+/// "Impact of Albedo").
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Exposure {
     /// Linear intensity of normalised intensity 1. Default: 1 (images delivered in `[0, 1]`).
@@ -310,7 +310,7 @@ mod tests {
             let wa = pattern_weights(&lights, DVec3::ZERO, a).unwrap();
             let wb = pattern_weights(&lights, DVec3::ZERO, b).unwrap();
             assert!(wa.iter().zip(&wb).all(|(x, y)| x + y == 1.0));
-            assert!(wa.iter().any(|&x| x == 1.0) && wb.iter().any(|&x| x == 1.0));
+            assert!(wa.contains(&1.0) && wb.contains(&1.0));
         }
         let full = pattern_weights(&lights, DVec3::ZERO, Pattern::Full).unwrap();
         assert!(full.iter().all(|&x| x == 1.0));
