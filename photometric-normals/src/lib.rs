@@ -19,6 +19,7 @@
 //! | `patterns.rs` | half-on patterns, the 8-frame cycle, one view under the seven conditions, exposure limits | [`Pattern`], [`pattern_weights`], [`CYCLE`], [`PatternImages`], [`Exposure`] | §3.2.2 Eq. 3.1, §3.2.3 |
 //! | `calibration.rs` | grey-sphere lookup tables in a kd-tree, N-best blending, heights | [`LookupTable`], [`HeightCalibration`], [`CalibrationSphere`] | §3.2.2 Eq. 3.2, §3.2.3 |
 //! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
+//! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
 //! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
@@ -81,6 +82,7 @@
 mod calibration;
 mod error;
 mod flow;
+mod motion;
 mod normals;
 mod patterns;
 #[cfg(feature = "validation")]
@@ -89,6 +91,7 @@ pub mod truth;
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
