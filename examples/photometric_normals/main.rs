@@ -218,6 +218,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 WRINKLE_MIN_M,
             )?);
         acc.body.extend(obs.mask.iter());
+        let garment = performer
+            .wrinkles()
+            .map(|w| w.garment_faces())
+            .unwrap_or(&[]);
+        if let Some(tri) = &view.triangle_ids {
+            acc.skin.extend(
+                tri.as_raw()
+                    .iter()
+                    .map(|&t| !garment.get(t as usize).copied().unwrap_or(false)),
+            );
+        }
         acc.valid += map
             .valid
             .iter()
@@ -237,6 +248,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let open = region(&|i| acc.body[i] && !acc.concave[i]);
     let shadowed = region(&|i| acc.body[i] && acc.concave[i]);
     let wrinkled = region(&|i| acc.body[i] && acc.wrinkled[i]);
+    let skin_open = region(&|i| open[i] && acc.skin.get(i).copied().unwrap_or(false));
+    let skirt_open = region(&|i| open[i] && !acc.skin.get(i).copied().unwrap_or(true));
+    let e_skin = summarize(&acc.err, Some(&skin_open));
+    let e_skirt = summarize(&acc.err, Some(&skirt_open));
     let e_open = summarize(&acc.err, Some(&open));
     let e_shadow = summarize(&acc.err, Some(&shadowed));
     let e_all = summarize(&acc.err, Some(&acc.body));
@@ -324,6 +339,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "normal_median_concave_deg": e_shadow.median_deg,
         "normal_mean_concave_deg": e_shadow.mean_deg,
         "normal_median_all_deg": e_all.median_deg,
+        "normal_median_skin_deg": e_skin.median_deg,
+        "normal_median_skirt_deg": e_skirt.median_deg,
         "wrinkle_normal_median_deg": e_wr.median_deg,
         "baseline_normal_median_deg": b_open.median_deg,
         "baseline_normal_mean_deg": b_open.mean_deg,
@@ -480,6 +497,7 @@ struct Acc {
     concave: Vec<bool>,
     wrinkled: Vec<bool>,
     body: Vec<bool>,
+    skin: Vec<bool>,
     valid: usize,
     covered: usize,
 }
