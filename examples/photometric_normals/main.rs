@@ -177,6 +177,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut acc = Acc::default();
     let (mut cal_ms, mut normals_ms) = (Vec::new(), Vec::new());
     let mut first: Option<(NormalMap, Vec<Option<f64>>)> = None;
+    let mut cals = Vec::new();
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
         let cal = calibrate_camera(
@@ -241,6 +242,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             write_patterns(&mut run, &obs.patterns, &obs.mask, exposure)?;
             first = Some((map, err));
         }
+        cals.push(cal);
         stage.inc(1);
     }
     stage.finish("done");
@@ -316,6 +318,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
     }
 
+    let stage = run.stage("moving sequence", None);
+    let moving = moving_sequence(&cameras, &cals, &lights, centre, &params)?;
+    stage.finish(format!(
+        "compensated median {:.2}°, uncompensated {:.2}°, flow EPE {:.3} px vs true motion (mean motion {:.2} px)",
+        moving["moving_normal_median_deg"].as_f64().unwrap_or(f64::NAN),
+        moving["moving_uncompensated_median_deg"].as_f64().unwrap_or(f64::NAN),
+        moving["studio_flow_epe_px"].as_f64().unwrap_or(f64::NAN),
+        moving["studio_motion_mean_px"].as_f64().unwrap_or(f64::NAN),
+    ));
     let stage = run.stage("flow (peer workload)", None);
     let flow_n = if quick { 256 } else { 1024 };
     let (flow_ms, flow_epe_px, flow_epe_interior_px) =
@@ -324,7 +335,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{flow_n}² pair: {flow_ms:.0} ms, EPE {flow_epe_px:.3} px (interior {flow_epe_interior_px:.3} px)"
     ));
 
-    let figures = json!({
+    let mut figures = json!({
         "flow_size_px": flow_n,
         "flow_ms": flow_ms,
         "flow_epe_px": flow_epe_px,
@@ -356,7 +367,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "calibration_ms_per_camera": median(&cal_ms),
         "capture_s": capture_s,
     });
+    if let (Some(f), Some(m)) = (figures.as_object_mut(), moving.as_object()) {
+        f.extend(m.clone());
+    }
     for h in [
+        Headline::new(
+            "moving_normal_median_deg",
+            "moving sequence, motion-compensated (median)",
+            "deg",
+        )
+        .goal(Goal::AtMost(5.0)),
+        Headline::new(
+            "moving_uncompensated_median_deg",
+            "moving sequence, without compensation (median)",
+            "deg",
+        ),
+        Headline::new(
+            "studio_flow_epe_px",
+            "flow EPE against the studio's true motion",
+            "px",
+        ),
         Headline::new(
             "normal_median_deg",
             "normal error outside shadowed concavities (median)",
@@ -487,6 +517,148 @@ fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn st
         e / c.max(1) as f64,
         ei / ci.max(1) as f64,
     ))
+}
+
+/// §3.2.3 on a moving performer: the skirt performer (no wrinkles: cheaper shadow rays) in
+/// the studio's fast motion at 240 fps under the 8-frame cycle (`PatternSchedule::Cycle`);
+/// frames 75–83 (`F X̄ Ȳ Z̄ F X Y Z F`) around the tracking frame 79. Normals with and without
+/// motion compensation against the truth of frame 79, and the forward flow (79 → 83) against
+/// the projected true motion of each visible surface point.
+fn moving_sequence(
+    cameras: &[dynamic_shapes::core::camera::Camera],
+    cals: &[dynamic_shapes::photometric::HeightCalibration],
+    lights: &[dynamic_shapes::core::studio::shading::Light],
+    centre: DVec3,
+    params: &NormalParams,
+) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
+    use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
+    use dynamic_shapes::photometric::{compensate_motion, grey, MotionParams, CYCLE_FRAME_RATE_HZ};
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman")?,
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )?;
+    let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
+    let rig = Rig {
+        cameras: cameras.to_vec(),
+    };
+    let spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(CYCLE_FRAME_RATE_HZ)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_noise(PixelNoise::default())
+        .with_lighting(
+            CaptureLighting::new(lights.to_vec())
+                .with_texture(Some(TextureParams::default()))
+                .with_patterns(Some(studio_patterns(
+                    lights,
+                    centre,
+                    PatternSchedule::Cycle,
+                )?)),
+        );
+    let capture = Capture::new(&performer, &motion, spec)?;
+    let frames = capture.frames_in(75..84).collect::<Result<Vec<_>, _>>()?;
+    if frames.len() != 9 {
+        return Err("the motion has frames 75-83".into());
+    }
+    let mid = &frames[4];
+    let next_mesh = frames[8].truth.rendered_mesh(&performer);
+    let mid_mesh = mid.truth.rendered_mesh(&performer);
+    let (mut comp, mut raw, mut body) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut epe, mut mag) = (Vec::new(), Vec::new());
+    for (c, cam) in cameras.iter().enumerate() {
+        let greys: Vec<_> = frames
+            .iter()
+            .map(|f| {
+                f.observations[c]
+                    .shaded
+                    .as_ref()
+                    .map(grey)
+                    .ok_or("shaded image")
+            })
+            .collect::<Result<_, _>>()?;
+        let pats: Vec<_> = (75..84).map(|k| CYCLE[k % 8]).collect();
+        let pairs: Vec<_> = pats.iter().copied().zip(greys.iter()).collect();
+        let compensated = compensate_motion(&pairs, &MotionParams::default())?;
+        let mask = mid.observations[c].mask.and(&compensated.confident)?;
+        let map = estimate_normals(cam, &cals[c], &compensated.images, Some(&mask), params)?;
+        let uncompensated = PatternImages::new(
+            pairs[1..8]
+                .iter()
+                .map(|(p, im)| (*p, (*im).clone()))
+                .collect(),
+        )?;
+        let map_raw = estimate_normals(
+            cam,
+            &cals[c],
+            &uncompensated,
+            Some(&mid.observations[c].mask),
+            params,
+        )?;
+        let truth = mid.truth.views[c]
+            .normals_camera
+            .as_ref()
+            .ok_or("normal truth")?;
+        comp.extend(angular_errors_deg(&map, truth)?);
+        raw.extend(angular_errors_deg(&map_raw, truth)?);
+        body.extend(mid.observations[c].mask.iter());
+        // True forward motion of every body pixel's surface point (same faces: no wrinkles).
+        let view = &mid.truth.views[c];
+        let (Some(tri), Some(bary)) = (&view.triangle_ids, &view.barycentric) else {
+            return Err("triangle truth".into());
+        };
+        for (i, &t) in tri.as_raw().iter().enumerate() {
+            let Some(f) = mid_mesh.faces.get(t as usize) else {
+                continue;
+            };
+            let (b1, b2) = (
+                f64::from(bary.as_raw()[2 * i]),
+                f64::from(bary.as_raw()[2 * i + 1]),
+            );
+            let at = |m: &dynamic_shapes::core::mesh::TriMesh| {
+                m.vertices[f[0] as usize] * (1.0 - b1 - b2)
+                    + m.vertices[f[1] as usize] * b1
+                    + m.vertices[f[2] as usize] * b2
+            };
+            let (Ok(p0), Ok(p1)) = (cam.project(at(&mid_mesh)), cam.project(at(&next_mesh))) else {
+                continue;
+            };
+            let truth_u = p1 - p0;
+            let est = compensated.forward.u[i];
+            epe.push(
+                ((f64::from(est[0]) - truth_u.x).powi(2) + (f64::from(est[1]) - truth_u.y).powi(2))
+                    .sqrt(),
+            );
+            mag.push(truth_u.length());
+        }
+    }
+    let e_comp = summarize(&comp, Some(&body));
+    let e_raw = summarize(&raw, Some(&body));
+    let valid = comp
+        .iter()
+        .zip(&body)
+        .filter(|(e, b)| **b && e.is_some())
+        .count() as f64
+        / body.iter().filter(|&&b| b).count().max(1) as f64;
+    let m = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            dynamic_shapes::core::stats::mean(v)
+        }
+    };
+    Ok(json!({
+        "moving_normal_median_deg": e_comp.median_deg,
+        "moving_normal_mean_deg": e_comp.mean_deg,
+        "moving_uncompensated_median_deg": e_raw.median_deg,
+        "moving_uncompensated_mean_deg": e_raw.mean_deg,
+        "moving_valid_fraction": valid,
+        "studio_flow_epe_px": m(&epe),
+        "studio_motion_mean_px": m(&mag),
+    }))
 }
 
 /// Per-pixel scores of all cameras, concatenated.
