@@ -591,13 +591,8 @@ fn moving_sequence(
                 .map(|(p, im)| (*p, (*im).clone()))
                 .collect(),
         )?;
-        let map_raw = estimate_normals(
-            cam,
-            &cals[c],
-            &uncompensated,
-            Some(&mid.observations[c].mask),
-            params,
-        )?;
+        // Scored on the same (confident) pixels as the compensated map.
+        let map_raw = estimate_normals(cam, &cals[c], &uncompensated, Some(&mask), params)?;
         let truth = mid.truth.views[c]
             .normals_camera
             .as_ref()
@@ -656,6 +651,8 @@ fn moving_sequence(
         "moving_uncompensated_median_deg": e_raw.median_deg,
         "moving_uncompensated_mean_deg": e_raw.mean_deg,
         "moving_valid_fraction": valid,
+        "moving_scored_pixels": e_comp.pixels,
+        "moving_uncompensated_scored_pixels": e_raw.pixels,
         "studio_flow_epe_px": m(&epe),
         "studio_motion_mean_px": m(&mag),
     }))
