@@ -10,6 +10,11 @@
 //! concavities (pixels receiving < 90 % of their unoccluded dome power), on the wrinkled
 //! regions, and against the distant-light baseline (the analytic `n = k/‖k‖`).
 //!
+//! Then §3.2.3 on a moving performer (the skirt performer in the studio's fast motion at 240 fps
+//! under the 8-frame cycle): normals of one tracking frame with and without motion
+//! compensation, and the flow against the studio's true motion. Last, the optical-flow
+//! workload of `bench/peers/flow.py` regenerated in Rust (`--flow-only`: only that, at 1024²).
+//!
 //! Writes under `out/photometric_normals/`: `patterns.png` (the 8-frame cycle seen by camera
 //! 0), `normals.png` (estimated and true normal maps), `normal_error.png` (angular error with a
 //! colour bar), `figures.json`, `manifest.json`; the last stdout line is one JSON object.
