@@ -291,7 +291,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ])?;
         run.save_picture(
             "normals.png",
-            &titled(&pair, "Camera 0 normal maps", Some("RGB = (x, y, z + 1)/2, x right, y up, z to the viewer; black: invalid or background"))?,
+            &titled(&pair, "Camera 0 normal maps", Some("RGB = (n + 1)/2 with x right, y up, z towards the viewer; black: invalid or background"))?,
             "Estimated and true camera-frame normal maps of camera 0.",
         )?;
         let err_img = RgbImage::from_fn(size, size, |x, y| {
