@@ -14,4 +14,7 @@ pub use needle_model as needle;
 pub use template_silhouette as template;
 
 #[doc(inline)]
+pub use photometric_normals as photometric;
+
+#[doc(inline)]
 pub use inertial_acoustic as inertial;

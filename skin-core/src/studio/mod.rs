@@ -51,8 +51,9 @@ mod wrinkles;
 
 pub use capture::{
     studio_ring, BarycentricImage, CameraObservation, Capture, CaptureFrame, CaptureFrames,
-    CaptureLighting, CaptureSpec, FrameTruth, PixelNoise, TriangleIdImage, ViewTruth,
-    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
+    CaptureLighting, CaptureSpec, FrameTruth, LightPatterns, PatternSchedule, PixelNoise,
+    TriangleIdImage, ViewTruth, STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
+    STUDIO_RING_TARGET_M,
 };
 pub use deformation::{DeformationModel, DeformationParams, DeformationState, FlapParams};
 pub use garment::{

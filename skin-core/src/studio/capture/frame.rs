@@ -6,6 +6,7 @@ use image::{ImageBuffer, LumaA, Rgb32FImage};
 use crate::image::{GrayF32Image, Mask};
 use crate::mesh::TriMesh;
 use crate::raster::{buffer_image, RenderedView};
+use crate::studio::shading::LightVisibility;
 use crate::studio::{FineSurface, Performer, PosedFrame};
 use crate::Result;
 
@@ -24,8 +25,13 @@ pub struct CameraObservation {
     pub camera: usize,
     /// Silhouette: set on the performer.
     pub mask: Mask,
-    /// Shaded image (linear radiance, with the spec's noise), when the spec has lighting.
+    /// Shaded image (linear radiance, with the spec's noise), when the spec has lighting
+    /// (under light patterns: this frame's pattern, or the first with
+    /// [`super::PatternSchedule::AllEachFrame`]).
     pub shaded: Option<Rgb32FImage>,
+    /// One shaded image per light pattern with [`super::PatternSchedule::AllEachFrame`];
+    /// empty otherwise.
+    pub patterns: Vec<Rgb32FImage>,
 }
 
 /// The ground-truth buffers of one camera view (rig order), each present when the capture's
@@ -127,6 +133,10 @@ pub struct CaptureFrame {
     pub observations: Vec<CameraObservation>,
     /// The ground truth.
     pub truth: FrameTruth,
+    /// The per-vertex light visibility the shading used (lighting with shadows only), for
+    /// analyses of the shadows (e.g. which pixels receive less than their unoccluded power).
+    /// Its vertices are those of [`FrameTruth::rendered_mesh`].
+    pub light_visibility: Option<LightVisibility>,
 }
 
 impl CaptureFrame {

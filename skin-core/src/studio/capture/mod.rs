@@ -33,8 +33,9 @@ pub use frame::{
     BarycentricImage, CameraObservation, CaptureFrame, FrameTruth, TriangleIdImage, ViewTruth,
 };
 pub use spec::{
-    studio_ring, CaptureLighting, CaptureSpec, PixelNoise, DEFAULT_FRAME_RATE_HZ,
-    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
+    studio_ring, CaptureLighting, CaptureSpec, LightPatterns, PatternSchedule, PixelNoise,
+    DEFAULT_FRAME_RATE_HZ, STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
+    STUDIO_RING_TARGET_M,
 };
 
 use rayon::prelude::*;
@@ -42,8 +43,9 @@ use rayon::prelude::*;
 use crate::mesh::MeshQuery;
 use crate::raster::{Rasterizer, RenderParams, RenderedView};
 use crate::skeleton::Motion;
+use crate::studio::shading::ShadedView;
 use crate::studio::shading::{
-    check_lights_outside, shade, vertices_seen, Albedo, LightVisibility, Shadows,
+    check_lights_outside, shade, shade_patterns, vertices_seen, Albedo, LightVisibility, Shadows,
 };
 use crate::studio::{AlbedoTexture, DeformationState, Material, Performer, PosedFrame};
 use crate::{Context, Error, Result, ResultExt};
@@ -246,8 +248,9 @@ impl<'a> Capture<'a> {
             .map(|(i, r)| r.render(mesh, &self.render).at(Context::Camera(i)))
             .collect::<Result<Vec<RenderedView>>>()
             .at(Context::Frame(index))?;
+        let mut light_visibility = None;
         let shaded = match &self.spec.lighting {
-            None => vec![None; views.len()],
+            None => vec![Vec::new(); views.len()],
             Some(lighting) => {
                 let query = match query {
                     Some(q) => q,
@@ -279,27 +282,57 @@ impl<'a> Capture<'a> {
                         texture,
                     },
                 };
-                views
+                // Which patterns light this frame (none: every light on).
+                let patterns: Option<Vec<Vec<f32>>> =
+                    lighting.patterns.as_ref().map(|p| match p.schedule {
+                        PatternSchedule::Cycle => {
+                            vec![p.weights[index % p.weights.len()].clone()]
+                        }
+                        PatternSchedule::AllEachFrame => p.weights.clone(),
+                    });
+                let images = views
                     .par_iter()
                     .enumerate()
                     .map(|(i, v)| {
-                        let mut s = shade(v, mesh, &lighting.lights, &albedo, &shadows)?;
-                        if let Some(n) = &self.spec.noise {
-                            noise::add(&mut s, n, self.spec.seed, index, i);
+                        let mut images = match &patterns {
+                            None => vec![shade(v, mesh, &lighting.lights, &albedo, &shadows)?],
+                            Some(ws) => {
+                                shade_patterns(v, mesh, &lighting.lights, ws, &albedo, &shadows)?
+                            }
+                        };
+                        for (p, s) in images.iter_mut().enumerate() {
+                            if let Some(n) = &self.spec.noise {
+                                // Pattern `p > 0` of an every-frame schedule gets its own
+                                // noise stream (as if it were another frame).
+                                let key = index + p * self.frame_count();
+                                noise::add(s, n, self.spec.seed, key, i);
+                            }
                         }
-                        Ok(Some(s.to_image()?))
+                        images
+                            .iter()
+                            .map(ShadedView::to_image)
+                            .collect::<Result<Vec<_>>>()
                     })
-                    .collect::<Result<Vec<_>>>()?
+                    .collect::<Result<Vec<_>>>()?;
+                light_visibility = vis;
+                images
             }
         };
+        let every_frame = self
+            .spec
+            .lighting
+            .as_ref()
+            .and_then(|l| l.patterns.as_ref())
+            .is_some_and(|p| p.schedule == PatternSchedule::AllEachFrame);
         let observations = views
             .iter()
             .zip(shaded)
             .enumerate()
-            .map(|(camera, (v, shaded))| CameraObservation {
+            .map(|(camera, (v, images))| CameraObservation {
                 camera,
                 mask: v.silhouette(),
-                shaded,
+                shaded: images.first().cloned(),
+                patterns: if every_frame { images } else { Vec::new() },
             })
             .collect();
         let views = views
@@ -319,6 +352,7 @@ impl<'a> Capture<'a> {
                 fine,
                 views,
             },
+            light_visibility,
         })
     }
 }

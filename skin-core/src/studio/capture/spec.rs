@@ -30,6 +30,34 @@ pub struct CaptureLighting {
     /// Offset of shadow-ray origins along the normal, m. Default:
     /// [`DEFAULT_SHADOW_BIAS_M`].
     pub shadow_bias_m: f64,
+    /// Light-stage patterns switching the lights on and off (e.g. the half-on patterns of
+    /// Vlasic thesis Eq. 3.1); `None`: every light on in every frame. Default: `None`.
+    #[serde(default)]
+    pub patterns: Option<LightPatterns>,
+}
+
+/// Light-stage patterns: weights in `[0, ∞)` (1 = on, 0 = off) per pattern and light.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LightPatterns {
+    /// `weights[p][l]`: the weight of light `l` in pattern `p`. One weight per light of the
+    /// lighting, finite and non-negative; at least one pattern.
+    pub weights: Vec<Vec<f32>>,
+    /// How the patterns map to frames.
+    pub schedule: PatternSchedule,
+}
+
+/// How [`LightPatterns`] map to the frames of a capture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PatternSchedule {
+    /// Frame `k` is lit by pattern `k mod P` (a time-multiplexed light stage, e.g. the
+    /// 8-frame cycle at 240 fps of Vlasic §3.2.2): [`super::CameraObservation::shaded`] is
+    /// that pattern's image.
+    Cycle,
+    /// Every frame is rendered under every pattern (a static subject, calibration objects):
+    /// [`super::CameraObservation::patterns`] holds one image per pattern and
+    /// [`super::CameraObservation::shaded`] the first. All patterns share one visibility
+    /// pass and one shading pass ([`crate::studio::shading::shade_patterns`]).
+    AllEachFrame,
 }
 
 impl CaptureLighting {
@@ -41,7 +69,14 @@ impl CaptureLighting {
             texture: None,
             shadows: true,
             shadow_bias_m: DEFAULT_SHADOW_BIAS_M,
+            patterns: None,
         }
+    }
+
+    /// Returns the lighting with light-stage patterns (`None`: all lights on).
+    pub fn with_patterns(mut self, patterns: Option<LightPatterns>) -> Self {
+        self.patterns = patterns;
+        self
     }
 
     /// Returns the lighting with the texture `texture` (`None`: the uniform `albedo`).
@@ -171,8 +206,9 @@ impl CaptureSpec {
     /// # Errors
     /// [`Error::Empty`] for a rig without cameras or lighting without lights;
     /// [`Error::InvalidParam`] for a non-positive or non-finite frame rate, a negative or
-    /// non-finite noise sigma, an albedo outside `[0, 1]` or a bad shadow bias; errors of
-    /// [`Light::validate`].
+    /// non-finite noise sigma, an albedo outside `[0, 1]`, a bad shadow bias or a negative
+    /// pattern weight; [`Error::SizeMismatch`] for a pattern without one weight per light;
+    /// errors of [`Light::validate`].
     pub fn validate(&self) -> Result<()> {
         if self.rig.is_empty() {
             return Err(Error::Empty {
@@ -196,6 +232,14 @@ impl CaptureSpec {
                 });
             }
             crate::check::non_negative("shadow_bias_m", l.shadow_bias_m)?;
+            if let Some(p) = &l.patterns {
+                if p.weights.is_empty() {
+                    return Err(Error::Empty {
+                        what: "light patterns",
+                    });
+                }
+                crate::studio::shading::check_patterns(&p.weights, l.lights.len())?;
+            }
         }
         if let Some(n) = &self.noise {
             crate::check::non_negative("noise sigma", f64::from(n.sigma))?;

@@ -564,3 +564,94 @@ fn textured_lighting_varies_the_shading_on_the_body() {
     )
     .is_err());
 }
+
+/// Light patterns: each light alone, then all on (weight 1) and a half-power pattern.
+fn light_patterns(schedule: PatternSchedule) -> LightPatterns {
+    let n = point_lights().len();
+    let mut weights: Vec<Vec<f32>> = (0..n)
+        .map(|i| (0..n).map(|l| if l == i { 1.0 } else { 0.0 }).collect())
+        .collect();
+    weights.push(vec![1.0; n]);
+    weights.push(vec![0.5; n]);
+    LightPatterns { weights, schedule }
+}
+
+#[test]
+fn every_frame_patterns_add_up_and_all_on_equals_unpatterned() {
+    let p = performer();
+    let m = motion();
+    let mut spec = shaded_spec(0);
+    spec.noise = None;
+    let plain = Capture::new(p, &m, spec.clone()).unwrap();
+    let plain = plain.frames().next().unwrap().unwrap();
+    let lighting = spec.lighting.take().unwrap();
+    let spec = spec
+        .with_lighting(lighting.with_patterns(Some(light_patterns(PatternSchedule::AllEachFrame))));
+    let c = Capture::new(p, &m, spec).unwrap();
+    let f = c.frames().next().unwrap().unwrap();
+    for (o, q) in f.observations.iter().zip(&plain.observations) {
+        assert_eq!(o.patterns.len(), 5);
+        let full = q.shaded.as_ref().unwrap();
+        assert_eq!(
+            &o.patterns[3], full,
+            "all-on pattern equals the unpatterned shading"
+        );
+        assert_eq!(o.shaded.as_ref(), Some(&o.patterns[0]));
+        for (i, px) in full.pixels().enumerate() {
+            let (x, y) = (i as u32 % full.width(), i as u32 / full.width());
+            for ch in 0..3 {
+                let sum: f32 = o.patterns[..3]
+                    .iter()
+                    .map(|im| im.get_pixel(x, y)[ch])
+                    .sum();
+                assert!((sum - px[ch]).abs() <= 1e-5 * (1.0 + px[ch]));
+                let half = o.patterns[4].get_pixel(x, y)[ch];
+                assert!((2.0 * half - px[ch]).abs() <= 1e-5 * (1.0 + px[ch]));
+            }
+        }
+    }
+}
+
+#[test]
+fn cycled_patterns_light_frame_k_with_pattern_k_mod_p() {
+    let p = performer();
+    let m = motion();
+    let mut spec = shaded_spec(0);
+    spec.noise = None;
+    let lighting = spec.lighting.take().unwrap();
+    let every = spec.clone().with_lighting(
+        lighting
+            .clone()
+            .with_patterns(Some(light_patterns(PatternSchedule::AllEachFrame))),
+    );
+    let cycle =
+        spec.with_lighting(lighting.with_patterns(Some(light_patterns(PatternSchedule::Cycle))));
+    let every = collect(&Capture::new(p, &m, every).unwrap(), 0..7);
+    let cycle = collect(&Capture::new(p, &m, cycle).unwrap(), 0..7);
+    for (k, (e, c)) in every.iter().zip(&cycle).enumerate() {
+        for (oe, oc) in e.observations.iter().zip(&c.observations) {
+            assert!(oc.patterns.is_empty());
+            assert_eq!(oc.shaded.as_ref(), Some(&oe.patterns[k % 5]), "frame {k}");
+        }
+    }
+}
+
+#[test]
+fn bad_light_patterns_are_errors() {
+    let spec = |weights: Vec<Vec<f32>>| {
+        CaptureSpec::new(rig(1)).with_lighting(CaptureLighting::new(point_lights()).with_patterns(
+            Some(LightPatterns {
+                weights,
+                schedule: PatternSchedule::Cycle,
+            }),
+        ))
+    };
+    assert!(matches!(spec(vec![]).validate(), Err(Error::Empty { .. })));
+    assert!(matches!(
+        spec(vec![vec![1.0; 2]]).validate(),
+        Err(Error::SizeMismatch { .. })
+    ));
+    assert!(spec(vec![vec![-1.0; 3]]).validate().is_err());
+    assert!(spec(vec![vec![f32::NAN; 3]]).validate().is_err());
+    assert!(spec(vec![vec![1.0; 3]]).validate().is_ok());
+}

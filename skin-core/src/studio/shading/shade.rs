@@ -148,6 +148,56 @@ pub fn shade(
     albedo: &Albedo<'_>,
     shadows: &Shadows<'_>,
 ) -> Result<ShadedView> {
+    let mut out = shade_impl(view, mesh, lights, None, albedo, shadows)?;
+    Ok(out.pop().unwrap_or_default())
+}
+
+/// As [`shade`], once per lighting pattern in a single pass over the pixels and lights:
+/// pattern `p` scales light `l` by `patterns[p][l]` (a light stage switching its lights on
+/// and off, e.g. the half-on patterns of Vlasic thesis Eq. 3.1). Cast shadows and the
+/// geometry are shared, so `P` patterns cost little more than one [`shade`]. The result of
+/// an all-ones pattern equals [`shade`] exactly.
+///
+/// # Errors
+/// As [`shade`]; [`Error::Empty`] for no patterns; [`Error::SizeMismatch`] for a pattern
+/// without one weight per light; [`Error::NonFinite`] / [`Error::InvalidParam`] for a weight
+/// that is not finite or is negative.
+pub fn shade_patterns(
+    view: &RenderedView,
+    mesh: &TriMesh,
+    lights: &[Light],
+    patterns: &[Vec<f32>],
+    albedo: &Albedo<'_>,
+    shadows: &Shadows<'_>,
+) -> Result<Vec<ShadedView>> {
+    if patterns.is_empty() {
+        return Err(Error::Empty {
+            what: "lighting patterns",
+        });
+    }
+    check_patterns(patterns, lights.len())?;
+    shade_impl(view, mesh, lights, Some(patterns), albedo, shadows)
+}
+
+/// Checks that every pattern has one finite, non-negative weight per light.
+pub(crate) fn check_patterns(patterns: &[Vec<f32>], n_lights: usize) -> Result<()> {
+    for w in patterns {
+        crate::check::same_size("pattern weights vs lights", n_lights, w.len())?;
+        for &x in w {
+            crate::check::non_negative("pattern weight", f64::from(x))?;
+        }
+    }
+    Ok(())
+}
+
+fn shade_impl(
+    view: &RenderedView,
+    mesh: &TriMesh,
+    lights: &[Light],
+    patterns: Option<&[Vec<f32>]>,
+    albedo: &Albedo<'_>,
+    shadows: &Shadows<'_>,
+) -> Result<Vec<ShadedView>> {
     let n = view.pixel_count();
     if view.triangle.len() != n || view.bary.len() != n || n == 0 {
         return Err(Error::Empty {
@@ -221,12 +271,15 @@ pub fn shade(
     let normals = vertex_normals(mesh, NormalWeighting::Area)?;
     let prepared: Vec<PreparedLight> = lights.iter().map(PreparedLight::new).collect();
     let w = view.width as usize;
-    let mut radiance = vec![[0.0f32; 3]; n];
+    let np = patterns.map_or(1, <[_]>::len);
+    // Pixel-major: the `np` radiances of a pixel are adjacent.
+    let mut radiance = vec![[0.0f32; 3]; n * np];
     radiance
-        .par_chunks_mut(w)
+        .par_chunks_mut(w * np)
         .zip(view.triangle.par_chunks(w).zip(view.bary.par_chunks(w)))
         .for_each(|(out, (tri, bary))| {
-            for ((o, &t), b) in out.iter_mut().zip(tri).zip(bary) {
+            let mut e = vec![0.0f64; np];
+            for ((o, &t), b) in out.chunks_mut(np).zip(tri).zip(bary) {
                 if t == NO_TRIANGLE {
                     continue;
                 }
@@ -262,7 +315,7 @@ pub fn shade(
                     Shadows::PerVertex(vis) => f.map(|v| vis.row(v)),
                     _ => [&[][..]; 3],
                 };
-                let mut e = 0.0f64;
+                e.fill(0.0);
                 for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
                     let el = prep.irradiance(p, nrm);
                     if el <= 0.0 {
@@ -288,17 +341,28 @@ pub fn shade(
                             }
                         }
                     };
-                    e += v * el;
+                    match patterns {
+                        None => e[0] += v * el,
+                        Some(ps) => {
+                            for (ep, wp) in e.iter_mut().zip(ps) {
+                                *ep += f64::from(wp[l]) * v * el;
+                            }
+                        }
+                    }
                 }
-                let k = (e * std::f64::consts::FRAC_1_PI) as f32;
-                *o = rho.map(|r| r * k);
+                for (op, &ep) in o.iter_mut().zip(&e) {
+                    let k = (ep * std::f64::consts::FRAC_1_PI) as f32;
+                    *op = rho.map(|r| r * k);
+                }
             }
         });
-    Ok(ShadedView {
-        width: view.width,
-        height: view.height,
-        radiance,
-    })
+    Ok((0..np)
+        .map(|p| ShadedView {
+            width: view.width,
+            height: view.height,
+            radiance: radiance.iter().skip(p).step_by(np).copied().collect(),
+        })
+        .collect())
 }
 
 #[cfg(test)]

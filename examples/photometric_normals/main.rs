@@ -1,0 +1,712 @@
+//! Validation of photometric-normals (Vlasic 2010 thesis, §3.2) on the synthetic studio.
+//!
+//! The MakeHuman performer in the skirt, with wrinkles and the albedo texture, under the
+//! 1,200-light dome (901 sphere lights on the top two thirds of an 8 m sphere, 299 floor
+//! lights, at their real positions) with cast shadows and sensor noise; a ring of cameras
+//! 1.7 m above the floor (§3.2.1). Each camera is calibrated with a grey diffuse sphere at 7
+//! heights (§3.2.3); one static frame of the exercise motion is rendered under the seven
+//! conditions of the 8-frame cycle through `Capture` and turned into normal maps (§3.2.2,
+//! Eq. 3.2). Scored against the rasteriser's true normals, outside and inside shadowed
+//! concavities (pixels receiving < 90 % of their unoccluded dome power), on the wrinkled
+//! regions, and against the distant-light baseline (the analytic `n = k/‖k‖`).
+//!
+//! Then §3.2.3 on a moving performer (the skirt performer in the studio's fast motion at 240 fps
+//! under the 8-frame cycle): normals of one tracking frame with and without motion
+//! compensation, and the flow against the studio's true motion. Last, the optical-flow
+//! workload of `bench/peers/flow.py` regenerated in Rust (`--flow-only`: only that, at 1024²).
+//!
+//! Writes under `out/photometric_normals/`: `patterns.png` (the 8-frame cycle seen by camera
+//! 0), `normals.png` (estimated and true normal maps), `normal_error.png` (angular error with a
+//! colour bar), `figures.json`, `manifest.json`; the last stdout line is one JSON object.
+//!
+//! `cargo run --release --example photometric_normals [-- --quick]` (`--quick`: 2 cameras at
+//! 256 × 256; the full run: 8 cameras at 1024 × 1024). `--no-noise` and `--no-shadows` switch
+//! off the sensor noise and the cast shadows (to separate the error sources).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+use std::time::Instant;
+
+use clap::Parser;
+use image::{Rgb, RgbImage};
+use serde_json::json;
+
+use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::raster::{Buffers, RenderParams};
+use dynamic_shapes::core::studio::shading::{dome_lights, DomeParams};
+use dynamic_shapes::core::studio::{
+    exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
+    ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
+    WrinkleParams,
+};
+use dynamic_shapes::photometric::truth::{
+    angular_errors_deg, calibrate_camera, distant_light_normals, dome_centre, dome_power_fraction,
+    studio_patterns, summarize,
+};
+use dynamic_shapes::photometric::{
+    estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, PatternImages, CYCLE,
+    PATTERNS,
+};
+use example_kit::plot::{
+    error_colour, label_rows, side_by_side, titled, with_colour_bar, ColourBar,
+};
+use example_kit::{Goal, Headline, Run};
+
+/// Linear intensity at which the cameras saturate (the capture's exposure).
+const WHITE_LEVEL: f32 = 0.4;
+/// Top of the error colour scale, degrees.
+const ERROR_MAX_DEG: f64 = 20.0;
+/// Calibration sphere radius, m, and albedo.
+const SPHERE_RADIUS_M: f64 = 0.2;
+const SPHERE_ALBEDO: f32 = 0.5;
+/// Wrinkled regions: faces with a vertex moved more than this by the wrinkles, m.
+const WRINKLE_MIN_M: f64 = 0.5e-3;
+
+#[derive(Parser, Debug)]
+struct Args {
+    #[command(flatten)]
+    common: example_kit::cli::Common,
+    /// No sensor noise.
+    #[arg(long)]
+    no_noise: bool,
+    /// No cast shadows.
+    #[arg(long)]
+    no_shadows: bool,
+    /// Only the optical-flow peer workload at 1024² (for a side-by-side run with
+    /// `bench/peers/flow.py`); prints one JSON line.
+    #[arg(long)]
+    flow_only: bool,
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = Args::parse();
+    if args.flow_only {
+        let (ms, epe, epe_interior) = peer_flow_workload(1024, 10)?;
+        println!(
+            "{}",
+            json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior})
+        );
+        return Ok(());
+    }
+    let quick = args.common.quick;
+    let (n_cams, size) = if quick { (2, 256) } else { (8, 1024) };
+    let mut run = Run::start(
+        "photometric_normals",
+        &args.common,
+        &format!(
+            "MakeHuman in the skirt under the 1,200-light dome, {n_cams} cameras at \
+             {size}×{size}: normal maps from the half-on patterns with grey-sphere lookup \
+             (Vlasic 2010 §3.2)"
+        ),
+    )?;
+    let stage = run.stage("performer", None);
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman")?,
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
+            .with_wrinkles(Some(WrinkleParams::default())),
+    )?;
+    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
+    let frame_index = 45;
+    let root = performer
+        .skeleton
+        .forward_kinematics(motion.frame(frame_index))?
+        .joint_positions()[0];
+    let floor_y = performer
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min)
+        - 0.02;
+    stage.finish(format!("{} vertices", performer.vertex_count()));
+
+    let dome = DomeParams {
+        floor_centre: DVec3::new(root.x, floor_y, root.z),
+        ..Default::default()
+    };
+    let lights = dome_lights(&dome)?;
+    let centre = dome_centre(&dome);
+    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
+    let rig = Rig::ring(n_cams, 3.5, floor_y + 1.7, root, DVec3::Y, k)?;
+    let cameras = rig.cameras.clone();
+    let mut spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(1.0 / motion.frame_time_s)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_lighting(
+            CaptureLighting::new(lights.clone())
+                .with_texture(Some(TextureParams::default()))
+                .with_shadows(!args.no_shadows)
+                .with_patterns(Some(studio_patterns(
+                    &lights,
+                    centre,
+                    PatternSchedule::AllEachFrame,
+                )?)),
+        );
+    if !args.no_noise {
+        spec = spec.with_noise(PixelNoise::default());
+    }
+    let stage = run.stage("capture", None);
+    let t = Instant::now();
+    let capture = Capture::new(&performer, &motion, spec)?;
+    let frame = capture
+        .frames_in(frame_index..frame_index + 1)
+        .next()
+        .ok_or("the frame is in the motion")??;
+    let capture_s = t.elapsed().as_secs_f64();
+    stage.finish(format!(
+        "frame {frame_index} under 7 conditions, {} lights, in {capture_s:.1} s (includes posing the skirt's earlier frames)",
+        lights.len()
+    ));
+
+    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
+    let cal_params = CalibrationParams {
+        exposure,
+        ..Default::default()
+    };
+    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
+    let params = NormalParams::default()
+        .with_exposure(exposure)
+        .with_performance_centre(root);
+    let mesh = frame.truth.rendered_mesh(&performer);
+    let fine = frame
+        .truth
+        .fine
+        .as_ref()
+        .ok_or("the performer has wrinkles")?;
+    let stage = run.stage("normals", Some(n_cams as u64));
+    let mut acc = Acc::default();
+    let (mut cal_ms, mut normals_ms) = (Vec::new(), Vec::new());
+    let mut first: Option<(NormalMap, Vec<Option<f64>>)> = None;
+    let mut cals = Vec::new();
+    for (c, cam) in cameras.iter().enumerate() {
+        let t = Instant::now();
+        let cal = calibrate_camera(
+            cam,
+            &lights,
+            centre,
+            root,
+            &heights,
+            SPHERE_RADIUS_M,
+            SPHERE_ALBEDO,
+            &cal_params,
+        )?;
+        cal_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let obs = &frame.observations[c];
+        let images = PatternImages::from_rgb(
+            &PATTERNS
+                .iter()
+                .zip(&obs.patterns)
+                .map(|(&p, im)| (p, im))
+                .collect::<Vec<_>>(),
+        )?;
+        let t = Instant::now();
+        let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params)?;
+        normals_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let baseline = distant_light_normals(cam, &images, &exposure)?;
+        let view = &frame.truth.views[c];
+        let truth = view.normals_camera.as_ref().ok_or("normal truth")?;
+        let err = angular_errors_deg(&map, truth)?;
+        acc.base.extend(angular_errors_deg(&baseline, truth)?);
+        let power = match &frame.light_visibility {
+            Some(vis) => dome_power_fraction(view, &mesh, &lights, vis)?,
+            None => vec![1.0; err.len()],
+        };
+        acc.concave.extend(power.iter().map(|&p| p < 0.9));
+        acc.wrinkled
+            .extend(dynamic_shapes::photometric::truth::wrinkle_pixels(
+                view,
+                fine,
+                WRINKLE_MIN_M,
+            )?);
+        acc.body.extend(obs.mask.iter());
+        let garment = performer
+            .wrinkles()
+            .map(|w| w.garment_faces())
+            .unwrap_or(&[]);
+        if let Some(tri) = &view.triangle_ids {
+            acc.skin.extend(
+                tri.as_raw()
+                    .iter()
+                    .map(|&t| !garment.get(t as usize).copied().unwrap_or(false)),
+            );
+        }
+        acc.valid += map
+            .valid
+            .iter()
+            .zip(obs.mask.iter())
+            .filter(|(v, m)| **v && *m)
+            .count();
+        acc.covered += obs.mask.count();
+        acc.err.extend(err.iter().copied());
+        if c == 0 {
+            write_patterns(&mut run, &obs.patterns, &obs.mask, exposure)?;
+            first = Some((map, err));
+        }
+        cals.push(cal);
+        stage.inc(1);
+    }
+    stage.finish("done");
+    let region = |f: &dyn Fn(usize) -> bool| -> Vec<bool> { (0..acc.body.len()).map(f).collect() };
+    let open = region(&|i| acc.body[i] && !acc.concave[i]);
+    let shadowed = region(&|i| acc.body[i] && acc.concave[i]);
+    let wrinkled = region(&|i| acc.body[i] && acc.wrinkled[i]);
+    let skin_open = region(&|i| open[i] && acc.skin.get(i).copied().unwrap_or(false));
+    let skirt_open = region(&|i| open[i] && !acc.skin.get(i).copied().unwrap_or(true));
+    let e_skin = summarize(&acc.err, Some(&skin_open));
+    let e_skirt = summarize(&acc.err, Some(&skirt_open));
+    let e_open = summarize(&acc.err, Some(&open));
+    let e_shadow = summarize(&acc.err, Some(&shadowed));
+    let e_all = summarize(&acc.err, Some(&acc.body));
+    let e_wr = summarize(&acc.err, Some(&wrinkled));
+    let b_open = summarize(&acc.base, Some(&open));
+    let b_shadow = summarize(&acc.base, Some(&shadowed));
+    let b_wr = summarize(&acc.base, Some(&wrinkled));
+    let valid_fraction = acc.valid as f64 / acc.covered.max(1) as f64;
+    let median = |v: &[f64]| dynamic_shapes::core::stats::median(v);
+    let normals_ms_per_view = median(&normals_ms);
+    let normals_ms_per_view_1024 = normals_ms_per_view * (1024.0 * 1024.0) / f64::from(size * size);
+
+    if let Some((map, err)) = &first {
+        let truth = frame.truth.views[0]
+            .normals_camera
+            .as_ref()
+            .ok_or("normal truth")?;
+        let truth_map = NormalMap {
+            width: size,
+            height: size,
+            normals: truth
+                .pixels()
+                .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+                .collect(),
+            valid: frame.observations[0].mask.iter().collect(),
+        };
+        let pair = side_by_side(&[
+            titled(&map.to_rgb8(), "estimated (§3.2.2)", None)?,
+            titled(&truth_map.to_rgb8(), "true", None)?,
+        ])?;
+        run.save_picture(
+            "normals.png",
+            &titled(&pair, "Camera 0 normal maps", Some("RGB = (n + 1)/2 with x right, y up, z towards the viewer; black: invalid or background"))?,
+            "Estimated and true camera-frame normal maps of camera 0.",
+        )?;
+        let err_img = RgbImage::from_fn(size, size, |x, y| {
+            let i = (y * size + x) as usize;
+            if !frame.observations[0].mask.get(x, y) {
+                return Rgb([255, 255, 255]);
+            }
+            Rgb(error_colour(err[i], ERROR_MAX_DEG))
+        });
+        let ramp = |t: f64| error_colour(Some(t * ERROR_MAX_DEG), ERROR_MAX_DEG);
+        let img = with_colour_bar(
+            &titled(
+                &err_img,
+                "Camera 0: angular error of the normals",
+                Some("against the rasteriser's true normals"),
+            )?,
+            &ColourBar {
+                label: "angular error (deg)",
+                min: 0.0,
+                max: ERROR_MAX_DEG,
+                ramp: &ramp,
+                note: Some("grey: invalid; values above the top in red"),
+            },
+        )?;
+        run.save_picture(
+            "normal_error.png",
+            &img,
+            "Angular error per pixel of camera 0 (degrees, colour bar); grey: invalid.",
+        )?;
+    }
+
+    let stage = run.stage("moving sequence", None);
+    let moving = moving_sequence(&cameras, &cals, &lights, centre, &params)?;
+    stage.finish(format!(
+        "compensated median {:.2}°, uncompensated {:.2}°, flow EPE {:.3} px vs true motion (mean motion {:.2} px)",
+        moving["moving_normal_median_deg"].as_f64().unwrap_or(f64::NAN),
+        moving["moving_uncompensated_median_deg"].as_f64().unwrap_or(f64::NAN),
+        moving["studio_flow_epe_px"].as_f64().unwrap_or(f64::NAN),
+        moving["studio_motion_mean_px"].as_f64().unwrap_or(f64::NAN),
+    ));
+    let stage = run.stage("flow (peer workload)", None);
+    let flow_n = if quick { 256 } else { 1024 };
+    let (flow_ms, flow_epe_px, flow_epe_interior_px) =
+        peer_flow_workload(flow_n, if quick { 3 } else { 10 })?;
+    stage.finish(format!(
+        "{flow_n}² pair: {flow_ms:.0} ms, EPE {flow_epe_px:.3} px (interior {flow_epe_interior_px:.3} px)"
+    ));
+
+    let mut figures = json!({
+        "flow_size_px": flow_n,
+        "flow_ms": flow_ms,
+        "flow_epe_px": flow_epe_px,
+        "flow_epe_interior_px": flow_epe_interior_px,
+        "cameras": n_cams,
+        "size_px": size,
+        "lights": lights.len(),
+        "noise": !args.no_noise,
+        "shadows": !args.no_shadows,
+        "normal_median_deg": e_open.median_deg,
+        "normal_mean_deg": e_open.mean_deg,
+        "normal_median_concave_deg": e_shadow.median_deg,
+        "normal_mean_concave_deg": e_shadow.mean_deg,
+        "normal_median_all_deg": e_all.median_deg,
+        "normal_median_skin_deg": e_skin.median_deg,
+        "normal_median_skirt_deg": e_skirt.median_deg,
+        "wrinkle_normal_median_deg": e_wr.median_deg,
+        "baseline_normal_median_deg": b_open.median_deg,
+        "baseline_normal_mean_deg": b_open.mean_deg,
+        "baseline_normal_median_concave_deg": b_shadow.median_deg,
+        "baseline_wrinkle_normal_median_deg": b_wr.median_deg,
+        "pixels_outside_concavities": e_open.pixels,
+        "pixels_concave": e_shadow.pixels,
+        "pixels_wrinkled": e_wr.pixels,
+        "concave_fraction": shadowed.iter().filter(|&&b| b).count() as f64 / acc.covered.max(1) as f64,
+        "valid_fraction": valid_fraction,
+        "normals_ms_per_view": normals_ms_per_view,
+        "normals_ms_per_view_1024": normals_ms_per_view_1024,
+        "calibration_ms_per_camera": median(&cal_ms),
+        "capture_s": capture_s,
+    });
+    if let (Some(f), Some(m)) = (figures.as_object_mut(), moving.as_object()) {
+        f.extend(m.clone());
+    }
+    for h in [
+        Headline::new(
+            "moving_normal_median_deg",
+            "moving sequence, motion-compensated (median)",
+            "deg",
+        )
+        .goal(Goal::AtMost(5.0)),
+        Headline::new(
+            "moving_uncompensated_median_deg",
+            "moving sequence, without compensation (median)",
+            "deg",
+        ),
+        Headline::new(
+            "studio_flow_epe_px",
+            "flow EPE against the studio's true motion",
+            "px",
+        ),
+        Headline::new(
+            "normal_median_deg",
+            "normal error outside shadowed concavities (median)",
+            "deg",
+        )
+        .goal(Goal::AtMost(3.0)),
+        Headline::new(
+            "normal_mean_deg",
+            "normal error outside shadowed concavities (mean)",
+            "deg",
+        ),
+        Headline::new(
+            "normal_median_concave_deg",
+            "normal error in shadowed concavities (median)",
+            "deg",
+        ),
+        Headline::new(
+            "wrinkle_normal_median_deg",
+            "normal error on the wrinkles (median)",
+            "deg",
+        ),
+        Headline::new(
+            "baseline_normal_median_deg",
+            "distant-light baseline (median, outside concavities)",
+            "deg",
+        ),
+        Headline::new("valid_fraction", "valid normals on the body", ""),
+        Headline::new("flow_ms", "optical flow per pair (peer workload)", "ms")
+            .note("goal: ≤ 2× OpenCV DIS medium at 1024² (54 ms in bench/peers)"),
+        Headline::new("flow_epe_px", "optical flow EPE (peer workload)", "px")
+            .note("goal: ≤ OpenCV DIS medium at 1024² (0.058 px)"),
+        Headline::new(
+            "normals_ms_per_view_1024",
+            "normals per 1024² view (scaled from the run's size)",
+            "ms",
+        )
+        .goal(Goal::AtMost(300.0)),
+    ] {
+        run.headline(h);
+    }
+    run.finish(figures)?;
+    Ok(())
+}
+
+/// The flow workload of `bench/peers/flow.py` regenerated (its README, §7): a 64-sine texture
+/// quantised to 8 bits, the second image warped analytically, the forward flow by 20
+/// fixed-point iterations. Returns the median time of `reps` runs (after one warm-up), ms, the
+/// mean EPE over pixels whose target is inside, px, and the same without a 32 px border.
+fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
+    use dynamic_shapes::core::image::GrayF32Image;
+    use dynamic_shapes::core::random::SplitMix64;
+    use dynamic_shapes::photometric::{dense_flow, FlowParams};
+    use std::f64::consts::TAU;
+    const K: usize = 64;
+    let rho: Vec<f64> = SplitMix64::new(70)
+        .uniform(K)
+        .iter()
+        .map(|u| 0.01 + 0.14 * u)
+        .collect();
+    let th: Vec<f64> = SplitMix64::new(71)
+        .uniform(K)
+        .iter()
+        .map(|u| TAU * u)
+        .collect();
+    let ph: Vec<f64> = SplitMix64::new(72)
+        .uniform(K)
+        .iter()
+        .map(|u| TAU * u)
+        .collect();
+    let tex = |x: f64, y: f64| -> f32 {
+        let mut t = 0.0;
+        for k in 0..K {
+            t += (TAU * (rho[k] * th[k].cos() * x + rho[k] * th[k].sin() * y) + ph[k]).sin();
+        }
+        ((128.0 + 32.0 * t / (K as f64 / 2.0).sqrt() + 0.5)
+            .floor()
+            .clamp(0.0, 255.0)
+            / 255.0) as f32
+    };
+    let nf = f64::from(n);
+    let s = nf / 1024.0;
+    let warp = |x: f64, y: f64| {
+        let (cx, cy) = (x / nf, y / nf);
+        [
+            s * (6.0 * (TAU * 1.5 * cy + 0.3).sin() + 3.0 * (TAU * cx).cos()),
+            s * (5.0 * (TAU * 2.0 * cx).cos() - 4.0 * (TAU * (cy + 0.25)).sin()),
+        ]
+    };
+    let i1 = GrayF32Image::from_fn(n, n, |x, y| image::Luma([tex(f64::from(x), f64::from(y))]));
+    let i2 = GrayF32Image::from_fn(n, n, |x, y| {
+        let w = warp(f64::from(x), f64::from(y));
+        image::Luma([tex(f64::from(x) - w[0], f64::from(y) - w[1])])
+    });
+    let params = FlowParams::default();
+    dense_flow(&i1, &i2, &params)?;
+    let mut times = Vec::new();
+    let mut flow = None;
+    for _ in 0..reps {
+        let t = Instant::now();
+        flow = Some(dense_flow(&i1, &i2, &params)?);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let flow = flow.ok_or("at least one rep")?;
+    let (mut e, mut c, mut ei, mut ci) = (0.0, 0usize, 0.0, 0usize);
+    for y in 0..n {
+        for x in 0..n {
+            let (px, py) = (f64::from(x), f64::from(y));
+            let mut u = warp(px, py);
+            for _ in 0..20 {
+                u = warp(px + u[0], py + u[1]);
+            }
+            let (tx, ty) = (px + u[0], py + u[1]);
+            if !(0.0..=nf - 1.0).contains(&tx) || !(0.0..=nf - 1.0).contains(&ty) {
+                continue;
+            }
+            let f = flow.u[(y * n + x) as usize];
+            let d = ((f64::from(f[0]) - u[0]).powi(2) + (f64::from(f[1]) - u[1]).powi(2)).sqrt();
+            e += d;
+            c += 1;
+            if x >= 32 && y >= 32 && x < n - 32 && y < n - 32 {
+                ei += d;
+                ci += 1;
+            }
+        }
+    }
+    Ok((
+        dynamic_shapes::core::stats::median(&times),
+        e / c.max(1) as f64,
+        ei / ci.max(1) as f64,
+    ))
+}
+
+/// §3.2.3 on a moving performer: the skirt performer (no wrinkles: cheaper shadow rays) in
+/// the studio's fast motion at 240 fps under the 8-frame cycle (`PatternSchedule::Cycle`);
+/// frames 75–83 (`F X̄ Ȳ Z̄ F X Y Z F`) around the tracking frame 79. Normals with and without
+/// motion compensation against the truth of frame 79, and the forward flow (79 → 83) against
+/// the projected true motion of each visible surface point.
+fn moving_sequence(
+    cameras: &[dynamic_shapes::core::camera::Camera],
+    cals: &[dynamic_shapes::photometric::HeightCalibration],
+    lights: &[dynamic_shapes::core::studio::shading::Light],
+    centre: DVec3,
+    params: &NormalParams,
+) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
+    use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
+    use dynamic_shapes::photometric::{compensate_motion, grey, MotionParams, CYCLE_FRAME_RATE_HZ};
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman")?,
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )?;
+    let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
+    let rig = Rig {
+        cameras: cameras.to_vec(),
+    };
+    let spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(CYCLE_FRAME_RATE_HZ)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_noise(PixelNoise::default())
+        .with_lighting(
+            CaptureLighting::new(lights.to_vec())
+                .with_texture(Some(TextureParams::default()))
+                .with_patterns(Some(studio_patterns(
+                    lights,
+                    centre,
+                    PatternSchedule::Cycle,
+                )?)),
+        );
+    let capture = Capture::new(&performer, &motion, spec)?;
+    let frames = capture.frames_in(75..84).collect::<Result<Vec<_>, _>>()?;
+    if frames.len() != 9 {
+        return Err("the motion has frames 75-83".into());
+    }
+    let mid = &frames[4];
+    let next_mesh = frames[8].truth.rendered_mesh(&performer);
+    let mid_mesh = mid.truth.rendered_mesh(&performer);
+    let (mut comp, mut raw, mut body) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut epe, mut mag) = (Vec::new(), Vec::new());
+    for (c, cam) in cameras.iter().enumerate() {
+        let greys: Vec<_> = frames
+            .iter()
+            .map(|f| {
+                f.observations[c]
+                    .shaded
+                    .as_ref()
+                    .map(grey)
+                    .ok_or("shaded image")
+            })
+            .collect::<Result<_, _>>()?;
+        let pats: Vec<_> = (75..84).map(|k| CYCLE[k % 8]).collect();
+        let pairs: Vec<_> = pats.iter().copied().zip(greys.iter()).collect();
+        let compensated = compensate_motion(&pairs, &MotionParams::default())?;
+        let mask = mid.observations[c].mask.and(&compensated.confident)?;
+        let map = estimate_normals(cam, &cals[c], &compensated.images, Some(&mask), params)?;
+        let uncompensated = PatternImages::new(
+            pairs[1..8]
+                .iter()
+                .map(|(p, im)| (*p, (*im).clone()))
+                .collect(),
+        )?;
+        // Scored on the same (confident) pixels as the compensated map.
+        let map_raw = estimate_normals(cam, &cals[c], &uncompensated, Some(&mask), params)?;
+        let truth = mid.truth.views[c]
+            .normals_camera
+            .as_ref()
+            .ok_or("normal truth")?;
+        comp.extend(angular_errors_deg(&map, truth)?);
+        raw.extend(angular_errors_deg(&map_raw, truth)?);
+        body.extend(mid.observations[c].mask.iter());
+        // True forward motion of every body pixel's surface point (same faces: no wrinkles).
+        let view = &mid.truth.views[c];
+        let (Some(tri), Some(bary)) = (&view.triangle_ids, &view.barycentric) else {
+            return Err("triangle truth".into());
+        };
+        for (i, &t) in tri.as_raw().iter().enumerate() {
+            let Some(f) = mid_mesh.faces.get(t as usize) else {
+                continue;
+            };
+            let (b1, b2) = (
+                f64::from(bary.as_raw()[2 * i]),
+                f64::from(bary.as_raw()[2 * i + 1]),
+            );
+            let at = |m: &dynamic_shapes::core::mesh::TriMesh| {
+                m.vertices[f[0] as usize] * (1.0 - b1 - b2)
+                    + m.vertices[f[1] as usize] * b1
+                    + m.vertices[f[2] as usize] * b2
+            };
+            let (Ok(p0), Ok(p1)) = (cam.project(at(&mid_mesh)), cam.project(at(&next_mesh))) else {
+                continue;
+            };
+            let truth_u = p1 - p0;
+            let est = compensated.forward.u[i];
+            epe.push(
+                ((f64::from(est[0]) - truth_u.x).powi(2) + (f64::from(est[1]) - truth_u.y).powi(2))
+                    .sqrt(),
+            );
+            mag.push(truth_u.length());
+        }
+    }
+    let e_comp = summarize(&comp, Some(&body));
+    let e_raw = summarize(&raw, Some(&body));
+    let valid = comp
+        .iter()
+        .zip(&body)
+        .filter(|(e, b)| **b && e.is_some())
+        .count() as f64
+        / body.iter().filter(|&&b| b).count().max(1) as f64;
+    let m = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            dynamic_shapes::core::stats::mean(v)
+        }
+    };
+    Ok(json!({
+        "moving_normal_median_deg": e_comp.median_deg,
+        "moving_normal_mean_deg": e_comp.mean_deg,
+        "moving_uncompensated_median_deg": e_raw.median_deg,
+        "moving_uncompensated_mean_deg": e_raw.mean_deg,
+        "moving_valid_fraction": valid,
+        "moving_scored_pixels": e_comp.pixels,
+        "moving_uncompensated_scored_pixels": e_raw.pixels,
+        "studio_flow_epe_px": m(&epe),
+        "studio_motion_mean_px": m(&mag),
+    }))
+}
+
+/// Per-pixel scores of all cameras, concatenated.
+#[derive(Default)]
+struct Acc {
+    err: Vec<Option<f64>>,
+    base: Vec<Option<f64>>,
+    concave: Vec<bool>,
+    wrinkled: Vec<bool>,
+    body: Vec<bool>,
+    skin: Vec<bool>,
+    valid: usize,
+    covered: usize,
+}
+
+/// `patterns.png`: the 8-frame cycle of camera 0, cropped to the performer.
+fn write_patterns(
+    run: &mut Run,
+    images: &[image::Rgb32FImage],
+    mask: &dynamic_shapes::core::image::Mask,
+    exposure: Exposure,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let bb = mask.bounding_box().ok_or("camera 0 sees the performer")?;
+    let (x0, y0) = (bb.x_min.saturating_sub(4), bb.y_min.saturating_sub(4));
+    let (w, h) = (
+        (bb.width() + 8).min(mask.width() - x0),
+        (bb.height() + 8).min(mask.height() - y0),
+    );
+    let mut panels = Vec::new();
+    for p in CYCLE {
+        let im = &images[p.index()];
+        let rgb = RgbImage::from_fn(w, h, |x, y| {
+            let c = im.get_pixel(x + x0, y + y0).0;
+            Rgb(c.map(|v| {
+                let s = (v / exposure.white_level).clamp(0.0, 1.0).powf(1.0 / 2.2);
+                (s * 255.0).round() as u8
+            }))
+        });
+        panels.push(titled(&rgb, &format!("{p:?}"), None)?);
+    }
+    let row = side_by_side(&panels)?;
+    let row = label_rows(&row, &["camera 0"], 0).unwrap_or(row);
+    run.save_picture(
+        "patterns.png",
+        &titled(&row, "The 8-frame cycle [X, Y, Z, F, X̄, Ȳ, Z̄, F] (Eq. 3.1), camera 0", Some("linear radiance / white level, gamma 2.2"))?,
+        "The performer under the 8-frame cycle of half-on patterns and full-on tracking frames, as camera 0 sees it (static frame).",
+    )?;
+    Ok(())
+}

@@ -1,0 +1,99 @@
+//! # photometric-normals
+//!
+//! Multi-view photometric normal maps from binary half-on spherical lighting, after
+//! D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis, 2010), §3.2 (and Vlasic,
+//! Peers, Baran, Debevec, Popović, Rusinkiewicz, Matusik, *Dynamic Shape Capture using
+//! Multi-View Photometric Stereo*, SIGGRAPH Asia 2009).
+//!
+//! A light stage of 1,200 lights switches between the half-on patterns X, Y, Z, their
+//! complements and a full-on tracking frame (§3.2.2, Eq. 3.1). Each camera photographs a grey
+//! diffuse sphere under the patterns once; a pixel's key `k/‖k‖`,
+//! `k = [I_X − I_X̄, I_Y − I_Ȳ, I_Z − I_Z̄]`, is then looked up among the sphere's keys and
+//! the normals of the N best matches are blended (Eq. 3.2). Spheres at several heights
+//! compensate for the lights' finite distance (§3.2.3).
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | file | stage | main items | paper |
+//! | --- | --- | --- | --- |
+//! | `patterns.rs` | half-on patterns, the 8-frame cycle, one view under the seven conditions, exposure limits | [`Pattern`], [`pattern_weights`], [`CYCLE`], [`PatternImages`], [`Exposure`] | §3.2.2 Eq. 3.1, §3.2.3 |
+//! | `calibration.rs` | grey-sphere lookup tables in a kd-tree, N-best blending, heights | [`LookupTable`], [`HeightCalibration`], [`CalibrationSphere`] | §3.2.2 Eq. 3.2, §3.2.3 |
+//! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
+//! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
+//! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
+//! | `error.rs` | [`Error`], [`Context`] | | — |
+//!
+//! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
+//! ([`Error::At`] with a [`Context`]).
+//!
+//! ## Quick start
+//!
+//! A 64 × 64 camera calibrated with a grey sphere under a small dome, then a second, smaller
+//! sphere seen under the same patterns: its normals come back within a few degrees.
+//!
+//! ```
+//! use photometric_normals::{
+//!     estimate_normals, grey, patterns_weights, CalibrationParams, CalibrationSphere,
+//!     HeightCalibration, LookupTable, NormalParams, PatternImages, PATTERNS,
+//! };
+//! use skin_core::camera::{Camera, Intrinsics};
+//! use skin_core::math::DVec3;
+//! use skin_core::mesh::shapes::uv_sphere;
+//! use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+//! use skin_core::studio::shading::{dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows};
+//!
+//! let dome = DomeParams { sphere_lights: 300, floor_lights: 100, ..Default::default() };
+//! let lights = dome_lights(&dome)?;
+//! let centre = DVec3::new(0.0, 4.0 / 3.0, 0.0); // the dome sphere's centre
+//! let positions: Vec<DVec3> = lights.iter().map(Light::position).collect();
+//! let weights = patterns_weights(&positions, centre, &PATTERNS)?;
+//! let k = Intrinsics::from_horizontal_fov(0.2, 64, 64)?;
+//! let cam = Camera::look_at(k, DVec3::new(0.0, 1.0, 3.0), DVec3::new(0.0, 1.0, 0.0), DVec3::Y)?;
+//! // The studio renders a grey sphere under the seven conditions.
+//! let photograph = |s: &CalibrationSphere| -> Result<PatternImages, photometric_normals::Error> {
+//!     let mesh = uv_sphere(s.centre, s.radius_m, 48, 96)?;
+//!     let params = RenderParams::default().with_buffers(Buffers { triangle: true, ..Buffers::MASK_ONLY });
+//!     let view = Rasterizer::new(&cam).render(&mesh, &params)?;
+//!     let shaded = shade_patterns(&view, &mesh, &lights, &weights, &Albedo::Uniform([0.5; 3]), &Shadows::None)?;
+//!     let images = PATTERNS.iter().zip(&shaded).map(|(&p, s)| Ok((p, grey(&s.to_image()?))));
+//!     PatternImages::new(images.collect::<Result<_, photometric_normals::Error>>()?)
+//! };
+//! let sphere = CalibrationSphere { centre: DVec3::new(0.0, 1.0, 0.0), radius_m: 0.2 };
+//! let table = LookupTable::from_sphere(&cam, &sphere, &photograph(&sphere)?, DVec3::Y, &CalibrationParams::default())?;
+//! let calibration = HeightCalibration::new(vec![table])?;
+//!
+//! let probe = CalibrationSphere { radius_m: 0.15, ..sphere };
+//! let map = estimate_normals(&cam, &calibration, &photograph(&probe)?, None, &NormalParams::default())?;
+//! // The probe covers a disc of about 16 px radius; its centre faces the camera (−z).
+//! assert!(map.valid.iter().filter(|&&v| v).count() > 500);
+//! let centre_normal = map.normals[32 * 64 + 32];
+//! assert!(centre_normal.z < -0.99, "{centre_normal}");
+//! # Ok::<(), photometric_normals::Error>(())
+//! ```
+//!
+//! ## Validation
+//!
+//! With the cargo feature `validation`, the public module `truth` holds the studio's light
+//! patterns and calibration spheres, ground-truth scoring (angular error, shadowed
+//! concavities, wrinkled regions) and the distant-light baseline.
+#![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
+
+mod calibration;
+mod error;
+mod flow;
+mod motion;
+mod normals;
+mod patterns;
+#[cfg(feature = "validation")]
+pub mod truth;
+
+pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
+pub use error::{Context, Error, Result, ResultExt};
+pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
+pub use normals::{estimate_normals, NormalMap, NormalParams};
+pub use patterns::{
+    grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
+    CYCLE_FRAME_RATE_HZ, PATTERNS,
+};

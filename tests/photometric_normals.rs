@@ -1,0 +1,364 @@
+//! End-to-end validation of photometric-normals (Vlasic thesis §3.2) on the studio, CI-sized:
+//! the MakeHuman performer in the skirt with the albedo texture (no render-time wrinkles: their
+//! refined surface makes the shadow rays 4× slower; the example scores them), under the
+//! 1,200-light dome with cast shadows and sensor noise; two cameras at 256 × 256 calibrated with grey spheres at
+//! 7 heights; one static frame rendered under the seven conditions through `Capture`. Normals
+//! are scored against the rasteriser's true normals, outside and inside shadowed concavities,
+//! and against the distant-light baseline (the analytic solution of the same images).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+use std::time::Instant;
+
+use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::raster::{Buffers, RenderParams};
+use dynamic_shapes::core::studio::shading::{dome_lights, DomeParams};
+use dynamic_shapes::core::studio::{
+    exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
+    ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
+};
+use dynamic_shapes::photometric::truth::{
+    angular_errors_deg, calibrate_camera, distant_light_normals, dome_centre, dome_power_fraction,
+    render_sphere_patterns, studio_patterns, summarize,
+};
+use dynamic_shapes::photometric::{
+    estimate_normals, CalibrationParams, CalibrationSphere, Error, Exposure, LookupTable,
+    NormalParams, Pattern, PatternImages, PATTERNS,
+};
+
+/// Linear intensity at which the cameras saturate (the exposure of the capture).
+const WHITE_LEVEL: f32 = 0.4;
+
+#[test]
+fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
+    let t0 = Instant::now();
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman").unwrap(),
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )
+    .unwrap();
+    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
+    let frame_index = 45;
+    let root = performer
+        .skeleton
+        .forward_kinematics(motion.frame(frame_index))
+        .unwrap()
+        .joint_positions()[0];
+    let floor_y = performer
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min)
+        - 0.02;
+    let dome = DomeParams {
+        floor_centre: DVec3::new(root.x, floor_y, root.z),
+        ..Default::default()
+    };
+    let lights = dome_lights(&dome).unwrap();
+    let centre = dome_centre(&dome);
+    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
+    let rig = Rig::ring(2, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
+    let cameras = rig.cameras.clone();
+    let spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(1.0 / motion.frame_time_s)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_noise(PixelNoise::default())
+        .with_lighting(
+            CaptureLighting::new(lights.clone())
+                .with_texture(Some(TextureParams::default()))
+                .with_patterns(Some(
+                    studio_patterns(&lights, centre, PatternSchedule::AllEachFrame).unwrap(),
+                )),
+        );
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let frame = capture
+        .frames_in(frame_index..frame_index + 1)
+        .next()
+        .unwrap()
+        .unwrap();
+    let t_capture = t0.elapsed().as_secs_f64();
+
+    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
+    let cal_params = CalibrationParams {
+        exposure,
+        ..Default::default()
+    };
+    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
+    let params = NormalParams::default()
+        .with_exposure(exposure)
+        .with_performance_centre(root);
+    let mesh = frame.truth.rendered_mesh(&performer);
+    let (mut err, mut base, mut concave, mut body) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut valid = (0usize, 0usize);
+    for (c, cam) in cameras.iter().enumerate() {
+        let t = Instant::now();
+        let cal =
+            calibrate_camera(cam, &lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+        let t_cal = t.elapsed().as_secs_f64();
+        let obs = &frame.observations[c];
+        let images = PatternImages::from_rgb(
+            &PATTERNS
+                .iter()
+                .zip(&obs.patterns)
+                .map(|(&p, im)| (p, im))
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
+        let t = Instant::now();
+        let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params).unwrap();
+        let t_normals = t.elapsed().as_secs_f64();
+        let baseline = distant_light_normals(cam, &images, &exposure).unwrap();
+        let view = &frame.truth.views[c];
+        let truth = view.normals_camera.as_ref().unwrap();
+        err.extend(angular_errors_deg(&map, truth).unwrap());
+        base.extend(angular_errors_deg(&baseline, truth).unwrap());
+        let power = dome_power_fraction(
+            view,
+            &mesh,
+            &lights,
+            frame.light_visibility.as_ref().unwrap(),
+        )
+        .unwrap();
+        concave.extend(power.iter().map(|&p| p < 0.9));
+        body.extend(obs.mask.iter());
+        valid.0 += map
+            .valid
+            .iter()
+            .zip(obs.mask.iter())
+            .filter(|(v, m)| **v && *m)
+            .count();
+        valid.1 += obs.mask.count();
+        println!(
+            "camera {c}: calibration {t_cal:.2} s, normals {:.0} ms",
+            t_normals * 1e3
+        );
+    }
+    let open: Vec<bool> = body.iter().zip(&concave).map(|(b, c)| *b && !c).collect();
+    let shadowed: Vec<bool> = body.iter().zip(&concave).map(|(b, c)| *b && *c).collect();
+    let (e_open, e_shadow) = (
+        summarize(&err, Some(&open)),
+        summarize(&err, Some(&shadowed)),
+    );
+    let b_open = summarize(&base, Some(&open));
+    let valid_fraction = valid.0 as f64 / valid.1 as f64;
+    println!(
+        "capture {t_capture:.1} s; outside concavities median {:.2}° mean {:.2}° ({} px), \
+         inside median {:.2}° mean {:.2}° ({} px), \
+         baseline outside median {:.2}° mean {:.2}°, valid {valid_fraction:.3}, total {:.1} s",
+        e_open.median_deg,
+        e_open.mean_deg,
+        e_open.pixels,
+        e_shadow.median_deg,
+        e_shadow.mean_deg,
+        e_shadow.pixels,
+        b_open.median_deg,
+        b_open.mean_deg,
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(e_open.pixels > 2000 && e_shadow.pixels > 100);
+    // The issue's goal is 3° (not met with the studio's sensor noise on the dark skirt; see
+    // docs/photometric-normals.md); this bounds the measured ~7° with a margin.
+    assert!(e_open.median_deg <= 9.0);
+    assert!(
+        e_open.median_deg < b_open.median_deg && e_open.mean_deg < b_open.mean_deg,
+        "the calibration beats the distant-light baseline"
+    );
+    assert!(
+        e_shadow.median_deg > e_open.median_deg,
+        "concavities carry the bias of missing light"
+    );
+    assert!(valid_fraction > 0.8);
+
+    // Bad input on the same set-up.
+    let cam = &cameras[0];
+    let out = CalibrationSphere {
+        // On the top edge of the image (half field of view 20° at 3 m: 1.09 m).
+        centre: cam
+            .world_from_camera()
+            .transform_point3(DVec3::new(0.0, -1.09, 3.0)),
+        radius_m: 0.2,
+    };
+    let im = render_sphere_patterns(cam, &out, &lights, centre, 0.5).unwrap();
+    let e = LookupTable::from_sphere(cam, &out, &im, DVec3::Y, &cal_params).unwrap_err();
+    assert!(matches!(e.root(), Error::OutOfView { .. }), "{e}");
+    let obs = &frame.observations[0];
+    let missing = PatternImages::from_rgb(
+        &PATTERNS
+            .iter()
+            .zip(&obs.patterns)
+            .filter(|(p, _)| **p != Pattern::YBar)
+            .map(|(&p, im)| (p, im))
+            .collect::<Vec<_>>(),
+    );
+    assert!(matches!(
+        missing,
+        Err(Error::MissingPattern {
+            pattern: Pattern::YBar
+        })
+    ));
+    let wrong_mask = Mask::new(128, 128);
+    let images = PatternImages::from_rgb(
+        &PATTERNS
+            .iter()
+            .zip(&obs.patterns)
+            .map(|(&p, im)| (p, im))
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let cal = calibrate_camera(
+        cam,
+        &lights,
+        centre,
+        root,
+        &heights[..2],
+        0.2,
+        0.5,
+        &cal_params,
+    )
+    .unwrap();
+    assert!(matches!(
+        estimate_normals(cam, &cal, &images, Some(&wrong_mask), &params),
+        Err(Error::SizeMismatch { .. })
+    ));
+    // Over-exposed (the sensor clips at a quarter of the capture's white level) and black
+    // captures: saturated or dark pixels are marked invalid rather than given a normal.
+    let clip = WHITE_LEVEL / 4.0;
+    let scaled = |f: &dyn Fn(f32) -> f32| {
+        PatternImages::new(
+            PATTERNS
+                .iter()
+                .map(|&p| {
+                    let mut im = images.image(p).clone();
+                    im.pixels_mut().for_each(|v| v[0] = f(v[0]));
+                    (p, im)
+                })
+                .collect(),
+        )
+        .unwrap()
+    };
+    let clipped = scaled(&|v| v.min(clip));
+    let p = params.with_exposure(Exposure::default().with_white_level(clip));
+    let map = estimate_normals(cam, &cal, &clipped, Some(&obs.mask), &p).unwrap();
+    let mut saturated = 0;
+    for (i, m) in obs.mask.iter().enumerate() {
+        let brightest = PATTERNS
+            .iter()
+            .map(|&p| images.image(p).as_raw()[i])
+            .fold(0.0f32, f32::max);
+        if m && brightest >= 0.97 * clip {
+            saturated += 1;
+            assert!(!map.valid[i], "saturated pixel {i} got a normal");
+        }
+    }
+    assert!(saturated > 1000, "{saturated} saturated pixels");
+    assert!(
+        map.valid.iter().any(|&v| v),
+        "unsaturated pixels keep their normals"
+    );
+    let black = scaled(&|_| 0.0);
+    let map = estimate_normals(cam, &cal, &black, Some(&obs.mask), &params).unwrap();
+    assert_eq!(map.valid_fraction(None).unwrap(), 0.0);
+}
+
+#[test]
+fn motion_compensation_recovers_normals_of_a_moving_performer() {
+    use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
+    use dynamic_shapes::photometric::{
+        compensate_motion, grey, MotionParams, CYCLE, CYCLE_FRAME_RATE_HZ,
+    };
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman").unwrap(),
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )
+    .unwrap();
+    let motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();
+    let root = performer
+        .skeleton
+        .forward_kinematics(motion.frame(0))
+        .unwrap()
+        .joint_positions()[0];
+    let floor_y = performer
+        .template
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min)
+        - 0.02;
+    let dome = DomeParams {
+        floor_centre: DVec3::new(root.x, floor_y, root.z),
+        ..Default::default()
+    };
+    let lights = dome_lights(&dome).unwrap();
+    let centre = dome_centre(&dome);
+    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
+    let rig = Rig::ring(1, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
+    let cam = rig.cameras[0].clone();
+    let spec = CaptureSpec::new(rig)
+        .with_frame_rate_hz(CYCLE_FRAME_RATE_HZ)
+        .with_render(RenderParams::default().with_buffers(Buffers {
+            triangle: true,
+            ..Buffers::default()
+        }))
+        .with_noise(PixelNoise::default())
+        .with_lighting(
+            CaptureLighting::new(lights.clone())
+                .with_texture(Some(TextureParams::default()))
+                .with_patterns(Some(
+                    studio_patterns(&lights, centre, PatternSchedule::Cycle).unwrap(),
+                )),
+        );
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    // Frames 75–83: F X̄ Ȳ Z̄ F X Y Z F around the tracking frame 79.
+    let frames: Vec<_> = capture.frames_in(75..84).map(|f| f.unwrap()).collect();
+    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
+    let cal_params = CalibrationParams {
+        exposure,
+        ..Default::default()
+    };
+    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
+    let cal =
+        calibrate_camera(&cam, &lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+    let params = NormalParams::default()
+        .with_exposure(exposure)
+        .with_performance_centre(root);
+    let greys: Vec<_> = frames
+        .iter()
+        .map(|f| grey(f.observations[0].shaded.as_ref().unwrap()))
+        .collect();
+    let pairs: Vec<_> = (75..84).map(|k| CYCLE[k % 8]).zip(greys.iter()).collect();
+    let c = compensate_motion(&pairs, &MotionParams::default()).unwrap();
+    let mid = &frames[4];
+    let mask = mid.observations[0].mask.and(&c.confident).unwrap();
+    let truth = mid.truth.views[0].normals_camera.as_ref().unwrap();
+    let compensated = estimate_normals(&cam, &cal, &c.images, Some(&mask), &params).unwrap();
+    let raw = PatternImages::new(
+        pairs[1..8]
+            .iter()
+            .map(|(p, im)| (*p, (*im).clone()))
+            .collect(),
+    )
+    .unwrap();
+    let uncompensated = estimate_normals(&cam, &cal, &raw, Some(&mask), &params).unwrap();
+    let e_c = summarize(&angular_errors_deg(&compensated, truth).unwrap(), None);
+    let e_u = summarize(&angular_errors_deg(&uncompensated, truth).unwrap(), None);
+    println!(
+        "moving: compensated median {:.2}° ({} px), uncompensated {:.2}° ({} px)",
+        e_c.median_deg, e_c.pixels, e_u.median_deg, e_u.pixels
+    );
+    assert!(e_c.pixels > 1000);
+    assert!(e_c.median_deg <= 10.0);
+    assert!(
+        e_u.median_deg >= 1.5 * e_c.median_deg,
+        "without compensation at least 1.5× worse"
+    );
+}
