@@ -12,3 +12,6 @@ pub use needle_model as needle;
 
 #[doc(inline)]
 pub use template_silhouette as template;
+
+#[doc(inline)]
+pub use multilinear_face as face;

@@ -5,6 +5,8 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use skin_core::tensor::Tensor;
+
 use crate::face_data::{unflatten, FaceTensor, KnownFaces};
 use crate::{Error, Result};
 
@@ -16,11 +18,15 @@ pub struct ImputeParams {
     pub ranks: Option<Vec<usize>>,
     /// Variance fraction kept when `ranks` is `None`. Default 0.9999.
     pub energy: f64,
-    /// Iterations (re-estimate the PPCA means and covariances, re-solve). Default 50.
+    /// Iterations (re-estimate the PPCA means and covariances, re-solve). Default 200.
     pub max_iterations: usize,
     /// Stop when the imputed values change by less than this fraction of their norm.
-    /// Default 1e-6.
+    /// Default 1e-4.
     pub tolerance: f64,
+    /// Add the posterior covariance of the imputed values to the second moments before
+    /// re-fitting the PPCA (EM); `false` re-fits to the completed data as if it were known.
+    /// Default `true`.
+    pub em_covariance: bool,
 }
 
 impl Default for ImputeParams {
@@ -28,8 +34,9 @@ impl Default for ImputeParams {
         ImputeParams {
             ranks: None,
             energy: 0.9999,
-            max_iterations: 50,
-            tolerance: 1e-6,
+            max_iterations: 200,
+            tolerance: 1e-4,
+            em_covariance: true,
         }
     }
 }
@@ -119,10 +126,7 @@ pub fn impute_by_averaging(faces: &FaceTensor, known: &KnownFaces) -> Result<Fac
             data[r * k + f] = acc / np;
         }
     }
-    Ok(FaceTensor::from_tensor(skin_core::tensor::Tensor::new(
-        faces.tensor().shape().to_vec(),
-        data,
-    )?)?)
+    FaceTensor::from_tensor(Tensor::new(faces.tensor().shape().to_vec(), data)?)
 }
 
 /// PPCA of the mode vectors: the precision `C⁻¹` of `C = W Wᵀ + σ² I` and the mean.
@@ -133,52 +137,52 @@ struct Ppca {
 }
 
 /// Fits PPCA (Tipping & Bishop: `W` from the leading eigenvectors of the sample covariance,
-/// `σ²` the mean of the discarded eigenvalues) to the mode-`mode` vectors of the centred
-/// slices `y` (`rows × K`).
-fn fit_ppca(y: &DMatrix<f64>, sizes: &[usize], mode: usize, rank: Option<usize>, energy: f64) -> Ppca {
+/// `σ²` the mean of the discarded eigenvalues) to the mode-`mode` vectors of the slices, from
+/// the slices' first and second moments (`m = E[y]`, `S = E[y yᵀ]`, both over `K` faces).
+fn fit_ppca(
+    m: &DVector<f64>,
+    s: &DMatrix<f64>,
+    sizes: &[usize],
+    mode: usize,
+    rank: Option<usize>,
+    energy: f64,
+) -> Ppca {
     let d = sizes[mode];
-    let k = y.ncols();
-    let mut sum = DVector::zeros(d);
-    let mut gram = DMatrix::zeros(d, d);
-    // Group the K columns of a row into mode vectors: those that agree on every other index.
     let groups = mode_groups(sizes, mode);
-    let mut count = 0usize;
-    let mut v = DVector::zeros(d);
-    for row in y.row_iter() {
-        for g in &groups {
-            for (a, &f) in g.iter().enumerate() {
-                v[a] = row[f];
+    let n = groups.len() as f64;
+    let mut mean = DVector::zeros(d);
+    let mut gram = DMatrix::zeros(d, d);
+    for g in &groups {
+        for (a, &fa) in g.iter().enumerate() {
+            mean[a] += m[fa] / n;
+            for (b, &fb) in g.iter().enumerate() {
+                gram[(a, b)] += s[(fa, fb)] / n;
             }
-            sum += &v;
-            gram.ger(1.0, &v, &v, 1.0);
-            count += 1;
         }
     }
-    let _ = k;
-    let n = count.max(1) as f64;
-    let mean = sum / n;
-    let cov = gram / n - &mean * mean.transpose();
-    let eig = SymmetricEigen::new(cov);
+    let cov = gram - &mean * mean.transpose();
+    let eig: SymmetricEigen<f64, nalgebra::Dyn> = SymmetricEigen::new(cov);
     let mut order: Vec<usize> = (0..d).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
     let lambda: Vec<f64> = order.iter().map(|&i| eig.eigenvalues[i].max(0.0)).collect();
     let total: f64 = lambda.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+    let top = d.saturating_sub(1).max(1);
     let q = match rank {
-        Some(q) => q.min(d.saturating_sub(1)).max(1).min(d),
+        Some(q) => q.clamp(1, d),
         None => {
             let mut acc = 0.0;
-            let mut q = d.saturating_sub(1).max(1);
+            let mut q = top;
             for (i, l) in lambda.iter().enumerate() {
                 acc += l;
                 if acc >= energy * total {
-                    q = (i + 1).min(d.saturating_sub(1).max(1));
+                    q = (i + 1).min(top);
                     break;
                 }
             }
             q
         }
     };
-    let tail = &lambda[q.min(d)..];
+    let tail = &lambda[q..];
     let floor = 1e-10 * lambda[0].max(f64::MIN_POSITIVE);
     let sigma2 = if tail.is_empty() {
         floor
@@ -251,81 +255,136 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
     let observed = known.known();
     let k = faces.face_count();
     let rows = faces.tensor().shape()[0];
+    let nr = rows as f64;
     let mean_face = faces.mean_of(&observed);
-    // Centred slices: rows × K.
-    let mut y = DMatrix::from_fn(rows, k, |r, f| start.tensor().data()[r * k + f] - mean_face[r]);
-    let mut changes = Vec::new();
-    let mut converged = missing.is_empty();
+    let centred = |t: &Tensor, keep_missing: bool| -> Result<Tensor> {
+        let mut d = t.data().to_vec();
+        for (r, row) in d.chunks_exact_mut(k).enumerate() {
+            for (f, x) in row.iter_mut().enumerate() {
+                *x = if keep_missing || known.is_known(f) {
+                    *x - mean_face[r]
+                } else {
+                    0.0
+                };
+            }
+        }
+        Ok(Tensor::new(vec![rows, k], d)?)
+    };
     let mut ranks = vec![0; sizes.len()];
+    if missing.is_empty() {
+        return Ok(Imputation {
+            faces: faces.clone(),
+            iterations: 0,
+            changes: Vec::new(),
+            converged: true,
+            ranks,
+        });
+    }
+    // Every missing slice value is affine in the known ones, x_m = a + B x_o (the joint
+    // solve below), so the moments E[y], E[y yᵀ] over the 3V slices follow from the known
+    // faces' moments alone: each iteration costs O(K³), independent of the vertex count.
+    let y0 = centred(faces.tensor(), false)?;
+    let g_full = y0.gram(1)? / nr;
+    let col_mean = |t: &Tensor| -> DVector<f64> {
+        let mut m = DVector::zeros(k);
+        for row in t.data().chunks_exact(k) {
+            for (f, x) in row.iter().enumerate() {
+                m[f] += x / nr;
+            }
+        }
+        m
+    };
+    let m0 = col_mean(&y0);
+    let g = DMatrix::from_fn(observed.len(), observed.len(), |i, j| g_full[(observed[i], observed[j])]);
+    let xbar = DVector::from_fn(observed.len(), |i, _| m0[observed[i]]);
+    // Moments of the averaging baseline's completion start the iteration.
+    let ys = centred(start.tensor(), true)?;
+    let mut s = ys.gram(1)? / nr;
+    let mut m = col_mean(&ys);
+    let mut a = DVector::zeros(missing.len());
+    let mut b = DMatrix::zeros(missing.len(), observed.len());
+    let mut changes = Vec::new();
+    let mut converged = false;
     let mut iterations = 0;
-    if !missing.is_empty() {
-        let x_o = DMatrix::from_fn(observed.len(), rows, |o, r| y[(r, observed[o])]);
-        for _ in 0..params.max_iterations {
-            iterations += 1;
-            let mut q = DMatrix::zeros(k, k);
-            let mut lin = DVector::zeros(k);
-            for mode in 0..sizes.len() {
-                let ppca = fit_ppca(
-                    &y,
-                    &sizes,
-                    mode,
-                    params.ranks.as_ref().map(|r| r[mode]),
-                    params.energy,
-                );
-                ranks[mode] = ppca.rank;
-                let pm = &ppca.precision * &ppca.mean;
-                for g in mode_groups(&sizes, mode) {
-                    for (a, &fa) in g.iter().enumerate() {
-                        lin[fa] += pm[a];
-                        for (b, &fb) in g.iter().enumerate() {
-                            q[(fa, fb)] += ppca.precision[(a, b)];
-                        }
+    for it in 0..params.max_iterations {
+        iterations += 1;
+        let mut q = DMatrix::zeros(k, k);
+        let mut lin = DVector::zeros(k);
+        for mode in 0..sizes.len() {
+            let ppca = fit_ppca(&m, &s, &sizes, mode, params.ranks.as_ref().map(|r| r[mode]), params.energy);
+            ranks[mode] = ppca.rank;
+            let pm = &ppca.precision * &ppca.mean;
+            for grp in mode_groups(&sizes, mode) {
+                for (i, &fa) in grp.iter().enumerate() {
+                    lin[fa] += pm[i];
+                    for (j, &fb) in grp.iter().enumerate() {
+                        q[(fa, fb)] += ppca.precision[(i, j)];
                     }
                 }
             }
-            let h = DMatrix::from_fn(missing.len(), missing.len(), |i, j| q[(missing[i], missing[j])]);
-            let q_mo = DMatrix::from_fn(missing.len(), observed.len(), |i, j| q[(missing[i], observed[j])]);
-            let c_m = DVector::from_fn(missing.len(), |i, _| lin[missing[i]]);
-            let mut rhs = -(&q_mo * &x_o);
-            for mut col in rhs.column_iter_mut() {
-                col += &c_m;
+        }
+        // Minimiser of Σₙ Σ_v (v − μₙ)ᵀ Cₙ⁻¹ (v − μₙ) over x_m: H x_m = c_m − Q_mo x_o.
+        let h = DMatrix::from_fn(missing.len(), missing.len(), |i, j| q[(missing[i], missing[j])]);
+        let q_mo = DMatrix::from_fn(missing.len(), observed.len(), |i, j| q[(missing[i], observed[j])]);
+        let c_m = DVector::from_fn(missing.len(), |i, _| lin[missing[i]]);
+        let ch = h.cholesky().ok_or(Error::InvalidParam {
+            name: "known faces",
+            reason: "the PPCA constraints leave a missing face undetermined".into(),
+        })?;
+        let a_new = ch.solve(&c_m);
+        let b_new = -ch.solve(&q_mo);
+        // RMS change of the imputed values over all slices, from the moments.
+        let (da, db) = (&a_new - &a, &b_new - &b);
+        let sq = |a: &DVector<f64>, b: &DMatrix<f64>| -> f64 {
+            a.dot(a) + 2.0 * a.dot(&(b * &xbar)) + (b * &g).component_mul(b).sum()
+        };
+        let change = (sq(&da, &db).max(0.0) / sq(&a_new, &b_new).max(f64::MIN_POSITIVE)).sqrt();
+        a = a_new;
+        b = b_new;
+        // New moments: observed block fixed, missing blocks from x_m = a + B x_o, plus the
+        // posterior covariance H⁻¹ in the missing block (EM).
+        let bx = &b * &xbar;
+        let m_m = &a + &bx;
+        let s_mo = &a * xbar.transpose() + &b * &g;
+        let mut s_mm = &a * a.transpose() + &a * bx.transpose() + &bx * a.transpose() + &b * &g * b.transpose();
+        if params.em_covariance {
+            s_mm += ch.inverse();
+        }
+        for (i, &fi) in missing.iter().enumerate() {
+            m[fi] = m_m[i];
+            for (j, &fj) in observed.iter().enumerate() {
+                s[(fi, fj)] = s_mo[(i, j)];
+                s[(fj, fi)] = s_mo[(i, j)];
             }
-            let x_m = match h.clone().cholesky() {
-                Some(ch) => ch.solve(&rhs),
-                None => h.lu().solve(&rhs).ok_or(Error::InvalidParam {
-                    name: "known faces",
-                    reason: "the PPCA constraints leave a missing face undetermined".into(),
-                })?,
-            };
-            let (mut diff, mut norm) = (0.0, 0.0);
-            for (i, &f) in missing.iter().enumerate() {
-                for r in 0..rows {
-                    let new = x_m[(i, r)];
-                    diff += (new - y[(r, f)]).powi(2);
-                    norm += new * new;
-                    y[(r, f)] = new;
-                }
-            }
-            let change = (diff / norm.max(f64::MIN_POSITIVE)).sqrt();
-            changes.push(change);
-            if change < params.tolerance {
-                converged = true;
-                break;
+            for (j, &fj) in missing.iter().enumerate() {
+                s[(fi, fj)] = s_mm[(i, j)];
             }
         }
+        changes.push(change);
+        if it > 0 && change < params.tolerance {
+            converged = true;
+            break;
+        }
     }
-    // Known faces verbatim, imputed ones from the centred solution.
+    // x_m = a + B x_o for every slice: one mode-1 product of the known data.
+    let mut p = DMatrix::zeros(k, k);
+    for &f in &observed {
+        p[(f, f)] = 1.0;
+    }
+    for (i, &fi) in missing.iter().enumerate() {
+        for (j, &fj) in observed.iter().enumerate() {
+            p[(fi, fj)] = b[(i, j)];
+        }
+    }
+    let filled = y0.mode_product(1, &p)?;
     let mut data = faces.tensor().data().to_vec();
-    for r in 0..rows {
-        for &f in &missing {
-            data[r * k + f] = y[(r, f)] + mean_face[r];
+    for (r, row) in filled.data().chunks_exact(k).enumerate() {
+        for (i, &f) in missing.iter().enumerate() {
+            data[r * k + f] = row[f] + a[i] + mean_face[r];
         }
     }
     Ok(Imputation {
-        faces: FaceTensor::from_tensor(skin_core::tensor::Tensor::new(
-            faces.tensor().shape().to_vec(),
-            data,
-        )?)?,
+        faces: FaceTensor::from_tensor(Tensor::new(faces.tensor().shape().to_vec(), data)?)?,
         iterations,
         changes,
         converged,

@@ -10,6 +10,8 @@ mod error;
 mod face_data;
 mod impute;
 mod model;
+#[cfg(feature = "validation")]
+pub mod validation;
 
 pub use error::{Context, Error, Result, ResultExt};
 pub use face_data::{FaceTensor, KnownFaces};
