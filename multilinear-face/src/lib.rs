@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
+mod correspondence;
 mod error;
 mod face_data;
 mod impute;
@@ -13,6 +14,9 @@ mod model;
 #[cfg(feature = "validation")]
 pub mod validation;
 
+pub use correspondence::{
+    fit_template, procrustes, CorrespondenceParams, Similarity, TemplateFit,
+};
 pub use error::{Context, Error, Result, ResultExt};
 pub use face_data::{FaceTensor, KnownFaces};
 pub use impute::{impute, impute_by_averaging, ImputeParams, Imputation};

@@ -545,3 +545,75 @@ pub fn impute_rel_error(truth: &FaceTensor, estimate: &FaceTensor, known: &Known
     }
     Ok((num / den.max(f64::MIN_POSITIVE)).sqrt())
 }
+
+/// A re-meshed, noisy copy of `mesh` for validating correspondence (§5.3.2): every triangle
+/// split in four at its edge midpoints, every vertex of that mesh moved by an isotropic
+/// Gaussian step of `slide` (data units) and projected back onto `mesh`'s surface (so no
+/// vertex keeps a template position), then i.i.d. Gaussian scan noise of σ `noise`.
+///
+/// # Errors
+/// The mesh-query errors of `skin-core` (an empty or invalid mesh); [`Error::InvalidParam`]
+/// for a negative `slide` or `noise`.
+pub fn remeshed_scan(mesh: &TriMesh, slide: f64, noise: f64, seed: u64) -> Result<TriMesh> {
+    skin_core::check::non_negative("slide", slide)?;
+    skin_core::check::non_negative("noise", noise)?;
+    let query = skin_core::mesh::MeshQuery::new(mesh)?;
+    let mut vertices = mesh.vertices.clone();
+    let mut mid = std::collections::HashMap::new();
+    let mut faces = Vec::with_capacity(4 * mesh.faces.len());
+    for f in &mesh.faces {
+        let mut m = [0u32; 3];
+        for (k, (a, b)) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])].into_iter().enumerate() {
+            let key = (a.min(b), a.max(b));
+            m[k] = *mid.entry(key).or_insert_with(|| {
+                vertices.push((mesh.vertices[a as usize] + mesh.vertices[b as usize]) * 0.5);
+                (vertices.len() - 1) as u32
+            });
+        }
+        faces.extend_from_slice(&[[f[0], m[0], m[2]], [m[0], f[1], m[1]], [m[2], m[1], f[2]], [m[0], m[1], m[2]]]);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let unit = normal(1.0)?;
+    let moved: Vec<DVec3> = vertices
+        .iter()
+        .map(|p| *p + DVec3::from_array([0; 3].map(|_| slide * unit.sample(&mut rng))))
+        .collect();
+    let projected = query.closest_points(&moved)?;
+    let vertices = projected
+        .iter()
+        .map(|c| c.position + DVec3::from_array([0; 3].map(|_| noise * unit.sample(&mut rng))))
+        .collect();
+    Ok(TriMesh::new(vertices, faces)?)
+}
+
+/// `count` well-spread vertices of `mesh` (farthest-point sampling from vertex 0): the
+/// "manually specified reference points" of §5.3.2 (the thesis marked 42).
+///
+/// # Errors
+/// [`Error::Empty`] for a mesh without vertices; [`Error::InvalidParam`] for more points than
+/// vertices.
+pub fn feature_vertices(mesh: &TriMesh, count: usize) -> Result<Vec<usize>> {
+    let v = mesh.vertices.len();
+    if v == 0 {
+        return Err(Error::Empty { what: "mesh vertices" });
+    }
+    if count > v {
+        return Err(Error::InvalidParam {
+            name: "count",
+            reason: format!("{count} feature points on {v} vertices"),
+        });
+    }
+    let mut out = vec![0usize];
+    let mut dist: Vec<f64> = mesh.vertices.iter().map(|p| p.distance_squared(mesh.vertices[0])).collect();
+    while out.len() < count {
+        let (far, _) = dist
+            .iter()
+            .enumerate()
+            .fold((0, -1.0), |best, (i, &d)| if d > best.1 { (i, d) } else { best });
+        out.push(far);
+        for (d, p) in dist.iter_mut().zip(&mesh.vertices) {
+            *d = d.min(p.distance_squared(mesh.vertices[far]));
+        }
+    }
+    Ok(out)
+}
