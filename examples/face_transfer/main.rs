@@ -34,8 +34,8 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use dynamic_shapes::face::validation::{
-    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
-    remeshed_scan, trilinear_face_set, FaceSet, FaceSetParams, IctBasis,
+    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error, remeshed_scan,
+    trilinear_face_set, FaceSet, FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
     fit_template, impute, impute_by_averaging, CorrespondenceParams, Dials, FaceTensor,
@@ -87,7 +87,12 @@ fn colours(a: &[DVec3], b: &[DVec3], max_mm: f64) -> Vec<[u8; 3]> {
 }
 
 fn rms_mm(a: &[DVec3], b: &[DVec3]) -> f64 {
-    MM * (a.iter().zip(b).map(|(x, y)| x.distance_squared(*y)).sum::<f64>() / a.len() as f64)
+    MM * (a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| x.distance_squared(*y))
+        .sum::<f64>()
+        / a.len() as f64)
         .sqrt()
 }
 
@@ -125,7 +130,11 @@ struct ImputeRow {
     ms: f64,
 }
 
-fn impute_run(set: &FaceSet, fraction: f64, seed: u64) -> (ImputeRow, KnownFaces, FaceTensor, FaceTensor) {
+fn impute_run(
+    set: &FaceSet,
+    fraction: f64,
+    seed: u64,
+) -> (ImputeRow, KnownFaces, FaceTensor, FaceTensor) {
     let known = hold_out(set.faces.attribute_sizes(), fraction, seed).unwrap();
     let t0 = Instant::now();
     let ours = impute(&set.faces, &known, &ImputeParams::default()).unwrap();
@@ -162,7 +171,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let bi = bilinear_face_set(&basis, &FaceSetParams::default())?;
     let tri = trilinear_face_set(&basis, &FaceSetParams::default().with_identities(16))?;
     let ict = ict_face_set(&basis)?;
-    stage.finish(&format!(
+    stage.finish(format!(
         "{} vertices; interaction {:.3} (bilinear), {:.3} (trilinear)",
         basis.neutral.vertices.len(),
         bi.interaction_fraction,
@@ -178,13 +187,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let bi_interaction = interaction_energy(&bi.faces);
     let ict_interaction = interaction_energy(&ict.faces);
     // Error vs identity knobs for a few expression knob counts (HOSVD, bilinear; ICT dashed).
-    let expr_knobs: Vec<usize> = if quick { vec![2, 6, 10] } else { vec![2, 4, 6, 8, 10] };
+    let expr_knobs: Vec<usize> = if quick {
+        vec![2, 6, 10]
+    } else {
+        vec![2, 4, 6, 8, 10]
+    };
     let id_knobs: Vec<usize> = if quick {
         vec![1, 3, 5, 7, 9, 11, 13, 15]
     } else {
         (1..=15).collect()
     };
-    let palette = [[40, 90, 200], [220, 120, 40], [40, 160, 80], [160, 60, 160], [120, 120, 120]];
+    let palette = [
+        [40, 90, 200],
+        [220, 120, 40],
+        [40, 160, 80],
+        [160, 60, 160],
+        [120, 120, 120],
+    ];
     let mut chart = Chart::new(
         "Bilinear model: relative error of the truncated N-mode SVD",
         "identity knobs kept",
@@ -197,7 +216,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let p = ModelParams::new(&[e, i]).with_refine(None);
             let (_, f) = MultilinearModel::fit(&bi.faces, &p)?;
             pts.push((i as f64, f.hosvd_rel_error));
-            sweep.push(json!({"expression": e, "identity": i, "hosvd_rel_error": f.hosvd_rel_error}));
+            sweep.push(
+                json!({"expression": e, "identity": i, "hosvd_rel_error": f.hosvd_rel_error}),
+            );
         }
         chart = chart.with(Series::new(
             format!("{e} expression knobs"),
@@ -208,7 +229,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut ict_pts = Vec::new();
     for i in 1..=11 {
-        let (_, f) = MultilinearModel::fit(&ict.faces, &ModelParams::new(&[17, i]).with_refine(None))?;
+        let (_, f) =
+            MultilinearModel::fit(&ict.faces, &ModelParams::new(&[17, i]).with_refine(None))?;
         ict_pts.push((i as f64, f.hosvd_rel_error));
     }
     chart = chart
@@ -231,9 +253,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          number of expression knobs (HOSVD); the ICT shapes' own tensor dashed; the thesis's \
          6 × 9 truncation after HOOI in red",
     )?;
-    stage.finish(&format!(
+    stage.finish(format!(
         "bilinear 6×9: HOSVD {:.4} HOOI {:.4}; trilinear 4×4×16: HOSVD {:.4} HOOI {:.4}",
-        bi_fit.hosvd_rel_error, bi_fit.hooi_rel_error, tri_fit.hosvd_rel_error, tri_fit.hooi_rel_error
+        bi_fit.hosvd_rel_error,
+        bi_fit.hooi_rel_error,
+        tri_fit.hosvd_rel_error,
+        tri_fit.hooi_rel_error
     ));
 
     // --- Dial tuning and faces from weights (Figure 5-4).
@@ -241,10 +266,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dials = Dials::fit(&bi_model, 0, &bi.labels[0])?;
     let disgust_recipe: (&str, &[(&str, f64)]) = (
         "disgust",
-        &[("noseSneer_L", 1.0), ("mouthFrown_L", 0.6), ("browDown_L", 0.4)],
+        &[
+            ("noseSneer_L", 1.0),
+            ("mouthFrown_L", 0.6),
+            ("browDown_L", 0.4),
+        ],
     );
     let w_disgust = dials.weights(&IctBasis::weights(&disgust_recipe)?)?;
-    let w_smile_half = dials.weights(&IctBasis::weights(&("half smile", &[("mouthSmile_L", 0.5), ("mouthSmile_R", 0.5)]))?)?;
+    let w_smile_half = dials.weights(&IctBasis::weights(&(
+        "half smile",
+        &[("mouthSmile_L", 0.5), ("mouthSmile_R", 0.5)],
+    ))?)?;
     let id_w = |i: usize| bi_model.training_weights(1, i).unwrap();
     // Two novel people: mixtures of the training people's weights.
     let novel_a: DVector<f64> = id_w(0) * 0.5 + id_w(4) * 0.3 + id_w(9) * 0.2;
@@ -280,7 +312,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          set through the tuned expression dials on two people, a training expression on two \
          novel identities, a half smile",
     )?;
-    stage.finish(&format!("dial fit residual {:.2e}", dials.residual()));
+    stage.finish(format!("dial fit residual {:.2e}", dials.residual()));
 
     // --- Missing data.
     let stage = run.stage("imputation", None);
@@ -291,8 +323,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let tensorly_dir = run.path("tensorly");
     std::fs::create_dir_all(&tensorly_dir)?;
-    write_npy(&tensorly_dir.join("trilinear.npy"), tri.faces.tensor().shape(), tri.faces.tensor().data())?;
-    write_npy(&tensorly_dir.join("bilinear.npy"), bi.faces.tensor().shape(), bi.faces.tensor().data())?;
+    write_npy(
+        &tensorly_dir.join("trilinear.npy"),
+        tri.faces.tensor().shape(),
+        tri.faces.tensor().data(),
+    )?;
+    write_npy(
+        &tensorly_dir.join("bilinear.npy"),
+        bi.faces.tensor().shape(),
+        bi.faces.tensor().data(),
+    )?;
     let mut tri_rows = Vec::new();
     let mut shown = None;
     for &p in &fractions {
@@ -326,18 +366,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The ICT shapes: additive, so the averaging baseline is exact there.
     let (ict_row, _, _, _) = impute_run(&ict, 0.15, 7);
     let pct = |rows: &[ImputeRow], f: fn(&ImputeRow) -> f64| -> Vec<(f64, f64)> {
-        rows.iter().map(|r| (100.0 * r.fraction, 100.0 * f(r))).collect()
+        rows.iter()
+            .map(|r| (100.0 * r.fraction, 100.0 * f(r)))
+            .collect()
     };
     let chart = Chart::new(
         "Imputation of held-out faces (trilinear set, 5 × 5 × 16)",
         "faces held out (%)",
         "‖error‖ / ‖held-out faces − mean face‖ (%)",
     )
-    .with(Series::new("PPCA, all modes jointly (ours)", [40, 90, 200], Style::LineMarkers, pct(&tri_rows, |r| r.ours)))
-    .with(Series::new("averaging baseline", [220, 120, 40], Style::LineMarkers, pct(&tri_rows, |r| r.averaging)))
-    .with(Series::new("ours, bilinear set", [40, 90, 200], Style::Dashed, pct(&bi_rows, |r| r.ours)))
-    .with(Series::new("averaging, bilinear set", [220, 120, 40], Style::Dashed, pct(&bi_rows, |r| r.averaging)))
-    .with(Series::new("goals (15 %: 5 %, 50 %: 9 %)", [230, 30, 30], Style::Markers, vec![(15.0, 5.0), (50.0, 9.0)]));
+    .with(Series::new(
+        "PPCA, all modes jointly (ours)",
+        [40, 90, 200],
+        Style::LineMarkers,
+        pct(&tri_rows, |r| r.ours),
+    ))
+    .with(Series::new(
+        "averaging baseline",
+        [220, 120, 40],
+        Style::LineMarkers,
+        pct(&tri_rows, |r| r.averaging),
+    ))
+    .with(Series::new(
+        "ours, bilinear set",
+        [40, 90, 200],
+        Style::Dashed,
+        pct(&bi_rows, |r| r.ours),
+    ))
+    .with(Series::new(
+        "averaging, bilinear set",
+        [220, 120, 40],
+        Style::Dashed,
+        pct(&bi_rows, |r| r.averaging),
+    ))
+    .with(Series::new(
+        "goals (15 %: 5 %, 50 %: 9 %)",
+        [230, 30, 30],
+        Style::Markers,
+        vec![(15.0, 5.0), (50.0, 9.0)],
+    ));
     run.save_picture(
         "imputation.png",
         &chart.draw()?,
@@ -366,7 +433,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .zip(&cs)
                 .map(|(m, c)| PreviewPanel {
                     mesh: m,
-                    paint: if which == 1 { Paint::Flat([200, 200, 200]) } else { Paint::PerVertex(c) },
+                    paint: if which == 1 {
+                        Paint::Flat([200, 200, 200])
+                    } else {
+                        Paint::PerVertex(c)
+                    },
                 })
                 .collect();
             rows.push(preview(&panels, 260)?);
@@ -391,7 +462,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .iter()
             .map(|&f| {
                 let a = [f / 80, (f / 16) % 5, f % 16];
-                format!("{} / {} / p{}", tri.value_names[0][a[0]], tri.value_names[1][a[1]], a[2])
+                format!(
+                    "{} / {} / p{}",
+                    tri.value_names[0][a[0]], tri.value_names[1][a[1]], a[2]
+                )
             })
             .collect();
         let img = example_kit::plot::titled(
@@ -406,10 +480,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
              the averaging baseline, coloured by the distance to the true vertex (mm)",
         )?;
     }
-    stage.finish(&format!(
+    let row15 = tri_rows.iter().find(|r| (r.fraction - 0.15).abs() < 1e-9);
+    stage.finish(format!(
         "trilinear 15 %: ours {:.4} averaging {:.4}",
-        tri_rows[0].ours.min(tri_rows[1].ours),
-        tri_rows[0].averaging
+        row15.map_or(f64::NAN, |r| r.ours),
+        row15.map_or(f64::NAN, |r| r.averaging)
     ));
 
     // --- Correspondence.
@@ -429,18 +504,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     let t0 = Instant::now();
-    let fit = fit_template(&basis.neutral, &features, &scan, &marked, &CorrespondenceParams::default())?;
+    let fit = fit_template(
+        &basis.neutral,
+        &features,
+        &scan,
+        &marked,
+        &CorrespondenceParams::default(),
+    )?;
     let corr_ms = 1e3 * t0.elapsed().as_secs_f64();
     let corr_rms = rms_mm(&fit.vertices, &truth);
     let aligned_rms = rms_mm(&fit.aligned, &truth);
     let aligned_mesh = mesh(&bi, fit.aligned.clone());
     let fit_mesh = mesh(&bi, fit.vertices.clone());
-    let (ca, cf) = (colours(&fit.aligned, &truth, CORR_MAX_MM), colours(&fit.vertices, &truth, CORR_MAX_MM));
+    let (ca, cf) = (
+        colours(&fit.aligned, &truth, CORR_MAX_MM),
+        colours(&fit.vertices, &truth, CORR_MAX_MM),
+    );
     let img = preview(
         &[
-            PreviewPanel { mesh: &scan, paint: Paint::Flat([200, 200, 200]) },
-            PreviewPanel { mesh: &aligned_mesh, paint: Paint::PerVertex(&ca) },
-            PreviewPanel { mesh: &fit_mesh, paint: Paint::PerVertex(&cf) },
+            PreviewPanel {
+                mesh: &scan,
+                paint: Paint::Flat([200, 200, 200]),
+            },
+            PreviewPanel {
+                mesh: &aligned_mesh,
+                paint: Paint::PerVertex(&ca),
+            },
+            PreviewPanel {
+                mesh: &fit_mesh,
+                paint: Paint::PerVertex(&cf),
+            },
         ],
         320,
     )?;
@@ -471,25 +564,54 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          the template after Procrustes alignment and after the minimal deformation, coloured \
          by the distance of each template vertex to its true position (mm)",
     )?;
-    stage.finish(&format!("RMS {corr_rms:.2} mm (Procrustes only {aligned_rms:.2} mm)"));
+    stage.finish(format!(
+        "RMS {corr_rms:.2} mm (Procrustes only {aligned_rms:.2} mm)"
+    ));
 
     for h in [
         Headline::new("hosvd_rel_error", "bilinear 6×9 HOSVD relative error", ""),
         Headline::new("hooi_rel_error", "bilinear 6×9 HOOI relative error", ""),
-        Headline::new("hooi_rel_error_trilinear", "trilinear 4×4×16 HOOI relative error", ""),
-        Headline::new("impute_rel_error_15", "imputation error, 15 % held out (trilinear)", "")
-            .goal(Goal::AtMost(0.05)),
-        Headline::new("impute_rel_error_50", "imputation error, 50 % held out (trilinear)", "")
-            .goal(Goal::AtMost(0.09)),
-        Headline::new("averaging_impute_rel_error_15", "averaging baseline, 15 %", ""),
-        Headline::new("averaging_impute_rel_error_50", "averaging baseline, 50 %", ""),
+        Headline::new(
+            "hooi_rel_error_trilinear",
+            "trilinear 4×4×16 HOOI relative error",
+            "",
+        ),
+        Headline::new(
+            "impute_rel_error_15",
+            "imputation error, 15 % held out (trilinear)",
+            "",
+        )
+        .goal(Goal::AtMost(0.05)),
+        Headline::new(
+            "impute_rel_error_50",
+            "imputation error, 50 % held out (trilinear)",
+            "",
+        )
+        .goal(Goal::AtMost(0.09)),
+        Headline::new(
+            "averaging_impute_rel_error_15",
+            "averaging baseline, 15 %",
+            "",
+        ),
+        Headline::new(
+            "averaging_impute_rel_error_50",
+            "averaging baseline, 50 %",
+            "",
+        ),
         Headline::new("correspondence_rms_mm", "correspondence vertex RMS", "mm"),
-        Headline::new("interaction_fraction", "interaction strength (bilinear set)", ""),
+        Headline::new(
+            "interaction_fraction",
+            "interaction strength (bilinear set)",
+            "",
+        ),
     ] {
         run.headline(h);
     }
     let at = |rows: &[ImputeRow], p: f64, f: fn(&ImputeRow) -> f64| {
-        rows.iter().find(|r| (r.fraction - p).abs() < 1e-9).map(f).unwrap_or(f64::NAN)
+        rows.iter()
+            .find(|r| (r.fraction - p).abs() < 1e-9)
+            .map(f)
+            .unwrap_or(f64::NAN)
     };
     run.finish(json!({
         "vertices": basis.neutral.vertices.len(),

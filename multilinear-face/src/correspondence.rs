@@ -165,9 +165,16 @@ pub fn fit_template(
         skin_core::check::non_negative("w_feature", wf)?;
         skin_core::check::non_negative("w_closest", wc)?;
     }
-    let from: Vec<DVec3> = template_features.iter().map(|&f| template.vertices[f]).collect();
+    let from: Vec<DVec3> = template_features
+        .iter()
+        .map(|&f| template.vertices[f])
+        .collect();
     let alignment = procrustes(&from, scan_features)?;
-    let aligned: Vec<DVec3> = template.vertices.iter().map(|p| alignment.apply(*p)).collect();
+    let aligned: Vec<DVec3> = template
+        .vertices
+        .iter()
+        .map(|p| alignment.apply(*p))
+        .collect();
     let query = MeshQuery::new(scan)?;
     let aligned_mesh = TriMesh::new(aligned.clone(), template.faces.clone())?;
     let l = uniform_laplacian(&aligned_mesh)?;
@@ -200,7 +207,11 @@ pub fn fit_template(
                 .map(|i| DVec3::new(sol[(i, 0)], sol[(i, 1)], sol[(i, 2)]))
                 .collect();
         }
-        let d: Vec<f64> = query.closest_points(&x)?.iter().map(|c| c.distance).collect();
+        let d: Vec<f64> = query
+            .closest_points(&x)?
+            .iter()
+            .map(|c| c.distance)
+            .collect();
         surface_rms.push(skin_core::stats::rms(&d));
     }
     Ok(TemplateFit {

@@ -91,7 +91,7 @@ impl FaceTensor {
             });
         }
         let rows = tensor.shape()[0];
-        if rows % 3 != 0 {
+        if !rows.is_multiple_of(3) {
             return Err(Error::SizeMismatch {
                 what: "vertex mode (3 coordinates per vertex)",
                 expected: 3 * (rows / 3 + 1),
@@ -141,7 +141,13 @@ impl FaceTensor {
         skin_core::check::index("face", f, k)?;
         let d = self.tensor.data();
         Ok((0..self.vertex_count)
-            .map(|i| DVec3::new(d[3 * i * k + f], d[(3 * i + 1) * k + f], d[(3 * i + 2) * k + f]))
+            .map(|i| {
+                DVec3::new(
+                    d[3 * i * k + f],
+                    d[(3 * i + 1) * k + f],
+                    d[(3 * i + 2) * k + f],
+                )
+            })
             .collect())
     }
 

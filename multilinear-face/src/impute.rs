@@ -295,7 +295,9 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
         m
     };
     let m0 = col_mean(&y0);
-    let g = DMatrix::from_fn(observed.len(), observed.len(), |i, j| g_full[(observed[i], observed[j])]);
+    let g = DMatrix::from_fn(observed.len(), observed.len(), |i, j| {
+        g_full[(observed[i], observed[j])]
+    });
     let xbar = DVector::from_fn(observed.len(), |i, _| m0[observed[i]]);
     // Moments of the averaging baseline's completion start the iteration.
     let ys = centred(start.tensor(), true)?;
@@ -311,7 +313,14 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
         let mut q = DMatrix::zeros(k, k);
         let mut lin = DVector::zeros(k);
         for mode in 0..sizes.len() {
-            let ppca = fit_ppca(&m, &s, &sizes, mode, params.ranks.as_ref().map(|r| r[mode]), params.energy);
+            let ppca = fit_ppca(
+                &m,
+                &s,
+                &sizes,
+                mode,
+                params.ranks.as_ref().map(|r| r[mode]),
+                params.energy,
+            );
             ranks[mode] = ppca.rank;
             let pm = &ppca.precision * &ppca.mean;
             for grp in mode_groups(&sizes, mode) {
@@ -324,8 +333,12 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
             }
         }
         // Minimiser of Σₙ Σ_v (v − μₙ)ᵀ Cₙ⁻¹ (v − μₙ) over x_m: H x_m = c_m − Q_mo x_o.
-        let h = DMatrix::from_fn(missing.len(), missing.len(), |i, j| q[(missing[i], missing[j])]);
-        let q_mo = DMatrix::from_fn(missing.len(), observed.len(), |i, j| q[(missing[i], observed[j])]);
+        let h = DMatrix::from_fn(missing.len(), missing.len(), |i, j| {
+            q[(missing[i], missing[j])]
+        });
+        let q_mo = DMatrix::from_fn(missing.len(), observed.len(), |i, j| {
+            q[(missing[i], observed[j])]
+        });
         let c_m = DVector::from_fn(missing.len(), |i, _| lin[missing[i]]);
         let ch = h.cholesky().ok_or(Error::InvalidParam {
             name: "known faces",
@@ -346,7 +359,10 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
         let bx = &b * &xbar;
         let m_m = &a + &bx;
         let s_mo = &a * xbar.transpose() + &b * &g;
-        let mut s_mm = &a * a.transpose() + &a * bx.transpose() + &bx * a.transpose() + &b * &g * b.transpose();
+        let mut s_mm = &a * a.transpose()
+            + &a * bx.transpose()
+            + &bx * a.transpose()
+            + &b * &g * b.transpose();
         if params.em_covariance {
             s_mm += ch.inverse();
         }
@@ -407,8 +423,12 @@ mod tests {
                     .map(|k| {
                         let k = k as f64;
                         let a = (0.9 * e + 0.3 * k).sin();
-                        let b = (1.7 * i).cos() * (0.2 * k).cos() + 0.3 * (2.3 * i).sin() * (0.05 * k);
-                        let s = interaction * (1.0 + (0.7 * e).cos()) * (1.0 + 0.5 * (1.1 * i).sin()) * (0.4 * k).sin();
+                        let b =
+                            (1.7 * i).cos() * (0.2 * k).cos() + 0.3 * (2.3 * i).sin() * (0.05 * k);
+                        let s = interaction
+                            * (1.0 + (0.7 * e).cos())
+                            * (1.0 + 0.5 * (1.1 * i).sin())
+                            * (0.4 * k).sin();
                         DVec3::new(k + a + b + s, 2.0 * a - b, b + s)
                     })
                     .collect()
@@ -422,7 +442,10 @@ mod tests {
             .iter()
             .map(|&f| {
                 let (a, b) = (est.face(f).unwrap(), truth.face(f).unwrap());
-                a.iter().zip(&b).map(|(x, y)| x.distance_squared(*y)).sum::<f64>()
+                a.iter()
+                    .zip(&b)
+                    .map(|(x, y)| x.distance_squared(*y))
+                    .sum::<f64>()
             })
             .sum::<f64>()
             .sqrt()
@@ -442,8 +465,15 @@ mod tests {
         let inter = faces(0.5);
         let avg = impute_by_averaging(&inter, &known).unwrap();
         let ours = impute(&inter, &known, &ImputeParams::default()).unwrap();
-        let (ea, eo) = (err(&avg, &inter, &known.missing()), err(&ours.faces, &inter, &known.missing()));
-        assert!(eo < 0.2 * ea, "ours {eo} vs averaging {ea}; {:?}", ours.changes);
+        let (ea, eo) = (
+            err(&avg, &inter, &known.missing()),
+            err(&ours.faces, &inter, &known.missing()),
+        );
+        assert!(
+            eo < 0.2 * ea,
+            "ours {eo} vs averaging {ea}; {:?}",
+            ours.changes
+        );
         // Known faces are untouched.
         assert_eq!(ours.faces.face(0).unwrap(), inter.face(0).unwrap());
     }

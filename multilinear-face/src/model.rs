@@ -79,7 +79,11 @@ impl MultilinearModel {
     /// modes; [`Error::InvalidParam`] for a rank of 0 or larger than its mode.
     pub fn fit(faces: &FaceTensor, params: &ModelParams) -> Result<(Self, ModelFit)> {
         let sizes = faces.attribute_sizes();
-        skin_core::check::same_size("ranks (one per attribute mode)", sizes.len(), params.ranks.len())?;
+        skin_core::check::same_size(
+            "ranks (one per attribute mode)",
+            sizes.len(),
+            params.ranks.len(),
+        )?;
         for (&r, &d) in params.ranks.iter().zip(sizes) {
             if r == 0 || r > d {
                 return Err(Error::InvalidParam {
@@ -158,7 +162,11 @@ impl MultilinearModel {
     }
 
     fn check_weights(&self, weights: &[DVector<f64>], skip: Option<usize>) -> Result<()> {
-        skin_core::check::same_size("weight vectors (one per attribute)", self.factors.len(), weights.len())?;
+        skin_core::check::same_size(
+            "weight vectors (one per attribute)",
+            self.factors.len(),
+            weights.len(),
+        )?;
         for (n, w) in weights.iter().enumerate() {
             if Some(n) == skip {
                 continue;
@@ -239,7 +247,11 @@ impl Dials {
     /// label column, [`Error::NonFinite`]; [`Error::IndexOutOfRange`] for a bad mode.
     pub fn fit(model: &MultilinearModel, mode: usize, labels: &DMatrix<f64>) -> Result<Self> {
         let u = model.factor(mode)?;
-        skin_core::check::same_size("label rows (one per training value)", u.nrows(), labels.nrows())?;
+        skin_core::check::same_size(
+            "label rows (one per training value)",
+            u.nrows(),
+            labels.nrows(),
+        )?;
         if labels.ncols() == 0 {
             return Err(Error::Empty { what: "labels" });
         }
@@ -321,7 +333,10 @@ mod tests {
         let t = bilinear_faces(5, 6, 30);
         let (m, fit) = MultilinearModel::fit(&t, &ModelParams::new(&[2, 3])).unwrap();
         // (errors from the core norm resolve down to ≈ 1e-8 only)
-        assert!(fit.hosvd_rel_error < 1e-6 && fit.hooi_rel_error < 1e-6, "{fit:?}");
+        assert!(
+            fit.hosvd_rel_error < 1e-6 && fit.hooi_rel_error < 1e-6,
+            "{fit:?}"
+        );
         for f in [0, 7, 29] {
             let w = vec![
                 m.training_weights(0, f / 6).unwrap(),
@@ -329,7 +344,11 @@ mod tests {
             ];
             let got = m.face(&w).unwrap();
             let want = t.face(f).unwrap();
-            let err = got.iter().zip(&want).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+            let err = got
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| a.distance(*b))
+                .fold(0.0, f64::max);
             assert!(err < 1e-9, "face {f}: {err}");
             // Eq. 5.9: the linear basis of identity with expression fixed gives the same face.
             let basis = m.linear_basis(1, &w).unwrap();

@@ -46,11 +46,19 @@ pub const BILINEAR_EXPRESSIONS: [Recipe; 10] = [
     ("frown", &[("mouthFrown_L", 1.0), ("browDown_L", 0.6)]),
     (
         "surprise",
-        &[("browInnerUp_L", 1.0), ("browInnerUp_R", 1.0), ("jawOpen", 0.5)],
+        &[
+            ("browInnerUp_L", 1.0),
+            ("browInnerUp_R", 1.0),
+            ("jawOpen", 0.5),
+        ],
     ),
     (
         "anger",
-        &[("browDown_L", 1.0), ("noseSneer_L", 0.8), ("mouthStretch_L", 0.5)],
+        &[
+            ("browDown_L", 1.0),
+            ("noseSneer_L", 0.8),
+            ("mouthStretch_L", 0.5),
+        ],
     ),
     ("blink", &[("eyeBlink_L", 1.0), ("eyeBlink_R", 1.0)]),
     ("pucker", &[("mouthPucker", 1.0), ("mouthFunnel", 0.3)]),
@@ -74,7 +82,11 @@ pub const TRILINEAR_EXPRESSIONS: [Recipe; 5] = [
     ("smiling", &[("mouthSmile_L", 0.8), ("mouthSmile_R", 0.8)]),
     (
         "scowling",
-        &[("browDown_L", 1.0), ("noseSneer_L", 0.6), ("mouthFrown_L", 0.4)],
+        &[
+            ("browDown_L", 1.0),
+            ("noseSneer_L", 0.6),
+            ("mouthFrown_L", 0.4),
+        ],
     ),
     (
         "surprised",
@@ -87,7 +99,11 @@ pub const TRILINEAR_EXPRESSIONS: [Recipe; 5] = [
     ),
     (
         "sad",
-        &[("mouthFrown_L", 0.8), ("browInnerUp_L", 0.6), ("browInnerUp_R", 0.6)],
+        &[
+            ("mouthFrown_L", 0.8),
+            ("browInnerUp_L", 0.6),
+            ("browInnerUp_R", 0.6),
+        ],
     ),
 ];
 
@@ -270,13 +286,16 @@ fn normal(sigma: f64) -> Result<Normal<f64>> {
     })
 }
 
+/// Faces, the people's identity coefficients, the measured interaction fraction.
+type Generated = (Vec<Vec<DVec3>>, Vec<Vec<f64>>, f64);
+
 /// Builds the faces for `combos` (blendshape weights of the expression part `β` and of the
 /// viseme part `ν` with its expression scale `hₑ`) × people.
 fn generate(
     basis: &IctBasis,
     combos: &[(Vec<f64>, Vec<f64>, f64)],
     params: &FaceSetParams,
-) -> Result<(Vec<Vec<DVec3>>, Vec<Vec<f64>>, f64)> {
+) -> Result<Generated> {
     check_params(params)?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let nb = basis.blendshapes.len();
@@ -336,13 +355,24 @@ fn generate(
             faces.push(f);
         }
     }
-    let fraction = if disp2 > 0.0 { (inter2 / disp2).sqrt() } else { 0.0 };
+    let fraction = if disp2 > 0.0 {
+        (inter2 / disp2).sqrt()
+    } else {
+        0.0
+    };
     Ok((faces, alphas, fraction))
 }
 
 fn labels_of(recipes: &[Recipe]) -> Result<DMatrix<f64>> {
-    let rows: Vec<Vec<f64>> = recipes.iter().map(IctBasis::weights).collect::<Result<_>>()?;
-    Ok(DMatrix::from_fn(rows.len(), ICT_BLENDSHAPES.len(), |i, j| rows[i][j]))
+    let rows: Vec<Vec<f64>> = recipes
+        .iter()
+        .map(IctBasis::weights)
+        .collect::<Result<_>>()?;
+    Ok(DMatrix::from_fn(
+        rows.len(),
+        ICT_BLENDSHAPES.len(),
+        |i, j| rows[i][j],
+    ))
 }
 
 /// The bilinear set (§5.3.1): `3V × 10 expressions × P people` (thesis: 15), expressions
@@ -362,8 +392,13 @@ pub fn bilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fac
         triangles: basis.neutral.faces.clone(),
         mode_names: vec!["expression", "identity"],
         value_names: vec![
-            BILINEAR_EXPRESSIONS.iter().map(|r| r.0.to_string()).collect(),
-            (0..params.identities).map(|i| format!("person {i}")).collect(),
+            BILINEAR_EXPRESSIONS
+                .iter()
+                .map(|r| r.0.to_string())
+                .collect(),
+            (0..params.identities)
+                .map(|i| format!("person {i}"))
+                .collect(),
         ],
         labels: vec![labels_of(&BILINEAR_EXPRESSIONS)?],
         identity_coefficients: alphas,
@@ -378,9 +413,11 @@ pub fn bilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fac
 /// As [`bilinear_face_set`].
 pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<FaceSet> {
     check_params(params)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5eed_0f_7e);
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5eed_0f7e);
     let hd = uniform(-1.0, 1.0)?;
-    let hb: Vec<f64> = (0..ICT_BLENDSHAPES.len()).map(|_| hd.sample(&mut rng)).collect();
+    let hb: Vec<f64> = (0..ICT_BLENDSHAPES.len())
+        .map(|_| hd.sample(&mut rng))
+        .collect();
     let mut combos = Vec::new();
     for vis in &VISEMES {
         for ex in &TRILINEAR_EXPRESSIONS {
@@ -392,15 +429,24 @@ pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fa
     let (faces, alphas, fraction) = generate(basis, &combos, params)?;
     Ok(FaceSet {
         faces: FaceTensor::from_faces(
-            &[VISEMES.len(), TRILINEAR_EXPRESSIONS.len(), params.identities],
+            &[
+                VISEMES.len(),
+                TRILINEAR_EXPRESSIONS.len(),
+                params.identities,
+            ],
             &faces,
         )?,
         triangles: basis.neutral.faces.clone(),
         mode_names: vec!["viseme", "expression", "identity"],
         value_names: vec![
             VISEMES.iter().map(|r| r.0.to_string()).collect(),
-            TRILINEAR_EXPRESSIONS.iter().map(|r| r.0.to_string()).collect(),
-            (0..params.identities).map(|i| format!("person {i}")).collect(),
+            TRILINEAR_EXPRESSIONS
+                .iter()
+                .map(|r| r.0.to_string())
+                .collect(),
+            (0..params.identities)
+                .map(|i| format!("person {i}"))
+                .collect(),
         ],
         labels: vec![labels_of(&VISEMES)?, labels_of(&TRILINEAR_EXPRESSIONS)?],
         identity_coefficients: alphas,
@@ -418,7 +464,9 @@ pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fa
 pub fn ict_face_set(basis: &IctBasis) -> Result<FaceSet> {
     let v = basis.neutral.vertices.len();
     let zero = vec![DVec3::ZERO; v];
-    let ids: Vec<&Vec<DVec3>> = std::iter::once(&zero).chain(&basis.identity_modes).collect();
+    let ids: Vec<&Vec<DVec3>> = std::iter::once(&zero)
+        .chain(&basis.identity_modes)
+        .collect();
     let exs: Vec<&Vec<DVec3>> = std::iter::once(&zero).chain(&basis.blendshapes).collect();
     let mut faces = Vec::new();
     for e in &exs {
@@ -453,7 +501,11 @@ pub fn ict_face_set(basis: &IctBasis) -> Result<FaceSet> {
         ],
         labels: vec![labels],
         identity_coefficients: (0..ids.len())
-            .map(|i| (0..10).map(|a| if i == a + 1 { 1.0 } else { 0.0 }).collect())
+            .map(|i| {
+                (0..10)
+                    .map(|a| if i == a + 1 { 1.0 } else { 0.0 })
+                    .collect()
+            })
             .collect(),
         interaction_fraction: 0.0,
     })
@@ -511,7 +563,11 @@ pub fn hold_out(attribute_sizes: &[usize], fraction: f64, seed: u64) -> Result<K
 /// # Errors
 /// [`Error::SizeMismatch`] if the tensors' or the mask's shapes differ; [`Error::Empty`] if
 /// nothing is held out.
-pub fn impute_rel_error(truth: &FaceTensor, estimate: &FaceTensor, known: &KnownFaces) -> Result<f64> {
+pub fn impute_rel_error(
+    truth: &FaceTensor,
+    estimate: &FaceTensor,
+    known: &KnownFaces,
+) -> Result<f64> {
     if truth.tensor().shape() != estimate.tensor().shape() {
         return Err(Error::SizeMismatch {
             what: "estimate tensor",
@@ -563,14 +619,22 @@ pub fn remeshed_scan(mesh: &TriMesh, slide: f64, noise: f64, seed: u64) -> Resul
     let mut faces = Vec::with_capacity(4 * mesh.faces.len());
     for f in &mesh.faces {
         let mut m = [0u32; 3];
-        for (k, (a, b)) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])].into_iter().enumerate() {
+        for (k, (a, b)) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])]
+            .into_iter()
+            .enumerate()
+        {
             let key = (a.min(b), a.max(b));
             m[k] = *mid.entry(key).or_insert_with(|| {
                 vertices.push((mesh.vertices[a as usize] + mesh.vertices[b as usize]) * 0.5);
                 (vertices.len() - 1) as u32
             });
         }
-        faces.extend_from_slice(&[[f[0], m[0], m[2]], [m[0], f[1], m[1]], [m[2], m[1], f[2]], [m[0], m[1], m[2]]]);
+        faces.extend_from_slice(&[
+            [f[0], m[0], m[2]],
+            [m[0], f[1], m[1]],
+            [m[2], m[1], f[2]],
+            [m[0], m[1], m[2]],
+        ]);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let unit = normal(1.0)?;
@@ -595,7 +659,9 @@ pub fn remeshed_scan(mesh: &TriMesh, slide: f64, noise: f64, seed: u64) -> Resul
 pub fn feature_vertices(mesh: &TriMesh, count: usize) -> Result<Vec<usize>> {
     let v = mesh.vertices.len();
     if v == 0 {
-        return Err(Error::Empty { what: "mesh vertices" });
+        return Err(Error::Empty {
+            what: "mesh vertices",
+        });
     }
     if count > v {
         return Err(Error::InvalidParam {
@@ -604,12 +670,17 @@ pub fn feature_vertices(mesh: &TriMesh, count: usize) -> Result<Vec<usize>> {
         });
     }
     let mut out = vec![0usize];
-    let mut dist: Vec<f64> = mesh.vertices.iter().map(|p| p.distance_squared(mesh.vertices[0])).collect();
+    let mut dist: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .map(|p| p.distance_squared(mesh.vertices[0]))
+        .collect();
     while out.len() < count {
-        let (far, _) = dist
-            .iter()
-            .enumerate()
-            .fold((0, -1.0), |best, (i, &d)| if d > best.1 { (i, d) } else { best });
+        let (far, _) =
+            dist.iter().enumerate().fold(
+                (0, -1.0),
+                |best, (i, &d)| if d > best.1 { (i, d) } else { best },
+            );
         out.push(far);
         for (d, p) in dist.iter_mut().zip(&mesh.vertices) {
             *d = d.min(p.distance_squared(mesh.vertices[far]));
