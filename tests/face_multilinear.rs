@@ -6,12 +6,13 @@
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::face::validation::{
-    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error, remeshed_scan,
-    trilinear_face_set, FaceSetParams, IctBasis,
+    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
+    point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
-    fit_template, impute, impute_by_averaging, CorrespondenceParams, Dials, Error, FaceTensor,
-    ImputeParams, KnownFaces, ModelParams, MultilinearModel,
+    fit_template, impute, impute_by_averaging, mean_weights, procrustes, track_points,
+    CorrespondenceParams, Dials, Error, FaceTensor, ImputeParams, KnownFaces, ModelParams,
+    MultilinearModel, TrackParams,
 };
 use nalgebra::DVector;
 
@@ -191,4 +192,82 @@ fn face_bad_input() {
     // Generator and data errors.
     assert!(hold_out(&[2, 3], 1.0, 0).is_err());
     assert!(IctBasis::read("/nonexistent/ict-face").is_err());
+}
+
+#[test]
+fn face_tracking_from_point_tracks() {
+    let basis = basis();
+    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+    let (model, _) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear()).unwrap();
+    // A person the model never saw (another seed), 1,000 tracked vertices, 0.5 px noise.
+    let novel = bilinear_face_set(
+        &basis,
+        &FaceSetParams::default().with_identities(1).with_seed(99),
+    )
+    .unwrap();
+    let tracked = feature_vertices(&basis.neutral, 1000).unwrap();
+    let seq =
+        point_track_sequence(&novel.faces, &[0, 1, 3, 5, 2, 7, 0], &tracked, 40, 0.5, 5).unwrap();
+    let track = track_points(
+        &model,
+        &tracked,
+        &seq.frames,
+        &[false, true],
+        &TrackParams::default(),
+    )
+    .unwrap();
+    let width = {
+        let xs = seq.truth[0].iter().map(|p| p.x);
+        xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
+    };
+    let aligned = |f: &[DVec3], truth: &[DVec3]| {
+        let s = procrustes(f, truth).unwrap();
+        (f.iter()
+            .zip(truth)
+            .map(|(a, b)| s.apply(*a).distance_squared(*b))
+            .sum::<f64>()
+            / f.len() as f64)
+            .sqrt()
+    };
+    let mean_face = model.face(&mean_weights(&model).unwrap()).unwrap();
+    let (mut ours, mut base) = (0.0, 0.0);
+    for (t, truth) in seq.truth.iter().enumerate() {
+        ours += aligned(&model.face(&track.weights[t]).unwrap(), truth) / width;
+        base += aligned(&mean_face, truth) / width;
+    }
+    let (ours, base) = (100.0 * ours / 40.0, 100.0 * base / 40.0);
+    assert!(
+        ours <= 1.2 && ours < 0.5 * base,
+        "tracked {ours} % vs mean face {base} %"
+    );
+    // Bad input: a frame with a missing point, NaN pixels, too few points.
+    let mut frames = seq.frames.clone();
+    frames[3].pop();
+    let e = track_points(
+        &model,
+        &tracked,
+        &frames,
+        &[false, true],
+        &TrackParams::default(),
+    )
+    .unwrap_err();
+    assert_eq!(e.contexts(), vec![dynamic_shapes::face::Context::Frame(3)]);
+    frames[3] = seq.frames[3].clone();
+    frames[5][0][1] = f64::NAN;
+    assert!(track_points(
+        &model,
+        &tracked,
+        &frames,
+        &[false, true],
+        &TrackParams::default()
+    )
+    .is_err());
+    assert!(track_points(
+        &model,
+        &tracked[..3],
+        &[vec![[0.0; 2]; 3]],
+        &[false, true],
+        &TrackParams::default()
+    )
+    .is_err());
 }

@@ -65,6 +65,7 @@ mod error;
 mod face_data;
 mod impute;
 mod model;
+mod tracking;
 #[cfg(feature = "validation")]
 pub mod validation;
 
@@ -73,3 +74,4 @@ pub use error::{Context, Error, Result, ResultExt};
 pub use face_data::{FaceTensor, KnownFaces};
 pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
 pub use model::{Dials, ModelFit, ModelParams, MultilinearModel};
+pub use tracking::{mean_weights, track_points, PointTrack, TrackParams, WeakPerspective};

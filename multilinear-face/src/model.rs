@@ -126,6 +126,31 @@ impl MultilinearModel {
         ))
     }
 
+    /// The model restricted to some vertices (in the given order): faces of the restricted
+    /// model are those vertices of this model's faces.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a vertex past the model, [`Error::Empty`] for none.
+    pub fn restrict(&self, vertices: &[usize]) -> Result<Self> {
+        if vertices.is_empty() {
+            return Err(Error::Empty { what: "vertices" });
+        }
+        let block: usize = self.ranks().iter().product();
+        let src = self.core.data();
+        let mut data = Vec::with_capacity(3 * vertices.len() * block);
+        for &v in vertices {
+            skin_core::check::index("vertex", v, self.vertex_count)?;
+            data.extend_from_slice(&src[3 * v * block..3 * (v + 1) * block]);
+        }
+        let mut shape = self.core.shape().to_vec();
+        shape[0] = 3 * vertices.len();
+        Ok(MultilinearModel {
+            vertex_count: vertices.len(),
+            core: Tensor::new(shape, data)?,
+            factors: self.factors.clone(),
+        })
+    }
+
     /// Vertices per face.
     pub fn vertex_count(&self) -> usize {
         self.vertex_count

@@ -688,3 +688,96 @@ pub fn feature_vertices(mesh: &TriMesh, count: usize) -> Result<Vec<usize>> {
     }
     Ok(out)
 }
+
+/// A synthetic tracking sequence (stand-in for KLT tracks of a 640 × 480 video): pixel
+/// positions of tracked vertices under a weak-perspective camera with head motion, plus the
+/// true 3D faces.
+#[derive(Clone, Debug)]
+pub struct PointTrackSequence {
+    /// Per frame, the pixel position of each tracked vertex (with noise).
+    pub frames: Vec<Vec<[f64; 2]>>,
+    /// Per frame, the true face (all vertices).
+    pub truth: Vec<Vec<DVec3>>,
+    /// Per frame, the true camera.
+    pub cameras: Vec<crate::WeakPerspective>,
+}
+
+/// A sequence of `frame_count` frames of one person (`person`: a data set with one identity,
+/// e.g. [`bilinear_face_set`] with `identities = 1` and a seed the model never saw): the
+/// expression moves linearly through the person's faces in the order `order` (indices of
+/// faces), the head turns (yaw ±23°, pitch ±14°, roll ±9°), moves (±30 × ±20 px around the
+/// centre of a 640 × 480 image) and scales (20 px per unit ± 10 %); each tracked vertex's
+/// projection gets i.i.d. Gaussian noise of `noise_px` (KLT error).
+///
+/// # Errors
+/// [`Error::Empty`] for fewer than 2 frames or an order of fewer than 2 faces;
+/// [`Error::IndexOutOfRange`] for a face or tracked vertex out of range;
+/// [`Error::InvalidParam`] for negative noise.
+pub fn point_track_sequence(
+    person: &FaceTensor,
+    order: &[usize],
+    tracked: &[usize],
+    frame_count: usize,
+    noise_px: f64,
+    seed: u64,
+) -> Result<PointTrackSequence> {
+    if frame_count < 2 || order.len() < 2 {
+        return Err(Error::Empty {
+            what: "frames or expression order (at least 2)",
+        });
+    }
+    skin_core::check::non_negative("noise_px", noise_px)?;
+    let faces: Vec<Vec<DVec3>> = order
+        .iter()
+        .map(|&f| person.face(f))
+        .collect::<Result<_>>()?;
+    for &v in tracked {
+        skin_core::check::index("tracked vertex", v, person.vertex_count())?;
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let unit = normal(1.0)?;
+    let mut seq = PointTrackSequence {
+        frames: Vec::new(),
+        truth: Vec::new(),
+        cameras: Vec::new(),
+    };
+    for t in 0..frame_count {
+        let x = t as f64 / (frame_count - 1) as f64 * (order.len() - 1) as f64;
+        let k = (x.floor() as usize).min(order.len() - 2);
+        let u = x - k as f64;
+        let f: Vec<DVec3> = faces[k]
+            .iter()
+            .zip(&faces[k + 1])
+            .map(|(a, b)| *a * (1.0 - u) + *b * u)
+            .collect();
+        let tt = t as f64 / 10.0;
+        use skin_core::math::DMat3;
+        let r = DMat3::from_rotation_y(0.4 * tt.sin())
+            * DMat3::from_rotation_x(0.25 * (0.7 * tt).sin())
+            * DMat3::from_rotation_z(0.15 * (1.3 * tt).cos());
+        // Image y points down: the second row is −(R's second row).
+        let cam = crate::WeakPerspective {
+            scale: 20.0 * (1.0 + 0.1 * (0.5 * tt).sin()),
+            rows: [r.row(0).to_array(), (-r.row(1)).to_array()],
+            translation: [
+                320.0 + 30.0 * (0.3 * tt).sin(),
+                240.0 + 20.0 * (0.4 * tt).cos(),
+            ],
+        };
+        seq.frames.push(
+            tracked
+                .iter()
+                .map(|&v| {
+                    let p = cam.project(f[v].to_array());
+                    [
+                        p[0] + noise_px * unit.sample(&mut rng),
+                        p[1] + noise_px * unit.sample(&mut rng),
+                    ]
+                })
+                .collect(),
+        );
+        seq.truth.push(f);
+        seq.cameras.push(cam);
+    }
+    Ok(seq)
+}
