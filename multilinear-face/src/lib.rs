@@ -5,7 +5,8 @@
 //! Models*, SIGGRAPH 2005): faces in full correspondence arranged into a data tensor by
 //! attribute (expression × identity, or viseme × expression × identity), decomposed by the
 //! N-mode SVD without factoring the vertex mode; faces from attribute weights; dials tuned to
-//! named attributes; missing faces imputed from all modes jointly; template correspondence.
+//! named attributes; missing faces imputed from all modes jointly; template correspondence;
+//! attributes tracked through 2D point tracks.
 //! The tensor algebra itself (HOSVD, HOOI, mode products) is `skin_core::tensor`.
 //!
 //! ## Stages, in pipeline order (one private file each, everything re-exported here)
@@ -16,10 +17,13 @@
 //! | `face_data.rs` | the data tensor (vertices × attributes) and which faces are known | [`FaceTensor`], [`KnownFaces`] | Figure 5-3, §5.3.4 |
 //! | `impute.rs` | per-mode PPCA, constraints of all modes solved jointly, iterated (EM); the averaging baseline | [`impute`], [`impute_by_averaging`], [`ImputeParams`] | §5.3.4 |
 //! | `model.rs` | the multilinear model, faces from weights, the linear basis of one attribute, dial tuning | [`MultilinearModel`], [`ModelParams`], [`Dials`] | §5.3.3, Eq. 5.4, 5.5, 5.9, §5.4 |
+//! | `tracking.rs` | weak-perspective camera, coordinate descent over attributes through 2D point tracks, constant attributes accumulated over all frames, passes | [`track_points`], [`WeakPerspective`], [`TrackParams`] | §5.4.1, Eq. 5.7–5.9 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans | [`validation`] | §5.3.1 |
 //!
-//! Face tracking from video and face transfer (§5.4.1–5.4.2) are not implemented yet.
+//! Not implemented yet: the KLT optical flow that turns video into point tracks (Eq. 5.6),
+//! multi-scale tracking and initialisation from feature points in images (§5.4.2), and
+//! textured face transfer into video frames.
 //!
 //! Errors are one [`Error`]; an error inside a loop says where ([`Error::At`] with a
 //! [`Context`]: `Frame(i)` is the `i`-th face of a list, or the attribute mode of an
