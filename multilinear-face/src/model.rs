@@ -398,6 +398,21 @@ mod tests {
     }
 
     #[test]
+    fn a_restricted_model_gives_the_same_vertices() {
+        let t = bilinear_faces(5, 6, 30);
+        let (m, _) = MultilinearModel::fit(&t, &ModelParams::new(&[2, 3])).unwrap();
+        let sub = m.restrict(&[7, 2, 29]).unwrap();
+        let w = vec![
+            m.training_weights(0, 4).unwrap(),
+            m.training_weights(1, 1).unwrap(),
+        ];
+        let (full, part) = (m.face(&w).unwrap(), sub.face(&w).unwrap());
+        assert_eq!(part, vec![full[7], full[2], full[29]]);
+        assert!(m.restrict(&[30]).is_err());
+        assert!(m.restrict(&[]).is_err());
+    }
+
+    #[test]
     fn dials_reach_the_labelled_training_values() {
         let t = bilinear_faces(5, 6, 30);
         let (m, _) = MultilinearModel::fit(&t, &ModelParams::new(&[2, 3])).unwrap();
