@@ -142,17 +142,15 @@ struct Ppca {
 fn fit_ppca(
     m: &DVector<f64>,
     s: &DMatrix<f64>,
-    sizes: &[usize],
-    mode: usize,
+    groups: &[Vec<usize>],
+    d: usize,
     rank: Option<usize>,
     energy: f64,
 ) -> Ppca {
-    let d = sizes[mode];
-    let groups = mode_groups(sizes, mode);
     let n = groups.len() as f64;
     let mut mean = DVector::zeros(d);
     let mut gram = DMatrix::zeros(d, d);
-    for g in &groups {
+    for g in groups {
         for (a, &fa) in g.iter().enumerate() {
             mean[a] += m[fa] / n;
             for (b, &fb) in g.iter().enumerate() {
@@ -308,6 +306,7 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
     let mut changes = Vec::new();
     let mut converged = false;
     let mut iterations = 0;
+    let groups: Vec<Vec<Vec<usize>>> = (0..sizes.len()).map(|n| mode_groups(&sizes, n)).collect();
     for it in 0..params.max_iterations {
         iterations += 1;
         let mut q = DMatrix::zeros(k, k);
@@ -316,14 +315,14 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
             let ppca = fit_ppca(
                 &m,
                 &s,
-                &sizes,
-                mode,
+                &groups[mode],
+                sizes[mode],
                 params.ranks.as_ref().map(|r| r[mode]),
                 params.energy,
             );
             ranks[mode] = ppca.rank;
             let pm = &ppca.precision * &ppca.mean;
-            for grp in mode_groups(&sizes, mode) {
+            for grp in &groups[mode] {
                 for (i, &fa) in grp.iter().enumerate() {
                     lin[fa] += pm[i];
                     for (j, &fb) in grp.iter().enumerate() {
