@@ -18,3 +18,6 @@ pub use photometric_normals as photometric;
 
 #[doc(inline)]
 pub use inertial_acoustic as inertial;
+
+#[doc(inline)]
+pub use multilinear_face as face;

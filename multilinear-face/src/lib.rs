@@ -1,0 +1,81 @@
+//! # multilinear-face
+//!
+//! Multilinear face models after D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis,
+//! 2010), Chapter 5 (and Vlasic, Brand, Pfister, Popović, *Face Transfer with Multilinear
+//! Models*, SIGGRAPH 2005): faces in full correspondence arranged into a data tensor by
+//! attribute (expression × identity, or viseme × expression × identity), decomposed by the
+//! N-mode SVD without factoring the vertex mode; faces from attribute weights; dials tuned to
+//! named attributes; missing faces imputed from all modes jointly; template correspondence;
+//! attributes tracked through 2D point tracks.
+//! The tensor algebra itself (HOSVD, HOOI, mode products) is `skin_core::tensor`.
+//!
+//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//!
+//! | file | stage | main items | paper |
+//! | --- | --- | --- | --- |
+//! | `correspondence.rs` | Procrustes from feature points, then the minimal deformation (smoothness, features, closest points; features weighted first) | [`fit_template`], [`procrustes`], [`CorrespondenceParams`] | §5.3.2 |
+//! | `face_data.rs` | the data tensor (vertices × attributes) and which faces are known | [`FaceTensor`], [`KnownFaces`] | Figure 5-3, §5.3.4 |
+//! | `impute.rs` | per-mode PPCA, constraints of all modes solved jointly, iterated (EM); the averaging baseline | [`impute`], [`impute_by_averaging`], [`ImputeParams`] | §5.3.4 |
+//! | `model.rs` | the multilinear model, faces from weights, the linear basis of one attribute, dial tuning | [`MultilinearModel`], [`ModelParams`], [`Dials`] | §5.3.3, Eq. 5.4, 5.5, 5.9, §5.4 |
+//! | `tracking.rs` | weak-perspective camera, coordinate descent over attributes through 2D point tracks, constant attributes accumulated over all frames, passes | [`track_points`], [`WeakPerspective`], [`TrackParams`] | §5.4.1, Eq. 5.7–5.9 |
+//! | `error.rs` | [`Error`], [`Context`] | | — |
+//! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans | [`validation`] | §5.3.1 |
+//!
+//! Not implemented yet: the KLT optical flow that turns video into point tracks (Eq. 5.6),
+//! multi-scale tracking and initialisation from feature points in images (§5.4.2), and
+//! textured face transfer into video frames.
+//!
+//! Errors are one [`Error`]; an error inside a loop says where ([`Error::At`] with a
+//! [`Context`]: `Frame(i)` is the `i`-th face of a list, or the attribute mode of an
+//! all-missing slice).
+//!
+//! ## Quick start
+//!
+//! Six small "faces" that vary bilinearly with two expressions and three people: the model
+//! at full rank reproduces each face from its weights (Eq. 5.5), and a held-out face is
+//! imputed from the others.
+//!
+//! ```
+//! use multilinear_face::{impute, FaceTensor, ImputeParams, KnownFaces, ModelParams, MultilinearModel};
+//! use skin_core::math::DVec3;
+//!
+//! let face = |e: f64, i: f64| -> Vec<DVec3> {
+//!     (0..20)
+//!         .map(|k| {
+//!             let k = k as f64;
+//!             DVec3::new(k, (0.3 * k).sin() * (1.0 + 0.5 * i), e * (0.2 * k).cos() * (1.0 + 0.3 * i))
+//!         })
+//!         .collect()
+//! };
+//! let faces: Vec<Vec<DVec3>> = (0..6).map(|f| face((f / 3) as f64, (f % 3) as f64)).collect();
+//! let data = FaceTensor::from_faces(&[2, 3], &faces)?; // 2 expressions × 3 people
+//! let (model, fit) = MultilinearModel::fit(&data, &ModelParams::new(&[2, 3]))?;
+//! assert!(fit.hooi_rel_error < 1e-6);
+//! let w = [model.training_weights(0, 1)?, model.training_weights(1, 2)?];
+//! let f = model.face(&w)?; // expression 1 of person 2
+//! assert!(f[7].distance(faces[5][7]) < 1e-9);
+//!
+//! // Hold out expression 1 of person 0 and impute it from the other five faces.
+//! let known = KnownFaces::new(&[2, 3], vec![true, true, true, false, true, true])?;
+//! let filled = impute(&data, &known, &ImputeParams::default())?;
+//! assert_eq!(filled.faces.face(3)?.len(), 20);
+//! # Ok::<(), multilinear_face::Error>(())
+//! ```
+#![warn(missing_docs)]
+#![warn(unnameable_types, unreachable_pub)]
+
+mod correspondence;
+mod error;
+mod face_data;
+mod impute;
+mod model;
+mod tracking;
+#[cfg(feature = "validation")]
+pub mod validation;
+
+pub use correspondence::{fit_template, procrustes, CorrespondenceParams, Similarity, TemplateFit};
+pub use error::{Context, Error, Result, ResultExt};
+pub use face_data::{FaceTensor, KnownFaces};
+pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
+pub use model::{Dials, ModelFit, ModelParams, MultilinearModel};
+pub use tracking::{mean_weights, track_points, PointTrack, TrackParams, WeakPerspective};

@@ -1,0 +1,273 @@
+//! multilinear-face (Vlasic 2010 Ch. 5) end to end on data sets generated from the real ICT
+//! face basis: decomposition, Eq. 5.5, dial tuning, imputation against the averaging baseline,
+//! correspondence against Procrustes alone, and bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::face::validation::{
+    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
+    point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams, IctBasis,
+};
+use dynamic_shapes::face::{
+    fit_template, impute, impute_by_averaging, mean_weights, procrustes, track_points,
+    CorrespondenceParams, Dials, Error, FaceTensor, ImputeParams, KnownFaces, ModelParams,
+    MultilinearModel, TrackParams,
+};
+use nalgebra::DVector;
+
+fn basis() -> IctBasis {
+    IctBasis::read(example_kit::data_path("ict-face").unwrap()).unwrap()
+}
+
+fn max_dist(a: &[DVec3], b: &[DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| x.distance(*y))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn face_decomposition_and_dials() {
+    let basis = basis();
+    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+    assert_eq!(bi.faces.tensor().shape(), &[3 * 6706, 10, 15]);
+    assert!(bi.interaction_fraction > 0.2, "{}", bi.interaction_fraction);
+    // Thesis truncation: small error, HOOI no worse than its HOSVD start.
+    let (model, fit) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear()).unwrap();
+    assert!(fit.hosvd_rel_error < 0.02, "{fit:?}");
+    assert!(fit.hooi_rel_error <= fit.hosvd_rel_error + 1e-9, "{fit:?}");
+    // The generator's multilinear rank is (10, 11): kept whole, Eq. 5.5 gives back every face.
+    let (full, fit_full) = MultilinearModel::fit(&bi.faces, &ModelParams::new(&[10, 11])).unwrap();
+    assert!(fit_full.hooi_rel_error < 1e-5, "{fit_full:?}");
+    for f in [0, 37, 149] {
+        let w = vec![
+            full.training_weights(0, f / 15).unwrap(),
+            full.training_weights(1, f % 15).unwrap(),
+        ];
+        assert!(max_dist(&full.face(&w).unwrap(), &bi.faces.face(f).unwrap()) < 1e-6);
+    }
+    // Dial tuning: the blendshape labels of a training expression give its weights back.
+    let dials = Dials::fit(&model, 0, &bi.labels[0]).unwrap();
+    let smile_labels: Vec<f64> = bi.labels[0].row(1).iter().copied().collect();
+    let w = dials.weights(&smile_labels).unwrap();
+    assert!((w - model.training_weights(0, 1).unwrap()).norm() < 1e-9);
+
+    // The ICT shapes alone are additive: no interaction energy at all, while ours has some.
+    let ict = ict_face_set(&basis).unwrap();
+    let (_, ict_fit) = MultilinearModel::fit(&ict.faces, &ModelParams::new(&[17, 11])).unwrap();
+    assert!(ict_fit.hooi_rel_error < 1e-5);
+    // Trilinear shapes at the thesis's truncation.
+    let tri = trilinear_face_set(&basis, &FaceSetParams::default().with_identities(16)).unwrap();
+    assert_eq!(tri.faces.tensor().shape(), &[3 * 6706, 5, 5, 16]);
+    let (_, tfit) = MultilinearModel::fit(&tri.faces, &ModelParams::thesis_trilinear()).unwrap();
+    assert!(tfit.hooi_rel_error < 0.02 && tfit.hooi_rel_error <= tfit.hosvd_rel_error + 1e-9);
+}
+
+#[test]
+fn face_imputation_beats_averaging() {
+    let basis = basis();
+    let tri = trilinear_face_set(&basis, &FaceSetParams::default().with_identities(16)).unwrap();
+    for (fraction, goal) in [(0.15, Some(0.05)), (0.5, None)] {
+        let known = hold_out(tri.faces.attribute_sizes(), fraction, 7).unwrap();
+        let ours = impute(&tri.faces, &known, &ImputeParams::default()).unwrap();
+        let avg = impute_by_averaging(&tri.faces, &known).unwrap();
+        let (e_ours, e_avg) = (
+            impute_rel_error(&tri.faces, &ours.faces, &known).unwrap(),
+            impute_rel_error(&tri.faces, &avg, &known).unwrap(),
+        );
+        assert!(
+            e_ours < 0.75 * e_avg,
+            "{fraction}: ours {e_ours} vs averaging {e_avg}"
+        );
+        if let Some(g) = goal {
+            assert!(e_ours <= g, "{fraction}: ours {e_ours}");
+        }
+        // Known faces are returned untouched.
+        let f = known.known()[0];
+        assert_eq!(ours.faces.face(f).unwrap(), tri.faces.face(f).unwrap());
+    }
+    // Bilinear set, 15 %: under the goal and far below the baseline.
+    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+    let known = hold_out(bi.faces.attribute_sizes(), 0.15, 7).unwrap();
+    let ours = impute(&bi.faces, &known, &ImputeParams::default()).unwrap();
+    let avg = impute_by_averaging(&bi.faces, &known).unwrap();
+    let e_ours = impute_rel_error(&bi.faces, &ours.faces, &known).unwrap();
+    let e_avg = impute_rel_error(&bi.faces, &avg, &known).unwrap();
+    assert!(
+        e_ours <= 0.05 && e_ours < 0.2 * e_avg,
+        "ours {e_ours} vs averaging {e_avg}"
+    );
+    // Without interaction the averaging baseline is exact (why the generator needs one).
+    let ict = ict_face_set(&basis).unwrap();
+    let known = hold_out(ict.faces.attribute_sizes(), 0.15, 7).unwrap();
+    let avg = impute_by_averaging(&ict.faces, &known).unwrap();
+    assert!(impute_rel_error(&ict.faces, &avg, &known).unwrap() < 1e-9);
+}
+
+#[test]
+fn face_correspondence_to_a_remeshed_scan() {
+    let basis = basis();
+    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+    let truth = bi
+        .faces
+        .face(bi.faces.face_index(&[1, 3]).unwrap())
+        .unwrap();
+    let scan = remeshed_scan(
+        &TriMesh::new(truth.clone(), bi.triangles.clone()).unwrap(),
+        0.1,
+        0.01,
+        3,
+    )
+    .unwrap();
+    assert!(scan.vertices.len() > 3 * truth.len());
+    let features = feature_vertices(&basis.neutral, 42).unwrap();
+    let marked: Vec<DVec3> = features.iter().map(|&f| truth[f]).collect();
+    let fit = fit_template(
+        &basis.neutral,
+        &features,
+        &scan,
+        &marked,
+        &CorrespondenceParams::default(),
+    )
+    .unwrap();
+    let rms = |v: &[DVec3]| {
+        10.0 * (v
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| a.distance_squared(*b))
+            .sum::<f64>()
+            / v.len() as f64)
+            .sqrt()
+    };
+    let (fit_mm, rigid_mm) = (rms(&fit.vertices), rms(&fit.aligned));
+    assert!(
+        fit_mm < 2.0 && fit_mm < 0.4 * rigid_mm,
+        "fit {fit_mm} mm, Procrustes only {rigid_mm} mm"
+    );
+    // Bad input: a feature index past the template.
+    let mut bad = features.clone();
+    bad[0] = 1_000_000;
+    assert!(fit_template(
+        &basis.neutral,
+        &bad,
+        &scan,
+        &marked,
+        &CorrespondenceParams::default()
+    )
+    .is_err());
+}
+
+#[test]
+fn face_bad_input() {
+    let v = |n: usize, s: f64| {
+        (0..n)
+            .map(|i| DVec3::new(i as f64, s, 0.0))
+            .collect::<Vec<_>>()
+    };
+    // Ragged (non-corresponding) meshes.
+    let mut faces: Vec<_> = (0..6).map(|f| v(5, f as f64)).collect();
+    faces[4] = v(4, 0.0);
+    let e = FaceTensor::from_faces(&[2, 3], &faces).unwrap_err();
+    assert!(matches!(e.root(), Error::SizeMismatch { .. }));
+    // An all-missing slice.
+    let e = KnownFaces::new(&[2, 3], vec![true, false, true, true, false, true]).unwrap_err();
+    assert!(matches!(e.root(), Error::Empty { .. }));
+    // Ranks larger than a mode, of the wrong count.
+    faces[4] = v(5, 4.0);
+    let t = FaceTensor::from_faces(&[2, 3], &faces).unwrap();
+    assert!(matches!(
+        MultilinearModel::fit(&t, &ModelParams::new(&[3, 3])),
+        Err(Error::InvalidParam { .. })
+    ));
+    assert!(MultilinearModel::fit(&t, &ModelParams::new(&[2])).is_err());
+    let (m, _) = MultilinearModel::fit(&t, &ModelParams::new(&[2, 3])).unwrap();
+    let nan = vec![DVector::from_element(2, f64::NAN), DVector::zeros(3)];
+    assert!(m.face(&nan).is_err());
+    // Imputation: a mask of another shape, PPCA ranks above a mode.
+    let known = KnownFaces::new(&[3, 2], vec![true; 6]).unwrap();
+    assert!(impute(&t, &known, &ImputeParams::default()).is_err());
+    let known = KnownFaces::new(&[2, 3], vec![true, true, true, false, true, true]).unwrap();
+    assert!(impute(&t, &known, &ImputeParams::default().with_ranks(&[3, 1])).is_err());
+    // Generator and data errors.
+    assert!(hold_out(&[2, 3], 1.0, 0).is_err());
+    assert!(IctBasis::read("/nonexistent/ict-face").is_err());
+}
+
+#[test]
+fn face_tracking_from_point_tracks() {
+    let basis = basis();
+    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+    let (model, _) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear()).unwrap();
+    // A person the model never saw (another seed), 1,000 tracked vertices, 0.5 px noise.
+    let novel = bilinear_face_set(
+        &basis,
+        &FaceSetParams::default().with_identities(1).with_seed(99),
+    )
+    .unwrap();
+    let tracked = feature_vertices(&basis.neutral, 1000).unwrap();
+    let seq =
+        point_track_sequence(&novel.faces, &[0, 1, 3, 5, 2, 7, 0], &tracked, 40, 0.5, 5).unwrap();
+    let track = track_points(
+        &model,
+        &tracked,
+        &seq.frames,
+        &[false, true],
+        &TrackParams::default(),
+    )
+    .unwrap();
+    let width = {
+        let xs = seq.truth[0].iter().map(|p| p.x);
+        xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
+    };
+    let aligned = |f: &[DVec3], truth: &[DVec3]| {
+        let s = procrustes(f, truth).unwrap();
+        (f.iter()
+            .zip(truth)
+            .map(|(a, b)| s.apply(*a).distance_squared(*b))
+            .sum::<f64>()
+            / f.len() as f64)
+            .sqrt()
+    };
+    let mean_face = model.face(&mean_weights(&model).unwrap()).unwrap();
+    let (mut ours, mut base) = (0.0, 0.0);
+    for (t, truth) in seq.truth.iter().enumerate() {
+        ours += aligned(&model.face(&track.weights[t]).unwrap(), truth) / width;
+        base += aligned(&mean_face, truth) / width;
+    }
+    let (ours, base) = (100.0 * ours / 40.0, 100.0 * base / 40.0);
+    assert!(
+        ours <= 1.2 && ours < 0.5 * base,
+        "tracked {ours} % vs mean face {base} %"
+    );
+    // Bad input: a frame with a missing point, NaN pixels, too few points.
+    let mut frames = seq.frames.clone();
+    frames[3].pop();
+    let e = track_points(
+        &model,
+        &tracked,
+        &frames,
+        &[false, true],
+        &TrackParams::default(),
+    )
+    .unwrap_err();
+    assert_eq!(e.contexts(), vec![dynamic_shapes::face::Context::Frame(3)]);
+    frames[3] = seq.frames[3].clone();
+    frames[5][0][1] = f64::NAN;
+    assert!(track_points(
+        &model,
+        &tracked,
+        &frames,
+        &[false, true],
+        &TrackParams::default()
+    )
+    .is_err());
+    assert!(track_points(
+        &model,
+        &tracked[..3],
+        &[vec![[0.0; 2]; 3]],
+        &[false, true],
+        &TrackParams::default()
+    )
+    .is_err());
+}
