@@ -3,16 +3,15 @@
 //! correspondence against Procrustes alone, and bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::math::{fit_similarity, Alignment, DVec3};
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::face::validation::{
     bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
     point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
-    fit_template, impute, impute_by_averaging, mean_weights, procrustes, track_points,
-    CorrespondenceParams, Dials, Error, FaceTensor, ImputeParams, KnownFaces, ModelParams,
-    MultilinearModel, TrackParams,
+    fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
+    Dials, Error, FaceTensor, ImputeParams, KnownFaces, ModelParams, MultilinearModel, TrackParams,
 };
 use nalgebra::DVector;
 
@@ -221,7 +220,7 @@ fn face_tracking_from_point_tracks() {
         xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
     };
     let aligned = |f: &[DVec3], truth: &[DVec3]| {
-        let s = procrustes(f, truth).unwrap();
+        let s = fit_similarity(f, truth, None, Alignment::Similarity).unwrap();
         (f.iter()
             .zip(truth)
             .map(|(a, b)| s.apply(*a).distance_squared(*b))

@@ -34,7 +34,7 @@ use clap::Parser;
 use nalgebra::DVector;
 use serde_json::json;
 
-use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::math::{fit_similarity, Alignment, DVec3};
 use dynamic_shapes::core::mesh::{RefineParams, Refinement, TriMesh};
 use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use dynamic_shapes::face::validation::{
@@ -42,9 +42,8 @@ use dynamic_shapes::face::validation::{
     point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet, FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
-    fit_template, impute, impute_by_averaging, mean_weights, procrustes, track_points,
-    CorrespondenceParams, Dials, FaceTensor, ImputeParams, KnownFaces, ModelParams,
-    MultilinearModel, TrackParams,
+    fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
+    Dials, FaceTensor, ImputeParams, KnownFaces, ModelParams, MultilinearModel, TrackParams,
 };
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -677,7 +676,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
     };
     let aligned_dist = |f: &[DVec3], truth: &[DVec3]| -> f64 {
-        let s = procrustes(f, truth).unwrap();
+        let s = fit_similarity(f, truth, None, Alignment::Similarity).unwrap();
         (f.iter()
             .zip(truth)
             .map(|(a, b)| s.apply(*a).distance_squared(*b))

@@ -3,96 +3,13 @@
 //! smoothness, feature proximity and closest-point proximity, first weighting the features,
 //! then the proximity.
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
 use skin_core::lsq::{LsqParams, LsqProblem};
-use skin_core::math::DVec3;
+use skin_core::math::{fit_similarity, Alignment, DVec3, Similarity};
 use skin_core::mesh::{uniform_laplacian, MeshQuery, TriMesh};
 
 use crate::{Error, Result};
-
-/// A similarity transform `p ↦ s R p + t`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Similarity {
-    /// Scale `s > 0`.
-    pub scale: f64,
-    /// Rotation `R` (row-major rows).
-    pub rotation: [[f64; 3]; 3],
-    /// Translation `t`.
-    pub translation: DVec3,
-}
-
-impl Similarity {
-    /// Applies the transform to a point.
-    pub fn apply(&self, p: DVec3) -> DVec3 {
-        let r = &self.rotation;
-        DVec3::new(
-            r[0][0] * p.x + r[0][1] * p.y + r[0][2] * p.z,
-            r[1][0] * p.x + r[1][1] * p.y + r[1][2] * p.z,
-            r[2][0] * p.x + r[2][1] * p.y + r[2][2] * p.z,
-        ) * self.scale
-            + self.translation
-    }
-}
-
-/// The least-squares similarity taking `from[i]` to `to[i]` (Umeyama 1991: Procrustes with
-/// scale, reflections excluded).
-///
-/// # Errors
-/// [`Error::SizeMismatch`] for lists of different lengths, [`Error::Empty`] for fewer than 3
-/// points, [`Error::NonFinite`], [`Error::InvalidParam`] for coincident points.
-pub fn procrustes(from: &[DVec3], to: &[DVec3]) -> Result<Similarity> {
-    skin_core::check::same_size("Procrustes point lists", from.len(), to.len())?;
-    if from.len() < 3 {
-        return Err(Error::Empty {
-            what: "Procrustes points (at least 3)",
-        });
-    }
-    for p in from.iter().chain(to) {
-        if !p.is_finite() {
-            return Err(Error::NonFinite {
-                what: "Procrustes points",
-            });
-        }
-    }
-    let n = from.len() as f64;
-    let (ca, cb) = (
-        from.iter().copied().sum::<DVec3>() / n,
-        to.iter().copied().sum::<DVec3>() / n,
-    );
-    let mut cov = Matrix3::zeros();
-    let mut var = 0.0;
-    for (a, b) in from.iter().zip(to) {
-        let (a, b) = (*a - ca, *b - cb);
-        cov += Vector3::new(b.x, b.y, b.z) * Vector3::new(a.x, a.y, a.z).transpose();
-        var += a.length_squared();
-    }
-    if var <= 0.0 {
-        return Err(Error::InvalidParam {
-            name: "Procrustes points",
-            reason: "all source points coincide".into(),
-        });
-    }
-    let svd = cov.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return Err(Error::InvalidParam {
-            name: "Procrustes points",
-            reason: "SVD failed".into(),
-        });
-    };
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let scale = (svd.singular_values.component_mul(&d.diagonal())).sum() / var;
-    let rca = r * Vector3::new(ca.x, ca.y, ca.z) * scale;
-    Ok(Similarity {
-        scale,
-        rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
-        translation: cb - DVec3::new(rca.x, rca.y, rca.z),
-    })
-}
 
 /// Parameters of [`fit_template`]. The thesis names the terms and their order, not their
 /// weights (it used gradient descent); ours are for a template in ≈ cm.
@@ -169,7 +86,8 @@ pub fn fit_template(
         .iter()
         .map(|&f| template.vertices[f])
         .collect();
-    let alignment = procrustes(&from, scan_features)?;
+    // Procrustes with scale (Umeyama), reflections excluded.
+    let alignment = fit_similarity(&from, scan_features, None, Alignment::Similarity)?;
     let aligned: Vec<DVec3> = template
         .vertices
         .iter()
@@ -220,31 +138,4 @@ pub fn fit_template(
         aligned,
         surface_rms,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn procrustes_recovers_a_similarity() {
-        let pts: Vec<DVec3> = (0..6)
-            .map(|i| DVec3::new((i as f64).sin(), (2.0 * i as f64).cos(), 0.3 * i as f64))
-            .collect();
-        let (c, s) = (0.6f64.cos(), 0.6f64.sin());
-        let truth = Similarity {
-            scale: 1.7,
-            rotation: [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
-            translation: DVec3::new(1.0, -2.0, 0.5),
-        };
-        let moved: Vec<DVec3> = pts.iter().map(|p| truth.apply(*p)).collect();
-        let est = procrustes(&pts, &moved).unwrap();
-        assert!((est.scale - 1.7).abs() < 1e-9);
-        for (p, q) in pts.iter().zip(&moved) {
-            assert!(est.apply(*p).distance(*q) < 1e-9);
-        }
-        assert!(procrustes(&pts[..2], &moved[..2]).is_err());
-        assert!(procrustes(&pts, &moved[..5]).is_err());
-        assert!(procrustes(&[DVec3::ZERO; 3], &moved[..3]).is_err());
-    }
 }

@@ -13,7 +13,7 @@
 //!
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
-//! | `correspondence.rs` | Procrustes from feature points, then the minimal deformation (smoothness, features, closest points; features weighted first) | [`fit_template`], [`procrustes`], [`CorrespondenceParams`] | §5.3.2 |
+//! | `correspondence.rs` | Procrustes from feature points, then the minimal deformation (smoothness, features, closest points; features weighted first) | [`fit_template`], [`CorrespondenceParams`] (the alignment: `skin_core::math::fit_similarity`) | §5.3.2 |
 //! | `face_data.rs` | the data tensor (vertices × attributes) and which faces are known | [`FaceTensor`], [`KnownFaces`] | Figure 5-3, §5.3.4 |
 //! | `impute.rs` | per-mode PPCA, constraints of all modes solved jointly, iterated (EM); the averaging baseline | [`impute`], [`impute_by_averaging`], [`ImputeParams`] | §5.3.4 |
 //! | `model.rs` | the multilinear model, faces from weights, the linear basis of one attribute, dial tuning | [`MultilinearModel`], [`ModelParams`], [`Dials`] | §5.3.3, Eq. 5.4, 5.5, 5.9, §5.4 |
@@ -73,7 +73,7 @@ mod tracking;
 #[cfg(feature = "validation")]
 pub mod validation;
 
-pub use correspondence::{fit_template, procrustes, CorrespondenceParams, Similarity, TemplateFit};
+pub use correspondence::{fit_template, CorrespondenceParams, TemplateFit};
 pub use error::{Context, Error, Result, ResultExt};
 pub use face_data::{FaceTensor, KnownFaces};
 pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
