@@ -37,5 +37,6 @@ pub mod studio;
 pub mod tensor;
 
 mod faer_bridge;
+mod method_error;
 
 pub use error::{Context, Error, Result, ResultExt};
