@@ -63,7 +63,7 @@ pub const DEFAULT_EFFECTOR_MIN_WEIGHT: f64 = 0.95;
 /// Default handling of end effectors in `E_R`: their whole rigid frame (ours; see
 /// [`EffectorTargets`]).
 pub const DEFAULT_EFFECTOR_TARGETS: EffectorTargets =
-    EffectorTargets::RigidFrame { max_roundness: 0.3 };
+    EffectorTargets::RigidFrame { max_roundness: 0.5 };
 /// Bones shorter than this carry no depth samples, m (a joint at its parent's origin).
 const MIN_BONE_LENGTH_M: f64 = 0.01;
 
@@ -165,14 +165,16 @@ pub enum EffectorTargets {
     /// whose [`Effector::roundness`] is at most `max_roundness` get their frame; the others
     /// (and an effector whose rigid vertices are collinear) keep the thesis' tip rule.
     ///
-    /// The default gate 0.3 takes MakeHuman's flat hands (roundness 0.10) and leaves its
-    /// feet (0.43) and head (0.89). Measured on the studio exercise (8 cameras at
-    /// 800 × 600, four 50-frame runs from frames 40, 140, 240 and 340; mean orientation
-    /// error of the hands over the six hand tracks that neither rule lost): 33° with
-    /// the tip rule, 14° with the hands' frames. Pulling the feet's frames too left them
-    /// no better (6–23° against 5–11°), and the head's made it worse (52° against 33° at
-    /// 1600 × 1200): a near-round skull's twist hardly changes its silhouettes, so the
-    /// shape solve's turn of it is noise.
+    /// The default gate 0.5 takes MakeHuman's flat hands (roundness 0.10) and feet (0.43)
+    /// and leaves its head (0.89), whose twist hardly changes the silhouettes of a near-round
+    /// skull, so that the shape solve's turn of it is noise (pulling it made the head worse:
+    /// 52° against 33° at 1600 × 1200). Measured on the studio exercise, 8 cameras at
+    /// 800 × 600, six 50-frame tracks from frames 65, 115, …, 315 (mean over tracks; a hand
+    /// is lost when its wrist ends more than 4 cm off): tip rule — joints 21.1 mm, hands
+    /// 35° off, ankles 8.3°, 2 hands lost; hands' and feet's frames (0.5) — 16.6 mm, 16°,
+    /// 7.6°, 1 hand lost; hands' frames only (0.3) — 22.8 mm, 35°, 4 hands lost: pulling
+    /// the hands alone while the feet may turn freely destabilises the legs' and pelvis'
+    /// twist, and the whole track with them.
     RigidFrame {
         /// Largest [`Effector::roundness`] whose frame is pulled.
         max_roundness: f64,
