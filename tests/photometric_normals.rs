@@ -13,14 +13,13 @@ use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::raster::{Buffers, RenderParams};
-use dynamic_shapes::core::studio::shading::{dome_lights, DomeParams};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
     ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
 };
 use dynamic_shapes::photometric::truth::{
-    angular_errors_deg, calibrate_camera, distant_light_normals, dome_centre, dome_power_fraction,
-    render_sphere_patterns, studio_patterns, summarize,
+    angular_errors_deg, calibrate_camera, distant_light_normals, dome_power_fraction,
+    render_sphere_patterns, studio_patterns, summarize, LightStage,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, CalibrationSphere, Error, Exposure, LookupTable,
@@ -47,19 +46,13 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         .forward_kinematics(motion.frame(frame_index))
         .unwrap()
         .joint_positions()[0];
-    let floor_y = performer
-        .template
-        .vertices
-        .iter()
-        .map(|v| v.y)
-        .fold(f64::INFINITY, f64::min)
-        - 0.02;
-    let dome = DomeParams {
-        floor_centre: DVec3::new(root.x, floor_y, root.z),
-        ..Default::default()
-    };
-    let lights = dome_lights(&dome).unwrap();
-    let centre = dome_centre(&dome);
+    let light_stage = LightStage::around(&performer.template, root).unwrap();
+    let heights = light_stage.sphere_heights_m();
+    let LightStage {
+        floor_y,
+        lights,
+        centre,
+    } = light_stage;
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(2, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
@@ -90,7 +83,6 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         exposure,
         ..Default::default()
     };
-    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
     let params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);
@@ -287,19 +279,13 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         .forward_kinematics(motion.frame(0))
         .unwrap()
         .joint_positions()[0];
-    let floor_y = performer
-        .template
-        .vertices
-        .iter()
-        .map(|v| v.y)
-        .fold(f64::INFINITY, f64::min)
-        - 0.02;
-    let dome = DomeParams {
-        floor_centre: DVec3::new(root.x, floor_y, root.z),
-        ..Default::default()
-    };
-    let lights = dome_lights(&dome).unwrap();
-    let centre = dome_centre(&dome);
+    let light_stage = LightStage::around(&performer.template, root).unwrap();
+    let heights = light_stage.sphere_heights_m();
+    let LightStage {
+        floor_y,
+        lights,
+        centre,
+    } = light_stage;
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(1, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cam = rig.cameras[0].clone();
@@ -325,7 +311,6 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         exposure,
         ..Default::default()
     };
-    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
     let cal =
         calibrate_camera(&cam, &lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
     let params = NormalParams::default()

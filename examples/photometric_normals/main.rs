@@ -33,15 +33,14 @@ use serde_json::json;
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::raster::{Buffers, RenderParams};
-use dynamic_shapes::core::studio::shading::{dome_lights, DomeParams};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
     ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
     WrinkleParams,
 };
 use dynamic_shapes::photometric::truth::{
-    angular_errors_deg, calibrate_camera, distant_light_normals, dome_centre, dome_power_fraction,
-    studio_patterns, summarize,
+    angular_errors_deg, calibrate_camera, distant_light_normals, dome_power_fraction,
+    studio_patterns, summarize, LightStage,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, PatternImages, CYCLE,
@@ -113,21 +112,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .skeleton
         .forward_kinematics(motion.frame(frame_index))?
         .joint_positions()[0];
-    let floor_y = performer
-        .template
-        .vertices
-        .iter()
-        .map(|v| v.y)
-        .fold(f64::INFINITY, f64::min)
-        - 0.02;
+    let light_stage = LightStage::around(&performer.template, root)?;
+    let heights = light_stage.sphere_heights_m();
+    let LightStage {
+        floor_y,
+        lights,
+        centre,
+    } = light_stage;
     stage.finish(format!("{} vertices", performer.vertex_count()));
 
-    let dome = DomeParams {
-        floor_centre: DVec3::new(root.x, floor_y, root.z),
-        ..Default::default()
-    };
-    let lights = dome_lights(&dome)?;
-    let centre = dome_centre(&dome);
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
     let rig = Rig::ring(n_cams, 3.5, floor_y + 1.7, root, DVec3::Y, k)?;
     let cameras = rig.cameras.clone();
@@ -168,7 +161,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         exposure,
         ..Default::default()
     };
-    let heights: Vec<f64> = (0..7).map(|i| floor_y + 0.2 + 0.25 * i as f64).collect();
     let params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);

@@ -12,7 +12,7 @@ use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams, RenderedView};
 use skin_core::stats::{mean, median};
 use skin_core::studio::shading::{
-    shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
+    dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
 use skin_core::studio::{FineSurface, LightPatterns, PatternSchedule, ViewTruth};
 
@@ -26,6 +26,66 @@ pub fn dome_centre(p: &DomeParams) -> DVec3 {
     let up = p.up.normalize_or_zero();
     let h_min = 1.0 - 2.0 * p.height_fraction;
     p.floor_centre - up * (h_min * p.radius_m)
+}
+
+/// Height of the studio floor below the performer's lowest rest vertex, m.
+pub const FLOOR_BELOW_PERFORMER_M: f64 = 0.02;
+/// The calibration spheres' heights above the floor (§3.2.3: seven heights): the lowest, m.
+pub const SPHERE_LOWEST_M: f64 = 0.2;
+/// The calibration spheres' height step, m.
+pub const SPHERE_STEP_M: f64 = 0.25;
+/// The number of calibration sphere heights (§3.2.3).
+pub const SPHERE_HEIGHTS: usize = 7;
+
+/// The light stage set up around a performer: the floor just under its rest template, the
+/// default dome standing on that floor centred under `root`, its lights and the centre of its
+/// sphere (the origin of the pattern directions).
+#[derive(Debug, Clone)]
+pub struct LightStage {
+    /// Floor height, world y, m ([`FLOOR_BELOW_PERFORMER_M`] under the lowest rest vertex).
+    pub floor_y: f64,
+    /// The dome's lights at their real positions.
+    pub lights: Vec<Light>,
+    /// [`dome_centre`] of the dome.
+    pub centre: DVec3,
+}
+
+impl LightStage {
+    /// The stage around `template` (the performer's rest mesh) with the dome centred under
+    /// `root` (e.g. the root joint's position in the captured frame).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for a template without vertices; errors of the dome's lights.
+    pub fn around(template: &TriMesh, root: DVec3) -> Result<Self> {
+        let lowest = template
+            .vertices
+            .iter()
+            .map(|v| v.y)
+            .fold(f64::INFINITY, f64::min);
+        if !lowest.is_finite() {
+            return Err(Error::Empty {
+                what: "template vertices",
+            });
+        }
+        let floor_y = lowest - FLOOR_BELOW_PERFORMER_M;
+        let dome = DomeParams {
+            floor_centre: DVec3::new(root.x, floor_y, root.z),
+            ..Default::default()
+        };
+        Ok(LightStage {
+            floor_y,
+            lights: dome_lights(&dome)?,
+            centre: dome_centre(&dome),
+        })
+    }
+
+    /// The heights of the calibration spheres (§3.2.3), world y, m: [`SPHERE_HEIGHTS`] of
+    /// them from [`SPHERE_LOWEST_M`] above the floor every [`SPHERE_STEP_M`].
+    pub fn sphere_heights_m(&self) -> Vec<f64> {
+        (0..SPHERE_HEIGHTS)
+            .map(|i| self.floor_y + SPHERE_LOWEST_M + SPHERE_STEP_M * i as f64)
+            .collect()
+    }
 }
 
 /// The studio's [`LightPatterns`]: the 8-frame [`CYCLE`] for [`PatternSchedule::Cycle`], the
