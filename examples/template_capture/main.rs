@@ -67,14 +67,50 @@ fn rms_mm(a: &[DVec3], b: &[DVec3], subset: Option<&[usize]>) -> f64 {
     1e3 * rms(&d)
 }
 
-/// One run of the protocol.
+/// Every run takes every second frame of its motion.
+const FRAME_STEP: usize = 2;
+
+/// The motions of the protocol.
+#[derive(Clone, Copy)]
+enum MotionKind {
+    Exercise,
+    Fast,
+    Walk,
+}
+
+impl MotionKind {
+    fn name(self) -> &'static str {
+        match self {
+            MotionKind::Exercise => "exercise",
+            MotionKind::Fast => "fast",
+            MotionKind::Walk => "walk",
+        }
+    }
+
+    /// The first frame a run takes: the exercise and the fast motion after their first
+    /// second, the walk at its start.
+    fn first_frame(self) -> usize {
+        match self {
+            MotionKind::Exercise => 40,
+            MotionKind::Fast => 30,
+            MotionKind::Walk => 0,
+        }
+    }
+}
+
+/// One run of the protocol: the performer with or without its skirt in one motion.
 struct RunSpec {
-    name: &'static str,
     skirt: bool,
-    motion: &'static str,
-    first: usize,
-    step: usize,
+    motion: MotionKind,
     frames: usize,
+}
+
+impl RunSpec {
+    /// The run's name, the prefix of its figures: `skirt_walk`, `body_exercise`, ….
+    fn name(&self) -> String {
+        let who = if self.skirt { "skirt" } else { "body" };
+        format!("{who}_{}", self.motion.name())
+    }
 }
 
 /// What a run leaves for the pictures.
@@ -105,12 +141,12 @@ fn performer(skirt: bool) -> Result<Performer, Box<dyn std::error::Error>> {
     )?)
 }
 
-fn motion(name: &str, performer: &Performer) -> Result<Motion, Box<dyn std::error::Error>> {
+fn motion(kind: MotionKind, performer: &Performer) -> Result<Motion, Box<dyn std::error::Error>> {
     let sk = &performer.skeleton;
-    Ok(match name {
-        "exercise" => exercise_motion(sk, &ExerciseParams::default())?,
-        "fast" => fast_motion(sk, &FastMotionParams::default())?,
-        "walk" => {
+    Ok(match kind {
+        MotionKind::Exercise => exercise_motion(sk, &ExerciseParams::default())?,
+        MotionKind::Fast => fast_motion(sk, &FastMotionParams::default())?,
+        MotionKind::Walk => {
             play_bvh(
                 example_kit::data_path("mocap-cmu/131_01.bvh")?,
                 &BvhParams {
@@ -122,7 +158,6 @@ fn motion(name: &str, performer: &Performer) -> Result<Motion, Box<dyn std::erro
             )?
             .motion
         }
-        other => return Err(format!("unknown motion {other}").into()),
     })
 }
 
@@ -134,9 +169,10 @@ fn capture_run(
 ) -> Result<Captured, Box<dyn std::error::Error>> {
     let performer = performer(spec.skirt)?;
     let motion = motion(spec.motion, &performer)?;
+    let (name, first) = (spec.name(), spec.motion.first_frame());
     let root = performer
         .skeleton
-        .forward_kinematics(motion.frame(spec.first))?
+        .forward_kinematics(motion.frame(first))?
         .joint_positions()[0];
     let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), width, height)?;
     let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k)?;
@@ -151,24 +187,24 @@ fn capture_run(
 
     // Observations (§2.3.2, §2.4.2).
     let stage = run.stage(
-        &format!("{}: capture and observe", spec.name),
+        &format!("{name}: capture and observe"),
         Some(spec.frames as u64),
     );
     let (mut truths, mut masks, mut observations) = (vec![], vec![], vec![]);
     let mut observe_s = 0.0;
-    let last = spec.first + spec.step * spec.frames;
+    let last = first + FRAME_STEP * spec.frames;
     if last > motion.frame_count() {
         return Err(format!(
             "{}: {} frames from {} every {} pass the motion's {}",
-            spec.name,
+            name,
             spec.frames,
-            spec.first,
-            spec.step,
+            first,
+            FRAME_STEP,
             motion.frame_count()
         )
         .into());
     }
-    for f in capture.frames_stepped(spec.first..last, spec.step) {
+    for f in capture.frames_stepped(first..last, FRAME_STEP) {
         let f = f?;
         let m = f.masks();
         let t0 = Instant::now();
@@ -187,7 +223,7 @@ fn capture_run(
     let n = truths.len() as f64;
 
     // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0.
-    let stage = run.stage(&format!("{}: pose and shape", spec.name), None);
+    let stage = run.stage(&format!("{name}: pose and shape"), None);
     let params = PoseParams::default();
     let result = capture_sequence(
         &template,
@@ -205,7 +241,7 @@ fn capture_run(
     let reoptimise_ms = reoptimise_ms(&template, &observations, &result, &cameras[0], &params)?;
 
     // Scores.
-    let stage = run.stage(&format!("{}: score", spec.name), Some(spec.frames as u64));
+    let stage = run.stage(&format!("{name}: score"), Some(spec.frames as u64));
     let sk = template.skeleton();
     let skirt: Vec<usize> = performer.garment_vertices().collect();
     let body: Vec<usize> = (0..performer.garment_vertices().start).collect();
@@ -262,7 +298,7 @@ fn capture_run(
         stage.inc(1);
     }
     stage.finish("");
-    let key = |k: &str| format!("{}_{k}", spec.name);
+    let key = |k: &str| format!("{name}_{k}");
     let mut put = |k: &str, v: Value| {
         figures.insert(key(k), v);
     };
@@ -302,7 +338,7 @@ fn capture_run(
         result,
         sil,
         sil_lbs,
-        frame_time_s: motion.frame_time_s * spec.step as f64,
+        frame_time_s: motion.frame_time_s * FRAME_STEP as f64,
     })
 }
 
@@ -460,61 +496,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let quick = args.common.quick;
     let size = if quick { (480, 360) } else { (1600, 1200) };
     let n = if quick { 12 } else { 100 };
-    // The issue's protocol (skirt) first, then the body alone for reference. The exercise and
-    // the fast motion start after their first second; the walk at its start.
+    // The issue's protocol (skirt) first, then the body alone for reference.
+    let run_spec = |skirt, motion, frames| RunSpec {
+        skirt,
+        motion,
+        frames,
+    };
     let runs: Vec<RunSpec> = if quick {
         vec![
-            RunSpec {
-                name: "body_exercise",
-                skirt: false,
-                motion: "exercise",
-                first: 40,
-                step: 2,
-                frames: n,
-            },
-            RunSpec {
-                name: "skirt_exercise",
-                skirt: true,
-                motion: "exercise",
-                first: 40,
-                step: 2,
-                frames: 8,
-            },
+            run_spec(false, MotionKind::Exercise, n),
+            run_spec(true, MotionKind::Exercise, 8),
         ]
     } else {
         vec![
-            RunSpec {
-                name: "skirt_exercise",
-                skirt: true,
-                motion: "exercise",
-                first: 40,
-                step: 2,
-                frames: n,
-            },
-            RunSpec {
-                name: "skirt_fast",
-                skirt: true,
-                motion: "fast",
-                first: 30,
-                step: 2,
-                frames: n,
-            },
-            RunSpec {
-                name: "skirt_walk",
-                skirt: true,
-                motion: "walk",
-                first: 0,
-                step: 2,
-                frames: n,
-            },
-            RunSpec {
-                name: "body_exercise",
-                skirt: false,
-                motion: "exercise",
-                first: 40,
-                step: 2,
-                frames: n,
-            },
+            run_spec(true, MotionKind::Exercise, n),
+            run_spec(true, MotionKind::Fast, n),
+            run_spec(true, MotionKind::Walk, n),
+            run_spec(false, MotionKind::Exercise, n),
         ]
     };
     let mut run = Run::start(
@@ -526,7 +524,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
              2010 Ch. 2)",
             size.0,
             size.1,
-            runs.iter().map(|r| r.name).collect::<Vec<_>>().join(", ")
+            runs.iter()
+                .map(RunSpec::name)
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
     )?;
     let mut figures = Map::new();
@@ -534,12 +535,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let captured = capture_run(&mut run, spec, size, &mut figures)?;
         if i == 0 {
             let stage = run.stage("pictures", None);
-            pictures(&mut run, &captured, spec.name)?;
+            pictures(&mut run, &captured, &spec.name())?;
             stage.finish("");
         }
     }
     // The mean over the skirt runs (the issue's protocol), each figure the runs report.
-    let skirt_runs: Vec<&str> = runs.iter().filter(|r| r.skirt).map(|r| r.name).collect();
+    let skirt_runs: Vec<String> = runs.iter().filter(|r| r.skirt).map(RunSpec::name).collect();
     let mut averaged = Map::new();
     for (k, v) in &figures {
         let Some(rest) = skirt_runs
