@@ -3,11 +3,12 @@
 //! correspondence against Procrustes alone, and bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use dynamic_shapes::core::math::{fit_similarity, Alignment, DVec3};
+use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::face::validation::{
-    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
-    point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams, IctBasis,
+    aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
+    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams,
+    IctBasis,
 };
 use dynamic_shapes::face::{
     fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
@@ -215,19 +216,8 @@ fn face_tracking_from_point_tracks() {
         &TrackParams::default(),
     )
     .unwrap();
-    let width = {
-        let xs = seq.truth[0].iter().map(|p| p.x);
-        xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
-    };
-    let aligned = |f: &[DVec3], truth: &[DVec3]| {
-        let s = fit_similarity(f, truth, None, Alignment::Similarity).unwrap();
-        (f.iter()
-            .zip(truth)
-            .map(|(a, b)| s.apply(*a).distance_squared(*b))
-            .sum::<f64>()
-            / f.len() as f64)
-            .sqrt()
-    };
+    let width = face_width(&seq.truth[0]);
+    let aligned = |f: &[DVec3], truth: &[DVec3]| aligned_rms(f, truth).unwrap();
     let mean_face = model.face(&mean_weights(&model).unwrap()).unwrap();
     let (mut ours, mut base) = (0.0, 0.0);
     for (t, truth) in seq.truth.iter().enumerate() {

@@ -34,12 +34,13 @@ use clap::Parser;
 use nalgebra::DVector;
 use serde_json::json;
 
-use dynamic_shapes::core::math::{fit_similarity, Alignment, DVec3};
+use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{RefineParams, Refinement, TriMesh};
 use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use dynamic_shapes::face::validation::{
-    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
-    point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet, FaceSetParams, IctBasis,
+    aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
+    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
+    FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
     fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
@@ -597,7 +598,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let corr_ms = 1e3 * t0.elapsed().as_secs_f64();
     let corr_rms = rms_mm(&fit.vertices, &truth);
-    let aligned_rms = rms_mm(&fit.aligned, &truth);
+    let procrustes_rms = rms_mm(&fit.aligned, &truth);
     let aligned_mesh = mesh(&bi, fit.aligned.clone());
     let fit_mesh = mesh(&bi, fit.vertices.clone());
     let (ca, cf) = (
@@ -637,7 +638,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "Template fitting to a re-meshed noisy scan (§5.3.2)",
         Some(&format!(
             "left: scan ({} vertices); middle: generic template after Procrustes on 42 features \
-             (RMS {aligned_rms:.2} mm); right: after the deformation (RMS {corr_rms:.2} mm)",
+             (RMS {procrustes_rms:.2} mm); right: after the deformation (RMS {corr_rms:.2} mm)",
             scan.vertices.len()
         )),
     )?;
@@ -649,7 +650,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          by the distance of each template vertex to its true position (mm)",
     )?;
     stage.finish(format!(
-        "RMS {corr_rms:.2} mm (Procrustes only {aligned_rms:.2} mm)"
+        "RMS {corr_rms:.2} mm (Procrustes only {procrustes_rms:.2} mm)"
     ));
 
     // --- Tracking from 2D point tracks (Eq. 5.7–5.9 with the point motion given) and a
@@ -671,32 +672,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &TrackParams::default(),
     )?;
     let track_fps = frame_count as f64 / track.seconds;
-    let width = {
-        let xs = seq.truth[0].iter().map(|p| p.x);
-        xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
-    };
-    let aligned_dist = |f: &[DVec3], truth: &[DVec3]| -> f64 {
-        let s = fit_similarity(f, truth, None, Alignment::Similarity).unwrap();
-        (f.iter()
-            .zip(truth)
-            .map(|(a, b)| s.apply(*a).distance_squared(*b))
-            .sum::<f64>()
-            / f.len() as f64)
-            .sqrt()
-    };
+    let width = face_width(&seq.truth[0]);
     let mean_face = bi_model.face(&mean_weights(&bi_model)?)?;
     let (mut track_pct, mut mean_pct) = (Vec::new(), Vec::new());
     for (t, truth) in seq.truth.iter().enumerate() {
         let f = bi_model.face(&track.weights[t])?;
-        track_pct.push(100.0 * aligned_dist(&f, truth) / width);
-        mean_pct.push(100.0 * aligned_dist(&mean_face, truth) / width);
+        track_pct.push(100.0 * aligned_rms(&f, truth)? / width);
+        mean_pct.push(100.0 * aligned_rms(&mean_face, truth)? / width);
     }
     let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let neutral_w = bi_model.training_weights(0, 0)?;
     let id_face = bi_model.face(&[neutral_w.clone(), track.weights[0][1].clone()])?;
-    let identity_rms_mm = MM * aligned_dist(&id_face, &novel.faces.face(0)?);
+    let identity_rms_mm = MM * aligned_rms(&id_face, &novel.faces.face(0)?)?;
     let mean_id_face = bi_model.face(&[neutral_w, mean_weights(&bi_model)?[1].clone()])?;
-    let mean_identity_rms_mm = MM * aligned_dist(&mean_id_face, &novel.faces.face(0)?);
+    let mean_identity_rms_mm = MM * aligned_rms(&mean_id_face, &novel.faces.face(0)?)?;
     let chart = Chart::new(
         "Tracking a person not in the model from 1,000 point tracks (0.5 px noise)",
         "frame",
@@ -884,7 +873,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "iterations": r.iterations, "ms": r.ms})).collect::<Vec<_>>(),
         "decomposition_sweep": sweep,
         "correspondence_rms_mm": corr_rms,
-        "correspondence_procrustes_rms_mm": aligned_rms,
+        "correspondence_procrustes_rms_mm": procrustes_rms,
         "correspondence_surface_rms_mm": fit.surface_rms.last().map(|s| s * MM),
         "correspondence_ms": corr_ms,
         "scan_vertices": scan.vertices.len(),

@@ -8,7 +8,7 @@ use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Uniform};
-use skin_core::math::DVec3;
+use skin_core::math::{fit_similarity, Alignment, DVec3};
 use skin_core::mesh::{read_obj, ObjFile, TriMesh};
 use skin_core::Context;
 
@@ -554,6 +554,29 @@ pub fn hold_out(attribute_sizes: &[usize], fraction: f64, seed: u64) -> Result<K
         name: "fraction",
         reason: format!("no valid hold-out of {m} of {k} faces found"),
     })
+}
+
+/// The RMS distance from `face`'s vertices to `truth`'s after the least-squares similarity
+/// alignment (Umeyama) of `face` onto `truth`, in `truth`'s units: the 3D tracking error
+/// of issue 16 before it is divided by [`face_width`].
+///
+/// # Errors
+/// As [`skin_core::math::fit_similarity`] (lists of different lengths, fewer than three
+/// points, non-finite or collinear points).
+pub fn aligned_rms(face: &[DVec3], truth: &[DVec3]) -> Result<f64> {
+    let s = fit_similarity(face, truth, None, Alignment::Similarity)?;
+    let sum: f64 = face
+        .iter()
+        .zip(truth)
+        .map(|(a, b)| s.apply(*a).distance_squared(*b))
+        .sum();
+    Ok((sum / face.len() as f64).sqrt())
+}
+
+/// A face's width: the extent of its vertices along x (0 for no vertex).
+pub fn face_width(face: &[DVec3]) -> f64 {
+    let xs = face.iter().map(|p| p.x);
+    (xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)).max(0.0)
 }
 
 /// Issue 16's imputation metric: `‖X̂_held − X_held‖_F / ‖X_held − x̄‖_F` over the held-out

@@ -33,8 +33,8 @@
 mod dataset;
 
 pub use dataset::{
-    bilinear_face_set, feature_vertices, hold_out, ict_face_set, impute_rel_error,
-    point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet, FaceSetParams, IctBasis,
-    PointTrackSequence, Recipe, BILINEAR_EXPRESSIONS, ICT_BLENDSHAPES, TRILINEAR_EXPRESSIONS,
-    VISEMES,
+    aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
+    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
+    FaceSetParams, IctBasis, PointTrackSequence, Recipe, BILINEAR_EXPRESSIONS, ICT_BLENDSHAPES,
+    TRILINEAR_EXPRESSIONS, VISEMES,
 };
