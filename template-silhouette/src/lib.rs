@@ -22,6 +22,7 @@
 //! | `pipeline.rs` | one frame's observations; the whole sequence (pose, then shape) | [`FrameObservation`], [`capture_sequence`], [`SequenceCapture`] | §2.2, Figure 2-3 |
 //! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
+//! | `editing.rs` | a template edit carried to every frame by deformation transfer | [`DeformationTransfer`] | §2.5.3, Figure 2-9 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -86,6 +87,7 @@
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
+mod editing;
 mod error;
 mod interactive;
 mod metrics;
@@ -97,6 +99,7 @@ mod silhouette_constraints;
 mod template;
 mod visual_hull;
 
+pub use editing::{DeformationTransfer, DEFAULT_ANCHOR_WEIGHT, DEFAULT_UNEDITED_TOLERANCE_M};
 pub use error::{Context, Error, Result, ResultExt};
 pub use interactive::PoseEditor;
 pub use metrics::{edge_error_pct, silhouette_error_pct};

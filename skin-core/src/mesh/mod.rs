@@ -21,6 +21,7 @@ mod subdivide;
 mod surface_point;
 mod topology;
 mod trimesh;
+mod uv;
 
 #[cfg(feature = "gltf")]
 pub use gltf::{save_gltf_animation, write_gltf_animation, MeshSequence};
@@ -57,3 +58,4 @@ pub use topology::{
     EdgeTopology,
 };
 pub use trimesh::{BoundingBox, TriMesh};
+pub use uv::{UvLayout, UvSplit};

@@ -24,8 +24,8 @@
 //! for the planar convex polygons OBJ exporters write (the MakeHuman quads) and keeps the
 //! corner order, hence the outward orientation.
 
-use crate::math::DVec3;
-use crate::mesh::TriMesh;
+use crate::math::{DVec2, DVec3};
+use crate::mesh::{TriMesh, UvLayout};
 use crate::{Error, Result};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader, BufWriter, Write};
@@ -42,8 +42,12 @@ pub const DEFAULT_GROUP: &str = "default";
 pub struct ObjFile {
     /// Every `v` position in file order (file index `i + 1` is `vertices[i]`).
     pub vertices: Vec<DVec3>,
+    /// Every `vt` texture coordinate in file order (`u`, `v`; a third value is ignored).
+    pub texcoords: Vec<DVec2>,
     /// Zero-based vertex indices of all polygons, concatenated.
     corners: Vec<u32>,
+    /// Zero-based `vt` index of each corner, [`NO_TEXCOORD`] where the face gave none.
+    corner_texcoords: Vec<u32>,
     /// Polygon `p` owns `corners[offsets[p]..offsets[p + 1]]`.
     offsets: Vec<usize>,
     /// Index into `group_sets` for each polygon.
@@ -62,7 +66,13 @@ pub struct ObjGroupMesh {
     /// `original_index[i]` is the zero-based file vertex index (OBJ index minus one) of
     /// `mesh.vertices[i]`. Increasing, so the compacted order follows the file order.
     pub original_index: Vec<u32>,
+    /// The group's texture coordinates per face corner, when every corner of the group has a
+    /// `vt` reference (`None` otherwise).
+    pub uvs: Option<UvLayout>,
 }
+
+/// Marks a face corner without a texture coordinate.
+const NO_TEXCOORD: u32 = u32::MAX;
 
 fn parse_error(line: usize, message: impl Into<String>) -> Error {
     Error::Parse {
@@ -141,33 +151,48 @@ impl GroupState {
     }
 }
 
-/// Parses one vertex reference of an `f` line (`v`, `v/vt`, `v//vn`, `v/vt/vn`) into a
-/// zero-based index. Relative (negative) indices resolve against `n_vertices` read so far;
-/// positive indices are checked against the final count after the whole file is read.
-fn parse_corner(token: &str, n_vertices: usize, line: usize) -> Result<(u32, bool)> {
-    let v = token.split('/').next().unwrap_or("");
-    let idx: i64 = v
+/// Resolves one OBJ index (1-based, or negative relative to the `defined` entries read so
+/// far) of `kind` to a zero-based index; positive indices are range-checked after the file.
+fn resolve_index(text: &str, defined: usize, kind: &str, line: usize) -> Result<(u32, bool)> {
+    let idx: i64 = text
         .parse()
-        .map_err(|_| parse_error(line, format!("bad vertex index '{token}' in face")))?;
+        .map_err(|_| parse_error(line, format!("bad {kind} index '{text}' in face")))?;
     if idx == 0 {
         return Err(parse_error(
             line,
-            "vertex index 0 in face (OBJ indices start at 1)",
+            format!("{kind} index 0 in face (OBJ indices start at 1)"),
         ));
     }
     if idx < 0 {
-        let resolved = n_vertices as i64 + idx;
+        let resolved = defined as i64 + idx;
         if resolved < 0 {
             return Err(parse_error(
                 line,
-                format!("relative vertex index {idx} reaches before the first vertex ({n_vertices} defined so far)"),
+                format!("relative {kind} index {idx} reaches before the first {kind} ({defined} defined so far)"),
             ));
         }
         return Ok((resolved as u32, true));
     }
     let zero_based = u32::try_from(idx - 1)
-        .map_err(|_| parse_error(line, format!("vertex index {idx} is too large")))?;
+        .map_err(|_| parse_error(line, format!("{kind} index {idx} is too large")))?;
     Ok((zero_based, false))
+}
+
+/// One corner of an `f` line (`v`, `v/vt`, `v//vn`, `v/vt/vn`): zero-based vertex index,
+/// zero-based texture index ([`NO_TEXCOORD`] if none), and whether either index was positive
+/// (so range-checked once the file is read).
+fn parse_corner(
+    token: &str,
+    (n_vertices, n_texcoords): (usize, usize),
+    line: usize,
+) -> Result<(u32, u32, bool)> {
+    let mut parts = token.split('/');
+    let (v, v_relative) = resolve_index(parts.next().unwrap_or(""), n_vertices, "vertex", line)?;
+    let (t, t_relative) = match parts.next() {
+        Some(t) if !t.is_empty() => resolve_index(t, n_texcoords, "texture", line)?,
+        _ => (NO_TEXCOORD, true),
+    };
+    Ok((v, t, !(v_relative && t_relative)))
 }
 
 impl ObjFile {
@@ -181,7 +206,9 @@ impl ObjFile {
     pub fn parse<R: BufRead>(mut reader: R) -> Result<ObjFile> {
         let mut obj = ObjFile {
             vertices: Vec::new(),
+            texcoords: Vec::new(),
             corners: Vec::new(),
+            corner_texcoords: Vec::new(),
             offsets: vec![0],
             polygon_groups: Vec::new(),
             group_sets: Vec::new(),
@@ -235,10 +262,12 @@ impl ObjFile {
                 "f" => {
                     let start = obj.corners.len();
                     let mut has_positive = false;
+                    let defined = (obj.vertices.len(), obj.texcoords.len());
                     for tok in tokens {
-                        let (idx, relative) = parse_corner(tok, obj.vertices.len(), line_no)?;
-                        has_positive |= !relative;
-                        obj.corners.push(idx);
+                        let (v, t, positive) = parse_corner(tok, defined, line_no)?;
+                        has_positive |= positive;
+                        obj.corners.push(v);
+                        obj.corner_texcoords.push(t);
                     }
                     let count = obj.corners.len() - start;
                     if count < 3 {
@@ -271,18 +300,52 @@ impl ObjFile {
                     };
                     state.current = None;
                 }
-                // vt, vn, vp, s, usemtl, mtllib, l, p and free-form directives: not geometry
+                "vt" => {
+                    let mut uv = [0.0f64; 2];
+                    for (k, slot) in uv.iter_mut().enumerate() {
+                        let tok = tokens.next().ok_or_else(|| {
+                            parse_error(
+                                line_no,
+                                format!("texture coordinate has {k} values, expected 2"),
+                            )
+                        })?;
+                        *slot = tok.parse().map_err(|_| {
+                            parse_error(line_no, format!("bad texture coordinate '{tok}'"))
+                        })?;
+                        if !slot.is_finite() {
+                            return Err(parse_error(
+                                line_no,
+                                format!("non-finite texture coordinate '{tok}'"),
+                            ));
+                        }
+                    }
+                    obj.texcoords.push(DVec2::from_array(uv));
+                }
+                // vn, vp, s, usemtl, mtllib, l, p and free-form directives: not geometry
                 // we use. Skipped rather than rejected, so files from any exporter load.
                 _ => {}
             }
         }
-        let n = obj.vertices.len();
+        let (n, n_tex) = (obj.vertices.len(), obj.texcoords.len());
         for (p, line) in positive_refs {
             if let Some(&bad) = obj.polygon(p).iter().find(|&&i| i as usize >= n) {
                 return Err(parse_error(
                     line,
                     format!(
                         "vertex index {} out of range (file has {n} vertices)",
+                        bad as u64 + 1
+                    ),
+                ));
+            }
+            let tex = &obj.corner_texcoords[obj.offsets[p]..obj.offsets[p + 1]];
+            if let Some(&bad) = tex
+                .iter()
+                .find(|&&t| t != NO_TEXCOORD && t as usize >= n_tex)
+            {
+                return Err(parse_error(
+                    line,
+                    format!(
+                        "texture index {} out of range (file has {n_tex} texture coordinates)",
                         bad as u64 + 1
                     ),
                 ));
@@ -410,12 +473,24 @@ impl ObjFile {
             vertices.push(self.vertices[i]);
         }
         let mut faces = Vec::new();
+        let mut uv_faces = Vec::new();
+        let mut textured = true;
         for &p in &polygons {
             Self::push_triangles(self.polygon(p), &mut faces, |i| new_index[i as usize]);
+            let tex = &self.corner_texcoords[self.offsets[p]..self.offsets[p + 1]];
+            textured &= tex.iter().all(|&t| t != NO_TEXCOORD);
+            if textured {
+                Self::push_triangles(tex, &mut uv_faces, |t| t);
+            }
         }
+        let uvs = textured.then(|| UvLayout {
+            coords: self.texcoords.clone(),
+            faces: uv_faces,
+        });
         Ok(ObjGroupMesh {
             mesh: TriMesh::new(vertices, faces)?,
             original_index,
+            uvs,
         })
     }
 }
@@ -527,6 +602,38 @@ mod tests {
         match r {
             Err(Error::Parse { line, message, .. }) => (line, message),
             other => panic!("expected parse error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn texture_coordinates_follow_the_group_faces_and_are_checked() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                    g a\nf 1/1 2/2 3/3 4/4\ng b\nf 1/4 2/3 3/2\nf 1 3 4\n";
+        let obj = ObjFile::parse_str(text).unwrap();
+        assert_eq!(obj.texcoords.len(), 4);
+        let a = obj.group_mesh("a").unwrap();
+        let uvs = a.uvs.unwrap();
+        assert_eq!(uvs.faces, vec![[0, 1, 2], [0, 2, 3]]);
+        uvs.validate(&a.mesh).unwrap();
+        // A group with a corner without `vt` has no layout.
+        assert!(obj.group_mesh("b").unwrap().uvs.is_none());
+        // Relative indices resolve like vertex indices.
+        let rel = ObjFile::parse_str(
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf -3/-3 -2/-2 -1/-1\n",
+        )
+        .unwrap();
+        assert_eq!(
+            rel.group_mesh(DEFAULT_GROUP).unwrap().uvs.unwrap().faces,
+            vec![[0, 1, 2]]
+        );
+        for (bad, line) in [
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n", 5),
+            ("v 0 0 0\nvt 0\n", 2),
+            ("v 0 0 0\nvt 0 nan\n", 2),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/-1 2 3\n", 4),
+        ] {
+            let (l, m) = parse_err_line(ObjFile::parse_str(bad).and_then(|o| o.to_mesh()));
+            assert_eq!(l, line, "{m}");
         }
     }
 

@@ -434,7 +434,11 @@ pub fn makehuman_performer_from_parts(
         })
         .collect();
     let weights = SkinWeights::from_lists(&lists, skeleton.joint_count())?;
-    Performer::new("makehuman", template, skeleton, weights, params)
+    let performer = Performer::new("makehuman", template, skeleton, weights, params)?;
+    match body.uvs {
+        Some(uvs) => performer.with_body_uvs(uvs),
+        None => Ok(performer),
+    }
 }
 
 /// Minimum |sin| of the rest bend for a hinge's plane to be well defined (10°).

@@ -10,9 +10,9 @@ use super::garment::Garment;
 use super::texture::Material;
 use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
-use crate::mesh::{skin, SkinBinding, SkinWeights, TriMesh};
+use crate::mesh::{skin, SkinBinding, SkinWeights, TriMesh, UvLayout};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
-use crate::Result;
+use crate::{check, Result};
 use serde::{Deserialize, Serialize};
 
 /// A rigged performer with known non-skinning deformation.
@@ -34,6 +34,9 @@ pub struct Performer {
     pub weights: SkinWeights,
     /// The non-skinning deformation.
     pub deformation: DeformationModel,
+    /// Texture coordinates of the template, when known ([`Performer::with_body_uvs`]): the
+    /// body's own (MakeHuman's atlas), then a cylindrical projection of the garment.
+    pub uvs: Option<UvLayout>,
     /// The garment, when [`DeformationParams::garment`] is set.
     garment: Option<Garment>,
     /// Render-time wrinkles on a refined surface, when [`DeformationParams::wrinkles`] is set.
@@ -124,6 +127,7 @@ impl Performer {
             skeleton,
             weights,
             deformation,
+            uvs: None,
             garment,
             wrinkles,
             body_vertex_count,
@@ -144,6 +148,33 @@ impl Performer {
     /// Number of template vertices.
     pub fn vertex_count(&self) -> usize {
         self.template.vertex_count()
+    }
+
+    /// This performer with the body's texture coordinates `body` (one entry per body face);
+    /// a garment gets a cylindrical projection about its vertical axis
+    /// ([`UvLayout::cylindrical`]) after them, so [`Performer::uvs`] covers the template.
+    ///
+    /// # Errors
+    /// As [`UvLayout::validate`] against the body's faces; as [`UvLayout::cylindrical`].
+    pub fn with_body_uvs(mut self, body: UvLayout) -> Result<Self> {
+        check::same_size(
+            "UV layout faces vs body faces",
+            self.body_face_count,
+            body.faces.len(),
+        )?;
+        body.validate(&TriMesh {
+            vertices: self.template.vertices[..self.body_vertex_count].to_vec(),
+            faces: self.template.faces[..self.body_face_count].to_vec(),
+        })?;
+        self.uvs = Some(match &self.garment {
+            None => body,
+            Some(g) => {
+                let rest = g.rest_mesh();
+                let centre = rest.bounding_box()?.center();
+                body.concat(&UvLayout::cylindrical(rest, centre)?)
+            }
+        });
+        Ok(self)
     }
 
     /// The template vertices of the garment (empty without one): they follow the body's.

@@ -303,6 +303,23 @@ fn skirted() -> &'static Performer {
 }
 
 #[test]
+fn the_template_carries_texture_coordinates_for_the_body_and_the_skirt() {
+    let p = skirted();
+    let uvs = p.uvs.as_ref().expect("MakeHuman's base mesh has vt lines");
+    uvs.validate(&p.template).unwrap();
+    let split = uvs.split_seams(&p.template).unwrap();
+    // Every vertex keeps at least one coordinate; seams add fewer vertices than there are.
+    assert!(split.vertex.len() >= p.vertex_count());
+    assert!(split.vertex.len() < 2 * p.vertex_count());
+    assert!(split.uvs.iter().all(|c| (-1e-9..=2.0).contains(&c.x)));
+    // A layout for another mesh is refused.
+    let wrong = uvs.clone();
+    let mut other = p.clone();
+    other.uvs = None;
+    assert!(other.with_body_uvs(wrong).is_err());
+}
+
+#[test]
 fn skirt_is_part_of_the_template_and_its_truth_is_dynamic() {
     let p = skirted();
     let body = &makehuman_performer(
