@@ -145,3 +145,90 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
     assert!(get("vertex_rms_mm") < 1.25 * get("lbs_vertex_rms_mm"));
     assert!(get("edge_error_pct") < 20.0);
 }
+
+/// The pieces a user strings together around a capture (§2.5): the MakeHuman template with
+/// its skirt decimated to ≈ 10k vertices (weights and texture coordinates carried over, the
+/// vertices a fixed embedding in the rest mesh), and a template edit carried to a posed frame
+/// by deformation transfer.
+#[test]
+fn a_decimated_textured_template_takes_an_edit_to_a_posed_frame() {
+    use dynamic_shapes::core::mesh::{decimate, SkinWeights};
+    use dynamic_shapes::core::studio::{GarmentParams, SkirtParams};
+    use dynamic_shapes::template::DeformationTransfer;
+
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman").unwrap(),
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )
+    .unwrap();
+    let full = &performer.template;
+    let d = decimate(full, 10_000).unwrap();
+    let n = d.mesh.vertex_count();
+    assert!((9_000..=11_000).contains(&n), "{n} vertices");
+    let lists: Vec<Vec<(u32, f64)>> = d
+        .original_index
+        .iter()
+        .map(|&o| performer.weights.influences(o as usize).collect())
+        .collect();
+    let weights = SkinWeights::from_lists(&lists, performer.weights.bone_count()).unwrap();
+    let template = Template::new(d.mesh.clone(), performer.skeleton.clone(), weights).unwrap();
+    // The skirt survives decimation (its hem is a locked border).
+    let garment = performer.garment_vertices();
+    let skirt = d
+        .original_index
+        .iter()
+        .filter(|&&o| garment.contains(&(o as usize)))
+        .count();
+    assert!(skirt > 500, "{skirt} skirt vertices kept");
+    // Texture coordinates on the kept vertices, split at the atlas' seams.
+    let uvs = performer
+        .uvs
+        .as_ref()
+        .unwrap()
+        .for_vertex_subset(full, &d.mesh, &d.original_index)
+        .unwrap();
+    let split = uvs.split_seams(&d.mesh).unwrap();
+    assert!(split.vertex.len() >= n && split.vertex.len() < 2 * n);
+    // A posed frame: the skinned template in the exercise's frame 60.
+    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
+    let posed = template.skin(motion.frame(60)).unwrap();
+    // The edit: the belly pushed out 3 cm in front of the pelvis, smoothly.
+    let root = performer
+        .skeleton
+        .forward_kinematics(&vec![0.0; performer.skeleton.dof_count()])
+        .unwrap()
+        .joint_positions()[0];
+    let edited: Vec<DVec3> = d
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| {
+            let r = (*v - (root + DVec3::new(0.0, 0.1, 0.12))).length();
+            let s = (1.0 - r / 0.12).clamp(0.0, 1.0);
+            *v + DVec3::Z * 0.03 * s * s
+        })
+        .collect();
+    let transfer = DeformationTransfer::new(&d.mesh, &edited).unwrap();
+    let out = transfer.transfer(&posed).unwrap();
+    // The vertices the edit left alone stay where the frame has them; the edited ones move
+    // by about the edit's size.
+    let (mut still, mut moved) = (vec![], vec![]);
+    for v in 0..n {
+        let shift = out[v].distance(posed[v]);
+        if edited[v] == d.mesh.vertices[v] {
+            still.push(shift);
+        } else if edited[v].distance(d.mesh.vertices[v]) > 0.02 {
+            moved.push(shift);
+        }
+    }
+    assert!(!moved.is_empty());
+    assert!(
+        rms(&still) < 1e-3,
+        "unedited vertices moved {} m",
+        rms(&still)
+    );
+    let m = mean(&moved);
+    assert!((0.015..0.04).contains(&m), "edited vertices moved {m} m");
+}

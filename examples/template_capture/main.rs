@@ -36,7 +36,10 @@ use serde_json::{json, Map, Value};
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::math::{DVec3, Ray};
-use dynamic_shapes::core::mesh::{save_gltf_animation, MeshSequence};
+use dynamic_shapes::core::mesh::{
+    decimate, evaluate_surface_points, save_gltf_animation, MeshQuery, MeshSequence, SkinWeights,
+    SurfacePoint, TriMesh, UvLayout,
+};
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
@@ -45,9 +48,9 @@ use dynamic_shapes::core::studio::{
     Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseEditor,
-    PoseModel, PoseParams, SequenceCapture, ShapeParams, SilhouetteParams, Template, UserRay,
-    VisualHullParams,
+    capture_sequence, edge_error_pct, silhouette_error_pct, DeformationTransfer, FrameObservation,
+    PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
+    SilhouetteParams, Template, UserRay, VisualHullParams,
 };
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -69,6 +72,114 @@ fn rms_mm(a: &[DVec3], b: &[DVec3], subset: Option<&[usize]>) -> f64 {
 
 /// Every run takes every second frame of its motion.
 const FRAME_STEP: usize = 2;
+
+/// Vertices of the decimated template the figures are measured with (≈ 10k).
+const TEMPLATE_VERTICES: usize = 10_000;
+
+/// Height of the skirt's waistband, the part of it not marked loose, m.
+const WAISTBAND_M: f64 = 0.04;
+
+/// The example's options: the common ones and the protocol's knobs.
+#[derive(Parser, Debug)]
+struct Cli {
+    #[command(flatten)]
+    common: example_kit::cli::Common,
+    /// Vertices of the decimated template; 0 keeps the performer's full mesh.
+    #[arg(long, default_value_t = TEMPLATE_VERTICES)]
+    template_vertices: usize,
+    /// Frames per run (default: 100, `--quick` 12 and 8).
+    #[arg(long)]
+    frames: Option<usize>,
+    /// Mark the skirt below its waistband as loose cloth (never pinned; beyond the thesis,
+    /// `Template::with_loose_vertices`).
+    #[arg(long)]
+    loose_skirt: bool,
+    /// `ShapeParams::w_anchor` (0: the thesis' Eq. 2.2).
+    #[arg(long, default_value_t = 0.0)]
+    anchor_weight: f64,
+    /// Only the runs with these names (e.g. `skirt_walk`); default: all.
+    #[arg(long = "run", value_name = "NAME")]
+    runs: Vec<String>,
+}
+
+/// The template the tracker is given and where its vertices sit in the performer's rest mesh.
+struct TemplateEmbedding {
+    template: Template,
+    /// Per template vertex, its fixed barycentric position in the performer's rest mesh (one
+    /// corner at weight one for a decimated template, whose vertices are a subset).
+    points: Vec<SurfacePoint>,
+    /// Per template vertex, the performer vertex it is.
+    original: Vec<usize>,
+    /// The template's texture coordinates (the performer's, on the kept vertices).
+    uvs: Option<UvLayout>,
+}
+
+impl TemplateEmbedding {
+    /// The performer's rest mesh decimated to `vertices` (0: kept whole), skin weights and
+    /// texture coordinates carried over.
+    fn new(
+        performer: &Performer,
+        vertices: usize,
+        loose_skirt: bool,
+    ) -> Result<Self, Box<dyn std::error::Error>> {
+        let full = &performer.template;
+        let (mesh, original): (TriMesh, Vec<usize>) = if vertices == 0 {
+            (full.clone(), (0..full.vertex_count()).collect())
+        } else {
+            let d = decimate(full, vertices)?;
+            let original = d.original_index.iter().map(|&i| i as usize).collect();
+            (d.mesh, original)
+        };
+        let lists: Vec<Vec<(u32, f64)>> = original
+            .iter()
+            .map(|&o| performer.weights.influences(o).collect())
+            .collect();
+        let weights = SkinWeights::from_lists(&lists, performer.weights.bone_count())?;
+        let points = MeshQuery::new(full)?
+            .closest_points(&mesh.vertices)?
+            .into_iter()
+            .map(|c| c.point)
+            .collect();
+        let original_u32: Vec<u32> = original.iter().map(|&o| o as u32).collect();
+        let uvs = performer
+            .uvs
+            .as_ref()
+            .map(|l| l.for_vertex_subset(full, &mesh, &original_u32))
+            .transpose()?;
+        let mut template = Template::new(mesh, performer.skeleton.clone(), weights)?;
+        let garment = performer.garment_vertices();
+        if loose_skirt && !garment.is_empty() {
+            // What a user marks: the skirt below its waistband (the top WAISTBAND_M of it).
+            let top = garment
+                .clone()
+                .map(|v| full.vertices[v].y)
+                .fold(f64::MIN, f64::max);
+            let loose = original
+                .iter()
+                .map(|&o| garment.contains(&o) && full.vertices[o].y < top - WAISTBAND_M)
+                .collect();
+            template = template.with_loose_vertices(loose)?;
+        }
+        Ok(Self {
+            template,
+            points,
+            original,
+            uvs,
+        })
+    }
+
+    /// The true positions of the template's vertices in one frame.
+    fn truth(
+        &self,
+        performer: &Performer,
+        truth: &FrameTruth,
+    ) -> Result<Vec<DVec3>, Box<dyn std::error::Error>> {
+        Ok(evaluate_surface_points(
+            &truth.true_mesh(performer),
+            &self.points,
+        )?)
+    }
+}
 
 /// The motions of the protocol.
 #[derive(Clone, Copy)]
@@ -116,7 +227,7 @@ impl RunSpec {
 /// What a run leaves for the pictures.
 struct Captured {
     performer: Performer,
-    template: Template,
+    embedding: TemplateEmbedding,
     truths: Vec<FrameTruth>,
     observations: Vec<FrameObservation>,
     result: SequenceCapture,
@@ -165,8 +276,13 @@ fn capture_run(
     run: &mut Run,
     spec: &RunSpec,
     (width, height): (u32, u32),
+    args: &Cli,
     figures: &mut Map<String, Value>,
 ) -> Result<Captured, Box<dyn std::error::Error>> {
+    let shape_params = ShapeParams {
+        w_anchor: args.anchor_weight,
+        ..ShapeParams::default()
+    };
     let performer = performer(spec.skirt)?;
     let motion = motion(spec.motion, &performer)?;
     let (name, first) = (spec.name(), spec.motion.first_frame());
@@ -179,11 +295,8 @@ fn capture_run(
     let cameras = rig.cameras.clone();
     let capture_spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
     let capture = Capture::new(&performer, &motion, capture_spec)?;
-    let template = Template::new(
-        performer.template.clone(),
-        performer.skeleton.clone(),
-        performer.weights.clone(),
-    )?;
+    let embedding = TemplateEmbedding::new(&performer, args.template_vertices, args.loose_skirt)?;
+    let template = &embedding.template;
 
     // Observations (§2.3.2, §2.4.2).
     let stage = run.stage(
@@ -226,32 +339,48 @@ fn capture_run(
     let stage = run.stage(&format!("{name}: pose and shape"), None);
     let params = PoseParams::default();
     let result = capture_sequence(
-        &template,
+        template,
         &observations,
         &truths[0].theta,
         &[],
         &params,
-        &ShapeParams::default(),
+        &shape_params,
     )?;
     stage.finish(format!(
         "pose {:.2} s, shape {:.2} s per frame",
         result.pose_seconds / n,
         result.shape_seconds / n
     ));
-    let reoptimise_ms = reoptimise_ms(&template, &observations, &result, &cameras[0], &params)?;
+    // Diagnostic: Algorithm 1 on the true poses, which separates the molding's own error
+    // from the tracker's.
+    let stage = run.stage(&format!("{name}: shape on the true poses"), None);
+    let true_shapes = ShapeEstimator::new(template.clone(), shape_params.clone())?.estimate(
+        &truths
+            .iter()
+            .zip(&observations)
+            .map(|(t, o)| ShapeFrame {
+                theta: &t.theta,
+                rays: &o.rays,
+            })
+            .collect::<Vec<_>>(),
+    )?;
+    stage.finish("");
+    let reoptimise_ms = reoptimise_ms(template, &observations, &result, &cameras[0], &params)?;
 
     // Scores.
     let stage = run.stage(&format!("{name}: score"), Some(spec.frames as u64));
     let sk = template.skeleton();
-    let skirt: Vec<usize> = performer.garment_vertices().collect();
-    let body: Vec<usize> = (0..performer.garment_vertices().start).collect();
+    let original = &embedding.original;
+    let garment = performer.garment_vertices();
+    let (skirt, body): (Vec<usize>, Vec<usize>) =
+        (0..original.len()).partition(|&v| garment.contains(&original[v]));
     let deforming: Vec<usize> = body
         .iter()
         .copied()
         .filter(|&v| {
             truths
                 .iter()
-                .any(|t| t.posed.pose_displacement[v].length() >= DEFORMING_MIN_M)
+                .any(|t| t.posed.pose_displacement[original[v]].length() >= DEFORMING_MIN_M)
         })
         .collect();
     let (mut joint, mut sil, mut sil_lbs, mut edge) = (vec![], vec![], vec![], vec![]);
@@ -262,9 +391,9 @@ fn capture_run(
         ("body_", Some(&body)),
         ("deforming_", Some(&deforming)),
     ];
-    let mut scores = vec![[vec![], vec![], vec![]]; subsets.len()];
+    let mut scores = vec![[vec![], vec![], vec![], vec![]]; subsets.len()];
     for (t, truth) in truths.iter().enumerate() {
-        let true_v = &truth.posed.true_vertices;
+        let true_v = &embedding.truth(&performer, truth)?;
         let est = sk
             .forward_kinematics(&result.poses.poses[t])?
             .joint_positions();
@@ -286,6 +415,7 @@ fn capture_run(
             scores[s][0].push(rms_mm(&result.shapes.frames[t], true_v, *subset));
             scores[s][1].push(rms_mm(&lbs, true_v, *subset));
             scores[s][2].push(rms_mm(&lbs_true, true_v, *subset));
+            scores[s][3].push(rms_mm(&true_shapes.frames[t], true_v, *subset));
         }
         let molded = template.mesh_with(result.shapes.frames[t].clone());
         sil.push(mean(&silhouette_error_pct(&molded, &cameras, &masks[t])?));
@@ -304,6 +434,7 @@ fn capture_run(
     };
     put("frames", json!(truths.len()));
     put("skirt", json!(spec.skirt));
+    put("template_vertices", json!(template.mesh().vertex_count()));
     put("joint_error_mm", json!(mean(&joint)));
     for (s, (prefix, _)) in subsets.iter().enumerate() {
         if scores[s][0].is_empty() {
@@ -321,6 +452,10 @@ fn capture_run(
             &format!("lbs_true_pose_{prefix}vertex_rms_mm"),
             json!(mean(&scores[s][2])),
         );
+        put(
+            &format!("molded_true_pose_{prefix}vertex_rms_mm"),
+            json!(mean(&scores[s][3])),
+        );
     }
     put("deforming_vertices", json!(deforming.len()));
     put("silhouette_error_pct", json!(mean(&sil)));
@@ -332,7 +467,7 @@ fn capture_run(
     put("reoptimise_ms", json!(reoptimise_ms));
     Ok(Captured {
         performer,
-        template,
+        embedding,
         truths,
         observations,
         result,
@@ -367,8 +502,13 @@ fn reoptimise_ms(
     Ok(ms)
 }
 
-fn pictures(run: &mut Run, c: &Captured, name: &str) -> Result<(), Box<dyn std::error::Error>> {
-    let template = &c.template;
+fn pictures(
+    run: &mut Run,
+    c: &Captured,
+    name: &str,
+    figures: &mut Map<String, Value>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let template = &c.embedding.template;
     let t = c.truths.len() / 2;
     let lbs_mesh = template.mesh_with(template.skin(&c.result.poses.poses[t])?);
     let result = template.mesh_with(c.result.shapes.frames[t].clone());
@@ -410,7 +550,7 @@ fn pictures(run: &mut Run, c: &Captured, name: &str) -> Result<(), Box<dyn std::
         &img,
         "One frame: template, visual hull, skinning with the estimated pose, the molded result, the truth",
     )?;
-    let truth = &c.truths[t].posed.true_vertices;
+    let truth = &c.embedding.truth(&c.performer, &c.truths[t])?;
     let colours = |v: &[DVec3]| -> Vec<[u8; 3]> {
         v.iter()
             .zip(truth)
@@ -477,25 +617,117 @@ fn pictures(run: &mut Run, c: &Captured, name: &str) -> Result<(), Box<dyn std::
         &chart.draw()?,
         "Silhouette error per frame: the molded result against skinning with the same poses",
     )?;
+    editing(run, c, name, t, figures)?;
+    // The template's texture coordinates serve every frame (§2.5.3, Figure 2-8): the file
+    // holds the vertices split at the atlas' seams, each frame gathered onto them.
     let glb = run.path("sequence.glb");
-    save_gltf_animation(
-        &glb,
-        &MeshSequence {
-            faces: &template.mesh().faces,
-            frames: &c.result.shapes.frames,
-            frame_time_s: c.frame_time_s,
-            uvs: None,
-            name,
-        },
+    let frames = &c.result.shapes.frames;
+    match &c.embedding.uvs {
+        Some(uvs) => {
+            let split = uvs.split_seams(template.mesh())?;
+            let gathered = frames
+                .iter()
+                .map(|f| split.gather(f))
+                .collect::<Result<Vec<_>, _>>()?;
+            save_gltf_animation(
+                &glb,
+                &MeshSequence {
+                    faces: &split.faces,
+                    frames: &gathered,
+                    frame_time_s: c.frame_time_s,
+                    uvs: Some(&split.uvs),
+                    name,
+                },
+            )?;
+        }
+        None => save_gltf_animation(
+            &glb,
+            &MeshSequence {
+                faces: &template.mesh().faces,
+                frames,
+                frame_time_s: c.frame_time_s,
+                uvs: None,
+                name,
+            },
+        )?,
+    }
+    Ok(())
+}
+
+/// A geometry edit of the template carried to every frame by deformation transfer (§2.5.3,
+/// Figure 2-9): the head grown by 25 % about the neck, blended over 6 cm above it.
+/// Writes `editing.png` and the figures `edit_transfer_ms_per_frame` and
+/// `edit_unedited_shift_mm` (RMS motion of the vertices the edit left alone, against the
+/// captured frames: the transfer must not disturb them).
+fn editing(
+    run: &mut Run,
+    c: &Captured,
+    name: &str,
+    t: usize,
+    figures: &mut Map<String, Value>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let template = &c.embedding.template;
+    let sk = template.skeleton();
+    let neck = sk.joint_index("neck").ok_or("no neck joint")?;
+    let centre = sk
+        .forward_kinematics(&vec![0.0; sk.dof_count()])?
+        .joint_positions()[neck];
+    let edited: Vec<DVec3> = template
+        .mesh()
+        .vertices
+        .iter()
+        .map(|v| {
+            let s = ((v.y - centre.y) / 0.06).clamp(0.0, 1.0);
+            let grow = 0.25 * s * s * (3.0 - 2.0 * s);
+            *v + (*v - centre) * grow
+        })
+        .collect();
+    let transfer = DeformationTransfer::new(template.mesh(), &edited)?;
+    let frames = &c.result.shapes.frames;
+    let t0 = Instant::now();
+    let out = transfer.transfer_sequence(frames)?;
+    let ms = 1e3 * t0.elapsed().as_secs_f64() / frames.len() as f64;
+    let unedited: Vec<usize> = (0..edited.len())
+        .filter(|&v| edited[v] == template.mesh().vertices[v])
+        .collect();
+    let shift: Vec<f64> = frames
+        .iter()
+        .zip(&out)
+        .map(|(f, e)| rms_mm(f, e, Some(&unedited)))
+        .collect();
+    figures.insert("edit_transfer_ms_per_frame".into(), json!(ms));
+    figures.insert("edit_unedited_shift_mm".into(), json!(mean(&shift)));
+    let grey = Paint::Flat([180, 180, 180]);
+    let blue = Paint::Flat([120, 170, 220]);
+    let meshes = [
+        template.mesh().clone(),
+        template.mesh_with(edited),
+        template.mesh_with(frames[t].clone()),
+        template.mesh_with(out[t].clone()),
+    ];
+    let panels: Vec<PreviewPanel> = meshes
+        .iter()
+        .zip([grey, blue, grey, blue])
+        .map(|(mesh, paint)| PreviewPanel { mesh, paint })
+        .collect();
+    let img = example_kit::plot::titled(
+        &preview(&panels, 320)?,
+        &format!("{name}, frame {t}: a template edit carried to the capture (Figure 2-9)"),
+        Some("left to right: template, edited template (head +25 %), captured frame, edited frame (deformation transfer)"),
+    )?;
+    run.save_picture(
+        "editing.png",
+        &img,
+        "Deformation transfer of a template edit (the head grown by 25 %) to a captured frame",
     )?;
     Ok(())
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args = example_kit::cli::Args::parse();
+    let args = Cli::parse();
     let quick = args.common.quick;
     let size = if quick { (480, 360) } else { (1600, 1200) };
-    let n = if quick { 12 } else { 100 };
+    let n = args.frames.unwrap_or(if quick { 12 } else { 100 });
     // The protocol (skirt) first, then the body alone for reference.
     let run_spec = |skirt, motion, frames| RunSpec {
         skirt,
@@ -505,7 +737,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let runs: Vec<RunSpec> = if quick {
         vec![
             run_spec(false, MotionKind::Exercise, n),
-            run_spec(true, MotionKind::Exercise, 8),
+            run_spec(true, MotionKind::Exercise, args.frames.unwrap_or(8)),
         ]
     } else {
         vec![
@@ -515,6 +747,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             run_spec(false, MotionKind::Exercise, n),
         ]
     };
+    let runs: Vec<RunSpec> = runs
+        .into_iter()
+        .filter(|r| args.runs.is_empty() || args.runs.contains(&r.name()))
+        .collect();
+    if runs.is_empty() {
+        return Err(format!("no run is called any of {:?}", args.runs).into());
+    }
     let mut run = Run::start(
         "template_capture",
         &args.common,
@@ -532,10 +771,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let mut figures = Map::new();
     for (i, spec) in runs.iter().enumerate() {
-        let captured = capture_run(&mut run, spec, size, &mut figures)?;
+        let captured = capture_run(&mut run, spec, size, &args, &mut figures)?;
         if i == 0 {
             let stage = run.stage("pictures", None);
-            pictures(&mut run, &captured, &spec.name())?;
+            pictures(&mut run, &captured, &spec.name(), &mut figures)?;
             stage.finish("");
         }
     }

@@ -229,7 +229,7 @@ fn triangle_frame([p1, p2, p3]: [DVec3; 3]) -> Option<DMat3> {
     let (e1, e2) = (p2 - p1, p3 - p1);
     let n = e1.cross(e2);
     let len = n.length();
-    if !(len > f64::EPSILON * e1.length_squared().max(e2.length_squared())) {
+    if len <= f64::EPSILON * e1.length_squared().max(e2.length_squared()) {
         return None;
     }
     Some(DMat3::from_cols(e1, e2, n / len.sqrt()))

@@ -114,8 +114,8 @@ pub use pose::{
 };
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
-    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_C,
-    DEFAULT_W_L_STEP,
+    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_ANCHOR,
+    DEFAULT_W_C, DEFAULT_W_L_STEP,
 };
 pub use silhouette_constraints::{
     contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,

@@ -189,9 +189,25 @@ impl Molding {
         w_c: f64,
         constraints: &[SoftConstraint],
     ) -> Result<Vec<DVec3>> {
+        self.solve_weighted(w_l, coords, &[(w_c, constraints)])
+    }
+
+    /// [`Molding::solve`] with several groups of constraints, each with its own weight:
+    /// `argmin_V ‖Δ V − w_L L'‖² + Σ_g w_g ‖C_g V − P_g‖²`.
+    ///
+    /// # Errors
+    /// As [`Molding::solve`].
+    pub fn solve_weighted(
+        &mut self,
+        w_l: f64,
+        coords: &[DVec3],
+        groups: &[(f64, &[SoftConstraint])],
+    ) -> Result<Vec<DVec3>> {
         let n = self.vertex_count();
         skin_core::check::non_negative("w_L", w_l)?;
-        skin_core::check::non_negative("w_C", w_c)?;
+        for (w_c, _) in groups {
+            skin_core::check::non_negative("w_C", *w_c)?;
+        }
         if coords.len() != n {
             return Err(Error::SizeMismatch {
                 what: "Laplacian coordinates vs template vertices",
@@ -208,7 +224,10 @@ impl Molding {
         // Right side: Δᵀ (w_L L') + w_C Cᵀ P.
         let scaled: Vec<DVec3> = coords.iter().map(|c| w_l * *c).collect();
         let mut rhs = apply_transpose(&self.delta, &scaled);
-        for c in constraints {
+        for (w_c, c) in groups
+            .iter()
+            .flat_map(|(w, cs)| cs.iter().map(move |c| (*w, c)))
+        {
             let f = c.point.face as usize;
             let (Some(face), Some(slots)) = (self.faces.get(f), self.face_slots.get(f)) else {
                 return Err(Error::IndexOutOfRange {

@@ -22,6 +22,9 @@ pub struct Template {
     weights: SkinWeights,
     /// The LBS bind matrices.
     binding: SkinBinding,
+    /// Vertices marked as loose cloth ([`Template::with_loose_vertices`]); empty: none.
+    #[serde(default)]
+    loose: Vec<bool>,
 }
 
 impl Template {
@@ -58,7 +61,34 @@ impl Template {
             skeleton,
             weights,
             binding,
+            loose: Vec::new(),
         })
+    }
+
+    /// This template with `loose[v]` marking loose cloth: a skirt below its waistband, a
+    /// coat's tails. Beyond the thesis: its nearly-rigid rule (§2.4.2) pins every vertex
+    /// with a bone weight ≥ 0.95 at its skinned position in Eq. 2.1, and a rigger's skirt
+    /// weights bind most of the skirt rigidly to one thigh or the pelvis, so Eq. 2.1 would
+    /// start the cloth where the leg, not the cloth, is (and the tracker seldom recovers:
+    /// the 5 cm limit of §2.4.2 rejects the contour constraints that would free it). A loose
+    /// vertex is never nearly rigid ([`Template::nearly_rigid`]); Eq. 2.1 interpolates it
+    /// from the pinned body and waistband, and the silhouettes move it from there.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] unless `loose` has one entry per vertex.
+    pub fn with_loose_vertices(mut self, loose: Vec<bool>) -> Result<Self> {
+        skin_core::check::same_size(
+            "loose vertices vs template vertices",
+            self.vertex_count(),
+            loose.len(),
+        )?;
+        self.loose = loose;
+        Ok(self)
+    }
+
+    /// Whether vertex `v` is marked as loose cloth ([`Template::with_loose_vertices`]).
+    pub fn is_loose(&self, v: usize) -> bool {
+        self.loose.get(v).copied().unwrap_or(false)
     }
 
     /// The template mesh in the rest pose, metres.
@@ -109,9 +139,11 @@ impl Template {
     }
 
     /// The vertices whose largest weight is at least `min_weight` (the *nearly-rigid*
-    /// vertices of §2.4.2 for `min_weight` = 0.95), with that bone.
+    /// vertices of §2.4.2 for `min_weight` = 0.95), with that bone; loose vertices
+    /// ([`Template::with_loose_vertices`]) excepted.
     pub fn nearly_rigid(&self, min_weight: f64) -> Vec<(usize, usize)> {
         (0..self.vertex_count())
+            .filter(|&i| !self.is_loose(i))
             .filter_map(|i| {
                 self.weights
                     .influences(i)
@@ -217,5 +249,25 @@ pub(crate) mod tests {
         };
         let e = Template::new(no_faces, t.skeleton().clone(), t.weights().clone()).unwrap_err();
         assert!(matches!(e, Error::Empty { .. }), "{e}");
+    }
+
+    #[test]
+    fn loose_vertices_are_never_nearly_rigid() {
+        let t = bendy();
+        let rigid = t.nearly_rigid(0.95);
+        assert!(!rigid.is_empty());
+        // Everything above 0.8 m is loose cloth.
+        let loose: Vec<bool> = t.mesh().vertices.iter().map(|v| v.y > 0.8).collect();
+        let marked = t.clone().with_loose_vertices(loose.clone()).unwrap();
+        let kept = marked.nearly_rigid(0.95);
+        assert!(kept.iter().all(|&(v, _)| !loose[v]));
+        assert_eq!(
+            kept.len(),
+            rigid.iter().filter(|&&(v, _)| !loose[v]).count()
+        );
+        assert!(kept.len() < rigid.len());
+        assert!(marked.is_loose(loose.iter().position(|&l| l).unwrap()));
+        let e = t.with_loose_vertices(vec![true; 3]).unwrap_err();
+        assert!(e.to_string().contains("size mismatch"), "{e}");
     }
 }

@@ -3,8 +3,11 @@
 //! The core type is [`TriMesh`]: vertex positions (`DVec3`, metres) and faces (`[u32; 3]`,
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
 //! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics;
-//! with the feature `gltf`, glTF 2.0 export of mesh sequences ([`write_gltf_animation`]).
+//! with the feature `gltf`, glTF 2.0 export of mesh sequences ([`write_gltf_animation`]); with
+//! the feature `decimate`, decimation by edge collapses ([`decimate`]).
 
+#[cfg(feature = "decimate")]
+mod decimate;
 #[cfg(feature = "gltf")]
 mod gltf;
 mod heat_weights;
@@ -23,6 +26,8 @@ mod topology;
 mod trimesh;
 mod uv;
 
+#[cfg(feature = "decimate")]
+pub use decimate::{decimate, Decimation};
 #[cfg(feature = "gltf")]
 pub use gltf::{save_gltf_animation, write_gltf_animation, MeshSequence};
 pub use heat_weights::{

@@ -119,6 +119,78 @@ impl UvLayout {
         Ok(UvLayout { coords, faces })
     }
 
+    /// The layout of a mesh whose vertices are a subset of `mesh`'s (a [`decimate`]d mesh:
+    /// `coarse` with `original_index[i]` the original vertex of coarse vertex `i`). Each
+    /// coarse corner takes one of the coordinates its original vertex has in `mesh`; on a
+    /// seam, where it has several, the face takes the combination with the smallest perimeter
+    /// in texture space (the copies on the face's own side of the seam).
+    ///
+    /// [`decimate`]: crate::mesh
+    ///
+    /// # Errors
+    /// As [`UvLayout::validate`]; [`Error::IndexOutOfRange`] for an original index outside
+    /// `mesh`; [`Error::Degenerate`] for a coarse vertex that no face of `mesh` uses.
+    pub fn for_vertex_subset(
+        &self,
+        mesh: &TriMesh,
+        coarse: &TriMesh,
+        original_index: &[u32],
+    ) -> Result<UvLayout> {
+        self.validate(mesh)?;
+        check::same_size(
+            "original indices vs coarse vertices",
+            coarse.vertex_count(),
+            original_index.len(),
+        )?;
+        let mut candidates: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertex_count()];
+        for (f, c) in mesh.faces.iter().zip(&self.faces) {
+            for k in 0..3 {
+                let list = &mut candidates[f[k] as usize];
+                if !list.contains(&c[k]) {
+                    list.push(c[k]);
+                }
+            }
+        }
+        let mut faces = Vec::with_capacity(coarse.face_count());
+        for f in &coarse.faces {
+            let mut corner: [&[u32]; 3] = [&[]; 3];
+            for k in 0..3 {
+                let o = *original_index
+                    .get(f[k] as usize)
+                    .ok_or(Error::IndexOutOfRange {
+                        what: "coarse face vertex",
+                        index: f[k] as usize,
+                        len: original_index.len(),
+                    })? as usize;
+                check::index("original vertex", o, mesh.vertex_count())?;
+                corner[k] = &candidates[o];
+                if corner[k].is_empty() {
+                    return Err(Error::Degenerate {
+                        what: format!("original vertex {o} has no texture coordinate"),
+                    });
+                }
+            }
+            let uv = |c: u32| self.coords[c as usize];
+            let mut best = ([0u32; 3], f64::INFINITY);
+            for &a in corner[0] {
+                for &b in corner[1] {
+                    for &c in corner[2] {
+                        let p =
+                            uv(a).distance(uv(b)) + uv(b).distance(uv(c)) + uv(c).distance(uv(a));
+                        if p < best.1 {
+                            best = ([a, b, c], p);
+                        }
+                    }
+                }
+            }
+            faces.push(best.0);
+        }
+        Ok(UvLayout {
+            coords: self.coords.clone(),
+            faces,
+        })
+    }
+
     /// Splits the mesh's vertices where they carry more than one coordinate (UV seams): one
     /// split vertex per distinct (vertex, coordinate index) pair, in order of first use.
     ///
@@ -219,6 +291,33 @@ mod tests {
         // Only vertices on the seam (one per ring and the caps' centres at most) split.
         assert!(split.vertex.len() > mesh.vertex_count());
         assert!(split.vertex.len() < mesh.vertex_count() + 24);
+    }
+
+    #[test]
+    fn a_subset_keeps_each_face_on_its_side_of_the_seam() {
+        let mesh = cylinder(0.5, 1.0, 24, 4).unwrap();
+        let layout = UvLayout::cylindrical(&mesh, DVec3::ZERO).unwrap();
+        // The "coarse" mesh is the mesh itself with its vertices reversed.
+        let n = mesh.vertex_count() as u32;
+        let original_index: Vec<u32> = (0..n).rev().collect();
+        let coarse = TriMesh::new(
+            original_index
+                .iter()
+                .map(|&o| mesh.vertices[o as usize])
+                .collect(),
+            mesh.faces.iter().map(|f| f.map(|v| n - 1 - v)).collect(),
+        )
+        .unwrap();
+        let sub = layout
+            .for_vertex_subset(&mesh, &coarse, &original_index)
+            .unwrap();
+        let coords = |l: &UvLayout, f: usize| l.faces[f].map(|c| l.coords[c as usize]);
+        for f in 0..mesh.face_count() {
+            assert_eq!(coords(&sub, f), coords(&layout, f), "face {f}");
+        }
+        assert!(layout
+            .for_vertex_subset(&mesh, &coarse, &original_index[1..])
+            .is_err());
     }
 
     #[test]
