@@ -68,8 +68,11 @@ mod correspondence;
 mod error;
 mod face_data;
 mod impute;
+mod klt;
 mod model;
 mod tracking;
+mod transfer;
+mod video;
 #[cfg(feature = "validation")]
 pub mod validation;
 
@@ -79,3 +82,5 @@ pub use face_data::{FaceTensor, KnownFaces};
 pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
 pub use model::{Dials, ModelFit, ModelParams, MultilinearModel};
 pub use tracking::{mean_weights, track_points, PointTrack, TrackParams, WeakPerspective};
+pub use transfer::{lift_texture, render_textured, FaceTexture};
+pub use video::{track_video, FeaturePoints, VideoTrack, VideoTrackParams};

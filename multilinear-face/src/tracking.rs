@@ -43,15 +43,34 @@ impl WeakPerspective {
 
     /// The least-squares affine camera for `points → pixels`, projected to the nearest
     /// weak-perspective one (orthonormal rows by SVD, scale the mean singular value).
-    fn fit(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Self> {
+    pub(crate) fn fit(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Self> {
+        Self::fit_weighted(points, pixels, None)
+    }
+
+    /// As [`WeakPerspective::fit`], each point's residual `r` weighted as `rᵀ Z r` with its
+    /// symmetric 2 × 2 `Z = [zxx, zxy, zyy]` (Eq. 5.7: the KLT system of the point).
+    pub(crate) fn fit_weighted(
+        points: &[[f64; 3]],
+        pixels: &[[f64; 2]],
+        z: Option<&[[f64; 3]]>,
+    ) -> Result<Self> {
         let n = points.len();
-        // Normal equations of [x y z 1] [A | t]ᵀ = p (4 × 4).
-        let mut ata = nalgebra::Matrix4::<f64>::zeros();
-        let mut atb = nalgebra::Matrix4x2::<f64>::zeros();
-        for (x, p) in points.iter().zip(pixels) {
-            let a = nalgebra::Vector4::new(x[0], x[1], x[2], 1.0);
-            ata += a * a.transpose();
-            atb += a * nalgebra::RowVector2::new(p[0], p[1]);
+        // Unknowns [a₀ (3), a₁ (3), t (2)]; per point J = [[xᵀ 0 1 0], [0 xᵀ 0 1]].
+        let mut ata = nalgebra::SMatrix::<f64, 8, 8>::zeros();
+        let mut atb = nalgebra::SVector::<f64, 8>::zeros();
+        for (k, (x, p)) in points.iter().zip(pixels).enumerate() {
+            let w = z.map_or([1.0, 0.0, 1.0], |z| z[k]);
+            let mut j = nalgebra::SMatrix::<f64, 2, 8>::zeros();
+            for c in 0..3 {
+                j[(0, c)] = x[c];
+                j[(1, 3 + c)] = x[c];
+            }
+            j[(0, 6)] = 1.0;
+            j[(1, 7)] = 1.0;
+            let zm = nalgebra::Matrix2::new(w[0], w[1], w[1], w[2]);
+            let jz = j.transpose() * zm;
+            ata += jz * j;
+            atb += jz * Vector2::new(p[0], p[1]);
         }
         let sol = ata
             .cholesky()
@@ -60,14 +79,7 @@ impl WeakPerspective {
                 name: "tracked points",
                 reason: "the tracked points are coplanar or degenerate".into(),
             })?;
-        let m = Matrix2x3::new(
-            sol[(0, 0)],
-            sol[(1, 0)],
-            sol[(2, 0)],
-            sol[(0, 1)],
-            sol[(1, 1)],
-            sol[(2, 1)],
-        );
+        let m = Matrix2x3::new(sol[0], sol[1], sol[2], sol[3], sol[4], sol[5]);
         let svd = m.svd(true, true);
         let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
             return Err(Error::InvalidParam {
@@ -77,13 +89,16 @@ impl WeakPerspective {
         };
         let r2 = u * vt;
         let scale = 0.5 * (svd.singular_values[0] + svd.singular_values[1]);
-        // Translation from the centroids with the projected camera.
-        let (mut cx, mut cp) = (nalgebra::Vector3::zeros(), Vector2::zeros());
-        for (x, p) in points.iter().zip(pixels) {
-            cx += nalgebra::Vector3::from(*x);
-            cp += Vector2::from(*p);
+        // Translation by (weighted) least squares with the projected camera.
+        let (mut zs, mut zr) = (nalgebra::Matrix2::zeros(), Vector2::zeros());
+        for (k, (x, p)) in points.iter().zip(pixels).enumerate() {
+            let w = z.map_or([1.0, 0.0, 1.0], |z| z[k]);
+            let zm = nalgebra::Matrix2::new(w[0], w[1], w[1], w[2]);
+            let r = Vector2::from(*p) - r2 * nalgebra::Vector3::from(*x) * scale;
+            zs += zm;
+            zr += zm * r;
         }
-        let t = cp / n as f64 - r2 * cx / n as f64 * scale;
+        let t = zs.try_inverse().map_or_else(|| zr / n.max(1) as f64, |i| i * zr);
         Ok(WeakPerspective {
             scale,
             rows: [
@@ -144,14 +159,16 @@ pub fn mean_weights(model: &MultilinearModel) -> Result<Vec<DVector<f64>>> {
 }
 
 /// Rows of the basis `Mₘ` (Eq. 5.9) for the tracked vertices, projected by the camera:
-/// `(2N × rₘ, 2N rhs)` for `s R₂ Mₘ,ᵢ wₘ = pᵢ − t`.
-fn projected_system(
+/// `(2N × rₘ, 2N rhs)` for `s R₂ Mₘ,ᵢ wₘ = pᵢ − t`. With `z`, each point's two rows are
+/// multiplied by `Lᵀ` (`Z = L Lᵀ`), so that the least squares minimise `Σ rᵀ Z r` (Eq. 5.8).
+pub(crate) fn projected_system(
     model: &MultilinearModel,
     mode: usize,
     weights: &[DVector<f64>],
     cam: &WeakPerspective,
     tracked: &[usize],
     pixels: &[[f64; 2]],
+    z: Option<&[[f64; 3]]>,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let basis = model.linear_basis(mode, weights)?;
     let r = basis.ncols();
@@ -161,14 +178,33 @@ fn projected_system(
     for (k, (&v, p)) in tracked.iter().zip(pixels).enumerate() {
         let rows = basis.rows(3 * v, 3);
         let proj = r2 * rows; // 2 × r
-        a.rows_mut(2 * k, 2).copy_from(&proj);
-        b[2 * k] = p[0] - cam.translation[0];
-        b[2 * k + 1] = p[1] - cam.translation[1];
+        let rhs = Vector2::new(p[0] - cam.translation[0], p[1] - cam.translation[1]);
+        match z {
+            None => {
+                a.rows_mut(2 * k, 2).copy_from(&proj);
+                b.rows_mut(2 * k, 2).copy_from(&rhs);
+            }
+            Some(z) => {
+                let lt = sqrt_weight(z[k]);
+                a.rows_mut(2 * k, 2).copy_from(&(lt * proj));
+                b.rows_mut(2 * k, 2).copy_from(&(lt * rhs));
+            }
+        }
     }
     Ok((a, b))
 }
 
-fn solve_ridge(
+/// `Lᵀ` of the Cholesky factor `Z = L Lᵀ` of a symmetric 2 × 2 `[zxx, zxy, zyy]` (a tiny
+/// ridge keeps a rank-deficient `Z` — an edge — factorable).
+fn sqrt_weight(z: [f64; 3]) -> nalgebra::Matrix2<f64> {
+    let eps = 1e-12 * (z[0] + z[2]).abs().max(f64::MIN_POSITIVE);
+    let l00 = (z[0] + eps).sqrt();
+    let l10 = z[1] / l00;
+    let l11 = (z[2] + eps - l10 * l10).max(0.0).sqrt();
+    nalgebra::Matrix2::new(l00, l10, 0.0, l11)
+}
+
+pub(crate) fn solve_ridge(
     ata: &DMatrix<f64>,
     atb: &DVector<f64>,
     prior_w: &DVector<f64>,
@@ -188,7 +224,7 @@ fn solve_ridge(
         })
 }
 
-fn shape_points(
+pub(crate) fn shape_points(
     model: &MultilinearModel,
     w: &[DVector<f64>],
     tracked: &[usize],
@@ -264,7 +300,7 @@ pub fn track_points(
                         .at(Context::Frame(t))?;
                 for m in (0..modes).filter(|&m| !constant[m]) {
                     let (a, b) =
-                        projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t])?;
+                        projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t], None)?;
                     weights[t][m] =
                         solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], params.prior)
                             .at(Context::Frame(t))?;
@@ -276,7 +312,7 @@ pub fn track_points(
             let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
             for t in 0..frames.len() {
                 let (a, b) =
-                    projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t])?;
+                    projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t], None)?;
                 ata += a.tr_mul(&a);
                 atb += a.tr_mul(&b);
             }

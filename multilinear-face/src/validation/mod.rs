@@ -31,6 +31,7 @@
 //! lists them).
 
 mod dataset;
+mod video;
 
 pub use dataset::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
@@ -38,3 +39,4 @@ pub use dataset::{
     FaceSetParams, IctBasis, PointTrackSequence, Recipe, BILINEAR_EXPRESSIONS, ICT_BLENDSHAPES,
     TRILINEAR_EXPRESSIONS, VISEMES,
 };
+pub use video::{render_face_frame, render_face_video, FaceVideo, FaceVideoParams};
