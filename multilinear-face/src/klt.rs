@@ -28,8 +28,8 @@ pub(crate) struct Level {
     pub(crate) width: usize,
     pub(crate) height: usize,
     img: Vec<f32>,
-    gx: Vec<f32>,
-    gy: Vec<f32>,
+    /// Intensity and gradients interleaved (one cache line per bilinear corner pair).
+    igg: Vec<[f32; 3]>,
 }
 
 impl Level {
@@ -45,12 +45,16 @@ impl Level {
                 gy[i] = (img[yd * width + x] - img[yu * width + x]) / (yd - yu).max(1) as f32;
             }
         }
+        let igg = img
+            .iter()
+            .zip(gx.iter().zip(&gy))
+            .map(|(&i, (&x, &y))| [i, x, y])
+            .collect();
         Level {
             width,
             height,
             img,
-            gx,
-            gy,
+            igg,
         }
     }
 
@@ -67,12 +71,17 @@ impl Level {
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
         let i = y0 * self.width + x0;
         let w = self.width;
-        let lerp = |b: &[f32]| {
-            let top = b[i] + fx * (b[i + 1] - b[i]);
-            let bot = b[i + w] + fx * (b[i + w + 1] - b[i + w]);
+        let (a, b, c, d) = (
+            self.igg[i],
+            self.igg[i + 1],
+            self.igg[i + w],
+            self.igg[i + w + 1],
+        );
+        Some(std::array::from_fn(|k| {
+            let top = a[k] + fx * (b[k] - a[k]);
+            let bot = c[k] + fx * (d[k] - c[k]);
             top + fy * (bot - top)
-        };
-        Some([lerp(&self.img), lerp(&self.gx), lerp(&self.gy)])
+        }))
     }
 }
 
@@ -133,6 +142,8 @@ impl Pyramid {
 /// KLT settings (a part of [`crate::VideoTrackParams`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Klt {
+    /// Pyramid levels used (at most the pyramids' own).
+    pub(crate) levels: usize,
     pub(crate) radius: usize,
     pub(crate) iterations: usize,
     pub(crate) epsilon_px: f64,
@@ -171,7 +182,7 @@ fn track_one(from: &Pyramid, to: &Pyramid, q: [f64; 2], p0: [f64; 2], k: &Klt) -
     let mut tmpl = vec![[0.0f32; 3]; n];
     let mut win: Vec<[f32; 3]> = Vec::with_capacity(n);
     let mut p = p0;
-    let nl = from.levels.len().min(to.levels.len());
+    let nl = from.levels.len().min(to.levels.len()).min(k.levels.max(1));
     let mut out = Solve {
         p,
         z: [0.0; 3],
@@ -315,6 +326,7 @@ mod tests {
 
     fn params() -> Klt {
         Klt {
+            levels: 3,
             radius: 6,
             iterations: 20,
             epsilon_px: 0.005,

@@ -72,9 +72,9 @@ mod klt;
 mod model;
 mod tracking;
 mod transfer;
-mod video;
 #[cfg(feature = "validation")]
 pub mod validation;
+mod video;
 
 pub use correspondence::{fit_template, CorrespondenceParams, TemplateFit};
 pub use error::{Context, Error, Result, ResultExt};

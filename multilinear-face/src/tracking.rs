@@ -98,7 +98,9 @@ impl WeakPerspective {
             zs += zm;
             zr += zm * r;
         }
-        let t = zs.try_inverse().map_or_else(|| zr / n.max(1) as f64, |i| i * zr);
+        let t = zs
+            .try_inverse()
+            .map_or_else(|| zr / n.max(1) as f64, |i| i * zr);
         Ok(WeakPerspective {
             scale,
             rows: [
@@ -299,8 +301,15 @@ pub fn track_points(
                     WeakPerspective::fit(&shape_points(model, &weights[t], tracked)?, &frames[t])
                         .at(Context::Frame(t))?;
                 for m in (0..modes).filter(|&m| !constant[m]) {
-                    let (a, b) =
-                        projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t], None)?;
+                    let (a, b) = projected_system(
+                        model,
+                        m,
+                        &weights[t],
+                        &cameras[t],
+                        tracked,
+                        &frames[t],
+                        None,
+                    )?;
                     weights[t][m] =
                         solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], params.prior)
                             .at(Context::Frame(t))?;
@@ -311,8 +320,15 @@ pub fn track_points(
             let r = model.ranks()[m];
             let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
             for t in 0..frames.len() {
-                let (a, b) =
-                    projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t], None)?;
+                let (a, b) = projected_system(
+                    model,
+                    m,
+                    &weights[t],
+                    &cameras[t],
+                    tracked,
+                    &frames[t],
+                    None,
+                )?;
                 ata += a.tr_mul(&a);
                 atb += a.tr_mul(&b);
             }

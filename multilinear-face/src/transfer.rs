@@ -170,7 +170,11 @@ pub fn render_textured(
     texture: &FaceTexture,
     background: &RgbImage,
 ) -> Result<RgbImage> {
-    skin_core::check::same_size("texture colours (one per vertex)", face.len(), texture.colours.len())?;
+    skin_core::check::same_size(
+        "texture colours (one per vertex)",
+        face.len(),
+        texture.colours.len(),
+    )?;
     let (w, h) = background.dimensions();
     let (view, _) = render_view(face, triangles, cam, w, h)?;
     let mut out = background.clone();

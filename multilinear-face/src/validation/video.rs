@@ -150,17 +150,23 @@ pub fn render_face_video(
     let mut frames = Vec::with_capacity(frame_count);
     for (t, (face, cam)) in seq.truth.iter().zip(&seq.cameras).enumerate() {
         frames.push(
-            render_face_frame(face, triangles, rest, cam, params, params.seed ^ (t as u64 + 1))
-                .at(Context::Frame(t))?,
+            render_face_frame(
+                face,
+                triangles,
+                rest,
+                cam,
+                params,
+                params.seed ^ (t as u64 + 1),
+            )
+            .at(Context::Frame(t))?,
         );
     }
     skin_core::check::non_negative("feature_noise_px", params.feature_noise_px)?;
-    let noise = Normal::new(0.0, params.feature_noise_px.max(1e-300)).map_err(|e| {
-        Error::InvalidParam {
+    let noise =
+        Normal::new(0.0, params.feature_noise_px.max(1e-300)).map_err(|e| Error::InvalidParam {
             name: "feature_noise_px",
             reason: e.to_string(),
-        }
-    })?;
+        })?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed.wrapping_add(1000));
     let pixels = seq.frames[0]
         .iter()
