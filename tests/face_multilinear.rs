@@ -316,7 +316,10 @@ fn face_tracking_from_video() {
     }
     let pct = |x: f64| 100.0 * x / n as f64;
     let (ours, mean, held) = (pct(ours), pct(mean), pct(held));
-    eprintln!("video tracking: {ours:.3} % (mean face {mean:.3} %, first frame held {held:.3} %)");
+    eprintln!(
+        "video tracking: {ours:.3} % (mean face {mean:.3} %, first frame held {held:.3} %), {:.1} fps",
+        n as f64 / track.seconds
+    );
     assert!(
         ours < 2.0 && ours < 0.6 * mean && ours < 0.9 * held,
         "tracked {ours} % vs mean face {mean} %, first frame held {held} %"

@@ -1,8 +1,8 @@
 //! Tracking the model's attributes through 2D point tracks (§5.4.1, Eq. 5.7–5.9 with the
 //! point motion given, i.e. `Z = I`): a weak-perspective camera, coordinate descent that frees
 //! one attribute at a time, per-frame attributes solved per frame, constant attributes
-//! (identity) accumulated over all frames, several passes. The KLT flow that produces the
-//! tracks from video is not part of this crate yet.
+//! (identity) accumulated over all frames, several passes. From video, [`crate::track_video`]
+//! produces the point systems with the KLT and solves them with the weighted forms here.
 
 use std::time::Instant;
 

@@ -133,8 +133,8 @@ pub fn lift_texture(
                 let (u, v) = (t[a] as usize, t[(a + 1) % 3] as usize);
                 for (i, j) in [(u, v), (v, u)] {
                     if !known[i] && known[j] {
-                        for c in 0..3 {
-                            sum[i].0[c] += colours[j][c];
+                        for (acc, c) in sum[i].0.iter_mut().zip(colours[j]) {
+                            *acc += c;
                         }
                         sum[i].1 += 1;
                     }
@@ -195,4 +195,69 @@ pub fn render_textured(
         *px = Rgb(c.map(|v| v.round().clamp(0.0, 255.0) as u8));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 21 × 21 grid in the x–y plane (model units) and a colour ramp over it.
+    fn grid() -> (Vec<DVec3>, Vec<[u32; 3]>, Vec<[f32; 3]>) {
+        let n = 21u32;
+        let mut v = Vec::new();
+        let mut c = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                v.push(DVec3::new(f64::from(i) - 10.0, f64::from(j) - 10.0, 0.0));
+                c.push([10.0 * i as f32, 10.0 * j as f32, 100.0]);
+            }
+        }
+        let mut t = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = j * n + i;
+                t.push([a, a + 1, a + n + 1]);
+                t.push([a, a + n + 1, a + n]);
+            }
+        }
+        (v, t, c)
+    }
+
+    #[test]
+    fn lifted_colours_reproduce_a_rendered_texture() {
+        let (v, t, c) = grid();
+        let (co, si) = (0.3f64.cos(), 0.3f64.sin());
+        let cam = WeakPerspective {
+            scale: 5.0,
+            rows: [[co, 0.0, si], [0.0, 1.0, 0.0]],
+            translation: [80.0, 60.0],
+        };
+        let tex = FaceTexture {
+            colours: c.clone(),
+            visible: vec![true; v.len()],
+        };
+        let frame = render_textured(&v, &t, &cam, &tex, &RgbImage::new(160, 120)).unwrap();
+        // The grid's centre is rendered with its interpolated colour.
+        let centre = frame.get_pixel(80, 60).0;
+        assert!((f32::from(centre[0]) - 100.0).abs() <= 6.0, "{centre:?}");
+        let lifted = lift_texture(&v, &t, &cam, &frame).unwrap();
+        let mut checked = 0;
+        for (k, (a, b)) in lifted.colours.iter().zip(&c).enumerate() {
+            // Interior vertices (a border vertex's bilinear sample mixes in the background).
+            let (i, j) = (k % 21, k / 21);
+            if lifted.visible[k] && (1..20).contains(&i) && (1..20).contains(&j) {
+                checked += 1;
+                for ch in 0..3 {
+                    assert!((a[ch] - b[ch]).abs() <= 6.0, "vertex {k}: {a:?} vs {b:?}");
+                }
+            }
+        }
+        assert!(checked == 19 * 19, "{checked} visible vertices");
+        // A texture of another size is an error.
+        let short = FaceTexture {
+            colours: c[..10].to_vec(),
+            visible: vec![true; 10],
+        };
+        assert!(render_textured(&v, &t, &cam, &short, &frame).is_err());
+    }
 }

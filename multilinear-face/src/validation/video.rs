@@ -7,7 +7,7 @@
 //! evaluated per pixel at the rest position of the visible point (the generic neutral face,
 //! model units read as cm and converted to m), so the pattern moves with the skin: base tone
 //! `[0.8, 0.6, 0.5]`, blotches of 1.5 cm at ±25 % and brown freckles on a 4 mm lattice,
-//! darkening up to 45 % — at 20 px per cm, freckles of 4–8 px, the detail a 11 × 11 KLT window
+//! darkening up to 45 % — at 20 px per cm, freckles of 4–8 px, the detail a 9 × 9 KLT window
 //! needs (the default studio skin, 12 mm freckles at 20 % contrast, is too smooth at this
 //! scale). **Shading**: one light at the camera, `ρ (0.35 + 0.65 max(0, n·v))`, so the shading
 //! changes as the head turns (the KLT removes each window's mean). **Pixels**: linear values
