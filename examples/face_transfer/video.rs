@@ -174,33 +174,36 @@ pub(crate) fn video_tracking(
     };
     let st_exact = track(&src, &exact)?;
     // The model's bound: the point tracker on exact projections of all 1,000 vertices.
-    let exact_tracks: Vec<Vec<[f64; 2]>> = src
-        .truth
-        .iter()
-        .zip(&src.cameras)
-        .map(|(f, c)| {
-            tracked
-                .iter()
-                .map(|&v| c.project(f[v].to_array()))
-                .collect()
-        })
-        .collect();
-    let floor = track_points(
-        model,
-        &tracked,
-        &exact_tracks,
-        &[false, true],
-        &TrackParams::default(),
-    )?;
+    let bound = |v: &FaceVideo| -> Res<Vec<f64>> {
+        let exact_tracks: Vec<Vec<[f64; 2]>> = v
+            .truth
+            .iter()
+            .zip(&v.cameras)
+            .map(|(f, c)| tracked.iter().map(|&i| c.project(f[i].to_array())).collect())
+            .collect();
+        let fit = track_points(
+            model,
+            &tracked,
+            &exact_tracks,
+            &[false, true],
+            &TrackParams::default(),
+        )?;
+        let width = face_width(&v.truth[0]);
+        let mut out = Vec::new();
+        for (w, truth) in fit.weights.iter().zip(&v.truth) {
+            out.push(100.0 * aligned_rms(&model.face(w)?, truth)? / width);
+        }
+        Ok(out)
+    };
+    let floor_pct = bound(&src)?;
+    let tgt_floor_pct = bound(&tgt)?;
     let src_pct = errors(model, &st, &src)?;
     let tgt_pct = errors(model, &tt, &tgt)?;
     let exact_pct = errors(model, &st_exact, &src)?;
     let width = face_width(&src.truth[0]);
-    let mut floor_pct = Vec::new();
     let mean_face = model.face(&mean_weights(model)?)?;
     let mut mean_pct = Vec::new();
-    for (t, truth) in src.truth.iter().enumerate() {
-        floor_pct.push(100.0 * aligned_rms(&model.face(&floor.weights[t])?, truth)? / width);
+    for truth in &src.truth {
         mean_pct.push(100.0 * aligned_rms(&mean_face, truth)? / width);
     }
     let neutral_w = model.training_weights(0, 0)?;
@@ -331,6 +334,7 @@ pub(crate) fn video_tracking(
         "track_vertex_rms_pct_target": avg(&tgt_pct),
         "track_vertex_rms_pct_exact_features": avg(&exact_pct),
         "track_vertex_rms_pct_exact_tracks": avg(&floor_pct),
+        "track_vertex_rms_pct_target_exact_tracks": avg(&tgt_floor_pct),
         "track_mean_face_rms_pct": avg(&mean_pct),
         "track_identity_rms_mm": identity_rms_mm,
         "track_mean_identity_rms_mm": mean_identity_rms_mm,
