@@ -713,12 +713,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|(t, v)| (t as f64, *v))
             .collect(),
     ))
-    .with(Series::new(
-        "goal 1 %",
-        [230, 30, 30],
-        Style::Dashed,
-        vec![(0.0, 1.0), ((frame_count - 1) as f64, 1.0)],
-    ));
+    .with(video::goal_line(frame_count));
     run.save_picture(
         "tracking.png",
         &chart.draw()?,

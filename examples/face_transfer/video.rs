@@ -40,6 +40,16 @@ fn series(label: &str, colour: [u8; 3], style: Style, v: &[f64]) -> Series {
     )
 }
 
+/// The tracking goal (1 % of the face width) over `frames` frames.
+pub(crate) fn goal_line(frames: usize) -> Series {
+    Series::new(
+        "goal 1 %",
+        [230, 30, 30],
+        Style::Dashed,
+        vec![(0.0, 1.0), ((frames - 1) as f64, 1.0)],
+    )
+}
+
 /// Per-frame vertex RMS after similarity alignment, % of the face width.
 fn errors(model: &MultilinearModel, track: &VideoTrack, video: &FaceVideo) -> Res<Vec<f64>> {
     let width = face_width(&video.truth[0]);
@@ -179,7 +189,12 @@ pub(crate) fn video_tracking(
             .truth
             .iter()
             .zip(&v.cameras)
-            .map(|(f, c)| tracked.iter().map(|&i| c.project(f[i].to_array())).collect())
+            .map(|(f, c)| {
+                tracked
+                    .iter()
+                    .map(|&i| c.project(f[i].to_array()))
+                    .collect()
+            })
             .collect();
         let fit = track_points(
             model,
@@ -241,12 +256,7 @@ pub(crate) fn video_tracking(
         Style::Dashed,
         &mean_pct,
     ))
-    .with(Series::new(
-        "goal 1 %",
-        [230, 30, 30],
-        Style::Dashed,
-        vec![(0.0, 1.0), ((frame_count - 1) as f64, 1.0)],
-    ));
+    .with(goal_line(frame_count));
     run.save_picture(
         "tracking_video.png",
         &chart.draw()?,

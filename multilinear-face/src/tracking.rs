@@ -24,6 +24,15 @@ pub struct WeakPerspective {
 }
 
 impl WeakPerspective {
+    /// Scale 1, no rotation, no translation.
+    pub(crate) fn identity() -> Self {
+        WeakPerspective {
+            scale: 1.0,
+            rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            translation: [0.0, 0.0],
+        }
+    }
+
     fn r2(&self) -> Matrix2x3<f64> {
         Matrix2x3::new(
             self.rows[0][0],
@@ -235,6 +244,89 @@ pub(crate) fn shape_points(
     Ok(tracked.iter().map(|&v| f[v].to_array()).collect())
 }
 
+/// The point equations of one frame: model vertices `points` seen at `pixels`, each
+/// weighted by its KLT `Z` (or unweighted).
+pub(crate) struct FrameSystem<'a> {
+    pub(crate) points: &'a [usize],
+    pub(crate) pixels: &'a [[f64; 2]],
+    pub(crate) z: Option<&'a [[f64; 3]]>,
+}
+
+/// Coordinate descent on one frame (Eq. 5.8): the camera, then each per-frame attribute with
+/// the others fixed, `rounds` times; returns the camera.
+pub(crate) fn fit_frame(
+    model: &MultilinearModel,
+    weights: &mut [DVector<f64>],
+    constant: &[bool],
+    sys: &FrameSystem<'_>,
+    mean: &[DVector<f64>],
+    prior: f64,
+    rounds: usize,
+) -> Result<WeakPerspective> {
+    let mut cam = WeakPerspective::identity();
+    for _ in 0..rounds.max(1) {
+        let pts = shape_points(model, weights, sys.points)?;
+        cam = WeakPerspective::fit_weighted(&pts, sys.pixels, sys.z)?;
+        for m in (0..weights.len()).filter(|&m| !constant[m]) {
+            let (a, b) = projected_system(model, m, weights, &cam, sys.points, sys.pixels, sys.z)?;
+            weights[m] = solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], prior)?;
+        }
+    }
+    Ok(cam)
+}
+
+/// Each constant attribute from the equations of all frames together (§5.4.1), the result
+/// put into every frame's weights; `systems[t]` are frame `t`'s equations (frames without
+/// points add none).
+pub(crate) fn fit_constants(
+    model: &MultilinearModel,
+    constant: &[bool],
+    weights: &mut [Vec<DVector<f64>>],
+    cameras: &[WeakPerspective],
+    systems: &[FrameSystem<'_>],
+    mean: &[DVector<f64>],
+    prior: f64,
+) -> Result<()> {
+    for m in (0..constant.len()).filter(|&m| constant[m]) {
+        let r = model.ranks()[m];
+        let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
+        for ((w, cam), sys) in weights.iter().zip(cameras).zip(systems) {
+            if sys.points.is_empty() {
+                continue;
+            }
+            let (a, b) = projected_system(model, m, w, cam, sys.points, sys.pixels, sys.z)?;
+            ata += a.tr_mul(&a);
+            atb += a.tr_mul(&b);
+        }
+        if ata.trace() > 0.0 {
+            let w = solve_ridge(&ata, &atb, &mean[m], prior)?;
+            for wt in weights.iter_mut() {
+                wt[m] = w.clone();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// RMS distance between the model's projection and the observed pixels, px.
+pub(crate) fn reprojection_rms(
+    model: &MultilinearModel,
+    weights: &[DVector<f64>],
+    cam: &WeakPerspective,
+    sys: &FrameSystem<'_>,
+) -> Result<f64> {
+    let pts = shape_points(model, weights, sys.points)?;
+    let se: f64 = pts
+        .iter()
+        .zip(sys.pixels)
+        .map(|(x, p)| {
+            let q = cam.project(*x);
+            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
+        })
+        .sum();
+    Ok((se / pts.len().max(1) as f64).sqrt())
+}
+
 /// Tracks the model through 2D point tracks: `frames[t][k]` is the pixel position of model
 /// vertex `tracked[k]` in frame `t`. Attributes with `constant[m]` (identity) get one weight
 /// vector for the whole sequence, solved from the equations of all frames together; the others
@@ -296,60 +388,48 @@ pub fn track_points(
                     }
                 }
             }
-            for _ in 0..params.rounds.max(1) {
-                cameras[t] =
-                    WeakPerspective::fit(&shape_points(model, &weights[t], tracked)?, &frames[t])
-                        .at(Context::Frame(t))?;
-                for m in (0..modes).filter(|&m| !constant[m]) {
-                    let (a, b) = projected_system(
-                        model,
-                        m,
-                        &weights[t],
-                        &cameras[t],
-                        tracked,
-                        &frames[t],
-                        None,
-                    )?;
-                    weights[t][m] =
-                        solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], params.prior)
-                            .at(Context::Frame(t))?;
-                }
-            }
+            let sys = FrameSystem {
+                points: tracked,
+                pixels: &frames[t],
+                z: None,
+            };
+            cameras[t] = fit_frame(
+                model,
+                &mut weights[t],
+                constant,
+                &sys,
+                &mean,
+                params.prior,
+                params.rounds,
+            )
+            .at(Context::Frame(t))?;
         }
-        for m in (0..modes).filter(|&m| constant[m]) {
-            let r = model.ranks()[m];
-            let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
-            for t in 0..frames.len() {
-                let (a, b) = projected_system(
-                    model,
-                    m,
-                    &weights[t],
-                    &cameras[t],
-                    tracked,
-                    &frames[t],
-                    None,
-                )?;
-                ata += a.tr_mul(&a);
-                atb += a.tr_mul(&b);
-            }
-            let w = solve_ridge(&ata, &atb, &mean[m], params.prior)?;
-            for wt in weights.iter_mut() {
-                wt[m] = w.clone();
-            }
-        }
+        let systems: Vec<FrameSystem<'_>> = frames
+            .iter()
+            .map(|f| FrameSystem {
+                points: tracked,
+                pixels: f,
+                z: None,
+            })
+            .collect();
+        fit_constants(
+            model,
+            constant,
+            &mut weights,
+            &cameras,
+            &systems,
+            &mean,
+            params.prior,
+        )?;
     }
     let mut reprojection_rms_px = Vec::with_capacity(frames.len());
     for t in 0..frames.len() {
-        let pts = shape_points(model, &weights[t], tracked)?;
-        let se: f64 = pts
-            .iter()
-            .zip(&frames[t])
-            .map(|(x, p)| {
-                let q = cameras[t].project(*x);
-                (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
-            })
-            .sum();
-        reprojection_rms_px.push((se / pts.len() as f64).sqrt());
+        let sys = FrameSystem {
+            points: tracked,
+            pixels: &frames[t],
+            z: None,
+        };
+        reprojection_rms_px.push(reprojection_rms(model, &weights[t], &cameras[t], &sys)?);
     }
     Ok(PointTrack {
         cameras,

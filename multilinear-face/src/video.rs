@@ -36,14 +36,14 @@
 use std::time::Instant;
 
 use image::RgbImage;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rayon::prelude::*;
 
 use crate::klt::{track as klt_track, Klt, Pyramid};
 use crate::model::MultilinearModel;
 use crate::tracking::{
-    mean_weights, projected_system, shape_points, solve_ridge, track_points, TrackParams,
-    WeakPerspective,
+    fit_constants, fit_frame, mean_weights, reprojection_rms, shape_points, track_points,
+    FrameSystem, TrackParams, WeakPerspective,
 };
 use crate::{Context, Error, Result, ResultExt};
 
@@ -401,63 +401,44 @@ pub fn track_video(
                 pixels: good.iter().map(|(_, r)| r.p).collect(),
                 z: good.iter().map(|(_, r)| r.z.map(|x| x / norm)).collect(),
             };
-            for _ in 0..params.rounds.max(1) {
-                let pts = shape_points(model, &weights[t], &o.points)?;
-                cameras[t] = WeakPerspective::fit_weighted(&pts, &o.pixels, Some(&o.z))
-                    .at(Context::Frame(t))?;
-                for m in (0..modes).filter(|&m| !constant[m]) {
-                    let (a, b) = projected_system(
-                        model,
-                        m,
-                        &weights[t],
-                        &cameras[t],
-                        &o.points,
-                        &o.pixels,
-                        Some(&o.z),
-                    )?;
-                    weights[t][m] =
-                        solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], params.prior)
-                            .at(Context::Frame(t))?;
-                }
-            }
-            let pts = shape_points(model, &weights[t], &o.points)?;
-            let se: f64 = pts
-                .iter()
-                .zip(&o.pixels)
-                .map(|(x, p)| {
-                    let q = cameras[t].project(*x);
-                    (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
-                })
-                .sum();
-            reprojection_rms_px[t] = (se / pts.len() as f64).sqrt();
+            let sys = FrameSystem {
+                points: &o.points,
+                pixels: &o.pixels,
+                z: Some(&o.z),
+            };
+            cameras[t] = fit_frame(
+                model,
+                &mut weights[t],
+                constant,
+                &sys,
+                &mean,
+                params.prior,
+                params.rounds,
+            )
+            .at(Context::Frame(t))?;
+            reprojection_rms_px[t] = reprojection_rms(model, &weights[t], &cameras[t], &sys)?;
             tracked_fraction[t] = fraction;
             klt_residual_ratio[t] = ratios[ratios.len() / 2];
             obs[t] = o;
         }
         // Constant attributes from the systems of all pairs together.
-        for m in (0..modes).filter(|&m| constant[m]) {
-            let r = model.ranks()[m];
-            let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
-            for (t, o) in obs.iter().enumerate().filter(|(_, o)| !o.points.is_empty()) {
-                let (a, b) = projected_system(
-                    model,
-                    m,
-                    &weights[t],
-                    &cameras[t],
-                    &o.points,
-                    &o.pixels,
-                    Some(&o.z),
-                )?;
-                ata += a.tr_mul(&a);
-                atb += a.tr_mul(&b);
-            }
-            if ata.nrows() > 0 && ata.trace() > 0.0 {
-                let w = solve_ridge(&ata, &atb, &mean[m], params.prior)?;
-                for wt in weights.iter_mut() {
-                    wt[m] = w.clone();
-                }
-            }
-        }
+        let systems: Vec<FrameSystem<'_>> = obs
+            .iter()
+            .map(|o| FrameSystem {
+                points: &o.points,
+                pixels: &o.pixels,
+                z: Some(&o.z),
+            })
+            .collect();
+        fit_constants(
+            model,
+            constant,
+            &mut weights,
+            &cameras,
+            &systems,
+            &mean,
+            params.prior,
+        )?;
     }
     Ok(VideoTrack {
         cameras,
