@@ -188,7 +188,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // --- Decomposition at the thesis's truncations.
     let stage = run.stage("decomposition", None);
     let (bi_model, bi_fit) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear())?;
-    let (_, tri_fit) = MultilinearModel::fit(&tri.faces, &ModelParams::thesis_trilinear())?;
+    let (tri_model, tri_fit) = MultilinearModel::fit(&tri.faces, &ModelParams::thesis_trilinear())?;
     let (_, ict_fit) = MultilinearModel::fit(&ict.faces, &ModelParams::thesis_bilinear())?;
     let (_, ict_full) = MultilinearModel::fit(&ict.faces, &ModelParams::new(&[17, 11]))?;
     let bi_interaction = interaction_energy(&bi.faces);
@@ -726,7 +726,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         avg(&mean_pct)
     ));
 
-    let video_figures = video::video_tracking(&mut run, &basis, &bi, &bi_model, quick)?;
+    let mut video_figures = video::video_tracking(&mut run, &basis, &bi, &bi_model, quick)?;
+    let tri_video = video::trilinear_video(&mut run, &basis, &bi.triangles, &tri_model, quick)?;
+    if let (Some(f), Some(v)) = (video_figures.as_object_mut(), tri_video.as_object()) {
+        f.extend(v.clone());
+    }
 
     for h in [
         Headline::new(

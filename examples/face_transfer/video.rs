@@ -113,6 +113,89 @@ fn half(img: &image::RgbImage) -> image::RgbImage {
     )
 }
 
+/// Tracks a rendered video of a person not in the trilinear model whose visemes and
+/// expressions change (viseme and expression per frame, identity constant); returns the
+/// figures.
+pub(crate) fn trilinear_video(
+    run: &mut Run,
+    basis: &IctBasis,
+    triangles: &[[u32; 3]],
+    model: &MultilinearModel,
+    quick: bool,
+) -> Res<Value> {
+    let stage = run.stage("trilinear video", None);
+    let frame_count = if quick { 24 } else { 60 };
+    let person = dynamic_shapes::face::validation::trilinear_face_set(
+        basis,
+        &FaceSetParams::default().with_identities(1).with_seed(77),
+    )?;
+    // (viseme, expression): m/neutral → aa/smiling → oo/neutral → ee/scowling → sh/surprised →
+    // m/neutral.
+    let order: Vec<usize> = [(0, 0), (1, 1), (3, 0), (2, 2), (4, 3), (0, 0)]
+        .iter()
+        .map(|&(v, e)| person.faces.face_index(&[v, e, 0]))
+        .collect::<Result<_, _>>()?;
+    let tracked = feature_vertices(&basis.neutral, 1000)?;
+    let features = feature_vertices(&basis.neutral, 12)?;
+    let video = render_face_video(
+        &person.faces,
+        &order,
+        frame_count,
+        triangles,
+        &basis.neutral.vertices,
+        &features,
+        &FaceVideoParams::default(),
+    )?;
+    let track = track_video(
+        model,
+        triangles,
+        &tracked,
+        &video.frames,
+        &video.features,
+        &[false, false, true],
+        &VideoTrackParams::default(),
+    )?;
+    let pct = errors(model, &track, &video)?;
+    let exact: Vec<Vec<[f64; 2]>> = video
+        .truth
+        .iter()
+        .zip(&video.cameras)
+        .map(|(f, c)| {
+            tracked
+                .iter()
+                .map(|&i| c.project(f[i].to_array()))
+                .collect()
+        })
+        .collect();
+    let fit = track_points(
+        model,
+        &tracked,
+        &exact,
+        &[false, false, true],
+        &TrackParams::default(),
+    )?;
+    let width = face_width(&video.truth[0]);
+    let mean_face = model.face(&mean_weights(model)?)?;
+    let (mut bound, mut mean) = (Vec::new(), Vec::new());
+    for (w, truth) in fit.weights.iter().zip(&video.truth) {
+        bound.push(100.0 * aligned_rms(&model.face(w)?, truth)? / width);
+        mean.push(100.0 * aligned_rms(&mean_face, truth)? / width);
+    }
+    stage.finish(format!(
+        "{:.2} % (bound {:.2} %, mean face {:.2} %), {:.1} fps",
+        avg(&pct),
+        avg(&bound),
+        avg(&mean),
+        frame_count as f64 / track.seconds
+    ));
+    Ok(json!({
+        "track_vertex_rms_pct_trilinear": avg(&pct),
+        "track_vertex_rms_pct_trilinear_exact_tracks": avg(&bound),
+        "track_mean_face_rms_pct_trilinear": avg(&mean),
+        "track_fps_trilinear": frame_count as f64 / track.seconds,
+    }))
+}
+
 /// Runs the video tracking and transfer; returns the figures.
 pub(crate) fn video_tracking(
     run: &mut Run,
