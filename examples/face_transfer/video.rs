@@ -94,7 +94,7 @@ fn with_points(frame: &image::RgbImage, points: &[[f64; 2]]) -> image::RgbImage 
     let mut img = frame.clone();
     for p in points {
         let (x, y) = (p[0].round() as i64, p[1].round() as i64);
-        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        for (dx, dy) in (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (dx, dy))) {
             let (u, v) = (x + dx, y + dy);
             if u >= 0 && v >= 0 && (u as u32) < img.width() && (v as u32) < img.height() {
                 img.put_pixel(u as u32, v as u32, image::Rgb([40, 230, 60]));

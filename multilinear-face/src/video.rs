@@ -299,6 +299,7 @@ pub fn track_video(
         .map(|&v| add(v, &mut ext))
         .collect();
     let model = &model.restrict(&ext)?;
+    let all: Vec<usize> = (0..ext.len()).collect();
     let mean = mean_weights(model)?;
 
     let klt_fine = Klt {
@@ -348,8 +349,8 @@ pub fn track_video(
                 weights[t] = weights[s].clone();
                 cameras[t] = cameras[s];
             }
-            let ps = shape_points(model, &weights[s], &(0..ext.len()).collect::<Vec<_>>())?;
-            let pt = shape_points(model, &weights[t], &(0..ext.len()).collect::<Vec<_>>())?;
+            let ps = shape_points(model, &weights[s], &all)?;
+            let pt = shape_points(model, &weights[t], &all)?;
             let (fs, ft) = (
                 facing(&ps, &tri_local, &cameras[s]),
                 facing(&pt, &tri_local, &cameras[t]),
