@@ -7,8 +7,8 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::face::validation::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
-    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams,
-    IctBasis,
+    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
+    FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
     fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
@@ -194,18 +194,25 @@ fn face_bad_input() {
     assert!(IctBasis::read("/nonexistent/ict-face").is_err());
 }
 
-#[test]
-fn face_tracking_from_point_tracks() {
+/// The tracking set-up: the ICT basis, the bilinear set and its 6 × 9 model, a person the
+/// model never saw (another seed) and 1,000 tracked vertices.
+fn tracking_setup() -> (IctBasis, FaceSet, MultilinearModel, FaceSet, Vec<usize>) {
     let basis = basis();
     let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
     let (model, _) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear()).unwrap();
-    // A person the model never saw (another seed), 1,000 tracked vertices, 0.5 px noise.
     let novel = bilinear_face_set(
         &basis,
         &FaceSetParams::default().with_identities(1).with_seed(99),
     )
     .unwrap();
     let tracked = feature_vertices(&basis.neutral, 1000).unwrap();
+    (basis, bi, model, novel, tracked)
+}
+
+#[test]
+fn face_tracking_from_point_tracks() {
+    // A person the model never saw, 1,000 tracked vertices, 0.5 px noise.
+    let (_, _, model, novel, tracked) = tracking_setup();
     let seq =
         point_track_sequence(&novel.faces, &[0, 1, 3, 5, 2, 7, 0], &tracked, 40, 0.5, 5).unwrap();
     let track = track_points(
@@ -259,4 +266,100 @@ fn face_tracking_from_point_tracks() {
         &TrackParams::default()
     )
     .is_err());
+}
+
+#[test]
+fn face_tracking_from_video() {
+    use dynamic_shapes::face::validation::{render_face_video, FaceVideoParams};
+    use dynamic_shapes::face::{track_video, FeaturePoints, VideoTrackParams};
+    // A person the model never saw, 20 rendered 640 × 480 frames (neutral → smile → surprise
+    // → neutral with head motion), 1,000 tracked vertices, 12 feature points (1 px noise).
+    let (basis, bi, model, novel, tracked) = tracking_setup();
+    let features = feature_vertices(&basis.neutral, 12).unwrap();
+    let n = 20;
+    let video = render_face_video(
+        &novel.faces,
+        &[0, 1, 3, 0],
+        n,
+        &bi.triangles,
+        &basis.neutral.vertices,
+        &features,
+        &FaceVideoParams::default(),
+    )
+    .unwrap();
+    assert_eq!(video.frames[0].dimensions(), (640, 480));
+    let run = |frames: &[image::RgbImage], f: &FeaturePoints| {
+        track_video(
+            &model,
+            &bi.triangles,
+            &tracked,
+            frames,
+            f,
+            &[false, true],
+            &VideoTrackParams::default(),
+        )
+    };
+    let track = run(&video.frames, &video.features).unwrap();
+    // Baselines: the mean face, and the first frame's fit (from the feature points) held.
+    let init = run(&video.frames[..1], &video.features).unwrap();
+    let width = face_width(&video.truth[0]);
+    let mean_face = model.face(&mean_weights(&model).unwrap()).unwrap();
+    let init_face = model.face(&init.weights[0]).unwrap();
+    let (mut ours, mut mean, mut held) = (0.0, 0.0, 0.0);
+    for (t, truth) in video.truth.iter().enumerate() {
+        let f = model.face(&track.weights[t]).unwrap();
+        ours += aligned_rms(&f, truth).unwrap() / width;
+        mean += aligned_rms(&mean_face, truth).unwrap() / width;
+        held += aligned_rms(&init_face, truth).unwrap() / width;
+        assert!(track.tracked_fraction[t] > 0.8, "frame {t}: {track:?}");
+    }
+    let pct = |x: f64| 100.0 * x / n as f64;
+    let (ours, mean, held) = (pct(ours), pct(mean), pct(held));
+    eprintln!(
+        "video tracking: {ours:.3} % (mean face {mean:.3} %, first frame held {held:.3} %), {:.1} fps",
+        n as f64 / track.seconds
+    );
+    assert!(
+        ours < 2.0 && ours < 0.6 * mean && ours < 0.9 * held,
+        "tracked {ours} % vs mean face {mean} %, first frame held {held} %"
+    );
+
+    // The face leaves the picture in frame 12: reported, with the frame.
+    let mut frames = video.frames[..14].to_vec();
+    frames[12] = image::RgbImage::from_fn(640, 480, |x, y| {
+        let n = ((x * 7 + y * 13) % 5) as u8;
+        image::Rgb(video.background.map(|c| c + n))
+    });
+    let e = run(&frames, &video.features).unwrap_err();
+    assert!(matches!(e.root(), Error::FaceLost { .. }), "{e}");
+    assert_eq!(e.contexts(), vec![dynamic_shapes::face::Context::Frame(12)]);
+    // A frame of the wrong size.
+    frames[12] = image::RgbImage::new(320, 240);
+    let e = run(&frames, &video.features).unwrap_err();
+    assert!(
+        matches!(
+            e.root(),
+            Error::Core(dynamic_shapes::core::Error::SizeMismatch { .. })
+        ),
+        "{e}"
+    );
+    assert_eq!(e.contexts(), vec![dynamic_shapes::face::Context::Frame(12)]);
+    // Frames too small for the pyramid, NaN or missing feature pixels, no frame.
+    let tiny = vec![image::RgbImage::new(40, 30); 2];
+    assert!(matches!(
+        run(&tiny, &video.features).unwrap_err().root(),
+        Error::InvalidParam { .. }
+    ));
+    let mut bad = video.features.clone();
+    bad.pixels[3][0] = f64::NAN;
+    assert!(run(&video.frames[..2], &bad).is_err());
+    bad.pixels.pop();
+    assert!(matches!(
+        run(&video.frames[..2], &bad).unwrap_err().root(),
+        Error::Core(dynamic_shapes::core::Error::SizeMismatch { .. })
+    ));
+    assert!(matches!(
+        run(&[], &video.features).unwrap_err().root(),
+        Error::Empty { .. }
+    ));
 }

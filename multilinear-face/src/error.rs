@@ -4,4 +4,14 @@
 
 pub use skin_core::Context;
 
-skin_core::method_error!("multilinear-face", Context, {});
+skin_core::method_error!("multilinear-face", Context, {
+    /// Video tracking lost the face: too few tracked vertices passed the KLT checks (the
+    /// face left the frame, was covered, or the motion was too fast).
+    #[error("face lost: {tracked_fraction:.2} of the visible tracked vertices followed (minimum {min})")]
+    FaceLost {
+        /// Fraction of the visible tracked vertices that passed the KLT checks.
+        tracked_fraction: f64,
+        /// The threshold ([`crate::VideoTrackParams::min_tracked_fraction`]).
+        min: f64,
+    },
+});

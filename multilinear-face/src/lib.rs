@@ -6,7 +6,8 @@
 //! attribute (expression × identity, or viseme × expression × identity), decomposed by the
 //! N-mode SVD without factoring the vertex mode; faces from attribute weights; dials tuned to
 //! named attributes; missing faces imputed from all modes jointly; template correspondence;
-//! attributes tracked through 2D point tracks.
+//! attributes tracked from video (symmetric KLT tied to the model) and faces transferred
+//! between videos with the target's lifted texture.
 //! The tensor algebra itself (HOSVD, HOOI, mode products) is `skin_core::tensor`.
 //!
 //! ## Stages, in pipeline order (one private file each, everything re-exported here)
@@ -17,17 +18,16 @@
 //! | `face_data.rs` | the data tensor (vertices × attributes) and which faces are known | [`FaceTensor`], [`KnownFaces`] | Figure 5-3, §5.3.4 |
 //! | `impute.rs` | per-mode PPCA, constraints of all modes solved jointly, iterated (EM); the averaging baseline | [`impute`], [`impute_by_averaging`], [`ImputeParams`] | §5.3.4 |
 //! | `model.rs` | the multilinear model, faces from weights, the linear basis of one attribute, dial tuning | [`MultilinearModel`], [`ModelParams`], [`Dials`] | §5.3.3, Eq. 5.4, 5.5, 5.9, §5.4 |
+//! | `klt.rs` (private) | symmetric pyramidal KLT per point: `Z d = e` with both images' mean gradient, forward–backward check | used by [`track_video`] | §5.4.1, Eq. 5.6 |
 //! | `tracking.rs` | weak-perspective camera, coordinate descent over attributes through 2D point tracks, constant attributes accumulated over all frames, passes | [`track_points`], [`WeakPerspective`], [`TrackParams`] | §5.4.1, Eq. 5.7–5.9 |
+//! | `transfer.rs` | texture lifted from a frame onto tracked geometry; new geometry rendered with it into the frame | [`lift_texture`], [`render_textured`], [`FaceTexture`] | §5.4, Figures 5-1, 5-7 |
+//! | `video.rs` | tracking from video: KLT systems weighted into the model solves (Eq. 5.7), multi-scale, passes, initialisation from feature points, lost-face detection | [`track_video`], [`VideoTrackParams`], [`FeaturePoints`], [`VideoTrack`] | §5.4.1–5.4.2 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
-//! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans | [`validation`] | §5.3.1 |
-//!
-//! Not implemented yet: the KLT optical flow that turns video into point tracks (Eq. 5.6),
-//! multi-scale tracking and initialisation from feature points in images (§5.4.2), and
-//! textured face transfer into video frames.
+//! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans, rendered textured face videos | [`validation`] | §5.3.1, §5.4 |
 //!
 //! Errors are one [`Error`]; an error inside a loop says where ([`Error::At`] with a
 //! [`Context`]: `Frame(i)` is the `i`-th face of a list, or the attribute mode of an
-//! all-missing slice).
+//! all-missing slice); tracking that loses the face is [`Error::FaceLost`] at its frame.
 //!
 //! ## Quick start
 //!
@@ -68,10 +68,13 @@ mod correspondence;
 mod error;
 mod face_data;
 mod impute;
+mod klt;
 mod model;
 mod tracking;
+mod transfer;
 #[cfg(feature = "validation")]
 pub mod validation;
+mod video;
 
 pub use correspondence::{fit_template, CorrespondenceParams, TemplateFit};
 pub use error::{Context, Error, Result, ResultExt};
@@ -79,3 +82,5 @@ pub use face_data::{FaceTensor, KnownFaces};
 pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
 pub use model::{Dials, ModelFit, ModelParams, MultilinearModel};
 pub use tracking::{mean_weights, track_points, PointTrack, TrackParams, WeakPerspective};
+pub use transfer::{lift_texture, render_textured, FaceTexture};
+pub use video::{track_video, FeaturePoints, VideoTrack, VideoTrackParams};

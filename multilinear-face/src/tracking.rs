@@ -1,8 +1,8 @@
 //! Tracking the model's attributes through 2D point tracks (§5.4.1, Eq. 5.7–5.9 with the
 //! point motion given, i.e. `Z = I`): a weak-perspective camera, coordinate descent that frees
 //! one attribute at a time, per-frame attributes solved per frame, constant attributes
-//! (identity) accumulated over all frames, several passes. The KLT flow that produces the
-//! tracks from video is not part of this crate yet.
+//! (identity) accumulated over all frames, several passes. From video, [`crate::track_video`]
+//! produces the point systems with the KLT and solves them with the weighted forms here.
 
 use std::time::Instant;
 
@@ -24,6 +24,15 @@ pub struct WeakPerspective {
 }
 
 impl WeakPerspective {
+    /// Scale 1, no rotation, no translation.
+    pub(crate) fn identity() -> Self {
+        WeakPerspective {
+            scale: 1.0,
+            rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            translation: [0.0, 0.0],
+        }
+    }
+
     fn r2(&self) -> Matrix2x3<f64> {
         Matrix2x3::new(
             self.rows[0][0],
@@ -43,15 +52,34 @@ impl WeakPerspective {
 
     /// The least-squares affine camera for `points → pixels`, projected to the nearest
     /// weak-perspective one (orthonormal rows by SVD, scale the mean singular value).
-    fn fit(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Self> {
+    pub(crate) fn fit(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Self> {
+        Self::fit_weighted(points, pixels, None)
+    }
+
+    /// As [`WeakPerspective::fit`], each point's residual `r` weighted as `rᵀ Z r` with its
+    /// symmetric 2 × 2 `Z = [zxx, zxy, zyy]` (Eq. 5.7: the KLT system of the point).
+    pub(crate) fn fit_weighted(
+        points: &[[f64; 3]],
+        pixels: &[[f64; 2]],
+        z: Option<&[[f64; 3]]>,
+    ) -> Result<Self> {
         let n = points.len();
-        // Normal equations of [x y z 1] [A | t]ᵀ = p (4 × 4).
-        let mut ata = nalgebra::Matrix4::<f64>::zeros();
-        let mut atb = nalgebra::Matrix4x2::<f64>::zeros();
-        for (x, p) in points.iter().zip(pixels) {
-            let a = nalgebra::Vector4::new(x[0], x[1], x[2], 1.0);
-            ata += a * a.transpose();
-            atb += a * nalgebra::RowVector2::new(p[0], p[1]);
+        // Unknowns [a₀ (3), a₁ (3), t (2)]; per point J = [[xᵀ 0 1 0], [0 xᵀ 0 1]].
+        let mut ata = nalgebra::SMatrix::<f64, 8, 8>::zeros();
+        let mut atb = nalgebra::SVector::<f64, 8>::zeros();
+        for (k, (x, p)) in points.iter().zip(pixels).enumerate() {
+            let w = z.map_or([1.0, 0.0, 1.0], |z| z[k]);
+            let mut j = nalgebra::SMatrix::<f64, 2, 8>::zeros();
+            for c in 0..3 {
+                j[(0, c)] = x[c];
+                j[(1, 3 + c)] = x[c];
+            }
+            j[(0, 6)] = 1.0;
+            j[(1, 7)] = 1.0;
+            let zm = nalgebra::Matrix2::new(w[0], w[1], w[1], w[2]);
+            let jz = j.transpose() * zm;
+            ata += jz * j;
+            atb += jz * Vector2::new(p[0], p[1]);
         }
         let sol = ata
             .cholesky()
@@ -60,14 +88,7 @@ impl WeakPerspective {
                 name: "tracked points",
                 reason: "the tracked points are coplanar or degenerate".into(),
             })?;
-        let m = Matrix2x3::new(
-            sol[(0, 0)],
-            sol[(1, 0)],
-            sol[(2, 0)],
-            sol[(0, 1)],
-            sol[(1, 1)],
-            sol[(2, 1)],
-        );
+        let m = Matrix2x3::new(sol[0], sol[1], sol[2], sol[3], sol[4], sol[5]);
         let svd = m.svd(true, true);
         let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
             return Err(Error::InvalidParam {
@@ -77,13 +98,18 @@ impl WeakPerspective {
         };
         let r2 = u * vt;
         let scale = 0.5 * (svd.singular_values[0] + svd.singular_values[1]);
-        // Translation from the centroids with the projected camera.
-        let (mut cx, mut cp) = (nalgebra::Vector3::zeros(), Vector2::zeros());
-        for (x, p) in points.iter().zip(pixels) {
-            cx += nalgebra::Vector3::from(*x);
-            cp += Vector2::from(*p);
+        // Translation by (weighted) least squares with the projected camera.
+        let (mut zs, mut zr) = (nalgebra::Matrix2::zeros(), Vector2::zeros());
+        for (k, (x, p)) in points.iter().zip(pixels).enumerate() {
+            let w = z.map_or([1.0, 0.0, 1.0], |z| z[k]);
+            let zm = nalgebra::Matrix2::new(w[0], w[1], w[1], w[2]);
+            let r = Vector2::from(*p) - r2 * nalgebra::Vector3::from(*x) * scale;
+            zs += zm;
+            zr += zm * r;
         }
-        let t = cp / n as f64 - r2 * cx / n as f64 * scale;
+        let t = zs
+            .try_inverse()
+            .map_or_else(|| zr / n.max(1) as f64, |i| i * zr);
         Ok(WeakPerspective {
             scale,
             rows: [
@@ -144,14 +170,16 @@ pub fn mean_weights(model: &MultilinearModel) -> Result<Vec<DVector<f64>>> {
 }
 
 /// Rows of the basis `Mₘ` (Eq. 5.9) for the tracked vertices, projected by the camera:
-/// `(2N × rₘ, 2N rhs)` for `s R₂ Mₘ,ᵢ wₘ = pᵢ − t`.
-fn projected_system(
+/// `(2N × rₘ, 2N rhs)` for `s R₂ Mₘ,ᵢ wₘ = pᵢ − t`. With `z`, each point's two rows are
+/// multiplied by `Lᵀ` (`Z = L Lᵀ`), so that the least squares minimise `Σ rᵀ Z r` (Eq. 5.8).
+pub(crate) fn projected_system(
     model: &MultilinearModel,
     mode: usize,
     weights: &[DVector<f64>],
     cam: &WeakPerspective,
     tracked: &[usize],
     pixels: &[[f64; 2]],
+    z: Option<&[[f64; 3]]>,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let basis = model.linear_basis(mode, weights)?;
     let r = basis.ncols();
@@ -161,14 +189,33 @@ fn projected_system(
     for (k, (&v, p)) in tracked.iter().zip(pixels).enumerate() {
         let rows = basis.rows(3 * v, 3);
         let proj = r2 * rows; // 2 × r
-        a.rows_mut(2 * k, 2).copy_from(&proj);
-        b[2 * k] = p[0] - cam.translation[0];
-        b[2 * k + 1] = p[1] - cam.translation[1];
+        let rhs = Vector2::new(p[0] - cam.translation[0], p[1] - cam.translation[1]);
+        match z {
+            None => {
+                a.rows_mut(2 * k, 2).copy_from(&proj);
+                b.rows_mut(2 * k, 2).copy_from(&rhs);
+            }
+            Some(z) => {
+                let lt = sqrt_weight(z[k]);
+                a.rows_mut(2 * k, 2).copy_from(&(lt * proj));
+                b.rows_mut(2 * k, 2).copy_from(&(lt * rhs));
+            }
+        }
     }
     Ok((a, b))
 }
 
-fn solve_ridge(
+/// `Lᵀ` of the Cholesky factor `Z = L Lᵀ` of a symmetric 2 × 2 `[zxx, zxy, zyy]` (a tiny
+/// ridge keeps a rank-deficient `Z` — an edge — factorable).
+fn sqrt_weight(z: [f64; 3]) -> nalgebra::Matrix2<f64> {
+    let eps = 1e-12 * (z[0] + z[2]).abs().max(f64::MIN_POSITIVE);
+    let l00 = (z[0] + eps).sqrt();
+    let l10 = z[1] / l00;
+    let l11 = (z[2] + eps - l10 * l10).max(0.0).sqrt();
+    nalgebra::Matrix2::new(l00, l10, 0.0, l11)
+}
+
+pub(crate) fn solve_ridge(
     ata: &DMatrix<f64>,
     atb: &DVector<f64>,
     prior_w: &DVector<f64>,
@@ -188,13 +235,96 @@ fn solve_ridge(
         })
 }
 
-fn shape_points(
+pub(crate) fn shape_points(
     model: &MultilinearModel,
     w: &[DVector<f64>],
     tracked: &[usize],
 ) -> Result<Vec<[f64; 3]>> {
     let f = model.face(w)?;
     Ok(tracked.iter().map(|&v| f[v].to_array()).collect())
+}
+
+/// The point equations of one frame: model vertices `points` seen at `pixels`, each
+/// weighted by its KLT `Z` (or unweighted).
+pub(crate) struct FrameSystem<'a> {
+    pub(crate) points: &'a [usize],
+    pub(crate) pixels: &'a [[f64; 2]],
+    pub(crate) z: Option<&'a [[f64; 3]]>,
+}
+
+/// Coordinate descent on one frame (Eq. 5.8): the camera, then each per-frame attribute with
+/// the others fixed, `rounds` times; returns the camera.
+pub(crate) fn fit_frame(
+    model: &MultilinearModel,
+    weights: &mut [DVector<f64>],
+    constant: &[bool],
+    sys: &FrameSystem<'_>,
+    mean: &[DVector<f64>],
+    prior: f64,
+    rounds: usize,
+) -> Result<WeakPerspective> {
+    let mut cam = WeakPerspective::identity();
+    for _ in 0..rounds.max(1) {
+        let pts = shape_points(model, weights, sys.points)?;
+        cam = WeakPerspective::fit_weighted(&pts, sys.pixels, sys.z)?;
+        for m in (0..weights.len()).filter(|&m| !constant[m]) {
+            let (a, b) = projected_system(model, m, weights, &cam, sys.points, sys.pixels, sys.z)?;
+            weights[m] = solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], prior)?;
+        }
+    }
+    Ok(cam)
+}
+
+/// Each constant attribute from the equations of all frames together (§5.4.1), the result
+/// put into every frame's weights; `systems[t]` are frame `t`'s equations (frames without
+/// points add none).
+pub(crate) fn fit_constants(
+    model: &MultilinearModel,
+    constant: &[bool],
+    weights: &mut [Vec<DVector<f64>>],
+    cameras: &[WeakPerspective],
+    systems: &[FrameSystem<'_>],
+    mean: &[DVector<f64>],
+    prior: f64,
+) -> Result<()> {
+    for m in (0..constant.len()).filter(|&m| constant[m]) {
+        let r = model.ranks()[m];
+        let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
+        for ((w, cam), sys) in weights.iter().zip(cameras).zip(systems) {
+            if sys.points.is_empty() {
+                continue;
+            }
+            let (a, b) = projected_system(model, m, w, cam, sys.points, sys.pixels, sys.z)?;
+            ata += a.tr_mul(&a);
+            atb += a.tr_mul(&b);
+        }
+        if ata.trace() > 0.0 {
+            let w = solve_ridge(&ata, &atb, &mean[m], prior)?;
+            for wt in weights.iter_mut() {
+                wt[m] = w.clone();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// RMS distance between the model's projection and the observed pixels, px.
+pub(crate) fn reprojection_rms(
+    model: &MultilinearModel,
+    weights: &[DVector<f64>],
+    cam: &WeakPerspective,
+    sys: &FrameSystem<'_>,
+) -> Result<f64> {
+    let pts = shape_points(model, weights, sys.points)?;
+    let se: f64 = pts
+        .iter()
+        .zip(sys.pixels)
+        .map(|(x, p)| {
+            let q = cam.project(*x);
+            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
+        })
+        .sum();
+    Ok((se / pts.len().max(1) as f64).sqrt())
 }
 
 /// Tracks the model through 2D point tracks: `frames[t][k]` is the pixel position of model
@@ -258,46 +388,48 @@ pub fn track_points(
                     }
                 }
             }
-            for _ in 0..params.rounds.max(1) {
-                cameras[t] =
-                    WeakPerspective::fit(&shape_points(model, &weights[t], tracked)?, &frames[t])
-                        .at(Context::Frame(t))?;
-                for m in (0..modes).filter(|&m| !constant[m]) {
-                    let (a, b) =
-                        projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t])?;
-                    weights[t][m] =
-                        solve_ridge(&a.tr_mul(&a), &a.tr_mul(&b), &mean[m], params.prior)
-                            .at(Context::Frame(t))?;
-                }
-            }
+            let sys = FrameSystem {
+                points: tracked,
+                pixels: &frames[t],
+                z: None,
+            };
+            cameras[t] = fit_frame(
+                model,
+                &mut weights[t],
+                constant,
+                &sys,
+                &mean,
+                params.prior,
+                params.rounds,
+            )
+            .at(Context::Frame(t))?;
         }
-        for m in (0..modes).filter(|&m| constant[m]) {
-            let r = model.ranks()[m];
-            let (mut ata, mut atb) = (DMatrix::zeros(r, r), DVector::zeros(r));
-            for t in 0..frames.len() {
-                let (a, b) =
-                    projected_system(model, m, &weights[t], &cameras[t], tracked, &frames[t])?;
-                ata += a.tr_mul(&a);
-                atb += a.tr_mul(&b);
-            }
-            let w = solve_ridge(&ata, &atb, &mean[m], params.prior)?;
-            for wt in weights.iter_mut() {
-                wt[m] = w.clone();
-            }
-        }
+        let systems: Vec<FrameSystem<'_>> = frames
+            .iter()
+            .map(|f| FrameSystem {
+                points: tracked,
+                pixels: f,
+                z: None,
+            })
+            .collect();
+        fit_constants(
+            model,
+            constant,
+            &mut weights,
+            &cameras,
+            &systems,
+            &mean,
+            params.prior,
+        )?;
     }
     let mut reprojection_rms_px = Vec::with_capacity(frames.len());
     for t in 0..frames.len() {
-        let pts = shape_points(model, &weights[t], tracked)?;
-        let se: f64 = pts
-            .iter()
-            .zip(&frames[t])
-            .map(|(x, p)| {
-                let q = cameras[t].project(*x);
-                (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
-            })
-            .sum();
-        reprojection_rms_px.push((se / pts.len() as f64).sqrt());
+        let sys = FrameSystem {
+            points: tracked,
+            pixels: &frames[t],
+            z: None,
+        };
+        reprojection_rms_px.push(reprojection_rms(model, &weights[t], &cameras[t], &sys)?);
     }
     Ok(PointTrack {
         cameras,

@@ -1,7 +1,8 @@
 //! Validation equipment (feature `validation`): the face data-set generator from the real ICT
 //! face basis with a documented identity × expression interaction, hold-out masks, the
 //! imputation metric of issue 16, re-meshed noisy scans with feature vertices (§5.3.2) and
-//! synthetic point-track sequences under head motion (§5.4.1, standing in for KLT tracks).
+//! synthetic point-track sequences under head motion (§5.4.1), and the same sequences
+//! rendered into textured 640 × 480 videos ([`render_face_video`]).
 //!
 //! ## The data sets
 //!
@@ -31,6 +32,7 @@
 //! lists them).
 
 mod dataset;
+mod video;
 
 pub use dataset::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
@@ -38,3 +40,4 @@ pub use dataset::{
     FaceSetParams, IctBasis, PointTrackSequence, Recipe, BILINEAR_EXPRESSIONS, ICT_BLENDSHAPES,
     TRILINEAR_EXPRESSIONS, VISEMES,
 };
+pub use video::{render_face_frame, render_face_video, FaceVideo, FaceVideoParams};
