@@ -39,7 +39,9 @@ pub struct SoftConstraint {
 }
 
 /// The template's Laplacian operator, its Laplacian coordinates and a Cholesky factorisation
-/// whose symbolic analysis is made once and reused by every [`Molding::solve`].
+/// whose symbolic analysis is made once and reused by every [`Molding::solve`]. A clone
+/// shares that analysis and refactorises on its own (one per thread).
+#[derive(Clone)]
 pub struct Molding {
     faces: Vec<[u32; 3]>,
     /// `Δ` (n × n, row-normalised cotangent Laplacian).

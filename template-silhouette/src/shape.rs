@@ -16,6 +16,7 @@
 //! `v_i^t ← v_i^t + (v_i^{t−1} − 2v_i^t + v_i^{t+1})/4 · exp(−(‖v_i^{t+1} − v_i^t‖² +
 //! ‖v_i^{t−1} − v_i^t‖²)/σ²)` with σ = 0.07 m, two passes after each iteration.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::math::{DMat3, DVec3};
 use skin_core::mesh::{LaplacianParams, SurfacePoint};
@@ -156,7 +157,8 @@ pub struct ShapeSequence {
 #[derive(Debug)]
 pub struct ShapeEstimator {
     template: Template,
-    molding: Molding,
+    /// The factorisation; `None` only while a solve has it out (see [`Self::with_molding`]).
+    molding: Option<Molding>,
     params: ShapeParams,
     /// Nearly-rigid vertices (vertex, bone).
     rigid: Vec<(usize, usize)>,
@@ -218,7 +220,7 @@ impl ShapeEstimator {
             .collect::<Result<Vec<_>>>()?;
         Ok(ShapeEstimator {
             template,
-            molding,
+            molding: Some(molding),
             params,
             rigid,
             unanchored,
@@ -270,6 +272,11 @@ impl ShapeEstimator {
     /// # Errors
     /// As [`Template::skin`] and [`Molding::solve`].
     pub fn initial_shape(&mut self, theta: &[f64]) -> Result<Vec<DVec3>> {
+        self.with_molding(|this, molding| this.initial_shape_with(molding, theta))
+    }
+
+    /// [`Self::initial_shape`] on `molding` (this estimator's, or a clone on another thread).
+    fn initial_shape_with(&self, molding: &mut Molding, theta: &[f64]) -> Result<Vec<DVec3>> {
         let lbs = self.template.skin(theta)?;
         let cons: Vec<SoftConstraint> = self
             .rigid
@@ -278,11 +285,29 @@ impl ShapeEstimator {
             .collect();
         let zero = vec![DVec3::ZERO; self.template.vertex_count()];
         let anchors = self.anchors(theta)?;
-        self.molding.solve_weighted(
+        molding.solve_weighted(
             0.0,
             &zero,
             &[(self.params.w_c, &cons), (self.params.w_anchor, &anchors)],
         )
+    }
+
+    /// Runs `f` with this estimator's factorisation taken out of it (so `f` may borrow the
+    /// rest of the estimator), then puts it back.
+    fn with_molding<T>(&mut self, f: impl FnOnce(&Self, &mut Molding) -> Result<T>) -> Result<T> {
+        let mut molding = self.molding.take().ok_or(Error::Empty {
+            what: "shape estimator's factorisation (a previous solve panicked)",
+        })?;
+        let out = f(self, &mut molding);
+        self.molding = Some(molding);
+        out
+    }
+
+    /// The factorisation (always present outside [`Self::with_molding`]).
+    fn molding(&self) -> Result<&Molding> {
+        self.molding.as_ref().ok_or(Error::Empty {
+            what: "shape estimator's factorisation (a previous solve panicked)",
+        })
     }
 
     /// The Laplacian coordinates rotated by the LBS-blended bone rotations,
@@ -291,6 +316,11 @@ impl ShapeEstimator {
     /// # Errors
     /// As [`skin_core::skeleton::Skeleton::check_pose`].
     pub fn rotated_coordinates(&self, theta: &[f64]) -> Result<Vec<DVec3>> {
+        self.rotate(self.molding()?.coordinates(), theta)
+    }
+
+    /// `coords` (the template's Laplacian coordinates) rotated for the pose `theta`.
+    fn rotate(&self, coords: &[DVec3], theta: &[f64]) -> Result<Vec<DVec3>> {
         let fk = self.template.skeleton().forward_kinematics(theta)?;
         let rot: Vec<DMat3> = self
             .template
@@ -299,9 +329,7 @@ impl ShapeEstimator {
             .map(|t| t.matrix3)
             .collect();
         let w = self.template.weights();
-        Ok(self
-            .molding
-            .coordinates()
+        Ok(coords
             .iter()
             .enumerate()
             .map(|(i, l)| {
@@ -326,6 +354,18 @@ impl ShapeEstimator {
         w_l: f64,
         rays: &[ContourRay],
     ) -> Result<(Vec<DVec3>, usize)> {
+        self.with_molding(|this, molding| this.refine_with(molding, theta, current, w_l, rays))
+    }
+
+    /// [`Self::refine`] on `molding` (this estimator's, or a clone on another thread).
+    fn refine_with(
+        &self,
+        molding: &mut Molding,
+        theta: &[f64],
+        current: &[DVec3],
+        w_l: f64,
+        rays: &[ContourRay],
+    ) -> Result<(Vec<DVec3>, usize)> {
         if current.len() != self.template.vertex_count() {
             return Err(Error::SizeMismatch {
                 what: "current shape vs template vertices",
@@ -333,7 +373,7 @@ impl ShapeEstimator {
                 got: current.len(),
             });
         }
-        let coords = self.rotated_coordinates(theta)?;
+        let coords = self.rotate(molding.coordinates(), theta)?;
         let mesh = self.template.mesh_with(current.to_vec());
         let sil = silhouette_constraints(&mesh, rays, &self.params.silhouette)?;
         let cons: Vec<SoftConstraint> = sil
@@ -341,7 +381,7 @@ impl ShapeEstimator {
             .map(|c| self.vertex_constraint(c.vertex, c.target))
             .collect();
         let anchors = self.anchors(theta)?;
-        let v = self.molding.solve_weighted(
+        let v = molding.solve_weighted(
             w_l,
             &coords,
             &[(self.params.w_c, &cons), (self.params.w_anchor, &anchors)],
@@ -359,10 +399,16 @@ impl ShapeEstimator {
         if frames.is_empty() {
             return Err(Error::Empty { what: "frames" });
         }
+        // Frames are independent between filter passes: solved in parallel, each thread
+        // with its own clone of the factorisation (the symbolic analysis is shared).
+        let base = self.molding()?;
         let mut shapes = frames
-            .iter()
+            .par_iter()
             .enumerate()
-            .map(|(t, f)| self.initial_shape(f.theta).at(Context::Frame(t)))
+            .map_init(
+                || base.clone(),
+                |m, (t, f)| self.initial_shape_with(m, f.theta).at(Context::Frame(t)),
+            )
             .collect::<Result<Vec<_>>>()?;
         temporal_filter(
             &mut shapes,
@@ -371,14 +417,20 @@ impl ShapeEstimator {
         )?;
         let mut iterations = Vec::new();
         for w_l in self.params.w_l_schedule() {
-            let mut counts = Vec::with_capacity(frames.len());
-            for (t, f) in frames.iter().enumerate() {
-                let (v, n) = self
-                    .refine(f.theta, &shapes[t], w_l, f.rays)
-                    .at(Context::Frame(t))?;
-                shapes[t] = v;
-                counts.push(n);
-            }
+            let solved = frames
+                .par_iter()
+                .zip(&shapes)
+                .enumerate()
+                .map_init(
+                    || base.clone(),
+                    |m, (t, (f, current))| {
+                        self.refine_with(m, f.theta, current, w_l, f.rays)
+                            .at(Context::Frame(t))
+                    },
+                )
+                .collect::<Result<Vec<_>>>()?;
+            let counts = solved.iter().map(|(_, n)| *n).collect();
+            shapes = solved.into_iter().map(|(v, _)| v).collect();
             temporal_filter(
                 &mut shapes,
                 self.params.filter_sigma_m,
@@ -520,7 +572,7 @@ mod tests {
         let theta = [0.3, 0.4, 0.0];
         let l = est.rotated_coordinates(&theta).unwrap();
         let r = skin_core::math::DQuat::from_rotation_z(0.4);
-        for (a, b) in l.iter().zip(est.molding.coordinates()) {
+        for (a, b) in l.iter().zip(est.molding().unwrap().coordinates()) {
             assert!((*a - r * *b).length() < 1e-12);
         }
         // Eq. 2.1 at a rigid pose: the rigid vertices pin the body; the smooth solve stays

@@ -115,7 +115,8 @@ pub struct CholeskyStats {
 /// # Ok::<(), skin_core::Error>(())
 /// ```
 pub struct SparseCholesky {
-    symbolic: SymbolicCholesky<Ix>,
+    /// The symbolic analysis, shared by clones (it is read-only after the analysis).
+    symbolic: std::sync::Arc<SymbolicCholesky<Ix>>,
     /// Column pointers of the lower-triangle pattern the analysis was made for.
     col_ptr: Vec<Ix>,
     /// Row indices of that pattern.
@@ -135,6 +136,26 @@ impl std::fmt::Debug for SparseCholesky {
             .field("stats", &self.stats)
             .field("factored", &self.factored)
             .finish()
+    }
+}
+
+/// A clone shares the symbolic analysis and gets its own factor and workspace, so clones can
+/// refactorise matrices of the same pattern on different threads.
+impl Clone for SparseCholesky {
+    fn clone(&self) -> Self {
+        let req = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(self.par, Default::default());
+        Self {
+            symbolic: self.symbolic.clone(),
+            col_ptr: self.col_ptr.clone(),
+            row_idx: self.row_idx.clone(),
+            factor: self.factor.clone(),
+            factored: self.factored,
+            par: self.par,
+            scratch: MemBuffer::new(req),
+            stats: self.stats,
+        }
     }
 }
 
@@ -227,7 +248,7 @@ impl SparseCholesky {
         };
         let factor = vec![0.0; symbolic.len_val()];
         Ok(Self {
-            symbolic,
+            symbolic: std::sync::Arc::new(symbolic),
             col_ptr,
             row_idx,
             factor,
