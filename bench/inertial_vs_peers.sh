@@ -15,7 +15,9 @@ rust=$(target/release/examples/inertial_capture --quick 2>/dev/null | tail -1)
 fusion=$($py examples/inertial_capture/fusion_broad.py \
     --csv data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv \
     --ours out/inertial_capture/broad_ours.csv | tail -1)
-filterpy=$(cd "$peers" && $py ekf.py | tail -1)
+# One core for both (our figures are single-threaded; OpenBLAS threads on this shared 2-core
+# machine oversubscribe and slow FilterPy down about tenfold).
+filterpy=$(cd "$peers" && OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $py ekf.py | tail -1)
 python3 - "$rust" "$fusion" "$filterpy" <<'PY'
 import json, sys
 rust, fusion, filterpy = (json.loads(a) for a in sys.argv[1:])

@@ -107,12 +107,17 @@ fn filter(w: &Workload) -> Vec<DVector<f64>> {
             let h0 = s1[m].sin() + s2[m].cos();
             let lin: f64 = (0..D).map(|d| hrow[d] * (x[d] - x0[d])).sum();
             let innov = zk[m] - h0 - lin;
-            // P Hᵀ (H touches the θ block only).
+            // P Hᵀ (H touches the θ block only). Only the lower triangle of P is kept
+            // current between predictions (as the crate's filter does): P[r, d] for r < d is
+            // read from its mirror P[d, r].
             let data = p.as_slice();
             ph.fill(0.0);
             for (d, hd) in hrow.iter().enumerate() {
-                let col = &data[d * n..(d + 1) * n];
-                for (o, pc) in ph.iter_mut().zip(col) {
+                for (rr, o) in ph[..d].iter_mut().enumerate() {
+                    *o += hd * data[rr * n + d];
+                }
+                let col = &data[d * n + d..(d + 1) * n];
+                for (o, pc) in ph[d..].iter_mut().zip(col) {
                     *o += hd * pc;
                 }
             }
@@ -124,10 +129,17 @@ fn filter(w: &Workload) -> Vec<DVector<f64>> {
             let data = p.as_mut_slice();
             for c in 0..n {
                 let f = ph[c] / sv;
-                let col = &mut data[c * n..(c + 1) * n];
-                for (o, pr) in col.iter_mut().zip(&ph) {
+                let col = &mut data[c * n + c..(c + 1) * n];
+                for (o, pr) in col.iter_mut().zip(&ph[c..]) {
                     *o -= pr * f;
                 }
+            }
+        }
+        // Mirror the lower triangle before the next prediction.
+        let data = p.as_mut_slice();
+        for c in 1..n {
+            for rr in 0..c {
+                data[c * n + rr] = data[rr * n + c];
             }
         }
         est.push(x.rows(0, D).into_owned());
