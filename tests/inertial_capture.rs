@@ -209,8 +209,7 @@ fn broad_recording_orientation_beats_gyro_integration() {
     let score = |p: FilterParams| {
         let run = run_orientation(&rec, p, 20.0).unwrap();
         assert_eq!(run.diverged, 0);
-        heading_inclination_rmse(&run.orientation, &rec.reference, &rec.movement, DVec3::Z)
-            .unwrap()
+        heading_inclination_rmse(&run.orientation, &rec.reference, &rec.movement, DVec3::Z).unwrap()
     };
     let ours = score(broad_params());
     // Gyro-only through the same filter (same q), and with the thesis's q = 0.04 (a stiffer

@@ -102,7 +102,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     stage.finish(format!(
         "{:.1} µs per step, RMS {:.4} rad",
         1e6 * peer["seconds"].as_f64().unwrap_or(f64::NAN),
-        peer["quality"]["rms_angle_err"].as_f64().unwrap_or(f64::NAN)
+        peer["quality"]["rms_angle_err"]
+            .as_f64()
+            .unwrap_or(f64::NAN)
     ));
     if let Some(r) = real.as_object_mut() {
         r.insert("ekf_peer_workload".into(), peer);

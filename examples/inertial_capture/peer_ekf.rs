@@ -31,8 +31,16 @@ fn workload() -> Workload {
     };
     let w1 = mat(50, NZ, D, 0.3);
     let w2 = mat(51, NZ, D, 0.3);
-    let a: Vec<f64> = SplitMix64::new(52).uniform(D).iter().map(|u| 0.2 + 0.8 * u).collect();
-    let om: Vec<f64> = SplitMix64::new(53).uniform(D).iter().map(|u| 0.5 + 4.5 * u).collect();
+    let a: Vec<f64> = SplitMix64::new(52)
+        .uniform(D)
+        .iter()
+        .map(|u| 0.2 + 0.8 * u)
+        .collect();
+    let om: Vec<f64> = SplitMix64::new(53)
+        .uniform(D)
+        .iter()
+        .map(|u| 0.5 + 4.5 * u)
+        .collect();
     let ph: Vec<f64> = SplitMix64::new(54)
         .uniform(D)
         .iter()
@@ -80,7 +88,8 @@ fn filter(w: &Workload) -> Vec<DVector<f64>> {
             // Columns likewise.
             for i in 0..D {
                 for rr in 0..n {
-                    let v = DT * data[(D + i) * n + rr] + 0.5 * DT * DT * data[(2 * D + i) * n + rr];
+                    let v =
+                        DT * data[(D + i) * n + rr] + 0.5 * DT * DT * data[(2 * D + i) * n + rr];
                     data[i * n + rr] += v;
                 }
                 for rr in 0..n {

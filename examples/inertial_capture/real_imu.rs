@@ -7,9 +7,9 @@
 //! of the movement samples; `fusion_broad.py` tunes the x-io Fusion AHRS gain on the same
 //! grid values and the same half, and scores both estimates with the same metric.
 
+use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::inertial::recordings::{read_broad_csv, read_xio_csv, run_orientation};
 use dynamic_shapes::inertial::{heading_inclination_rmse, FilterParams, SensorSet};
-use dynamic_shapes::core::math::DVec3;
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::Run;
 use serde_json::{json, Value};
@@ -148,10 +148,7 @@ pub fn run(run: &mut Run) -> Result<Value, Box<dyn std::error::Error>> {
             thirds[k].1 += 1;
         }
     }
-    let still_tilt: Vec<f64> = thirds
-        .iter()
-        .map(|(s, n)| s / (*n).max(1) as f64)
-        .collect();
+    let still_tilt: Vec<f64> = thirds.iter().map(|(s, n)| s / (*n).max(1) as f64).collect();
     let max_norm_dev = xr
         .orientation
         .iter()

@@ -187,11 +187,7 @@ impl OrientationEkf {
             // a ≈ v + v × δ, so the rows are those of [v]ₓ.
             let x0 = self.x;
             let r = self.params.accelerometer_sigma.powi(2);
-            let rows = [
-                [0.0, -v.z, v.y],
-                [v.z, 0.0, -v.x],
-                [-v.y, v.x, 0.0],
-            ];
+            let rows = [[0.0, -v.z, v.y], [v.z, 0.0, -v.x], [-v.y, v.x, 0.0]];
             for (k, row) in rows.iter().enumerate() {
                 let mut h = Vec9::zeros();
                 h.fixed_rows_mut::<3>(0).copy_from_slice(row);
@@ -445,7 +441,10 @@ mod tests {
         let e = heading_inclination_rmse(&est, &refs_nan, &mask, DVec3::Z).unwrap();
         assert_eq!(e.samples, 48);
         assert!((e.inclination_deg - 2.0).abs() < 1e-6, "{e:?}");
-        assert!((e.heading_offset_deg + 0.7f64.to_degrees()).abs() < 0.1, "{e:?}");
+        assert!(
+            (e.heading_offset_deg + 0.7f64.to_degrees()).abs() < 0.1,
+            "{e:?}"
+        );
         assert!(e.heading_deg < 0.1, "{e:?}");
         assert!(heading_inclination_rmse(&est, &refs, &mask[1..], DVec3::Z).is_err());
         assert!(heading_inclination_rmse(&est, &refs, &[false; 50], DVec3::Z).is_err());

@@ -131,7 +131,8 @@ pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
             accel_m_s2: vec3(r, 4),
         });
         let q = DQuat::from_xyzw(r[11], r[12], r[13], r[10]);
-        rec.reference.push(if q.is_finite() { q.normalize() } else { q });
+        rec.reference
+            .push(if q.is_finite() { q.normalize() } else { q });
         rec.movement.push(r[17] != 0.0);
     }
     Ok(rec)
