@@ -506,20 +506,41 @@ impl SkeletalEkf {
         true
     }
 
-    /// Applies the deferred downdates to P's lower triangle.
+    /// Applies the deferred downdates to P's lower triangle: each element is loaded and
+    /// stored once per block (`P[r, c] −= Σₖ uₖ[c] uₖ[r]`).
     fn flush_downdates(&mut self) {
         let n = 3 * self.nf;
         let data = self.p.as_mut_slice();
-        let pend = &self.pend[..self.npend * n];
-        for c in 0..n {
-            let col = &mut data[c * n + c..(c + 1) * n];
-            for u in pend.chunks_exact(n) {
-                let f = u[c];
-                if f == 0.0 {
-                    continue;
+        if self.npend == DEFER {
+            let us: [&[f64]; DEFER] = std::array::from_fn(|k| &self.pend[k * n..(k + 1) * n]);
+            for c in 0..n {
+                let f: [f64; DEFER] = std::array::from_fn(|k| us[k][c]);
+                let tails: [&[f64]; DEFER] = std::array::from_fn(|k| &us[k][c..]);
+                let col = &mut data[c * n + c..(c + 1) * n];
+                let len = col.len();
+                for t in &tails {
+                    assert_eq!(t.len(), len);
                 }
-                for (p, h) in col.iter_mut().zip(&u[c..]) {
-                    *p -= h * f;
+                for (j, p) in col.iter_mut().enumerate() {
+                    let mut acc = 0.0;
+                    for k in 0..DEFER {
+                        acc += f[k] * tails[k][j];
+                    }
+                    *p -= acc;
+                }
+            }
+        } else {
+            let pend = &self.pend[..self.npend * n];
+            for c in 0..n {
+                let col = &mut data[c * n + c..(c + 1) * n];
+                for u in pend.chunks_exact(n) {
+                    let f = u[c];
+                    if f == 0.0 {
+                        continue;
+                    }
+                    for (p, h) in col.iter_mut().zip(&u[c..]) {
+                        *p -= h * f;
+                    }
                 }
             }
         }
