@@ -18,9 +18,24 @@
 //! * Speed: `realtime_factor` = seconds of motion per second of compute for ultrasonic
 //!   processing + inertial decoding + EKF (A+G+D, root supplied), one core, per stage too.
 //!
+//! * Real recordings (`real_imu.rs`): the orientation part of the filter on BROAD trial 07
+//!   (`broad_rmse_deg`, inclination and heading, against the optical reference; estimate in
+//!   `broad_ours.csv`) and on the 135 s x-io log (stability). The x-io Fusion AHRS comparison
+//!   runs outside CI: `bench/inertial_vs_peers.sh` (needs a Python venv with `imufusion`
+//!   and `filterpy`; see the script) runs this example, then
+//!   `examples/inertial_capture/fusion_broad.py`, which tunes Fusion's gain on the same grid
+//!   and scores both estimates with the same metric, in one run.
+//!
+//! * The FilterPy peer workload (`peer_ekf.rs`: `../shared/bench/peers/ekf.py` regenerated,
+//!   per-step time and RMS error as the peer line; the ratio comes from
+//!   `bench/inertial_vs_peers.sh`).
+//!
 //! `cargo run --release --example inertial_capture [-- --quick]` (`--quick`: 10 s exercise,
 //! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+mod peer_ekf;
+mod real_imu;
 
 use clap::Parser;
 use serde_json::{json, Value};
@@ -80,6 +95,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
              skeletal EKF (Vlasic 2010 Ch. 4)"
         ),
     )?;
+    // Real recordings first (seconds): BROAD against its optical reference, x-io for stability.
+    let mut real = real_imu::run(&mut run)?;
+    let stage = run.stage("FilterPy peer workload", None);
+    let peer = peer_ekf::run();
+    stage.finish(format!(
+        "{:.1} µs per step, RMS {:.4} rad",
+        1e6 * peer["seconds"].as_f64().unwrap_or(f64::NAN),
+        peer["quality"]["rms_angle_err"]
+            .as_f64()
+            .unwrap_or(f64::NAN)
+    ));
+    if let Some(r) = real.as_object_mut() {
+        r.insert("ekf_peer_workload".into(), peer);
+    }
+
     let skeleton = human_skeleton(&HumanParams::default())?;
     let joints: Vec<usize> = JOINTS
         .iter()
@@ -333,12 +363,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "treadmill left shoulder, without D",
             "deg",
         ),
+        Headline::new(
+            "broad_inclination_rmse_deg",
+            "BROAD inclination RMSE (one board, gyro + accel)",
+            "deg",
+        ),
+        Headline::new(
+            "broad_heading_rmse_deg",
+            "BROAD heading RMSE (offset removed)",
+            "deg",
+        ),
         Headline::new("realtime_factor", "motion seconds per compute second", "")
             .goal(Goal::AtLeast(10.0)),
     ] {
         run.headline(h);
     }
-    run.finish(json!({
+    let mut figures = json!({
         "distance_error_mean_mm": dist_mean,
         "distance_error_sd_mm": dist_sd,
         "calibration_snr_db_at_90cm": cal.snr_db_at_90cm,
@@ -361,6 +401,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "score_deg": g.score_deg})).collect::<Vec<_>>(),
         "table_4_1": tables,
         "quick": quick,
-    }))?;
+    });
+    if let (Some(f), Value::Object(r)) = (figures.as_object_mut(), real) {
+        f.extend(r);
+    }
+    run.finish(figures)?;
     Ok(())
 }

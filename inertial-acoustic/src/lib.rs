@@ -20,6 +20,7 @@
 //! | inertial processing | `inertial.rs` | [`AxisCalibration`], [`DeltaCodec`] | §4.2.3, §4.3.2–4.3.3 |
 //! | initialisation | `initialise.rs` | [`initialise`] | §4.4.4 |
 //! | pose estimation | `ekf.rs` | [`SkeletalEkf`], [`FrameObservations`] | §4.4.1–4.4.3 |
+//! | one board's orientation | `orientation.rs` | [`OrientationEkf`], [`RestAlignment`], [`heading_inclination_rmse`] | §4.4 for a single rotation |
 //! | evaluation | `evaluate.rs` | [`joint_orientation_errors_deg`], [`ErrorStats`] | §4.5 |
 //!
 //! The derivatives the accelerometer rows need (`∂(J̇θ̇)/∂θ`, `∂(J̇θ̇)/∂θ̇`) live in
@@ -28,7 +29,8 @@
 //! Validation equipment sits behind the cargo feature `validation`: the module `simulate`
 //! (inertial readings with noise, bias, scale and quantisation, and raw 140 kHz microphone
 //! streams with 10-cycle 40 kHz pulses, 1/r amplitude, directivity, body occlusion, a floor
-//! reflection and noise, all driven by studio motions).
+//! reflection and noise, all driven by studio motions) and the module `recordings` (the real
+//! BROAD and x-io IMU logs shipped in `data/`, read and run through [`OrientationEkf`]).
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, boards or sources says where
 //! ([`Error::At`] with a [`Context`]).
@@ -73,7 +75,10 @@ mod error;
 mod evaluate;
 mod inertial;
 mod initialise;
+mod orientation;
 mod params;
+#[cfg(feature = "validation")]
+pub mod recordings;
 #[cfg(feature = "validation")]
 pub mod simulate;
 mod suit;
@@ -86,6 +91,10 @@ pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, ErrorStats};
 pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 pub use initialise::{initialise, Initialisation};
+pub use orientation::{
+    heading_inclination_rmse, HeadingInclinationRmse, OrientationEkf, OrientationStep,
+    RestAlignment,
+};
 pub use params::{
     FilterParams, SensorSet, UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ,
     MIC_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S, SAMPLES_PER_PULSE, SPEED_OF_SOUND_M_S,
