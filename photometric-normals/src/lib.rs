@@ -21,6 +21,7 @@
 //! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
 //! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
 //! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
+//! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -85,6 +86,7 @@ mod flow;
 mod motion;
 mod normals;
 mod patterns;
+mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
 
@@ -97,3 +99,4 @@ pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
+pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};
