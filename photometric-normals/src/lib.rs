@@ -22,6 +22,7 @@
 //! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
 //! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
 //! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
+//! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -81,6 +82,7 @@
 #![warn(unnameable_types, unreachable_pub)]
 
 mod calibration;
+mod colour;
 mod error;
 mod flow;
 mod motion;
@@ -91,6 +93,7 @@ mod silhouette;
 pub mod truth;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
+pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};

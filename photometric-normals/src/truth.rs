@@ -537,3 +537,46 @@ pub fn silhouette_scores(
         silhouette,
     })
 }
+
+/// A plausible camera colour response for the photometric-calibration validation: per-channel
+/// gains in 0.75–1.25 and crosstalk of 2–15 % into each other channel, drawn from `seed`.
+pub fn camera_colour_mixing(seed: u64) -> [[f64; 3]; 3] {
+    let rng = skin_core::random::SplitMix64::new(seed);
+    let mut m = [[0.0; 3]; 3];
+    for (r, row) in m.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            let u = rng.uniform_at((3 * r + c) as u64);
+            *v = if r == c {
+                0.75 + 0.5 * u
+            } else {
+                0.02 + 0.13 * u
+            };
+        }
+    }
+    m
+}
+
+/// A colour chart photographed by a camera with colour response `mixing` (observed = mixing ×
+/// true colour × `exposure`), each patch the mean of `patch_px` pixels with sensor noise σ =
+/// `noise_sigma` per pixel and channel (noise drawn from `seed`). Returns the patch means.
+pub fn photograph_chart(
+    mixing: &[[f64; 3]; 3],
+    reference: &[[f64; 3]],
+    exposure: f64,
+    noise_sigma: f64,
+    patch_px: usize,
+    seed: u64,
+) -> Vec<[f64; 3]> {
+    let rng = skin_core::random::SplitMix64::new(seed);
+    let se = noise_sigma / (patch_px.max(1) as f64).sqrt();
+    reference
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            [0, 1, 2].map(|row| {
+                let clean: f64 = (0..3).map(|c| mixing[row][c] * r[c]).sum();
+                clean * exposure + se * rng.normal_at((3 * i + row) as u64)
+            })
+        })
+        .collect()
+}
