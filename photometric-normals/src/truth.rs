@@ -580,3 +580,74 @@ pub fn photograph_chart(
         })
         .collect()
 }
+
+/// Photometric-calibration scores of one camera: a Macbeth chart photographed through
+/// [`camera_colour_mixing`]`(seed)` (patches of 400 px, sensor noise σ = 0.005), the fitted
+/// [`crate::ColourTransfer`], and the studio image `image` seen through the same response and
+/// corrected, against `image` itself on the pixels of `mask`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ColourScores {
+    /// `‖M A − I‖_F`: the fitted matrix times the true response, against the identity.
+    pub recovery: f64,
+    /// RMS colour error (linear RGB, over the mask) after the fitted matrix.
+    pub rms_matrix: f64,
+    /// After per-channel gains from the chart's white patch (white balance): the baseline.
+    pub rms_white_balance: f64,
+    /// Without correction.
+    pub rms_uncorrected: f64,
+    /// RMS residual of the fit over the chart.
+    pub chart_residual: f64,
+}
+
+/// See [`ColourScores`].
+///
+/// # Errors
+/// A failed fit (not expected for the Macbeth chart) or a mask of another size.
+pub fn colour_scores(
+    image: &Rgb32FImage,
+    mask: &skin_core::image::Mask,
+    seed: u64,
+) -> Result<ColourScores> {
+    let (w, h) = image.dimensions();
+    skin_core::check::same_size("colour mask width", w as usize, mask.width() as usize)?;
+    skin_core::check::same_size("colour mask height", h as usize, mask.height() as usize)?;
+    let chart = crate::macbeth_reference();
+    let mixing = camera_colour_mixing(seed);
+    let seen_chart = photograph_chart(&mixing, &chart, 1.0, 0.005, 400, seed.wrapping_add(1));
+    let transfer =
+        crate::ColourTransfer::fit(&seen_chart, &chart, &crate::ColourParams::default())?;
+    let m = transfer.matrix();
+    let recovery = (0..9)
+        .map(|e| {
+            let (r, k) = (e / 3, e % 3);
+            let mm: f64 = (0..3).map(|j| m[r][j] * mixing[j][k]).sum();
+            (mm - if r == k { 1.0 } else { 0.0 }).powi(2)
+        })
+        .sum::<f64>()
+        .sqrt();
+    // The white patch is number 19 of the chart (index 18).
+    let (white, seen_white) = (chart[18], seen_chart[18]);
+    let gains = crate::ColourTransfer::from_matrix([
+        [white[0] / seen_white[0], 0.0, 0.0],
+        [0.0, white[1] / seen_white[1], 0.0],
+        [0.0, 0.0, white[2] / seen_white[2]],
+    ])?;
+    let seen = crate::ColourTransfer::from_matrix(mixing)?.apply(image);
+    let rms = |im: &Rgb32FImage| {
+        let (mut s, mut n) = (0.0f64, 0usize);
+        for ((a, b), inside) in im.pixels().zip(image.pixels()).zip(mask.iter()) {
+            if inside {
+                s += (0..3).map(|k| f64::from(a[k] - b[k]).powi(2)).sum::<f64>();
+                n += 1;
+            }
+        }
+        (s / n.max(1) as f64).sqrt()
+    };
+    Ok(ColourScores {
+        recovery,
+        rms_matrix: rms(&transfer.apply(&seen)),
+        rms_white_balance: rms(&gains.apply(&seen)),
+        rms_uncorrected: rms(&seen),
+        chart_residual: transfer.residual_rms(),
+    })
+}
