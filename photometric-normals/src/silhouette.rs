@@ -357,13 +357,11 @@ mod tests {
     use super::*;
     use image::Rgb;
 
-    /// A deterministic noise in [−a, a] (hash of the pixel and frame).
+    /// A deterministic noise in [−a, a] (SplitMix64 of the pixel, stream `f`).
     fn noise(x: u32, y: u32, f: u32, a: f32) -> f32 {
-        let mut z = u64::from(x) * 0x9E37_79B9 ^ u64::from(y) * 0x85EB_CA6B ^ u64::from(f) << 40;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0) * a
+        let u = skin_core::random::SplitMix64::new(u64::from(f))
+            .uniform_at(u64::from(y) * 4096 + u64::from(x));
+        (u as f32 * 2.0 - 1.0) * a
     }
 
     const GREEN: [f32; 3] = [0.06, 0.35, 0.09];
