@@ -426,9 +426,7 @@ impl GreenScreen {
         mask: &skin_core::image::Mask,
         seed: u64,
     ) -> Result<Rgb32FImage> {
-        let (w, h) = image.dimensions();
-        skin_core::check::same_size("composite mask width", w as usize, mask.width() as usize)?;
-        skin_core::check::same_size("composite mask height", h as usize, mask.height() as usize)?;
+        let (w, h) = check_mask_size(image, mask)?;
         let scale = w as f32 / 256.0;
         let [dx, dy] = self.shadow_offset_px.map(|d| (d * scale).round() as i64);
         let r = (self.shadow_blur_px * scale).round().max(0.0) as i64;
@@ -608,9 +606,7 @@ pub fn colour_scores(
     mask: &skin_core::image::Mask,
     seed: u64,
 ) -> Result<ColourScores> {
-    let (w, h) = image.dimensions();
-    skin_core::check::same_size("colour mask width", w as usize, mask.width() as usize)?;
-    skin_core::check::same_size("colour mask height", h as usize, mask.height() as usize)?;
+    check_mask_size(image, mask)?;
     let chart = crate::macbeth_reference();
     let mixing = camera_colour_mixing(seed);
     let seen_chart = photograph_chart(&mixing, &chart, 1.0, 0.005, 400, seed.wrapping_add(1));
@@ -650,4 +646,12 @@ pub fn colour_scores(
         rms_uncorrected: rms(&seen),
         chart_residual: transfer.residual_rms(),
     })
+}
+
+/// The image's `(width, height)`, checked against the mask's.
+fn check_mask_size(image: &Rgb32FImage, mask: &skin_core::image::Mask) -> Result<(u32, u32)> {
+    let (w, h) = image.dimensions();
+    skin_core::check::same_size("mask width vs image", w as usize, mask.width() as usize)?;
+    skin_core::check::same_size("mask height vs image", h as usize, mask.height() as usize)?;
+    Ok((w, h))
 }
