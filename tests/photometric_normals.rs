@@ -18,12 +18,14 @@ use dynamic_shapes::core::studio::{
     ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
 };
 use dynamic_shapes::photometric::truth::{
-    angular_errors_deg, calibrate_camera, distant_light_normals, dome_power_fraction,
-    render_sphere_patterns, studio_patterns, summarize, LightStage,
+    angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
+    dome_power_fraction, render_sphere_patterns, silhouette_scores, studio_patterns, summarize,
+    GreenScreen, LightStage,
 };
 use dynamic_shapes::photometric::{
-    estimate_normals, CalibrationParams, CalibrationSphere, Error, Exposure, LookupTable,
-    NormalParams, Pattern, PatternImages, PATTERNS,
+    estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
+    CalibrationSphere, ColourParams, ColourTransfer, Error, Exposure, LookupTable, NormalParams,
+    Pattern, PatternImages, SilhouetteParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -168,6 +170,60 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         "concavities carry the bias of missing light"
     );
     assert!(valid_fraction > 0.8);
+
+    // Silhouettes (§3.2.1) of the full-on frame over a green screen with the performer's
+    // shadow: background subtraction + chroma key + statistical hole filling against the
+    // true mask, and the two baselines (subtraction alone, a grey-level threshold).
+    let t = Instant::now();
+    let screen = GreenScreen::default();
+    let sil_params = SilhouetteParams::default();
+    for (c, obs) in frame.observations.iter().enumerate() {
+        let full = &obs.patterns[3];
+        let s = silhouette_scores(&screen, full, &obs.mask, 4, &sil_params, 10 + c as u64).unwrap();
+        println!(
+            "camera {c}: silhouette IoU {:.4} (subtraction only {:.4}, grey threshold {:.4}); \
+             keyed {} px, holes filled {} kept {}",
+            s.iou,
+            s.iou_subtraction_only,
+            s.iou_grey_threshold,
+            s.silhouette.keyed_px,
+            s.silhouette.holes_filled,
+            s.silhouette.holes_kept
+        );
+        assert!(s.iou >= 0.97, "silhouette IoU {}", s.iou);
+        assert!(s.iou > s.iou_subtraction_only + 0.05);
+        assert!(s.iou > s.iou_grey_threshold + 0.05);
+    }
+    // Bad input: a frame of another size, a NaN sample.
+    let backdrop = Backdrop::learn(&[screen.plate(256, 256, 1)], &sil_params).unwrap();
+    let small = screen.plate(128, 256, 2);
+    assert!(matches!(
+        extract_silhouette(&backdrop, &small, &sil_params).map_err(|e| e.root().to_string()),
+        Err(m) if m.contains("size mismatch")
+    ));
+    let mut nan = screen.plate(256, 256, 3);
+    nan.put_pixel(10, 10, image::Rgb([f32::NAN, 0.0, 0.0]));
+    assert!(extract_silhouette(&backdrop, &nan, &sil_params).is_err());
+    println!("silhouettes {:.2} s", t.elapsed().as_secs_f64());
+
+    // Photometric calibration: each camera sees a Macbeth chart through its own colour
+    // response; the fitted transfer matrix must undo it on the studio's full-on image, far
+    // better than white balance from the chart's white patch (a diagonal matrix).
+    for (c, obs) in frame.observations.iter().enumerate() {
+        let s = colour_scores(&obs.patterns[3], &obs.mask, 100 + c as u64).unwrap();
+        println!(
+            "camera {c}: colour matrix recovery ‖M·A − I‖ = {:.2e}; image RMS {:.2e} \
+             (white balance {:.2e}, uncorrected {:.2e})",
+            s.recovery, s.rms_matrix, s.rms_white_balance, s.rms_uncorrected
+        );
+        assert!(s.recovery < 5e-3, "{s:?}");
+        assert!(s.rms_matrix < 0.2 * s.rms_white_balance, "{s:?}");
+        assert!(s.rms_white_balance < s.rms_uncorrected, "{s:?}");
+    }
+    let chart = macbeth_reference();
+    let greys: Vec<[f64; 3]> = chart[18..].to_vec();
+    assert!(ColourTransfer::fit(&greys, &greys, &ColourParams::default()).is_err());
+    assert!(ColourTransfer::fit(&chart[..2], &chart[..2], &ColourParams::default()).is_err());
 
     // Bad input on the same set-up.
     let cam = &cameras[0];

@@ -94,6 +94,10 @@ struct Cli {
     /// `Template::with_loose_vertices`).
     #[arg(long)]
     loose_skirt: bool,
+    /// Also run Algorithm 1 on the true poses (`molded_true_pose_*` figures), which separates
+    /// the molding's error from the tracker's; on in `--quick`.
+    #[arg(long)]
+    true_pose_shape: bool,
     /// `ShapeParams::w_anchor` (0: the thesis' Eq. 2.2).
     #[arg(long, default_value_t = 0.0)]
     anchor_weight: f64,
@@ -351,20 +355,25 @@ fn capture_run(
         result.pose_seconds / n,
         result.shape_seconds / n
     ));
-    // Diagnostic: Algorithm 1 on the true poses, which separates the molding's own error
-    // from the tracker's.
-    let stage = run.stage(&format!("{name}: shape on the true poses"), None);
-    let true_shapes = ShapeEstimator::new(template.clone(), shape_params.clone())?.estimate(
-        &truths
-            .iter()
-            .zip(&observations)
-            .map(|(t, o)| ShapeFrame {
-                theta: &t.theta,
-                rays: &o.rays,
-            })
-            .collect::<Vec<_>>(),
-    )?;
-    stage.finish("");
+    // Diagnostic (`--true-pose-shape`): Algorithm 1 on the true poses, which separates the
+    // molding's own error from the tracker's.
+    let true_shapes = if args.true_pose_shape {
+        let stage = run.stage(&format!("{name}: shape on the true poses"), None);
+        let shapes = ShapeEstimator::new(template.clone(), shape_params.clone())?.estimate(
+            &truths
+                .iter()
+                .zip(&observations)
+                .map(|(t, o)| ShapeFrame {
+                    theta: &t.theta,
+                    rays: &o.rays,
+                })
+                .collect::<Vec<_>>(),
+        )?;
+        stage.finish("");
+        Some(shapes)
+    } else {
+        None
+    };
     let reoptimise_ms = reoptimise_ms(template, &observations, &result, &cameras[0], &params)?;
 
     // Scores.
@@ -415,7 +424,9 @@ fn capture_run(
             scores[s][0].push(rms_mm(&result.shapes.frames[t], true_v, *subset));
             scores[s][1].push(rms_mm(&lbs, true_v, *subset));
             scores[s][2].push(rms_mm(&lbs_true, true_v, *subset));
-            scores[s][3].push(rms_mm(&true_shapes.frames[t], true_v, *subset));
+            if let Some(shapes) = &true_shapes {
+                scores[s][3].push(rms_mm(&shapes.frames[t], true_v, *subset));
+            }
         }
         let molded = template.mesh_with(result.shapes.frames[t].clone());
         sil.push(mean(&silhouette_error_pct(&molded, &cameras, &masks[t])?));
@@ -452,10 +463,12 @@ fn capture_run(
             &format!("lbs_true_pose_{prefix}vertex_rms_mm"),
             json!(mean(&scores[s][2])),
         );
-        put(
-            &format!("molded_true_pose_{prefix}vertex_rms_mm"),
-            json!(mean(&scores[s][3])),
-        );
+        if !scores[s][3].is_empty() {
+            put(
+                &format!("molded_true_pose_{prefix}vertex_rms_mm"),
+                json!(mean(&scores[s][3])),
+            );
+        }
     }
     put("deforming_vertices", json!(deforming.len()));
     put("silhouette_error_pct", json!(mean(&sil)));
@@ -724,8 +737,9 @@ fn editing(
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args = Cli::parse();
+    let mut args = Cli::parse();
     let quick = args.common.quick;
+    args.true_pose_shape |= quick;
     let size = if quick { (480, 360) } else { (1600, 1200) };
     let n = args.frames.unwrap_or(if quick { 12 } else { 100 });
     // The protocol (skirt) first, then the body alone for reference.

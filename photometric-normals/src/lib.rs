@@ -21,6 +21,8 @@
 //! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
 //! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
 //! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
+//! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
+//! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -80,15 +82,18 @@
 #![warn(unnameable_types, unreachable_pub)]
 
 mod calibration;
+mod colour;
 mod error;
 mod flow;
 mod motion;
 mod normals;
 mod patterns;
+mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
+pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
@@ -97,3 +102,4 @@ pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
+pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};

@@ -362,3 +362,296 @@ pub fn wrinkle_pixels(view: &ViewTruth, fine: &FineSurface, min_m: f64) -> Resul
         })
         .collect())
 }
+
+/// The green backdrop of the silhouette validation (§3.2.1). The studio renders the performer
+/// on black and has no backdrop, so the scene a camera would see is composed here: a green
+/// screen with a brightness gradient and sensor noise, darkened by the performer's soft
+/// shadow (a blurred, shifted copy of the true silhouette), with the rendered performer over
+/// it. The shadow is what a plain difference threshold takes for foreground and the chroma key
+/// removes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GreenScreen {
+    /// Linear RGB of the screen at the left edge (the right edge is `1 + gradient` times it).
+    pub colour: [f32; 3],
+    /// Brightness change across the image (left to right), fraction.
+    pub gradient: f32,
+    /// Sensor noise σ per channel (the studio's `PixelNoise` default: 0.005).
+    pub noise_sigma: f32,
+    /// Fraction of the screen's light the performer's shadow removes at its core.
+    pub shadow_depth: f32,
+    /// Shift of the shadow from the silhouette, pixels at 256² (scaled with the width).
+    pub shadow_offset_px: [f32; 2],
+    /// Half-width of the shadow's box blur, pixels at 256² (scaled with the width).
+    pub shadow_blur_px: f32,
+}
+
+impl Default for GreenScreen {
+    fn default() -> Self {
+        GreenScreen {
+            colour: [0.05, 0.26, 0.07],
+            gradient: 0.3,
+            noise_sigma: 0.005,
+            shadow_depth: 0.5,
+            shadow_offset_px: [14.0, 4.0],
+            shadow_blur_px: 4.0,
+        }
+    }
+}
+
+impl GreenScreen {
+    fn screen(&self, x: u32, w: u32) -> [f32; 3] {
+        let g = 1.0 + self.gradient * x as f32 / w.max(1) as f32;
+        self.colour.map(|c| c * g)
+    }
+
+    /// One frame of the empty screen (noise drawn from `seed`).
+    pub fn plate(&self, width: u32, height: u32, seed: u64) -> Rgb32FImage {
+        let rng = skin_core::random::SplitMix64::new(seed);
+        Rgb32FImage::from_fn(width, height, |x, y| {
+            let i = 3 * (u64::from(y) * u64::from(width) + u64::from(x));
+            let s = self.screen(x, width);
+            image::Rgb(
+                [0, 1, 2].map(|c| s[c] + self.noise_sigma * rng.normal_at(i + c as u64) as f32),
+            )
+        })
+    }
+
+    /// The performer's image (`image`, black outside `mask`) over the screen with its shadow.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if the image and the mask differ in size.
+    pub fn composite(
+        &self,
+        image: &Rgb32FImage,
+        mask: &skin_core::image::Mask,
+        seed: u64,
+    ) -> Result<Rgb32FImage> {
+        let (w, h) = check_mask_size(image, mask)?;
+        let scale = w as f32 / 256.0;
+        let [dx, dy] = self.shadow_offset_px.map(|d| (d * scale).round() as i64);
+        let r = (self.shadow_blur_px * scale).round().max(0.0) as i64;
+        // Shadow cover: box average of the shifted mask (summed-area table).
+        let (wu, hu) = (w as usize, h as usize);
+        let mut sat = vec![0u32; (wu + 1) * (hu + 1)];
+        for y in 0..hu {
+            let mut row = 0u32;
+            for x in 0..wu {
+                row += u32::from(mask.get_i64(x as i64 - dx, y as i64 - dy));
+                sat[(y + 1) * (wu + 1) + x + 1] = sat[y * (wu + 1) + x + 1] + row;
+            }
+        }
+        let cover = |x: i64, y: i64| -> f32 {
+            let (x0, y0) = ((x - r).max(0) as usize, (y - r).max(0) as usize);
+            let (x1, y1) = (
+                ((x + r + 1) as usize).min(wu),
+                ((y + r + 1) as usize).min(hu),
+            );
+            let s = sat[y1 * (wu + 1) + x1] + sat[y0 * (wu + 1) + x0]
+                - sat[y0 * (wu + 1) + x1]
+                - sat[y1 * (wu + 1) + x0];
+            s as f32 / ((2 * r + 1) * (2 * r + 1)) as f32
+        };
+        let plate = self.plate(w, h, seed);
+        Ok(Rgb32FImage::from_fn(w, h, |x, y| {
+            if mask.get(x, y) {
+                return *image.get_pixel(x, y);
+            }
+            let shade = 1.0 - self.shadow_depth * cover(i64::from(x), i64::from(y));
+            let s = self.screen(x, w);
+            let p = plate.get_pixel(x, y).0;
+            // The noise stays the sensor's; the shadow scales the light.
+            image::Rgb([0, 1, 2].map(|c| s[c] * shade + (p[c] - s[c])))
+        }))
+    }
+}
+
+/// Intersection over union of two masks of one size (1 for two empty masks).
+///
+/// # Errors
+/// [`Error::Core`] with a size mismatch if the masks differ in size.
+pub fn mask_iou(a: &skin_core::image::Mask, b: &skin_core::image::Mask) -> Result<f64> {
+    let inter = a.and(b)?.count();
+    let union = a.or(b)?.count();
+    Ok(if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    })
+}
+
+/// Silhouette scores of one view on the [`GreenScreen`]: ours and two baselines, as IoU
+/// against the studio's true mask.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SilhouetteScores {
+    /// [`crate::extract_silhouette`] (background subtraction, chroma key, statistical holes).
+    pub iou: f64,
+    /// Background subtraction alone with skin-core's size-based clean-up (specks < 16 px
+    /// removed, holes ≤ 16 px filled): the baseline.
+    pub iou_subtraction_only: f64,
+    /// A plain grey-level difference threshold (|ΔI| > 0.05) against the empty screen.
+    pub iou_grey_threshold: f64,
+    /// What the method did.
+    pub silhouette: crate::Silhouette,
+}
+
+/// Composes `image` (rendered on black, true silhouette `mask`) over the green screen,
+/// learns the backdrop from `plates` empty frames and scores the silhouettes.
+///
+/// # Errors
+/// Size mismatches between `image` and `mask`; `plates == 0` ([`Error::Empty`]).
+pub fn silhouette_scores(
+    screen: &GreenScreen,
+    image: &Rgb32FImage,
+    mask: &skin_core::image::Mask,
+    plates: usize,
+    params: &crate::SilhouetteParams,
+    seed: u64,
+) -> Result<SilhouetteScores> {
+    let (w, h) = image.dimensions();
+    let empty: Vec<Rgb32FImage> = (0..plates as u64)
+        .map(|k| screen.plate(w, h, seed.wrapping_add(1 + k)))
+        .collect();
+    let backdrop = crate::Backdrop::learn(&empty, params)?;
+    let frame = screen.composite(image, mask, seed)?;
+    let silhouette = crate::extract_silhouette(&backdrop, &frame, params)?;
+    let subtraction = skin_core::image::BackgroundModel::learn(&empty, &params.background)?
+        .classify(&frame)?
+        .mask;
+    let g_frame = grey(&frame);
+    let g_empty: Vec<f32> = {
+        let gs: Vec<_> = empty.iter().map(grey).collect();
+        (0..(w * h) as usize)
+            .map(|i| gs.iter().map(|g| g.as_raw()[i]).sum::<f32>() / gs.len() as f32)
+            .collect()
+    };
+    let grey_threshold = skin_core::image::Mask::from_fn(w, h, |x, y| {
+        let i = (y * w + x) as usize;
+        (g_frame.as_raw()[i] - g_empty[i]).abs() > 0.05
+    });
+    Ok(SilhouetteScores {
+        iou: mask_iou(&silhouette.mask, mask)?,
+        iou_subtraction_only: mask_iou(&subtraction, mask)?,
+        iou_grey_threshold: mask_iou(&grey_threshold, mask)?,
+        silhouette,
+    })
+}
+
+/// A plausible camera colour response for the photometric-calibration validation: per-channel
+/// gains in 0.75–1.25 and crosstalk of 2–15 % into each other channel, drawn from `seed`.
+pub fn camera_colour_mixing(seed: u64) -> [[f64; 3]; 3] {
+    let rng = skin_core::random::SplitMix64::new(seed);
+    let mut m = [[0.0; 3]; 3];
+    for (r, row) in m.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            let u = rng.uniform_at((3 * r + c) as u64);
+            *v = if r == c {
+                0.75 + 0.5 * u
+            } else {
+                0.02 + 0.13 * u
+            };
+        }
+    }
+    m
+}
+
+/// A colour chart photographed by a camera with colour response `mixing` (observed = mixing ×
+/// true colour × `exposure`), each patch the mean of `patch_px` pixels with sensor noise σ =
+/// `noise_sigma` per pixel and channel (noise drawn from `seed`). Returns the patch means.
+pub fn photograph_chart(
+    mixing: &[[f64; 3]; 3],
+    reference: &[[f64; 3]],
+    exposure: f64,
+    noise_sigma: f64,
+    patch_px: usize,
+    seed: u64,
+) -> Vec<[f64; 3]> {
+    let rng = skin_core::random::SplitMix64::new(seed);
+    let se = noise_sigma / (patch_px.max(1) as f64).sqrt();
+    reference
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            [0, 1, 2].map(|row| {
+                let clean: f64 = (0..3).map(|c| mixing[row][c] * r[c]).sum();
+                clean * exposure + se * rng.normal_at((3 * i + row) as u64)
+            })
+        })
+        .collect()
+}
+
+/// Photometric-calibration scores of one camera: a Macbeth chart photographed through
+/// [`camera_colour_mixing`]`(seed)` (patches of 400 px, sensor noise σ = 0.005), the fitted
+/// [`crate::ColourTransfer`], and the studio image `image` seen through the same response and
+/// corrected, against `image` itself on the pixels of `mask`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ColourScores {
+    /// `‖M A − I‖_F`: the fitted matrix times the true response, against the identity.
+    pub recovery: f64,
+    /// RMS colour error (linear RGB, over the mask) after the fitted matrix.
+    pub rms_matrix: f64,
+    /// After per-channel gains from the chart's white patch (white balance): the baseline.
+    pub rms_white_balance: f64,
+    /// Without correction.
+    pub rms_uncorrected: f64,
+    /// RMS residual of the fit over the chart.
+    pub chart_residual: f64,
+}
+
+/// See [`ColourScores`].
+///
+/// # Errors
+/// A failed fit (not expected for the Macbeth chart) or a mask of another size.
+pub fn colour_scores(
+    image: &Rgb32FImage,
+    mask: &skin_core::image::Mask,
+    seed: u64,
+) -> Result<ColourScores> {
+    check_mask_size(image, mask)?;
+    let chart = crate::macbeth_reference();
+    let mixing = camera_colour_mixing(seed);
+    let seen_chart = photograph_chart(&mixing, &chart, 1.0, 0.005, 400, seed.wrapping_add(1));
+    let transfer =
+        crate::ColourTransfer::fit(&seen_chart, &chart, &crate::ColourParams::default())?;
+    let m = transfer.matrix();
+    let recovery = (0..9)
+        .map(|e| {
+            let (r, k) = (e / 3, e % 3);
+            let mm: f64 = (0..3).map(|j| m[r][j] * mixing[j][k]).sum();
+            (mm - if r == k { 1.0 } else { 0.0 }).powi(2)
+        })
+        .sum::<f64>()
+        .sqrt();
+    // The white patch is number 19 of the chart (index 18).
+    let (white, seen_white) = (chart[18], seen_chart[18]);
+    let gains = crate::ColourTransfer::from_matrix([
+        [white[0] / seen_white[0], 0.0, 0.0],
+        [0.0, white[1] / seen_white[1], 0.0],
+        [0.0, 0.0, white[2] / seen_white[2]],
+    ])?;
+    let seen = crate::ColourTransfer::from_matrix(mixing)?.apply(image);
+    let rms = |im: &Rgb32FImage| {
+        let (mut s, mut n) = (0.0f64, 0usize);
+        for ((a, b), inside) in im.pixels().zip(image.pixels()).zip(mask.iter()) {
+            if inside {
+                s += (0..3).map(|k| f64::from(a[k] - b[k]).powi(2)).sum::<f64>();
+                n += 1;
+            }
+        }
+        (s / n.max(1) as f64).sqrt()
+    };
+    Ok(ColourScores {
+        recovery,
+        rms_matrix: rms(&transfer.apply(&seen)),
+        rms_white_balance: rms(&gains.apply(&seen)),
+        rms_uncorrected: rms(&seen),
+        chart_residual: transfer.residual_rms(),
+    })
+}
+
+/// The image's `(width, height)`, checked against the mask's.
+fn check_mask_size(image: &Rgb32FImage, mask: &skin_core::image::Mask) -> Result<(u32, u32)> {
+    let (w, h) = image.dimensions();
+    skin_core::check::same_size("mask width vs image", w as usize, mask.width() as usize)?;
+    skin_core::check::same_size("mask height vs image", h as usize, mask.height() as usize)?;
+    Ok((w, h))
+}
