@@ -151,6 +151,28 @@ impl GroupState {
     }
 }
 
+/// The next `N` finite numbers of a line (`what` names them in errors); extra ones are
+/// ignored (a `w` or a third texture coordinate).
+fn parse_numbers<'a, const N: usize>(
+    tokens: &mut impl Iterator<Item = &'a str>,
+    what: &str,
+    line: usize,
+) -> Result<[f64; N]> {
+    let mut out = [0.0f64; N];
+    for (k, slot) in out.iter_mut().enumerate() {
+        let tok = tokens.next().ok_or_else(|| {
+            parse_error(line, format!("{what}s: got {k}, expected at least {N}"))
+        })?;
+        *slot = tok
+            .parse()
+            .map_err(|_| parse_error(line, format!("bad {what} '{tok}'")))?;
+        if !slot.is_finite() {
+            return Err(parse_error(line, format!("non-finite {what} '{tok}'")));
+        }
+    }
+    Ok(out)
+}
+
 /// Resolves one OBJ index (1-based, or negative relative to the `defined` entries read so
 /// far) of `kind` to a zero-based index; positive indices are range-checked after the file.
 fn resolve_index(text: &str, defined: usize, kind: &str, line: usize) -> Result<(u32, bool)> {
@@ -236,24 +258,7 @@ impl ObjFile {
             };
             match keyword {
                 "v" => {
-                    let mut xyz = [0.0f64; 3];
-                    for (k, slot) in xyz.iter_mut().enumerate() {
-                        let tok = tokens.next().ok_or_else(|| {
-                            parse_error(
-                                line_no,
-                                format!("vertex has {k} coordinates, expected at least 3"),
-                            )
-                        })?;
-                        *slot = tok.parse().map_err(|_| {
-                            parse_error(line_no, format!("bad vertex coordinate '{tok}'"))
-                        })?;
-                        if !slot.is_finite() {
-                            return Err(parse_error(
-                                line_no,
-                                format!("non-finite vertex coordinate '{tok}'"),
-                            ));
-                        }
-                    }
+                    let xyz = parse_numbers::<3>(&mut tokens, "vertex coordinate", line_no)?;
                     if obj.vertices.len() >= u32::MAX as usize {
                         return Err(parse_error(line_no, "more than 2^32 - 1 vertices"));
                     }
@@ -301,24 +306,7 @@ impl ObjFile {
                     state.current = None;
                 }
                 "vt" => {
-                    let mut uv = [0.0f64; 2];
-                    for (k, slot) in uv.iter_mut().enumerate() {
-                        let tok = tokens.next().ok_or_else(|| {
-                            parse_error(
-                                line_no,
-                                format!("texture coordinate has {k} values, expected 2"),
-                            )
-                        })?;
-                        *slot = tok.parse().map_err(|_| {
-                            parse_error(line_no, format!("bad texture coordinate '{tok}'"))
-                        })?;
-                        if !slot.is_finite() {
-                            return Err(parse_error(
-                                line_no,
-                                format!("non-finite texture coordinate '{tok}'"),
-                            ));
-                        }
-                    }
+                    let uv = parse_numbers::<2>(&mut tokens, "texture coordinate", line_no)?;
                     obj.texcoords.push(DVec2::from_array(uv));
                 }
                 // vn, vp, s, usemtl, mtllib, l, p and free-form directives: not geometry
