@@ -287,8 +287,9 @@ impl EllipsoidModel {
         })
     }
 
-    /// The limbs of a skeleton: every bone whose parent joint has exactly one child and whose
-    /// length is at least `min_length_m` (so the bone, and its ellipsoid, are unambiguous).
+    /// The limbs of a skeleton: every bone whose parent joint articulates (has DOFs) and has
+    /// exactly one child, and whose length is at least `min_length_m` (so the bone, and its
+    /// ellipsoid, are unambiguous; a fixed link such as a clavicle carries no body part).
     ///
     /// # Errors
     /// As [`EllipsoidModel::new`]; `min_length_m` must be positive.
@@ -297,7 +298,8 @@ impl EllipsoidModel {
         let bones = (0..skeleton.joint_count())
             .filter_map(|c| {
                 let p = skeleton.joints()[c].parent?;
-                let single = skeleton.children(p).count() == 1;
+                let single =
+                    skeleton.children(p).count() == 1 && !skeleton.joints()[p].dofs.is_empty();
                 (single && skeleton.joints()[c].offset.length() >= min_length_m).then_some(
                     EllipsoidBone {
                         parent: p,
@@ -853,3 +855,10 @@ pub fn fit_half_width(
 
 #[cfg(test)]
 mod tests;
+#[cfg(feature = "validation")]
+mod validation;
+#[cfg(feature = "validation")]
+pub use validation::{
+    ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
+    EllipsoidScores, ScenarioFrame,
+};

@@ -102,6 +102,11 @@ mod template;
 mod visual_hull;
 
 pub use editing::{DeformationTransfer, DEFAULT_ANCHOR_WEIGHT, DEFAULT_UNEDITED_TOLERANCE_M};
+#[cfg(feature = "validation")]
+pub use ellipsoid::{
+    ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
+    EllipsoidScores, ScenarioFrame,
+};
 pub use ellipsoid::{
     fit_ellipsoids, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit, EllipsoidModel,
     EllipsoidObservations, EllipsoidParams, EllipsoidState, MarkerObservation,
