@@ -31,7 +31,7 @@ fn mean_scores(s: &[EllipsoidScores]) -> EllipsoidScores {
 #[test]
 fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
     let scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
-        frames: vec![0, 30],
+        frames: vec![0],
         ..EllipsoidScenarioParams::default()
     })
     .unwrap();
@@ -68,8 +68,10 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
         }
     }
     let r = mean_scores(&robust);
-    println!("IRLS {r:?} (goals 10 mm, 5 mm, 3 deg: not met, see the module docs)");
+    println!("IRLS {r:?} (length goal 10 mm not met, see the module docs)");
     assert!(r.bone_length_error_mm.is_finite());
+    assert!(r.width_error_mm <= 5.0, "{r:?}");
+    assert!(r.joint_angle_error_deg <= 3.0, "{r:?}");
     assert!(
         rejected.iter().all(|&n| n >= 1000),
         "rejected {rejected:?} of 1500 outliers"

@@ -307,6 +307,13 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                 theta: theta.clone(),
                 length_scale: factors.clone(),
                 half_width: vec![0.05; nb],
+                // Eq. 3: the reference ellipsoid spans the true bone.
+                half_length: model
+                    .default_lengths()
+                    .iter()
+                    .zip(&factors)
+                    .map(|(l, f)| 0.5 * l * f)
+                    .collect(),
             };
             for b in 0..nb {
                 let limb: Vec<DVec3> = (0..verts.len())
@@ -368,7 +375,7 @@ pub fn score_ellipsoids(
         joint_angle_error_deg: 0.0,
     };
     for (f, t) in ef.iter().zip(&et) {
-        s.bone_length_error_mm += 2000.0 * (f.half_length - t.half_length).abs() / n;
+        s.bone_length_error_mm += 2000.0 * (f.half_bone - t.half_bone).abs() / n;
         s.width_error_mm += 1000.0 * (f.half_width - t.half_width).abs() / n;
         s.joint_angle_error_deg += f.axis.dot(t.axis).clamp(-1.0, 1.0).acos().to_degrees() / n;
     }
