@@ -258,12 +258,12 @@ impl EllipsoidModel {
     ///
     /// # Errors
     /// [`Error::Empty`] without bones; index errors; [`Error::InvalidParam`] when `child` is
-    /// not a child of `parent`; [`Error::Degenerate`] for a zero-length bone.
+    /// not a child of `parent`; [`skin_core::Error::Degenerate`] (inside [`Error::Core`]) for a zero-length bone.
     pub fn new(skeleton: Skeleton, bones: Vec<EllipsoidBone>) -> Result<Self> {
         if bones.is_empty() {
-            return Err(Error::Core(skin_core::Error::Empty {
+            return Err(Error::Empty {
                 what: "ellipsoid bones",
-            }));
+            });
         }
         let n = skeleton.joint_count();
         let mut lengths = Vec::with_capacity(bones.len());
@@ -273,13 +273,13 @@ impl EllipsoidModel {
             check::index("bone child joint", bone.child, n).at(Context::Joint(b))?;
             let joint = &skeleton.joints()[bone.child];
             if joint.parent != Some(bone.parent) {
-                return Err(Error::Core(skin_core::Error::InvalidParam {
+                return Err(Error::InvalidParam {
                     name: "bones",
                     reason: format!(
                         "joint {} is not a child of joint {}",
                         bone.child, bone.parent
                     ),
-                }));
+                });
             }
             let len = joint.offset.length();
             if len < 1e-6 {
@@ -734,7 +734,7 @@ impl Problem<'_> {
 /// that does not exist; [`Error::Empty`] without any observation; for a bone left with fewer
 /// than [`EllipsoidParams::min_observations_per_bone`] weighted observations ("no points near
 /// a limb") an [`Error::Empty`] and for a half-width that ended on
-/// [`EllipsoidParams::min_half_width_m`] (a collapsed ellipsoid) an [`Error::Degenerate`],
+/// [`EllipsoidParams::min_half_width_m`] (a collapsed ellipsoid) an [`skin_core::Error::Degenerate`] (inside [`Error::Core`]),
 /// both wrapped in [`Error::At`] with the bone's child joint as [`Context::Joint`].
 pub fn fit_ellipsoids(
     model: &EllipsoidModel,
@@ -747,16 +747,16 @@ pub fn fit_ellipsoids(
     let nb = model.bones.len();
     for p in &obs.points {
         if !p.is_finite() {
-            return Err(Error::Core(skin_core::Error::NonFinite {
+            return Err(Error::NonFinite {
                 what: "attractor points",
-            }));
+            });
         }
     }
     for r in &obs.rays {
         if !(r.origin.is_finite() && r.direction.is_finite()) {
-            return Err(Error::Core(skin_core::Error::NonFinite {
+            return Err(Error::NonFinite {
                 what: "contour rays",
-            }));
+            });
         }
     }
     let mut markers = Vec::new();
@@ -764,7 +764,7 @@ pub fn fit_ellipsoids(
         check::index("marker bone", m.bone, nb)?;
         if let Some(x) = m.position {
             if !x.is_finite() {
-                return Err(Error::Core(skin_core::Error::NonFinite { what: "markers" }));
+                return Err(Error::NonFinite { what: "markers" });
             }
             markers.push((m.bone, x));
         }
@@ -778,9 +778,9 @@ pub fn fit_ellipsoids(
         robust: Vec::new(),
     };
     if problem.n_obs() == 0 {
-        return Err(Error::Core(skin_core::Error::Empty {
+        return Err(Error::Empty {
             what: "ellipsoid observations",
-        }));
+        });
     }
     problem.robust = vec![1.0; problem.n_obs()];
     let mut state = initial.clone();
@@ -803,9 +803,9 @@ pub fn fit_ellipsoids(
     }
     for (b, bone) in model.bones.iter().enumerate() {
         if observations_per_bone[b] < params.min_observations_per_bone {
-            return Err(Error::Core(skin_core::Error::Empty {
+            return Err(Error::Empty {
                 what: "observations near the bone's ellipsoid",
-            }))
+            })
             .at(Context::Joint(bone.child));
         }
         if state.half_width[b] <= params.min_half_width_m * (1.0 + 1e-9) {
@@ -868,9 +868,9 @@ pub fn fit_half_width(
 ) -> Result<f64> {
     check::index("bone", b, model.bones.len())?;
     if points.is_empty() {
-        return Err(Error::Core(skin_core::Error::Empty {
+        return Err(Error::Empty {
             what: "limb points",
-        }));
+        });
     }
     let sk = model.scaled_skeleton(state)?;
     let fk = sk.forward_kinematics(&state.theta)?;

@@ -214,7 +214,7 @@ fn bad_input_is_reported() {
     let empty = EllipsoidObservations::default();
     assert!(matches!(
         fit_ellipsoids(&m, &truth, &empty, &p),
-        Err(Error::Core(skin_core::Error::Empty { .. }))
+        Err(Error::Empty { .. })
     ));
     let nan = EllipsoidObservations {
         points: vec![DVec3::NAN],
@@ -222,7 +222,7 @@ fn bad_input_is_reported() {
     };
     assert!(matches!(
         fit_ellipsoids(&m, &truth, &nan, &p),
-        Err(Error::Core(skin_core::Error::NonFinite { .. }))
+        Err(Error::NonFinite { .. })
     ));
     let mut short = truth.clone();
     short.theta.pop();

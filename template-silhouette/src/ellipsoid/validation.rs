@@ -267,9 +267,9 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                         .filter(|&i| vertex_bone[i] == Some(bone_target))
                         .collect();
                     if on_bone.is_empty() {
-                        return Err(Error::Core(skin_core::Error::Empty {
+                        return Err(Error::Empty {
                             what: "performer vertices carried by a modelled bone",
-                        }))
+                        })
                         .at(Context::Joint(model.bones()[bone_target].child));
                     }
                     // Spread along the bone: the vertices are in mesh order, not random.
@@ -380,9 +380,9 @@ pub fn score_ellipsoids(
         s.joint_angle_error_deg += f.axis.dot(t.axis).clamp(-1.0, 1.0).acos().to_degrees() / n;
     }
     if !s.bone_length_error_mm.is_finite() {
-        return Err(Error::Core(skin_core::Error::NonFinite {
+        return Err(Error::NonFinite {
             what: "ellipsoid scores",
-        }));
+        });
     }
     Ok(s)
 }
