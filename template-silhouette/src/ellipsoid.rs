@@ -709,7 +709,8 @@ impl Problem<'_> {
                 let trial = self.step(&state, &delta);
                 let trial_cost = self.linearise(&trial, false)?.cost;
                 if trial_cost < lin.cost {
-                    let small = delta.amax() < 1e-7;
+                    // Converged: a step below 1 µm / µrad or a relative decrease below 1e-6.
+                    let small = delta.amax() < 1e-6 || lin.cost - trial_cost < 1e-6 * lin.cost;
                     state = trial;
                     lin = self.linearise(&state, true)?;
                     lambda = (lambda * 0.3).max(1e-9);
