@@ -15,8 +15,8 @@
 //! proportions, half-widths of 5 cm and the true pose with Gaussian noise on every rotation.
 //!
 //! **Truth.** Bone lengths from the true skeleton; the reference half-width of each bone is
-//! the geometric fit of Eq. 3 ([`fit_half_width`]) to the true posed vertices carried by that
-//! bone, with the true pose and lengths; the joint angle error is the angle between the
+//! the geometric fit of Eq. 3 ([`fit_half_width`]) to the true vertices carried by that
+//! bone at the rest pose, with the true lengths (posed, LBS's joint regions bend it); the joint angle error is the angle between the
 //! fitted and the true bone directions (axial twist excluded: the ellipsoids are symmetric
 //! about the bone).
 
@@ -193,6 +193,29 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         .copied()
         .filter(|f| f.iter().all(|&v| vertex_bone[v as usize].is_some()))
         .collect();
+    // Truth: lengths, and the reference half-widths: Eq. 3 fitted to each true limb's
+    // vertices at the rest pose (the widths do not depend on the pose here; posed, the
+    // skinning's joint regions would bend the reference).
+    let mut rest_truth = EllipsoidState {
+        theta: vec![0.0; default_sk.dof_count()],
+        length_scale: factors.clone(),
+        half_width: vec![0.05; nb],
+        // Eq. 3: the reference ellipsoid spans the true bone.
+        half_length: model
+            .default_lengths()
+            .iter()
+            .zip(&factors)
+            .map(|(l, f)| 0.5 * l * f)
+            .collect(),
+    };
+    for b in 0..nb {
+        let limb: Vec<DVec3> = (0..rest_true.len())
+            .filter(|&i| vertex_bone[i] == Some(b))
+            .map(|i| rest_true[i])
+            .collect();
+        rest_truth.half_width[b] = fit_half_width(&model, &rest_truth, b, &limb)
+            .at(Context::Joint(model.bones()[b].child))?;
+    }
     let motion = fast_motion(&default_sk, &FastMotionParams::default())?;
     let rig = studio_ring(params.cameras, params.image_size.0, params.image_size.1)?;
     let cameras = rig.cameras.clone();
@@ -302,27 +325,10 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                 );
                 masks.push(mask);
             }
-            // Truth: lengths, reference widths.
-            let mut truth = EllipsoidState {
+            let truth = EllipsoidState {
                 theta: theta.clone(),
-                length_scale: factors.clone(),
-                half_width: vec![0.05; nb],
-                // Eq. 3: the reference ellipsoid spans the true bone.
-                half_length: model
-                    .default_lengths()
-                    .iter()
-                    .zip(&factors)
-                    .map(|(l, f)| 0.5 * l * f)
-                    .collect(),
+                ..rest_truth.clone()
             };
-            for b in 0..nb {
-                let limb: Vec<DVec3> = (0..verts.len())
-                    .filter(|&i| vertex_bone[i] == Some(b))
-                    .map(|i| verts[i])
-                    .collect();
-                truth.half_width[b] = fit_half_width(&model, &truth, b, &limb)
-                    .at(Context::Joint(model.bones()[b].child))?;
-            }
             let noisy: Vec<f64> = theta
                 .iter()
                 .enumerate()
