@@ -3,7 +3,9 @@
 //! the default skeleton, three cameras, 5,000 noisy points from the limb surface (σ = 5 mm)
 //! of which 30 % are gross outliers, the silhouettes as contour rays and 20 markers (σ =
 //! 1 mm). The fit starts from the default proportions and a noisy pose (5° per rotation);
-//! it is run with IRLS (Tukey) and without (the plain least squares the paper starts from).
+//! it is run with IRLS (Tukey) and without (the plain least squares the paper starts from),
+//! at frames 0, 5, 10 and 30 of the fast motion (figures per frame `frameK_*` and their
+//! mean).
 //!
 //! Writes under `out/ellipsoid_fit/`: `ellipsoids.png` (the fitted ellipsoids over each
 //! camera's silhouette), `figures.json`, `manifest.json`; last stdout line one JSON object.
@@ -86,6 +88,15 @@ fn put(figures: &mut Map<String, Value>, prefix: &str, s: &EllipsoidScores) {
     );
 }
 
+fn mean_scores(s: &[EllipsoidScores]) -> EllipsoidScores {
+    let n = s.len() as f64;
+    EllipsoidScores {
+        bone_length_error_mm: s.iter().map(|x| x.bone_length_error_mm).sum::<f64>() / n,
+        width_error_mm: s.iter().map(|x| x.width_error_mm).sum::<f64>() / n,
+        joint_angle_error_deg: s.iter().map(|x| x.joint_angle_error_deg).sum::<f64>() / n,
+    }
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Cli::parse();
     let size = if args.common.quick {
@@ -95,7 +106,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let params = EllipsoidScenarioParams {
         image_size: size,
-        frames: vec![0],
+        frames: vec![0, 5, 10, 30],
         ..EllipsoidScenarioParams::default()
     };
     let mut run = Run::start(
@@ -116,49 +127,75 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let stage = run.stage("scenario", None);
     let scenario = ellipsoid_scenario(&params)?;
     stage.finish("");
-    let frame = &scenario.frames[0];
     let model = &scenario.model;
-    let stage = run.stage("fit", None);
-    let t = Instant::now();
-    let fit = fit_ellipsoids(
-        model,
-        &frame.start,
-        &frame.observations,
-        &EllipsoidParams::default(),
-    )?;
-    let fit_ms = t.elapsed().as_secs_f64() * 1e3;
-    let plain = fit_ellipsoids(
-        model,
-        &frame.start,
-        &frame.observations,
-        &EllipsoidParams::default().with_irls_rounds(1),
-    )?;
-    stage.finish(format!("{fit_ms:.0} ms"));
-    let robust_scores = score_ellipsoids(model, &fit.state, &frame.truth)?;
-    let plain_scores = score_ellipsoids(model, &plain.state, &frame.truth)?;
-    let start_scores = score_ellipsoids(model, &frame.start, &frame.truth)?;
     let mut figures = Map::new();
-    put(&mut figures, "", &robust_scores);
-    put(&mut figures, "no_irls_", &plain_scores);
-    put(&mut figures, "start_", &start_scores);
-    figures.insert("fit_ms_per_frame".into(), json!(fit_ms));
+    let (mut robust_all, mut plain_all, mut start_all, mut times) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut first = None;
+    for (k, frame) in params.frames.iter().zip(&scenario.frames) {
+        let stage = run.stage(&format!("frame {k}"), None);
+        let t = Instant::now();
+        let fit = fit_ellipsoids(
+            model,
+            &frame.start,
+            &frame.observations,
+            &EllipsoidParams::default(),
+        )?;
+        let fit_ms = t.elapsed().as_secs_f64() * 1e3;
+        let plain = fit_ellipsoids(
+            model,
+            &frame.start,
+            &frame.observations,
+            &EllipsoidParams::default().with_irls_rounds(1),
+        )?;
+        stage.finish(format!("{fit_ms:.0} ms"));
+        let robust_scores = score_ellipsoids(model, &fit.state, &frame.truth)?;
+        let plain_scores = score_ellipsoids(model, &plain.state, &frame.truth)?;
+        let start_scores = score_ellipsoids(model, &frame.start, &frame.truth)?;
+        put(&mut figures, &format!("frame{k}_"), &robust_scores);
+        put(&mut figures, &format!("frame{k}_no_irls_"), &plain_scores);
+        put(&mut figures, &format!("frame{k}_start_"), &start_scores);
+        figures.insert(format!("frame{k}_fit_ms"), json!(fit_ms));
+        figures.insert(
+            format!("frame{k}_rejected_points"),
+            json!(fit.rejected_points),
+        );
+        figures.insert(format!("frame{k}_irls_round_costs"), json!(fit.round_costs));
+        figures.insert(
+            format!("frame{k}_fitted_bone_lengths_m"),
+            json!(model.bone_lengths(&fit.state)),
+        );
+        figures.insert(
+            format!("frame{k}_fitted_half_widths_m"),
+            json!(fit.state.half_width),
+        );
+        robust_all.push(robust_scores);
+        plain_all.push(plain_scores);
+        start_all.push(start_scores);
+        times.push(fit_ms);
+        if first.is_none() {
+            first = Some((frame, fit.state.clone(), plain.state.clone()));
+        }
+    }
+    put(&mut figures, "", &mean_scores(&robust_all));
+    put(&mut figures, "no_irls_", &mean_scores(&plain_all));
+    put(&mut figures, "start_", &mean_scores(&start_all));
+    figures.insert(
+        "fit_ms_per_frame".into(),
+        json!(times.iter().sum::<f64>() / times.len() as f64),
+    );
+    figures.insert("frames".into(), json!(params.frames));
+    let (frame, fit_state, plain_state) = first.ok_or("no frame")?;
     figures.insert("points".into(), json!(frame.observations.points.len()));
     figures.insert(
         "silhouette_rays".into(),
         json!(frame.observations.rays.len()),
     );
     figures.insert("markers".into(), json!(frame.observations.markers.len()));
-    figures.insert("rejected_points".into(), json!(fit.rejected_points));
-    figures.insert("irls_round_costs".into(), json!(fit.round_costs));
-    figures.insert(
-        "fitted_bone_lengths_m".into(),
-        json!(model.bone_lengths(&fit.state)),
-    );
     figures.insert(
         "true_bone_lengths_m".into(),
         json!(model.bone_lengths(&frame.truth)),
     );
-    figures.insert("fitted_half_widths_m".into(), json!(fit.state.half_width));
     figures.insert(
         "reference_half_widths_m".into(),
         json!(frame.truth.half_width),
@@ -166,8 +203,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.insert("image_width_px".into(), json!(size.0));
     figures.insert("image_height_px".into(), json!(size.1));
 
-    let fitted = model.ellipsoids(&fit.state)?;
-    let plain_e = model.ellipsoids(&plain.state)?;
+    let fitted = model.ellipsoids(&fit_state)?;
+    let plain_e = model.ellipsoids(&plain_state)?;
     let panels: Vec<RgbImage> = scenario
         .cameras
         .iter()
@@ -183,7 +220,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
     let img = titled(
         &side_by_side(&panels)?,
-        "Fitted ellipsoids over the silhouettes (grey)",
+        &format!(
+            "Fitted ellipsoids over the silhouettes (grey), frame {}",
+            params.frames[0]
+        ),
         Some("blue: joint least squares with IRLS; red: without IRLS (same start, same data)"),
     )?;
     run.save_picture(
