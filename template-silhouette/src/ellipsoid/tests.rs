@@ -1,0 +1,270 @@
+use super::*;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use skin_core::skeleton::{human_skeleton, HumanParams};
+
+fn model() -> EllipsoidModel {
+    let sk = human_skeleton(&HumanParams::default()).unwrap();
+    EllipsoidModel::limbs(sk, 0.1).unwrap()
+}
+
+fn posed(m: &EllipsoidModel, rng: &mut ChaCha8Rng) -> EllipsoidState {
+    let nd = m.skeleton().dof_count();
+    let theta: Vec<f64> = (0..nd).map(|_| rng.random_range(-0.3..0.3)).collect();
+    let mut s = m.initial_state(&theta, 0.05).unwrap();
+    for b in 0..s.length_scale.len() {
+        s.length_scale[b] = rng.random_range(0.9..1.1);
+        s.half_width[b] = rng.random_range(0.03..0.08);
+        s.half_length[b] =
+            rng.random_range(0.8..1.2) * 0.5 * s.length_scale[b] * m.default_lengths()[b];
+    }
+    s
+}
+
+/// Points on the surfaces of the ellipsoids of `state`.
+fn surface(
+    m: &EllipsoidModel,
+    state: &EllipsoidState,
+    per: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<DVec3> {
+    let mut out = Vec::new();
+    for e in m.ellipsoids(state).unwrap() {
+        let side = e.axis.any_orthonormal_vector();
+        let up = e.axis.cross(side);
+        for _ in 0..per {
+            let t: f64 = rng.random_range(-0.95..0.95);
+            let phi: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+            let r = e.half_width * (1.0 - t * t).sqrt();
+            out.push(
+                e.centre + e.axis * (t * e.half_length) + (side * phi.cos() + up * phi.sin()) * r,
+            );
+        }
+    }
+    out
+}
+
+#[test]
+fn ellipsoids_span_their_bones() {
+    let m = model();
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let s = posed(&m, &mut rng);
+    let fk = m
+        .scaled_skeleton(&s)
+        .unwrap()
+        .forward_kinematics(&s.theta)
+        .unwrap();
+    let joints = fk.joint_positions();
+    for (e, bone) in m.ellipsoids(&s).unwrap().iter().zip(m.bones()) {
+        let mid = 0.5 * (joints[bone.parent] + joints[bone.child]);
+        assert!(e.centre.distance(mid) < 1e-12);
+        assert!(
+            (2.0 * e.half_bone - joints[bone.parent].distance(joints[bone.child])).abs() < 1e-12
+        );
+    }
+}
+
+#[test]
+fn analytic_gradient_matches_finite_differences() {
+    let m = model();
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let truth = posed(&m, &mut rng);
+    let mut pts = surface(&m, &truth, 20, &mut rng);
+    for p in &mut pts {
+        *p += DVec3::new(
+            rng.random_range(-0.01..0.01),
+            0.0,
+            rng.random_range(-0.01..0.01),
+        );
+    }
+    let rays: Vec<ContourRay> = pts
+        .iter()
+        .take(30)
+        .map(|&p| {
+            let origin = DVec3::new(0.0, 1.0, 4.0);
+            let direction = (p + DVec3::new(0.02, 0.0, 0.0) - origin).normalize();
+            ContourRay {
+                origin,
+                direction,
+                normal: direction.any_orthonormal_vector(),
+            }
+        })
+        .collect();
+    let obs = EllipsoidObservations {
+        points: pts,
+        markers: vec![MarkerObservation {
+            bone: 2,
+            position: Some(DVec3::new(0.1, 1.0, 0.1)),
+        }],
+        rays,
+    };
+    let params = EllipsoidParams::default();
+    let mut start = truth.clone();
+    start.theta[7] += 0.1;
+    let mut problem = Problem {
+        model: &m,
+        obs: &obs,
+        params: &params,
+        start: &start,
+        markers: vec![(2, DVec3::new(0.1, 1.0, 0.1))],
+        robust: Vec::new(),
+    };
+    problem.robust = vec![1.0; problem.n_obs()];
+    let lin = problem.linearise(&truth, true).unwrap();
+    let nd = truth.theta.len();
+    let nb = truth.half_width.len();
+    let mut worst: f64 = 0.0;
+    for k in 0..nd + 3 * nb {
+        let h = 1e-6;
+        let shifted = |d: f64| {
+            let mut s = truth.clone();
+            if k < nd {
+                s.theta[k] += d;
+            } else if k < nd + nb {
+                s.length_scale[k - nd] += d;
+            } else if k < nd + 2 * nb {
+                s.half_width[k - nd - nb] += d;
+            } else {
+                s.half_length[k - nd - 2 * nb] += d;
+            }
+            problem.linearise(&s, false).unwrap().cost
+        };
+        let fd = (shifted(h) - shifted(-h)) / (2.0 * h);
+        let an = 2.0 * lin.g[k];
+        // Central differences of a cost of size C carry a round-off of about C·1e-16/h.
+        let rel =
+            ((fd - an).abs() - 10.0 * lin.cost * f64::EPSILON / h).max(0.0) / (1.0 + an.abs());
+        worst = worst.max(rel);
+    }
+    assert!(worst < 1e-4, "worst relative gradient error {worst}");
+}
+
+#[test]
+fn recovers_lengths_widths_and_pose_with_outliers_only_with_irls() {
+    let m = model();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let truth = posed(&m, &mut rng);
+    let mut pts = surface(&m, &truth, 150, &mut rng);
+    let n_in = pts.len();
+    for _ in 0..(n_in * 3 / 7) {
+        pts.push(DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.0..2.0),
+            rng.random_range(-1.0..1.0),
+        ));
+    }
+    let mut start = m
+        .initial_state(
+            &truth
+                .theta
+                .iter()
+                .map(|t| t + rng.random_range(-0.05..0.05))
+                .collect::<Vec<_>>(),
+            0.05,
+        )
+        .unwrap();
+    start.theta[..3].copy_from_slice(&truth.theta[..3]);
+    let obs = EllipsoidObservations {
+        points: pts,
+        ..Default::default()
+    };
+    let err = |fit: &EllipsoidFit| {
+        let lt = m.bone_lengths(&truth);
+        let lf = m.bone_lengths(&fit.state);
+        let n = lt.len() as f64;
+        let dl = lt.iter().zip(&lf).map(|(a, b)| (a - b).abs()).sum::<f64>() / n;
+        let dw = truth
+            .half_width
+            .iter()
+            .zip(&fit.state.half_width)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f64>()
+            / n;
+        (dl, dw)
+    };
+    // Synthetic data are true ellipsoids: their half-lengths are observable, so free them.
+    let params = EllipsoidParams {
+        sigma_half_length_prior_m: 0.1,
+        ..EllipsoidParams::default()
+    };
+    let robust = fit_ellipsoids(&m, &start, &obs, &params).unwrap();
+    let plain = fit_ellipsoids(&m, &start, &obs, &params.clone().with_irls_rounds(1));
+    let (dl, dw) = err(&robust);
+    assert!(
+        dl < 0.005 && dw < 0.003,
+        "IRLS: length {dl} m, width {dw} m"
+    );
+    // Without IRLS either the fit is much worse or an ellipsoid collapses / loses its points.
+    if let Ok(plain) = plain {
+        let (pl, pw) = err(&plain);
+        assert!(
+            pl + pw > 2.0 * (dl + dw),
+            "plain {pl} {pw} vs IRLS {dl} {dw}"
+        );
+    }
+    assert!(robust.rejected_points >= n_in * 3 / 7 / 2);
+}
+
+#[test]
+fn bad_input_is_reported() {
+    let m = model();
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let truth = posed(&m, &mut rng);
+    let p = EllipsoidParams::default();
+    let empty = EllipsoidObservations::default();
+    assert!(matches!(
+        fit_ellipsoids(&m, &truth, &empty, &p),
+        Err(Error::Empty { .. })
+    ));
+    let nan = EllipsoidObservations {
+        points: vec![DVec3::NAN],
+        ..Default::default()
+    };
+    assert!(matches!(
+        fit_ellipsoids(&m, &truth, &nan, &p),
+        Err(Error::NonFinite { .. })
+    ));
+    let mut short = truth.clone();
+    short.theta.pop();
+    assert!(fit_ellipsoids(&m, &short, &nan, &p).is_err());
+    let bad_marker = EllipsoidObservations {
+        markers: vec![MarkerObservation {
+            bone: 99,
+            position: Some(DVec3::ZERO),
+        }],
+        ..Default::default()
+    };
+    assert!(fit_ellipsoids(&m, &truth, &bad_marker, &p).is_err());
+    // No points near the last limb: its ellipsoid is named.
+    let last = m.bones().len() - 1;
+    let all = surface(&m, &truth, 60, &mut rng);
+    let ells = m.ellipsoids(&truth).unwrap();
+    let far: Vec<DVec3> = all
+        .into_iter()
+        .filter(|x| x.distance(ells[last].centre) > ells[last].half_length + 0.15)
+        .collect();
+    let obs = EllipsoidObservations {
+        points: far,
+        ..Default::default()
+    };
+    match fit_ellipsoids(&m, &truth, &obs, &p) {
+        Err(Error::At { at, .. }) => assert!(matches!(at, Context::Joint(_))),
+        other => panic!("expected a bone error, got {other:?}"),
+    }
+    // A limb seen only along its axis: the width collapses onto the floor and is reported.
+    let e = ells[0];
+    let mut pts = surface(&m, &truth, 60, &mut rng);
+    pts.retain(|x| (x - e.centre).dot(e.axis).abs() > e.half_length || x.distance(e.centre) > 0.4);
+    for t in 0..40 {
+        pts.push(e.centre + e.axis * (e.half_length * (t as f64 / 20.0 - 1.0)));
+    }
+    let obs = EllipsoidObservations {
+        points: pts,
+        ..Default::default()
+    };
+    let r = fit_ellipsoids(&m, &truth, &obs, &p);
+    assert!(
+        matches!(&r, Err(Error::At { source, .. }) if matches!(**source, Error::Core(skin_core::Error::Degenerate { .. }))),
+        "{r:?}"
+    );
+}
