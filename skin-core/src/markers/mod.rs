@@ -1,10 +1,11 @@
 //! Retro-reflective markers (Fua et al., "Human body modeling and motion analysis from video
-//! sequences", §2): detection in grey images, multi-view forward intersection.
+//! sequences", §2): detection in grey images, multi-view forward intersection, tracking.
 //!
 //! | file | holds | paper |
 //! | --- | --- | --- |
 //! | `detect.rs` | [`detect_markers`]: high-pass filter, threshold, connected components, intensity-weighted centroids | §2.3 |
 //! | `triangulate.rs` | [`triangulate`]: linear ray intersection + Gauss–Newton on the reprojection error, per-view residuals | §2.3 (forward intersection) |
+//! | `track.rs` | [`track_markers`]: the three-frame rule (velocity volume, reduced acceleration volume, smallest acceleration), broken and restarted trajectories | §2.4 |
 //!
 //! ## Example
 //! ```
@@ -25,10 +26,12 @@
 //! ```
 
 mod detect;
+mod track;
 mod triangulate;
 
 pub use detect::{
     detect_markers, MarkerBlob, MarkerDetectParams, DEFAULT_BLUR_RADIUS_PX,
     DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,
 };
+pub use track::{track_markers, TrackParams, Trajectory};
 pub use triangulate::{triangulate, MarkerView, Triangulation, MAX_TRIANGULATION_ITERATIONS};
