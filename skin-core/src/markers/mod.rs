@@ -5,6 +5,7 @@
 //! | --- | --- | --- |
 //! | `detect.rs` | [`detect_markers`]: high-pass filter, threshold, connected components, intensity-weighted centroids | §2.3 |
 //! | `triangulate.rs` | [`triangulate`]: linear ray intersection + Gauss–Newton on the reprojection error, per-view residuals | §2.3 (forward intersection) |
+//! | `triangulate.rs` | [`reconstruct_markers`]: correspondence of unlabelled detections across cameras (pair hypotheses completed in the other views) | §2.3 |
 //! | `track.rs` | [`track_markers`]: the three-frame rule (velocity volume, reduced acceleration volume, smallest acceleration), broken and restarted trajectories | §2.4 |
 //!
 //! ## Example
@@ -34,4 +35,7 @@ pub use detect::{
     DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,
 };
 pub use track::{track_markers, TrackParams, Trajectory};
-pub use triangulate::{triangulate, MarkerView, Triangulation, MAX_TRIANGULATION_ITERATIONS};
+pub use triangulate::{
+    reconstruct_markers, triangulate, MarkerView, ReconstructedMarker, Triangulation,
+    MAX_TRIANGULATION_ITERATIONS,
+};

@@ -138,6 +138,122 @@ pub fn triangulate(views: &[MarkerView<'_>]) -> Result<Triangulation> {
     })
 }
 
+/// A marker reconstructed from detections in several cameras by [`reconstruct_markers`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReconstructedMarker {
+    /// The forward intersection of all its views.
+    pub triangulation: Triangulation,
+    /// `(camera, detection)` indices of its views, in camera order.
+    pub views: Vec<(usize, usize)>,
+}
+
+/// Finds which detections of different cameras are the same marker and intersects them: every
+/// pair of detections of two cameras whose two-view intersection reprojects within
+/// `max_residual_px` is a hypothesis, completed with the nearest unused detection within
+/// `max_residual_px` of its projection in every other camera and re-intersected; hypotheses
+/// with at least `min_views` views are accepted greedily, most views first, then smallest RMS,
+/// each detection used at most once. With three or more cameras, `min_views = 3` removes the
+/// ambiguity of two-view (epipolar) matches.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] unless there is one detection list per camera;
+/// [`Error::InvalidParam`] for `min_views < 2` or a non-positive tolerance;
+/// [`Error::NonFinite`] (in [`Error::At`] naming the camera) for a non-finite detection.
+pub fn reconstruct_markers(
+    cameras: &[Camera],
+    detections: &[Vec<DVec2>],
+    max_residual_px: f64,
+    min_views: usize,
+) -> Result<Vec<ReconstructedMarker>> {
+    crate::check::same_size(
+        "detection lists (one per camera)",
+        cameras.len(),
+        detections.len(),
+    )?;
+    crate::check::positive("max_residual_px", max_residual_px)?;
+    if min_views < 2 {
+        return Err(Error::InvalidParam {
+            name: "min_views",
+            reason: format!("forward intersection needs at least two views, got {min_views}"),
+        });
+    }
+    for (c, d) in detections.iter().enumerate() {
+        all_finite("marker detection", d.iter().flat_map(|p| [&p.x, &p.y]))
+            .at(Context::Camera(c))?;
+    }
+    let solve = |views: &[(usize, usize)]| {
+        let mv: Vec<MarkerView<'_>> = views
+            .iter()
+            .map(|&(c, k)| MarkerView {
+                camera: &cameras[c],
+                pixel: detections[c][k],
+            })
+            .collect();
+        triangulate(&mv)
+    };
+    let mut hypotheses: Vec<ReconstructedMarker> = Vec::new();
+    for a in 0..cameras.len() {
+        for b in a + 1..cameras.len() {
+            for ka in 0..detections[a].len() {
+                for kb in 0..detections[b].len() {
+                    let pair = [(a, ka), (b, kb)];
+                    let Ok(t) = solve(&pair) else { continue };
+                    if t.residuals_px.iter().any(|r| *r > max_residual_px) {
+                        continue;
+                    }
+                    let mut views = pair.to_vec();
+                    for (c, cam) in cameras.iter().enumerate() {
+                        if c == a || c == b {
+                            continue;
+                        }
+                        let Ok(px) = cam.project(t.point) else {
+                            continue;
+                        };
+                        let best = detections[c]
+                            .iter()
+                            .enumerate()
+                            .map(|(k, d)| (k, (*d - px).length()))
+                            .filter(|(_, r)| *r <= max_residual_px)
+                            .min_by(|x, y| x.1.total_cmp(&y.1));
+                        if let Some((k, _)) = best {
+                            views.push((c, k));
+                        }
+                    }
+                    if views.len() < min_views {
+                        continue;
+                    }
+                    views.sort_unstable();
+                    let Ok(t) = solve(&views) else { continue };
+                    if t.residuals_px.iter().all(|r| *r <= max_residual_px) {
+                        hypotheses.push(ReconstructedMarker {
+                            triangulation: t,
+                            views,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    hypotheses.sort_by(|x, y| {
+        y.views
+            .len()
+            .cmp(&x.views.len())
+            .then(x.triangulation.rms_px.total_cmp(&y.triangulation.rms_px))
+    });
+    let mut used: Vec<Vec<bool>> = detections.iter().map(|d| vec![false; d.len()]).collect();
+    let mut accepted = Vec::new();
+    for h in hypotheses {
+        if h.views.iter().any(|&(c, k)| used[c][k]) {
+            continue;
+        }
+        for &(c, k) in &h.views {
+            used[c][k] = true;
+        }
+        accepted.push(h);
+    }
+    Ok(accepted)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -188,6 +304,51 @@ mod tests {
         let (gn, lin) = ((gn_err / 50.0).sqrt(), (lin_err / 50.0).sqrt());
         assert!(gn < 2e-3, "GN rms error {gn} m");
         assert!(gn <= lin, "GN {gn} m worse than the linear step {lin} m");
+    }
+
+    #[test]
+    fn reconstructs_unlabelled_detections_of_several_markers() {
+        let rig = rig();
+        let truth: Vec<DVec3> = (0..15)
+            .map(|k| {
+                let k = k as f64;
+                DVec3::new(
+                    0.3 * (k * 0.7).sin(),
+                    1.0 + 0.5 * (k * 1.3).cos(),
+                    0.3 * (k * 0.4).cos(),
+                )
+            })
+            .collect();
+        let rng = SplitMix64::new(3);
+        let mut n = 0u64;
+        let detections: Vec<Vec<DVec2>> = rig
+            .cameras
+            .iter()
+            .map(|c| {
+                // Reverse order per camera so indices do not match across cameras.
+                truth
+                    .iter()
+                    .rev()
+                    .map(|p| {
+                        n += 2;
+                        c.project(*p).unwrap()
+                            + DVec2::new(rng.normal_at(n), rng.normal_at(n + 1)) * 0.2
+                    })
+                    .collect()
+            })
+            .collect();
+        let found = reconstruct_markers(&rig.cameras, &detections, 1.5, 3).unwrap();
+        assert_eq!(found.len(), truth.len());
+        for m in &found {
+            let nearest = truth
+                .iter()
+                .map(|p| p.distance(m.triangulation.point))
+                .fold(f64::INFINITY, f64::min);
+            assert!(nearest < 3e-3, "{nearest} m");
+            assert_eq!(m.views.len(), 4);
+        }
+        assert!(reconstruct_markers(&rig.cameras, &detections[..2], 1.5, 3).is_err());
+        assert!(reconstruct_markers(&rig.cameras, &detections, 1.5, 1).is_err());
     }
 
     #[test]
