@@ -34,7 +34,7 @@ pub use detect::{
     detect_markers, MarkerBlob, MarkerDetectParams, DEFAULT_BLUR_RADIUS_PX,
     DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,
 };
-pub use track::{track_markers, TrackParams, Trajectory};
+pub use track::{id_switches, track_markers, TrackParams, Trajectory};
 pub use triangulate::{
     reconstruct_markers, triangulate, MarkerView, ReconstructedMarker, Triangulation,
     MAX_TRIANGULATION_ITERATIONS,

@@ -166,6 +166,31 @@ pub fn track_markers(sets: &[Vec<DVec3>], params: &TrackParams) -> Result<Vec<Tr
     Ok(done)
 }
 
+/// Identity switches of `trajectories` given the true identity of every point
+/// (`ids[frame][point]`): the number of links between points of different identities.
+///
+/// # Errors
+/// [`crate::Error::IndexOutOfRange`] for a trajectory reaching beyond `ids`.
+pub fn id_switches(trajectories: &[Trajectory], ids: &[Vec<usize>]) -> Result<usize> {
+    let id = |f: usize, j: usize| -> Result<usize> {
+        let frame = ids.get(f).ok_or(crate::Error::IndexOutOfRange {
+            what: "trajectory frame",
+            index: f,
+            len: ids.len(),
+        })?;
+        crate::check::index("trajectory point", j, frame.len())?;
+        Ok(frame[j])
+    };
+    let mut switches = 0;
+    for t in trajectories {
+        for (k, w) in t.points.windows(2).enumerate() {
+            let f = t.first_frame + k;
+            switches += usize::from(id(f, w[0])? != id(f + 1, w[1])?);
+        }
+    }
+    Ok(switches)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,22 +228,6 @@ mod tests {
             sets.push(pts.into_iter().map(|(_, p)| p).collect());
         }
         (sets, ids)
-    }
-
-    fn id_switches(trajs: &[Trajectory], ids: &[Vec<usize>]) -> usize {
-        trajs
-            .iter()
-            .map(|t| {
-                t.points
-                    .windows(2)
-                    .enumerate()
-                    .filter(|(k, w)| {
-                        let f = t.first_frame + k;
-                        ids[f][w[0]] != ids[f + 1][w[1]]
-                    })
-                    .count()
-            })
-            .sum()
     }
 
     /// Baseline: greedy nearest-neighbour linking within the velocity volume.
@@ -263,8 +272,8 @@ mod tests {
         let trajs = track_markers(&sets, &params).unwrap();
         let points: usize = trajs.iter().map(|t| t.points.len()).sum();
         assert_eq!(points, sets.iter().map(Vec::len).sum::<usize>());
-        let ours = id_switches(&trajs, &ids);
-        let nn = id_switches(&nearest_neighbour(&sets, 0.055), &ids);
+        let ours = id_switches(&trajs, &ids).unwrap();
+        let nn = id_switches(&nearest_neighbour(&sets, 0.055), &ids).unwrap();
         assert_eq!(ours, 0, "three-frame rule switched identities {ours} times");
         assert!(nn > 10, "nearest neighbour only switched {nn} times");
         // Marker 7's gap breaks its trajectory: 20 long ones, one that ends, one restart.
@@ -291,5 +300,10 @@ mod tests {
             ..p
         };
         assert!(track_markers(&[vec![DVec3::ZERO]], &bad).is_err());
+        let t = Trajectory {
+            first_frame: 0,
+            points: vec![0, 0],
+        };
+        assert!(id_switches(&[t], &[vec![0]]).is_err());
     }
 }
