@@ -207,11 +207,11 @@ pub fn calibrate_with_bar(
         length,
     };
     let mut x = DVector::zeros(problem.len());
-    for c in 0..initial.len() {
+    for (c, camera) in initial.iter().enumerate() {
         let o = problem.camera_offset(c);
         x[o] = 1.0;
         if c > 0 {
-            let centre = initial[c].centre();
+            let centre = camera.centre();
             x[o + 4] = centre.x;
             x[o + 5] = centre.y;
             x[o + 6] = centre.z;
