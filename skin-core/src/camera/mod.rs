@@ -36,7 +36,10 @@ mod rig;
 mod synthetic;
 mod time_offset;
 
-pub use bar_calibration::{calibrate_with_bar, BarCalibration, BarCalibrationParams};
+pub use bar_calibration::{
+    bar_length_rms_m, calibrate_with_bar, synthetic_bar_calibration, BarCalibration,
+    BarCalibrationParams, SyntheticBarCalibration,
+};
 pub use calibrate::{
     calibrate, CalibrationMethod, CalibrationParams, CalibrationReport, SimplexObjective,
     DEFAULT_COPLANARITY_TOLERANCE,
