@@ -184,22 +184,11 @@ pub fn calibrate_with_bar(
         .at(Context::Frame(b))?;
     }
     // Initial bars: forward intersection through the approximate cameras.
-    let mut bars0 = Vec::with_capacity(observations.len());
-    for (b, obs) in observations.iter().enumerate() {
-        let mut ends = [DVec3::ZERO; 2];
-        for (e, end) in ends.iter_mut().enumerate() {
-            let views: Vec<MarkerView<'_>> = initial
-                .iter()
-                .zip(obs)
-                .map(|(camera, p)| MarkerView {
-                    camera,
-                    pixel: p[e],
-                })
-                .collect();
-            *end = triangulate(&views).at(Context::Frame(b))?.point;
-        }
-        bars0.push(ends);
-    }
+    let bars0 = observations
+        .iter()
+        .enumerate()
+        .map(|(b, obs)| triangulate_bar(initial, obs).at(Context::Frame(b)))
+        .collect::<Result<Vec<_>>>()?;
     check_not_collinear(&bars0)?;
     let problem = Problem {
         initial,
@@ -289,6 +278,23 @@ pub fn calibrate_with_bar(
         rms_px: (cost / count as f64).sqrt(),
         iterations,
     })
+}
+
+/// Both endpoints of one bar position by forward intersection through `cameras`.
+fn triangulate_bar(cameras: &[Camera], obs: &[[DVec2; 2]]) -> Result<[DVec3; 2]> {
+    let mut ends = [DVec3::ZERO; 2];
+    for (e, end) in ends.iter_mut().enumerate() {
+        let views: Vec<MarkerView<'_>> = cameras
+            .iter()
+            .zip(obs)
+            .map(|(camera, p)| MarkerView {
+                camera,
+                pixel: p[e],
+            })
+            .collect();
+        *end = triangulate(&views)?.point;
+    }
+    Ok(ends)
 }
 
 /// Bar positions must span more than a line: the spread of their midpoints across the
@@ -432,18 +438,7 @@ pub fn bar_length_rms_m(
     }
     let mut sq = 0.0;
     for (b, obs) in observations.iter().enumerate() {
-        let mut ends = [DVec3::ZERO; 2];
-        for (e, end) in ends.iter_mut().enumerate() {
-            let views: Vec<MarkerView<'_>> = cameras
-                .iter()
-                .zip(obs)
-                .map(|(camera, p)| MarkerView {
-                    camera,
-                    pixel: p[e],
-                })
-                .collect();
-            *end = triangulate(&views).at(Context::Frame(b))?.point;
-        }
+        let ends = triangulate_bar(cameras, obs).at(Context::Frame(b))?;
         sq += (ends[0].distance(ends[1]) - bar_length_m).powi(2);
     }
     Ok((sq / observations.len() as f64).sqrt())
