@@ -7,10 +7,11 @@
 //!
 //! | module | holds | paper |
 //! | --- | --- | --- |
-//! | [`camera`] | pinhole intrinsics, radial distortion with its own centre, extrinsics, rigs, calibration (DLT + Levenberg–Marquardt, Nelder–Mead), time-offset estimation, OpenCV import/export | Sand 2003 thesis §4.1 |
+//! | [`camera`] | pinhole intrinsics, radial distortion with its own centre, extrinsics, rigs, calibration (DLT + Levenberg–Marquardt, Nelder–Mead; bar calibration by bundle adjustment), time-offset estimation, OpenCV import/export | Sand 2003 thesis §4.1; Fua et al. §2.2 |
 //! | [`skeleton`] | joint tree, DOFs and limits, forward kinematics, Jacobians and J̇θ̇, BVH import/export | Vlasic thesis Eq. 4.2–4.3 |
 //! | [`mesh`] | triangle meshes, OBJ/PLY IO, normals, adjacency, Laplacians, closest point and ray queries, skinning, distance metrics | Vlasic §2.4.1, §2.5.1 |
 //! | [`image`] | masks, background subtraction, contours with normals, distance transforms, PNG IO | Sand §4.2 |
+//! | [`markers`] | retro-reflective markers: detection, forward intersection | Fua et al. §2 |
 //! | [`lsq`] | sparse least squares with several right-hand sides and symbolic reuse | Vlasic Eq. 2.1, 2.2, 3.3, 3.4 |
 //! | [`raster`] | CPU rasteriser: silhouette masks, depth along the ray, camera-space normals, triangle ids and barycentrics, exact under radial distortion | Sand §6.2 (silhouette error) |
 //! | [`stats`] | mean, median, percentiles (NumPy's interpolation), RMS of samples | |
@@ -25,6 +26,7 @@ pub mod check;
 pub mod error;
 pub mod image;
 pub mod lsq;
+pub mod markers;
 pub mod math;
 pub mod mesh;
 pub mod optim;

@@ -31,6 +31,8 @@
 //!   [`shading::Albedo::Textured`].
 //! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
+//! * Markers ([`MarkerSet`]): retro-reflective skin markers (Fua et al. §2) that follow the
+//!   true surface, drawn into grey frames with occlusion by the body ([`draw_markers`]).
 
 pub mod capture;
 pub mod preview;
@@ -39,6 +41,7 @@ pub mod shading;
 mod deformation;
 mod garment;
 mod makehuman;
+mod markers;
 mod motion;
 mod muscles;
 mod performer;
@@ -64,6 +67,10 @@ pub use makehuman::{
     makehuman_performer, makehuman_performer_from_parts, parse_mhskel, parse_mhw, read_mhskel,
     read_mhw, MhBone, MhSkeleton, MhVertexWeight, MhWeights, MAKEHUMAN_END_SITES,
     MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
+};
+pub use markers::{
+    draw_markers, marker_base_image, MarkerImageStyle, MarkerSet, DEFAULT_MARKER_OFFSET_M,
+    DEFAULT_MARKER_RADIUS_M,
 };
 pub use motion::{
     exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
