@@ -160,9 +160,9 @@ fn parse_numbers<'a, const N: usize>(
 ) -> Result<[f64; N]> {
     let mut out = [0.0f64; N];
     for (k, slot) in out.iter_mut().enumerate() {
-        let tok = tokens.next().ok_or_else(|| {
-            parse_error(line, format!("{what}s: got {k}, expected at least {N}"))
-        })?;
+        let tok = tokens
+            .next()
+            .ok_or_else(|| parse_error(line, format!("{what}s: got {k}, expected at least {N}")))?;
         *slot = tok
             .parse()
             .map_err(|_| parse_error(line, format!("bad {what} '{tok}'")))?;
