@@ -151,23 +151,29 @@ impl GroupState {
     }
 }
 
-/// The next `N` finite numbers of a line (`what` names them in errors); extra ones are
-/// ignored (a `w` or a third texture coordinate).
+/// The next `N` finite coordinates of a `kind` line (`"vertex"`, `"texture"`); extra ones
+/// are ignored (a `w` or a third texture coordinate).
 fn parse_numbers<'a, const N: usize>(
     tokens: &mut impl Iterator<Item = &'a str>,
-    what: &str,
+    kind: &str,
     line: usize,
 ) -> Result<[f64; N]> {
     let mut out = [0.0f64; N];
     for (k, slot) in out.iter_mut().enumerate() {
-        let tok = tokens
-            .next()
-            .ok_or_else(|| parse_error(line, format!("{what}s: got {k}, expected at least {N}")))?;
+        let tok = tokens.next().ok_or_else(|| {
+            parse_error(
+                line,
+                format!("{kind} has {k} coordinates, expected at least {N}"),
+            )
+        })?;
         *slot = tok
             .parse()
-            .map_err(|_| parse_error(line, format!("bad {what} '{tok}'")))?;
+            .map_err(|_| parse_error(line, format!("bad {kind} coordinate '{tok}'")))?;
         if !slot.is_finite() {
-            return Err(parse_error(line, format!("non-finite {what} '{tok}'")));
+            return Err(parse_error(
+                line,
+                format!("non-finite {kind} coordinate '{tok}'"),
+            ));
         }
     }
     Ok(out)
@@ -258,7 +264,7 @@ impl ObjFile {
             };
             match keyword {
                 "v" => {
-                    let xyz = parse_numbers::<3>(&mut tokens, "vertex coordinate", line_no)?;
+                    let xyz = parse_numbers::<3>(&mut tokens, "vertex", line_no)?;
                     if obj.vertices.len() >= u32::MAX as usize {
                         return Err(parse_error(line_no, "more than 2^32 - 1 vertices"));
                     }
@@ -306,7 +312,7 @@ impl ObjFile {
                     state.current = None;
                 }
                 "vt" => {
-                    let uv = parse_numbers::<2>(&mut tokens, "texture coordinate", line_no)?;
+                    let uv = parse_numbers::<2>(&mut tokens, "texture", line_no)?;
                     obj.texcoords.push(DVec2::from_array(uv));
                 }
                 // vn, vp, s, usemtl, mtllib, l, p and free-form directives: not geometry
