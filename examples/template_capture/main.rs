@@ -172,16 +172,9 @@ impl TemplateEmbedding {
         })
     }
 
-    /// The true positions of the template's vertices in one frame.
-    fn truth(
-        &self,
-        performer: &Performer,
-        truth: &FrameTruth,
-    ) -> Result<Vec<DVec3>, Box<dyn std::error::Error>> {
-        Ok(evaluate_surface_points(
-            &truth.true_mesh(performer),
-            &self.points,
-        )?)
+    /// The true positions of the template's vertices on one frame's true mesh.
+    fn truth(&self, true_mesh: &TriMesh) -> Result<Vec<DVec3>, Box<dyn std::error::Error>> {
+        Ok(evaluate_surface_points(true_mesh, &self.points)?)
     }
 }
 
@@ -402,7 +395,7 @@ fn capture_run(
     ];
     let mut scores = vec![[vec![], vec![], vec![], vec![]]; subsets.len()];
     for (t, truth) in truths.iter().enumerate() {
-        let true_v = &embedding.truth(&performer, truth)?;
+        let true_v = &embedding.truth(&truth.true_mesh(&performer))?;
         let est = sk
             .forward_kinematics(&result.poses.poses[t])?
             .joint_positions();
@@ -563,7 +556,7 @@ fn pictures(
         &img,
         "One frame: template, visual hull, skinning with the estimated pose, the molded result, the truth",
     )?;
-    let truth = &c.embedding.truth(&c.performer, &c.truths[t])?;
+    let truth = &c.embedding.truth(&truth_mesh)?;
     let colours = |v: &[DVec3]| -> Vec<[u8; 3]> {
         v.iter()
             .zip(truth)

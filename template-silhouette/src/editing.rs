@@ -119,11 +119,10 @@ impl DeformationTransfer {
                 .ok_or_else(|| degenerate("template", j))?;
             template_frames_inv.push(frame.inverse());
             let [p1, p2, p3] = corners(edited);
+            // The same zero-area rule as the template's triangles.
+            triangle_frame([p1, p2, p3]).ok_or_else(|| degenerate("edited template", j))?;
             let normal = (p2 - p1).cross(p3 - p1);
             let twice_area = normal.length();
-            if twice_area <= f64::EPSILON * (p2 - p1).length_squared().max(1e-300) {
-                return Err(degenerate("edited template", j));
-            }
             let nh = normal / twice_area;
             let s = (0.5 * twice_area).sqrt() / twice_area;
             let g = [

@@ -255,11 +255,19 @@ impl ShapeEstimator {
 
     /// The skinned positions that hold every vertex but the loose ones when
     /// [`ShapeParams::w_anchor`] > 0 (none otherwise).
-    fn anchors(&self, theta: &[f64]) -> Result<Vec<SoftConstraint>> {
+    /// `skinned`: the template skinned to `theta`, when the caller already has it.
+    fn anchors(&self, theta: &[f64], skinned: Option<&[DVec3]>) -> Result<Vec<SoftConstraint>> {
         if self.params.w_anchor == 0.0 {
             return Ok(Vec::new());
         }
-        let lbs = self.template.skin(theta)?;
+        let computed;
+        let lbs = match skinned {
+            Some(lbs) => lbs,
+            None => {
+                computed = self.template.skin(theta)?;
+                &computed
+            }
+        };
         Ok((0..lbs.len())
             .filter(|&v| !self.template.is_loose(v))
             .map(|v| self.vertex_constraint(v, lbs[v]))
@@ -284,7 +292,7 @@ impl ShapeEstimator {
             .map(|&(v, _)| self.vertex_constraint(v, lbs[v]))
             .collect();
         let zero = vec![DVec3::ZERO; self.template.vertex_count()];
-        let anchors = self.anchors(theta)?;
+        let anchors = self.anchors(theta, Some(&lbs))?;
         molding.solve_weighted(
             0.0,
             &zero,
@@ -380,7 +388,7 @@ impl ShapeEstimator {
             .iter()
             .map(|c| self.vertex_constraint(c.vertex, c.target))
             .collect();
-        let anchors = self.anchors(theta)?;
+        let anchors = self.anchors(theta, None)?;
         let v = molding.solve_weighted(
             w_l,
             &coords,

@@ -9,6 +9,7 @@
 //! mesh in the original (what a template-silhouette user scores a decimated template with,
 //! Vlasic 2010 §2.5) is exact and fixed.
 
+use super::trimesh::compact_vertices;
 use super::{EdgeTopology, TriMesh};
 use crate::{Error, Result};
 
@@ -60,16 +61,7 @@ pub fn decimate(mesh: &TriMesh, target_vertices: usize) -> Result<Decimation> {
         meshopt::SimplifyOptions::LockBorder,
         Some(&mut error),
     );
-    let mut new_index = vec![u32::MAX; n];
-    let mut original_index = Vec::new();
-    let mut used = vec![false; n];
-    for &i in &kept {
-        used[i as usize] = true;
-    }
-    for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
-        new_index[i] = original_index.len() as u32;
-        original_index.push(i as u32);
-    }
+    let (new_index, original_index) = compact_vertices(n, kept.iter().copied());
     let faces: Vec<[u32; 3]> = kept
         .chunks_exact(3)
         .map(|f| [f[0], f[1], f[2]].map(|i| new_index[i as usize]))

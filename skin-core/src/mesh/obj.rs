@@ -25,6 +25,7 @@
 //! corner order, hence the outward orientation.
 
 use crate::math::{DVec2, DVec3};
+use crate::mesh::trimesh::compact_vertices;
 use crate::mesh::{TriMesh, UvLayout};
 use crate::{Error, Result};
 use std::collections::HashMap;
@@ -452,20 +453,16 @@ impl ObjFile {
                 ),
             });
         }
-        let mut used = vec![false; self.vertices.len()];
-        for &p in &polygons {
-            for &i in self.polygon(p) {
-                used[i as usize] = true;
-            }
-        }
-        let mut new_index = vec![u32::MAX; self.vertices.len()];
-        let mut original_index = Vec::new();
-        let mut vertices = Vec::new();
-        for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
-            new_index[i] = original_index.len() as u32;
-            original_index.push(i as u32);
-            vertices.push(self.vertices[i]);
-        }
+        let (new_index, original_index) = compact_vertices(
+            self.vertices.len(),
+            polygons
+                .iter()
+                .flat_map(|&p| self.polygon(p).iter().copied()),
+        );
+        let vertices = original_index
+            .iter()
+            .map(|&i| self.vertices[i as usize])
+            .collect();
         let mut faces = Vec::new();
         let mut uv_faces = Vec::new();
         let mut textured = true;

@@ -135,6 +135,26 @@ impl TriMesh {
     }
 }
 
+/// The vertices among `0..n` that `used` names (each any number of times), compacted in
+/// their original order: `(new_index, original_index)` with `new_index[i]` the compact index
+/// of vertex `i` (`u32::MAX` if unused) and `original_index[j]` the vertex of compact `j`.
+pub(crate) fn compact_vertices(
+    n: usize,
+    used: impl IntoIterator<Item = u32>,
+) -> (Vec<u32>, Vec<u32>) {
+    let mut is_used = vec![false; n];
+    for i in used {
+        is_used[i as usize] = true;
+    }
+    let mut new_index = vec![u32::MAX; n];
+    let mut original_index = Vec::new();
+    for (i, _) in is_used.iter().enumerate().filter(|(_, u)| **u) {
+        new_index[i] = original_index.len() as u32;
+        original_index.push(i as u32);
+    }
+    (new_index, original_index)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

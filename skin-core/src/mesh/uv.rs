@@ -41,9 +41,18 @@ impl UvLayout {
     /// # Errors
     /// [`Error::SizeMismatch`], [`Error::IndexOutOfRange`], [`Error::NonFinite`].
     pub fn validate(&self, mesh: &TriMesh) -> Result<()> {
+        self.validate_for_faces(mesh.face_count())
+    }
+
+    /// [`UvLayout::validate`] against a mesh of `face_count` faces (the layout does not look
+    /// at vertex positions).
+    ///
+    /// # Errors
+    /// As [`UvLayout::validate`].
+    pub fn validate_for_faces(&self, face_count: usize) -> Result<()> {
         check::same_size(
             "UV layout faces vs mesh faces",
-            mesh.face_count(),
+            face_count,
             self.faces.len(),
         )?;
         check::all_finite(

@@ -12,7 +12,7 @@ use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
 use crate::mesh::{skin, SkinBinding, SkinWeights, TriMesh, UvLayout};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
-use crate::{check, Result};
+use crate::Result;
 use serde::{Deserialize, Serialize};
 
 /// A rigged performer with known non-skinning deformation.
@@ -155,17 +155,9 @@ impl Performer {
     /// ([`UvLayout::cylindrical`]) after them, so [`Performer::uvs`] covers the template.
     ///
     /// # Errors
-    /// As [`UvLayout::validate`] against the body's faces; as [`UvLayout::cylindrical`].
+    /// As [`UvLayout::validate_for_faces`] with the body's faces; as [`UvLayout::cylindrical`].
     pub fn with_body_uvs(mut self, body: UvLayout) -> Result<Self> {
-        check::same_size(
-            "UV layout faces vs body faces",
-            self.body_face_count,
-            body.faces.len(),
-        )?;
-        body.validate(&TriMesh {
-            vertices: self.template.vertices[..self.body_vertex_count].to_vec(),
-            faces: self.template.faces[..self.body_face_count].to_vec(),
-        })?;
+        body.validate_for_faces(self.body_face_count)?;
         self.uvs = Some(match &self.garment {
             None => body,
             Some(g) => {
