@@ -12,15 +12,14 @@ use std::time::Instant;
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::raster::{Buffers, RenderParams};
 use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
-    ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
+    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
+    GarmentParams, PatternSchedule, SkirtParams,
 };
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, render_sphere_patterns, silhouette_scores, studio_patterns, summarize,
-    GreenScreen, LightStage,
+    dome_power_fraction, render_sphere_patterns, silhouette_scores, summarize, GreenScreen,
+    LightStage,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
@@ -50,28 +49,17 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         .joint_positions()[0];
     let light_stage = LightStage::around(&performer.template, root).unwrap();
     let heights = light_stage.sphere_heights_m();
-    let LightStage {
-        floor_y,
-        lights,
-        centre,
-    } = light_stage;
+    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(2, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
-    let spec = CaptureSpec::new(rig)
-        .with_frame_rate_hz(1.0 / motion.frame_time_s)
-        .with_render(RenderParams::default().with_buffers(Buffers {
-            triangle: true,
-            ..Buffers::default()
-        }))
-        .with_noise(PixelNoise::default())
-        .with_lighting(
-            CaptureLighting::new(lights.clone())
-                .with_texture(Some(TextureParams::default()))
-                .with_patterns(Some(
-                    studio_patterns(&lights, centre, PatternSchedule::AllEachFrame).unwrap(),
-                )),
-        );
+    let spec = light_stage
+        .capture_spec(
+            rig,
+            1.0 / motion.frame_time_s,
+            PatternSchedule::AllEachFrame,
+        )
+        .unwrap();
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     let frame = capture
         .frames_in(frame_index..frame_index + 1)
@@ -95,7 +83,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
         let cal =
-            calibrate_camera(cam, &lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+            calibrate_camera(cam, lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
         let t_cal = t.elapsed().as_secs_f64();
         let obs = &frame.observations[c];
         let images = PatternImages::from_rgb(
@@ -117,7 +105,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         let power = dome_power_fraction(
             view,
             &mesh,
-            &lights,
+            lights,
             frame.light_visibility.as_ref().unwrap(),
         )
         .unwrap();
@@ -234,7 +222,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
             .transform_point3(DVec3::new(0.0, -1.09, 3.0)),
         radius_m: 0.2,
     };
-    let im = render_sphere_patterns(cam, &out, &lights, centre, 0.5).unwrap();
+    let im = render_sphere_patterns(cam, &out, lights, centre, 0.5).unwrap();
     let e = LookupTable::from_sphere(cam, &out, &im, DVec3::Y, &cal_params).unwrap_err();
     assert!(matches!(e.root(), Error::OutOfView { .. }), "{e}");
     let obs = &frame.observations[0];
@@ -263,7 +251,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     .unwrap();
     let cal = calibrate_camera(
         cam,
-        &lights,
+        lights,
         centre,
         root,
         &heights[..2],
@@ -337,28 +325,13 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         .joint_positions()[0];
     let light_stage = LightStage::around(&performer.template, root).unwrap();
     let heights = light_stage.sphere_heights_m();
-    let LightStage {
-        floor_y,
-        lights,
-        centre,
-    } = light_stage;
+    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(1, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cam = rig.cameras[0].clone();
-    let spec = CaptureSpec::new(rig)
-        .with_frame_rate_hz(CYCLE_FRAME_RATE_HZ)
-        .with_render(RenderParams::default().with_buffers(Buffers {
-            triangle: true,
-            ..Buffers::default()
-        }))
-        .with_noise(PixelNoise::default())
-        .with_lighting(
-            CaptureLighting::new(lights.clone())
-                .with_texture(Some(TextureParams::default()))
-                .with_patterns(Some(
-                    studio_patterns(&lights, centre, PatternSchedule::Cycle).unwrap(),
-                )),
-        );
+    let spec = light_stage
+        .capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)
+        .unwrap();
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     // Frames 75–83: F X̄ Ȳ Z̄ F X Y Z F around the tracking frame 79.
     let frames: Vec<_> = capture.frames_in(75..84).map(|f| f.unwrap()).collect();
@@ -368,7 +341,7 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         ..Default::default()
     };
     let cal =
-        calibrate_camera(&cam, &lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+        calibrate_camera(&cam, lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
     let params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);

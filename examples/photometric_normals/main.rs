@@ -36,15 +36,13 @@ use serde_json::json;
 
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::raster::{Buffers, RenderParams};
 use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, CaptureLighting, CaptureSpec, DeformationParams,
-    ExerciseParams, GarmentParams, PatternSchedule, PixelNoise, SkirtParams, TextureParams,
-    WrinkleParams,
+    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
+    GarmentParams, PatternSchedule, SkirtParams, WrinkleParams,
 };
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, silhouette_scores, studio_patterns, summarize, GreenScreen, LightStage,
+    dome_power_fraction, silhouette_scores, summarize, GreenScreen, LightStage,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
@@ -122,34 +120,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .joint_positions()[0];
     let light_stage = LightStage::around(&performer.template, root)?;
     let heights = light_stage.sphere_heights_m();
-    let LightStage {
-        floor_y,
-        lights,
-        centre,
-    } = light_stage;
+    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
     stage.finish(format!("{} vertices", performer.vertex_count()));
 
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
     let rig = Rig::ring(n_cams, 3.5, floor_y + 1.7, root, DVec3::Y, k)?;
     let cameras = rig.cameras.clone();
-    let mut spec = CaptureSpec::new(rig)
-        .with_frame_rate_hz(1.0 / motion.frame_time_s)
-        .with_render(RenderParams::default().with_buffers(Buffers {
-            triangle: true,
-            ..Buffers::default()
-        }))
-        .with_lighting(
-            CaptureLighting::new(lights.clone())
-                .with_texture(Some(TextureParams::default()))
-                .with_shadows(!args.no_shadows)
-                .with_patterns(Some(studio_patterns(
-                    &lights,
-                    centre,
-                    PatternSchedule::AllEachFrame,
-                )?)),
-        );
-    if !args.no_noise {
-        spec = spec.with_noise(PixelNoise::default());
+    let mut spec = light_stage.capture_spec(
+        rig,
+        1.0 / motion.frame_time_s,
+        PatternSchedule::AllEachFrame,
+    )?;
+    if let Some(lighting) = &mut spec.lighting {
+        lighting.shadows = !args.no_shadows;
+    }
+    if args.no_noise {
+        spec.noise = None;
     }
     let stage = run.stage("capture", None);
     let t = Instant::now();
@@ -187,7 +173,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t = Instant::now();
         let cal = calibrate_camera(
             cam,
-            &lights,
+            lights,
             centre,
             root,
             &heights,
@@ -213,7 +199,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let err = angular_errors_deg(&map, truth)?;
         acc.base.extend(angular_errors_deg(&baseline, truth)?);
         let power = match &frame.light_visibility {
-            Some(vis) => dome_power_fraction(view, &mesh, &lights, vis)?,
+            Some(vis) => dome_power_fraction(view, &mesh, lights, vis)?,
             None => vec![1.0; err.len()],
         };
         acc.concave.extend(power.iter().map(|&p| p < 0.9));
@@ -360,7 +346,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     let stage = run.stage("moving sequence", None);
-    let moving = moving_sequence(&cameras, &cals, &lights, centre, &params)?;
+    let moving = moving_sequence(&cameras, &cals, &light_stage, &params)?;
     stage.finish(format!(
         "compensated median {:.2}°, uncompensated {:.2}°, flow EPE {:.3} px vs true motion (mean motion {:.2} px)",
         moving["moving_normal_median_deg"].as_f64().unwrap_or(f64::NAN),
@@ -603,8 +589,7 @@ fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn st
 fn moving_sequence(
     cameras: &[dynamic_shapes::core::camera::Camera],
     cals: &[dynamic_shapes::photometric::HeightCalibration],
-    lights: &[dynamic_shapes::core::studio::shading::Light],
-    centre: DVec3,
+    light_stage: &LightStage,
     params: &NormalParams,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
     use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
@@ -619,22 +604,7 @@ fn moving_sequence(
     let rig = Rig {
         cameras: cameras.to_vec(),
     };
-    let spec = CaptureSpec::new(rig)
-        .with_frame_rate_hz(CYCLE_FRAME_RATE_HZ)
-        .with_render(RenderParams::default().with_buffers(Buffers {
-            triangle: true,
-            ..Buffers::default()
-        }))
-        .with_noise(PixelNoise::default())
-        .with_lighting(
-            CaptureLighting::new(lights.to_vec())
-                .with_texture(Some(TextureParams::default()))
-                .with_patterns(Some(studio_patterns(
-                    lights,
-                    centre,
-                    PatternSchedule::Cycle,
-                )?)),
-        );
+    let spec = light_stage.capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)?;
     let capture = Capture::new(&performer, &motion, spec)?;
     let frames = capture.frames_in(75..84).collect::<Result<Vec<_>, _>>()?;
     if frames.len() != 9 {

@@ -6,6 +6,7 @@
 use image::Rgb32FImage;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
+use skin_core::camera::Rig;
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
 use skin_core::mesh::TriMesh;
@@ -14,7 +15,10 @@ use skin_core::stats::{mean, median};
 use skin_core::studio::shading::{
     dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
-use skin_core::studio::{FineSurface, LightPatterns, PatternSchedule, ViewTruth};
+use skin_core::studio::{
+    CaptureLighting, CaptureSpec, FineSurface, LightPatterns, PatternSchedule, PixelNoise,
+    TextureParams, ViewTruth,
+};
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 use crate::normals::NormalMap;
@@ -77,6 +81,33 @@ impl LightStage {
             lights: dome_lights(&dome)?,
             centre: dome_centre(&dome),
         })
+    }
+
+    /// The capture of a performer on this stage, seen by `rig` at `frame_rate_hz`: the
+    /// patterns on `schedule`, the studio's albedo texture, cast shadows, sensor noise
+    /// ([`PixelNoise::default`]) and the triangle buffer the scoring needs. Set `noise` to
+    /// `None` or the lighting's `shadows` to `false` on the result to switch either off.
+    ///
+    /// # Errors
+    /// As [`studio_patterns`].
+    pub fn capture_spec(
+        &self,
+        rig: Rig,
+        frame_rate_hz: f64,
+        schedule: PatternSchedule,
+    ) -> Result<CaptureSpec> {
+        Ok(CaptureSpec::new(rig)
+            .with_frame_rate_hz(frame_rate_hz)
+            .with_render(RenderParams::default().with_buffers(Buffers {
+                triangle: true,
+                ..Buffers::default()
+            }))
+            .with_noise(PixelNoise::default())
+            .with_lighting(
+                CaptureLighting::new(self.lights.clone())
+                    .with_texture(Some(TextureParams::default()))
+                    .with_patterns(Some(studio_patterns(&self.lights, self.centre, schedule)?)),
+            ))
     }
 
     /// The heights of the calibration spheres (§3.2.3), world y, m: [`SPHERE_HEIGHTS`] of
