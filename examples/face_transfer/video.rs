@@ -156,17 +156,7 @@ pub(crate) fn trilinear_video(
         &VideoTrackParams::default(),
     )?;
     let pct = errors(model, &track, &video)?;
-    let exact: Vec<Vec<[f64; 2]>> = video
-        .truth
-        .iter()
-        .zip(&video.cameras)
-        .map(|(f, c)| {
-            tracked
-                .iter()
-                .map(|&i| c.project(f[i].to_array()))
-                .collect()
-        })
-        .collect();
+    let exact = exact_tracks(&video, &tracked);
     let fit = track_points(
         model,
         &tracked,
@@ -268,21 +258,10 @@ pub(crate) fn video_tracking(
     let st_exact = track(&src, &exact)?;
     // The model's bound: the point tracker on exact projections of all 1,000 vertices.
     let bound = |v: &FaceVideo| -> Res<Vec<f64>> {
-        let exact_tracks: Vec<Vec<[f64; 2]>> = v
-            .truth
-            .iter()
-            .zip(&v.cameras)
-            .map(|(f, c)| {
-                tracked
-                    .iter()
-                    .map(|&i| c.project(f[i].to_array()))
-                    .collect()
-            })
-            .collect();
         let fit = track_points(
             model,
             &tracked,
-            &exact_tracks,
+            &exact_tracks(v, &tracked),
             &[false, true],
             &TrackParams::default(),
         )?;
@@ -440,4 +419,20 @@ pub(crate) fn video_tracking(
         "track_reprojection_rms_px": avg(&st.reprojection_rms_px),
         "render_s": render_s,
     }))
+}
+
+/// The true image positions of the `tracked` vertices in every frame of `video` (each frame's
+/// true face through its true camera): point tracks without KLT error.
+fn exact_tracks(video: &FaceVideo, tracked: &[usize]) -> Vec<Vec<[f64; 2]>> {
+    video
+        .truth
+        .iter()
+        .zip(&video.cameras)
+        .map(|(f, c)| {
+            tracked
+                .iter()
+                .map(|&i| c.project(f[i].to_array()))
+                .collect()
+        })
+        .collect()
 }
