@@ -46,7 +46,7 @@ impl DepthMap {
         }
         if let Some(i) = depth_m
             .iter()
-            .position(|d| !d.is_nan() && !(d.is_finite() && *d > 0.0))
+            .position(|d| !(d.is_nan() || (d.is_finite() && *d > 0.0)))
         {
             return Err(Error::InvalidParam {
                 name: "depth_m",
