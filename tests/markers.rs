@@ -10,11 +10,7 @@ use dynamic_shapes::core::markers::{
     MarkerDetectParams, MarkerView, TrackParams,
 };
 use dynamic_shapes::core::math::{DVec2, DVec3};
-use dynamic_shapes::core::raster::{Buffers, RenderParams};
-use dynamic_shapes::core::studio::{
-    draw_markers, fast_motion, marker_base_image, procedural_performer, Capture, CaptureSpec,
-    FastMotionParams, MarkerImageStyle, MarkerSet, ProceduralBodyParams,
-};
+use dynamic_shapes::core::studio::MarkerScenario;
 use dynamic_shapes::core::Error;
 use image::GrayImage;
 use std::time::Instant;
@@ -22,70 +18,16 @@ use std::time::Instant;
 #[test]
 fn markers_are_detected_triangulated_and_tracked_through_fast_motion() {
     let start = Instant::now();
-    let performer = procedural_performer(&ProceduralBodyParams {
-        grid_spacing_m: 0.03,
-        ..Default::default()
-    })
-    .unwrap();
-    let set = MarkerSet::on_performer(&performer, 20, 1).unwrap();
-    let motion = fast_motion(
-        &performer.skeleton,
-        &FastMotionParams {
-            duration_s: 0.5,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let k = Intrinsics::from_horizontal_fov(0.7, 480, 640).unwrap();
-    let rig = Rig::ring(4, 3.0, 1.2, DVec3::new(0.0, 0.9, 0.0), DVec3::Y, k).unwrap();
-    let spec = CaptureSpec::masks_only(rig)
-        .with_frame_rate_hz(60.0)
-        .with_render(RenderParams::default().with_buffers(Buffers {
-            camera_z: true,
-            ..Buffers::MASK_ONLY
-        }));
-    let capture = Capture::new(&performer, &motion, spec).unwrap();
-    let cameras = capture.spec().rig.cameras.clone();
-    let style = MarkerImageStyle::default();
-    let (mut sets, mut ids, mut errors) = (Vec::new(), Vec::new(), Vec::new());
-    let mut all_truth: Vec<Vec<DVec3>> = Vec::new();
-    let (mut visible_markers, mut reconstructed) = (0usize, 0usize);
-    for frame in capture.frames() {
-        let frame = frame.unwrap();
-        let truth = set.positions(&performer, &frame.truth).unwrap();
-        all_truth.push(truth.clone());
-        let mut detections = Vec::new();
-        let mut views_per_marker = vec![0usize; truth.len()];
-        for (c, cam) in cameras.iter().enumerate() {
-            let mut img = marker_base_image(&frame.observations[c].mask, &style);
-            let z = frame.truth.views[c].camera_z_m.as_ref().unwrap();
-            let vis = draw_markers(&mut img, cam, Some(z), &truth, set.radius_m, &style).unwrap();
-            for (m, v) in vis.iter().enumerate() {
-                views_per_marker[m] += usize::from(*v > 0.9);
-            }
-            let blobs = detect_markers(&img, &MarkerDetectParams::default()).unwrap();
-            detections.push(blobs.iter().map(|b| b.centre).collect::<Vec<DVec2>>());
-        }
-        visible_markers += views_per_marker.iter().filter(|n| **n >= 3).count();
-        let found = reconstruct_markers(&cameras, &detections, 1.5, 3).unwrap();
-        let mut frame_ids = Vec::new();
-        let mut points = Vec::new();
-        for m in &found {
-            let p = m.triangulation.point;
-            let (id, d) = truth
-                .iter()
-                .enumerate()
-                .map(|(i, t)| (i, t.distance(p)))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap();
-            errors.push(d);
-            frame_ids.push(id);
-            points.push(p);
-        }
-        reconstructed += found.len();
-        sets.push(points);
-        ids.push(frame_ids);
-    }
+    let frames = MarkerScenario::default().observe().unwrap();
+    let visible_markers: usize = frames
+        .iter()
+        .map(|f| f.seen_by.iter().filter(|n| **n >= 3).count())
+        .sum();
+    let reconstructed: usize = frames.iter().map(|f| f.points.len()).sum();
+    let mut errors: Vec<f64> = frames.iter().flat_map(|f| f.error_m.clone()).collect();
+    let all_truth: Vec<Vec<DVec3>> = frames.iter().map(|f| f.truth.clone()).collect();
+    let sets: Vec<Vec<DVec3>> = frames.iter().map(|f| f.points.clone()).collect();
+    let ids: Vec<Vec<usize>> = frames.iter().map(|f| f.nearest_true.clone()).collect();
     let (mut vs, mut acs) = (Vec::new(), Vec::new());
     for (f, w) in all_truth.windows(3).enumerate() {
         for (m, p0) in w[0].iter().enumerate() {
@@ -103,13 +45,10 @@ fn markers_are_detected_triangulated_and_tracked_through_fast_motion() {
     errors.sort_by(f64::total_cmp);
     let median_mm = 1e3 * errors[errors.len() / 2];
     let p95_mm = 1e3 * errors[errors.len() * 95 / 100];
-    // The studio's fast motion is brisk: at 60 Hz its markers move up to 0.30 m per frame
-    // (90th percentile 0.14) and change that by up to 0.15 m per frame² (printed above), far
-    // beyond TrackParams::default (4 m/s, 100 m/s²); the volumes are set to cover it.
-    let params = TrackParams {
-        max_velocity_m_per_frame: 0.35,
-        max_acceleration_m_per_frame2: 0.16,
-    };
+    // The studio's fast motion is brisk (printed above): the scenario's search volumes cover it.
+    let params = MarkerScenario::default().track_params();
+    assert!(vs[n - 1].0 < params.max_velocity_m_per_frame);
+    assert!(acs[n - 1].0 < params.max_acceleration_m_per_frame2);
     let trajs = track_markers(&sets, &params).unwrap();
     let switches = id_switches(&trajs, &ids).unwrap();
     // Baseline that could have won: the same tracker with the acceleration volume as wide as

@@ -3,21 +3,36 @@
 //! then be calibrated by self-calibrating bundle adjustment with the additional information
 //! of the known distance between the two points at every location".
 //!
-//! Unknowns: every camera's pose (rotation increment and centre) and focal length (aspect
-//! ratio, principal point and distortion kept), every bar position's midpoint and direction
-//! (two angles); the endpoints are `midpoint ± ½·length·direction`, so the known length fixes
-//! the scale. The gauge (rotation and translation of the world) is fixed by holding camera 0's
-//! pose. Minimisation: dense Levenberg–Marquardt on the reprojection error with a
-//! central-difference Jacobian (a few hundred unknowns for a three-camera rig).
+//! Unknowns: every camera's pose (rotation and centre) and focal length (aspect ratio,
+//! principal point and distortion kept), every bar position's midpoint and direction (a unit
+//! vector); the endpoints are `midpoint ± ½·length·direction`, so the known length fixes the
+//! scale. The gauge (rotation and translation of the world) is fixed by holding camera 0's
+//! pose.
+//!
+//! Minimisation: sparse Levenberg–Marquardt on the reprojection error. Each iteration
+//! linearises about the current estimate with local increments — a rotation vector applied on
+//! the left of each camera's rotation, a centre shift, a relative focal change, a midpoint shift
+//! and two tangent components of the bar direction — so no angle parameterisation has
+//! singularities. The Jacobian is analytic ([`Camera::project_with_jacobian`]; a world-point
+//! shift `v × δ` for a rotation `δ`, `−δ` for a centre shift) except the focal column, a
+//! central difference of the projection (the radial distortion's radius is measured in focal
+//! units, which makes its analytic form long for one column). Each endpoint's two rows touch
+//! one camera block (7 unknowns, 1 for camera 0) and one bar block (5), so the normal matrix is
+//! the classic arrow of bundle adjustment; skin-core's sparse least squares
+//! ([`crate::lsq::LsqSolver`]) factorises it with a fill-reducing order, keeps the symbolic
+//! analysis across iterations, and takes the Marquardt damping as a second term
+//! `λ‖diag(JᵀJ)^½ δ‖²` whose weight changes without a new analysis.
 //!
 //! Initialisation (documented method): an approximate rig (e.g. the rig as planned or
 //! measured with a tape); each bar position starts from the forward intersection of its two
 //! endpoints through the approximate cameras.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
+use nalgebra_sparse::{CscMatrix, CsrMatrix};
 
 use crate::camera::Camera;
 use crate::check::{all_finite, positive};
+use crate::lsq::{LsqParams, LsqProblem, LsqSolver};
 use crate::markers::{triangulate, MarkerView};
 use crate::math::{DAffine3, DMat3, DQuat, DVec2, DVec3};
 use crate::{Context, Error, Result, ResultExt};
@@ -55,28 +70,48 @@ pub struct BarCalibration {
     pub rms_px: f64,
     /// Iterations performed.
     pub iterations: usize,
+    /// Unknowns of the bundle adjustment (cameras and bar positions).
+    pub unknowns: usize,
 }
 
-/// Per camera unknowns (camera 0 has only the focal length).
+/// Unknowns of a camera other than camera 0: relative focal change, rotation vector, centre
+/// shift. Camera 0 has only the focal change (it fixes the gauge).
 const CAMERA_PARAMS: usize = 7;
+/// Unknowns of a bar position: midpoint shift and two tangent components of the direction.
 const BAR_PARAMS: usize = 5;
+/// Relative focal step of the focal column's central difference.
+const FOCAL_STEP: f64 = 1e-6;
 
-fn direction(theta: f64, phi: f64) -> DVec3 {
-    DVec3::new(
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    )
+/// Two unit vectors perpendicular to the unit vector `d` and to each other (a fixed choice per
+/// `d`, so that the Jacobian and the update use the same basis).
+fn tangent_basis(d: DVec3) -> [DVec3; 2] {
+    let a = if d.x.abs() < 0.6 { DVec3::X } else { DVec3::Y };
+    let t1 = d.cross(a).normalize();
+    [t1, d.cross(t1)]
+}
+
+/// A camera with its focal lengths scaled by `1 + df`.
+fn with_focal_scale(camera: &Camera, df: f64) -> Result<Camera> {
+    let mut k = camera.intrinsics;
+    k.fx *= 1.0 + df;
+    k.fy *= 1.0 + df;
+    Camera::new(k, camera.distortion, camera.world_from_camera())
+}
+
+/// The current estimate: cameras and bar positions (midpoint, unit direction).
+#[derive(Clone)]
+struct Estimate {
+    cameras: Vec<Camera>,
+    bars: Vec<(DVec3, DVec3)>,
 }
 
 struct Problem<'a> {
-    initial: &'a [Camera],
     observations: &'a [Vec<[DVec2; 2]>],
     length: f64,
 }
 
 impl Problem<'_> {
-    fn camera_offset(&self, c: usize) -> usize {
+    fn camera_offset(c: usize) -> usize {
         if c == 0 {
             0
         } else {
@@ -84,63 +119,144 @@ impl Problem<'_> {
         }
     }
 
-    fn bar_offset(&self, b: usize) -> usize {
-        1 + (self.initial.len() - 1) * CAMERA_PARAMS + b * BAR_PARAMS
+    fn bar_offset(cameras: usize, b: usize) -> usize {
+        Self::camera_offset(cameras) + b * BAR_PARAMS
     }
 
-    fn len(&self) -> usize {
-        self.bar_offset(self.observations.len())
+    fn ends(&self, bar: (DVec3, DVec3)) -> [DVec3; 2] {
+        let d = bar.1 * (0.5 * self.length);
+        [bar.0 - d, bar.0 + d]
     }
 
-    fn camera(&self, x: &DVector<f64>, c: usize) -> Result<Camera> {
-        let c0 = &self.initial[c];
-        let o = self.camera_offset(c);
-        let mut k = c0.intrinsics;
-        let aspect = k.fy / k.fx;
-        let f = x[o] * c0.intrinsics.fx;
-        k.fx = f;
-        k.fy = f * aspect;
-        if c == 0 {
-            return Camera::new(k, c0.distortion, c0.world_from_camera());
-        }
-        let w = DVec3::new(x[o + 1], x[o + 2], x[o + 3]);
-        let centre = DVec3::new(x[o + 4], x[o + 5], x[o + 6]);
-        let r0 = DQuat::from_mat3(&c0.world_from_camera().matrix3);
-        let r = DQuat::from_scaled_axis(w) * r0;
-        Camera::new(
-            k,
-            c0.distortion,
-            DAffine3::from_mat3_translation(DMat3::from_quat(r.normalize()), centre),
-        )
-    }
-
-    fn bar(&self, x: &DVector<f64>, b: usize) -> [DVec3; 2] {
-        let o = self.bar_offset(b);
-        let m = DVec3::new(x[o], x[o + 1], x[o + 2]);
-        let d = direction(x[o + 3], x[o + 4]) * (0.5 * self.length);
-        [m - d, m + d]
-    }
-
-    fn residuals(&self, x: &DVector<f64>) -> Result<DVector<f64>> {
-        let cams: Vec<Camera> = (0..self.initial.len())
-            .map(|c| self.camera(x, c))
-            .collect::<Result<_>>()?;
-        let n = self.observations.len() * cams.len() * 4;
-        let mut r = DVector::zeros(n);
-        let mut k = 0;
-        for (b, obs) in self.observations.iter().enumerate() {
-            let ends = self.bar(x, b);
-            for (c, cam) in cams.iter().enumerate() {
-                for e in 0..2 {
-                    let p = cam.project(ends[e]).at(Context::Camera(c))? - obs[c][e];
-                    r[k] = p.x;
-                    r[k + 1] = p.y;
-                    k += 2;
+    /// Reprojection residuals, ordered bar, camera, endpoint, (x, y).
+    fn residuals(&self, est: &Estimate) -> Result<Vec<f64>> {
+        let mut r = Vec::with_capacity(self.observations.len() * est.cameras.len() * 4);
+        for (obs, &bar) in self.observations.iter().zip(&est.bars) {
+            let ends = self.ends(bar);
+            for (c, cam) in est.cameras.iter().enumerate() {
+                for (end, seen) in ends.iter().zip(&obs[c]) {
+                    let p = cam.project(*end).at(Context::Camera(c))? - *seen;
+                    r.extend([p.x, p.y]);
                 }
             }
         }
         Ok(r)
     }
+
+    /// Jacobian of [`Problem::residuals`] with respect to the local increments (module docs),
+    /// row by row in the residuals' order; the sparsity pattern depends only on the sizes.
+    fn jacobian(&self, est: &Estimate) -> Result<CscMatrix<f64>> {
+        let cams = est.cameras.len();
+        let n = Self::bar_offset(cams, est.bars.len());
+        let focal: Vec<[Camera; 2]> = est
+            .cameras
+            .iter()
+            .map(|c| {
+                Ok([
+                    with_focal_scale(c, FOCAL_STEP)?,
+                    with_focal_scale(c, -FOCAL_STEP)?,
+                ])
+            })
+            .collect::<Result<_>>()?;
+        let mut offsets = vec![0usize];
+        let mut cols = Vec::new();
+        let mut vals = Vec::new();
+        for &bar in &est.bars {
+            let b = offsets.len() / (4 * cams);
+            let ends = self.ends(bar);
+            let tangents = tangent_basis(bar.1);
+            let bo = Self::bar_offset(cams, b);
+            for (c, cam) in est.cameras.iter().enumerate() {
+                let co = Self::camera_offset(c);
+                for (e, end) in ends.iter().enumerate() {
+                    let jac = cam.project_with_jacobian(*end).at(Context::Camera(c))?;
+                    let df = (focal[c][0].project(*end)? - focal[c][1].project(*end)?)
+                        / (2.0 * FOCAL_STEP);
+                    let half = if e == 0 { -0.5 } else { 0.5 } * self.length;
+                    let v = *end - cam.centre();
+                    for (row, g) in jac.d_pixel_d_world.iter().enumerate() {
+                        cols.push(co);
+                        vals.push(if row == 0 { df.x } else { df.y });
+                        if c > 0 {
+                            // Rotation δ moves the world point by v × δ; column k is g·(v × e_k).
+                            let rot = v.cross(*g) * -1.0;
+                            cols.extend(co + 1..co + 7);
+                            vals.extend([rot.x, rot.y, rot.z, -g.x, -g.y, -g.z]);
+                        }
+                        cols.extend(bo..bo + BAR_PARAMS);
+                        vals.extend([
+                            g.x,
+                            g.y,
+                            g.z,
+                            half * g.dot(tangents[0]),
+                            half * g.dot(tangents[1]),
+                        ]);
+                        offsets.push(cols.len());
+                    }
+                }
+            }
+        }
+        let rows = offsets.len() - 1;
+        let csr = CsrMatrix::try_from_csr_data(rows, n, offsets, cols, vals).map_err(|e| {
+            Error::InvalidParam {
+                name: "bar calibration Jacobian",
+                reason: e.to_string(),
+            }
+        })?;
+        Ok(CscMatrix::from(&csr))
+    }
+
+    /// The estimate moved by the increments `x` (module docs).
+    fn apply(&self, est: &Estimate, x: &[f64]) -> Result<Estimate> {
+        let cams = est.cameras.len();
+        let cameras = est
+            .cameras
+            .iter()
+            .enumerate()
+            .map(|(c, cam)| {
+                let o = Self::camera_offset(c);
+                let scaled = with_focal_scale(cam, x[o])?;
+                if c == 0 {
+                    return Ok(scaled);
+                }
+                let rotation = DQuat::from_scaled_axis(DVec3::new(x[o + 1], x[o + 2], x[o + 3]))
+                    * DQuat::from_mat3(&cam.world_from_camera().matrix3);
+                let centre = cam.centre() + DVec3::new(x[o + 4], x[o + 5], x[o + 6]);
+                Camera::new(
+                    scaled.intrinsics,
+                    cam.distortion,
+                    DAffine3::from_mat3_translation(DMat3::from_quat(rotation.normalize()), centre),
+                )
+            })
+            .collect::<Result<_>>()?;
+        let bars = est
+            .bars
+            .iter()
+            .enumerate()
+            .map(|(b, &(m, d))| {
+                let o = Self::bar_offset(cams, b);
+                let [t1, t2] = tangent_basis(d);
+                (
+                    m + DVec3::new(x[o], x[o + 1], x[o + 2]),
+                    (d + t1 * x[o + 3] + t2 * x[o + 4]).normalize(),
+                )
+            })
+            .collect();
+        Ok(Estimate { cameras, bars })
+    }
+}
+
+/// Marquardt's scaling: `diag(JᵀJ)^½` as a diagonal matrix (a tiny floor keeps it definite).
+fn marquardt_scaling(j: &CscMatrix<f64>) -> CscMatrix<f64> {
+    let n = j.ncols();
+    let diag: Vec<f64> = (0..n)
+        .map(|c| {
+            let col = j.col(c);
+            (col.values().iter().map(|v| v * v).sum::<f64>() + 1e-12).sqrt()
+        })
+        .collect();
+    CscMatrix::try_from_csc_data(n, n, (0..=n).collect(), (0..n).collect(), diag)
+        .unwrap_or_else(|_| CscMatrix::identity(n))
 }
 
 /// Self-calibrating bundle adjustment from a bar of known length waved through the volume (see
@@ -191,92 +307,75 @@ pub fn calibrate_with_bar(
         .collect::<Result<Vec<_>>>()?;
     check_not_collinear(&bars0)?;
     let problem = Problem {
-        initial,
         observations,
         length,
     };
-    let mut x = DVector::zeros(problem.len());
-    for (c, camera) in initial.iter().enumerate() {
-        let o = problem.camera_offset(c);
-        x[o] = 1.0;
-        if c > 0 {
-            let centre = camera.centre();
-            x[o + 4] = centre.x;
-            x[o + 5] = centre.y;
-            x[o + 6] = centre.z;
-        }
-    }
-    for (b, ends) in bars0.iter().enumerate() {
-        let o = problem.bar_offset(b);
-        let m = 0.5 * (ends[0] + ends[1]);
-        let d = (ends[1] - ends[0]).normalize_or(DVec3::Z);
-        x[o] = m.x;
-        x[o + 1] = m.y;
-        x[o + 2] = m.z;
-        x[o + 3] = d.z.clamp(-1.0, 1.0).acos();
-        x[o + 4] = d.y.atan2(d.x);
-    }
-    let mut r = problem.residuals(&x)?;
-    let mut cost = r.norm_squared();
+    let mut est = Estimate {
+        cameras: initial.to_vec(),
+        bars: bars0
+            .iter()
+            .map(|e| (0.5 * (e[0] + e[1]), (e[1] - e[0]).normalize_or(DVec3::Z)))
+            .collect(),
+    };
+    let mut r = problem.residuals(&est)?;
+    let mut cost: f64 = r.iter().map(|v| v * v).sum();
     let mut lambda = 1e-3;
     let mut iterations = 0;
-    let h = 1e-7;
+    let mut solver: Option<LsqSolver> = None;
+    let unknowns = Problem::bar_offset(initial.len(), est.bars.len());
+    let zeros = DMatrix::zeros(unknowns, 1);
     for _ in 0..params.max_iterations {
         iterations += 1;
-        let n = x.len();
-        let mut j = DMatrix::zeros(r.len(), n);
-        for i in 0..n {
-            let mut xp = x.clone();
-            xp[i] += h;
-            let mut xm = x.clone();
-            xm[i] -= h;
-            let d = (problem.residuals(&xp)? - problem.residuals(&xm)?) / (2.0 * h);
-            j.set_column(i, &d);
-        }
-        let jtj = j.transpose() * &j;
-        let jtr = j.transpose() * &r;
+        let j = problem.jacobian(&est)?;
+        let scaling = marquardt_scaling(&j);
+        let lsq = match solver.take() {
+            Some(mut s) => {
+                s.set_values(&j, &[&scaling])?;
+                s
+            }
+            None => LsqProblem::new(j)
+                .with_term(scaling, lambda)
+                .factor(&LsqParams::default())?,
+        };
+        let solver_ref = solver.insert(lsq);
+        let rhs = DMatrix::from_iterator(r.len(), 1, r.iter().map(|v| -v));
         let mut improved = false;
         for _ in 0..10 {
-            let mut a = jtj.clone();
-            for i in 0..n {
-                a[(i, i)] += lambda * (jtj[(i, i)] + 1e-12);
-            }
-            let Some(chol) = a.cholesky() else {
+            if solver_ref.set_weights(&[lambda]).is_err() {
                 lambda *= 10.0;
                 continue;
-            };
-            let step = chol.solve(&(-&jtr));
-            let xn = &x + &step;
-            match problem.residuals(&xn) {
-                Ok(rn) if rn.norm_squared() < cost => {
-                    let cn = rn.norm_squared();
-                    let rel = (cost - cn) / cost.max(f64::MIN_POSITIVE);
-                    x = xn;
-                    r = rn;
-                    cost = cn;
-                    lambda = (lambda * 0.3).max(1e-12);
-                    improved = rel > params.tolerance;
-                    break;
+            }
+            let step = solver_ref.solve(&rhs, std::slice::from_ref(&zeros))?;
+            let trial = problem.apply(&est, step.as_slice())?;
+            match problem.residuals(&trial) {
+                Ok(rn) => {
+                    let cn: f64 = rn.iter().map(|v| v * v).sum();
+                    if cn < cost {
+                        let rel = (cost - cn) / cost.max(f64::MIN_POSITIVE);
+                        est = trial;
+                        r = rn;
+                        cost = cn;
+                        lambda = (lambda * 0.3).max(1e-12);
+                        improved = rel > params.tolerance;
+                        break;
+                    }
+                    lambda *= 10.0;
                 }
-                _ => lambda *= 10.0,
+                Err(_) => lambda *= 10.0,
             }
         }
         if !improved {
             break;
         }
     }
-    let cameras = (0..initial.len())
-        .map(|c| problem.camera(&x, c))
-        .collect::<Result<Vec<_>>>()?;
-    let bars = (0..observations.len())
-        .map(|b| problem.bar(&x, b))
-        .collect();
+    let bars = est.bars.iter().map(|&b| problem.ends(b)).collect();
     let count = (r.len() / 2).max(1);
     Ok(BarCalibration {
-        cameras,
+        cameras: est.cameras,
         bars,
         rms_px: (cost / count as f64).sqrt(),
         iterations,
+        unknowns,
     })
 }
 

@@ -13,7 +13,10 @@ use crate::mesh::{vertex_normals, NormalWeighting, TriMesh};
 use crate::random::SplitMix64;
 use crate::{Error, Result};
 
-use super::{FrameTruth, Performer};
+use super::{CaptureFrame, FrameTruth, Performer};
+use crate::markers::{detect_markers, reconstruct_markers, MarkerDetectParams, TrackParams};
+use crate::raster::{Buffers, RenderParams};
+use crate::{Context, ResultExt};
 
 /// Default marker sphere radius, m (the 5–10 mm retro-reflective balls of optical capture).
 pub const DEFAULT_MARKER_RADIUS_M: f64 = 0.008;
@@ -104,6 +107,96 @@ impl MarkerSet {
     pub fn positions(&self, performer: &Performer, truth: &FrameTruth) -> Result<Vec<DVec3>> {
         self.positions_on(&truth.true_mesh(performer))
     }
+
+    /// One captured frame of these markers through the whole optical chain of Fua et al. §2:
+    /// drawn into every camera's grey frame ([`marker_base_image`] of its silhouette) with
+    /// occlusion by the body, detected ([`detect_markers`]), matched across cameras and
+    /// triangulated ([`reconstruct_markers`] with `max_residual_px` and `min_views`), then
+    /// labelled with the nearest true marker for scoring. The capture must render the camera-z
+    /// buffer (the occluder).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] unless `cameras` has one camera per observation;
+    /// [`Error::InvalidParam`] if the frame has no camera-z buffer; errors of
+    /// [`MarkerSet::positions`], [`draw_markers`], [`detect_markers`] and
+    /// [`reconstruct_markers`] (in [`Error::At`] naming the camera).
+    #[allow(clippy::too_many_arguments)] // the chain's own knobs, each documented
+    pub fn observe(
+        &self,
+        performer: &Performer,
+        frame: &CaptureFrame,
+        cameras: &[Camera],
+        style: &MarkerImageStyle,
+        detect: &MarkerDetectParams,
+        max_residual_px: f64,
+        min_views: usize,
+    ) -> Result<MarkerObservation> {
+        crate::check::same_size(
+            "cameras per observation",
+            frame.observations.len(),
+            cameras.len(),
+        )?;
+        let truth = self.positions(performer, &frame.truth)?;
+        let mut detections = Vec::with_capacity(cameras.len());
+        let mut seen_by = vec![0usize; truth.len()];
+        for (c, cam) in cameras.iter().enumerate() {
+            let z =
+                frame.truth.views[c]
+                    .camera_z_m
+                    .as_ref()
+                    .ok_or_else(|| Error::InvalidParam {
+                        name: "capture",
+                        reason: "markers need the camera-z buffer (Buffers::camera_z) as occluder"
+                            .into(),
+                    })?;
+            let mut img = marker_base_image(&frame.observations[c].mask, style);
+            let visible = draw_markers(&mut img, cam, Some(z), &truth, self.radius_m, style)
+                .at(Context::Camera(c))?;
+            for (n, v) in seen_by.iter_mut().zip(&visible) {
+                *n += usize::from(*v > 0.9);
+            }
+            let blobs = detect_markers(&img, detect).at(Context::Camera(c))?;
+            detections.push(blobs.iter().map(|b| b.centre).collect::<Vec<DVec2>>());
+        }
+        let found = reconstruct_markers(cameras, &detections, max_residual_px, min_views)?;
+        let mut points = Vec::with_capacity(found.len());
+        let mut nearest_true = Vec::with_capacity(found.len());
+        let mut error_m = Vec::with_capacity(found.len());
+        for m in &found {
+            let p = m.triangulation.point;
+            let (id, d) = truth
+                .iter()
+                .enumerate()
+                .map(|(i, t)| (i, t.distance(p)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap_or((usize::MAX, f64::INFINITY));
+            points.push(p);
+            nearest_true.push(id);
+            error_m.push(d);
+        }
+        Ok(MarkerObservation {
+            truth,
+            points,
+            nearest_true,
+            error_m,
+            seen_by,
+        })
+    }
+}
+
+/// One frame of markers observed by [`MarkerSet::observe`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerObservation {
+    /// True marker centres, m (marker order).
+    pub truth: Vec<DVec3>,
+    /// Reconstructed marker centres, m (unlabelled, as a tracker receives them).
+    pub points: Vec<DVec3>,
+    /// For each reconstructed point, the nearest true marker (scoring only).
+    pub nearest_true: Vec<usize>,
+    /// For each reconstructed point, its distance to that marker, m.
+    pub error_m: Vec<f64>,
+    /// For each true marker, the cameras that see at least 90 % of its image disc.
+    pub seen_by: Vec<usize>,
 }
 
 /// Grey levels of a synthetic marker frame (an infrared camera: dim body, dark background,
@@ -237,6 +330,97 @@ pub fn draw_markers(
     Ok(visible)
 }
 
+/// The markers scenario of the validation (Fua et al. §2 on the studio): 20 skin markers on
+/// the procedural performer, the studio's fast motion, a ring of grey cameras; every frame goes
+/// through [`MarkerSet::observe`]. The test and the example that score marker detection,
+/// triangulation and tracking both run it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerScenario {
+    /// Number of markers (farthest-point sampled, [`MarkerSet::on_performer`]).
+    pub markers: usize,
+    /// Cameras in a ring of radius 3 m at 1.2 m height around the performer.
+    pub cameras: usize,
+    /// Image width and height, px.
+    pub image: (u32, u32),
+    /// Length of the fast motion, s.
+    pub duration_s: f64,
+    /// Camera frame rate, Hz.
+    pub frame_rate_hz: f64,
+}
+
+impl Default for MarkerScenario {
+    /// 20 markers, four 480 × 640 cameras, 0.5 s of fast motion at 60 Hz.
+    fn default() -> Self {
+        Self {
+            markers: 20,
+            cameras: 4,
+            image: (480, 640),
+            duration_s: 0.5,
+            frame_rate_hz: 60.0,
+        }
+    }
+}
+
+impl MarkerScenario {
+    /// Search volumes that cover the studio's fast motion: its markers move up to 18 m/s and
+    /// accelerate up to 540 m/s² (0.30 m per frame and 0.15 m per frame² at 60 Hz, measured by
+    /// the markers test), far beyond [`TrackParams::default`] (4 m/s, 100 m/s², brisk human
+    /// motion); 21 m/s and 576 m/s² at this scenario's frame rate.
+    pub fn track_params(&self) -> TrackParams {
+        TrackParams {
+            max_velocity_m_per_frame: 21.0 / self.frame_rate_hz,
+            max_acceleration_m_per_frame2: 576.0 / (self.frame_rate_hz * self.frame_rate_hz),
+        }
+    }
+
+    /// Renders, detects and triangulates every frame (default style and detector, 1.5 px
+    /// matching tolerance, three views per marker).
+    ///
+    /// # Errors
+    /// Errors of the studio's performer, motion and capture, and of [`MarkerSet::observe`]
+    /// (in [`Error::At`] naming the frame).
+    pub fn observe(&self) -> Result<Vec<MarkerObservation>> {
+        let performer = super::procedural_performer(&super::ProceduralBodyParams {
+            grid_spacing_m: 0.03,
+            ..Default::default()
+        })?;
+        let set = MarkerSet::on_performer(&performer, self.markers, 1)?;
+        let motion = super::fast_motion(
+            &performer.skeleton,
+            &super::FastMotionParams {
+                duration_s: self.duration_s,
+                ..Default::default()
+            },
+        )?;
+        let k = crate::camera::Intrinsics::from_horizontal_fov(0.7, self.image.0, self.image.1)?;
+        let rig = crate::camera::Rig::ring(
+            self.cameras,
+            3.0,
+            1.2,
+            DVec3::new(0.0, 0.9, 0.0),
+            DVec3::Y,
+            k,
+        )?;
+        let spec = super::CaptureSpec::masks_only(rig)
+            .with_frame_rate_hz(self.frame_rate_hz)
+            .with_render(RenderParams::default().with_buffers(Buffers {
+                camera_z: true,
+                ..Buffers::MASK_ONLY
+            }));
+        let capture = super::Capture::new(&performer, &motion, spec)?;
+        let cameras = capture.spec().rig.cameras.clone();
+        let (style, detect) = (MarkerImageStyle::default(), MarkerDetectParams::default());
+        capture
+            .frames()
+            .enumerate()
+            .map(|(f, frame)| {
+                set.observe(&performer, &frame?, &cameras, &style, &detect, 1.5, 3)
+                    .at(Context::Frame(f))
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -315,6 +499,41 @@ mod tests {
         // Some markers face away from some camera and the body hides them.
         assert!(hidden > 0, "no marker was occluded");
         assert!(seen >= 20, "only {seen} marker views");
+        // The whole chain: every reconstruction is a real marker.
+        let cams = &capture.spec().rig.cameras;
+        let detect = MarkerDetectParams::default();
+        let observed = set
+            .observe(&performer, &frame, cams, &style, &detect, 1.5, 3)
+            .unwrap();
+        assert!(
+            observed.points.len() >= 5,
+            "{} markers",
+            observed.points.len()
+        );
+        assert!(
+            observed.error_m.iter().all(|e| *e < 0.01),
+            "{:?}",
+            observed.error_m
+        );
+        assert!(matches!(
+            set.observe(&performer, &frame, &cams[..2], &style, &detect, 1.5, 3),
+            Err(Error::SizeMismatch { .. })
+        ));
+        // Without the occluder buffer the chain refuses to draw.
+        let masks_only = Capture::new(
+            &performer,
+            &motion,
+            CaptureSpec::masks_only(capture.spec().rig.clone()),
+        )
+        .unwrap();
+        let bare = masks_only.frames().next().unwrap().unwrap();
+        assert!(matches!(
+            set.observe(&performer, &bare, cams, &style, &detect, 1.5, 3),
+            Err(Error::InvalidParam {
+                name: "capture",
+                ..
+            })
+        ));
     }
 
     #[test]

@@ -69,8 +69,8 @@ pub use makehuman::{
     MAKEHUMAN_METRES_PER_UNIT, MAKEHUMAN_SUBSET,
 };
 pub use markers::{
-    draw_markers, marker_base_image, MarkerImageStyle, MarkerSet, DEFAULT_MARKER_OFFSET_M,
-    DEFAULT_MARKER_RADIUS_M,
+    draw_markers, marker_base_image, MarkerImageStyle, MarkerObservation, MarkerScenario,
+    MarkerSet, DEFAULT_MARKER_OFFSET_M, DEFAULT_MARKER_RADIUS_M,
 };
 pub use motion::{
     exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
