@@ -87,6 +87,7 @@ mod colour;
 mod depth_map;
 mod error;
 mod flow;
+mod marching_cubes;
 mod motion;
 mod normals;
 mod patterns;
