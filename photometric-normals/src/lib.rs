@@ -88,6 +88,7 @@ mod depth_map;
 mod error;
 mod flow;
 mod marching_cubes;
+mod merge;
 mod motion;
 mod normals;
 mod patterns;
@@ -100,6 +101,7 @@ pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use patterns::{
