@@ -92,6 +92,7 @@ mod merge;
 mod motion;
 mod normals;
 mod patterns;
+mod poisson;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -108,4 +109,5 @@ pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
+pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};

@@ -141,7 +141,7 @@ fn cell_loops(f: &[f64; 8]) -> Vec<Vec<usize>> {
 /// Errors of [`TriMesh::new`] (none for a valid field).
 pub(crate) fn march_cells(
     cells: impl IntoIterator<Item = Node>,
-    value: impl Fn(Node) -> Option<f64>,
+    mut value: impl FnMut(Node) -> Option<f64>,
     iso: f64,
     position: impl Fn(Node) -> DVec3,
 ) -> Result<TriMesh> {
