@@ -96,6 +96,8 @@ mod poisson;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
+#[cfg(feature = "validation")]
+pub mod peer_workloads;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 pub use colour::{macbeth_reference, ColourParams, ColourTransfer};

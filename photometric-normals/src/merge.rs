@@ -60,6 +60,10 @@ pub struct MergeParams {
     /// discontinuity, which counts as boundary. Default 1 cm (the thesis's discontinuity
     /// threshold per pixel, §3.3.1).
     pub max_depth_jump_m: f64,
+    /// Weight every sample 1 (times the confidence and the taper) instead of the thesis's
+    /// boundary × cosine × inverse-distance weight: plain Curless–Levoy / TSDF averaging, the
+    /// baseline. Default `false`.
+    pub uniform_weights: bool,
 }
 
 impl Default for MergeParams {
@@ -69,6 +73,7 @@ impl Default for MergeParams {
             ramp_m: 0.06,
             boundary_blend_px: 8.0,
             max_depth_jump_m: 0.01,
+            uniform_weights: false,
         }
     }
 }
@@ -95,6 +100,12 @@ impl MergeParams {
     /// With another depth-discontinuity threshold, m.
     pub fn with_max_depth_jump_m(mut self, v: f64) -> Self {
         self.max_depth_jump_m = v;
+        self
+    }
+
+    /// With uniform weights (the baseline) or the thesis's.
+    pub fn with_uniform_weights(mut self, uniform: bool) -> Self {
+        self.uniform_weights = uniform;
         self
     }
 
@@ -260,6 +271,10 @@ fn prepare<'a>(view: &MergeView<'a>, params: &MergeParams) -> Result<PreparedVie
                     .map_or(1.0, |d| f64::from(d.get_pixel(x as u32, y as u32).0[0]))
                     / params.boundary_blend_px;
                 let conf = view.confidence.map_or(1.0, |c| c[i]);
+                if params.uniform_weights {
+                    *out = conf as f32;
+                    continue;
+                }
                 *out = (boundary.min(1.0) * cosine / depth[i] * conf) as f32;
             }
             Ok(row)

@@ -713,17 +713,15 @@ pub fn screened_poisson(
 mod tests {
     use super::*;
     use skin_core::mesh::EdgeTopology;
-    use skin_core::random::SplitMix64;
 
-    /// The peer workload's sphere of radius 0.4 without its cap z > 0.3.
+    /// A Fibonacci lattice on the sphere of radius 0.4 without its cap z > 0.3.
     fn holed_sphere(n: usize) -> Vec<OrientedSample> {
-        let (zs, phis) = (SplitMix64::new(80).uniform(n), SplitMix64::new(81).uniform(n));
-        zs.iter()
-            .zip(&phis)
-            .map(|(&u, &v)| {
-                let z = -0.4 + 0.7 * u;
-                let phi = std::f64::consts::TAU * v;
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let z = -0.4 + 0.7 * (i as f64 + 0.5) / n as f64;
                 let rho = (0.16 - z * z).sqrt();
+                let phi = golden * i as f64;
                 let p = DVec3::new(rho * phi.cos(), rho * phi.sin(), z);
                 OrientedSample {
                     position: p,
