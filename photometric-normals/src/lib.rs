@@ -92,12 +92,12 @@ mod merge;
 mod motion;
 mod normals;
 mod patterns;
+#[cfg(feature = "validation")]
+pub mod peer_workloads;
 mod poisson;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
-#[cfg(feature = "validation")]
-pub mod peer_workloads;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 pub use colour::{macbeth_reference, ColourParams, ColourTransfer};

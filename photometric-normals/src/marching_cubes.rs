@@ -70,9 +70,7 @@ fn edge_faces(e: usize) -> u8 {
 /// edge shared by four triangles); `None` if there is none.
 fn fan_apex(poly: &[usize]) -> Option<usize> {
     let n = poly.len();
-    (0..n).find(|&a| {
-        (2..n - 1).all(|i| edge_faces(poly[a]) & edge_faces(poly[(a + i) % n]) == 0)
-    })
+    (0..n).find(|&a| (2..n - 1).all(|i| edge_faces(poly[a]) & edge_faces(poly[(a + i) % n]) == 0))
 }
 
 /// Polygon loops (as cube-edge ids, in order) of one cell with corner values `f` (already
@@ -188,8 +186,8 @@ pub(crate) fn march_cells(
                 None => {
                     // Every fan would draw a diagonal across a cube face, which the
                     // neighbouring cell may draw too: fan around the loop's centroid.
-                    let c = ids.iter().map(|&i| vertices[i as usize]).sum::<DVec3>()
-                        / ids.len() as f64;
+                    let c =
+                        ids.iter().map(|&i| vertices[i as usize]).sum::<DVec3>() / ids.len() as f64;
                     vertices.push(c);
                     let ci = (vertices.len() - 1) as u32;
                     for i in 0..ids.len() {
@@ -244,7 +242,10 @@ mod tests {
         assert_eq!(euler(&mesh), 2);
         let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.6f64.powi(3);
         assert!((signed_volume(&mesh) - exact).abs() < 0.02 * exact);
-        assert!(mesh.vertices.iter().all(|v| (v.length() - 0.6).abs() < 0.01));
+        assert!(mesh
+            .vertices
+            .iter()
+            .all(|v| (v.length() - 0.6).abs() < 0.01));
     }
 
     #[test]
@@ -259,10 +260,14 @@ mod tests {
             for j in 0..=n {
                 for i in 0..=n {
                     let border = [i, j, k].iter().any(|&c| c == 0 || c == n);
-                    let v = if border { 1.0 } else { {
-                        draw += 1;
-                        rng.uniform_at(draw) - 0.5
-                    } };
+                    let v = if border {
+                        1.0
+                    } else {
+                        {
+                            draw += 1;
+                            rng.uniform_at(draw) - 0.5
+                        }
+                    };
                     vals.insert([i, j, k], v);
                 }
             }
@@ -271,7 +276,11 @@ mod tests {
         let mesh = march_cells(grid_cells(n), |p| vals.get(&p).copied(), 0.0, pos).unwrap();
         assert!(mesh.face_count() > 500);
         let topo = EdgeTopology::new(&mesh).unwrap();
-        assert!(topo.is_closed(), "{} boundary edges", topo.boundary_edges().len());
+        assert!(
+            topo.is_closed(),
+            "{} boundary edges",
+            topo.boundary_edges().len()
+        );
         assert!(topo.non_manifold_edges().is_empty());
     }
 

@@ -177,8 +177,7 @@ impl PreparedView<'_> {
     /// have a surface without a depth jump between them.
     fn sample(&self, px: DVec2, max_jump: f64) -> Option<(f64, f64)> {
         let (fx, fy) = (px.x.floor(), px.y.floor());
-        if fx < 0.0 || fy < 0.0 || fx + 1.0 >= self.width as f64 || fy + 1.0 >= self.height as f64
-        {
+        if fx < 0.0 || fy < 0.0 || fx + 1.0 >= self.width as f64 || fy + 1.0 >= self.height as f64 {
             return None;
         }
         let (x, y) = (fx as usize, fy as usize);
@@ -191,11 +190,18 @@ impl PreparedView<'_> {
         }
         let (lo, hi) = d
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         if hi - lo > max_jump {
             return None;
         }
-        let w = [(1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty];
+        let w = [
+            (1.0 - tx) * (1.0 - ty),
+            tx * (1.0 - ty),
+            (1.0 - tx) * ty,
+            tx * ty,
+        ];
         let depth = (0..4).map(|k| w[k] * d[k]).sum();
         let weight = (0..4).map(|k| w[k] * f64::from(self.weight[idx[k]])).sum();
         Some((depth, weight))
@@ -514,7 +520,10 @@ mod tests {
     fn rejects_bad_input() {
         let (cams, maps) = sphere_views(2, 32);
         let params = MergeParams::default();
-        assert!(matches!(merge_views(&[], &params), Err(Error::Empty { .. })));
+        assert!(matches!(
+            merge_views(&[], &params),
+            Err(Error::Empty { .. })
+        ));
         let good = MergeView {
             camera: &cams[0],
             depth: &maps[0],
@@ -527,7 +536,10 @@ mod tests {
         };
         let e = merge_views(&[good, short], &params).unwrap_err();
         assert!(matches!(e, Error::At { .. }), "{e}");
-        assert!(matches!(e.root(), Error::Core(_) | Error::SizeMismatch { .. }), "{e}");
+        assert!(
+            matches!(e.root(), Error::Core(_) | Error::SizeMismatch { .. }),
+            "{e}"
+        );
         let nan_conf = vec![f64::NAN; 32 * 32];
         let nan = MergeView {
             confidence: Some(&nan_conf),
@@ -539,7 +551,10 @@ mod tests {
             depth: &empty,
             ..good
         };
-        assert!(matches!(merge_views(&[none], &params).unwrap_err().root(), Error::Empty { .. }));
+        assert!(matches!(
+            merge_views(&[none], &params).unwrap_err().root(),
+            Error::Empty { .. }
+        ));
         let small = DepthMap::empty(16, 16).unwrap();
         let wrong = MergeView {
             depth: &small,

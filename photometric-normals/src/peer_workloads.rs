@@ -136,7 +136,9 @@ mod tests {
     #[test]
     fn poisson_samples_are_on_the_cut_sphere() {
         let s = poisson_samples(1000, 1.0);
-        assert!(s.iter().all(|s| (s.position.length() - 0.4).abs() < 1e-12 && s.position.z <= 0.3));
+        assert!(s
+            .iter()
+            .all(|s| (s.position.length() - 0.4).abs() < 1e-12 && s.position.z <= 0.3));
         let first = SplitMix64::new(80).uniform_at(0);
         assert!((s[0].position.z - (-0.4 + 0.7 * first)).abs() < 1e-15);
     }

@@ -344,14 +344,21 @@ struct UnitSample {
     weight: f64,
 }
 
-fn unit_samples(samples: &[OrientedSample], scale: f64, depth: u32) -> (Vec<UnitSample>, DVec3, f64) {
+fn unit_samples(
+    samples: &[OrientedSample],
+    scale: f64,
+    depth: u32,
+) -> (Vec<UnitSample>, DVec3, f64) {
     let (lo, hi) = samples.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(a, b), s| (a.min(s.position), b.max(s.position)),
     );
     let side = (hi - lo).max_element().max(1e-9) * scale;
     let origin = 0.5 * (lo + hi) - DVec3::splat(0.5 * side);
-    let qs: Vec<DVec3> = samples.iter().map(|s| (s.position - origin) / side).collect();
+    let qs: Vec<DVec3> = samples
+        .iter()
+        .map(|s| (s.position - origin) / side)
+        .collect();
     // Sample density two levels above the finest.
     let dn = 1i64 << depth.saturating_sub(2).max(1);
     let hd = 1.0 / dn as f64;
@@ -500,11 +507,7 @@ fn solve_level(
         .par_iter()
         .map(|&p| {
             let mut out = [NONE; 6];
-            for (k, (axis, s)) in AXES
-                .iter()
-                .flat_map(|a| [(a, -1i64), (a, 1)])
-                .enumerate()
-            {
+            for (k, (axis, s)) in AXES.iter().flat_map(|a| [(a, -1i64), (a, 1)]).enumerate() {
                 let m = add(p, *axis, s);
                 if level.in_domain(m) {
                     if let Some(j) = level.index(m) {
@@ -566,8 +569,12 @@ fn pcg(
             break;
         }
         let alpha = rz / pq;
-        x.par_iter_mut().zip(&p).for_each(|(xi, pi)| *xi += alpha * pi);
-        r.par_iter_mut().zip(&q).for_each(|(ri, qi)| *ri -= alpha * qi);
+        x.par_iter_mut()
+            .zip(&p)
+            .for_each(|(xi, pi)| *xi += alpha * pi);
+        r.par_iter_mut()
+            .zip(&q)
+            .for_each(|(ri, qi)| *ri -= alpha * qi);
         z.par_iter_mut()
             .zip(&r)
             .zip(diag)
@@ -575,7 +582,9 @@ fn pcg(
         let rz_new = dot(&r, &z);
         let beta = rz_new / rz;
         rz = rz_new;
-        p.par_iter_mut().zip(&z).for_each(|(pi, zi)| *pi = zi + beta * *pi);
+        p.par_iter_mut()
+            .zip(&z)
+            .for_each(|(pi, zi)| *pi = zi + beta * *pi);
         res = dot(&r, &r).sqrt() / bnorm;
         it += 1;
     }
@@ -593,7 +602,11 @@ fn collect_cells(comp: &mut Composite, li: usize, cell: Node, iso: f64, out: &mu
     let mut below = false;
     let mut above = false;
     for c in 0..8 {
-        let p = [cell[0] + (c & 1), cell[1] + ((c >> 1) & 1), cell[2] + ((c >> 2) & 1)];
+        let p = [
+            cell[0] + (c & 1),
+            cell[1] + ((c >> 1) & 1),
+            cell[2] + ((c >> 2) & 1),
+        ];
         if comp.value(li, p) < iso {
             below = true;
         } else {
@@ -738,7 +751,11 @@ mod tests {
         let params = PoissonParams::default().with_depth(6);
         let s = screened_poisson(&samples, &params).unwrap();
         let topo = EdgeTopology::new(&s.mesh).unwrap();
-        assert!(topo.is_closed(), "{} boundary edges", topo.boundary_edges().len());
+        assert!(
+            topo.is_closed(),
+            "{} boundary edges",
+            topo.boundary_edges().len()
+        );
         assert!(topo.non_manifold_edges().is_empty());
         let edges = skin_core::mesh::unique_edges(&s.mesh).unwrap().len() as i64;
         let chi = s.mesh.vertex_count() as i64 - edges + s.mesh.face_count() as i64;
@@ -754,7 +771,11 @@ mod tests {
         // One cell at depth 6 over the 0.88 m domain is 14 mm.
         assert!(mean < 0.004, "mean {mean}");
         // The filled cap stays near the sphere's top (z = 0.4) rather than a flat lid at 0.3.
-        let top = s.mesh.vertices.iter().fold(f64::NEG_INFINITY, |a, v| a.max(v.z));
+        let top = s
+            .mesh
+            .vertices
+            .iter()
+            .fold(f64::NEG_INFINITY, |a, v| a.max(v.z));
         assert!(top > 0.33, "top {top}");
     }
 
@@ -767,7 +788,10 @@ mod tests {
         assert!(screened_poisson(&s, &p).is_err());
         s[5].normal = DVec3::X;
         s[6].position.x = f64::NAN;
-        assert!(matches!(screened_poisson(&s, &p), Err(Error::NonFinite { .. })));
+        assert!(matches!(
+            screened_poisson(&s, &p),
+            Err(Error::NonFinite { .. })
+        ));
         s[6].position.x = 0.0;
         s[7].weight = 0.0;
         assert!(screened_poisson(&s, &p).is_err());
