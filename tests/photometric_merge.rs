@@ -17,7 +17,9 @@ use dynamic_shapes::core::mesh::{shapes::uv_sphere, unique_edges, EdgeTopology, 
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams};
 use dynamic_shapes::core::stats::{median, percentile};
-use dynamic_shapes::photometric::peer_workloads::{tsdf_scene_sdf, TSDF_BOX, TSDF_SPHERE};
+use dynamic_shapes::photometric::peer_workloads::{
+    tsdf_proxy_samples, tsdf_scene_sdf, TSDF_BOX, TSDF_SPHERE,
+};
 use dynamic_shapes::photometric::{
     merge_views, screened_poisson, DepthMap, Error, MergeParams, MergeView, OrientedSample,
     PoissonParams,
@@ -113,39 +115,6 @@ fn views(size: u32, sigma_m: f64) -> Vec<(Camera, DepthMap)> {
         .collect()
 }
 
-/// A proxy 1 cm outside the scene (like a visual hull, coarser than the surface), sampled
-/// every ~5 mm with outward normals, keeping the samples at least 5 mm outside the scene.
-fn proxy_samples(weight: f64) -> Vec<OrientedSample> {
-    let mut out = OrientedSample::from_mesh(
-        &uv_sphere(TSDF_SPHERE.0, TSDF_SPHERE.1 + 0.01, 120, 240).unwrap(),
-        weight,
-    )
-    .unwrap();
-    let half = TSDF_BOX.1 + DVec3::splat(0.01);
-    for axis in 0..3 {
-        for side in [-1.0, 1.0] {
-            let mut normal = DVec3::ZERO;
-            normal[axis] = side;
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-            let (nu, nv) = ((half[u] / 0.0025) as i32, (half[v] / 0.0025) as i32);
-            for i in -nu..=nu {
-                for j in -nv..=nv {
-                    let mut p = TSDF_BOX.0 + normal * half[axis];
-                    p[u] += f64::from(i) * 0.0025;
-                    p[v] += f64::from(j) * 0.0025;
-                    out.push(OrientedSample {
-                        position: p,
-                        normal,
-                        weight,
-                    });
-                }
-            }
-        }
-    }
-    out.retain(|s| tsdf_scene_sdf(s.position) > 0.005);
-    out
-}
-
 fn distances_mm(mesh: &TriMesh) -> Vec<f64> {
     mesh.vertices
         .iter()
@@ -227,7 +196,7 @@ fn merge_then_fill_the_rendered_scene() {
     // Hole filling: merged samples at weight 1, a proxy 1 cm outside the scene at 0.01 (the
     // thesis's visual-hull weight).
     let mut samples = OrientedSample::from_mesh(&merged.mesh, 1.0).unwrap();
-    samples.extend(proxy_samples(0.01));
+    samples.extend(tsdf_proxy_samples(0.01, 0.01).unwrap());
     let t = Instant::now();
     let filled = screened_poisson(&samples, &PoissonParams::default()).unwrap();
     let poisson_s = t.elapsed().as_secs_f64();

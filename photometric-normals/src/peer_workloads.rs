@@ -5,6 +5,7 @@
 
 use skin_core::camera::{Camera, Intrinsics, RadialDistortion};
 use skin_core::math::{DAffine3, DMat3, DVec2, DVec3};
+use skin_core::mesh::shapes::uv_sphere;
 use skin_core::random::SplitMix64;
 
 use crate::{DepthMap, OrientedSample, Result};
@@ -24,6 +25,41 @@ pub fn tsdf_scene_sdf(p: DVec3) -> f64 {
     let q = (p - TSDF_BOX.0).abs() - TSDF_BOX.1;
     let db = q.max(DVec3::ZERO).length() + q.max_element().min(0.0);
     ds.min(db)
+}
+
+/// A proxy of workload 6a's scene for hole filling, like a visual hull: the sphere and the
+/// box grown by `offset_m`, sampled about every 2.5 mm with outward normals and `weight`
+/// (0.01 in the thesis), keeping only samples at least `offset_m / 2` outside the scene.
+///
+/// # Errors
+/// Errors of the sphere mesh (none for `offset_m ≥ 0`).
+pub fn tsdf_proxy_samples(offset_m: f64, weight: f64) -> Result<Vec<OrientedSample>> {
+    let sphere = uv_sphere(TSDF_SPHERE.0, TSDF_SPHERE.1 + offset_m, 120, 240)?;
+    let mut out = OrientedSample::from_mesh(&sphere, weight)?;
+    let half = TSDF_BOX.1 + DVec3::splat(offset_m);
+    let step = 0.0025;
+    for axis in 0..3 {
+        for side in [-1.0, 1.0] {
+            let mut normal = DVec3::ZERO;
+            normal[axis] = side;
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let (nu, nv) = ((half[u] / step) as i32, (half[v] / step) as i32);
+            for i in -nu..=nu {
+                for j in -nv..=nv {
+                    let mut p = TSDF_BOX.0 + normal * half[axis];
+                    p[u] += f64::from(i) * step;
+                    p[v] += f64::from(j) * step;
+                    out.push(OrientedSample {
+                        position: p,
+                        normal,
+                        weight,
+                    });
+                }
+            }
+        }
+    }
+    out.retain(|s| tsdf_scene_sdf(s.position) > 0.5 * offset_m);
+    Ok(out)
 }
 
 /// Nearest hit (distance along the unit ray) of a ray with workload 6a's scene.
