@@ -122,8 +122,11 @@ fn distances_mm(mesh: &TriMesh) -> Vec<f64> {
         .collect()
 }
 
-/// Connected components of a mesh: (vertex count, Euler characteristic V − E + F) each.
-fn components(mesh: &TriMesh) -> Vec<(usize, i64)> {
+/// A connected component: vertex count and Euler characteristic V − E + F.
+type Component = (usize, i64);
+
+/// Connected components of a mesh.
+fn components(mesh: &TriMesh) -> Vec<Component> {
     fn find(p: &mut [usize], mut i: usize) -> usize {
         while p[i] != i {
             p[i] = p[p[i]];
@@ -139,7 +142,7 @@ fn components(mesh: &TriMesh) -> Vec<(usize, i64)> {
             parent[a] = b;
         }
     }
-    let mut count: std::collections::HashMap<usize, (usize, i64)> = Default::default();
+    let mut count: std::collections::HashMap<usize, Component> = Default::default();
     for v in 0..mesh.vertex_count() {
         let r = find(&mut parent, v);
         let c = count.entry(r).or_default();
@@ -211,7 +214,7 @@ fn merge_then_fill_the_rendered_scene() {
     // tiny closed blobs off the box's edges (from noisy grazing samples of the merge).
     let comps = components(&filled.mesh);
     let n = filled.mesh.vertex_count();
-    let (big, small): (Vec<(usize, i64)>, Vec<(usize, i64)>) =
+    let (big, small): (Vec<Component>, Vec<Component>) =
         comps.into_iter().partition(|c| c.0 * 100 > n);
     println!(
         "poisson components: {} large {:?}, {} small ({} vertices)",

@@ -358,11 +358,18 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
     let mut weight = vec![0.0f32; BLOCK_LEN];
     let half = 0.5 * params.ramp_m;
     let taper = 0.25 * params.ramp_m;
+    let near: Vec<&PreparedView> = views
+        .iter()
+        .filter(|v| block_may_see(b, v, params))
+        .collect();
+    if near.is_empty() {
+        return Block { distance, weight };
+    }
     for (i, (dist, wsum)) in distance.iter_mut().zip(weight.iter_mut()).enumerate() {
         let node = block_node(b, i);
         let p = node_position(node, params.voxel_m);
         let (mut sw, mut swd) = (0.0, 0.0);
-        for v in views {
+        for v in &near {
             let Ok(proj) = v.camera.project(p) else {
                 continue;
             };
@@ -383,6 +390,53 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
         }
     }
     Block { distance, weight }
+}
+
+/// Whether any voxel of block `b` can get a sample from view `v`: the block's pixel footprint
+/// (its corners' projections) overlaps the image, and the distances of the block's points to
+/// the camera overlap the ramp around the depths in that footprint. A conservative test: it
+/// only skips views that would contribute nothing.
+fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
+    let lo = node_position(b.map(|c| c * BLOCK), params.voxel_m);
+    let side = (BLOCK - 1) as f64 * params.voxel_m;
+    let centre = lo + DVec3::splat(0.5 * side);
+    let radius = 0.5 * side * 3f64.sqrt();
+    let dist = (centre - v.camera.centre()).length();
+    let (mut u0, mut v0, mut u1, mut v1) = (
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for c in 0..8 {
+        let p =
+            lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64) * side;
+        // A corner behind the camera: keep the view (no cheap bound).
+        let Ok(px) = v.camera.project(p) else {
+            return true;
+        };
+        (u0, v0, u1, v1) = (u0.min(px.x), v0.min(px.y), u1.max(px.x), v1.max(px.y));
+    }
+    let (w, h) = (v.width as f64, v.height as f64);
+    if u1 < 0.0 || v1 < 0.0 || u0 > w - 1.0 || v0 > h - 1.0 {
+        return false;
+    }
+    // Bilinear samples use the pixels around the projection: widen by one pixel.
+    let x0 = (u0.floor() - 1.0).max(0.0) as usize;
+    let y0 = (v0.floor() - 1.0).max(0.0) as usize;
+    let x1 = ((u1.ceil() + 1.0) as usize).min(v.width - 1);
+    let y1 = ((v1.ceil() + 1.0) as usize).min(v.height - 1);
+    let (mut dmin, mut dmax) = (f64::INFINITY, f64::NEG_INFINITY);
+    for y in y0..=y1 {
+        for d in &v.depth[y * v.width + x0..=y * v.width + x1] {
+            if !d.is_nan() {
+                dmin = dmin.min(*d);
+                dmax = dmax.max(*d);
+            }
+        }
+    }
+    let half = 0.5 * params.ramp_m;
+    dmin <= dmax && dist - radius <= dmax + half && dist + radius >= dmin - half
 }
 
 fn block_node(b: Node, i: usize) -> Node {

@@ -204,10 +204,8 @@ impl Level {
         let mut dir = vec![NONE; active.len()];
         let mut slot = Vec::new();
         let mut nodes = Vec::new();
-        let mut count = 0u32;
-        for (bi, _) in active.iter().enumerate().filter(|(_, &a)| a) {
-            dir[bi] = count;
-            count += 1;
+        for (count, (bi, _)) in active.iter().enumerate().filter(|(_, &a)| a).enumerate() {
+            dir[bi] = count as u32;
             let b = [bi as i64 % nb, (bi as i64 / nb) % nb, bi as i64 / (nb * nb)];
             for l in 0..B3 as i64 {
                 let node = [
