@@ -163,11 +163,7 @@ fn merge_then_fill_the_rendered_scene() {
     let views = views(512, 0.0003);
     let inputs: Vec<MergeView> = views
         .iter()
-        .map(|(camera, depth)| MergeView {
-            camera,
-            depth,
-            confidence: None,
-        })
+        .map(|(camera, depth)| MergeView::new(camera, depth))
         .collect();
     let params = MergeParams::default();
     let t = Instant::now();

@@ -180,11 +180,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scene = tsdf_views(size)?;
     let views: Vec<MergeView> = scene
         .iter()
-        .map(|(camera, depth)| MergeView {
-            camera,
-            depth,
-            confidence: None,
-        })
+        .map(|(camera, depth)| MergeView::new(camera, depth))
         .collect();
     stage.finish(format!("8 views at {size}²"));
 

@@ -140,6 +140,17 @@ pub struct MergeView<'a> {
     pub confidence: Option<&'a [f64]>,
 }
 
+impl<'a> MergeView<'a> {
+    /// A view without confidence (every pixel counts fully).
+    pub fn new(camera: &'a Camera, depth: &'a DepthMap) -> Self {
+        Self {
+            camera,
+            depth,
+            confidence: None,
+        }
+    }
+}
+
 /// Size figures of a merge.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MergeStats {
@@ -549,11 +560,7 @@ mod tests {
         let views: Vec<MergeView> = cams
             .iter()
             .zip(&maps)
-            .map(|(camera, depth)| MergeView {
-                camera,
-                depth,
-                confidence: None,
-            })
+            .map(|(camera, depth)| MergeView::new(camera, depth))
             .collect();
         let params = MergeParams::default().with_voxel_m(0.005);
         let merged = merge_views(&views, &params).unwrap();
@@ -578,11 +585,7 @@ mod tests {
             merge_views(&[], &params),
             Err(Error::Empty { .. })
         ));
-        let good = MergeView {
-            camera: &cams[0],
-            depth: &maps[0],
-            confidence: None,
-        };
+        let good = MergeView::new(&cams[0], &maps[0]);
         let bad_conf = vec![1.0; 3];
         let short = MergeView {
             confidence: Some(&bad_conf),

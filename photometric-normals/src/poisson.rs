@@ -280,24 +280,26 @@ impl Composite<'_> {
         if let Some(&v) = self.memo.get(&(li, p)) {
             return v;
         }
-        // Trilinear interpolation from the next coarser level: average over the coarse
-        // nodes floor(c/2), ceil(c/2) of each coordinate.
+        let v = self.from_coarser(li - 1, p);
+        self.memo.insert((li, p), v);
+        v
+    }
+
+    /// Value at node `p` of the level below `coarse`, interpolated trilinearly from level
+    /// `coarse`: the mean over the coarse nodes `floor(c/2)`, `ceil(c/2)` of each coordinate.
+    fn from_coarser(&mut self, coarse: usize, p: Node) -> f64 {
         let lo = p.map(|c| c.div_euclid(2));
         let hi = p.map(|c| (c + 1).div_euclid(2));
         let mut sum = 0.0;
-        let mut count = 0.0;
         for corner in 0..8 {
             let q = [
                 if corner & 1 == 0 { lo[0] } else { hi[0] },
                 if corner & 2 == 0 { lo[1] } else { hi[1] },
                 if corner & 4 == 0 { lo[2] } else { hi[2] },
             ];
-            sum += self.value(li - 1, q);
-            count += 1.0;
+            sum += self.value(coarse, q);
         }
-        let v = sum / count;
-        self.memo.insert((li, p), v);
-        v
+        sum / 8.0
     }
 
     /// Trilinear value at a unit-cube point on level `li`.
@@ -452,22 +454,10 @@ fn solve_level(
         outside: 0.0,
     };
     let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
-        if coarser.is_empty() {
-            return 0.0;
+        match coarser.len() {
+            0 => 0.0,
+            n => comp.from_coarser(n - 1, p),
         }
-        let li = coarser.len() - 1;
-        let lo = p.map(|c| c.div_euclid(2));
-        let hi = p.map(|c| (c + 1).div_euclid(2));
-        let mut sum = 0.0;
-        for corner in 0..8 {
-            let q = [
-                if corner & 1 == 0 { lo[0] } else { hi[0] },
-                if corner & 2 == 0 { lo[1] } else { hi[1] },
-                if corner & 4 == 0 { lo[2] } else { hi[2] },
-            ];
-            sum += comp.value(li, q);
-        }
-        sum / 8.0
     };
     let mut diag = vec![0.0; nn];
     let mut b = vec![0.0; nn];
