@@ -280,14 +280,14 @@ impl Composite<'_> {
         if let Some(&v) = self.memo.get(&(li, p)) {
             return v;
         }
-        let v = self.from_coarser(li - 1, p);
+        let v = self.interpolated_from(li - 1, p);
         self.memo.insert((li, p), v);
         v
     }
 
     /// Value at node `p` of the level below `coarse`, interpolated trilinearly from level
     /// `coarse`: the mean over the coarse nodes `floor(c/2)`, `ceil(c/2)` of each coordinate.
-    fn from_coarser(&mut self, coarse: usize, p: Node) -> f64 {
+    fn interpolated_from(&mut self, coarse: usize, p: Node) -> f64 {
         let lo = p.map(|c| c.div_euclid(2));
         let hi = p.map(|c| (c + 1).div_euclid(2));
         let mut sum = 0.0;
@@ -456,7 +456,7 @@ fn solve_level(
     let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
         match coarser.len() {
             0 => 0.0,
-            n => comp.from_coarser(n - 1, p),
+            n => comp.interpolated_from(n - 1, p),
         }
     };
     let mut diag = vec![0.0; nn];
