@@ -474,6 +474,30 @@ fn node_position(n: Node, voxel_m: f64) -> DVec3 {
 /// depth map or a negative / non-finite confidence; [`Error::SizeMismatch`] for a confidence
 /// of the wrong length. Errors about one view are wrapped in [`Error::At`] with
 /// [`Context::Camera`].
+///
+/// # Example
+/// A sphere rendered into depth maps from four cameras and merged at 5 mm voxels:
+/// ```
+/// use photometric_normals::{merge_views, DepthMap, MergeParams, MergeView};
+/// use skin_core::camera::{Camera, Intrinsics};
+/// use skin_core::math::DVec3;
+/// use skin_core::mesh::shapes::uv_sphere;
+/// use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+///
+/// let sphere = uv_sphere(DVec3::ZERO, 0.2, 48, 96)?;
+/// let k = Intrinsics::from_horizontal_fov(0.5, 64, 64)?;
+/// let params = RenderParams::default().with_buffers(Buffers { depth: true, ..Buffers::MASK_ONLY });
+/// let mut views = Vec::new();
+/// for eye in [DVec3::X, -DVec3::X, DVec3::Z, -DVec3::Z] {
+///     let cam = Camera::look_at(k, eye * 1.2, DVec3::ZERO, DVec3::Y)?;
+///     let map = DepthMap::from_view(&Rasterizer::new(&cam).render(&sphere, &params)?)?;
+///     views.push((cam, map));
+/// }
+/// let inputs: Vec<MergeView> = views.iter().map(|(c, d)| MergeView::new(c, d)).collect();
+/// let merged = merge_views(&inputs, &MergeParams::default().with_voxel_m(0.005))?;
+/// assert!(merged.mesh.vertices.iter().all(|v| (v.length() - 0.2).abs() < 0.005));
+/// # Ok::<(), photometric_normals::Error>(())
+/// ```
 pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSurface> {
     params.validate()?;
     if views.is_empty() {

@@ -634,6 +634,21 @@ fn collect_cells(comp: &mut Composite, li: usize, cell: Node, iso: f64, out: &mu
 /// [`Error::Empty`] for fewer than 4 samples; [`Error::NonFinite`] for a non-finite position
 /// or normal; [`Error::InvalidParam`] for a zero normal, a weight that is not finite and
 /// positive, or bad parameters.
+///
+/// # Example
+/// A sphere's vertices without its top cap come back as a closed surface:
+/// ```
+/// use photometric_normals::{screened_poisson, OrientedSample, PoissonParams};
+/// use skin_core::math::DVec3;
+/// use skin_core::mesh::{is_closed, shapes::uv_sphere};
+///
+/// let sphere = uv_sphere(DVec3::ZERO, 0.3, 40, 80)?;
+/// let mut samples = OrientedSample::from_mesh(&sphere, 1.0)?;
+/// samples.retain(|s| s.position.y < 0.2);
+/// let filled = screened_poisson(&samples, &PoissonParams::default().with_depth(6))?;
+/// assert!(is_closed(&filled.mesh)?);
+/// # Ok::<(), photometric_normals::Error>(())
+/// ```
 pub fn screened_poisson(
     samples: &[OrientedSample],
     params: &PoissonParams,
