@@ -24,6 +24,9 @@
 //! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
 //! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
+//! | `marching_cubes.rs` | marching cubes over sparse cells (face-walking loops, asymptotic decider; watertight where observed) | (internal) | §3.3.3 |
+//! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
+//! | `poisson.rs` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -78,7 +81,8 @@
 //!
 //! With the cargo feature `validation`, the public module `truth` holds the studio's light
 //! patterns and calibration spheres, ground-truth scoring (angular error, shadowed
-//! concavities, wrinkled regions) and the distant-light baseline.
+//! concavities, wrinkled regions) and the distant-light baseline; `peer_workloads` regenerates
+//! the peer benchmarks' merging and Poisson inputs (workloads 6a and 6b) with their truth.
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
@@ -87,9 +91,14 @@ mod colour;
 mod depth_map;
 mod error;
 mod flow;
+mod marching_cubes;
+mod merge;
 mod motion;
 mod normals;
 mod patterns;
+#[cfg(feature = "validation")]
+pub mod peer_workloads;
+mod poisson;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -99,10 +108,12 @@ pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
+pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};
