@@ -124,6 +124,9 @@ pub struct EllipsoidScores {
     pub joint_angle_error_deg: f64,
 }
 
+/// Largest stretch of a triangle edge (posed / rest length) kept in the true mesh.
+const MAX_STRETCH: f64 = 1.5;
+
 fn rest_frames(sk: &Skeleton) -> Result<Vec<DAffine3>> {
     Ok(sk
         .forward_kinematics(&vec![0.0; sk.dof_count()])?
@@ -136,6 +139,12 @@ fn dominant(weights: &SkinWeights, i: usize) -> Option<u32> {
         .influences(i)
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(b, _)| b)
+}
+
+/// Whether vertex `i` moves with one joint alone (dominant weight ≥ 0.75): a marker's place,
+/// away from the joint regions and webs.
+fn rigid(weights: &SkinWeights, i: usize) -> bool {
+    weights.influences(i).any(|(_, w)| w >= 0.75)
 }
 
 /// Builds the scenario.
@@ -188,10 +197,14 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     let vertex_bone: Vec<Option<usize>> = (0..rest_true.len())
         .map(|i| limb_joint(dominant(weights, i)))
         .collect();
+    // One bone's triangles (a triangle across two bones is a joint region or a web).
     let limb_faces: Vec<[u32; 3]> = faces
         .iter()
         .copied()
-        .filter(|f| f.iter().all(|&v| vertex_bone[v as usize].is_some()))
+        .filter(|f| {
+            let b = vertex_bone[f[0] as usize];
+            b.is_some() && f.iter().all(|&v| vertex_bone[v as usize] == b)
+        })
         .collect();
     // Truth: lengths, and the reference half-widths: Eq. 3 fitted to each true limb's
     // vertices at the rest pose (the widths do not depend on the pose here; posed, the
@@ -236,7 +249,23 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                 .map(|(p, r)| *p * r.inverse())
                 .collect();
             let verts = skin(&rest_true, weights, &t)?;
-            let mesh = TriMesh::new(verts.clone(), faces.clone())?;
+            // Tear the webs: the procedural body is one marching-cubes surface in which parts
+            // touching at rest (forearm and hip, hand and thigh) are fused; posed apart by
+            // LBS, the fused region becomes a membrane of stretched triangles that is no body
+            // surface (traced: it held most of a raised forearm's points, 12 cm median
+            // residual at the true state). Drop every triangle with an edge stretched beyond
+            // `MAX_STRETCH` × its rest length.
+            let intact = |f: &[u32; 3]| {
+                (0..3).all(|e| {
+                    let (a, b) = (f[e] as usize, f[(e + 1) % 3] as usize);
+                    verts[a].distance(verts[b])
+                        <= MAX_STRETCH * rest_true[a].distance(rest_true[b]) + 1e-9
+                })
+            };
+            let kept: Vec<[u32; 3]> = faces.iter().copied().filter(|f| intact(f)).collect();
+            let mesh = TriMesh::new(verts.clone(), kept)?;
+            let limb_faces: Vec<[u32; 3]> =
+                limb_faces.iter().copied().filter(|f| intact(f)).collect();
             // Points: area-uniform on the limb triangles, noisy; then outliers.
             let areas: Vec<f64> = limb_faces
                 .iter()
@@ -279,7 +308,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             }
             // Markers: limb vertices spread over the bones.
             let limb_vertices: Vec<usize> = (0..verts.len())
-                .filter(|&i| vertex_bone[i].is_some())
+                .filter(|&i| vertex_bone[i].is_some() && rigid(weights, i))
                 .collect();
             let markers = (0..params.markers)
                 .map(|m| -> Result<MarkerObservation> {
