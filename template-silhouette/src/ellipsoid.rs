@@ -63,6 +63,7 @@
 //! to a floor.
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use skin_core::math::{DAffine3, DVec3};
 use skin_core::skeleton::Skeleton;
 use skin_core::{check, Context};
@@ -172,6 +173,13 @@ pub struct EllipsoidParams {
     pub tukey_c: f64,
     /// Levenberg–Marquardt iterations per IRLS round. Default 30.
     pub lm_iterations: usize,
+    /// An LM round stops when a step lowers the cost by less than this fraction. Default 1e-6.
+    pub lm_tolerance: f64,
+    /// The first IRLS rounds that fit the pose alone (lengths, widths and half-lengths held at
+    /// their start): a pose several degrees off would otherwise let ellipsoids swell over
+    /// their neighbours' points before the pose is right. Default 0 (measured on the studio:
+    /// 1 helps the bent frames and the multi-frame fit, and hurts the straight frame 0).
+    pub pose_only_rounds: usize,
     /// Floor of every half-width, metres; a width ending on it is a collapsed ellipsoid
     /// ([`fit_ellipsoids`] errors). Default 0.005.
     pub min_half_width_m: f64,
@@ -194,6 +202,8 @@ impl Default for EllipsoidParams {
             irls_rounds: 5,
             tukey_c: 4.685,
             lm_iterations: 30,
+            lm_tolerance: 1e-6,
+            pose_only_rounds: 0,
             min_half_width_m: 0.005,
             scale_range: (0.5, 1.5),
             min_observations_per_bone: 5,
@@ -219,6 +229,7 @@ impl EllipsoidParams {
         check::nonzero("irls_rounds", self.irls_rounds)?;
         check::positive("tukey_c", self.tukey_c)?;
         check::nonzero("lm_iterations", self.lm_iterations)?;
+        check::positive("lm_tolerance", self.lm_tolerance)?;
         check::positive("min_half_width_m", self.min_half_width_m)?;
         check::positive("scale_range.0", self.scale_range.0)?;
         check::in_range(
@@ -487,27 +498,28 @@ enum Kind {
     Marker,
 }
 
-/// Everything needed to evaluate the objective at one state.
-struct Linearised {
-    cost: f64,
-    /// Unweighted residual per observation (points, rays, markers in order), its bone.
-    residuals: Vec<(f64, usize)>,
-    h: DMatrix<f64>,
-    g: DVector<f64>,
-}
+/// Bones kept per point or ray between two IRLS rounds: the assignment of §5.2 is re-done
+/// every LM iteration among the `CANDIDATES` bones of smallest `|e|` at the round's start
+/// (the pruning that makes an iteration cost 2 evaluations per observation instead of one
+/// per bone); every round and the final count assign among all bones.
+const CANDIDATES: usize = 2;
 
-struct Problem<'a> {
-    model: &'a EllipsoidModel,
+/// Observations per parallel chunk (fixed, so sums are identical for any thread count).
+const CHUNK: usize = 256;
+
+/// One frame of the problem.
+struct FrameData<'a> {
     obs: &'a EllipsoidObservations,
-    params: &'a EllipsoidParams,
-    start: &'a EllipsoidState,
+    start_theta: &'a [f64],
     /// Markers actually seen: (bone, position).
     markers: Vec<(usize, DVec3)>,
-    /// IRLS weight per observation.
+    /// IRLS weight per observation (points, rays, markers in order).
     robust: Vec<f64>,
+    /// Candidate bones per point and ray.
+    candidates: Vec<[usize; CANDIDATES]>,
 }
 
-impl Problem<'_> {
+impl FrameData<'_> {
     fn n_obs(&self) -> usize {
         self.obs.points.len() + self.obs.rays.len() + self.markers.len()
     }
@@ -522,7 +534,29 @@ impl Problem<'_> {
             Kind::Marker
         }
     }
+}
 
+/// A frame's part of the normal equations, in local indices: θ of the frame first, then
+/// the shared scales, widths, half-lengths.
+struct FrameLin {
+    cost: f64,
+    /// Unweighted residual and bone per observation (only from a full assignment).
+    residuals: Vec<(f64, usize)>,
+    /// Best bones per point and ray (only from a full assignment).
+    candidates: Vec<[usize; CANDIDATES]>,
+    h: DMatrix<f64>,
+    g: DVector<f64>,
+}
+
+struct Problem<'a> {
+    model: &'a EllipsoidModel,
+    params: &'a EllipsoidParams,
+    /// Start of the shared unknowns (the first frame's).
+    start: &'a EllipsoidState,
+    frames: Vec<FrameData<'a>>,
+}
+
+impl Problem<'_> {
     fn sigma(&self, kind: Kind) -> f64 {
         match kind {
             Kind::Point => self.params.sigma_point_m,
@@ -531,12 +565,41 @@ impl Problem<'_> {
         }
     }
 
-    /// Cost (and, when `jac`, normal equations) at `state`.
-    fn linearise(&self, state: &EllipsoidState, jac: bool) -> Result<Linearised> {
+    fn local_size(&self) -> usize {
+        self.model.skeleton.dof_count() + 3 * self.model.bones.len()
+    }
+
+    /// Size of the global state: every frame's θ, then the shared unknowns.
+    fn size(&self) -> usize {
+        let nd = self.model.skeleton.dof_count();
+        self.frames.len() * nd + 3 * self.model.bones.len()
+    }
+
+    /// Global index of local index `k` of frame `f`.
+    fn global(&self, f: usize, k: usize) -> usize {
+        let nd = self.model.skeleton.dof_count();
+        if k < nd {
+            f * nd + k
+        } else {
+            self.frames.len() * nd + (k - nd)
+        }
+    }
+
+    /// Cost (and, when `jac`, local normal equations) of frame `f` at `state`. `full`:
+    /// assign among all bones and return residuals and candidates; otherwise among the
+    /// round's candidates, skipping observations of zero IRLS weight.
+    fn linearise_frame(
+        &self,
+        f: usize,
+        state: &EllipsoidState,
+        jac: bool,
+        full: bool,
+    ) -> Result<FrameLin> {
         let model = self.model;
+        let frame = &self.frames[f];
         let nd = model.skeleton.dof_count();
         let nb = model.bones.len();
-        let n = nd + 3 * nb;
+        let nl = self.local_size();
         let sk = model.scaled_skeleton(state)?;
         let fk = sk.forward_kinematics(&state.theta)?;
         let frames = fk.world_from_joint();
@@ -549,155 +612,282 @@ impl Problem<'_> {
             .enumerate()
             .map(|(b, bone)| frames[bone.parent].matrix3 * (model.axes[b] * model.lengths[b]))
             .collect();
+        let np = frame.obs.points.len();
+        let nr = frame.obs.rays.len();
+        let n_obs = frame.n_obs();
+        let chunk = |range: std::ops::Range<usize>| -> FrameLin {
+            let (mut h, mut g) = if jac {
+                (DMatrix::zeros(nl, nl), DVector::zeros(nl))
+            } else {
+                (DMatrix::zeros(0, 0), DVector::zeros(0))
+            };
+            let mut cost = 0.0;
+            let mut residuals = Vec::new();
+            let mut candidates = Vec::new();
+            let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
+            for i in range {
+                let kind = frame.kind(i);
+                if !full && frame.robust[i] == 0.0 {
+                    continue;
+                }
+                let x_of = |b: usize| {
+                    if kind == Kind::Point {
+                        frame.obs.points[i]
+                    } else {
+                        model.ray_point(frames, state, b, &frame.obs.rays[i - np])
+                    }
+                };
+                // Assignment (§5.2): the bone with the smallest |e|.
+                let (b, x, ev) = match kind {
+                    Kind::Marker => {
+                        let (b, x) = frame.markers[i - np - nr];
+                        (b, x, model.eval(frames, state, b, x))
+                    }
+                    Kind::Point | Kind::Ray if full => {
+                        let mut best: [(f64, usize); CANDIDATES] = [(f64::MAX, 0); CANDIDATES];
+                        let mut chosen: Option<(usize, DVec3, Eval)> = None;
+                        for b in 0..nb {
+                            let x = x_of(b);
+                            let ev = model.eval(frames, state, b, x);
+                            let a = ev.e.abs();
+                            if let Some(pos) = best.iter().position(|&(e, _)| a < e) {
+                                best[pos..].rotate_right(1);
+                                best[pos] = (a, b);
+                            }
+                            if chosen.as_ref().is_none_or(|(_, _, e)| a < e.e.abs()) {
+                                chosen = Some((b, x, ev));
+                            }
+                        }
+                        candidates.push(best.map(|(_, b)| b));
+                        match chosen {
+                            Some(v) => v,
+                            None => continue,
+                        }
+                    }
+                    Kind::Point | Kind::Ray => {
+                        let mut chosen: Option<(usize, DVec3, Eval)> = None;
+                        for &b in &frame.candidates[i] {
+                            let x = x_of(b);
+                            let ev = model.eval(frames, state, b, x);
+                            if chosen.as_ref().is_none_or(|(_, _, e)| ev.e.abs() < e.e.abs()) {
+                                chosen = Some((b, x, ev));
+                            }
+                        }
+                        match chosen {
+                            Some(v) => v,
+                            None => continue,
+                        }
+                    }
+                };
+                if full {
+                    residuals.push((ev.e, b));
+                }
+                let sigma = self.sigma(kind);
+                let weight = frame.robust[i] / (sigma * sigma);
+                if weight == 0.0 {
+                    continue;
+                }
+                cost += weight * ev.e * ev.e;
+                if !jac {
+                    continue;
+                }
+                row.clear();
+                let p = model.bones[b].parent;
+                for &k in sk.chain_dofs(p) {
+                    let v = if sk.is_rotation(k) {
+                        axes[k].cross(x - origins[k])
+                    } else {
+                        axes[k]
+                    };
+                    row.push((k, -ev.grad_world.dot(v)));
+                }
+                let mut own = ev.d_own_scale;
+                for &m in &model.chain_bones[p] {
+                    let d = -ev.grad_world.dot(scale_dirs[m]);
+                    if m == b {
+                        own += d;
+                    } else {
+                        row.push((nd + m, d));
+                    }
+                }
+                row.push((nd + b, own));
+                row.push((nd + nb + b, ev.d_width));
+                row.push((nd + 2 * nb + b, ev.d_half_length));
+                for &(r, jr) in &row {
+                    g[r] += weight * jr * ev.e;
+                    for &(c, jc) in &row {
+                        h[(r, c)] += weight * jr * jc;
+                    }
+                }
+            }
+            FrameLin {
+                cost,
+                residuals,
+                candidates,
+                h,
+                g,
+            }
+        };
+        let starts: Vec<usize> = (0..n_obs).step_by(CHUNK).collect();
+        let parts: Vec<FrameLin> = starts
+            .par_iter()
+            .map(|&s| chunk(s..(s + CHUNK).min(n_obs)))
+            .collect();
+        let mut total = FrameLin {
+            cost: 0.0,
+            residuals: Vec::new(),
+            candidates: Vec::new(),
+            h: if jac {
+                DMatrix::zeros(nl, nl)
+            } else {
+                DMatrix::zeros(0, 0)
+            },
+            g: if jac {
+                DVector::zeros(nl)
+            } else {
+                DVector::zeros(0)
+            },
+        };
+        for p in parts {
+            total.cost += p.cost;
+            total.residuals.extend(p.residuals);
+            total.candidates.extend(p.candidates);
+            if jac {
+                total.h += p.h;
+                total.g += p.g;
+            }
+        }
+        // The θ prior of this frame (a pseudo-observation type, Eq. 7).
+        let pt = 1.0 / (self.params.sigma_theta_prior * self.params.sigma_theta_prior);
+        for k in 0..nd {
+            let r = state.theta[k] - frame.start_theta[k];
+            total.cost += pt * r * r;
+            if jac {
+                total.h[(k, k)] += pt;
+                total.g[k] += pt * r;
+            }
+        }
+        Ok(total)
+    }
+
+    /// Cost and (when `jac`) global normal equations at `states` (one per frame, shared
+    /// unknowns equal).
+    fn linearise(
+        &self,
+        states: &[EllipsoidState],
+        jac: bool,
+    ) -> Result<(f64, DMatrix<f64>, DVector<f64>)> {
+        let nd = self.model.skeleton.dof_count();
+        let nb = self.model.bones.len();
+        let n = self.size();
+        let nl = self.local_size();
         let (mut h, mut g) = if jac {
             (DMatrix::zeros(n, n), DVector::zeros(n))
         } else {
             (DMatrix::zeros(0, 0), DVector::zeros(0))
         };
         let mut cost = 0.0;
-        let mut residuals = Vec::with_capacity(self.n_obs());
-        let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
-        let np = self.obs.points.len();
-        let nr = self.obs.rays.len();
-        for i in 0..self.n_obs() {
-            let kind = self.kind(i);
-            // Assignment (§5.2): the bone with the smallest |e|.
-            let (b, x, ev) = match kind {
-                Kind::Marker => {
-                    let (b, x) = self.markers[i - np - nr];
-                    (b, x, model.eval(frames, state, b, x))
-                }
-                Kind::Point | Kind::Ray => {
-                    let mut best: Option<(usize, DVec3, Eval)> = None;
-                    for b in 0..nb {
-                        let x = if kind == Kind::Point {
-                            self.obs.points[i]
-                        } else {
-                            model.ray_point(frames, state, b, &self.obs.rays[i - np])
-                        };
-                        let ev = model.eval(frames, state, b, x);
-                        if best.as_ref().is_none_or(|(_, _, e)| ev.e.abs() < e.e.abs()) {
-                            best = Some((b, x, ev));
-                        }
-                    }
-                    match best {
-                        Some(v) => v,
-                        None => continue,
-                    }
-                }
-            };
-            residuals.push((ev.e, b));
-            let sigma = self.sigma(kind);
-            let weight = self.robust[i] / (sigma * sigma);
-            if weight == 0.0 {
-                continue;
-            }
-            cost += weight * ev.e * ev.e;
-            if !jac {
-                continue;
-            }
-            row.clear();
-            let p = model.bones[b].parent;
-            for &k in sk.chain_dofs(p) {
-                let v = if sk.is_rotation(k) {
-                    axes[k].cross(x - origins[k])
-                } else {
-                    axes[k]
-                };
-                row.push((k, -ev.grad_world.dot(v)));
-            }
-            let mut own = ev.d_own_scale;
-            for &m in &model.chain_bones[p] {
-                let d = -ev.grad_world.dot(scale_dirs[m]);
-                if m == b {
-                    own += d;
-                } else {
-                    row.push((nd + m, d));
-                }
-            }
-            row.push((nd + b, own));
-            row.push((nd + nb + b, ev.d_width));
-            row.push((nd + 2 * nb + b, ev.d_half_length));
-            for &(r, jr) in &row {
-                g[r] += weight * jr * ev.e;
-                for &(c, jc) in &row {
-                    h[(r, c)] += weight * jr * jc;
-                }
-            }
-        }
-        // Priors (a pseudo-observation type each, Eq. 7).
-        let priors = (0..n).map(|k| {
-            if k < nd {
-                (
-                    state.theta[k] - self.start.theta[k],
-                    self.params.sigma_theta_prior,
-                )
-            } else if k < nd + nb {
-                (
-                    state.length_scale[k - nd] - 1.0,
-                    self.params.sigma_scale_prior,
-                )
-            } else if k < nd + 2 * nb {
-                let b = k - nd - nb;
-                (
-                    state.half_width[b] - self.start.half_width[b],
-                    self.params.sigma_width_prior_m,
-                )
-            } else {
-                let b = k - nd - 2 * nb;
-                (
-                    state.half_length[b] - self.start.half_length[b],
-                    self.params.sigma_half_length_prior_m,
-                )
-            }
-        });
-        for (k, (r, s)) in priors.enumerate() {
-            let p = 1.0 / (s * s);
-            cost += p * r * r;
+        for (f, state) in states.iter().enumerate() {
+            let lin = self
+                .linearise_frame(f, state, jac, false)
+                .at(Context::Frame(f))?;
+            cost += lin.cost;
             if jac {
-                h[(k, k)] += p;
-                g[k] += p * r;
+                for r in 0..nl {
+                    let gr = self.global(f, r);
+                    g[gr] += lin.g[r];
+                    for c in 0..nl {
+                        h[(gr, self.global(f, c))] += lin.h[(r, c)];
+                    }
+                }
             }
         }
-        Ok(Linearised {
-            cost,
-            residuals,
-            h,
-            g,
-        })
+        // Priors on the shared unknowns (a pseudo-observation type each, Eq. 7).
+        let s = &states[0];
+        let base = self.frames.len() * nd;
+        for b in 0..nb {
+            for (k, r, sigma) in [
+                (
+                    base + b,
+                    s.length_scale[b] - 1.0,
+                    self.params.sigma_scale_prior,
+                ),
+                (
+                    base + nb + b,
+                    s.half_width[b] - self.start.half_width[b],
+                    self.params.sigma_width_prior_m,
+                ),
+                (
+                    base + 2 * nb + b,
+                    s.half_length[b] - self.start.half_length[b],
+                    self.params.sigma_half_length_prior_m,
+                ),
+            ] {
+                let p = 1.0 / (sigma * sigma);
+                cost += p * r * r;
+                if jac {
+                    h[(k, k)] += p;
+                    g[k] += p * r;
+                }
+            }
+        }
+        Ok((cost, h, g))
     }
 
-    fn step(&self, state: &EllipsoidState, delta: &DVector<f64>) -> EllipsoidState {
+    fn step(&self, states: &[EllipsoidState], delta: &DVector<f64>) -> Vec<EllipsoidState> {
         let nd = self.model.skeleton.dof_count();
         let nb = self.model.bones.len();
+        let base = self.frames.len() * nd;
         let (lo, hi) = self.params.scale_range;
-        EllipsoidState {
-            theta: (0..nd).map(|k| state.theta[k] + delta[k]).collect(),
-            length_scale: (0..nb)
-                .map(|b| (state.length_scale[b] + delta[nd + b]).clamp(lo, hi))
-                .collect(),
-            half_width: (0..nb)
-                .map(|b| {
-                    (state.half_width[b] + delta[nd + nb + b]).max(self.params.min_half_width_m)
-                })
-                .collect(),
-            half_length: (0..nb)
-                .map(|b| {
-                    (state.half_length[b] + delta[nd + 2 * nb + b])
-                        .max(self.params.min_half_width_m)
-                })
-                .collect(),
-        }
+        let floor = self.params.min_half_width_m;
+        let s = &states[0];
+        let length_scale: Vec<f64> = (0..nb)
+            .map(|b| (s.length_scale[b] + delta[base + b]).clamp(lo, hi))
+            .collect();
+        let half_width: Vec<f64> = (0..nb)
+            .map(|b| (s.half_width[b] + delta[base + nb + b]).max(floor))
+            .collect();
+        let half_length: Vec<f64> = (0..nb)
+            .map(|b| (s.half_length[b] + delta[base + 2 * nb + b]).max(floor))
+            .collect();
+        states
+            .iter()
+            .enumerate()
+            .map(|(f, st)| EllipsoidState {
+                theta: (0..nd).map(|k| st.theta[k] + delta[f * nd + k]).collect(),
+                length_scale: length_scale.clone(),
+                half_width: half_width.clone(),
+                half_length: half_length.clone(),
+            })
+            .collect()
     }
 
-    /// Levenberg–Marquardt at fixed IRLS weights.
-    fn solve(&self, mut state: EllipsoidState) -> Result<(EllipsoidState, f64)> {
+    /// Levenberg–Marquardt at fixed IRLS weights and candidates.
+    fn solve(
+        &self,
+        mut states: Vec<EllipsoidState>,
+        pose_only: bool,
+    ) -> Result<(Vec<EllipsoidState>, f64)> {
         let mut lambda = 1e-3;
-        let mut lin = self.linearise(&state, true)?;
+        let shared_from = self.frames.len() * self.model.skeleton.dof_count();
+        // Holding the shared unknowns: their rows and columns become the identity, their
+        // gradient zero, so their step is zero.
+        let hold = |h: &mut DMatrix<f64>, g: &mut DVector<f64>| {
+            if pose_only {
+                for k in shared_from..h.nrows() {
+                    h.row_mut(k).fill(0.0);
+                    h.column_mut(k).fill(0.0);
+                    h[(k, k)] = 1.0;
+                    g[k] = 0.0;
+                }
+            }
+        };
+        let (mut cost, mut h, mut g) = self.linearise(&states, true)?;
+        hold(&mut h, &mut g);
         for _ in 0..self.params.lm_iterations {
             let mut accepted = false;
             while lambda < 1e12 {
-                let mut a = lin.h.clone();
+                let mut a = h.clone();
                 for k in 0..a.nrows() {
                     a[(k, k)] += lambda * (a[(k, k)] + 1e-9);
                 }
@@ -705,14 +895,16 @@ impl Problem<'_> {
                     lambda *= 10.0;
                     continue;
                 };
-                let delta = -chol.solve(&lin.g);
-                let trial = self.step(&state, &delta);
-                let trial_cost = self.linearise(&trial, false)?.cost;
-                if trial_cost < lin.cost {
-                    // Converged: a step below 1 µm / µrad or a relative decrease below 1e-6.
-                    let small = delta.amax() < 1e-6 || lin.cost - trial_cost < 1e-6 * lin.cost;
-                    state = trial;
-                    lin = self.linearise(&state, true)?;
+                let delta = -chol.solve(&g);
+                let trial = self.step(&states, &delta);
+                let trial_cost = self.linearise(&trial, false)?.0;
+                if trial_cost < cost {
+                    // Converged: a step below 1 µm / µrad or a small relative decrease.
+                    let small = delta.amax() < 1e-6
+                        || cost - trial_cost < self.params.lm_tolerance * cost;
+                    states = trial;
+                    (cost, h, g) = self.linearise(&states, true)?;
+                    hold(&mut h, &mut g);
                     lambda = (lambda * 0.3).max(1e-9);
                     accepted = !small;
                     break;
@@ -723,29 +915,41 @@ impl Problem<'_> {
                 break;
             }
         }
-        Ok((state, lin.cost))
+        Ok((states, cost))
+    }
+
+    /// Full assignment of every frame at `states`: residuals per frame; refreshes the
+    /// candidates.
+    fn assign(&mut self, states: &[EllipsoidState]) -> Result<Vec<Vec<(f64, usize)>>> {
+        let mut out = Vec::with_capacity(states.len());
+        for (f, state) in states.iter().enumerate() {
+            let lin = self
+                .linearise_frame(f, state, false, true)
+                .at(Context::Frame(f))?;
+            self.frames[f].candidates = lin.candidates;
+            out.push(lin.residuals);
+        }
+        Ok(out)
     }
 }
 
-/// Fits the articulated ellipsoid model to one frame's observations by joint least squares
-/// (§5.1, Eq. 8) with IRLS (§5.2), starting from `initial`.
-///
-/// # Errors
-/// Invalid parameters, a state of the wrong size, non-finite observations, a marker on a bone
-/// that does not exist; [`Error::Empty`] without any observation; for a bone left with fewer
-/// than [`EllipsoidParams::min_observations_per_bone`] weighted observations ("no points near
-/// a limb") an [`Error::Empty`] and for a half-width that ended on
-/// [`EllipsoidParams::min_half_width_m`] (a collapsed ellipsoid) an [`skin_core::Error::Degenerate`] (inside [`Error::Core`]),
-/// both wrapped in [`Error::At`] with the bone's child joint as [`Context::Joint`].
-pub fn fit_ellipsoids(
+/// Result of [`fit_ellipsoids_multi`].
+#[derive(Debug, Clone)]
+pub struct EllipsoidMultiFit {
+    /// The fitted state of each frame (the same lengths, widths and half-lengths in all).
+    pub states: Vec<EllipsoidState>,
+    /// Weighted cost at the end of each IRLS round (all frames).
+    pub round_costs: Vec<f64>,
+    /// Observations each bone holds with non-zero weight at the end, summed over frames.
+    pub observations_per_bone: Vec<usize>,
+    /// Points given zero weight by the last IRLS round, per frame.
+    pub rejected_points: Vec<usize>,
+}
+
+fn check_observations(
     model: &EllipsoidModel,
-    initial: &EllipsoidState,
     obs: &EllipsoidObservations,
-    params: &EllipsoidParams,
-) -> Result<EllipsoidFit> {
-    params.validate()?;
-    model.check_state(initial)?;
-    let nb = model.bones.len();
+) -> Result<Vec<(usize, DVec3)>> {
     for p in &obs.points {
         if !p.is_finite() {
             return Err(Error::NonFinite {
@@ -762,7 +966,7 @@ pub fn fit_ellipsoids(
     }
     let mut markers = Vec::new();
     for m in &obs.markers {
-        check::index("marker bone", m.bone, nb)?;
+        check::index("marker bone", m.bone, model.bones.len())?;
         if let Some(x) = m.position {
             if !x.is_finite() {
                 return Err(Error::NonFinite { what: "markers" });
@@ -770,38 +974,128 @@ pub fn fit_ellipsoids(
             markers.push((m.bone, x));
         }
     }
-    let mut problem = Problem {
+    Ok(markers)
+}
+
+/// Fits the articulated ellipsoid model to one frame's observations by joint least squares
+/// (§5.1, Eq. 8) with IRLS (§5.2), starting from `initial`: [`fit_ellipsoids_multi`] with
+/// one frame.
+///
+/// # Errors
+/// As [`fit_ellipsoids_multi`].
+pub fn fit_ellipsoids(
+    model: &EllipsoidModel,
+    initial: &EllipsoidState,
+    obs: &EllipsoidObservations,
+    params: &EllipsoidParams,
+) -> Result<EllipsoidFit> {
+    let multi = fit_ellipsoids_multi(
         model,
-        obs,
+        std::slice::from_ref(initial),
+        std::slice::from_ref(obs),
         params,
-        start: initial,
-        markers,
-        robust: Vec::new(),
-    };
-    if problem.n_obs() == 0 {
+    )?;
+    let state = multi.states.into_iter().next().ok_or(Error::Empty {
+        what: "fitted frames",
+    })?;
+    Ok(EllipsoidFit {
+        state,
+        round_costs: multi.round_costs,
+        observations_per_bone: multi.observations_per_bone,
+        rejected_points: multi.rejected_points.iter().sum(),
+    })
+}
+
+/// Fits the articulated ellipsoid model to several frames of one performer at once (§5: the
+/// paper fits over sequences): the length scales, half-widths and half-lengths are shared,
+/// each frame has its own pose θ. A straight chain's inner joint slides along the limb in one
+/// frame; a frame where the chain bends pins it, so the shared lengths are observable.
+/// `initial[f]` gives frame `f`'s starting pose; the shared unknowns start from `initial[0]`.
+/// With one frame this is [`fit_ellipsoids`].
+///
+/// # Errors
+/// Invalid parameters, states of the wrong size, `initial` and `obs` of different lengths or
+/// empty, non-finite observations, a marker on a bone that does not exist (each wrapped in
+/// [`Error::At`] with [`Context::Frame`] when there are several frames); [`Error::Empty`] without
+/// any observation; for a bone left with fewer than
+/// [`EllipsoidParams::min_observations_per_bone`] weighted observations over all frames ("no
+/// points near a limb") an [`Error::Empty`] and for a half-width that ended on
+/// [`EllipsoidParams::min_half_width_m`] (a collapsed ellipsoid) an
+/// [`skin_core::Error::Degenerate`] (inside [`Error::Core`]), both wrapped in [`Error::At`]
+/// with the bone's child joint as [`Context::Joint`].
+pub fn fit_ellipsoids_multi(
+    model: &EllipsoidModel,
+    initial: &[EllipsoidState],
+    obs: &[EllipsoidObservations],
+    params: &EllipsoidParams,
+) -> Result<EllipsoidMultiFit> {
+    params.validate()?;
+    check::nonzero("frames", initial.len())?;
+    check::same_size("observation frames", initial.len(), obs.len())?;
+    let nb = model.bones.len();
+    let mut frames = Vec::with_capacity(obs.len());
+    for (f, (s, o)) in initial.iter().zip(obs).enumerate() {
+        // One frame's errors name the frame when there are several.
+        let in_frame = |r: Result<()>| if obs.len() > 1 { r.at(Context::Frame(f)) } else { r };
+        in_frame(model.check_state(s))?;
+        let mut markers = Vec::new();
+        in_frame(check_observations(model, o).map(|m| markers = m))?;
+        let mut frame = FrameData {
+            obs: o,
+            start_theta: &s.theta,
+            markers,
+            robust: Vec::new(),
+            candidates: Vec::new(),
+        };
+        frame.robust = vec![1.0; frame.n_obs()];
+        frames.push(frame);
+    }
+    if frames.iter().all(|f| f.n_obs() == 0) {
         return Err(Error::Empty {
             what: "ellipsoid observations",
         });
     }
-    problem.robust = vec![1.0; problem.n_obs()];
-    let mut state = initial.clone();
+    let mut problem = Problem {
+        model,
+        params,
+        start: &initial[0],
+        frames,
+    };
+    let shared = &initial[0];
+    let mut states: Vec<EllipsoidState> = initial
+        .iter()
+        .map(|s| EllipsoidState {
+            theta: s.theta.clone(),
+            ..shared.clone()
+        })
+        .collect();
     let mut round_costs = Vec::new();
-    for _ in 0..params.irls_rounds {
+    for round in 0..params.irls_rounds {
+        let residuals = problem.assign(&states)?;
         if params.irls_rounds > 1 {
-            let lin = problem.linearise(&state, false)?;
-            reweight(&mut problem, &lin.residuals);
+            reweight(&mut problem, &residuals);
         }
-        let (s, cost) = problem.solve(state)?;
-        state = s;
+        let pose_only = round < params.pose_only_rounds && round + 1 < params.irls_rounds;
+        let (s, cost) = problem.solve(states, pose_only)?;
+        states = s;
         round_costs.push(cost);
     }
-    let lin = problem.linearise(&state, false)?;
+    let residuals = problem.assign(&states)?;
     let mut observations_per_bone = vec![0; nb];
-    for (i, &(_, b)) in lin.residuals.iter().enumerate() {
-        if problem.robust[i] > 0.0 {
-            observations_per_bone[b] += 1;
+    let mut rejected_points = Vec::with_capacity(states.len());
+    for (frame, res) in problem.frames.iter().zip(&residuals) {
+        for (i, &(_, b)) in res.iter().enumerate() {
+            if frame.robust[i] > 0.0 {
+                observations_per_bone[b] += 1;
+            }
         }
+        rejected_points.push(
+            (0..frame.obs.points.len())
+                .filter(|&i| frame.robust[i] == 0.0)
+                .count(),
+        );
     }
+    let state = &states[0];
     for (b, bone) in model.bones.iter().enumerate() {
         if observations_per_bone[b] < params.min_observations_per_bone {
             return Err(Error::Empty {
@@ -819,38 +1113,47 @@ pub fn fit_ellipsoids(
             .at(Context::Joint(bone.child));
         }
     }
-    let rejected_points = (0..obs.points.len())
-        .filter(|&i| problem.robust[i] == 0.0)
-        .count();
-    Ok(EllipsoidFit {
-        state,
+    Ok(EllipsoidMultiFit {
+        states,
         round_costs,
         observations_per_bone,
         rejected_points,
     })
 }
 
-/// IRLS weights (§5.2): Tukey's biweight of each residual over a robust scale of its type.
-fn reweight(problem: &mut Problem<'_>, residuals: &[(f64, usize)]) {
+/// IRLS weights (§5.2): Tukey's biweight of each residual over a robust scale of its type
+/// (pooled over the frames).
+fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
     for kind in [Kind::Point, Kind::Ray, Kind::Marker] {
-        let idx: Vec<usize> = (0..residuals.len())
-            .filter(|&i| problem.kind(i) == kind)
+        let mut abs: Vec<f64> = problem
+            .frames
+            .iter()
+            .zip(residuals)
+            .flat_map(|(frame, res)| {
+                (0..res.len())
+                    .filter(move |&i| frame.kind(i) == kind)
+                    .map(move |i| res[i].0.abs())
+            })
             .collect();
-        if idx.is_empty() {
+        if abs.is_empty() {
             continue;
         }
-        let mut abs: Vec<f64> = idx.iter().map(|&i| residuals[i].0.abs()).collect();
         abs.sort_by(f64::total_cmp);
         let median = abs[abs.len() / 2];
         let scale = (1.4826 * median).max(problem.sigma(kind));
         let c = problem.params.tukey_c * scale;
-        for &i in &idx {
-            let r = residuals[i].0 / c;
-            problem.robust[i] = if r.abs() < 1.0 {
-                (1.0 - r * r).powi(2)
-            } else {
-                0.0
-            };
+        for (frame, res) in problem.frames.iter_mut().zip(residuals) {
+            for (i, &(e, _)) in res.iter().enumerate() {
+                if frame.kind(i) != kind {
+                    continue;
+                }
+                let r = e / c;
+                frame.robust[i] = if r.abs() < 1.0 {
+                    (1.0 - r * r).powi(2)
+                } else {
+                    0.0
+                };
+            }
         }
     }
 }

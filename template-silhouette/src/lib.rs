@@ -108,7 +108,8 @@ pub use ellipsoid::{
     EllipsoidScores, ScenarioFrame,
 };
 pub use ellipsoid::{
-    fit_ellipsoids, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit, EllipsoidModel,
+    fit_ellipsoids, fit_ellipsoids_multi, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit,
+    EllipsoidModel, EllipsoidMultiFit,
     EllipsoidObservations, EllipsoidParams, EllipsoidState, MarkerObservation,
 };
 pub use error::{Context, Error, Result, ResultExt};

@@ -99,41 +99,64 @@ fn analytic_gradient_matches_finite_differences() {
         rays,
     };
     let params = EllipsoidParams::default();
-    let mut start = truth.clone();
-    start.theta[7] += 0.1;
+    // Two frames sharing lengths and widths, each with its own pose (the multi-frame layout).
+    let mut second = truth.clone();
+    second.theta[7] += 0.2;
+    second.theta[20] -= 0.3;
+    let states = vec![truth.clone(), second];
+    fn frame<'a>(obs: &'a EllipsoidObservations, s: &'a EllipsoidState) -> FrameData<'a> {
+        let mut f = FrameData {
+            obs,
+            start_theta: &s.theta,
+            markers: vec![(2, DVec3::new(0.1, 1.0, 0.1))],
+            robust: Vec::new(),
+            candidates: Vec::new(),
+        };
+        f.robust = vec![1.0; f.n_obs()];
+        f
+    }
+    let starts: Vec<EllipsoidState> = states
+        .iter()
+        .map(|s| {
+            let mut s = s.clone();
+            s.theta[7] += 0.1;
+            s
+        })
+        .collect();
     let mut problem = Problem {
         model: &m,
-        obs: &obs,
         params: &params,
-        start: &start,
-        markers: vec![(2, DVec3::new(0.1, 1.0, 0.1))],
-        robust: Vec::new(),
+        start: &starts[0],
+        frames: starts.iter().map(|s| frame(&obs, s)).collect(),
     };
-    problem.robust = vec![1.0; problem.n_obs()];
-    let lin = problem.linearise(&truth, true).unwrap();
+    problem.assign(&states).unwrap();
+    let (cost, _, g) = problem.linearise(&states, true).unwrap();
     let nd = truth.theta.len();
     let nb = truth.half_width.len();
     let mut worst: f64 = 0.0;
-    for k in 0..nd + 3 * nb {
+    for k in 0..2 * nd + 3 * nb {
         let h = 1e-6;
         let shifted = |d: f64| {
-            let mut s = truth.clone();
-            if k < nd {
-                s.theta[k] += d;
-            } else if k < nd + nb {
-                s.length_scale[k - nd] += d;
-            } else if k < nd + 2 * nb {
-                s.half_width[k - nd - nb] += d;
-            } else {
-                s.half_length[k - nd - 2 * nb] += d;
+            let mut ss = states.clone();
+            for (f, s) in ss.iter_mut().enumerate() {
+                if k < 2 * nd {
+                    if k / nd == f {
+                        s.theta[k % nd] += d;
+                    }
+                } else if k < 2 * nd + nb {
+                    s.length_scale[k - 2 * nd] += d;
+                } else if k < 2 * nd + 2 * nb {
+                    s.half_width[k - 2 * nd - nb] += d;
+                } else {
+                    s.half_length[k - 2 * nd - 2 * nb] += d;
+                }
             }
-            problem.linearise(&s, false).unwrap().cost
+            problem.linearise(&ss, false).unwrap().0
         };
         let fd = (shifted(h) - shifted(-h)) / (2.0 * h);
-        let an = 2.0 * lin.g[k];
+        let an = 2.0 * g[k];
         // Central differences of a cost of size C carry a round-off of about C·1e-16/h.
-        let rel =
-            ((fd - an).abs() - 10.0 * lin.cost * f64::EPSILON / h).max(0.0) / (1.0 + an.abs());
+        let rel = ((fd - an).abs() - 10.0 * cost * f64::EPSILON / h).max(0.0) / (1.0 + an.abs());
         worst = worst.max(rel);
     }
     assert!(worst < 1e-4, "worst relative gradient error {worst}");
