@@ -167,7 +167,8 @@ pub struct EllipsoidParams {
     /// length (with σ = 0.1 m the ellipsoids grow into long cylinders and the widths and
     /// angles degrade, measured: width error 33 mm vs 1.9 mm on the studio frame 0).
     pub sigma_half_length_prior_m: f64,
-    /// IRLS rounds (§5.2, "several times"); 1 = plain least squares. Default 4.
+    /// IRLS rounds (§5.2, "several times"); 1 = plain least squares. Default 6 (two of them
+    /// pose-only, see [`EllipsoidParams::pose_only_rounds`]).
     pub irls_rounds: usize,
     /// Tukey biweight constant, in robust-scale units. Default 4.685.
     pub tukey_c: f64,
@@ -179,8 +180,9 @@ pub struct EllipsoidParams {
     pub lm_tolerance: f64,
     /// The first IRLS rounds that fit the pose alone (lengths, widths and half-lengths held at
     /// their start): a pose several degrees off would otherwise let ellipsoids swell over
-    /// their neighbours' points before the pose is right. Default 1 (measured on the studio,
-    /// multi-frame fit: width error 14 vs 38 mm, direction 6.7° vs 12°).
+    /// their neighbours' points before the pose is right. Default 2 (measured on the studio,
+    /// four-frame fit from a pose with 5° noise per rotation: width error 3.8 / 8.9 / 39 mm
+    /// and direction 1.7° / 5.5° / 12° with 2 / 1 / 0 pose-only rounds).
     pub pose_only_rounds: usize,
     /// Floor of every half-width, metres; a width ending on it is a collapsed ellipsoid
     /// ([`fit_ellipsoids`] errors). Default 0.005.
@@ -205,11 +207,11 @@ impl Default for EllipsoidParams {
             sigma_scale_prior: 0.2,
             sigma_width_prior_m: 0.05,
             sigma_half_length_prior_m: 0.002,
-            irls_rounds: 4,
+            irls_rounds: 6,
             tukey_c: 4.685,
             lm_iterations: 30,
             lm_tolerance: 1e-3,
-            pose_only_rounds: 1,
+            pose_only_rounds: 2,
             min_half_width_m: 0.005,
             scale_range: (0.8, 1.2),
             min_observations_per_bone: 5,
