@@ -130,7 +130,8 @@ fn analytic_gradient_matches_finite_differences() {
         frames: starts.iter().map(|s| frame(&obs, s)).collect(),
     };
     problem.assign(&states).unwrap();
-    let (cost, _, g) = problem.linearise(&states, true).unwrap();
+    let (cost, normal) = problem.linearise(&states, true).unwrap();
+    let g = normal.unwrap().gradient();
     let nd = truth.theta.len();
     let nb = truth.half_width.len();
     let mut worst: f64 = 0.0;
