@@ -11,11 +11,12 @@
 //! and half-width unknowns"), held near its start by a prior
 //! ([`EllipsoidParams::sigma_half_length_prior_m`]). Measured on the studio (a limb's surface
 //! reaches both joints with non-zero radius, unlike Eq. 3's ellipsoid): with `h = l` tied
-//! the fit lowers its cost by lengthening the upper bones to the scale bound (1.5) while
-//! their children shrink — width error 49 mm, angle error 20° on the studio frame; with `h`
-//! free of a strong prior the ellipsoids grow into long cylinders (width 33 mm). Neither
-//! version determines the bone lengths from surface data of this protocol (see
-//! `docs/template-silhouette.md`).
+//! the fit lowers its cost by lengthening the upper bones to the scale bound while their
+//! children shrink; with `h` free of a strong prior the ellipsoids grow into long cylinders.
+//! A bone's length is then observable where its chain bends (the joint is where two bone
+//! axes meet), hence [`fit_ellipsoids_multi`] over frames of a motion; the length of a
+//! chain's last bone (forearm, shin) only moves its ellipsoid along a nearly cylindrical limb
+//! and stays weakly determined (see `docs/template-silhouette.md`).
 //!
 //! **Residual.** Eq. 9 writes `F(u_a) = 0 − ε` for an attractor `u_a`. `F` is unit-less; we
 //! use `e = (w/2)·F`, which is ≈ the radial distance to the surface near it (`F ≈ 2d/w`), so
@@ -41,7 +42,9 @@
 //! point `c + t* d`. So a silhouette ray is an attractor re-placed every iteration.
 //!
 //! **Assignment and robustness (§5.2).** Each iteration every attractor and ray goes to the
-//! ellipsoid with the smallest `|e|` (so the objective is `Σ P min_b e_b²`, one function);
+//! ellipsoid with the smallest `|e|` (so the objective is `Σ P min_b e_b²`, one function),
+//! chosen among the two bones of smallest `|e|` at the start of the IRLS round (pruning:
+//! each round assigns among all bones);
 //! markers stay on their bone with the high weight of their small σ. IRLS: the first round
 //! weighs every observation equally (within its type); each later round gives
 //! Tukey's biweight `(1 − (r/c)²)²` (0 beyond `c`) of the residual normalised by a robust
@@ -55,12 +58,19 @@
 //! inliers from outliers, so when IRLS is on (`irls_rounds > 1`) the first weights come from
 //! the residuals at the *starting* state (default proportions, approximate pose), and every
 //! round reweights at the previous round's result. `irls_rounds = 1` is the plain,
-//! unweighted least squares.
+//! unweighted least squares. The first [`EllipsoidParams::pose_only_rounds`] rounds hold the
+//! lengths and widths (a pose a few degrees off would otherwise let ellipsoids swell over
+//! their neighbours' points first).
 //!
-//! **Solver.** Levenberg–Marquardt on the normal equations (accumulated observation by
-//! observation, no dense Jacobian), a weak prior on the starting state (a pseudo-observation
-//! type with its own σ, so DOFs without data stay put), scales clamped to a box and widths
-//! to a floor.
+//! **Several frames (§5: the paper fits sequences).** [`fit_ellipsoids_multi`] shares the
+//! length scales, widths and half-lengths between frames, each frame has its own θ.
+//!
+//! **Solver.** Levenberg–Marquardt on the normal equations, accumulated observation by
+//! observation (no dense Jacobian) in fixed chunks in parallel, frames in parallel; the
+//! normal equations are kept in blocks (a pose block per frame, the shared block, their
+//! couplings) and solved by the Schur complement on the shared unknowns. A weak prior on the
+//! starting state (a pseudo-observation type with its own σ, so DOFs without data stay put),
+//! scales clamped to a box and widths to a floor.
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
