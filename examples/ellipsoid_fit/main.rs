@@ -26,7 +26,8 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::template::{
     ellipsoid_scenario, fit_ellipsoids, fit_ellipsoids_multi, score_ellipsoids, Ellipsoid,
-    EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores,
+    EllipsoidObservations, EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores, VisualHull,
+    VisualHullParams,
 };
 use example_kit::plot::{side_by_side, titled};
 use example_kit::{Goal, Headline, Run};
@@ -216,6 +217,58 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         json!(multi.states[0].half_width),
     );
     figures.insert("frames".into(), json!(params.frames));
+    // What the template tracker has (§2.3.2 of Vlasic): 8 cameras' silhouettes and the
+    // visual hull's surface as attractors; no markers, no stereo points. Same truth and start.
+    let stage = run.stage("tracker inputs (8 cameras, hull, silhouettes)", None);
+    let hull_scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
+        cameras: 8,
+        ..params.clone()
+    })?;
+    let hull_obs: Vec<EllipsoidObservations> = hull_scenario
+        .frames
+        .iter()
+        .map(|f| -> Result<EllipsoidObservations, Box<dyn std::error::Error>> {
+            let hull = VisualHull::new(
+                &hull_scenario.cameras,
+                &f.masks,
+                &VisualHullParams::default(),
+            )?;
+            let v = &hull.polygon().vertices;
+            let step = v.len().div_ceil(params.points).max(1);
+            Ok(EllipsoidObservations {
+                points: v.iter().step_by(step).copied().collect(),
+                markers: Vec::new(),
+                rays: f.observations.rays.clone(),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let t = Instant::now();
+    let hull_fit = fit_ellipsoids_multi(model, &starts, &hull_obs, &EllipsoidParams::default())?;
+    let hull_ms = t.elapsed().as_secs_f64() * 1e3;
+    stage.finish(format!("{hull_ms:.0} ms"));
+    let hull_scores: Vec<EllipsoidScores> = hull_fit
+        .states
+        .iter()
+        .zip(&hull_scenario.frames)
+        .map(|(s, f)| score_ellipsoids(model, s, &f.truth))
+        .collect::<Result<_, _>>()?;
+    put(&mut figures, "tracker_inputs_", &mean_scores(&hull_scores));
+    figures.insert(
+        "tracker_inputs_fit_ms_per_frame".into(),
+        json!(hull_ms / params.frames.len() as f64),
+    );
+    figures.insert(
+        "tracker_inputs_points".into(),
+        json!(hull_obs.first().map_or(0, |o| o.points.len())),
+    );
+    figures.insert(
+        "tracker_inputs_rays".into(),
+        json!(hull_obs.first().map_or(0, |o| o.rays.len())),
+    );
+    figures.insert(
+        "tracker_inputs_fitted_bone_lengths_m".into(),
+        json!(model.bone_lengths(&hull_fit.states[0])),
+    );
     // The picture: the most bent frame of the protocol (frame 10).
     let shown = params.frames.len().min(3) - 1;
     let frame = &scenario.frames[shown];
