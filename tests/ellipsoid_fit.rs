@@ -88,13 +88,8 @@ fn ellipsoid_multi_frame_fit_meets_width_and_direction_goals() {
         .map(|f| f.observations.clone())
         .collect();
     let t = Instant::now();
-    let fit = fit_ellipsoids_multi(
-        &scenario.model,
-        &starts,
-        &obs,
-        &EllipsoidParams::default(),
-    )
-    .unwrap();
+    let fit =
+        fit_ellipsoids_multi(&scenario.model, &starts, &obs, &EllipsoidParams::default()).unwrap();
     let ms = t.elapsed().as_secs_f64() * 1e3 / frames.len() as f64;
     println!("{}-frame fit: {ms:.0} ms per frame", frames.len());
     let plain = fit_ellipsoids_multi(

@@ -737,7 +737,10 @@ impl Problem<'_> {
                         for &b in &frame.candidates[i] {
                             let x = x_of(b);
                             let ev = model.eval(frames, state, b, x);
-                            if chosen.as_ref().is_none_or(|(_, _, e)| ev.e.abs() < e.e.abs()) {
+                            if chosen
+                                .as_ref()
+                                .is_none_or(|(_, _, e)| ev.e.abs() < e.e.abs())
+                            {
                                 chosen = Some((b, x, ev));
                             }
                         }
@@ -962,8 +965,8 @@ impl Problem<'_> {
                 let (trial_cost, trial_normal) = self.linearise(&trial, true)?;
                 if trial_cost < cost {
                     // Converged: a step below 1 µm / µrad or a small relative decrease.
-                    let small = delta.amax() < 1e-6
-                        || cost - trial_cost < self.params.lm_tolerance * cost;
+                    let small =
+                        delta.amax() < 1e-6 || cost - trial_cost < self.params.lm_tolerance * cost;
                     states = trial;
                     cost = trial_cost;
                     if let Some(n) = trial_normal {
@@ -1100,7 +1103,13 @@ pub fn fit_ellipsoids_multi(
     let mut frames = Vec::with_capacity(obs.len());
     for (f, (s, o)) in initial.iter().zip(obs).enumerate() {
         // One frame's errors name the frame when there are several.
-        let in_frame = |r: Result<()>| if obs.len() > 1 { r.at(Context::Frame(f)) } else { r };
+        let in_frame = |r: Result<()>| {
+            if obs.len() > 1 {
+                r.at(Context::Frame(f))
+            } else {
+                r
+            }
+        };
         in_frame(model.check_state(s))?;
         let mut markers = Vec::new();
         in_frame(check_observations(model, o).map(|m| markers = m))?;

@@ -109,8 +109,8 @@ pub use ellipsoid::{
 };
 pub use ellipsoid::{
     fit_ellipsoids, fit_ellipsoids_multi, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit,
-    EllipsoidModel, EllipsoidMultiFit,
-    EllipsoidObservations, EllipsoidParams, EllipsoidState, MarkerObservation,
+    EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations, EllipsoidParams, EllipsoidState,
+    MarkerObservation,
 };
 pub use error::{Context, Error, Result, ResultExt};
 pub use interactive::PoseEditor;
