@@ -81,12 +81,7 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
 fn ellipsoid_multi_frame_fit_meets_width_and_direction_goals() {
     let frames = [0, 5, 10, 15, 20, 25, 30, 35];
     let scenario = scenario(&frames);
-    let starts: Vec<_> = scenario.frames.iter().map(|f| f.start.clone()).collect();
-    let obs: Vec<_> = scenario
-        .frames
-        .iter()
-        .map(|f| f.observations.clone())
-        .collect();
+    let (starts, obs) = scenario.starts_and_observations();
     let t = Instant::now();
     let fit =
         fit_ellipsoids_multi(&scenario.model, &starts, &obs, &EllipsoidParams::default()).unwrap();

@@ -172,12 +172,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         single_times.push(fit_ms);
     }
     // All frames at once: shared lengths and widths, a pose per frame (the headline).
-    let starts: Vec<_> = scenario.frames.iter().map(|f| f.start.clone()).collect();
-    let obs: Vec<_> = scenario
-        .frames
-        .iter()
-        .map(|f| f.observations.clone())
-        .collect();
+    let (starts, obs) = scenario.starts_and_observations();
     let stage = run.stage("all frames together", None);
     let t = Instant::now();
     let multi = fit_ellipsoids_multi(model, &starts, &obs, &EllipsoidParams::default())?;

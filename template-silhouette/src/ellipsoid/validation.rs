@@ -113,6 +113,17 @@ pub struct EllipsoidScenario {
     pub frames: Vec<ScenarioFrame>,
 }
 
+impl EllipsoidScenario {
+    /// Every frame's starting state and observations, as [`super::fit_ellipsoids_multi`]
+    /// takes them.
+    pub fn starts_and_observations(&self) -> (Vec<EllipsoidState>, Vec<EllipsoidObservations>) {
+        self.frames
+            .iter()
+            .map(|f| (f.start.clone(), f.observations.clone()))
+            .unzip()
+    }
+}
+
 /// Scores of a fitted state against the truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EllipsoidScores {
