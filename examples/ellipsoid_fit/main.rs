@@ -229,8 +229,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let stage = run.stage("tracker inputs (8 cameras, hull, silhouettes)", None);
     let hull_scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
         cameras: 8,
+        end_sites: true,
         ..params.clone()
     })?;
+    let hull_model = &hull_scenario.model;
+    let (hull_starts, _) = hull_scenario.starts_and_observations();
     let hull_obs: Vec<EllipsoidObservations> = hull_scenario
         .frames
         .iter()
@@ -258,14 +261,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         sigma_point_m: 0.02,
         ..EllipsoidParams::default()
     };
-    let hull_fit = fit_ellipsoids_multi(model, &starts, &hull_obs, &hull_params)?;
+    let hull_fit = fit_ellipsoids_multi(hull_model, &hull_starts, &hull_obs, &hull_params)?;
     let hull_ms = t.elapsed().as_secs_f64() * 1e3;
     stage.finish(format!("{hull_ms:.0} ms"));
     let hull_scores: Vec<EllipsoidScores> = hull_fit
         .states
         .iter()
         .zip(&hull_scenario.frames)
-        .map(|(s, f)| score_ellipsoids(model, s, &f.truth))
+        .map(|(s, f)| score_ellipsoids(hull_model, s, &f.truth))
         .collect::<Result<_, _>>()?;
     put(&mut figures, "tracker_inputs_", &mean_scores(&hull_scores));
     figures.insert(
@@ -282,7 +285,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     figures.insert(
         "tracker_inputs_fitted_bone_lengths_m".into(),
-        json!(model.bone_lengths(&hull_fit.states[0])),
+        json!(hull_model.bone_lengths(&hull_fit.states[0])),
     );
     // The picture: the most bent frame of the protocol (frame 10).
     let shown = params.frames.len().min(3) - 1;

@@ -82,13 +82,23 @@ use crate::error::{Error, Result, ResultExt};
 use crate::silhouette_constraints::ContourRay;
 
 /// One bone of the ellipsoid model: the segment from joint `parent`'s origin to joint
-/// `child`'s origin, carried by `parent`'s frame (§4.2.2, Figure 7b).
+/// `child`'s origin, or to `parent`'s end site (a hand, a foot, the top of the head), carried
+/// by `parent`'s frame (§4.2.2, Figure 7b).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EllipsoidBone {
     /// The joint whose frame carries the ellipsoid.
     pub parent: usize,
-    /// The joint at the far end of the bone (its offset is the bone).
-    pub child: usize,
+    /// The joint at the far end of the bone (its offset is the bone); `None` for the segment
+    /// to `parent`'s end site (its length scale moves no joint).
+    pub child: Option<usize>,
+}
+
+impl EllipsoidBone {
+    /// The joint that names the bone in errors: its child, or its parent for an end-site
+    /// segment.
+    pub fn joint(&self) -> usize {
+        self.child.unwrap_or(self.parent)
+    }
 }
 
 /// The articulated ellipsoid model of §4.2: a default skeleton (the "standard body model"
@@ -289,7 +299,8 @@ impl EllipsoidModel {
     ///
     /// # Errors
     /// [`Error::Empty`] without bones; index errors; [`Error::InvalidParam`] when `child` is
-    /// not a child of `parent`; [`skin_core::Error::Degenerate`] (inside [`Error::Core`]) for a zero-length bone.
+    /// not a child of `parent`, or `parent` has no end site for a `None` child;
+    /// [`skin_core::Error::Degenerate`] (inside [`Error::Core`]) for a zero-length bone.
     pub fn new(skeleton: Skeleton, bones: Vec<EllipsoidBone>) -> Result<Self> {
         if bones.is_empty() {
             return Err(Error::Empty {
@@ -301,31 +312,43 @@ impl EllipsoidModel {
         let mut axes = Vec::with_capacity(bones.len());
         for (b, bone) in bones.iter().enumerate() {
             check::index("bone parent joint", bone.parent, n).at(Context::Joint(b))?;
-            check::index("bone child joint", bone.child, n).at(Context::Joint(b))?;
-            let joint = &skeleton.joints()[bone.child];
-            if joint.parent != Some(bone.parent) {
-                return Err(Error::InvalidParam {
-                    name: "bones",
-                    reason: format!(
-                        "joint {} is not a child of joint {}",
-                        bone.child, bone.parent
-                    ),
-                });
-            }
-            let len = joint.offset.length();
+            let (offset, name) = match bone.child {
+                Some(c) => {
+                    check::index("bone child joint", c, n).at(Context::Joint(b))?;
+                    let joint = &skeleton.joints()[c];
+                    if joint.parent != Some(bone.parent) {
+                        return Err(Error::InvalidParam {
+                            name: "bones",
+                            reason: format!("joint {c} is not a child of joint {}", bone.parent),
+                        });
+                    }
+                    (joint.offset, joint.name.clone())
+                }
+                None => {
+                    let joint = &skeleton.joints()[bone.parent];
+                    let Some(end) = joint.end_site else {
+                        return Err(Error::InvalidParam {
+                            name: "bones",
+                            reason: format!("joint {} has no end site", bone.parent),
+                        });
+                    };
+                    (end, format!("{} end site", joint.name))
+                }
+            };
+            let len = offset.length();
             if len < 1e-6 {
                 return Err(Error::Core(skin_core::Error::Degenerate {
-                    what: format!("zero-length bone to joint {}", joint.name),
+                    what: format!("zero-length bone to {name}"),
                 }));
             }
             lengths.push(len);
-            axes.push(joint.offset / len);
+            axes.push(offset / len);
         }
         let mut chain_bones = vec![Vec::new(); n];
         for (j, chain) in chain_bones.iter_mut().enumerate() {
             let mut k = Some(j);
             while let Some(jj) = k {
-                if let Some(b) = bones.iter().position(|bone| bone.child == jj) {
+                if let Some(b) = bones.iter().position(|bone| bone.child == Some(jj)) {
                     chain.push(b);
                 }
                 k = skeleton.joints()[jj].parent;
@@ -356,11 +379,32 @@ impl EllipsoidModel {
                 (single && skeleton.joints()[c].offset.length() >= min_length_m).then_some(
                     EllipsoidBone {
                         parent: p,
-                        child: c,
+                        child: Some(c),
                     },
                 )
             })
             .collect();
+        Self::new(skeleton, bones)
+    }
+
+    /// The limbs ([`EllipsoidModel::limbs`]) and the end-site segments at least
+    /// `min_length_m` long (hands, feet, the head of the human skeleton): everything a
+    /// silhouette or a visual hull shows of the extremities has an ellipsoid to go to.
+    ///
+    /// # Errors
+    /// As [`EllipsoidModel::limbs`].
+    pub fn with_end_sites(skeleton: Skeleton, min_length_m: f64) -> Result<Self> {
+        let limbs = Self::limbs(skeleton, min_length_m)?;
+        let mut bones = limbs.bones;
+        let skeleton = limbs.skeleton;
+        bones.extend(skeleton.joints().iter().enumerate().filter_map(|(p, j)| {
+            j.end_site
+                .is_some_and(|e| e.length() >= min_length_m)
+                .then_some(EllipsoidBone {
+                    parent: p,
+                    child: None,
+                })
+        }));
         Self::new(skeleton, bones)
     }
 
@@ -428,7 +472,9 @@ impl EllipsoidModel {
         self.check_state(state)?;
         let mut joints = self.skeleton.joints().to_vec();
         for (bone, &s) in self.bones.iter().zip(&state.length_scale) {
-            joints[bone.child].offset *= s;
+            if let Some(c) = bone.child {
+                joints[c].offset *= s;
+            }
         }
         Ok(Skeleton::new(joints)?)
     }
@@ -1174,7 +1220,7 @@ pub fn fit_ellipsoids_multi(
             return Err(Error::Empty {
                 what: "observations near the bone's ellipsoid",
             })
-            .at(Context::Joint(bone.child));
+            .at(Context::Joint(bone.joint()));
         }
         if state.half_width[b] <= params.min_half_width_m * (1.0 + 1e-9) {
             return Err(Error::Core(skin_core::Error::Degenerate {
@@ -1183,7 +1229,7 @@ pub fn fit_ellipsoids_multi(
                     params.min_half_width_m
                 ),
             }))
-            .at(Context::Joint(bone.child));
+            .at(Context::Joint(bone.joint()));
         }
     }
     Ok(EllipsoidMultiFit {

@@ -33,7 +33,8 @@ use skin_core::studio::{
 use skin_core::{check, Context};
 
 use super::{
-    fit_half_width, EllipsoidModel, EllipsoidObservations, EllipsoidState, MarkerObservation,
+    fit_half_width, Ellipsoid, EllipsoidModel, EllipsoidObservations, EllipsoidState,
+    MarkerObservation,
 };
 use crate::error::{Error, Result, ResultExt};
 use crate::silhouette_constraints::{contour_rays, SilhouetteParams};
@@ -66,6 +67,9 @@ pub struct EllipsoidScenarioParams {
     pub frames: Vec<usize>,
     /// Marching-cubes spacing of the procedural performer, metres. Default 0.02.
     pub grid_spacing_m: f64,
+    /// Model the end-site segments too (hands, feet, head;
+    /// [`EllipsoidModel::with_end_sites`]); scores stay over the limbs. Default false.
+    pub end_sites: bool,
 }
 
 impl Default for EllipsoidScenarioParams {
@@ -83,6 +87,7 @@ impl Default for EllipsoidScenarioParams {
             pose_noise_deg: 5.0,
             frames: vec![0, 20, 40],
             grid_spacing_m: 0.02,
+            end_sites: false,
         }
     }
 }
@@ -202,7 +207,11 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         ..ProceduralBodyParams::default()
     })?;
     let default_sk = performer.skeleton.clone();
-    let model = EllipsoidModel::limbs(default_sk.clone(), 0.1)?;
+    let model = if params.end_sites {
+        EllipsoidModel::with_end_sites(default_sk.clone(), 0.1)?
+    } else {
+        EllipsoidModel::limbs(default_sk.clone(), 0.1)?
+    };
     let rng = SplitMix64::new(params.seed);
     let mut draw = 0u64;
     let mut uniform = || {
@@ -211,12 +220,24 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     };
     // The true performer: bone lengths scaled.
     let nb = model.bones().len();
-    let factors: Vec<f64> = (0..nb)
-        .map(|_| 1.0 + params.length_spread * (2.0 * uniform() - 1.0))
+    // An end-site segment's scale moves no joint: the true performer keeps its length.
+    let factors: Vec<f64> = model
+        .bones()
+        .iter()
+        .map(|bone| {
+            let f = 1.0 + params.length_spread * (2.0 * uniform() - 1.0);
+            if bone.child.is_some() {
+                f
+            } else {
+                1.0
+            }
+        })
         .collect();
     let mut joints = default_sk.joints().to_vec();
     for (bone, f) in model.bones().iter().zip(&factors) {
-        joints[bone.child].offset *= *f;
+        if let Some(c) = bone.child {
+            joints[c].offset *= *f;
+        }
     }
     let true_sk = Skeleton::new(joints)?;
     let rest0 = rest_frames(&default_sk)?;
@@ -265,7 +286,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             .map(|i| rest_true[i])
             .collect();
         rest_truth.half_width[b] = fit_half_width(&model, &rest_truth, b, &limb)
-            .at(Context::Joint(model.bones()[b].child))?;
+            .at(Context::Joint(model.bones()[b].joint()))?;
     }
     let motion = fast_motion(&default_sk, &FastMotionParams::default())?;
     let rig = studio_ring(params.cameras, params.image_size.0, params.image_size.1)?;
@@ -360,7 +381,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                         return Err(Error::Empty {
                             what: "performer vertices carried by a modelled bone",
                         })
-                        .at(Context::Joint(model.bones()[bone_target].child));
+                        .at(Context::Joint(model.bones()[bone_target].joint()));
                     }
                     // Spread along the bone: the vertices are in mesh order, not random.
                     let step = on_bone.len() / (params.markers / nb + 1).max(1);
@@ -430,7 +451,8 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     })
 }
 
-/// Scores a fitted state against the truth of a frame.
+/// Scores a fitted state against the truth of a frame, over the limbs (the bones between two
+/// joints; end-site segments are not scored).
 ///
 /// # Errors
 /// States of the wrong size.
@@ -439,8 +461,19 @@ pub fn score_ellipsoids(
     fitted: &EllipsoidState,
     truth: &EllipsoidState,
 ) -> Result<EllipsoidScores> {
-    let ef = model.ellipsoids(fitted)?;
-    let et = model.ellipsoids(truth)?;
+    let limb = |(b, e): (usize, Ellipsoid)| model.bones()[b].child.is_some().then_some(e);
+    let ef: Vec<Ellipsoid> = model
+        .ellipsoids(fitted)?
+        .into_iter()
+        .enumerate()
+        .filter_map(limb)
+        .collect();
+    let et: Vec<Ellipsoid> = model
+        .ellipsoids(truth)?
+        .into_iter()
+        .enumerate()
+        .filter_map(limb)
+        .collect();
     let n = ef.len() as f64;
     let mut s = EllipsoidScores {
         bone_length_error_mm: 0.0,
