@@ -291,3 +291,78 @@ fn bad_input_is_reported() {
         "{r:?}"
     );
 }
+
+#[test]
+fn end_site_segments_are_modelled_and_checked() {
+    let sk = human_skeleton(&HumanParams::default()).unwrap();
+    let limbs = EllipsoidModel::limbs(sk.clone(), 0.1).unwrap();
+    let body = EllipsoidModel::with_end_sites(sk.clone(), 0.1).unwrap();
+    // Hands, feet and the head.
+    assert_eq!(body.bones().len(), limbs.bones().len() + 5);
+    let ends: Vec<_> = body.bones().iter().filter(|b| b.child.is_none()).collect();
+    assert_eq!(ends.len(), 5);
+    for bone in ends {
+        let end = sk.joints()[bone.parent].end_site.unwrap();
+        let b = body.bones().iter().position(|x| x == bone).unwrap();
+        assert!((body.default_lengths()[b] - end.length()).abs() < 1e-12);
+        assert_eq!(bone.joint(), bone.parent);
+    }
+    // An end-site segment moves no joint: its scale leaves the skeleton as it is.
+    let mut s = body.initial_state(&sk.rest_pose(), 0.05).unwrap();
+    let before = body.scaled_skeleton(&s).unwrap();
+    let last = body.bones().len() - 1;
+    s.length_scale[last] = 1.2;
+    let after = body.scaled_skeleton(&s).unwrap();
+    assert_eq!(before.joints(), after.joints());
+    // A joint without an end site cannot carry one.
+    let pelvis = EllipsoidBone {
+        parent: 0,
+        child: None,
+    };
+    assert!(matches!(
+        EllipsoidModel::new(sk, vec![pelvis]),
+        Err(Error::InvalidParam { .. })
+    ));
+}
+
+#[test]
+fn block_solve_matches_the_dense_solve() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (nf, nd, ns) = (3, 4, 2);
+    let n = nf * nd + ns;
+    // A random SPD matrix with the block-arrow pattern of the multi-frame problem.
+    let mut j = DMatrix::<f64>::zeros(40, n);
+    for r in 0..40 {
+        let f = r % nf;
+        for c in 0..nd {
+            j[(r, f * nd + c)] = rng.random_range(-1.0..1.0);
+        }
+        for c in 0..ns {
+            j[(r, nf * nd + c)] = rng.random_range(-1.0..1.0);
+        }
+    }
+    let h = j.transpose() * &j + DMatrix::<f64>::identity(n, n) * 0.1;
+    let g = DVector::<f64>::from_fn(n, |_, _| rng.random_range(-1.0..1.0));
+    let normal = Normal {
+        a: (0..nf)
+            .map(|f| h.view((f * nd, f * nd), (nd, nd)).into_owned())
+            .collect(),
+        b: (0..nf)
+            .map(|f| h.view((f * nd, nf * nd), (nd, ns)).into_owned())
+            .collect(),
+        gf: (0..nf).map(|f| g.rows(f * nd, nd).into_owned()).collect(),
+        c: h.view((nf * nd, nf * nd), (ns, ns)).into_owned(),
+        gs: g.rows(nf * nd, ns).into_owned(),
+    };
+    let lambda = 0.3;
+    let mut damped = h.clone();
+    for k in 0..n {
+        damped[(k, k)] += lambda * (h[(k, k)] + 1e-9);
+    }
+    let dense = damped.cholesky().unwrap().solve(&g);
+    let block = normal.solve(lambda, false).unwrap();
+    assert!((dense - block).amax() < 1e-10);
+    // Pose only: the shared part is zero, each frame its own damped block.
+    let pose = normal.solve(lambda, true).unwrap();
+    assert!(pose.rows(nf * nd, ns).amax() == 0.0);
+}
