@@ -30,8 +30,8 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::template::{
     ellipsoid_scenario, fit_ellipsoids, fit_ellipsoids_multi, score_ellipsoids, Ellipsoid,
-    EllipsoidObservations, EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores, VisualHull,
-    VisualHullParams,
+    EllipsoidObservations, EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores,
+    EllipsoidState, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{side_by_side, titled};
 use example_kit::{Goal, Headline, Run};
@@ -286,6 +286,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.insert(
         "tracker_inputs_fitted_bone_lengths_m".into(),
         json!(hull_model.bone_lengths(&hull_fit.states[0])),
+    );
+    // An automatic start, no user input: the rest pose (θ = 0) moved to each hull's centroid,
+    // default proportions, half-widths 5 cm (the pose tracker's first-frame initialisation).
+    let stage = run.stage("tracker inputs from the rest pose", None);
+    let rest_starts: Vec<EllipsoidState> = hull_obs
+        .iter()
+        .map(|o| {
+            let n = o.points.len().max(1) as f64;
+            let centroid = o.points.iter().fold(DVec3::ZERO, |a, p| a + *p) / n;
+            let root = hull_model.skeleton().joints()[0].offset;
+            let mut theta = vec![0.0; hull_model.skeleton().dof_count()];
+            // The root's first three DOFs are its translations (x, y, z).
+            theta[..3].copy_from_slice(&(centroid - root).to_array());
+            hull_model.initial_state(&theta, 0.05)
+        })
+        .collect::<Result<_, _>>()?;
+    let t = Instant::now();
+    let rest_fit = fit_ellipsoids_multi(hull_model, &rest_starts, &hull_obs, &hull_params)?;
+    stage.finish(format!("{:.0} ms", t.elapsed().as_secs_f64() * 1e3));
+    let rest_scores: Vec<EllipsoidScores> = rest_fit
+        .states
+        .iter()
+        .zip(&hull_scenario.frames)
+        .map(|(s, f)| score_ellipsoids(hull_model, s, &f.truth))
+        .collect::<Result<_, _>>()?;
+    put(
+        &mut figures,
+        "tracker_inputs_from_rest_",
+        &mean_scores(&rest_scores),
     );
     // The picture: the most bent frame of the protocol (frame 10).
     let shown = params.frames.len().min(3) - 1;
