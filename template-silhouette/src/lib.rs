@@ -23,7 +23,7 @@
 //! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `editing.rs` | a template edit carried to every frame by deformation transfer | [`DeformationTransfer`] | §2.5.3, Figure 2-9 |
-//! | `ellipsoid.rs` | articulated ellipsoids (Eq. 3) fitted by joint least squares to attractor points, markers and silhouette rays, LM + IRLS (Tukey) | [`EllipsoidModel`], [`fit_ellipsoids`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
+//! | `ellipsoid.rs` | articulated ellipsoids (Eq. 3) fitted by joint least squares to attractor points, markers and silhouette rays, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -108,8 +108,9 @@ pub use ellipsoid::{
     EllipsoidScores, ScenarioFrame,
 };
 pub use ellipsoid::{
-    fit_ellipsoids, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit, EllipsoidModel,
-    EllipsoidObservations, EllipsoidParams, EllipsoidState, MarkerObservation,
+    fit_ellipsoids, fit_ellipsoids_multi, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit,
+    EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations, EllipsoidParams, EllipsoidState,
+    MarkerObservation,
 };
 pub use error::{Context, Error, Result, ResultExt};
 pub use interactive::PoseEditor;

@@ -56,11 +56,10 @@ fn ellipsoids_span_their_bones() {
         .unwrap();
     let joints = fk.joint_positions();
     for (e, bone) in m.ellipsoids(&s).unwrap().iter().zip(m.bones()) {
-        let mid = 0.5 * (joints[bone.parent] + joints[bone.child]);
+        let child = bone.child.unwrap();
+        let mid = 0.5 * (joints[bone.parent] + joints[child]);
         assert!(e.centre.distance(mid) < 1e-12);
-        assert!(
-            (2.0 * e.half_bone - joints[bone.parent].distance(joints[bone.child])).abs() < 1e-12
-        );
+        assert!((2.0 * e.half_bone - joints[bone.parent].distance(joints[child])).abs() < 1e-12);
     }
 }
 
@@ -99,41 +98,65 @@ fn analytic_gradient_matches_finite_differences() {
         rays,
     };
     let params = EllipsoidParams::default();
-    let mut start = truth.clone();
-    start.theta[7] += 0.1;
+    // Two frames sharing lengths and widths, each with its own pose (the multi-frame layout).
+    let mut second = truth.clone();
+    second.theta[7] += 0.2;
+    second.theta[20] -= 0.3;
+    let states = vec![truth.clone(), second];
+    fn frame<'a>(obs: &'a EllipsoidObservations, s: &'a EllipsoidState) -> FrameData<'a> {
+        let mut f = FrameData {
+            obs,
+            start_theta: &s.theta,
+            markers: vec![(2, DVec3::new(0.1, 1.0, 0.1))],
+            robust: Vec::new(),
+            candidates: Vec::new(),
+        };
+        f.robust = vec![1.0; f.n_obs()];
+        f
+    }
+    let starts: Vec<EllipsoidState> = states
+        .iter()
+        .map(|s| {
+            let mut s = s.clone();
+            s.theta[7] += 0.1;
+            s
+        })
+        .collect();
     let mut problem = Problem {
         model: &m,
-        obs: &obs,
         params: &params,
-        start: &start,
-        markers: vec![(2, DVec3::new(0.1, 1.0, 0.1))],
-        robust: Vec::new(),
+        start: &starts[0],
+        frames: starts.iter().map(|s| frame(&obs, s)).collect(),
     };
-    problem.robust = vec![1.0; problem.n_obs()];
-    let lin = problem.linearise(&truth, true).unwrap();
+    problem.assign(&states).unwrap();
+    let (cost, normal) = problem.linearise(&states, true).unwrap();
+    let g = normal.unwrap().gradient();
     let nd = truth.theta.len();
     let nb = truth.half_width.len();
     let mut worst: f64 = 0.0;
-    for k in 0..nd + 3 * nb {
+    for k in 0..2 * nd + 3 * nb {
         let h = 1e-6;
         let shifted = |d: f64| {
-            let mut s = truth.clone();
-            if k < nd {
-                s.theta[k] += d;
-            } else if k < nd + nb {
-                s.length_scale[k - nd] += d;
-            } else if k < nd + 2 * nb {
-                s.half_width[k - nd - nb] += d;
-            } else {
-                s.half_length[k - nd - 2 * nb] += d;
+            let mut ss = states.clone();
+            for (f, s) in ss.iter_mut().enumerate() {
+                if k < 2 * nd {
+                    if k / nd == f {
+                        s.theta[k % nd] += d;
+                    }
+                } else if k < 2 * nd + nb {
+                    s.length_scale[k - 2 * nd] += d;
+                } else if k < 2 * nd + 2 * nb {
+                    s.half_width[k - 2 * nd - nb] += d;
+                } else {
+                    s.half_length[k - 2 * nd - 2 * nb] += d;
+                }
             }
-            problem.linearise(&s, false).unwrap().cost
+            problem.linearise(&ss, false).unwrap().0
         };
         let fd = (shifted(h) - shifted(-h)) / (2.0 * h);
-        let an = 2.0 * lin.g[k];
+        let an = 2.0 * g[k];
         // Central differences of a cost of size C carry a round-off of about C·1e-16/h.
-        let rel =
-            ((fd - an).abs() - 10.0 * lin.cost * f64::EPSILON / h).max(0.0) / (1.0 + an.abs());
+        let rel = ((fd - an).abs() - 10.0 * cost * f64::EPSILON / h).max(0.0) / (1.0 + an.abs());
         worst = worst.max(rel);
     }
     assert!(worst < 1e-4, "worst relative gradient error {worst}");
@@ -267,4 +290,79 @@ fn bad_input_is_reported() {
         matches!(&r, Err(Error::At { source, .. }) if matches!(**source, Error::Core(skin_core::Error::Degenerate { .. }))),
         "{r:?}"
     );
+}
+
+#[test]
+fn end_site_segments_are_modelled_and_checked() {
+    let sk = human_skeleton(&HumanParams::default()).unwrap();
+    let limbs = EllipsoidModel::limbs(sk.clone(), 0.1).unwrap();
+    let body = EllipsoidModel::with_end_sites(sk.clone(), 0.1).unwrap();
+    // Hands, feet and the head.
+    assert_eq!(body.bones().len(), limbs.bones().len() + 5);
+    let ends: Vec<_> = body.bones().iter().filter(|b| b.child.is_none()).collect();
+    assert_eq!(ends.len(), 5);
+    for bone in ends {
+        let end = sk.joints()[bone.parent].end_site.unwrap();
+        let b = body.bones().iter().position(|x| x == bone).unwrap();
+        assert!((body.default_lengths()[b] - end.length()).abs() < 1e-12);
+        assert_eq!(bone.joint(), bone.parent);
+    }
+    // An end-site segment moves no joint: its scale leaves the skeleton as it is.
+    let mut s = body.initial_state(&sk.rest_pose(), 0.05).unwrap();
+    let before = body.scaled_skeleton(&s).unwrap();
+    let last = body.bones().len() - 1;
+    s.length_scale[last] = 1.2;
+    let after = body.scaled_skeleton(&s).unwrap();
+    assert_eq!(before.joints(), after.joints());
+    // A joint without an end site cannot carry one.
+    let pelvis = EllipsoidBone {
+        parent: 0,
+        child: None,
+    };
+    assert!(matches!(
+        EllipsoidModel::new(sk, vec![pelvis]),
+        Err(Error::InvalidParam { .. })
+    ));
+}
+
+#[test]
+fn block_solve_matches_the_dense_solve() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (nf, nd, ns) = (3, 4, 2);
+    let n = nf * nd + ns;
+    // A random SPD matrix with the block-arrow pattern of the multi-frame problem.
+    let mut j = DMatrix::<f64>::zeros(40, n);
+    for r in 0..40 {
+        let f = r % nf;
+        for c in 0..nd {
+            j[(r, f * nd + c)] = rng.random_range(-1.0..1.0);
+        }
+        for c in 0..ns {
+            j[(r, nf * nd + c)] = rng.random_range(-1.0..1.0);
+        }
+    }
+    let h = j.transpose() * &j + DMatrix::<f64>::identity(n, n) * 0.1;
+    let g = DVector::<f64>::from_fn(n, |_, _| rng.random_range(-1.0..1.0));
+    let normal = Normal {
+        a: (0..nf)
+            .map(|f| h.view((f * nd, f * nd), (nd, nd)).into_owned())
+            .collect(),
+        b: (0..nf)
+            .map(|f| h.view((f * nd, nf * nd), (nd, ns)).into_owned())
+            .collect(),
+        gf: (0..nf).map(|f| g.rows(f * nd, nd).into_owned()).collect(),
+        c: h.view((nf * nd, nf * nd), (ns, ns)).into_owned(),
+        gs: g.rows(nf * nd, ns).into_owned(),
+    };
+    let lambda = 0.3;
+    let mut damped = h.clone();
+    for k in 0..n {
+        damped[(k, k)] += lambda * (h[(k, k)] + 1e-9);
+    }
+    let dense = damped.cholesky().unwrap().solve(&g);
+    let block = normal.solve(lambda, false).unwrap();
+    assert!((dense - block).amax() < 1e-10);
+    // Pose only: the shared part is zero, each frame its own damped block.
+    let pose = normal.solve(lambda, true).unwrap();
+    assert!(pose.rows(nf * nd, ns).amax() == 0.0);
 }

@@ -33,7 +33,8 @@ use skin_core::studio::{
 use skin_core::{check, Context};
 
 use super::{
-    fit_half_width, EllipsoidModel, EllipsoidObservations, EllipsoidState, MarkerObservation,
+    fit_half_width, Ellipsoid, EllipsoidModel, EllipsoidObservations, EllipsoidState,
+    MarkerObservation,
 };
 use crate::error::{Error, Result, ResultExt};
 use crate::silhouette_constraints::{contour_rays, SilhouetteParams};
@@ -66,6 +67,9 @@ pub struct EllipsoidScenarioParams {
     pub frames: Vec<usize>,
     /// Marching-cubes spacing of the procedural performer, metres. Default 0.02.
     pub grid_spacing_m: f64,
+    /// Model the end-site segments too (hands, feet, head;
+    /// [`EllipsoidModel::with_end_sites`]); scores stay over the limbs. Default false.
+    pub end_sites: bool,
 }
 
 impl Default for EllipsoidScenarioParams {
@@ -83,6 +87,7 @@ impl Default for EllipsoidScenarioParams {
             pose_noise_deg: 5.0,
             frames: vec![0, 20, 40],
             grid_spacing_m: 0.02,
+            end_sites: false,
         }
     }
 }
@@ -113,6 +118,17 @@ pub struct EllipsoidScenario {
     pub frames: Vec<ScenarioFrame>,
 }
 
+impl EllipsoidScenario {
+    /// Every frame's starting state and observations, as [`super::fit_ellipsoids_multi`]
+    /// takes them.
+    pub fn starts_and_observations(&self) -> (Vec<EllipsoidState>, Vec<EllipsoidObservations>) {
+        self.frames
+            .iter()
+            .map(|f| (f.start.clone(), f.observations.clone()))
+            .unzip()
+    }
+}
+
 /// Scores of a fitted state against the truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EllipsoidScores {
@@ -123,6 +139,9 @@ pub struct EllipsoidScores {
     /// Mean angle between fitted and true bone directions, degrees (twist excluded).
     pub joint_angle_error_deg: f64,
 }
+
+/// Largest stretch of a triangle edge (posed / rest length) kept in the true mesh.
+const MAX_STRETCH: f64 = 1.5;
 
 fn rest_frames(sk: &Skeleton) -> Result<Vec<DAffine3>> {
     Ok(sk
@@ -136,6 +155,39 @@ fn dominant(weights: &SkinWeights, i: usize) -> Option<u32> {
         .influences(i)
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(b, _)| b)
+}
+
+/// The performer's skinning weights with each vertex's influences restricted to its dominant
+/// joint and the joints adjacent to it in the skeleton (parent, children). The procedural
+/// body is built at a rest pose in which the forearms touch the hips and the hands the thighs;
+/// its distance-based weights give such vertices influences from the touching part, and LBS
+/// then smears them between a raised arm and the pelvis (traced: at frame 10 of the fast
+/// motion 64 % of the right forearm's triangles were stretched beyond 1.5×). A skin vertex
+/// of a limb moves with its bone and the bones next to it.
+fn adjacent_only(weights: &SkinWeights, sk: &Skeleton) -> Result<SkinWeights> {
+    let lists: Vec<Vec<(u32, f64)>> = (0..weights.vertex_count())
+        .map(|i| {
+            let Some(d) = dominant(weights, i) else {
+                return Vec::new();
+            };
+            let d = d as usize;
+            let parent = sk.joints()[d].parent;
+            weights
+                .influences(i)
+                .filter(|&(j, _)| {
+                    let j = j as usize;
+                    j == d || Some(j) == parent || sk.joints()[j].parent == Some(d)
+                })
+                .collect()
+        })
+        .collect();
+    Ok(SkinWeights::from_lists(&lists, sk.joint_count())?)
+}
+
+/// Whether vertex `i` moves with one joint alone (dominant weight ≥ 0.75): a marker's place,
+/// away from the joint regions and webs.
+fn rigid(weights: &SkinWeights, i: usize) -> bool {
+    weights.influences(i).any(|(_, w)| w >= 0.75)
 }
 
 /// Builds the scenario.
@@ -155,7 +207,11 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         ..ProceduralBodyParams::default()
     })?;
     let default_sk = performer.skeleton.clone();
-    let model = EllipsoidModel::limbs(default_sk.clone(), 0.1)?;
+    let model = if params.end_sites {
+        EllipsoidModel::with_end_sites(default_sk.clone(), 0.1)?
+    } else {
+        EllipsoidModel::limbs(default_sk.clone(), 0.1)?
+    };
     let rng = SplitMix64::new(params.seed);
     let mut draw = 0u64;
     let mut uniform = || {
@@ -164,12 +220,24 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     };
     // The true performer: bone lengths scaled.
     let nb = model.bones().len();
-    let factors: Vec<f64> = (0..nb)
-        .map(|_| 1.0 + params.length_spread * (2.0 * uniform() - 1.0))
+    // An end-site segment's scale moves no joint: the true performer keeps its length.
+    let factors: Vec<f64> = model
+        .bones()
+        .iter()
+        .map(|bone| {
+            let f = 1.0 + params.length_spread * (2.0 * uniform() - 1.0);
+            if bone.child.is_some() {
+                f
+            } else {
+                1.0
+            }
+        })
         .collect();
     let mut joints = default_sk.joints().to_vec();
     for (bone, f) in model.bones().iter().zip(&factors) {
-        joints[bone.child].offset *= *f;
+        if let Some(c) = bone.child {
+            joints[c].offset *= *f;
+        }
     }
     let true_sk = Skeleton::new(joints)?;
     let rest0 = rest_frames(&default_sk)?;
@@ -179,7 +247,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         .zip(&rest1)
         .map(|(a, b)| *b * a.inverse())
         .collect();
-    let weights = &performer.weights;
+    let weights = &adjacent_only(&performer.weights, &default_sk)?;
     let rest_true = skin(&performer.template.vertices, weights, &stretch)?;
     let faces = performer.template.faces.clone();
     // Limb triangles: all three vertices carried by a modelled bone's joint.
@@ -188,10 +256,14 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     let vertex_bone: Vec<Option<usize>> = (0..rest_true.len())
         .map(|i| limb_joint(dominant(weights, i)))
         .collect();
+    // One bone's triangles (a triangle across two bones is a joint region or a web).
     let limb_faces: Vec<[u32; 3]> = faces
         .iter()
         .copied()
-        .filter(|f| f.iter().all(|&v| vertex_bone[v as usize].is_some()))
+        .filter(|f| {
+            let b = vertex_bone[f[0] as usize];
+            b.is_some() && f.iter().all(|&v| vertex_bone[v as usize] == b)
+        })
         .collect();
     // Truth: lengths, and the reference half-widths: Eq. 3 fitted to each true limb's
     // vertices at the rest pose (the widths do not depend on the pose here; posed, the
@@ -214,7 +286,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             .map(|i| rest_true[i])
             .collect();
         rest_truth.half_width[b] = fit_half_width(&model, &rest_truth, b, &limb)
-            .at(Context::Joint(model.bones()[b].child))?;
+            .at(Context::Joint(model.bones()[b].joint()))?;
     }
     let motion = fast_motion(&default_sk, &FastMotionParams::default())?;
     let rig = studio_ring(params.cameras, params.image_size.0, params.image_size.1)?;
@@ -236,7 +308,23 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                 .map(|(p, r)| *p * r.inverse())
                 .collect();
             let verts = skin(&rest_true, weights, &t)?;
-            let mesh = TriMesh::new(verts.clone(), faces.clone())?;
+            // Tear the webs: the procedural body is one marching-cubes surface in which parts
+            // touching at rest (forearm and hip, hand and thigh) are fused; posed apart by
+            // LBS, the fused region becomes a membrane of stretched triangles that is no body
+            // surface (traced: it held most of a raised forearm's points, 12 cm median
+            // residual at the true state). Drop every triangle with an edge stretched beyond
+            // `MAX_STRETCH` × its rest length.
+            let intact = |f: &[u32; 3]| {
+                (0..3).all(|e| {
+                    let (a, b) = (f[e] as usize, f[(e + 1) % 3] as usize);
+                    verts[a].distance(verts[b])
+                        <= MAX_STRETCH * rest_true[a].distance(rest_true[b]) + 1e-9
+                })
+            };
+            let kept: Vec<[u32; 3]> = faces.iter().copied().filter(|f| intact(f)).collect();
+            let mesh = TriMesh::new(verts.clone(), kept)?;
+            let limb_faces: Vec<[u32; 3]> =
+                limb_faces.iter().copied().filter(|f| intact(f)).collect();
             // Points: area-uniform on the limb triangles, noisy; then outliers.
             let areas: Vec<f64> = limb_faces
                 .iter()
@@ -279,7 +367,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             }
             // Markers: limb vertices spread over the bones.
             let limb_vertices: Vec<usize> = (0..verts.len())
-                .filter(|&i| vertex_bone[i].is_some())
+                .filter(|&i| vertex_bone[i].is_some() && rigid(weights, i))
                 .collect();
             let markers = (0..params.markers)
                 .map(|m| -> Result<MarkerObservation> {
@@ -293,7 +381,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                         return Err(Error::Empty {
                             what: "performer vertices carried by a modelled bone",
                         })
-                        .at(Context::Joint(model.bones()[bone_target].child));
+                        .at(Context::Joint(model.bones()[bone_target].joint()));
                     }
                     // Spread along the bone: the vertices are in mesh order, not random.
                     let step = on_bone.len() / (params.markers / nb + 1).max(1);
@@ -363,7 +451,8 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     })
 }
 
-/// Scores a fitted state against the truth of a frame.
+/// Scores a fitted state against the truth of a frame, over the limbs (the bones between two
+/// joints; end-site segments are not scored).
 ///
 /// # Errors
 /// States of the wrong size.
@@ -372,8 +461,19 @@ pub fn score_ellipsoids(
     fitted: &EllipsoidState,
     truth: &EllipsoidState,
 ) -> Result<EllipsoidScores> {
-    let ef = model.ellipsoids(fitted)?;
-    let et = model.ellipsoids(truth)?;
+    let limb = |(b, e): (usize, Ellipsoid)| model.bones()[b].child.is_some().then_some(e);
+    let ef: Vec<Ellipsoid> = model
+        .ellipsoids(fitted)?
+        .into_iter()
+        .enumerate()
+        .filter_map(limb)
+        .collect();
+    let et: Vec<Ellipsoid> = model
+        .ellipsoids(truth)?
+        .into_iter()
+        .enumerate()
+        .filter_map(limb)
+        .collect();
     let n = ef.len() as f64;
     let mut s = EllipsoidScores {
         bone_length_error_mm: 0.0,
