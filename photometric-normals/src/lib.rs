@@ -24,6 +24,7 @@
 //! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
 //! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
+//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -90,6 +91,7 @@ mod flow;
 mod motion;
 mod normals;
 mod patterns;
+mod proxy;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -105,4 +107,5 @@ pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
+pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};
