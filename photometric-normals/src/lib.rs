@@ -25,6 +25,7 @@
 //! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
 //! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
+//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`] | §3.3.1 Eq. 3.3 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -88,6 +89,7 @@ mod colour;
 mod depth_map;
 mod error;
 mod flow;
+mod integrate;
 mod motion;
 mod normals;
 mod patterns;
@@ -101,6 +103,9 @@ pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use integrate::{
+    depth_jumps, integrate_normals, Integrated, IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use patterns::{
