@@ -25,7 +25,9 @@
 //! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
 //! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
-//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`] | §3.3.1 Eq. 3.3 |
+//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
+//! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
+//! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded | [`depth_offsets`], [`OffsetParams`] | §3.3.2 Eq. 3.4 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -90,8 +92,10 @@ mod depth_map;
 mod error;
 mod flow;
 mod integrate;
+mod matching;
 mod motion;
 mod normals;
+mod offsets;
 mod patterns;
 mod proxy;
 mod silhouette;
@@ -104,10 +108,15 @@ pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
-    depth_jumps, integrate_normals, Integrated, IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+    depth_errors, depth_jumps, integrate_normals, DepthErrors, Integrated, IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+};
+pub use matching::{
+    depth_map_mesh, match_pair, MatchMetric, MatchStats, MatchView, MatchingParams, PairMatches,
+    ViewMatches,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
+pub use offsets::{depth_offsets, OffsetParams, OffsetReport, OffsetSurface};
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,

@@ -1,0 +1,260 @@
+//! Depth offsets that pull an integrated surface to its matches (Vlasic 2010 §3.3.2,
+//! Eq. 3.4):
+//!
+//! ```text
+//! argmin_d  Σ_i Σ_j∈N(i) (d_i − d_j)²  +  β Σ_i (d_i − d̄_i)²      (3.4)
+//! ```
+//!
+//! over the pixels of the view's surface, `N(i)` its 4-neighbours with a surface and `d̄_i`
+//! the offset the matches ask for (matched depth minus integrated depth, the mean over the
+//! neighbouring views that matched the pixel). The first term is a membrane: each offset is
+//! pulled toward the centroid of its neighbours' offsets, so the constraints are smoothly
+//! interpolated and the surface keeps its high-frequency detail (only the smooth offset field
+//! is added). Regions far from any constraint would be deformed freely, so pixels farther
+//! than [`OffsetParams::max_distance_px`] from the nearest matched pixel are discarded, as
+//! are regions with no constraint at all. Solved with [`skin_core::lsq`].
+
+use nalgebra::DMatrix;
+use nalgebra_sparse::{CooMatrix, CscMatrix};
+use serde::{Deserialize, Serialize};
+use skin_core::check;
+use skin_core::image::{distance_to_foreground, Mask};
+use skin_core::lsq::{LsqParams, LsqProblem};
+
+use crate::integrate::{regions, IntegrationParams};
+use crate::{DepthMap, Error, Result};
+
+/// Knobs of Eq. 3.4.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OffsetParams {
+    /// β, the weight of a match's offset against one neighbour difference of the membrane.
+    /// The thesis gives no value; default 0.1 (ours): matches are quantised to the pixel grid
+    /// (§3.3.2), so each is trusted a tenth of a neighbour link and the membrane averages
+    /// their noise over a few pixels while still reaching them (with dense matches the offset
+    /// field follows them to ≈ 1/√β ≈ 3 px).
+    pub beta: f64,
+    /// Pixels farther than this from the nearest matched pixel are discarded (px, at the
+    /// thesis' 1024-px width and scaled like [`IntegrationParams::jump_threshold_m`]).
+    /// Default 40 (ours).
+    pub max_distance_px: f64,
+}
+
+impl Default for OffsetParams {
+    fn default() -> Self {
+        Self {
+            beta: 0.1,
+            max_distance_px: 40.0,
+        }
+    }
+}
+
+/// What Eq. 3.4 did to one view.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct OffsetReport {
+    /// Pixels with a match constraint.
+    pub constrained: usize,
+    /// Pixels of the offset surface.
+    pub kept: usize,
+    /// Surface pixels discarded (too far from any constraint, or in an unconstrained region).
+    pub discarded: usize,
+    /// Median |d̄| over the constrained pixels, mm.
+    pub median_target_offset_mm: f64,
+}
+
+/// An offset surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OffsetSurface {
+    /// `z + d` along each pixel ray.
+    pub depth: DepthMap,
+    /// Sizes.
+    pub report: OffsetReport,
+}
+
+/// Applies Eq. 3.4 to `surface` with the matched depths `targets` (one per neighbouring view
+/// that was matched, `NaN` where it has no match).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for maps of different sizes; [`Error::Empty`] if no pixel of the
+/// surface has a match; [`Error::InvalidParam`] for bad params; solver errors.
+pub fn depth_offsets(
+    surface: &DepthMap,
+    targets: &[&DepthMap],
+    params: &OffsetParams,
+) -> Result<OffsetSurface> {
+    check::positive("beta", params.beta)?;
+    check::positive("max_distance_px", params.max_distance_px)?;
+    let n_px = surface.depth_m.len();
+    let (w, h) = (surface.width, surface.height);
+    for t in targets {
+        check::same_size("matched depth map pixels", n_px, t.depth_m.len())?;
+    }
+    // d̄_i: the mean of the offsets asked by the views that matched pixel i.
+    let mut target = vec![f64::NAN; n_px];
+    for (i, t) in target.iter_mut().enumerate() {
+        let z = surface.depth_m[i];
+        if z.is_nan() {
+            continue;
+        }
+        let asks: Vec<f64> = targets
+            .iter()
+            .map(|m| m.depth_m[i])
+            .filter(|d| !d.is_nan())
+            .collect();
+        if !asks.is_empty() {
+            *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
+        }
+    }
+    let constrained = Mask::from_bools(w, h, &target.iter().map(|t| !t.is_nan()).collect::<Vec<_>>())?;
+    if constrained.is_empty() {
+        return Err(Error::Empty {
+            what: "matched pixels on the surface (Eq. 3.4 has no constraint)",
+        });
+    }
+    let far = distance_to_foreground(&constrained)?;
+    let limit = IntegrationParams::jump_threshold_m(params.max_distance_px, w);
+    let mut inside: Vec<bool> = (0..n_px)
+        .map(|i| {
+            !surface.depth_m[i].is_nan()
+                && f64::from(far.as_raw()[i]) <= limit
+        })
+        .collect();
+    let (label, count) = regions(w, h, &inside);
+    let mut anchored = vec![false; count];
+    for i in 0..n_px {
+        if label[i] != usize::MAX && !target[i].is_nan() {
+            anchored[label[i]] = true;
+        }
+    }
+    for i in 0..n_px {
+        if label[i] != usize::MAX && !anchored[label[i]] {
+            inside[i] = false;
+        }
+    }
+    let mut unknown = vec![usize::MAX; n_px];
+    let mut pixels = Vec::new();
+    for i in (0..n_px).filter(|&i| inside[i]) {
+        unknown[i] = pixels.len();
+        pixels.push(i);
+    }
+    let n = pixels.len();
+    let mut edges = Vec::new();
+    for &i in &pixels {
+        let (x, y) = (i % w as usize, i / w as usize);
+        for j in [
+            (x + 1 < w as usize).then_some(i + 1),
+            (y + 1 < h as usize).then_some(i + w as usize),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if unknown[j] != usize::MAX {
+                edges.push((unknown[i], unknown[j]));
+            }
+        }
+    }
+    let mut a = CooMatrix::new(edges.len(), n);
+    for (r, &(p, q)) in edges.iter().enumerate() {
+        a.push(r, p, 1.0);
+        a.push(r, q, -1.0);
+    }
+    let anchors: Vec<(usize, f64)> = pixels
+        .iter()
+        .filter(|&&i| !target[i].is_nan())
+        .map(|&i| (unknown[i], target[i]))
+        .collect();
+    let mut c = CooMatrix::new(anchors.len(), n);
+    for (r, &(col, _)) in anchors.iter().enumerate() {
+        c.push(r, col, 1.0);
+    }
+    let d = DMatrix::from_iterator(anchors.len(), 1, anchors.iter().map(|a| a.1));
+    let solver = LsqProblem::new(CscMatrix::from(&a))
+        .with_term(CscMatrix::from(&c), params.beta)
+        .factor(&LsqParams::default())?;
+    let off = solver.solve(&DMatrix::zeros(edges.len(), 1), &[d])?;
+    let mut depth = vec![f64::NAN; n_px];
+    for (k, &i) in pixels.iter().enumerate() {
+        let v = surface.depth_m[i] + off[k];
+        if v.is_finite() && v > 0.0 {
+            depth[i] = v;
+        }
+    }
+    let abs: Vec<f64> = anchors.iter().map(|a| a.1.abs() * 1e3).collect();
+    let depth = DepthMap::new(w, h, depth)?;
+    let kept = depth.valid_count();
+    Ok(OffsetSurface {
+        report: OffsetReport {
+            constrained: anchors.len(),
+            kept,
+            discarded: surface.valid_count().saturating_sub(kept),
+            median_target_offset_mm: skin_core::stats::median(&abs),
+        },
+        depth,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_interpolate_constraints_and_keep_the_detail() {
+        // A 40 × 40 ripple surface 5 cm behind where sparse matches say it is.
+        let (w, h) = (40u32, 40u32);
+        let ripple = |x: u32, y: u32| 3.0 + 0.002 * ((x as f64 * 0.9).sin() + (y as f64 * 0.7).cos());
+        let surface = DepthMap::new(
+            w,
+            h,
+            (0..w * h).map(|i| ripple(i % w, i / w) + 0.05).collect(),
+        )
+        .unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    if x % 4 == 0 && y % 4 == 0 {
+                        ripple(x, y)
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let out = depth_offsets(&surface, &[&target], &OffsetParams::default()).unwrap();
+        let worst = (0..w * h)
+            .map(|i| (out.depth.depth_m[i as usize] - ripple(i % w, i / w)).abs())
+            .fold(0.0, f64::max);
+        // The 5 cm offset is removed everywhere, and the 4 mm ripple is kept to 0.1 mm.
+        assert!(worst < 1e-4, "{worst}");
+        assert_eq!(out.report.kept, (w * h) as usize);
+    }
+
+    #[test]
+    fn far_regions_are_discarded_and_bad_input_is_an_error() {
+        let (w, h) = (64u32, 8u32);
+        let surface = DepthMap::new(w, h, vec![2.0; (w * h) as usize]).unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h).map(|i| if i % w < 2 { 2.01 } else { f64::NAN }).collect(),
+        )
+        .unwrap();
+        let params = OffsetParams::default();
+        let out = depth_offsets(&surface, &[&target], &params).unwrap();
+        // 40 px at 1024 wide is 40 × 1024 / 64 = 640 px here: nothing is far.
+        assert_eq!(out.report.discarded, 0);
+        let near = OffsetParams {
+            max_distance_px: 0.5,
+            ..params
+        };
+        let out = depth_offsets(&surface, &[&target], &near).unwrap();
+        assert!(out.report.discarded > 300, "{:?}", out.report);
+        let none = DepthMap::empty(w, h).unwrap();
+        assert!(depth_offsets(&surface, &[&none], &params).is_err());
+        let small = DepthMap::empty(4, 4).unwrap();
+        assert!(depth_offsets(&surface, &[&small], &params).is_err());
+        assert!(depth_offsets(&surface, &[&target], &OffsetParams { beta: -1.0, ..params }).is_err());
+    }
+}
