@@ -20,8 +20,8 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, estimate_normals, integrate_normals, CalibrationParams, DepthErrors, DepthMap,
-    Exposure, IntegrationParams, NormalMap, NormalParams, PatternImages, VisualHull,
+    depth_errors, estimate_normals, per_view_surfaces, CalibrationParams, DepthErrors, DepthMap,
+    Exposure, NormalMap, NormalParams, PatternImages, SurfaceParams, ViewSurfaces, VisualHull,
     VisualHullParams, PATTERNS,
 };
 
@@ -117,42 +117,21 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         .map(|v| DepthMap::from_view(v).unwrap())
         .collect();
 
-    // Exact normals on all views.
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
-    let params = IntegrationParams {
-        alpha: env("PR_ALPHA", 1e-6),
-        proxy_jump_m: env("PR_JUMP", 0.05),
-        refit_scale: env("PR_REFIT", 1.0) > 0.5,
-        ..IntegrationParams::default()
-    };
-    let (mut ours, mut base) = (Vec::new(), Vec::new());
-    let mut solve_ms = 0.0;
-    let (mut integrated_px, mut measured_px) = (0usize, 0usize);
-    for (c, cam) in ring.cameras.iter().enumerate() {
-        let normals = exact_normals(cam, &views[c]);
-        let tb = std::env::var("PR_TRUEBREAKS").ok().and_then(|v| v.parse::<f64>().ok()).map(|j| dynamic_shapes::photometric::depth_jumps(&truths[c], j).unwrap());
-        let out = integrate_normals(cam, &normals, &proxies[c], tb.as_ref(), &params).unwrap();
-        solve_ms += out.report.solve_ms;
-        integrated_px += out.depth.valid_count();
-        measured_px += normals.valid.iter().filter(|&&v| v).count();
-        // Scored where the result, the proxy and the truth all have a surface.
-        let both: Vec<bool> = proxies[c].depth_m.iter().map(|d| !d.is_nan()).collect();
-        let e = depth_errors(&out.depth, &truths[c], Some(&both)).unwrap();
-        let region: Vec<bool> = out.depth.depth_m.iter().map(|d| !d.is_nan()).collect();
-        let b = depth_errors(&proxies[c], &truths[c], Some(&region)).unwrap();
-        println!(
-            "camera {c}: exact normals median {:.1} mm p95 {:.1} mm; visual hull median {:.1} mm \
-             p95 {:.1} mm ({} px); {:?}",
-            e.median_mm, e.p95_mm, b.median_mm, b.p95_mm, e.pixels, out.report
-        );
-        ours.push(e);
-        base.push(b);
-    }
-    let (ours_med, ours_p95) = pooled(&ours);
-    let (base_med, base_p95) = pooled(&base);
-    let coverage = integrated_px as f64 / measured_px as f64;
+    // Exact normals on all views, the 8 neighbouring pairs of the ring.
+    let exact: Vec<NormalMap> = ring
+        .cameras
+        .iter()
+        .zip(&views)
+        .map(|(c, v)| exact_normals(c, v))
+        .collect();
+    let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
+    let params = SurfaceParams::default();
+    let out = per_view_surfaces(&ring.cameras, &exact, &proxies, &pairs, Some(&hull), &params)
+        .unwrap();
+    let scores = score(&out, &proxies, &truths, &exact);
+    println!("exact normals, 8 views: {scores:?}; {:?}", out.times);
 
-    // Estimated normals (part 1) on the two photographed views.
+    // Estimated normals (part 1) on the two photographed views, one pair.
     let t = Instant::now();
     let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
     let cal_params = CalibrationParams {
@@ -162,57 +141,95 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
     let normal_params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);
-    let (mut est, mut est_base) = (Vec::new(), Vec::new());
-    for c in 0..2 {
-        let cam = &ring.cameras[c];
-        let cal = calibrate_camera(
-            cam,
-            &stage.lights,
-            stage.centre,
-            root,
-            &stage.sphere_heights_m(),
-            0.2,
-            0.5,
-            &cal_params,
-        )
-        .unwrap();
-        let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
-        let normals = estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap();
-        let out = integrate_normals(cam, &normals, &proxies[c], None, &params).unwrap();
-        let both: Vec<bool> = proxies[c].depth_m.iter().map(|d| !d.is_nan()).collect();
-        let e = depth_errors(&out.depth, &truths[c], Some(&both)).unwrap();
-        let region: Vec<bool> = out.depth.depth_m.iter().map(|d| !d.is_nan()).collect();
-        let b = depth_errors(&proxies[c], &truths[c], Some(&region)).unwrap();
-        println!(
-            "camera {c}: estimated normals median {:.1} mm p95 {:.1} mm; visual hull median \
-             {:.1} mm p95 {:.1} mm ({} px)",
-            e.median_mm, e.p95_mm, b.median_mm, b.p95_mm, e.pixels
-        );
-        est.push(e);
-        est_base.push(b);
-    }
-    let t_estimated = t.elapsed().as_secs_f64();
-    let (est_med, est_p95) = pooled(&est);
-    let (est_base_med, _) = pooled(&est_base);
+    let estimated: Vec<NormalMap> = (0..2)
+        .map(|c| {
+            let cam = &ring.cameras[c];
+            let cal = calibrate_camera(
+                cam,
+                &stage.lights,
+                stage.centre,
+                root,
+                &stage.sphere_heights_m(),
+                0.2,
+                0.5,
+                &cal_params,
+            )
+            .unwrap();
+            let obs = &frame.observations[c];
+            let images = PatternImages::from_rgb(
+                &PATTERNS
+                    .iter()
+                    .zip(&obs.patterns)
+                    .map(|(&p, im)| (p, im))
+                    .collect::<Vec<_>>(),
+            )
+            .unwrap();
+            estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap()
+        })
+        .collect();
+    let t_normals = t.elapsed().as_secs_f64();
+    let est = per_view_surfaces(
+        &ring.cameras[..2],
+        &estimated,
+        &proxies[..2],
+        &[(0, 1)],
+        Some(&hull),
+        &params,
+    )
+    .unwrap();
+    let est_scores = score(&est, &proxies[..2], &truths[..2], &estimated);
+    println!("estimated normals, 2 views: {est_scores:?}; {:?}", est.times);
     println!(
-        "capture {t_capture:.1} s, hull {t_hull:.2} s, integration {:.2} s (8 views), \
-         estimated-normal views {t_estimated:.1} s; exact normals median {ours_med:.1} mm p95 \
-         {ours_p95:.1} mm vs hull {base_med:.1} / {base_p95:.1} mm, coverage {coverage:.3}; \
-         estimated normals median {est_med:.1} mm p95 {est_p95:.1} mm vs hull {est_base_med:.1} mm; \
+        "capture {t_capture:.1} s, hull {t_hull:.2} s (8 views), part-1 normals {t_normals:.1} s, \
          total {:.1} s",
-        solve_ms / 1e3,
         t0.elapsed().as_secs_f64()
     );
-    assert!(ours_med < 0.5 * base_med, "{ours_med} vs {base_med}");
-    assert!(ours_p95 < base_p95, "{ours_p95} vs {base_p95}");
-    assert!(coverage > 0.8, "{coverage}");
-    assert!(est_med < base_med, "{est_med} vs {est_base_med}");
+
+    // Integration alone keeps the hull's placement error but not its large errors; matching
+    // and Eq. 3.4 then beat the hull in median and p95.
+    let s = &scores;
+    assert!(s.integrated.1 < s.hull.1, "{s:?}");
+    assert!(s.offset.0 < s.hull.0 && s.offset.1 < 0.8 * s.hull.1, "{s:?}");
+    assert!(s.offset.0 < 0.6 * s.integrated.0, "{s:?}");
+    // Matches are quantised to the pixel grid: a 256² pixel covers ≈ 1 cm at 3.5 m.
+    assert!(s.matches.0 < 12.0 && s.coverage > 0.85, "{s:?}");
+    let e = &est_scores;
+    assert!(e.offset.0 < e.integrated.0 && e.offset.1 < e.hull.1, "{e:?}");
+    assert!(e.coverage > 0.5, "{e:?}");
+}
+
+/// Pooled (median, p95) errors in mm of the hull, the integrated surfaces, the matches and the
+/// offset surfaces, and the fraction of measured normals that ended in an offset surface.
+#[derive(Debug)]
+#[allow(dead_code)] // printed
+struct Scores {
+    hull: (f64, f64),
+    integrated: (f64, f64),
+    matches: (f64, f64),
+    offset: (f64, f64),
+    coverage: f64,
+}
+
+fn score(out: &ViewSurfaces, proxies: &[DepthMap], truths: &[DepthMap], normals: &[NormalMap]) -> Scores {
+    let (mut hull, mut integrated, mut matches, mut offset) = (vec![], vec![], vec![], vec![]);
+    let (mut kept, mut measured) = (0usize, 0usize);
+    for c in 0..truths.len() {
+        // The hull and the integration over the pixels of the offset surface.
+        let region: Vec<bool> = out.surfaces[c].depth_m.iter().map(|d| !d.is_nan()).collect();
+        hull.push(depth_errors(&proxies[c], &truths[c], Some(&region)).unwrap());
+        integrated.push(depth_errors(&out.integrated[c], &truths[c], Some(&region)).unwrap());
+        offset.push(depth_errors(&out.surfaces[c], &truths[c], None).unwrap());
+        for m in &out.matched[c] {
+            matches.push(depth_errors(m, &truths[c], None).unwrap());
+        }
+        kept += out.surfaces[c].valid_count();
+        measured += normals[c].valid.iter().filter(|&&v| v).count();
+    }
+    Scores {
+        hull: pooled(&hull),
+        integrated: pooled(&integrated),
+        matches: pooled(&matches),
+        offset: pooled(&offset),
+        coverage: kept as f64 / measured as f64,
+    }
 }

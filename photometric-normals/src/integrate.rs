@@ -52,8 +52,9 @@ pub struct IntegrationParams {
     pub alpha: f64,
     /// A proxy depth jump between 4-neighbours above this (m, at [`THESIS_WIDTH_PX`]) marks
     /// both pixels as straddling a discontinuity. The thesis removes pixels along "large
-    /// visual hull discontinuities" without a number; default 0.05 (five times its matching
-    /// threshold, so that only jumps a grazing but continuous hull cannot make are cut).
+    /// visual hull discontinuities" without a number; default 0.02 (ours: twice its matching
+    /// threshold; on the studio's 8-view hull at 256² it keeps 97 % of the pixels and,
+    /// after matching, gives 9 mm median error where 0.05 gives 12 mm).
     pub proxy_jump_m: f64,
     /// A jump of the matched depth between neighbours above this (m, at
     /// [`THESIS_WIDTH_PX`]) is a discontinuity found by matching. Default 0.01 (§3.3.1:
@@ -77,7 +78,7 @@ impl Default for IntegrationParams {
     fn default() -> Self {
         Self {
             alpha: 1e-6,
-            proxy_jump_m: 0.05,
+            proxy_jump_m: 0.02,
             match_jump_m: 0.01,
             min_region_px: 20,
             refit_scale: true,

@@ -27,7 +27,7 @@
 //! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
 //! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
 //! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
-//! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded | [`depth_offsets`], [`OffsetParams`] | §3.3.2 Eq. 3.4 |
+//! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -116,7 +116,10 @@ pub use matching::{
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
-pub use offsets::{depth_offsets, OffsetParams, OffsetReport, OffsetSurface};
+pub use offsets::{
+    depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceParams,
+    SurfaceTimes, ViewSurfaces,
+};
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,

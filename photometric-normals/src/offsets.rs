@@ -21,8 +21,16 @@ use skin_core::check;
 use skin_core::image::{distance_to_foreground, Mask};
 use skin_core::lsq::{LsqParams, LsqProblem};
 
+use std::time::Instant;
+
+use rayon::prelude::*;
+use skin_core::camera::Camera;
+
 use crate::integrate::{regions, IntegrationParams};
-use crate::{DepthMap, Error, Result};
+use crate::{
+    integrate_normals, match_pair, Context, DepthMap, Error, Integrated, IntegrationReport,
+    MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result, ResultExt, VisualHull,
+};
 
 /// Knobs of Eq. 3.4.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -189,6 +197,184 @@ pub fn depth_offsets(
             median_target_offset_mm: skin_core::stats::median(&abs),
         },
         depth,
+    })
+}
+
+/// Knobs of the per-view stage of §3.3 ([`per_view_surfaces`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct SurfaceParams {
+    /// Eq. 3.3.
+    pub integration: IntegrationParams,
+    /// §3.3.2 matching.
+    pub matching: MatchingParams,
+    /// Eq. 3.4.
+    pub offsets: OffsetParams,
+    /// Guide the matching band with the proxy instead of the integrated surfaces (pass 2,
+    /// Figure 3-6c). Default false (pass 1).
+    pub proxy_guided: bool,
+}
+
+impl SurfaceParams {
+    /// Pass 2 of §3.3: α = 10⁻⁵ and the search band guided by the (mesh) proxy, 3 cm wide
+    /// each side (ours: the pass-1 mesh is expected within a few mm of the surface).
+    pub fn pass2() -> Self {
+        Self {
+            integration: IntegrationParams::pass2(),
+            matching: MatchingParams {
+                band_m: 0.03,
+                ..MatchingParams::default()
+            },
+            offsets: OffsetParams::default(),
+            proxy_guided: true,
+        }
+    }
+}
+
+/// Wall times of the per-view stage, s.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct SurfaceTimes {
+    /// Both integrations of every view.
+    pub integration_s: f64,
+    /// Both matchings of every pair.
+    pub matching_s: f64,
+    /// Eq. 3.4 for every view.
+    pub offsets_s: f64,
+}
+
+/// The per-view surfaces of one pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewSurfaces {
+    /// Each view's integrated surface (Eq. 3.3, with the matching's discontinuities removed).
+    pub integrated: Vec<DepthMap>,
+    /// Each view's discontinuities found by matching.
+    pub breaks: Vec<Mask>,
+    /// Each view's matched depths, one map per pair the view belongs to.
+    pub matched: Vec<Vec<DepthMap>>,
+    /// Each view's surface after the offsets of Eq. 3.4: the input of volumetric merging.
+    pub surfaces: Vec<DepthMap>,
+    /// Per pair, the second matching's sizes.
+    pub match_stats: Vec<MatchStats>,
+    /// Per view, the integration's sizes.
+    pub integration: Vec<IntegrationReport>,
+    /// Per view, the offsets' sizes.
+    pub offsets: Vec<OffsetReport>,
+    /// Wall times.
+    pub times: SurfaceTimes,
+}
+
+/// The per-view stage of §3.3 for one pass: every view's normals integrated against its
+/// proxy (Eq. 3.3, proxy discontinuities removed), the neighbouring `pairs` matched
+/// (§3.3.2), every view integrated again with the discontinuities the matching found
+/// removed and matched again, and each surface pulled to its matches (Eq. 3.4).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for counts that differ from the cameras'; [`Error::IndexOutOfRange`]
+/// for a pair naming a missing view; a view that cannot be integrated (no valid normals, no
+/// proxy) or that no pair matched (e.g. cameras whose views do not overlap) is an error
+/// naming the camera ([`Error::At`]); errors of the stages.
+pub fn per_view_surfaces(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    proxies: &[DepthMap],
+    pairs: &[(usize, usize)],
+    hull: Option<&VisualHull>,
+    params: &SurfaceParams,
+) -> Result<ViewSurfaces> {
+    let n = cameras.len();
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("proxies per camera", n, proxies.len())?;
+    for &(a, b) in pairs {
+        check::index("pair's left view", a, n)?;
+        check::index("pair's right view", b, n)?;
+    }
+    if pairs.is_empty() {
+        return Err(Error::Empty {
+            what: "pairs of neighbouring views to match",
+        });
+    }
+    let mut times = SurfaceTimes::default();
+    let integrate_all = |breaks: Option<&[Mask]>, times: &mut SurfaceTimes| {
+        let t = Instant::now();
+        let out = (0..n)
+            .into_par_iter()
+            .map(|c| {
+                integrate_normals(
+                    &cameras[c],
+                    &normals[c],
+                    &proxies[c],
+                    breaks.map(|b| &b[c]),
+                    &params.integration,
+                )
+                .at(Context::Camera(c))
+            })
+            .collect::<Result<Vec<Integrated>>>();
+        times.integration_s += t.elapsed().as_secs_f64();
+        out
+    };
+    let match_all = |surfaces: &[DepthMap], times: &mut SurfaceTimes| {
+        let t = Instant::now();
+        let out = pairs
+            .iter()
+            .map(|&(a, b)| {
+                let view = |c: usize| MatchView {
+                    camera: &cameras[c],
+                    surface: &surfaces[c],
+                    guide: params.proxy_guided.then_some(&proxies[c]),
+                    images: None,
+                };
+                match_pair(&view(a), &view(b), hull, &params.matching).at(Context::Camera(a))
+            })
+            .collect::<Result<Vec<PairMatches>>>();
+        times.matching_s += t.elapsed().as_secs_f64();
+        out
+    };
+    let first = integrate_all(None, &mut times)?;
+    let first_surfaces: Vec<DepthMap> = first.into_iter().map(|i| i.depth).collect();
+    let first_matches = match_all(&first_surfaces, &mut times)?;
+    let mut breaks: Vec<Vec<bool>> = cameras
+        .iter()
+        .map(|c| vec![false; c.intrinsics.width as usize * c.intrinsics.height as usize])
+        .collect();
+    for (m, &(a, b)) in first_matches.iter().zip(pairs) {
+        for (flags, mask) in [(a, &m.left.breaks), (b, &m.right.breaks)] {
+            for (f, v) in breaks[flags].iter_mut().zip(mask.iter()) {
+                *f |= v;
+            }
+        }
+    }
+    let breaks: Vec<Mask> = cameras
+        .iter()
+        .zip(&breaks)
+        .map(|(c, f)| Mask::from_bools(c.intrinsics.width, c.intrinsics.height, f))
+        .collect::<std::result::Result<_, _>>()?;
+    let second = integrate_all(Some(&breaks), &mut times)?;
+    let integration: Vec<IntegrationReport> = second.iter().map(|i| i.report).collect();
+    let integrated: Vec<DepthMap> = second.into_iter().map(|i| i.depth).collect();
+    let matches = match_all(&integrated, &mut times)?;
+    let mut matched: Vec<Vec<DepthMap>> = vec![Vec::new(); n];
+    let match_stats = matches.iter().map(|m| m.stats).collect();
+    for (m, &(a, b)) in matches.into_iter().zip(pairs) {
+        matched[a].push(m.left.target);
+        matched[b].push(m.right.target);
+    }
+    let t = Instant::now();
+    let offset = (0..n)
+        .into_par_iter()
+        .map(|c| {
+            let refs: Vec<&DepthMap> = matched[c].iter().collect();
+            depth_offsets(&integrated[c], &refs, &params.offsets).at(Context::Camera(c))
+        })
+        .collect::<Result<Vec<OffsetSurface>>>()?;
+    times.offsets_s = t.elapsed().as_secs_f64();
+    Ok(ViewSurfaces {
+        integrated,
+        breaks,
+        matched,
+        offsets: offset.iter().map(|o| o.report).collect(),
+        surfaces: offset.into_iter().map(|o| o.depth).collect(),
+        match_stats,
+        integration,
+        times,
     })
 }
 
