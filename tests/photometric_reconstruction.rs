@@ -20,8 +20,8 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, estimate_normals, per_view_surfaces, CalibrationParams, DepthErrors, DepthMap,
-    Exposure, NormalMap, NormalParams, PatternImages, SurfaceParams, ViewSurfaces, VisualHull,
+    estimate_normals, per_view_surfaces, CalibrationParams, DepthMap,
+    Exposure, NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull,
     VisualHullParams, PATTERNS,
 };
 
@@ -55,14 +55,6 @@ fn exact_normals(camera: &Camera, view: &RenderedView) -> NormalMap {
         normals,
         valid: view.mask.iter().map(|&m| m > 0).collect(),
     }
-}
-
-fn pooled(errors: &[DepthErrors]) -> (f64, f64) {
-    let n: usize = errors.iter().map(|e| e.pixels).sum();
-    let w = |f: fn(&DepthErrors) -> f64| {
-        errors.iter().map(|e| f(e) * e.pixels as f64).sum::<f64>() / n as f64
-    };
-    (w(|e| e.median_mm), w(|e| e.p95_mm))
 }
 
 #[test]
@@ -128,7 +120,7 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
     let params = SurfaceParams::default();
     let out = per_view_surfaces(&ring.cameras, &exact, &proxies, &pairs, Some(&hull), &params)
         .unwrap();
-    let scores = score(&out, &proxies, &truths, &exact);
+    let scores = out.errors_against(&truths, &proxies, &exact).unwrap();
     println!("exact normals, 8 views: {scores:?}; {:?}", out.times);
 
     // Estimated normals (part 1) on the two photographed views, one pair.
@@ -177,7 +169,7 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         &params,
     )
     .unwrap();
-    let est_scores = score(&est, &proxies[..2], &truths[..2], &estimated);
+    let est_scores = est.errors_against(&truths[..2], &proxies[..2], &estimated).unwrap();
     println!("estimated normals, 2 views: {est_scores:?}; {:?}", est.times);
     println!(
         "capture {t_capture:.1} s, hull {t_hull:.2} s (8 views), part-1 normals {t_normals:.1} s, \
@@ -188,48 +180,18 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
     // Integration alone keeps the hull's placement error but not its large errors; matching
     // and Eq. 3.4 then beat the hull in median and p95.
     let s = &scores;
-    assert!(s.integrated.1 < s.hull.1, "{s:?}");
-    assert!(s.offset.0 < s.hull.0 && s.offset.1 < 0.8 * s.hull.1, "{s:?}");
-    assert!(s.offset.0 < 0.6 * s.integrated.0, "{s:?}");
+    assert!(s.integrated.p95_mm < s.proxy.p95_mm, "{s:?}");
+    assert!(
+        s.offset.median_mm < s.proxy.median_mm && s.offset.p95_mm < 0.8 * s.proxy.p95_mm,
+        "{s:?}"
+    );
+    assert!(s.offset.median_mm < 0.6 * s.integrated.median_mm, "{s:?}");
     // Matches are quantised to the pixel grid: a 256² pixel covers ≈ 1 cm at 3.5 m.
-    assert!(s.matches.0 < 12.0 && s.coverage > 0.85, "{s:?}");
+    assert!(s.matches.median_mm < 12.0 && s.coverage_pct > 85.0, "{s:?}");
     let e = &est_scores;
-    assert!(e.offset.0 < e.integrated.0 && e.offset.1 < e.hull.1, "{e:?}");
-    assert!(e.coverage > 0.5, "{e:?}");
-}
-
-/// Pooled (median, p95) errors in mm of the hull, the integrated surfaces, the matches and the
-/// offset surfaces, and the fraction of measured normals that ended in an offset surface.
-#[derive(Debug)]
-#[allow(dead_code)] // printed
-struct Scores {
-    hull: (f64, f64),
-    integrated: (f64, f64),
-    matches: (f64, f64),
-    offset: (f64, f64),
-    coverage: f64,
-}
-
-fn score(out: &ViewSurfaces, proxies: &[DepthMap], truths: &[DepthMap], normals: &[NormalMap]) -> Scores {
-    let (mut hull, mut integrated, mut matches, mut offset) = (vec![], vec![], vec![], vec![]);
-    let (mut kept, mut measured) = (0usize, 0usize);
-    for c in 0..truths.len() {
-        // The hull and the integration over the pixels of the offset surface.
-        let region: Vec<bool> = out.surfaces[c].depth_m.iter().map(|d| !d.is_nan()).collect();
-        hull.push(depth_errors(&proxies[c], &truths[c], Some(&region)).unwrap());
-        integrated.push(depth_errors(&out.integrated[c], &truths[c], Some(&region)).unwrap());
-        offset.push(depth_errors(&out.surfaces[c], &truths[c], None).unwrap());
-        for m in &out.matched[c] {
-            matches.push(depth_errors(m, &truths[c], None).unwrap());
-        }
-        kept += out.surfaces[c].valid_count();
-        measured += normals[c].valid.iter().filter(|&&v| v).count();
-    }
-    Scores {
-        hull: pooled(&hull),
-        integrated: pooled(&integrated),
-        matches: pooled(&matches),
-        offset: pooled(&offset),
-        coverage: kept as f64 / measured as f64,
-    }
+    assert!(
+        e.offset.median_mm < e.integrated.median_mm && e.offset.p95_mm < e.proxy.p95_mm,
+        "{e:?}"
+    );
+    assert!(e.coverage_pct > 50.0, "{e:?}");
 }

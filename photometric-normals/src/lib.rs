@@ -117,8 +117,8 @@ pub use matching::{
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
-    depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceParams,
-    SurfaceTimes, ViewSurfaces,
+    depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceErrors,
+    SurfaceParams, SurfaceTimes, ViewSurfaces,
 };
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,

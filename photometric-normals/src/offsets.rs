@@ -28,7 +28,7 @@ use skin_core::camera::Camera;
 
 use crate::integrate::{regions, IntegrationParams};
 use crate::{
-    integrate_normals, match_pair, Context, DepthMap, Error, Integrated, IntegrationReport,
+    depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated, IntegrationReport,
     MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result, ResultExt, VisualHull,
 };
 
@@ -376,6 +376,80 @@ pub fn per_view_surfaces(
         integration,
         times,
     })
+}
+
+/// Pooled accuracy of one pass's per-view surfaces against reference depth maps (e.g. the
+/// studio's true depths, or a reference scan), each stage scored like [`depth_errors`] and
+/// pooled over the views (pixel-weighted medians and 95th percentiles).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceErrors {
+    /// The proxy, over the pixels of the offset surfaces (the baseline).
+    pub proxy: DepthErrors,
+    /// The integrated surfaces (Eq. 3.3), over the same pixels.
+    pub integrated: DepthErrors,
+    /// The matched depths (§3.3.2), over the matched pixels.
+    pub matches: DepthErrors,
+    /// The offset surfaces (Eq. 3.4).
+    pub offset: DepthErrors,
+    /// Fraction of the measured (valid) normals that ended in an offset surface, %.
+    pub coverage_pct: f64,
+}
+
+fn pool(errors: &[DepthErrors]) -> DepthErrors {
+    let n: usize = errors.iter().map(|e| e.pixels).sum();
+    let w = |f: fn(&DepthErrors) -> f64| {
+        errors.iter().map(|e| f(e) * e.pixels as f64).sum::<f64>() / n.max(1) as f64
+    };
+    DepthErrors {
+        pixels: n,
+        median_mm: w(|e| e.median_mm),
+        p95_mm: w(|e| e.p95_mm),
+        mean_mm: w(|e| e.mean_mm),
+    }
+}
+
+impl ViewSurfaces {
+    /// Scores every stage against `reference` (one depth map per view) beside the `proxies`;
+    /// `normals` give the coverage's denominator.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] for counts or sizes that differ; [`Error::Empty`] if a view's
+    /// offset surface does not overlap its reference.
+    pub fn errors_against(
+        &self,
+        reference: &[DepthMap],
+        proxies: &[DepthMap],
+        normals: &[NormalMap],
+    ) -> Result<SurfaceErrors> {
+        let n = self.surfaces.len();
+        check::same_size("reference depth maps", n, reference.len())?;
+        check::same_size("proxies", n, proxies.len())?;
+        check::same_size("normal maps", n, normals.len())?;
+        let (mut proxy, mut integrated, mut matches, mut offset) = (vec![], vec![], vec![], vec![]);
+        let (mut kept, mut measured) = (0usize, 0usize);
+        for c in 0..n {
+            let region: Vec<bool> = self.surfaces[c].depth_m.iter().map(|d| !d.is_nan()).collect();
+            proxy.push(depth_errors(&proxies[c], &reference[c], Some(&region)).at(Context::Camera(c))?);
+            integrated.push(
+                depth_errors(&self.integrated[c], &reference[c], Some(&region)).at(Context::Camera(c))?,
+            );
+            offset.push(depth_errors(&self.surfaces[c], &reference[c], None).at(Context::Camera(c))?);
+            for m in &self.matched[c] {
+                if let Ok(e) = depth_errors(m, &reference[c], None) {
+                    matches.push(e);
+                }
+            }
+            kept += self.surfaces[c].valid_count();
+            measured += normals[c].valid.iter().filter(|&&v| v).count();
+        }
+        Ok(SurfaceErrors {
+            proxy: pool(&proxy),
+            integrated: pool(&integrated),
+            matches: pool(&matches),
+            offset: pool(&offset),
+            coverage_pct: 100.0 * kept as f64 / measured.max(1) as f64,
+        })
+    }
 }
 
 #[cfg(test)]
