@@ -20,9 +20,8 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    estimate_normals, per_view_surfaces, CalibrationParams, DepthMap,
-    Exposure, NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull,
-    VisualHullParams, PATTERNS,
+    estimate_normals, per_view_surfaces, CalibrationParams, DepthMap, Exposure, NormalMap,
+    NormalParams, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -118,8 +117,15 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         .collect();
     let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
     let params = SurfaceParams::default();
-    let out = per_view_surfaces(&ring.cameras, &exact, &proxies, &pairs, Some(&hull), &params)
-        .unwrap();
+    let out = per_view_surfaces(
+        &ring.cameras,
+        &exact,
+        &proxies,
+        &pairs,
+        Some(&hull),
+        &params,
+    )
+    .unwrap();
     let scores = out.errors_against(&truths, &proxies, &exact).unwrap();
     println!("exact normals, 8 views: {scores:?}; {:?}", out.times);
 
@@ -169,8 +175,13 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         &params,
     )
     .unwrap();
-    let est_scores = est.errors_against(&truths[..2], &proxies[..2], &estimated).unwrap();
-    println!("estimated normals, 2 views: {est_scores:?}; {:?}", est.times);
+    let est_scores = est
+        .errors_against(&truths[..2], &proxies[..2], &estimated)
+        .unwrap();
+    println!(
+        "estimated normals, 2 views: {est_scores:?}; {:?}",
+        est.times
+    );
     println!(
         "capture {t_capture:.1} s, hull {t_hull:.2} s (8 views), part-1 normals {t_normals:.1} s, \
          total {:.1} s",

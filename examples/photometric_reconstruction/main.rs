@@ -38,8 +38,8 @@ use dynamic_shapes::core::camera::{Camera, Intrinsics, RadialDistortion, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DAffine3, DVec2, DVec3};
 use dynamic_shapes::core::mesh::{write_ply, PlyEncoding};
-use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::core::random::SplitMix64;
+use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
     GarmentParams, PatternSchedule, SkirtParams,
@@ -47,8 +47,8 @@ use dynamic_shapes::core::studio::{
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
     depth_map_mesh, estimate_normals, integrate_normals, per_view_surfaces, CalibrationParams,
-    DepthMap, Exposure, IntegrationParams, NormalMap, NormalParams, PatternImages,
-    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams, PATTERNS,
+    DepthMap, Exposure, IntegrationParams, NormalMap, NormalParams, PatternImages, SurfaceErrors,
+    SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams, PATTERNS,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -107,9 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         run.finish(peer_figures)?;
         return Ok(());
     }
-    let size = args
-        .size
-        .unwrap_or(if run.quick() { 256 } else { 512 });
+    let size = args.size.unwrap_or(if run.quick() { 256 } else { 512 });
     let n_cams = args.cameras.max(2);
 
     let stage = run.stage("performer and capture", None);
@@ -220,7 +218,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (c, (cam, surface)) in cameras.iter().zip(&est.surfaces).enumerate() {
         let jump = IntegrationParams::jump_threshold_m(0.04, size);
         if let Ok(m) = depth_map_mesh(cam, surface, jump) {
-            write_ply(run.path(&format!("view_{c}.ply")), &m, PlyEncoding::default())?;
+            write_ply(
+                run.path(&format!("view_{c}.ply")),
+                &m,
+                PlyEncoding::default(),
+            )?;
         }
     }
 
@@ -255,13 +257,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         f.extend(p.clone());
     }
     for h in [
-        Headline::new("offset_median_mm", "per-view surfaces after Eq. 3.4 (median)", "mm")
-            .note("part-1 normals; baseline: the visual hull (hull_median_mm)"),
-        Headline::new("offset_p95_mm", "per-view surfaces after Eq. 3.4 (p95)", "mm"),
+        Headline::new(
+            "offset_median_mm",
+            "per-view surfaces after Eq. 3.4 (median)",
+            "mm",
+        )
+        .note("part-1 normals; baseline: the visual hull (hull_median_mm)"),
+        Headline::new(
+            "offset_p95_mm",
+            "per-view surfaces after Eq. 3.4 (p95)",
+            "mm",
+        ),
         Headline::new("hull_median_mm", "visual hull proxy alone (median)", "mm"),
         Headline::new("hull_p95_mm", "visual hull proxy alone (p95)", "mm"),
-        Headline::new("integrated_median_mm", "Eq. 3.3 integration alone (median)", "mm"),
-        Headline::new("match_median_mm", "matched depths, surface metric (median)", "mm"),
+        Headline::new(
+            "integrated_median_mm",
+            "Eq. 3.3 integration alone (median)",
+            "mm",
+        ),
+        Headline::new(
+            "match_median_mm",
+            "matched depths, surface metric (median)",
+            "mm",
+        ),
         Headline::new("coverage_pct", "measured normals kept in a surface", "%")
             .goal(Goal::AtLeast(90.0)),
         Headline::new(
@@ -341,7 +359,11 @@ fn pictures(
     };
     let panels = side_by_side(&[
         titled(&error_image(proxy), "visual hull (proxy)", None)?,
-        titled(&error_image(&out.integrated[0]), "integrated (Eq. 3.3)", None)?,
+        titled(
+            &error_image(&out.integrated[0]),
+            "integrated (Eq. 3.3)",
+            None,
+        )?,
         titled(&error_image(&out.surfaces[0]), "offset (Eq. 3.4)", None)?,
     ])?;
     let ramp = |t: f64| error_colour(Some(t * ERROR_MAX_MM), ERROR_MAX_MM);
@@ -381,8 +403,8 @@ fn pictures(
         "matching.png",
         &titled(
             &matched,
-            "Camera 0: matches with its two neighbours",
-            Some("green: good match; red: depth discontinuity; grey: surface without a match"),
+            "Camera 0: matches",
+            Some("green: matched; red: discontinuity; grey: unmatched"),
         )?,
         "Camera 0's pixels matched in its neighbours (green), the discontinuities matching \
          found (red) and integrated pixels without a match (grey), as in Figure 3-6.",
@@ -402,8 +424,16 @@ fn peer_integration_workload(n: u32) -> Result<(f64, f64, f64), Box<dyn std::err
         .iter()
         .map(|u| 0.1 * (2.0 * u - 1.0))
         .collect();
-    let mu: Vec<f64> = SplitMix64::new(61).uniform(K).iter().map(|u| nf * u).collect();
-    let nu: Vec<f64> = SplitMix64::new(62).uniform(K).iter().map(|u| nf * u).collect();
+    let mu: Vec<f64> = SplitMix64::new(61)
+        .uniform(K)
+        .iter()
+        .map(|u| nf * u)
+        .collect();
+    let nu: Vec<f64> = SplitMix64::new(62)
+        .uniform(K)
+        .iter()
+        .map(|u| nf * u)
+        .collect();
     let s: Vec<f64> = SplitMix64::new(63)
         .uniform(K)
         .iter()

@@ -325,7 +325,12 @@ pub fn integrate_normals(
     if let Some(m) = match_breaks {
         check::same_size("matching discontinuity mask", n_px, m.pixel_count())?;
     }
-    for (n, _) in normals.normals.iter().zip(&normals.valid).filter(|(_, v)| **v) {
+    for (n, _) in normals
+        .normals
+        .iter()
+        .zip(&normals.valid)
+        .filter(|(_, v)| **v)
+    {
         if !n.is_finite() {
             return Err(Error::NonFinite {
                 what: "valid normal of the normal map",
@@ -468,12 +473,8 @@ mod tests {
                 .collect(),
             valid: view.mask.iter().map(|&m| m > 0).collect(),
         };
-        let proxy = DepthMap::new(
-            96,
-            96,
-            truth.depth_m.iter().map(|d| d - 0.03).collect(),
-        )
-        .unwrap();
+        let proxy =
+            DepthMap::new(96, 96, truth.depth_m.iter().map(|d| d - 0.03).collect()).unwrap();
         (cam, normals, truth, proxy)
     }
 
@@ -482,8 +483,8 @@ mod tests {
         let (cam, normals, truth, _) = sphere_view();
         // A proxy that is right on average but wrong in shape: a flat plane through the
         // sphere's mean depth (the baseline could win only if the shape were flat).
-        let mean = truth.depth_m.iter().filter(|d| !d.is_nan()).sum::<f64>()
-            / truth.valid_count() as f64;
+        let mean =
+            truth.depth_m.iter().filter(|d| !d.is_nan()).sum::<f64>() / truth.valid_count() as f64;
         let proxy = DepthMap::new(
             96,
             96,
@@ -494,8 +495,8 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let out = integrate_normals(&cam, &normals, &proxy, None, &IntegrationParams::default())
-            .unwrap();
+        let out =
+            integrate_normals(&cam, &normals, &proxy, None, &IntegrationParams::default()).unwrap();
         let err = |m: &DepthMap| {
             let mut e: Vec<f64> = m
                 .depth_m
@@ -524,8 +525,8 @@ mod tests {
                 jumpy.depth_m[i] += 1.0;
             }
         }
-        let out = integrate_normals(&cam, &normals, &jumpy, None, &IntegrationParams::default())
-            .unwrap();
+        let out =
+            integrate_normals(&cam, &normals, &jumpy, None, &IntegrationParams::default()).unwrap();
         assert!(out.report.removed_proxy_jumps > 20, "{:?}", out.report);
         let breaks = Mask::from_fn(96, 96, |x, _| x == 30);
         let out = integrate_normals(

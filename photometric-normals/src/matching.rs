@@ -115,7 +115,7 @@ impl Default for MatchingParams {
 
 impl MatchingParams {
     fn validate(&self) -> Result<()> {
-        if self.window_px == 0 || self.window_px % 2 == 0 {
+        if self.window_px == 0 || self.window_px.is_multiple_of(2) {
             return Err(Error::InvalidParam {
                 name: "window_px",
                 reason: format!("must be odd and positive, got {}", self.window_px),
@@ -235,7 +235,12 @@ pub fn depth_map_mesh(camera: &Camera, depth: &DepthMap, max_jump_m: f64) -> Res
     let mut faces = Vec::new();
     for y in 0..h.saturating_sub(1) {
         for x in 0..w.saturating_sub(1) {
-            let q = [y * w + x, y * w + x + 1, (y + 1) * w + x, (y + 1) * w + x + 1];
+            let q = [
+                y * w + x,
+                y * w + x + 1,
+                (y + 1) * w + x,
+                (y + 1) * w + x + 1,
+            ];
             if q.iter().any(|&i| index[i] == u32::MAX) {
                 continue;
             }
@@ -408,7 +413,8 @@ fn rigid_residual(pairs: &[(DVec3, DVec3)]) -> f64 {
     let mut h = Matrix3::zeros();
     for (a, b) in pairs {
         let (a, b) = (*a - ca, *b - cb);
-        h += nalgebra::Vector3::new(a.x, a.y, a.z) * nalgebra::Vector3::new(b.x, b.y, b.z).transpose();
+        h += nalgebra::Vector3::new(a.x, a.y, a.z)
+            * nalgebra::Vector3::new(b.x, b.y, b.z).transpose();
     }
     let svd = h.svd(true, true);
     let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
@@ -451,7 +457,13 @@ const RO: usize = 3;
 
 /// The lowest-cost path through an `na × nb` grid of costs (`∞` = not allowed), four states;
 /// returns the matched `(a, b)` cells in order.
-fn lowest_cost_path(costs: &[f64], na: usize, nb: usize, occ: f64, disc: f64) -> Vec<(usize, usize)> {
+fn lowest_cost_path(
+    costs: &[f64],
+    na: usize,
+    nb: usize,
+    occ: f64,
+    disc: f64,
+) -> Vec<(usize, usize)> {
     let (ri, rj) = (na + 1, nb + 1);
     let at = |i: usize, j: usize| i * rj + j;
     let mut dist = vec![[f64::INFINITY; 4]; ri * rj];
@@ -475,9 +487,9 @@ fn lowest_cost_path(costs: &[f64], na: usize, nb: usize, occ: f64, disc: f64) ->
                 let c = costs[(i - 1) * nb + (j - 1)];
                 if c.is_finite() {
                     // Diagonal match from any state; left-slanted from a match at (i−1, j).
-                    for p in 0..4 {
+                    for (p, &prev) in dist[at(i - 1, j - 1)].iter().enumerate() {
                         let pen = if matched(p) { 0.0 } else { disc };
-                        offer(LV, dist[at(i - 1, j - 1)][p] + c + pen, p, &mut best, &mut arg);
+                        offer(LV, prev + c + pen, p, &mut best, &mut arg);
                     }
                     for p in [LV, RV] {
                         offer(LV, dist[at(i - 1, j)][p] + c, 4 + p, &mut best, &mut arg);
@@ -486,15 +498,15 @@ fn lowest_cost_path(costs: &[f64], na: usize, nb: usize, occ: f64, disc: f64) ->
                 }
             }
             if i > 0 {
-                for p in 0..4 {
+                for (p, &prev) in dist[at(i - 1, j)].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
-                    offer(LO, dist[at(i - 1, j)][p] + occ + pen, p, &mut best, &mut arg);
+                    offer(LO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
             if j > 0 {
-                for p in 0..4 {
+                for (p, &prev) in dist[at(i, j - 1)].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
-                    offer(RO, dist[at(i, j - 1)][p] + occ + pen, p, &mut best, &mut arg);
+                    offer(RO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
             dist[at(i, j)] = best;
@@ -576,9 +588,9 @@ pub fn match_pair(
         for v in [left, right] {
             let ok = v.images.is_some_and(|im| {
                 im.len() >= 2
-                    && im
-                        .iter()
-                        .all(|i| i.dimensions() == (v.camera.intrinsics.width, v.camera.intrinsics.height))
+                    && im.iter().all(|i| {
+                        i.dimensions() == (v.camera.intrinsics.width, v.camera.intrinsics.height)
+                    })
             });
             if !ok {
                 return Err(Error::Empty {
@@ -620,7 +632,10 @@ pub fn match_pair(
         })
         .collect();
     let (w, h) = (pl.width, pl.height);
-    let mut sums = (vec![(0.0, 0usize); pl.rays.len()], vec![(0.0, 0usize); pr.rays.len()]);
+    let mut sums = (
+        vec![(0.0, 0usize); pl.rays.len()],
+        vec![(0.0, 0usize); pr.rays.len()],
+    );
     let mut breaks = (vec![false; pl.rays.len()], vec![false; pr.rays.len()]);
     let mut stats = MatchStats::default();
     for r in &results {
@@ -694,7 +709,8 @@ fn match_plane(
             if guide_b.is_nan() {
                 continue;
             }
-            let Some((ta, tb, gap)) = closest_approach(pl.centre, ll.rays[a], pr.centre, lr.rays[b])
+            let Some((ta, tb, gap)) =
+                closest_approach(pl.centre, ll.rays[a], pr.centre, lr.rays[b])
             else {
                 continue;
             };
@@ -873,7 +889,7 @@ mod tests {
         let path = lowest_cost_path(&costs, na, nb, 0.5, 0.1);
         assert!(path.contains(&(0, 0)) && path.contains(&(5, 5)), "{path:?}");
         assert!(!path.iter().any(|&(a, _)| a == 2), "{path:?}");
-        let none = lowest_cost_path(&vec![f64::INFINITY; 4], 2, 2, 0.5, 0.1);
+        let none = lowest_cost_path(&[f64::INFINITY; 4], 2, 2, 0.5, 0.1);
         assert!(none.is_empty());
     }
 }

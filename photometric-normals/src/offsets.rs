@@ -28,8 +28,9 @@ use skin_core::camera::Camera;
 
 use crate::integrate::{regions, IntegrationParams};
 use crate::{
-    depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated, IntegrationReport,
-    MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result, ResultExt, VisualHull,
+    depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated,
+    IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result,
+    ResultExt, VisualHull,
 };
 
 /// Knobs of Eq. 3.4.
@@ -112,7 +113,11 @@ pub fn depth_offsets(
             *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
         }
     }
-    let constrained = Mask::from_bools(w, h, &target.iter().map(|t| !t.is_nan()).collect::<Vec<_>>())?;
+    let constrained = Mask::from_bools(
+        w,
+        h,
+        &target.iter().map(|t| !t.is_nan()).collect::<Vec<_>>(),
+    )?;
     if constrained.is_empty() {
         return Err(Error::Empty {
             what: "matched pixels on the surface (Eq. 3.4 has no constraint)",
@@ -121,10 +126,7 @@ pub fn depth_offsets(
     let far = distance_to_foreground(&constrained)?;
     let limit = IntegrationParams::jump_threshold_m(params.max_distance_px, w);
     let mut inside: Vec<bool> = (0..n_px)
-        .map(|i| {
-            !surface.depth_m[i].is_nan()
-                && f64::from(far.as_raw()[i]) <= limit
-        })
+        .map(|i| !surface.depth_m[i].is_nan() && f64::from(far.as_raw()[i]) <= limit)
         .collect();
     let (label, count) = regions(w, h, &inside);
     let mut anchored = vec![false; count];
@@ -428,12 +430,20 @@ impl ViewSurfaces {
         let (mut proxy, mut integrated, mut matches, mut offset) = (vec![], vec![], vec![], vec![]);
         let (mut kept, mut measured) = (0usize, 0usize);
         for c in 0..n {
-            let region: Vec<bool> = self.surfaces[c].depth_m.iter().map(|d| !d.is_nan()).collect();
-            proxy.push(depth_errors(&proxies[c], &reference[c], Some(&region)).at(Context::Camera(c))?);
-            integrated.push(
-                depth_errors(&self.integrated[c], &reference[c], Some(&region)).at(Context::Camera(c))?,
+            let region: Vec<bool> = self.surfaces[c]
+                .depth_m
+                .iter()
+                .map(|d| !d.is_nan())
+                .collect();
+            proxy.push(
+                depth_errors(&proxies[c], &reference[c], Some(&region)).at(Context::Camera(c))?,
             );
-            offset.push(depth_errors(&self.surfaces[c], &reference[c], None).at(Context::Camera(c))?);
+            integrated.push(
+                depth_errors(&self.integrated[c], &reference[c], Some(&region))
+                    .at(Context::Camera(c))?,
+            );
+            offset
+                .push(depth_errors(&self.surfaces[c], &reference[c], None).at(Context::Camera(c))?);
             for m in &self.matched[c] {
                 if let Ok(e) = depth_errors(m, &reference[c], None) {
                     matches.push(e);
@@ -460,7 +470,8 @@ mod tests {
     fn offsets_interpolate_constraints_and_keep_the_detail() {
         // A 40 × 40 ripple surface 5 cm behind where sparse matches say it is.
         let (w, h) = (40u32, 40u32);
-        let ripple = |x: u32, y: u32| 3.0 + 0.002 * ((x as f64 * 0.9).sin() + (y as f64 * 0.7).cos());
+        let ripple =
+            |x: u32, y: u32| 3.0 + 0.002 * ((x as f64 * 0.9).sin() + (y as f64 * 0.7).cos());
         let surface = DepthMap::new(
             w,
             h,
@@ -498,7 +509,9 @@ mod tests {
         let target = DepthMap::new(
             w,
             h,
-            (0..w * h).map(|i| if i % w < 2 { 2.01 } else { f64::NAN }).collect(),
+            (0..w * h)
+                .map(|i| if i % w < 2 { 2.01 } else { f64::NAN })
+                .collect(),
         )
         .unwrap();
         let params = OffsetParams::default();
@@ -515,6 +528,14 @@ mod tests {
         assert!(depth_offsets(&surface, &[&none], &params).is_err());
         let small = DepthMap::empty(4, 4).unwrap();
         assert!(depth_offsets(&surface, &[&small], &params).is_err());
-        assert!(depth_offsets(&surface, &[&target], &OffsetParams { beta: -1.0, ..params }).is_err());
+        assert!(depth_offsets(
+            &surface,
+            &[&target],
+            &OffsetParams {
+                beta: -1.0,
+                ..params
+            }
+        )
+        .is_err());
     }
 }

@@ -324,7 +324,7 @@ mod tests {
         // entry is in front of the sphere by a few mm.
         let (p02, p10, median) = (gap[n / 50], gap[n / 10], gap[n / 2]);
         assert!(p02 > -0.01 && p10 > -0.005, "{p02} {p10}");
-        assert!(median >= 0.0 && median < 0.03, "{median}");
+        assert!((0.0..0.03).contains(&median), "{median}");
         assert!(hull.contains(DVec3::new(0.0, 1.0, 0.0)));
         assert!(!hull.contains(DVec3::new(0.0, 1.6, 0.0)));
     }
@@ -333,7 +333,7 @@ mod tests {
     fn rejects_bad_input() {
         let (cams, _) = sphere_rig(2);
         let empty = Mask::new(128, 128);
-        assert!(VisualHull::new(&cams[..1], &[empty.clone()]).is_err());
+        assert!(VisualHull::new(&cams[..1], std::slice::from_ref(&empty)).is_err());
         assert!(VisualHull::new(&cams, &[empty.clone(), empty.clone()]).is_err());
         let small = Mask::from_fn(8, 8, |_, _| true);
         assert!(VisualHull::new(&cams, &[small.clone(), small]).is_err());
