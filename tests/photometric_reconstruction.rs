@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
-use dynamic_shapes::core::math::{DVec2, DVec3};
+use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::core::studio::{
@@ -20,8 +20,8 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    estimate_normals, per_view_surfaces, CalibrationParams, DepthMap, Exposure, NormalMap,
-    NormalParams, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
+    estimate_normals, per_view_surfaces, rendered_normals, CalibrationParams, DepthMap, Exposure,
+    NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -34,26 +34,6 @@ fn render(camera: &Camera, mesh: &TriMesh) -> RenderedView {
     Rasterizer::new(camera)
         .render(mesh, &RenderParams::default().with_cull_back_faces(false))
         .unwrap()
-}
-
-/// The rasteriser's normals as a measured normal map: unit, facing the camera.
-fn exact_normals(camera: &Camera, view: &RenderedView) -> NormalMap {
-    let mut normals = Vec::with_capacity(view.pixel_count());
-    for y in 0..view.height {
-        for x in 0..view.width {
-            let n = view.normal_camera[view.index(x, y)];
-            let n = DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2]));
-            let ray = camera.ray(DVec2::new(f64::from(x), f64::from(y))).unwrap();
-            let r = camera.camera_from_world().transform_vector3(ray.direction);
-            normals.push(if n.dot(r) > 0.0 { -n } else { n });
-        }
-    }
-    NormalMap {
-        width: view.width,
-        height: view.height,
-        normals,
-        valid: view.mask.iter().map(|&m| m > 0).collect(),
-    }
 }
 
 #[test]
@@ -113,7 +93,7 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         .cameras
         .iter()
         .zip(&views)
-        .map(|(c, v)| exact_normals(c, v))
+        .map(|(c, v)| rendered_normals(c, v).unwrap())
         .collect();
     let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
     let params = SurfaceParams::default();

@@ -36,7 +36,7 @@ use serde_json::json;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, RadialDistortion, Rig};
 use dynamic_shapes::core::image::Mask;
-use dynamic_shapes::core::math::{DAffine3, DVec2, DVec3};
+use dynamic_shapes::core::math::{DAffine3, DVec3};
 use dynamic_shapes::core::mesh::{write_ply, PlyEncoding};
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
@@ -46,9 +46,10 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_map_mesh, estimate_normals, integrate_normals, per_view_surfaces, CalibrationParams,
-    DepthMap, Exposure, IntegrationParams, NormalMap, NormalParams, PatternImages, SurfaceErrors,
-    SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams, PATTERNS,
+    depth_map_mesh, estimate_normals, integrate_normals, per_view_surfaces, rendered_normals,
+    CalibrationParams, DepthMap, Exposure, IntegrationParams, NormalMap, NormalParams,
+    PatternImages, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    PATTERNS,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -191,7 +192,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let exact: Vec<NormalMap> = cameras
         .iter()
         .zip(&views)
-        .map(|(c, v)| exact_normals(c, v))
+        .map(|(c, v)| rendered_normals(c, v))
         .collect::<Result<_, _>>()?;
     stage.finish("done");
 
@@ -311,29 +312,6 @@ fn summary(e: &SurfaceErrors) -> String {
         e.offset.median_mm,
         e.coverage_pct
     )
-}
-
-/// The rasteriser's normals as a measured normal map: unit, facing the camera.
-fn exact_normals(
-    camera: &Camera,
-    view: &RenderedView,
-) -> Result<NormalMap, Box<dyn std::error::Error>> {
-    let mut normals = Vec::with_capacity(view.pixel_count());
-    for y in 0..view.height {
-        for x in 0..view.width {
-            let n = view.normal_camera[view.index(x, y)];
-            let n = DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2]));
-            let ray = camera.ray(DVec2::new(f64::from(x), f64::from(y)))?;
-            let r = camera.camera_from_world().transform_vector3(ray.direction);
-            normals.push(if n.dot(r) > 0.0 { -n } else { n });
-        }
-    }
-    Ok(NormalMap {
-        width: view.width,
-        height: view.height,
-        normals,
-        valid: view.mask.iter().map(|&m| m > 0).collect(),
-    })
 }
 
 /// Camera 0's error per stage and its matches.

@@ -35,6 +35,7 @@ use skin_core::check;
 use skin_core::image::Mask;
 use skin_core::lsq::{LsqParams, LsqProblem};
 use skin_core::math::{DVec2, DVec3};
+use skin_core::raster::RenderedView;
 use skin_core::stats::{mean, percentile_sorted};
 
 use crate::{DepthMap, Error, NormalMap, Result};
@@ -262,6 +263,64 @@ fn refit_region_scales(
     }
 }
 
+/// The right and lower 4-neighbour pairs `(i, j)` (row-major pixel indices) of `pixels`
+/// whose both ends are unknowns (`unknown[j] != usize::MAX`), in the order of `pixels`.
+pub(crate) fn neighbour_pairs<'a>(
+    width: u32,
+    pixels: &'a [usize],
+    unknown: &'a [usize],
+) -> impl Iterator<Item = (usize, usize)> + 'a {
+    let w = width as usize;
+    pixels.iter().flat_map(move |&i| {
+        let right = (i % w + 1 < w).then_some(i + 1);
+        let down = (i + w < unknown.len()).then_some(i + w);
+        [right, down]
+            .into_iter()
+            .flatten()
+            .filter(move |&j| unknown[j] != usize::MAX)
+            .map(move |j| (i, j))
+    })
+}
+
+/// The rasteriser's normals of `view` (seen by `camera`) as a measured normal map: turned to
+/// face the camera, as a photometric measurement is (the rasteriser keeps a visible back
+/// face's outward normal), valid where the view sees the mesh. The exact-normal control of
+/// §3.3's validation.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if the view lacks its mask or normal buffer or the camera images
+/// another size; errors of [`Camera::ray`].
+pub fn rendered_normals(camera: &Camera, view: &RenderedView) -> Result<NormalMap> {
+    let n_px = view.pixel_count();
+    check::same_size(
+        "camera pixels",
+        n_px,
+        camera.intrinsics.width as usize * camera.intrinsics.height as usize,
+    )?;
+    check::same_size("rendered normals", n_px, view.normal_camera.len())?;
+    check::same_size("rendered mask", n_px, view.mask.len())?;
+    let rays = camera_rays(camera)?;
+    let normals = view
+        .normal_camera
+        .iter()
+        .zip(&rays)
+        .map(|(n, r)| {
+            let n = DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2]));
+            if n.dot(*r) > 0.0 {
+                -n
+            } else {
+                n
+            }
+        })
+        .collect();
+    Ok(NormalMap {
+        width: view.width,
+        height: view.height,
+        normals,
+        valid: view.mask.iter().map(|&m| m > 0).collect(),
+    })
+}
+
 /// Labels the 4-connected regions of `inside` (row-major); `usize::MAX` outside.
 pub(crate) fn regions(width: u32, height: u32, inside: &[bool]) -> (Vec<usize>, usize) {
     let (w, h) = (width as usize, height as usize);
@@ -387,23 +446,12 @@ pub fn integrate_normals(
     }
     let rays = camera_rays(camera)?;
     let n = pixels.len();
-    let mut rows = Vec::new();
-    for &i in &pixels {
-        let (x, y) = (i % w as usize, i / w as usize);
-        for j in [
-            (x + 1 < w as usize).then_some(i + 1),
-            (y + 1 < h as usize).then_some(i + w as usize),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if unknown[j] == usize::MAX {
-                continue;
-            }
+    let rows: Vec<(usize, f64, usize, f64)> = neighbour_pairs(w, &pixels, &unknown)
+        .map(|(i, j)| {
             let m = normals.normals[i] + normals.normals[j];
-            rows.push((unknown[i], m.dot(rays[i]), unknown[j], -m.dot(rays[j])));
-        }
-    }
+            (unknown[i], m.dot(rays[i]), unknown[j], -m.dot(rays[j]))
+        })
+        .collect();
     report.normal_constraints = rows.len();
     let mut a = CooMatrix::new(rows.len(), n);
     for (r, (ci, vi, cj, vj)) in rows.into_iter().enumerate() {
@@ -463,16 +511,7 @@ mod tests {
             .render(&mesh, &RenderParams::default())
             .unwrap();
         let truth = DepthMap::from_view(&view).unwrap();
-        let normals = NormalMap {
-            width: 96,
-            height: 96,
-            normals: view
-                .normal_camera
-                .iter()
-                .map(|n| DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2])))
-                .collect(),
-            valid: view.mask.iter().map(|&m| m > 0).collect(),
-        };
+        let normals = rendered_normals(&cam, &view).unwrap();
         let proxy =
             DepthMap::new(96, 96, truth.depth_m.iter().map(|d| d - 0.03).collect()).unwrap();
         (cam, normals, truth, proxy)

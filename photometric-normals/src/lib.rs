@@ -108,8 +108,8 @@ pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
-    depth_errors, depth_jumps, integrate_normals, DepthErrors, Integrated, IntegrationParams,
-    IntegrationReport, THESIS_WIDTH_PX,
+    depth_errors, depth_jumps, integrate_normals, rendered_normals, DepthErrors, Integrated,
+    IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
 };
 pub use matching::{
     depth_map_mesh, match_pair, MatchMetric, MatchStats, MatchView, MatchingParams, PairMatches,

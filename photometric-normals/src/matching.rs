@@ -785,6 +785,27 @@ fn pixel_distance(i: usize, j: usize, width: u32) -> f64 {
     ((xi as f64 - xj as f64).powi(2) + (yi as f64 - yj as f64).powi(2)).sqrt()
 }
 
+/// Adds the squared differences of two pixels' image stacks (from image `from` on) to `sum`
+/// and their count to `n`; false if a view has no images.
+fn add_stack_difference(
+    (pl, a): (&Prepared<'_>, usize),
+    (pr, b): (&Prepared<'_>, usize),
+    from: usize,
+    (sa, sb): (&mut Vec<f64>, &mut Vec<f64>),
+    (sum, n): (&mut f64, &mut usize),
+) -> bool {
+    sa.clear();
+    sb.clear();
+    if !(pl.stack_at(a, sa, from) && pr.stack_at(b, sb, from)) {
+        return false;
+    }
+    for (u, v) in sa.iter().zip(sb.iter()) {
+        *sum += (u - v).powi(2);
+        *n += 1;
+    }
+    true
+}
+
 /// Mean squared difference of the image stacks (from image `from` on) over the windows
 /// around `ia` (left) and `ib` (right).
 fn window_difference(
@@ -799,14 +820,8 @@ fn window_difference(
     let (mut sum, mut n) = (0.0, 0usize);
     for (a, b) in pl.window(ia, half).zip(pr.window(ib, half)) {
         let (Some(a), Some(b)) = (a, b) else { continue };
-        sa.clear();
-        sb.clear();
-        if !(pl.stack_at(a, sa, from) && pr.stack_at(b, sb, from)) {
+        if !add_stack_difference((pl, a), (pr, b), from, (sa, sb), (&mut sum, &mut n)) {
             return f64::INFINITY;
-        }
-        for (u, v) in sa.iter().zip(sb.iter()) {
-            sum += (u - v).powi(2);
-            n += 1;
         }
     }
     if n == 0 {
@@ -837,14 +852,8 @@ fn projected_difference(
             continue;
         };
         let Some(qb) = pr.pixel_of(q) else { continue };
-        sa.clear();
-        sb.clear();
-        if !(pl.stack_at(a, sa, 1) && pr.stack_at(qb, sb, 1)) {
+        if !add_stack_difference((pl, a), (pr, qb), 1, (sa, sb), (&mut sum, &mut n)) {
             return f64::INFINITY;
-        }
-        for (u, v) in sa.iter().zip(sb.iter()) {
-            sum += (u - v).powi(2);
-            n += 1;
         }
     }
     let full = ((2 * half + 1) * (2 * half + 1)) as usize;

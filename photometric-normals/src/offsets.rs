@@ -26,7 +26,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use skin_core::camera::Camera;
 
-use crate::integrate::{regions, IntegrationParams};
+use crate::integrate::{neighbour_pairs, regions, IntegrationParams};
 use crate::{
     depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated,
     IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result,
@@ -147,21 +147,9 @@ pub fn depth_offsets(
         pixels.push(i);
     }
     let n = pixels.len();
-    let mut edges = Vec::new();
-    for &i in &pixels {
-        let (x, y) = (i % w as usize, i / w as usize);
-        for j in [
-            (x + 1 < w as usize).then_some(i + 1),
-            (y + 1 < h as usize).then_some(i + w as usize),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if unknown[j] != usize::MAX {
-                edges.push((unknown[i], unknown[j]));
-            }
-        }
-    }
+    let edges: Vec<(usize, usize)> = neighbour_pairs(w, &pixels, &unknown)
+        .map(|(i, j)| (unknown[i], unknown[j]))
+        .collect();
     let mut a = CooMatrix::new(edges.len(), n);
     for (r, &(p, q)) in edges.iter().enumerate() {
         a.push(r, p, 1.0);
