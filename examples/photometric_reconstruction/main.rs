@@ -46,10 +46,10 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_map_mesh, estimate_normals, integrate_normals, per_view_surfaces, rendered_normals,
-    CalibrationParams, DepthMap, Exposure, IntegrationParams, NormalMap, NormalParams,
-    PatternImages, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
-    PATTERNS,
+    depth_errors, depth_map_mesh, estimate_normals, integrate_normals, match_pair,
+    per_view_surfaces, rendered_normals, CalibrationParams, DepthMap, Exposure, IntegrationParams,
+    MatchMetric, MatchView, MatchingParams, NormalMap, NormalParams, Pattern, PatternImages,
+    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams, PATTERNS,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -161,6 +161,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .with_exposure(exposure)
         .with_performance_centre(root);
     let mut estimated = Vec::with_capacity(n_cams);
+    let mut stacks = Vec::with_capacity(n_cams);
     for (c, cam) in cameras.iter().enumerate() {
         let cal = calibrate_camera(
             cam,
@@ -187,6 +188,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Some(&obs.mask),
             &normal_params,
         )?);
+        // The matching metrics' images: full-on first, then the six half-on conditions.
+        let mut stack = vec![images.image(Pattern::Full).clone()];
+        stack.extend(
+            PATTERNS
+                .iter()
+                .filter(|&&p| p != Pattern::Full)
+                .map(|&p| images.image(p).clone()),
+        );
+        stacks.push(stack);
         stage.inc(1);
     }
     let exact: Vec<NormalMap> = cameras
@@ -214,6 +224,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ctl = per_view_surfaces(&cameras, &exact, &proxies, &pairs, Some(&hull), &params)?;
     let ctl_err = ctl.errors_against(&truths, &proxies, &exact)?;
     stage.finish(summary(&ctl_err));
+
+    // Figure 3-5's comparison: the four metrics on the pair (0, 1), same surfaces and band.
+    let stage = run.stage("four matching metrics on pair 0-1", Some(4));
+    let mut metric_figures = serde_json::Map::new();
+    for metric in MatchMetric::ALL {
+        let view = |c: usize| MatchView {
+            camera: &cameras[c],
+            surface: &est.integrated[c],
+            guide: None,
+            images: Some(&stacks[c]),
+        };
+        let params = MatchingParams {
+            metric,
+            ..MatchingParams::default()
+        };
+        let t = Instant::now();
+        let m = match_pair(&view(0), &view(1), Some(&hull), &params)?;
+        let seconds = t.elapsed().as_secs_f64();
+        let (l, r) = (
+            depth_errors(&m.left.target, &truths[0], None)?,
+            depth_errors(&m.right.target, &truths[1], None)?,
+        );
+        let pixels = l.pixels + r.pixels;
+        let pooled = |a: f64, b: f64| (a * l.pixels as f64 + b * r.pixels as f64) / pixels as f64;
+        metric_figures.insert(
+            format!("{metric:?}"),
+            json!({
+                "match_median_mm": pooled(l.median_mm, r.median_mm),
+                "match_p95_mm": pooled(l.p95_mm, r.p95_mm),
+                "matched_px": pixels,
+                "seconds": seconds,
+            }),
+        );
+        stage.inc(1);
+    }
+    stage.finish(format!("{metric_figures:?}"));
 
     pictures(&mut run, &est, &proxies[0], &truths[0])?;
     for (c, (cam, surface)) in cameras.iter().zip(&est.surfaces).enumerate() {
@@ -253,6 +299,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "matches": est.match_stats.iter().map(|m| m.good_matches).sum::<usize>(),
         "discontinuities": est.match_stats.iter().map(|m| m.discontinuities).sum::<usize>(),
         "errors": { "estimated": est_err, "exact": ctl_err },
+        "metrics_pair_0_1": metric_figures,
     });
     if let (Some(f), Some(p)) = (figures.as_object_mut(), peer_figures.as_object()) {
         f.extend(p.clone());
