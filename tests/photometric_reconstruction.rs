@@ -20,8 +20,9 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    estimate_normals, per_view_surfaces, rendered_normals, CalibrationParams, DepthMap, Exposure,
-    NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
+    depth_errors, estimate_normals, match_pair, per_view_surfaces, rendered_normals,
+    CalibrationParams, DepthMap, Exposure, MatchMetric, MatchView, MatchingParams, NormalMap,
+    NormalParams, Pattern, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -119,6 +120,7 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
     let normal_params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);
+    let mut stacks = Vec::new();
     let estimated: Vec<NormalMap> = (0..2)
         .map(|c| {
             let cam = &ring.cameras[c];
@@ -142,6 +144,14 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
                     .collect::<Vec<_>>(),
             )
             .unwrap();
+            let mut stack = vec![images.image(Pattern::Full).clone()];
+            stack.extend(
+                PATTERNS
+                    .iter()
+                    .filter(|&&p| p != Pattern::Full)
+                    .map(|&p| images.image(p).clone()),
+            );
+            stacks.push(stack);
             estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap()
         })
         .collect();
@@ -161,6 +171,33 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
     println!(
         "estimated normals, 2 views: {est_scores:?}; {:?}",
         est.times
+    );
+    // Figure 3-5: the four metrics on the same surfaces; the surface metric beats plain stereo.
+    let mut metric_err = Vec::new();
+    for metric in MatchMetric::ALL {
+        let view = |c: usize| MatchView {
+            camera: &ring.cameras[c],
+            surface: &est.integrated[c],
+            guide: None,
+            images: Some(&stacks[c]),
+        };
+        let params = MatchingParams {
+            metric,
+            ..MatchingParams::default()
+        };
+        let m = match_pair(&view(0), &view(1), Some(&hull), &params).unwrap();
+        let e = depth_errors(&m.left.target, &truths[0], None).unwrap();
+        println!(
+            "{metric:?}: matches median {:.1} mm p95 {:.1} mm ({} px)",
+            e.median_mm, e.p95_mm, e.pixels
+        );
+        assert!(e.pixels > 1000, "{metric:?} {e:?}");
+        metric_err.push(e);
+    }
+    let (full_on, surface) = (&metric_err[0], &metric_err[2]);
+    assert!(
+        surface.median_mm < full_on.median_mm && surface.p95_mm < full_on.p95_mm,
+        "{surface:?} vs {full_on:?}"
     );
     println!(
         "capture {t_capture:.1} s, hull {t_hull:.2} s (8 views), part-1 normals {t_normals:.1} s, \
