@@ -886,6 +886,73 @@ mod tests {
         assert!(rigid_residual(&bent) > 1e-4);
     }
 
+    /// Two cameras 45° apart around a bumpy sphere, with its true depth maps.
+    fn sphere_pair() -> (Vec<Camera>, Vec<DepthMap>) {
+        use skin_core::camera::{Intrinsics, Rig};
+        use skin_core::mesh::shapes::uv_sphere;
+        let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
+        let rig = Rig::ring(8, 3.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
+        let cams = rig.cameras[..2].to_vec();
+        let mut mesh = uv_sphere(DVec3::ZERO, 0.4, 48, 96).unwrap();
+        for v in &mut mesh.vertices {
+            // Low bumps so that the surface metric has shape to match.
+            *v *= 1.0 + 0.05 * (5.0 * v.x).sin() * (5.0 * v.y).cos();
+        }
+        let depths = cams
+            .iter()
+            .map(|c| mesh_proxy_depth(c, &mesh).unwrap())
+            .collect();
+        (cams, depths)
+    }
+
+    fn plain<'a>(camera: &'a Camera, surface: &'a DepthMap) -> MatchView<'a> {
+        MatchView {
+            camera,
+            surface,
+            guide: None,
+            images: None,
+        }
+    }
+
+    #[test]
+    fn matching_true_surfaces_recovers_their_depths_and_bad_input_is_an_error() {
+        let (cams, truth) = sphere_pair();
+        let (left, right) = (plain(&cams[0], &truth[0]), plain(&cams[1], &truth[1]));
+        let m = match_pair(&left, &right, None, &MatchingParams::default()).unwrap();
+        assert!(m.stats.good_matches > 300, "{:?}", m.stats);
+        let mut err: Vec<f64> = m
+            .left
+            .target
+            .depth_m
+            .iter()
+            .zip(&truth[0].depth_m)
+            .filter(|(a, b)| !a.is_nan() && !b.is_nan())
+            .map(|(a, b)| (a - b).abs())
+            .collect();
+        err.sort_by(f64::total_cmp);
+        // A 96² pixel covers ≈ 1.4 cm at 3 m: matches are within a pixel's footprint.
+        let median = err[err.len() / 2];
+        assert!(median < 0.01, "{median}");
+        let distorted = cams[0]
+            .clone()
+            .with_distortion(skin_core::camera::RadialDistortion::new(
+                -0.1,
+                DVec2::new(48.0, 48.0),
+            ));
+        let bad = plain(&distorted, &truth[0]);
+        assert!(match_pair(&bad, &right, None, &MatchingParams::default()).is_err());
+        let even = MatchingParams {
+            window_px: 4,
+            ..MatchingParams::default()
+        };
+        assert!(match_pair(&left, &right, None, &even).is_err());
+        let image_metric = MatchingParams {
+            metric: MatchMetric::FullOnWindow,
+            ..MatchingParams::default()
+        };
+        assert!(match_pair(&left, &right, None, &image_metric).is_err());
+    }
+
     #[test]
     fn dynamic_programme_follows_the_cheap_diagonal_and_skips_an_occlusion() {
         // 6 × 6 grid: cheap along a = b except that left sample 2 has no good match.
