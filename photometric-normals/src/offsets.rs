@@ -526,4 +526,89 @@ mod tests {
         )
         .is_err());
     }
+
+    /// Two views of a sphere from the ring's cameras `a` and `b` (of 8), exact normals, the
+    /// true depths pushed 2 cm toward the camera as the proxy.
+    fn sphere_views(a: usize, b: usize) -> (Vec<Camera>, Vec<NormalMap>, Vec<DepthMap>) {
+        use skin_core::camera::{Intrinsics, Rig};
+        use skin_core::math::DVec3;
+        use skin_core::mesh::shapes::uv_sphere;
+        use skin_core::raster::{Rasterizer, RenderParams};
+        let k = Intrinsics::from_horizontal_fov(0.5, 64, 64).unwrap();
+        let rig = Rig::ring(8, 3.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
+        let cams = vec![rig.cameras[a].clone(), rig.cameras[b].clone()];
+        let mesh = uv_sphere(DVec3::ZERO, 0.4, 48, 96).unwrap();
+        let mut normals = Vec::new();
+        let mut proxies = Vec::new();
+        for c in &cams {
+            let view = Rasterizer::new(c)
+                .render(&mesh, &RenderParams::default())
+                .unwrap();
+            normals.push(crate::rendered_normals(c, &view).unwrap());
+            let truth = DepthMap::from_view(&view).unwrap();
+            proxies.push(
+                DepthMap::new(64, 64, truth.depth_m.iter().map(|d| d - 0.02).collect()).unwrap(),
+            );
+        }
+        (cams, normals, proxies)
+    }
+
+    #[test]
+    fn a_pass_runs_on_neighbours_and_views_that_do_not_overlap_are_an_error() {
+        let (cams, normals, proxies) = sphere_views(0, 1);
+        let out = per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default(),
+        )
+        .unwrap();
+        assert_eq!(out.surfaces.len(), 2);
+        assert!(
+            out.match_stats[0].good_matches > 100,
+            "{:?}",
+            out.match_stats
+        );
+        // Opposite cameras see disjoint halves: no match, so no Eq. 3.4 constraint.
+        let (cams, normals, proxies) = sphere_views(0, 4);
+        let err = per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default(),
+        )
+        .unwrap_err();
+        assert!(matches!(err, Error::At { .. }), "{err}");
+        assert!(per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 2)],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+        assert!(per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+        assert!(per_view_surfaces(
+            &cams,
+            &normals[..1],
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+    }
 }

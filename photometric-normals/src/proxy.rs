@@ -230,7 +230,7 @@ impl VisualHull {
     ) -> Option<f64> {
         let at = |t: f64| self.hull_distance(origin + dir * t, Some(view));
         let mut t_prev = params.near_m;
-        let (mut d, mut step) = at(t_prev);
+        let (d, mut step) = at(t_prev);
         if d <= 0.0 {
             return Some(t_prev);
         }
@@ -250,9 +250,8 @@ impl VisualHull {
                 }
                 return Some(hi);
             }
-            (t_prev, d, step) = (t, d_t, step_t);
+            (t_prev, step) = (t, step_t);
         }
-        let _ = d;
         None
     }
 }
