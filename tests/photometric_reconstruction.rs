@@ -20,9 +20,10 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, estimate_normals, match_pair, per_view_surfaces, rendered_normals,
-    CalibrationParams, DepthMap, Exposure, MatchMetric, MatchView, MatchingParams, NormalMap,
-    NormalParams, Pattern, PatternImages, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
+    depth_errors, estimate_normals, match_pair, matching_images, per_view_surfaces,
+    rendered_normals, CalibrationParams, DepthMap, Exposure, MatchMetric, MatchView,
+    MatchingParams, NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull,
+    VisualHullParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -144,14 +145,7 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
                     .collect::<Vec<_>>(),
             )
             .unwrap();
-            let mut stack = vec![images.image(Pattern::Full).clone()];
-            stack.extend(
-                PATTERNS
-                    .iter()
-                    .filter(|&&p| p != Pattern::Full)
-                    .map(|&p| images.image(p).clone()),
-            );
-            stacks.push(stack);
+            stacks.push(matching_images(&images));
             estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap()
         })
         .collect();

@@ -49,9 +49,9 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, depth_map_mesh, estimate_normals, integrate_normals, match_pair,
+    depth_errors, depth_map_mesh, estimate_normals, integrate_normals, match_pair, matching_images,
     mesh_proxy_depth, per_view_surfaces, rendered_normals, CalibrationParams, DepthMap, Exposure,
-    IntegrationParams, MatchMetric, MatchView, MatchingParams, NormalMap, NormalParams, Pattern,
+    IntegrationParams, MatchMetric, MatchView, MatchingParams, NormalMap, NormalParams,
     PatternImages, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
     PATTERNS,
 };
@@ -192,15 +192,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Some(&obs.mask),
             &normal_params,
         )?);
-        // The matching metrics' images: full-on first, then the six half-on conditions.
-        let mut stack = vec![images.image(Pattern::Full).clone()];
-        stack.extend(
-            PATTERNS
-                .iter()
-                .filter(|&&p| p != Pattern::Full)
-                .map(|&p| images.image(p).clone()),
-        );
-        stacks.push(stack);
+        stacks.push(matching_images(&images));
         stage.inc(1);
     }
     let exact: Vec<NormalMap> = cameras

@@ -112,8 +112,8 @@ pub use integrate::{
     IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
 };
 pub use matching::{
-    depth_map_mesh, match_pair, MatchMetric, MatchStats, MatchView, MatchingParams, PairMatches,
-    ViewMatches,
+    depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
+    MatchingParams, PairMatches, ViewMatches,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};

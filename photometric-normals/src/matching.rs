@@ -45,7 +45,9 @@ use skin_core::mesh::TriMesh;
 use skin_core::stats::median;
 
 use crate::integrate::{camera_rays, IntegrationParams};
-use crate::{mesh_proxy_depth, DepthMap, Error, Result, VisualHull};
+use crate::{
+    mesh_proxy_depth, DepthMap, Error, Pattern, PatternImages, Result, VisualHull, PATTERNS,
+};
 
 /// The four matching metrics of §3.3.2.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -130,6 +132,15 @@ impl MatchingParams {
     }
 }
 
+/// The images of one view as the image-based metrics take them: the full-on image first,
+/// then the six half-on conditions in [`PATTERNS`](crate::PATTERNS) order.
+pub fn matching_images(images: &PatternImages) -> Vec<GrayF32Image> {
+    std::iter::once(Pattern::Full)
+        .chain(PATTERNS.iter().copied().filter(|&p| p != Pattern::Full))
+        .map(|p| images.image(p).clone())
+        .collect()
+}
+
 /// One view as the matcher sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct MatchView<'a> {
@@ -140,7 +151,8 @@ pub struct MatchView<'a> {
     /// The guide of the search band: the proxy in pass 2; `None` uses the surface (pass 1).
     pub guide: Option<&'a DepthMap>,
     /// Images for the image-based metrics: the full-on image first, then the six half-on
-    /// images (any number ≥ 1 of the latter); `None` for the surface metric alone.
+    /// images (any number ≥ 1 of the latter; [`matching_images`] makes them); `None` for the
+    /// surface metric alone.
     pub images: Option<&'a [GrayF32Image]>,
 }
 
