@@ -27,6 +27,10 @@
 //! | `marching_cubes.rs` | marching cubes over sparse cells (face-walking loops, asymptotic decider; watertight where observed) | (internal) | §3.3.3 |
 //! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
 //! | `poisson.rs` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
+//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
+//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
+//! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
+//! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -91,14 +95,18 @@ mod colour;
 mod depth_map;
 mod error;
 mod flow;
+mod integrate;
 mod marching_cubes;
+mod matching;
 mod merge;
 mod motion;
 mod normals;
+mod offsets;
 mod patterns;
 #[cfg(feature = "validation")]
 pub mod peer_workloads;
 mod poisson;
+mod proxy;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -108,12 +116,25 @@ pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
 pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
+pub use integrate::{
+    depth_errors, depth_jumps, integrate_normals, rendered_normals, DepthErrors, Integrated,
+    IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+};
+pub use matching::{
+    depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
+    MatchingParams, PairMatches, ViewMatches,
+};
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
+pub use offsets::{
+    depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceErrors,
+    SurfaceParams, SurfaceTimes, ViewSurfaces,
+};
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
     CYCLE_FRAME_RATE_HZ, PATTERNS,
 };
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
+pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};

@@ -1,0 +1,983 @@
+//! Pairwise matching of neighbouring views (Vlasic 2010 §3.3.2): four matching metrics,
+//! epipolar-plane grids of matching costs, and the lowest-cost path through each grid by a
+//! four-state dynamic programme after Criminisi et al. [41], which also finds the depth
+//! discontinuities that §3.3.1 removes from the integration.
+//!
+//! **Epipolar planes.** For a pair (left, right) the planes through both camera centres are
+//! taken one per row of the left image (the plane through the ray of the row's centre pixel),
+//! so neighbouring planes are about a pixel apart. Each plane meets each image in a line
+//! (`l = K⁻ᵀ m` for the plane normal `m` in the camera frame; the cameras must be
+//! undistorted — undistort images first); the line is sampled "one pixel at a time in each
+//! view" at the integer pixels it crosses, keeping those where the view's integrated surface
+//! exists. Samples are ordered by the angle between their ray and the baseline, which orders
+//! the points of an opaque surface the same way in both views.
+//!
+//! **Grid.** Cell `(a, b)` pairs left sample `a` with right sample `b`; their rays meet (closest
+//! approach) at a point `X`. The cell is evaluated only if `X` lies within
+//! [`MatchingParams::band_m`] of both views' guide surfaces along their rays (pass 1: the
+//! integrated surfaces themselves; pass 2: the proxy mesh, Figure 3-6c), the two rays pass
+//! within two pixel footprints of each other, and `X` is inside the visual hull when one is
+//! given (Figure 3-6's light blue). Other cells cost `∞`.
+//!
+//! **Metrics** ([`MatchMetric`]): the full-on image window, the stack of the six half-on
+//! images, the surface-based metric (5 × 5 windows of surface points compared under their
+//! optimal rigid alignment, rendered each way and the larger of the two mean distances taken
+//! — the thesis' best) and the illumination stack projected through the aligned surface
+//! windows. Image metrics are mean squared differences over the window.
+//!
+//! **Path.** States (Criminisi's four): a match reached by a step in the left view (diagonal
+//! or left-slanted), a match reached by a step in the right view only (right-slanted), left
+//! occluded, right occluded. A match costs its cell, an occluded sample costs
+//! [`MatchingParams::occlusion_cost`] × the grid's median cost, and entering or leaving an
+//! occlusion adds [`MatchingParams::discontinuity_penalty`] × that. Matches costing at most
+//! [`MatchingParams::good_cost`] × the median are kept (Figure 3-6's green); jumps of the
+//! matched depth above 1 cm per pixel ([`IntegrationParams::match_jump_m`](crate::IntegrationParams))
+//! between consecutive matches are depth discontinuities (red).
+
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use skin_core::camera::Camera;
+use skin_core::check;
+use skin_core::image::{GrayF32Image, Mask};
+use skin_core::math::{DVec2, DVec3};
+use skin_core::mesh::TriMesh;
+use skin_core::stats::median;
+
+use crate::integrate::{camera_rays, IntegrationParams};
+use crate::{
+    mesh_proxy_depth, DepthMap, Error, Pattern, PatternImages, Result, VisualHull, PATTERNS,
+};
+
+/// The four matching metrics of §3.3.2.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum MatchMetric {
+    /// Pixel windows of the full-on (tracking) image: traditional stereo.
+    FullOnWindow,
+    /// Pixel windows of the stack of the six half-on images.
+    IlluminationStack,
+    /// Surface patches under their optimal rigid alignment, symmetric (the thesis' best).
+    #[default]
+    SurfaceRigid,
+    /// The illumination stacks projected onto the corresponding surface patches.
+    ProjectedIllumination,
+}
+
+impl MatchMetric {
+    /// All four, in the thesis' order.
+    pub const ALL: [MatchMetric; 4] = [
+        MatchMetric::FullOnWindow,
+        MatchMetric::IlluminationStack,
+        MatchMetric::SurfaceRigid,
+        MatchMetric::ProjectedIllumination,
+    ];
+
+    fn needs_images(self) -> bool {
+        self != MatchMetric::SurfaceRigid
+    }
+}
+
+/// Knobs of the pairwise matching.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MatchingParams {
+    /// The metric. Default [`MatchMetric::SurfaceRigid`] (§3.3.2: "usually yields the least
+    /// noisy surfaces").
+    pub metric: MatchMetric,
+    /// Window side, px (odd). Default 5 (§3.3.2: "5 × 5 pixels").
+    pub window_px: usize,
+    /// Half-width of the search band around each view's guide surface along its rays, m.
+    /// Default 0.1 (ours; the thesis evaluates the whole grid in pass 1 and "nearby" cells in
+    /// pass 2 without a number).
+    pub band_m: f64,
+    /// Cost of an occluded sample, in units of the grid's median cost. Default 1 (ours).
+    pub occlusion_cost: f64,
+    /// Cost of entering or leaving an occlusion, in units of the grid's median cost.
+    /// Default 2 (ours).
+    pub discontinuity_penalty: f64,
+    /// Matches costing more than this many grid medians are not used. Default 1.5 (ours).
+    pub good_cost: f64,
+    /// Matched depth jumps above this per pixel (m, at the thesis' width, scaled like
+    /// [`IntegrationParams::jump_threshold_m`]) are discontinuities. Default 0.01 (§3.3.1).
+    pub jump_m: f64,
+}
+
+impl Default for MatchingParams {
+    fn default() -> Self {
+        Self {
+            metric: MatchMetric::default(),
+            window_px: 5,
+            band_m: 0.1,
+            occlusion_cost: 1.0,
+            discontinuity_penalty: 2.0,
+            good_cost: 1.5,
+            jump_m: IntegrationParams::default().match_jump_m,
+        }
+    }
+}
+
+impl MatchingParams {
+    fn validate(&self) -> Result<()> {
+        if self.window_px == 0 || self.window_px.is_multiple_of(2) {
+            return Err(Error::InvalidParam {
+                name: "window_px",
+                reason: format!("must be odd and positive, got {}", self.window_px),
+            });
+        }
+        check::positive("band_m", self.band_m)?;
+        check::positive("occlusion_cost", self.occlusion_cost)?;
+        check::non_negative("discontinuity_penalty", self.discontinuity_penalty)?;
+        check::positive("good_cost", self.good_cost)?;
+        check::positive("jump_m", self.jump_m)?;
+        Ok(())
+    }
+}
+
+/// The images of one view as the image-based metrics take them: the full-on image first,
+/// then the six half-on conditions in [`PATTERNS`](crate::PATTERNS) order.
+pub fn matching_images(images: &PatternImages) -> Vec<GrayF32Image> {
+    std::iter::once(Pattern::Full)
+        .chain(PATTERNS.iter().copied().filter(|&p| p != Pattern::Full))
+        .map(|p| images.image(p).clone())
+        .collect()
+}
+
+/// One view as the matcher sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct MatchView<'a> {
+    /// The (undistorted) camera.
+    pub camera: &'a Camera,
+    /// The view's integrated surface (Eq. 3.3).
+    pub surface: &'a DepthMap,
+    /// The guide of the search band: the proxy in pass 2; `None` uses the surface (pass 1).
+    pub guide: Option<&'a DepthMap>,
+    /// Images for the image-based metrics: the full-on image first, then the six half-on
+    /// images (any number ≥ 1 of the latter; [`matching_images`] makes them); `None` for the
+    /// surface metric alone.
+    pub images: Option<&'a [GrayF32Image]>,
+}
+
+/// What matching found for one view of a pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewMatches {
+    /// Matched depth along each pixel ray (the good matches' triangulated points), `NaN`
+    /// where the pixel has no match: the `z_i + d̄_i` of Eq. 3.4.
+    pub target: DepthMap,
+    /// Pixels straddling a depth discontinuity found by matching (jumps over 1 cm per pixel).
+    pub breaks: Mask,
+}
+
+/// Sizes of one pair's matching.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct MatchStats {
+    /// Epipolar planes with samples in both views.
+    pub planes: usize,
+    /// Grid cells evaluated (inside the band).
+    pub cells_evaluated: usize,
+    /// Matches on the lowest-cost paths.
+    pub matches: usize,
+    /// Of which good (cost within [`MatchingParams::good_cost`]).
+    pub good_matches: usize,
+    /// Discontinuities found (matched depth jumps).
+    pub discontinuities: usize,
+}
+
+/// The matches of a pair of views.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairMatches {
+    /// For the left view.
+    pub left: ViewMatches,
+    /// For the right view.
+    pub right: ViewMatches,
+    /// Sizes.
+    pub stats: MatchStats,
+}
+
+/// A sampled epipolar line: pixel indices and their world rays, ordered by angle to the
+/// baseline.
+struct Line {
+    pixels: Vec<usize>,
+    rays: Vec<DVec3>,
+}
+
+/// Per-view data computed once per pair.
+struct Prepared<'a> {
+    view: MatchView<'a>,
+    width: u32,
+    height: u32,
+    centre: DVec3,
+    /// World ray direction per pixel.
+    rays: Vec<DVec3>,
+    /// Surface point per pixel (NaN-free only where the surface exists).
+    points: Vec<Option<DVec3>>,
+    /// The other view's surface rendered into this camera, as points.
+    other_points: Vec<Option<DVec3>>,
+    guide: &'a DepthMap,
+}
+
+fn points_of(camera: &Camera, depth: &DepthMap, rays: &[DVec3]) -> Vec<Option<DVec3>> {
+    depth
+        .depth_m
+        .iter()
+        .zip(rays)
+        .map(|(d, r)| (!d.is_nan()).then(|| camera.centre() + *r * *d))
+        .collect()
+}
+
+/// A depth map's surface as a triangle mesh: two triangles per 2 × 2 block of pixels that
+/// all have a surface, unless a depth jump across the block exceeds `max_jump_m` (so that
+/// depth discontinuities are not bridged).
+///
+/// # Errors
+/// [`Error::InvalidParam`] if the camera's image size is not the map's or the threshold is
+/// not positive; [`Error::Empty`] if no triangle is made.
+pub fn depth_map_mesh(camera: &Camera, depth: &DepthMap, max_jump_m: f64) -> Result<TriMesh> {
+    depth.check_camera(camera)?;
+    check::positive("max_jump_m", max_jump_m)?;
+    let rays = world_rays(camera)?;
+    let points = points_of(camera, depth, &rays);
+    let (w, h) = (depth.width as usize, depth.height as usize);
+    let mut index = vec![u32::MAX; w * h];
+    let mut vertices = Vec::new();
+    for (i, p) in points.iter().enumerate() {
+        if let Some(p) = p {
+            index[i] = vertices.len() as u32;
+            vertices.push(*p);
+        }
+    }
+    let mut faces = Vec::new();
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let q = [
+                y * w + x,
+                y * w + x + 1,
+                (y + 1) * w + x,
+                (y + 1) * w + x + 1,
+            ];
+            if q.iter().any(|&i| index[i] == u32::MAX) {
+                continue;
+            }
+            let d: Vec<f64> = q.iter().map(|&i| depth.depth_m[i]).collect();
+            let spread = d.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+                - d.iter().cloned().fold(f64::INFINITY, f64::min);
+            if spread > max_jump_m {
+                continue;
+            }
+            // Counter-clockwise seen from the camera (image y points down).
+            for tri in [[q[0], q[2], q[1]], [q[1], q[2], q[3]]] {
+                let [a, b, c] = tri.map(|i| vertices[index[i] as usize]);
+                if (b - a).cross(c - a).length() > 1e-14 {
+                    faces.push(tri.map(|i| index[i]));
+                }
+            }
+        }
+    }
+    if faces.is_empty() {
+        return Err(Error::Empty {
+            what: "triangles of the depth map's surface",
+        });
+    }
+    Ok(TriMesh::new(vertices, faces)?)
+}
+
+fn world_rays(camera: &Camera) -> Result<Vec<DVec3>> {
+    let r = camera.world_from_camera();
+    Ok(camera_rays(camera)?
+        .into_iter()
+        .map(|d| r.transform_vector3(d))
+        .collect())
+}
+
+impl<'a> Prepared<'a> {
+    fn new(view: MatchView<'a>, other: &MatchView<'_>, jump_m: f64) -> Result<Self> {
+        let cam = view.camera;
+        view.surface.check_camera(cam)?;
+        if let Some(g) = view.guide {
+            g.check_camera(cam)?;
+        }
+        if cam.distortion.k1 != 0.0 {
+            return Err(Error::InvalidParam {
+                name: "camera",
+                reason: "matching needs undistorted cameras (undistort the images first)".into(),
+            });
+        }
+        let rays = world_rays(cam)?;
+        let points = points_of(cam, view.surface, &rays);
+        let other_mesh = depth_map_mesh(other.camera, other.surface, jump_m)?;
+        let other_depth = mesh_proxy_depth(cam, &other_mesh)?;
+        let other_points = points_of(cam, &other_depth, &rays);
+        Ok(Self {
+            view,
+            width: cam.intrinsics.width,
+            height: cam.intrinsics.height,
+            centre: cam.centre(),
+            rays,
+            points,
+            other_points,
+            guide: view.guide.unwrap_or(view.surface),
+        })
+    }
+
+    /// The samples of the plane with world normal `m`: integer pixels on the image line that
+    /// have a surface, ordered by the angle of their ray to `baseline`.
+    fn line(&self, m: DVec3, baseline: DVec3) -> Line {
+        let cam = self.view.camera;
+        let k = &cam.intrinsics;
+        let mc = cam.camera_from_world().transform_vector3(m);
+        let l = DVec3::new(
+            mc.x / k.fx,
+            mc.y / k.fy,
+            mc.z - k.cx * mc.x / k.fx - k.cy * mc.y / k.fy,
+        );
+        let (w, h) = (self.width as i64, self.height as i64);
+        let mut pixels = Vec::new();
+        let mut push = |x: i64, y: i64| {
+            if x >= 0 && y >= 0 && x < w && y < h {
+                let i = (y * w + x) as usize;
+                if self.points[i].is_some() && pixels.last() != Some(&i) {
+                    pixels.push(i);
+                }
+            }
+        };
+        if l.y.abs() >= l.x.abs() {
+            for x in 0..w {
+                let y = -(l.x * x as f64 + l.z) / l.y;
+                push(x, y.round() as i64);
+            }
+        } else {
+            for y in 0..h {
+                let x = -(l.y * y as f64 + l.z) / l.x;
+                push(x.round() as i64, y);
+            }
+        }
+        let b = baseline.normalize();
+        let mut keyed: Vec<(f64, usize)> = pixels
+            .into_iter()
+            .map(|i| (self.rays[i].dot(b), i))
+            .collect();
+        // Decreasing cosine = increasing angle to the baseline.
+        keyed.sort_by(|p, q| q.0.total_cmp(&p.0));
+        keyed.dedup_by_key(|k| k.1);
+        Line {
+            rays: keyed.iter().map(|k| self.rays[k.1]).collect(),
+            pixels: keyed.into_iter().map(|k| k.1).collect(),
+        }
+    }
+
+    fn pixel_footprint(&self, depth: f64) -> f64 {
+        depth / self.view.camera.intrinsics.fx
+    }
+
+    /// Nearest pixel of a world point's projection.
+    fn pixel_of(&self, p: DVec3) -> Option<usize> {
+        let px = self.view.camera.project(p).ok()?;
+        let (x, y) = (px.x.round(), px.y.round());
+        (x >= 0.0 && y >= 0.0 && x < f64::from(self.width) && y < f64::from(self.height))
+            .then(|| y as usize * self.width as usize + x as usize)
+    }
+
+    fn window(&self, centre: usize, half: i64) -> impl Iterator<Item = Option<usize>> + '_ {
+        let (w, h) = (i64::from(self.width), i64::from(self.height));
+        let (cx, cy) = ((centre % w as usize) as i64, (centre / w as usize) as i64);
+        (-half..=half).flat_map(move |dy| {
+            (-half..=half).map(move |dx| {
+                let (x, y) = (cx + dx, cy + dy);
+                (x >= 0 && y >= 0 && x < w && y < h).then_some((y * w + x) as usize)
+            })
+        })
+    }
+
+    /// Mean distance between this view's surface window around `own` and the other
+    /// surface's window (rendered here) around the projection of `other_point`, after the
+    /// optimal rigid alignment.
+    fn surface_distance(&self, own: usize, other_point: DVec3, half: i64) -> f64 {
+        let Some(centre) = self.pixel_of(other_point) else {
+            return f64::INFINITY;
+        };
+        let pairs: Vec<(DVec3, DVec3)> = self
+            .window(own, half)
+            .zip(self.window(centre, half))
+            .filter_map(|(a, b)| Some((self.points[a?]?, self.other_points[b?]?)))
+            .collect();
+        let full = ((2 * half + 1) * (2 * half + 1)) as usize;
+        if pairs.len() * 2 < full {
+            return f64::INFINITY;
+        }
+        rigid_residual(&pairs)
+    }
+
+    fn stack_at(&self, pixel: usize, out: &mut Vec<f64>, from: usize) -> bool {
+        let Some(images) = self.view.images else {
+            return false;
+        };
+        let (x, y) = (pixel as u32 % self.width, pixel as u32 / self.width);
+        for im in &images[from.min(images.len())..] {
+            out.push(f64::from(im.get_pixel(x, y).0[0]));
+        }
+        true
+    }
+}
+
+/// Mean distance of corresponding points after the optimal rigid alignment (Kabsch).
+fn rigid_residual(pairs: &[(DVec3, DVec3)]) -> f64 {
+    let n = pairs.len() as f64;
+    let ca = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
+    let cb = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
+    let mut h = Matrix3::zeros();
+    for (a, b) in pairs {
+        let (a, b) = (*a - ca, *b - cb);
+        h += nalgebra::Vector3::new(a.x, a.y, a.z)
+            * nalgebra::Vector3::new(b.x, b.y, b.z).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return f64::INFINITY;
+    };
+    let mut d = Matrix3::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    pairs
+        .iter()
+        .map(|(a, b)| {
+            let a = *a - ca;
+            let ra = r * nalgebra::Vector3::new(a.x, a.y, a.z);
+            (DVec3::new(ra.x, ra.y, ra.z) - (*b - cb)).length()
+        })
+        .sum::<f64>()
+        / n
+}
+
+/// Closest approach of two rays (unit directions): the parameters along each and the gap.
+fn closest_approach(o1: DVec3, d1: DVec3, o2: DVec3, d2: DVec3) -> Option<(f64, f64, f64)> {
+    let w = o1 - o2;
+    let (b, d, e) = (d1.dot(d2), d1.dot(w), d2.dot(w));
+    let denom = 1.0 - b * b;
+    if denom < 1e-12 {
+        return None;
+    }
+    let t1 = (b * e - d) / denom;
+    let t2 = (e - b * d) / denom;
+    let gap = ((o1 + d1 * t1) - (o2 + d2 * t2)).length();
+    Some((t1, t2, gap))
+}
+
+const LV: usize = 0;
+const RV: usize = 1;
+const LO: usize = 2;
+const RO: usize = 3;
+
+/// The lowest-cost path through an `na × nb` grid of costs (`∞` = not allowed), four states;
+/// returns the matched `(a, b)` cells in order.
+fn lowest_cost_path(
+    costs: &[f64],
+    na: usize,
+    nb: usize,
+    occ: f64,
+    disc: f64,
+) -> Vec<(usize, usize)> {
+    let (ri, rj) = (na + 1, nb + 1);
+    let at = |i: usize, j: usize| i * rj + j;
+    let mut dist = vec![[f64::INFINITY; 4]; ri * rj];
+    let mut from = vec![[u8::MAX; 4]; ri * rj];
+    dist[at(0, 0)][LO] = 0.0;
+    let matched = |s: usize| s == LV || s == RV;
+    for i in 0..ri {
+        for j in 0..rj {
+            if i == 0 && j == 0 {
+                continue;
+            }
+            let mut best = [f64::INFINITY; 4];
+            let mut arg = [u8::MAX; 4];
+            let offer = |s: usize, v: f64, p: usize, best: &mut [f64; 4], arg: &mut [u8; 4]| {
+                if v < best[s] {
+                    best[s] = v;
+                    arg[s] = p as u8;
+                }
+            };
+            if i > 0 && j > 0 {
+                let c = costs[(i - 1) * nb + (j - 1)];
+                if c.is_finite() {
+                    // Diagonal match from any state; left-slanted from a match at (i−1, j).
+                    for (p, &prev) in dist[at(i - 1, j - 1)].iter().enumerate() {
+                        let pen = if matched(p) { 0.0 } else { disc };
+                        offer(LV, prev + c + pen, p, &mut best, &mut arg);
+                    }
+                    for p in [LV, RV] {
+                        offer(LV, dist[at(i - 1, j)][p] + c, 4 + p, &mut best, &mut arg);
+                        offer(RV, dist[at(i, j - 1)][p] + c, p, &mut best, &mut arg);
+                    }
+                }
+            }
+            if i > 0 {
+                for (p, &prev) in dist[at(i - 1, j)].iter().enumerate() {
+                    let pen = if matched(p) { disc } else { 0.0 };
+                    offer(LO, prev + occ + pen, p, &mut best, &mut arg);
+                }
+            }
+            if j > 0 {
+                for (p, &prev) in dist[at(i, j - 1)].iter().enumerate() {
+                    let pen = if matched(p) { disc } else { 0.0 };
+                    offer(RO, prev + occ + pen, p, &mut best, &mut arg);
+                }
+            }
+            dist[at(i, j)] = best;
+            from[at(i, j)] = arg;
+        }
+    }
+    // Backtrack from the cheapest end state.
+    let end = dist[at(na, nb)];
+    let Some(mut s) = (0..4)
+        .filter(|&s| end[s].is_finite())
+        .min_by(|&a, &b| end[a].total_cmp(&end[b]))
+    else {
+        return Vec::new();
+    };
+    let (mut i, mut j) = (na, nb);
+    let mut path = Vec::new();
+    while i > 0 || j > 0 {
+        let p = from[at(i, j)][s];
+        if p == u8::MAX {
+            break;
+        }
+        let p = p as usize;
+        match s {
+            LV => {
+                path.push((i - 1, j - 1));
+                if p >= 4 {
+                    i -= 1;
+                    s = p - 4;
+                } else {
+                    i -= 1;
+                    j -= 1;
+                    s = p;
+                }
+            }
+            RV => {
+                path.push((i - 1, j - 1));
+                j -= 1;
+                s = p;
+            }
+            LO => {
+                i -= 1;
+                s = p;
+            }
+            _ => {
+                j -= 1;
+                s = p;
+            }
+        }
+    }
+    path.reverse();
+    path
+}
+
+/// One plane's result: good matches (left pixel, right pixel, point) and break pixels.
+#[derive(Default)]
+struct PlaneResult {
+    matches: Vec<(usize, usize, DVec3)>,
+    left_breaks: Vec<usize>,
+    right_breaks: Vec<usize>,
+    evaluated: usize,
+    path_matches: usize,
+}
+
+/// Matches a pair of neighbouring views by §3.3.2 and returns each view's matched depths and
+/// discontinuities. `hull`, when given, removes cells outside the visual hull.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for bad params, distorted cameras or maps of another size than
+/// their camera; [`Error::Empty`] if a surface has no triangles, or images are missing for an
+/// image-based metric; rendering errors.
+pub fn match_pair(
+    left: &MatchView<'_>,
+    right: &MatchView<'_>,
+    hull: Option<&VisualHull>,
+    params: &MatchingParams,
+) -> Result<PairMatches> {
+    params.validate()?;
+    if params.metric.needs_images() {
+        for v in [left, right] {
+            let ok = v.images.is_some_and(|im| {
+                im.len() >= 2
+                    && im.iter().all(|i| {
+                        i.dimensions() == (v.camera.intrinsics.width, v.camera.intrinsics.height)
+                    })
+            });
+            if !ok {
+                return Err(Error::Empty {
+                    what: "images (full-on then half-on, camera-sized) for an image-based metric",
+                });
+            }
+        }
+    }
+    let jump = IntegrationParams::jump_threshold_m(params.jump_m, left.camera.intrinsics.width);
+    // Surfaces are meshed without bridging jumps of a few matching thresholds.
+    let mesh_jump = 4.0 * jump;
+    let (pl, pr) = rayon::join(
+        || Prepared::new(*left, right, mesh_jump),
+        || Prepared::new(*right, left, mesh_jump),
+    );
+    let (pl, pr) = (pl?, pr?);
+    let baseline = pr.centre - pl.centre;
+    if baseline.length() < 1e-9 {
+        return Err(Error::InvalidParam {
+            name: "right",
+            reason: "the two cameras share a centre (no baseline)".into(),
+        });
+    }
+    let half = (params.window_px / 2) as i64;
+    let cx = f64::from(pl.width) / 2.0;
+    let results: Vec<PlaneResult> = (0..pl.height)
+        .into_par_iter()
+        .map(|row| {
+            let Ok(ray) = left.camera.ray(DVec2::new(cx, f64::from(row))) else {
+                return PlaneResult::default();
+            };
+            let m = baseline.cross(ray.direction);
+            if m.length() < 1e-12 {
+                return PlaneResult::default();
+            }
+            let m = m.normalize();
+            let (ll, lr) = (pl.line(m, baseline), pr.line(m, baseline));
+            match_plane(&pl, &pr, &ll, &lr, hull, params, half, jump)
+        })
+        .collect();
+    let (w, h) = (pl.width, pl.height);
+    let mut sums = (
+        vec![(0.0, 0usize); pl.rays.len()],
+        vec![(0.0, 0usize); pr.rays.len()],
+    );
+    let mut breaks = (vec![false; pl.rays.len()], vec![false; pr.rays.len()]);
+    let mut stats = MatchStats::default();
+    for r in &results {
+        if r.evaluated > 0 {
+            stats.planes += 1;
+        }
+        stats.cells_evaluated += r.evaluated;
+        stats.matches += r.path_matches;
+        stats.good_matches += r.matches.len();
+        stats.discontinuities += r.left_breaks.len() / 2;
+        for &(a, b, x) in &r.matches {
+            sums.0[a].0 += (x - pl.centre).length();
+            sums.0[a].1 += 1;
+            sums.1[b].0 += (x - pr.centre).length();
+            sums.1[b].1 += 1;
+        }
+        for &a in &r.left_breaks {
+            breaks.0[a] = true;
+        }
+        for &b in &r.right_breaks {
+            breaks.1[b] = true;
+        }
+    }
+    let target = |s: &[(f64, usize)]| -> Vec<f64> {
+        s.iter()
+            .map(|&(sum, n)| if n == 0 { f64::NAN } else { sum / n as f64 })
+            .collect()
+    };
+    let (wr, hr) = (pr.width, pr.height);
+    Ok(PairMatches {
+        left: ViewMatches {
+            target: DepthMap::new(w, h, target(&sums.0))?,
+            breaks: Mask::from_bools(w, h, &breaks.0)?,
+        },
+        right: ViewMatches {
+            target: DepthMap::new(wr, hr, target(&sums.1))?,
+            breaks: Mask::from_bools(wr, hr, &breaks.1)?,
+        },
+        stats,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn match_plane(
+    pl: &Prepared<'_>,
+    pr: &Prepared<'_>,
+    ll: &Line,
+    lr: &Line,
+    hull: Option<&VisualHull>,
+    params: &MatchingParams,
+    half: i64,
+    jump: f64,
+) -> PlaneResult {
+    let (na, nb) = (ll.pixels.len(), lr.pixels.len());
+    let mut out = PlaneResult::default();
+    if na == 0 || nb == 0 {
+        return out;
+    }
+    let mut costs = vec![f64::INFINITY; na * nb];
+    let mut points = vec![DVec3::ZERO; na * nb];
+    let mut stack = (Vec::new(), Vec::new());
+    for a in 0..na {
+        let ia = ll.pixels[a];
+        let guide_a = pl.guide.depth_m[ia];
+        if guide_a.is_nan() {
+            continue;
+        }
+        for b in 0..nb {
+            let ib = lr.pixels[b];
+            let guide_b = pr.guide.depth_m[ib];
+            if guide_b.is_nan() {
+                continue;
+            }
+            let Some((ta, tb, gap)) =
+                closest_approach(pl.centre, ll.rays[a], pr.centre, lr.rays[b])
+            else {
+                continue;
+            };
+            if (ta - guide_a).abs() > params.band_m
+                || (tb - guide_b).abs() > params.band_m
+                || gap > 2.0 * pl.pixel_footprint(ta).max(pr.pixel_footprint(tb))
+            {
+                continue;
+            }
+            let x = 0.5 * (pl.centre + ll.rays[a] * ta + pr.centre + lr.rays[b] * tb);
+            if hull.is_some_and(|h| !h.contains(x)) {
+                continue;
+            }
+            let (Some(xa), Some(xb)) = (pl.points[ia], pr.points[ib]) else {
+                continue;
+            };
+            let c = match params.metric {
+                MatchMetric::SurfaceRigid => pl
+                    .surface_distance(ia, xb, half)
+                    .max(pr.surface_distance(ib, xa, half)),
+                MatchMetric::FullOnWindow | MatchMetric::IlluminationStack => {
+                    let from = usize::from(params.metric == MatchMetric::IlluminationStack);
+                    window_difference(pl, pr, ia, ib, half, from, &mut stack)
+                }
+                MatchMetric::ProjectedIllumination => {
+                    projected_difference(pl, pr, ia, xb, half, &mut stack)
+                }
+            };
+            out.evaluated += 1;
+            costs[a * nb + b] = c;
+            points[a * nb + b] = x;
+        }
+    }
+    let finite: Vec<f64> = costs.iter().copied().filter(|c| c.is_finite()).collect();
+    if finite.is_empty() {
+        return out;
+    }
+    let unit = median(&finite).max(1e-12);
+    let path = lowest_cost_path(
+        &costs,
+        na,
+        nb,
+        params.occlusion_cost * unit,
+        params.discontinuity_penalty * unit,
+    );
+    out.path_matches = path.len();
+    let mut prev: Option<(usize, usize, f64, f64)> = None;
+    for &(a, b) in &path {
+        let x = points[a * nb + b];
+        let (ia, ib) = (ll.pixels[a], lr.pixels[b]);
+        let (za, zb) = ((x - pl.centre).length(), (x - pr.centre).length());
+        if let Some((pa, pb, pza, pzb)) = prev {
+            // Jumps per pixel of the matched depth between consecutive matches.
+            let step_a = pixel_distance(pa, ia, pl.width).max(1.0);
+            let step_b = pixel_distance(pb, ib, pr.width).max(1.0);
+            if (za - pza).abs() / step_a > jump || (zb - pzb).abs() / step_b > jump {
+                out.left_breaks.extend([pa, ia]);
+                out.right_breaks.extend([pb, ib]);
+            }
+        }
+        prev = Some((ia, ib, za, zb));
+        if costs[a * nb + b] <= params.good_cost * unit {
+            out.matches.push((ia, ib, x));
+        }
+    }
+    out
+}
+
+fn pixel_distance(i: usize, j: usize, width: u32) -> f64 {
+    let w = width as usize;
+    let (xi, yi, xj, yj) = (i % w, i / w, j % w, j / w);
+    ((xi as f64 - xj as f64).powi(2) + (yi as f64 - yj as f64).powi(2)).sqrt()
+}
+
+/// Adds the squared differences of two pixels' image stacks (from image `from` on) to `sum`
+/// and their count to `n`; false if a view has no images.
+fn add_stack_difference(
+    (pl, a): (&Prepared<'_>, usize),
+    (pr, b): (&Prepared<'_>, usize),
+    from: usize,
+    (sa, sb): (&mut Vec<f64>, &mut Vec<f64>),
+    (sum, n): (&mut f64, &mut usize),
+) -> bool {
+    sa.clear();
+    sb.clear();
+    if !(pl.stack_at(a, sa, from) && pr.stack_at(b, sb, from)) {
+        return false;
+    }
+    for (u, v) in sa.iter().zip(sb.iter()) {
+        *sum += (u - v).powi(2);
+        *n += 1;
+    }
+    true
+}
+
+/// Mean squared difference of the image stacks (from image `from` on) over the windows
+/// around `ia` (left) and `ib` (right).
+fn window_difference(
+    pl: &Prepared<'_>,
+    pr: &Prepared<'_>,
+    ia: usize,
+    ib: usize,
+    half: i64,
+    from: usize,
+    (sa, sb): &mut (Vec<f64>, Vec<f64>),
+) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (a, b) in pl.window(ia, half).zip(pr.window(ib, half)) {
+        let (Some(a), Some(b)) = (a, b) else { continue };
+        if !add_stack_difference((pl, a), (pr, b), from, (sa, sb), (&mut sum, &mut n)) {
+            return f64::INFINITY;
+        }
+    }
+    if n == 0 {
+        f64::INFINITY
+    } else {
+        sum / n as f64
+    }
+}
+
+/// The half-on stacks compared through the surface: the left window's pixels against the
+/// right image at the points of the right surface (rendered into the left view) that
+/// correspond to them around the projection of the right sample's point `xb`.
+fn projected_difference(
+    pl: &Prepared<'_>,
+    pr: &Prepared<'_>,
+    ia: usize,
+    xb: DVec3,
+    half: i64,
+    (sa, sb): &mut (Vec<f64>, Vec<f64>),
+) -> f64 {
+    let Some(centre) = pl.pixel_of(xb) else {
+        return f64::INFINITY;
+    };
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (a, b) in pl.window(ia, half).zip(pl.window(centre, half)) {
+        let (Some(a), Some(b)) = (a, b) else { continue };
+        let (Some(_), Some(q)) = (pl.points[a], pl.other_points[b]) else {
+            continue;
+        };
+        let Some(qb) = pr.pixel_of(q) else { continue };
+        if !add_stack_difference((pl, a), (pr, qb), 1, (sa, sb), (&mut sum, &mut n)) {
+            return f64::INFINITY;
+        }
+    }
+    let full = ((2 * half + 1) * (2 * half + 1)) as usize;
+    if n == 0 || n * 2 < full {
+        f64::INFINITY
+    } else {
+        sum / n as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rigid_residual_ignores_a_rigid_motion_and_sees_a_bend() {
+        let pts: Vec<DVec3> = (0..25)
+            .map(|k| DVec3::new((k % 5) as f64 * 0.01, (k / 5) as f64 * 0.01, 0.0))
+            .collect();
+        let q = skin_core::math::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), 0.3);
+        let moved: Vec<(DVec3, DVec3)> = pts
+            .iter()
+            .map(|p| (*p, q * *p + DVec3::new(0.1, -0.2, 0.3)))
+            .collect();
+        assert!(rigid_residual(&moved) < 1e-12);
+        let bent: Vec<(DVec3, DVec3)> = pts
+            .iter()
+            .map(|p| (*p, *p + DVec3::Z * (p.x * 10.0).powi(2) * 0.01))
+            .collect();
+        assert!(rigid_residual(&bent) > 1e-4);
+    }
+
+    /// Two cameras 45° apart around a bumpy sphere, with its true depth maps.
+    fn sphere_pair() -> (Vec<Camera>, Vec<DepthMap>) {
+        use skin_core::camera::{Intrinsics, Rig};
+        use skin_core::mesh::shapes::uv_sphere;
+        let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
+        let rig = Rig::ring(8, 3.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
+        let cams = rig.cameras[..2].to_vec();
+        let mut mesh = uv_sphere(DVec3::ZERO, 0.4, 48, 96).unwrap();
+        for v in &mut mesh.vertices {
+            // Low bumps so that the surface metric has shape to match.
+            *v *= 1.0 + 0.05 * (5.0 * v.x).sin() * (5.0 * v.y).cos();
+        }
+        let depths = cams
+            .iter()
+            .map(|c| mesh_proxy_depth(c, &mesh).unwrap())
+            .collect();
+        (cams, depths)
+    }
+
+    fn plain<'a>(camera: &'a Camera, surface: &'a DepthMap) -> MatchView<'a> {
+        MatchView {
+            camera,
+            surface,
+            guide: None,
+            images: None,
+        }
+    }
+
+    #[test]
+    fn matching_true_surfaces_recovers_their_depths_and_bad_input_is_an_error() {
+        let (cams, truth) = sphere_pair();
+        let (left, right) = (plain(&cams[0], &truth[0]), plain(&cams[1], &truth[1]));
+        let m = match_pair(&left, &right, None, &MatchingParams::default()).unwrap();
+        assert!(m.stats.good_matches > 300, "{:?}", m.stats);
+        let mut err: Vec<f64> = m
+            .left
+            .target
+            .depth_m
+            .iter()
+            .zip(&truth[0].depth_m)
+            .filter(|(a, b)| !a.is_nan() && !b.is_nan())
+            .map(|(a, b)| (a - b).abs())
+            .collect();
+        err.sort_by(f64::total_cmp);
+        // A 96² pixel covers ≈ 1.4 cm at 3 m: matches are within a pixel's footprint.
+        let median = err[err.len() / 2];
+        assert!(median < 0.01, "{median}");
+        let distorted = cams[0]
+            .clone()
+            .with_distortion(skin_core::camera::RadialDistortion::new(
+                -0.1,
+                DVec2::new(48.0, 48.0),
+            ));
+        let bad = plain(&distorted, &truth[0]);
+        assert!(match_pair(&bad, &right, None, &MatchingParams::default()).is_err());
+        let even = MatchingParams {
+            window_px: 4,
+            ..MatchingParams::default()
+        };
+        assert!(match_pair(&left, &right, None, &even).is_err());
+        let image_metric = MatchingParams {
+            metric: MatchMetric::FullOnWindow,
+            ..MatchingParams::default()
+        };
+        assert!(match_pair(&left, &right, None, &image_metric).is_err());
+    }
+
+    #[test]
+    fn dynamic_programme_follows_the_cheap_diagonal_and_skips_an_occlusion() {
+        // 6 × 6 grid: cheap along a = b except that left sample 2 has no good match.
+        let (na, nb) = (6, 6);
+        let mut costs = vec![1.0; na * nb];
+        for k in 0..6 {
+            costs[k * nb + k] = 0.01;
+        }
+        costs[2 * nb + 2] = f64::INFINITY;
+        let path = lowest_cost_path(&costs, na, nb, 0.5, 0.1);
+        assert!(path.contains(&(0, 0)) && path.contains(&(5, 5)), "{path:?}");
+        assert!(!path.iter().any(|&(a, _)| a == 2), "{path:?}");
+        let none = lowest_cost_path(&[f64::INFINITY; 4], 2, 2, 0.5, 0.1);
+        assert!(none.is_empty());
+    }
+}

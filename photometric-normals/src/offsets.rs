@@ -1,0 +1,614 @@
+//! Depth offsets that pull an integrated surface to its matches (Vlasic 2010 §3.3.2,
+//! Eq. 3.4):
+//!
+//! ```text
+//! argmin_d  Σ_i Σ_j∈N(i) (d_i − d_j)²  +  β Σ_i (d_i − d̄_i)²      (3.4)
+//! ```
+//!
+//! over the pixels of the view's surface, `N(i)` its 4-neighbours with a surface and `d̄_i`
+//! the offset the matches ask for (matched depth minus integrated depth, the mean over the
+//! neighbouring views that matched the pixel). The first term is a membrane: each offset is
+//! pulled toward the centroid of its neighbours' offsets, so the constraints are smoothly
+//! interpolated and the surface keeps its high-frequency detail (only the smooth offset field
+//! is added). Regions far from any constraint would be deformed freely, so pixels farther
+//! than [`OffsetParams::max_distance_px`] from the nearest matched pixel are discarded, as
+//! are regions with no constraint at all. Solved with [`skin_core::lsq`].
+
+use nalgebra::DMatrix;
+use nalgebra_sparse::{CooMatrix, CscMatrix};
+use serde::{Deserialize, Serialize};
+use skin_core::check;
+use skin_core::image::{distance_to_foreground, Mask};
+use skin_core::lsq::{LsqParams, LsqProblem};
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+use skin_core::camera::Camera;
+
+use crate::integrate::{neighbour_pairs, regions, IntegrationParams};
+use crate::{
+    depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated,
+    IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result,
+    ResultExt, VisualHull,
+};
+
+/// Knobs of Eq. 3.4.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OffsetParams {
+    /// β, the weight of a match's offset against one neighbour difference of the membrane.
+    /// The thesis gives no value; default 0.1 (ours): matches are quantised to the pixel grid
+    /// (§3.3.2), so each is trusted a tenth of a neighbour link and the membrane averages
+    /// their noise over a few pixels while still reaching them (with dense matches the offset
+    /// field follows them to ≈ 1/√β ≈ 3 px).
+    pub beta: f64,
+    /// Pixels farther than this from the nearest matched pixel are discarded (px, at the
+    /// thesis' 1024-px width and scaled like [`IntegrationParams::jump_threshold_m`]).
+    /// Default 40 (ours).
+    pub max_distance_px: f64,
+}
+
+impl Default for OffsetParams {
+    fn default() -> Self {
+        Self {
+            beta: 0.1,
+            max_distance_px: 40.0,
+        }
+    }
+}
+
+/// What Eq. 3.4 did to one view.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct OffsetReport {
+    /// Pixels with a match constraint.
+    pub constrained: usize,
+    /// Pixels of the offset surface.
+    pub kept: usize,
+    /// Surface pixels discarded (too far from any constraint, or in an unconstrained region).
+    pub discarded: usize,
+    /// Median |d̄| over the constrained pixels, mm.
+    pub median_target_offset_mm: f64,
+}
+
+/// An offset surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OffsetSurface {
+    /// `z + d` along each pixel ray.
+    pub depth: DepthMap,
+    /// Sizes.
+    pub report: OffsetReport,
+}
+
+/// Applies Eq. 3.4 to `surface` with the matched depths `targets` (one per neighbouring view
+/// that was matched, `NaN` where it has no match).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for maps of different sizes; [`Error::Empty`] if no pixel of the
+/// surface has a match; [`Error::InvalidParam`] for bad params; solver errors.
+pub fn depth_offsets(
+    surface: &DepthMap,
+    targets: &[&DepthMap],
+    params: &OffsetParams,
+) -> Result<OffsetSurface> {
+    check::positive("beta", params.beta)?;
+    check::positive("max_distance_px", params.max_distance_px)?;
+    let n_px = surface.depth_m.len();
+    let (w, h) = (surface.width, surface.height);
+    for t in targets {
+        check::same_size("matched depth map pixels", n_px, t.depth_m.len())?;
+    }
+    // d̄_i: the mean of the offsets asked by the views that matched pixel i.
+    let mut target = vec![f64::NAN; n_px];
+    for (i, t) in target.iter_mut().enumerate() {
+        let z = surface.depth_m[i];
+        if z.is_nan() {
+            continue;
+        }
+        let asks: Vec<f64> = targets
+            .iter()
+            .map(|m| m.depth_m[i])
+            .filter(|d| !d.is_nan())
+            .collect();
+        if !asks.is_empty() {
+            *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
+        }
+    }
+    let constrained = Mask::from_bools(
+        w,
+        h,
+        &target.iter().map(|t| !t.is_nan()).collect::<Vec<_>>(),
+    )?;
+    if constrained.is_empty() {
+        return Err(Error::Empty {
+            what: "matched pixels on the surface (Eq. 3.4 has no constraint)",
+        });
+    }
+    let far = distance_to_foreground(&constrained)?;
+    let limit = IntegrationParams::jump_threshold_m(params.max_distance_px, w);
+    let mut inside: Vec<bool> = (0..n_px)
+        .map(|i| !surface.depth_m[i].is_nan() && f64::from(far.as_raw()[i]) <= limit)
+        .collect();
+    let (label, count) = regions(w, h, &inside);
+    let mut anchored = vec![false; count];
+    for i in 0..n_px {
+        if label[i] != usize::MAX && !target[i].is_nan() {
+            anchored[label[i]] = true;
+        }
+    }
+    for i in 0..n_px {
+        if label[i] != usize::MAX && !anchored[label[i]] {
+            inside[i] = false;
+        }
+    }
+    let mut unknown = vec![usize::MAX; n_px];
+    let mut pixels = Vec::new();
+    for i in (0..n_px).filter(|&i| inside[i]) {
+        unknown[i] = pixels.len();
+        pixels.push(i);
+    }
+    let n = pixels.len();
+    let edges: Vec<(usize, usize)> = neighbour_pairs(w, &pixels, &unknown)
+        .map(|(i, j)| (unknown[i], unknown[j]))
+        .collect();
+    let mut a = CooMatrix::new(edges.len(), n);
+    for (r, &(p, q)) in edges.iter().enumerate() {
+        a.push(r, p, 1.0);
+        a.push(r, q, -1.0);
+    }
+    let anchors: Vec<(usize, f64)> = pixels
+        .iter()
+        .filter(|&&i| !target[i].is_nan())
+        .map(|&i| (unknown[i], target[i]))
+        .collect();
+    let mut c = CooMatrix::new(anchors.len(), n);
+    for (r, &(col, _)) in anchors.iter().enumerate() {
+        c.push(r, col, 1.0);
+    }
+    let d = DMatrix::from_iterator(anchors.len(), 1, anchors.iter().map(|a| a.1));
+    let solver = LsqProblem::new(CscMatrix::from(&a))
+        .with_term(CscMatrix::from(&c), params.beta)
+        .factor(&LsqParams::default())?;
+    let off = solver.solve(&DMatrix::zeros(edges.len(), 1), &[d])?;
+    let mut depth = vec![f64::NAN; n_px];
+    for (k, &i) in pixels.iter().enumerate() {
+        let v = surface.depth_m[i] + off[k];
+        if v.is_finite() && v > 0.0 {
+            depth[i] = v;
+        }
+    }
+    let abs: Vec<f64> = anchors.iter().map(|a| a.1.abs() * 1e3).collect();
+    let depth = DepthMap::new(w, h, depth)?;
+    let kept = depth.valid_count();
+    Ok(OffsetSurface {
+        report: OffsetReport {
+            constrained: anchors.len(),
+            kept,
+            discarded: surface.valid_count().saturating_sub(kept),
+            median_target_offset_mm: skin_core::stats::median(&abs),
+        },
+        depth,
+    })
+}
+
+/// Knobs of the per-view stage of §3.3 ([`per_view_surfaces`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct SurfaceParams {
+    /// Eq. 3.3.
+    pub integration: IntegrationParams,
+    /// §3.3.2 matching.
+    pub matching: MatchingParams,
+    /// Eq. 3.4.
+    pub offsets: OffsetParams,
+    /// Guide the matching band with the proxy instead of the integrated surfaces (pass 2,
+    /// Figure 3-6c). Default false (pass 1).
+    pub proxy_guided: bool,
+}
+
+impl SurfaceParams {
+    /// Pass 2 of §3.3: α = 10⁻⁵ and the search band guided by the (mesh) proxy, 3 cm wide
+    /// each side (ours: the pass-1 mesh is expected within a few mm of the surface).
+    pub fn pass2() -> Self {
+        Self {
+            integration: IntegrationParams::pass2(),
+            matching: MatchingParams {
+                band_m: 0.03,
+                ..MatchingParams::default()
+            },
+            offsets: OffsetParams::default(),
+            proxy_guided: true,
+        }
+    }
+}
+
+/// Wall times of the per-view stage, s.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct SurfaceTimes {
+    /// Both integrations of every view.
+    pub integration_s: f64,
+    /// Both matchings of every pair.
+    pub matching_s: f64,
+    /// Eq. 3.4 for every view.
+    pub offsets_s: f64,
+}
+
+/// The per-view surfaces of one pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewSurfaces {
+    /// Each view's integrated surface (Eq. 3.3, with the matching's discontinuities removed).
+    pub integrated: Vec<DepthMap>,
+    /// Each view's discontinuities found by matching.
+    pub breaks: Vec<Mask>,
+    /// Each view's matched depths, one map per pair the view belongs to.
+    pub matched: Vec<Vec<DepthMap>>,
+    /// Each view's surface after the offsets of Eq. 3.4: the input of volumetric merging.
+    pub surfaces: Vec<DepthMap>,
+    /// Per pair, the second matching's sizes.
+    pub match_stats: Vec<MatchStats>,
+    /// Per view, the integration's sizes.
+    pub integration: Vec<IntegrationReport>,
+    /// Per view, the offsets' sizes.
+    pub offsets: Vec<OffsetReport>,
+    /// Wall times.
+    pub times: SurfaceTimes,
+}
+
+/// The per-view stage of §3.3 for one pass: every view's normals integrated against its
+/// proxy (Eq. 3.3, proxy discontinuities removed), the neighbouring `pairs` matched
+/// (§3.3.2), every view integrated again with the discontinuities the matching found
+/// removed and matched again, and each surface pulled to its matches (Eq. 3.4).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for counts that differ from the cameras'; [`Error::IndexOutOfRange`]
+/// for a pair naming a missing view; a view that cannot be integrated (no valid normals, no
+/// proxy) or that no pair matched (e.g. cameras whose views do not overlap) is an error
+/// naming the camera ([`Error::At`]); errors of the stages.
+pub fn per_view_surfaces(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    proxies: &[DepthMap],
+    pairs: &[(usize, usize)],
+    hull: Option<&VisualHull>,
+    params: &SurfaceParams,
+) -> Result<ViewSurfaces> {
+    let n = cameras.len();
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("proxies per camera", n, proxies.len())?;
+    for &(a, b) in pairs {
+        check::index("pair's left view", a, n)?;
+        check::index("pair's right view", b, n)?;
+    }
+    if pairs.is_empty() {
+        return Err(Error::Empty {
+            what: "pairs of neighbouring views to match",
+        });
+    }
+    let mut times = SurfaceTimes::default();
+    let integrate_all = |breaks: Option<&[Mask]>, times: &mut SurfaceTimes| {
+        let t = Instant::now();
+        let out = (0..n)
+            .into_par_iter()
+            .map(|c| {
+                integrate_normals(
+                    &cameras[c],
+                    &normals[c],
+                    &proxies[c],
+                    breaks.map(|b| &b[c]),
+                    &params.integration,
+                )
+                .at(Context::Camera(c))
+            })
+            .collect::<Result<Vec<Integrated>>>();
+        times.integration_s += t.elapsed().as_secs_f64();
+        out
+    };
+    let match_all = |surfaces: &[DepthMap], times: &mut SurfaceTimes| {
+        let t = Instant::now();
+        let out = pairs
+            .iter()
+            .map(|&(a, b)| {
+                let view = |c: usize| MatchView {
+                    camera: &cameras[c],
+                    surface: &surfaces[c],
+                    guide: params.proxy_guided.then_some(&proxies[c]),
+                    images: None,
+                };
+                match_pair(&view(a), &view(b), hull, &params.matching).at(Context::Camera(a))
+            })
+            .collect::<Result<Vec<PairMatches>>>();
+        times.matching_s += t.elapsed().as_secs_f64();
+        out
+    };
+    let first = integrate_all(None, &mut times)?;
+    let first_surfaces: Vec<DepthMap> = first.into_iter().map(|i| i.depth).collect();
+    let first_matches = match_all(&first_surfaces, &mut times)?;
+    let mut breaks: Vec<Vec<bool>> = cameras
+        .iter()
+        .map(|c| vec![false; c.intrinsics.width as usize * c.intrinsics.height as usize])
+        .collect();
+    for (m, &(a, b)) in first_matches.iter().zip(pairs) {
+        for (flags, mask) in [(a, &m.left.breaks), (b, &m.right.breaks)] {
+            for (f, v) in breaks[flags].iter_mut().zip(mask.iter()) {
+                *f |= v;
+            }
+        }
+    }
+    let breaks: Vec<Mask> = cameras
+        .iter()
+        .zip(&breaks)
+        .map(|(c, f)| Mask::from_bools(c.intrinsics.width, c.intrinsics.height, f))
+        .collect::<std::result::Result<_, _>>()?;
+    let second = integrate_all(Some(&breaks), &mut times)?;
+    let integration: Vec<IntegrationReport> = second.iter().map(|i| i.report).collect();
+    let integrated: Vec<DepthMap> = second.into_iter().map(|i| i.depth).collect();
+    let matches = match_all(&integrated, &mut times)?;
+    let mut matched: Vec<Vec<DepthMap>> = vec![Vec::new(); n];
+    let match_stats = matches.iter().map(|m| m.stats).collect();
+    for (m, &(a, b)) in matches.into_iter().zip(pairs) {
+        matched[a].push(m.left.target);
+        matched[b].push(m.right.target);
+    }
+    let t = Instant::now();
+    let offset = (0..n)
+        .into_par_iter()
+        .map(|c| {
+            let refs: Vec<&DepthMap> = matched[c].iter().collect();
+            depth_offsets(&integrated[c], &refs, &params.offsets).at(Context::Camera(c))
+        })
+        .collect::<Result<Vec<OffsetSurface>>>()?;
+    times.offsets_s = t.elapsed().as_secs_f64();
+    Ok(ViewSurfaces {
+        integrated,
+        breaks,
+        matched,
+        offsets: offset.iter().map(|o| o.report).collect(),
+        surfaces: offset.into_iter().map(|o| o.depth).collect(),
+        match_stats,
+        integration,
+        times,
+    })
+}
+
+/// Pooled accuracy of one pass's per-view surfaces against reference depth maps (e.g. the
+/// studio's true depths, or a reference scan), each stage scored like [`depth_errors`] and
+/// pooled over the views (pixel-weighted medians and 95th percentiles).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceErrors {
+    /// The proxy, over the pixels of the offset surfaces (the baseline).
+    pub proxy: DepthErrors,
+    /// The integrated surfaces (Eq. 3.3), over the same pixels.
+    pub integrated: DepthErrors,
+    /// The matched depths (§3.3.2), over the matched pixels.
+    pub matches: DepthErrors,
+    /// The offset surfaces (Eq. 3.4).
+    pub offset: DepthErrors,
+    /// Fraction of the measured (valid) normals that ended in an offset surface, %.
+    pub coverage_pct: f64,
+}
+
+fn pool(errors: &[DepthErrors]) -> DepthErrors {
+    let n: usize = errors.iter().map(|e| e.pixels).sum();
+    let w = |f: fn(&DepthErrors) -> f64| {
+        errors.iter().map(|e| f(e) * e.pixels as f64).sum::<f64>() / n.max(1) as f64
+    };
+    DepthErrors {
+        pixels: n,
+        median_mm: w(|e| e.median_mm),
+        p95_mm: w(|e| e.p95_mm),
+        mean_mm: w(|e| e.mean_mm),
+    }
+}
+
+impl ViewSurfaces {
+    /// Scores every stage against `reference` (one depth map per view) beside the `proxies`;
+    /// `normals` give the coverage's denominator.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] for counts or sizes that differ; [`Error::Empty`] if a view's
+    /// offset surface does not overlap its reference.
+    pub fn errors_against(
+        &self,
+        reference: &[DepthMap],
+        proxies: &[DepthMap],
+        normals: &[NormalMap],
+    ) -> Result<SurfaceErrors> {
+        let n = self.surfaces.len();
+        check::same_size("reference depth maps", n, reference.len())?;
+        check::same_size("proxies", n, proxies.len())?;
+        check::same_size("normal maps", n, normals.len())?;
+        let (mut proxy, mut integrated, mut matches, mut offset) = (vec![], vec![], vec![], vec![]);
+        let (mut kept, mut measured) = (0usize, 0usize);
+        for c in 0..n {
+            let region: Vec<bool> = self.surfaces[c]
+                .depth_m
+                .iter()
+                .map(|d| !d.is_nan())
+                .collect();
+            proxy.push(
+                depth_errors(&proxies[c], &reference[c], Some(&region)).at(Context::Camera(c))?,
+            );
+            integrated.push(
+                depth_errors(&self.integrated[c], &reference[c], Some(&region))
+                    .at(Context::Camera(c))?,
+            );
+            offset
+                .push(depth_errors(&self.surfaces[c], &reference[c], None).at(Context::Camera(c))?);
+            for m in &self.matched[c] {
+                if let Ok(e) = depth_errors(m, &reference[c], None) {
+                    matches.push(e);
+                }
+            }
+            kept += self.surfaces[c].valid_count();
+            measured += normals[c].valid.iter().filter(|&&v| v).count();
+        }
+        Ok(SurfaceErrors {
+            proxy: pool(&proxy),
+            integrated: pool(&integrated),
+            matches: pool(&matches),
+            offset: pool(&offset),
+            coverage_pct: 100.0 * kept as f64 / measured.max(1) as f64,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_interpolate_constraints_and_keep_the_detail() {
+        // A 40 × 40 ripple surface 5 cm behind where sparse matches say it is.
+        let (w, h) = (40u32, 40u32);
+        let ripple =
+            |x: u32, y: u32| 3.0 + 0.002 * ((x as f64 * 0.9).sin() + (y as f64 * 0.7).cos());
+        let surface = DepthMap::new(
+            w,
+            h,
+            (0..w * h).map(|i| ripple(i % w, i / w) + 0.05).collect(),
+        )
+        .unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    if x % 4 == 0 && y % 4 == 0 {
+                        ripple(x, y)
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let out = depth_offsets(&surface, &[&target], &OffsetParams::default()).unwrap();
+        let worst = (0..w * h)
+            .map(|i| (out.depth.depth_m[i as usize] - ripple(i % w, i / w)).abs())
+            .fold(0.0, f64::max);
+        // The 5 cm offset is removed everywhere, and the 4 mm ripple is kept to 0.1 mm.
+        assert!(worst < 1e-4, "{worst}");
+        assert_eq!(out.report.kept, (w * h) as usize);
+    }
+
+    #[test]
+    fn far_regions_are_discarded_and_bad_input_is_an_error() {
+        let (w, h) = (64u32, 8u32);
+        let surface = DepthMap::new(w, h, vec![2.0; (w * h) as usize]).unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| if i % w < 2 { 2.01 } else { f64::NAN })
+                .collect(),
+        )
+        .unwrap();
+        let params = OffsetParams::default();
+        let out = depth_offsets(&surface, &[&target], &params).unwrap();
+        // 40 px at 1024 wide is 40 × 1024 / 64 = 640 px here: nothing is far.
+        assert_eq!(out.report.discarded, 0);
+        let near = OffsetParams {
+            max_distance_px: 0.5,
+            ..params
+        };
+        let out = depth_offsets(&surface, &[&target], &near).unwrap();
+        assert!(out.report.discarded > 300, "{:?}", out.report);
+        let none = DepthMap::empty(w, h).unwrap();
+        assert!(depth_offsets(&surface, &[&none], &params).is_err());
+        let small = DepthMap::empty(4, 4).unwrap();
+        assert!(depth_offsets(&surface, &[&small], &params).is_err());
+        assert!(depth_offsets(
+            &surface,
+            &[&target],
+            &OffsetParams {
+                beta: -1.0,
+                ..params
+            }
+        )
+        .is_err());
+    }
+
+    /// Two views of a sphere from the ring's cameras `a` and `b` (of 8), exact normals, the
+    /// true depths pushed 2 cm toward the camera as the proxy.
+    fn sphere_views(a: usize, b: usize) -> (Vec<Camera>, Vec<NormalMap>, Vec<DepthMap>) {
+        use skin_core::camera::{Intrinsics, Rig};
+        use skin_core::math::DVec3;
+        use skin_core::mesh::shapes::uv_sphere;
+        use skin_core::raster::{Rasterizer, RenderParams};
+        let k = Intrinsics::from_horizontal_fov(0.5, 64, 64).unwrap();
+        let rig = Rig::ring(8, 3.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
+        let cams = vec![rig.cameras[a].clone(), rig.cameras[b].clone()];
+        let mesh = uv_sphere(DVec3::ZERO, 0.4, 48, 96).unwrap();
+        let mut normals = Vec::new();
+        let mut proxies = Vec::new();
+        for c in &cams {
+            let view = Rasterizer::new(c)
+                .render(&mesh, &RenderParams::default())
+                .unwrap();
+            normals.push(crate::rendered_normals(c, &view).unwrap());
+            let truth = DepthMap::from_view(&view).unwrap();
+            proxies.push(
+                DepthMap::new(64, 64, truth.depth_m.iter().map(|d| d - 0.02).collect()).unwrap(),
+            );
+        }
+        (cams, normals, proxies)
+    }
+
+    #[test]
+    fn a_pass_runs_on_neighbours_and_views_that_do_not_overlap_are_an_error() {
+        let (cams, normals, proxies) = sphere_views(0, 1);
+        let out = per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default(),
+        )
+        .unwrap();
+        assert_eq!(out.surfaces.len(), 2);
+        assert!(
+            out.match_stats[0].good_matches > 100,
+            "{:?}",
+            out.match_stats
+        );
+        // Opposite cameras see disjoint halves: no match, so no Eq. 3.4 constraint.
+        let (cams, normals, proxies) = sphere_views(0, 4);
+        let err = per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default(),
+        )
+        .unwrap_err();
+        assert!(matches!(err, Error::At { .. }), "{err}");
+        assert!(per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[(0, 2)],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+        assert!(per_view_surfaces(
+            &cams,
+            &normals,
+            &proxies,
+            &[],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+        assert!(per_view_surfaces(
+            &cams,
+            &normals[..1],
+            &proxies,
+            &[(0, 1)],
+            None,
+            &SurfaceParams::default()
+        )
+        .is_err());
+    }
+}
