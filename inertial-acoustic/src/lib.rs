@@ -80,6 +80,8 @@ mod params;
 #[cfg(feature = "validation")]
 pub mod recordings;
 #[cfg(feature = "validation")]
+mod garment;
+#[cfg(feature = "validation")]
 pub mod simulate;
 mod suit;
 mod ultrasound;
