@@ -4,8 +4,10 @@
 //! surface (barycentric weights fixed at rest), so it moves with the studio's pose-driven
 //! deformation — linear blend skinning plus the muscle and joint shapes of
 //! [`skin_core::studio::PoseDeformParams`] — rather than rigidly with its bone: the
-//! skin-motion error real suits have (§4.5). The board's axes follow the triangle's surface
-//! frame (first edge, normal), rotated as at rest.
+//! skin-motion error real suits have (§4.5). A board is a rigid plate on a patch of skin: its
+//! axes turn with the best-fitting rotation (Kabsch) of the skin vertices within
+//! [`PATCH_RADIUS_M`] of its point (at least the [`MIN_PATCH`] nearest), from rest to the
+//! pose.
 //!
 //! Only the attachment triangles are posed: they form a small performer of their own with
 //! the full performer's skeleton, skin weights and pose-driven deformation, which is exact
@@ -23,15 +25,25 @@ use skin_core::studio::{DeformationParams, DeformationState, Performer};
 /// Smallest mean skin weight on the carrying bone for a triangle to take a board or source.
 const MIN_BONE_WEIGHT: f64 = 0.5;
 
-/// One attachment: a point of a posed triangle and a rotation riding on its surface frame.
-#[derive(Debug, Clone, Copy)]
+/// Radius of the skin patch under a board or source, metres: its axes turn with the skin
+/// vertices within this distance of its point (at least [`MIN_PATCH`] of them, the nearest).
+pub const PATCH_RADIUS_M: f64 = 0.03;
+
+/// Fewest skin vertices in a patch.
+pub const MIN_PATCH: usize = 8;
+
+/// One attachment: a point of a posed triangle and a rotation riding on its skin patch.
+#[derive(Debug, Clone)]
 struct Attachment {
-    /// First vertex of its triangle in the small performer (three consecutive vertices).
+    /// First vertex of its triangle in the small performer (three consecutive vertices,
+    /// followed by the rest of the patch).
     first: usize,
+    /// Number of patch vertices (the triangle's three included).
+    patch: usize,
     /// Barycentric weights.
     bary: [f64; 3],
-    /// The item's rotation relative to the triangle's surface frame (constant).
-    surface_from_item: DQuat,
+    /// The item's world rotation at rest.
+    world_rest: DQuat,
 }
 
 /// The world placement of every board and source at one pose.
@@ -58,12 +70,35 @@ pub struct GarmentSurface {
     origin: Vec<usize>,
 }
 
-/// Orthonormal frame of a triangle: first edge, in-plane perpendicular, normal.
-fn surface_frame(a: DVec3, b: DVec3, c: DVec3) -> DQuat {
-    let e1 = (b - a).normalize_or_zero();
-    let n = (b - a).cross(c - a).normalize_or_zero();
-    let e2 = n.cross(e1);
-    DQuat::from_mat3(&DMat3::from_cols(e1, e2, n)).normalize()
+/// The rotation that best maps the centred `rest` points onto the centred `posed` ones
+/// (Kabsch, least squares, proper rotation).
+fn best_rotation(rest: &[DVec3], posed: &[DVec3]) -> DQuat {
+    let n = rest.len().max(1) as f64;
+    let c0 = rest.iter().copied().sum::<DVec3>() / n;
+    let c1 = posed.iter().copied().sum::<DVec3>() / n;
+    let mut h = nalgebra::Matrix3::<f64>::zeros();
+    for (a, b) in rest.iter().zip(posed) {
+        let (a, b) = (*a - c0, *b - c1);
+        h += nalgebra::Vector3::new(b.x, b.y, b.z) * nalgebra::RowVector3::new(a.x, a.y, a.z);
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return DQuat::IDENTITY;
+    };
+    let d = (u * v_t).determinant().signum();
+    let r = u * nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * v_t;
+    let m = DMat3::from_cols_array(&[
+        r[(0, 0)],
+        r[(1, 0)],
+        r[(2, 0)],
+        r[(0, 1)],
+        r[(1, 1)],
+        r[(2, 1)],
+        r[(0, 2)],
+        r[(1, 2)],
+        r[(2, 2)],
+    ]);
+    DQuat::from_mat3(&m).normalize()
 }
 
 /// Skin weight of `joint` at vertex `v`.
@@ -113,7 +148,7 @@ impl GarmentSurface {
         let mut vertices = Vec::new();
         let mut origin = Vec::new();
         let mut lists = Vec::new();
-        let mut snap = |joint: usize, offset: DVec3| -> Result<(usize, [f64; 3], DVec3, DQuat)> {
+        let mut snap = |joint: usize, offset: DVec3| -> Result<(usize, usize, [f64; 3], DVec3)> {
             let target = rest.point(&AttachedPoint { joint, offset })?;
             let mut best: Option<(f64, usize, [f64; 3], DVec3)> = None;
             for (f, face) in template.faces.iter().enumerate() {
@@ -142,25 +177,35 @@ impl GarmentSurface {
             };
             let idx = template.faces[f].map(|c| c as usize);
             let first = vertices.len();
-            for v in idx {
+            let mut near: Vec<(f64, usize)> = (0..body)
+                .filter(|v| !idx.contains(v) && weight_on(weights, *v, joint) >= 0.5 * MIN_BONE_WEIGHT)
+                .map(|v| (template.vertices[v].distance(position), v))
+                .collect();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let k = near
+                .iter()
+                .take_while(|(d, _)| *d <= PATCH_RADIUS_M)
+                .count()
+                .max(MIN_PATCH - 3);
+            let near = near.into_iter().take(k).map(|(_, v)| v);
+            for v in idx.into_iter().chain(near) {
                 vertices.push(template.vertices[v]);
                 origin.push(v);
                 lists.push(weights.influences(v).collect::<Vec<_>>());
             }
-            let frame = surface_frame(vertices[first], vertices[first + 1], vertices[first + 2]);
-            Ok((first, bary, position, frame))
+            Ok((first, vertices.len() - first, bary, position))
         };
         let world_rest = rest.world_from_joint();
         let mut boards = Vec::new();
         let mut snapped_boards = Vec::new();
         for b in suit.boards() {
-            let (first, bary, position, frame) = snap(b.joint, b.offset)?;
+            let (first, patch, bary, position) = snap(b.joint, b.offset)?;
             let w = world_rest[b.joint];
-            let world_from_sensor = DQuat::from_mat3(&w.matrix3) * b.joint_from_sensor;
             boards.push(Attachment {
                 first,
+                patch,
                 bary,
-                surface_from_item: frame.inverse() * world_from_sensor,
+                world_rest: DQuat::from_mat3(&w.matrix3) * b.joint_from_sensor,
             });
             snapped_boards.push(SensorBoard {
                 offset: w.inverse().transform_point3(position),
@@ -171,12 +216,13 @@ impl GarmentSurface {
         let mut snapped_sources = Vec::new();
         let mut source_normals = Vec::new();
         for s in suit.sources() {
-            let (first, bary, position, frame) = snap(s.joint, s.offset)?;
+            let (first, patch, bary, position) = snap(s.joint, s.offset)?;
             let w = world_rest[s.joint];
             sources.push(Attachment {
                 first,
+                patch,
                 bary,
-                surface_from_item: frame.inverse(),
+                world_rest: DQuat::IDENTITY,
             });
             source_normals.push(w.matrix3 * s.normal);
             snapped_sources.push(UltrasonicSource {
@@ -184,8 +230,13 @@ impl GarmentSurface {
                 ..s.clone()
             });
         }
-        let faces = (0..vertices.len() as u32 / 3)
-            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        let faces = boards
+            .iter()
+            .chain(&sources)
+            .map(|a| {
+                let f = a.first as u32;
+                [f, f + 1, f + 2]
+            })
             .collect();
         let weights = SkinWeights::from_lists(&lists, performer.weights.bone_count())?;
         let params = DeformationParams {
@@ -256,10 +307,13 @@ impl GarmentSurface {
             .patches
             .pose(theta, &mut DeformationState::default(), 0.0)?;
         let v = &posed.true_vertices;
+        let rest = &self.patches.template.vertices;
         let place = |a: &Attachment| {
             let (p0, p1, p2) = (v[a.first], v[a.first + 1], v[a.first + 2]);
             let position = p0 * a.bary[0] + p1 * a.bary[1] + p2 * a.bary[2];
-            (position, surface_frame(p0, p1, p2) * a.surface_from_item)
+            let range = a.first..a.first + a.patch;
+            let turn = best_rotation(&rest[range.clone()], &v[range]);
+            (position, turn * a.world_rest)
         };
         let (board_positions, board_rotations) = self.boards.iter().map(place).unzip();
         let mut source_positions = Vec::with_capacity(self.sources.len());
@@ -302,6 +356,9 @@ mod tests {
         let (performer, deformation) = performer();
         let suit = Suit::vlasic(&performer.skeleton).unwrap();
         let (surface, snapped) = GarmentSurface::new(&performer, &deformation, &suit).unwrap();
+        for a in surface.boards.iter().chain(&surface.sources) {
+            assert!(a.patch >= MIN_PATCH, "patch of {} vertices", a.patch);
+        }
         let skeleton = &performer.skeleton;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose()).unwrap();
         for (a, b) in suit.boards().iter().zip(snapped.boards()) {

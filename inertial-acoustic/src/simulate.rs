@@ -40,7 +40,7 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use skin_core::check::{non_negative, positive};
 use skin_core::math::{DQuat, DVec3};
-pub use crate::garment::{GarmentPose, GarmentSurface};
+pub use crate::garment::{GarmentPose, GarmentSurface, MIN_PATCH, PATCH_RADIUS_M};
 use skin_core::skeleton::{ForwardKinematics, Motion, Skeleton};
 use skin_core::studio::{DeformationParams, Performer};
 use std::f64::consts::{PI, TAU};
@@ -536,6 +536,8 @@ pub struct SuitSimulator {
     capsules: Vec<Capsule>,
     /// The garment surface the boards and sources ride on, if any.
     garment: Option<GarmentSurface>,
+    /// Height of the floor (reflections), metres.
+    floor_y: f64,
     slide_dir: Vec<DVec3>,
     /// Per-source electrical delay, seconds (why calibrated offsets differ between sources).
     source_lags_s: Vec<f64>,
@@ -553,7 +555,7 @@ impl SuitSimulator {
         let nominal = Suit::vlasic(skeleton)?;
         let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
         let true_suit = perturbed(skeleton, &nominal, &params, &mut rng)?;
-        Self::assemble(skeleton, nominal, true_suit, None, params, &mut rng)
+        Self::assemble(skeleton, nominal, true_suit, None, 0.0, params, &mut rng)
     }
 
     /// The thesis's suit on the garment over `performer`'s skin ([`GarmentSurface`]): the
@@ -578,7 +580,22 @@ impl SuitSimulator {
         let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
         let placed = perturbed(skeleton, &nominal, &params, &mut rng)?;
         let (surface, true_suit) = GarmentSurface::new(performer, deformation, &placed)?;
-        Self::assemble(skeleton, nominal, true_suit, Some(surface), params, &mut rng)
+        // The floor under the performer's feet at rest (the template's lowest point).
+        let floor_y = performer
+            .template
+            .vertices
+            .iter()
+            .map(|v| v.y)
+            .fold(f64::INFINITY, f64::min);
+        Self::assemble(
+            skeleton,
+            nominal,
+            true_suit,
+            Some(surface),
+            floor_y,
+            params,
+            &mut rng,
+        )
     }
 
     /// The same suit (same nominal and true placements, same seed) fixed rigidly to the bones:
@@ -599,6 +616,7 @@ impl SuitSimulator {
         nominal: Suit,
         true_suit: Suit,
         garment: Option<GarmentSurface>,
+        floor_y: f64,
         params: SimulationParams,
         rng: &mut ChaCha8Rng,
     ) -> Result<Self> {
@@ -633,6 +651,7 @@ impl SuitSimulator {
             nominal,
             true_suit,
             garment,
+            floor_y,
             params,
             ultrasound: UltrasoundParams::default(),
             capsules,
@@ -1071,7 +1090,7 @@ impl SuitSimulator {
                     };
                 let lag = self.source_lags_s[j];
                 Self::add_burst(&mut frame, r / c + lag, amp, fs);
-                let mirror = DVec3::new(pi.x, -pi.y, pi.z);
+                let mirror = DVec3::new(pi.x, 2.0 * self.floor_y - pi.y, pi.z);
                 let dm = mirror - pj;
                 let rm = dm.length().max(1e-3);
                 let amp_m = self.params.floor_reflection * self.params.source_amplitude / rm
