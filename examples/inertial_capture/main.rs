@@ -18,6 +18,9 @@
 //!   rigidly to the bones is run on the exercise motion too (`table_4_1_exercise_rigid_
 //!   attachment`), and the per-board motion relative to the bone is reported
 //!   (`skin_motion_*`, `skin_motion.png`).
+//! * Local parameterisation of the 3-DOF joints (`FilterParams::recentre_rad`): the exercise
+//!   table is also run with the skeleton's Euler angles throughout
+//!   (`table_4_1_exercise_euler_chart`, `agd_euler_chart_deg`): before and after.
 //! * Figure 4-7: a treadmill-like run (the CMU walk in place, 60 s) with and without
 //!   distances: left-shoulder error over the last 5 s (`drift_*_deg`, `drift.png`).
 //! * Speed: `realtime_factor` = seconds of motion per second of compute for ultrasonic
@@ -209,6 +212,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut los_errors = Vec::new();
     let mut main_table = Vec::new();
     let mut rigid_table = Vec::new();
+    let mut euler_table = Vec::new();
     let mut skin_motion = Vec::new();
     for (name, motion) in [
         ("exercise", &exercise),
@@ -242,14 +246,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             skin_motion = rec.skin_motion.clone();
             let rec_rigid = record(&rigid, &skeleton, motion, &sim_params, &cal.offsets);
             rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints)?;
-            let r = rigid_table
-                .iter()
-                .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-                .unwrap();
-            stage.println(format!(
-                "exercise, suit rigid on the bones: A+G+D with root {:.1}/{:.1}/{:.1}°",
-                r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg
-            ));
+            // The same recording with the 3-DOF joints kept in the skeleton's Euler angles
+            // (no re-centring): the filter before the local parameterisation.
+            euler_table = table_4_1(&skeleton, &rec, params.with_recentre_rad(0.0), &joints)?;
+            for (label, t) in [
+                ("suit rigid on the bones", &rigid_table),
+                ("Euler angles (no re-centring)", &euler_table),
+            ] {
+                let r = t
+                    .iter()
+                    .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+                    .unwrap();
+                stage.println(format!(
+                    "exercise, {label}: A+G+D with root {:.1}/{:.1}/{:.1}°",
+                    r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg
+                ));
+            }
         }
         tables.push(json!({
             "motion": name,
@@ -395,6 +407,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
         .unwrap();
+    let agd_euler = euler_table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .unwrap();
     let nsk = skin_motion.len().max(1) as f64;
     let skin_mean_mm = skin_motion.iter().map(|m| m.mean_mm).sum::<f64>() / nsk;
     let skin_mean_deg = skin_motion.iter().map(|m| m.mean_deg).sum::<f64>() / nsk;
@@ -471,6 +487,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "score_deg": g.score_deg})).collect::<Vec<_>>(),
         "table_4_1": tables,
         "table_4_1_exercise_rigid_attachment": rigid_table.iter().map(run_json).collect::<Vec<_>>(),
+        "table_4_1_exercise_euler_chart": euler_table.iter().map(run_json).collect::<Vec<_>>(),
+        "agd_euler_chart_deg": {"neck": agd_euler.stats[0].mean_deg,
+            "right_shoulder": agd_euler.stats[1].mean_deg, "left_hip": agd_euler.stats[2].mean_deg},
+        "recentre_rad": params.recentre_rad,
         "agd_rigid_attachment_deg": {"neck": agd_rigid.stats[0].mean_deg,
             "right_shoulder": agd_rigid.stats[1].mean_deg, "left_hip": agd_rigid.stats[2].mean_deg},
         "skin_motion_exercise": skin_motion,

@@ -75,6 +75,7 @@ mod error;
 mod evaluate;
 mod inertial;
 mod initialise;
+mod local_joints;
 mod orientation;
 mod params;
 #[cfg(feature = "validation")]
