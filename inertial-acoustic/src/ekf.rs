@@ -26,7 +26,7 @@ use crate::{Context, Error, Result, ResultExt};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use crate::local_joints::{
-    decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, transport,
+    decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, to_recentred, transport,
     triple_rotation,
 };
 use skin_core::math::{DMat3, DQuat, DVec3};
@@ -472,24 +472,24 @@ impl SkeletalEkf {
             let js = joints.get_or_insert_with(|| self.skeleton.joints().to_vec());
             let axes = [js[j].dofs[0].axis, js[j].dofs[1].axis, js[j].dofs[2].axis];
             let r = triple_rotation(axes, delta);
-            let a_new = r * DMat3::from_cols(axes[0], axes[1], axes[2]);
-            let m = a_new.inverse() * rate_matrix(axes, delta);
+            let a_new = axes.map(|a| r * a);
+            let idx: [usize; 9] = std::array::from_fn(|k| (k / 3) * nf + slots[k % 3]);
+            let state = idx.map(|i| self.x[i]);
+            let new = to_recentred(axes, a_new, r, state);
+            for (&i, v) in idx.iter().zip(new) {
+                self.x[i] = v;
+            }
             for &s in &slots {
                 self.x[s] = 0.0;
                 self.good_theta[s] = 0.0;
             }
-            for blk in 1..3 {
-                let v = m * DVec3::new(
-                    self.x[blk * nf + slots[0]],
-                    self.x[blk * nf + slots[1]],
-                    self.x[blk * nf + slots[2]],
-                );
-                for (i, &s) in slots.iter().enumerate() {
-                    self.x[blk * nf + s] = v[i];
-                }
+            // First-order transport: M = (R_c A)⁻¹ E(δ) on each block (module docs).
+            let m = DMat3::from_cols(a_new[0], a_new[1], a_new[2]).inverse()
+                * rate_matrix(axes, delta);
+            let m: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|k| m.col(k)[i]));
+            for blk in 0..3 {
+                transport(self.p.as_mut_slice(), n, slots.map(|s| blk * nf + s), m);
             }
-            let blocks: Vec<[usize; 3]> = (0..3).map(|blk| slots.map(|s| blk * nf + s)).collect();
-            transport(self.p.as_mut_slice(), n, &blocks, m);
             let inside = subtree(js, j);
             fold_rotation(js, &inside, j, r);
             let q = DQuat::from_mat3(&r).normalize();
@@ -1013,8 +1013,8 @@ mod tests {
             SkeletalEkf::new(skeleton, suit, &rest, FilterParams::default(), &[]).unwrap();
         let n = 3 * ekf.nf;
         // A correlated, symmetric positive definite P (two predictions from P0).
-        ekf.predict();
-        ekf.predict();
+        ekf.predict().unwrap();
+        ekf.predict().unwrap();
         ekf.symmetrise();
         let mut p = ekf.p.clone();
         let mut x = ekf.x.clone();

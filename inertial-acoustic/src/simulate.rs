@@ -1309,6 +1309,9 @@ pub struct TuningPoint {
     pub accelerometer_sigma: f64,
     /// Distance innovation gate, standard deviations (0: none).
     pub distance_gate_sigma: f64,
+    /// Re-centring threshold of the 3-DOF joints (`base`'s; 0: Euler angles throughout).
+    #[serde(default)]
+    pub recentre_rad: f64,
     /// Mean over the evaluated joints of the mean orientation error, degrees (A+G+D, root
     /// supplied).
     pub score_deg: f64,
@@ -1346,6 +1349,7 @@ pub fn tune(
                     process_sigma: q,
                     accelerometer_sigma: sa,
                     distance_gate_sigma: gate,
+                    recentre_rad: base.recentre_rad,
                     score_deg: score,
                 });
             }
