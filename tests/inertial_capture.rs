@@ -145,6 +145,9 @@ fn garment_suit_moves_with_the_skin() {
     };
     let agd = run(&rec, SensorSet::ALL);
     let agd_rigid = run(&rec_rigid, SensorSet::ALL);
+    let local = run_filter(&s, &rec, tuned().with_recentre_rad(0.3), true, &j).unwrap();
+    assert_eq!(local.diverged_frames, 0);
+    let agd_local: Vec<f64> = local.stats.iter().map(|st| st.mean_deg).collect();
     let a = run(
         &rec,
         SensorSet {
@@ -153,10 +156,14 @@ fn garment_suit_moves_with_the_skin() {
             ..SensorSet::ALL
         },
     );
-    eprintln!("A+G+D on the garment {agd:?}, rigid {agd_rigid:?}, A on the garment {a:?}");
+    eprintln!(
+        "A+G+D on the garment {agd:?}, re-centred {agd_local:?}, rigid {agd_rigid:?}, \
+         A on the garment {a:?}"
+    );
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     assert!(agd.iter().chain(&agd_rigid).all(|e| e.is_finite()));
     assert!(mean(&agd) * 4.0 < mean(&a), "A+G+D {agd:?} vs A {a:?}");
+    assert!(mean(&agd_local) * 4.0 < mean(&a), "re-centred {agd_local:?} vs A {a:?}");
 }
 
 #[test]
