@@ -137,7 +137,11 @@ fn garment_suit_moves_with_the_skin() {
     // The floor echo is under the feet, not through the body: clean line-of-sight pulses.
     let los = &rec.los_distance_errors_m;
     let los_mean = los.iter().map(|e| e.abs()).sum::<f64>() / los.len() as f64;
-    assert!(los.len() > 500 && los_mean < 0.005, "{} {los_mean}", los.len());
+    assert!(
+        los.len() > 500 && los_mean < 0.005,
+        "{} {los_mean}",
+        los.len()
+    );
     let j = joints(&s);
     let run = |r: &SimulatedRecording, sensors: SensorSet| {
         let f = run_filter(&s, r, tuned().with_sensors(sensors), true, &j).unwrap();
@@ -163,7 +167,10 @@ fn garment_suit_moves_with_the_skin() {
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     assert!(agd.iter().chain(&agd_rigid).all(|e| e.is_finite()));
     assert!(mean(&agd) * 4.0 < mean(&a), "A+G+D {agd:?} vs A {a:?}");
-    assert!(mean(&agd_local) * 4.0 < mean(&a), "re-centred {agd_local:?} vs A {a:?}");
+    assert!(
+        mean(&agd_local) * 4.0 < mean(&a),
+        "re-centred {agd_local:?} vs A {a:?}"
+    );
 }
 
 #[test]

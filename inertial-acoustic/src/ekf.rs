@@ -20,15 +20,15 @@
 //! the initial covariance, and the frame's [`StepReport::diverged`] is set: the filter never
 //! emits a NaN pose.
 
+use crate::local_joints::{
+    decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, to_recentred, transport,
+    triple_rotation,
+};
 use crate::params::FilterParams;
 use crate::suit::Suit;
 use crate::{Context, Error, Result, ResultExt};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
-use crate::local_joints::{
-    decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, to_recentred, transport,
-    triple_rotation,
-};
 use skin_core::math::{DMat3, DQuat, DVec3};
 use skin_core::skeleton::{
     AngularFrame, AttachedFrame, AttachedPoint, ForwardKinematics, JointRates, Skeleton,
@@ -153,7 +153,8 @@ pub struct SkeletalEkf {
     p: DMatrix<f64>,
     p0: DMatrix<f64>,
     good_theta: DVector<f64>,
-    theta: Vec<f64>,
+    /// θ in the filter's chart (re-centred joints local).
+    chart_theta: Vec<f64>,
     theta_dot: Vec<f64>,
     theta_ddot: Vec<f64>,
     gyro_offsets: Vec<DVec3>,
@@ -273,7 +274,7 @@ impl SkeletalEkf {
             mp: DMatrix::zeros(rows, n),
             bias: vec![DVec3::ZERO; points.len()],
             gyro_offsets: vec![DVec3::ZERO; suit.boards().len()],
-            theta: initial_pose.to_vec(),
+            chart_theta: initial_pose.to_vec(),
             theta_dot: vec![0.0; n],
             theta_ddot: vec![0.0; n],
             good_theta: x.rows(0, nf).into_owned(),
@@ -379,7 +380,7 @@ impl SkeletalEkf {
                     skin_core::check::all_finite(what, v.iter())?;
                 }
                 for (i, &d) in self.known.iter().enumerate() {
-                    self.theta[d] = k.theta[i];
+                    self.chart_theta[d] = k.theta[i];
                     self.theta_dot[d] = k.theta_dot[i];
                     self.theta_ddot[d] = k.theta_ddot[i];
                 }
@@ -426,7 +427,7 @@ impl SkeletalEkf {
     /// The pose in the original skeleton's angles: re-centred joints composed with their
     /// folded rotations and decomposed on their original axes; other joints as they are.
     fn sync_output(&mut self) {
-        self.out_theta.copy_from_slice(&self.theta);
+        self.out_theta.copy_from_slice(&self.chart_theta);
         for &(j, _, axes) in &self.local {
             let parent = self.original.joints()[j].parent;
             let g_p = parent.map_or(DMat3::IDENTITY, |p| self.conj[p]);
@@ -438,10 +439,18 @@ impl SkeletalEkf {
             let now: Vec<DVec3> = now.collect();
             let r = triple_rotation(
                 [now[0], now[1], now[2]],
-                [self.theta[d[0]], self.theta[d[1]], self.theta[d[2]]],
+                [
+                    self.chart_theta[d[0]],
+                    self.chart_theta[d[1]],
+                    self.chart_theta[d[2]],
+                ],
             );
             let original = g_p.transpose() * r * self.conj[j];
-            let prev = [self.prev_out[d[0]], self.prev_out[d[1]], self.prev_out[d[2]]];
+            let prev = [
+                self.prev_out[d[0]],
+                self.prev_out[d[1]],
+                self.prev_out[d[2]],
+            ];
             let v = decompose(axes, original, prev);
             for (i, &di) in d.iter().enumerate() {
                 self.out_theta[di] = v[i];
@@ -484,8 +493,8 @@ impl SkeletalEkf {
                 self.good_theta[s] = 0.0;
             }
             // First-order transport: M = (R_c A)⁻¹ E(δ) on each block (module docs).
-            let m = DMat3::from_cols(a_new[0], a_new[1], a_new[2]).inverse()
-                * rate_matrix(axes, delta);
+            let m =
+                DMat3::from_cols(a_new[0], a_new[1], a_new[2]).inverse() * rate_matrix(axes, delta);
             let m: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|k| m.col(k)[i]));
             for blk in 0..3 {
                 transport(self.p.as_mut_slice(), n, slots.map(|s| blk * nf + s), m);
@@ -569,7 +578,7 @@ impl SkeletalEkf {
         let nf = self.nf;
         for (d, s) in self.slot.iter().enumerate() {
             if let Some(s) = *s {
-                self.theta[d] = self.x[s];
+                self.chart_theta[d] = self.x[s];
                 self.theta_dot[d] = self.x[nf + s];
                 self.theta_ddot[d] = self.x[2 * nf + s];
             }
@@ -580,9 +589,13 @@ impl SkeletalEkf {
     fn linearise(&mut self) -> Result<()> {
         self.sync_full();
         self.skeleton
-            .forward_kinematics_into(&self.theta, &mut self.fk)?;
-        self.skeleton
-            .rates_into(&self.theta, &self.theta_dot, &self.fk, &mut self.rates)?;
+            .forward_kinematics_into(&self.chart_theta, &mut self.fk)?;
+        self.skeleton.rates_into(
+            &self.chart_theta,
+            &self.theta_dot,
+            &self.fk,
+            &mut self.rates,
+        )?;
         self.x0.copy_from(&self.x);
         Ok(())
     }
@@ -954,7 +967,9 @@ mod tests {
             let q = ekf.fk.frame_rotation(f).unwrap();
             out.push((q * DVec3::X).to_array());
             out.push((q * DVec3::Y).to_array());
-            let w = ekf.rates.frame_angular_velocity(&ekf.fk, f, AngularFrame::Local);
+            let w = ekf
+                .rates
+                .frame_angular_velocity(&ekf.fk, f, AngularFrame::Local);
             out.push(w.unwrap().to_array());
         }
         out

@@ -156,7 +156,11 @@ impl GarmentSurface {
                 if idx.iter().any(|&v| v >= body) {
                     continue;
                 }
-                let w = idx.iter().map(|&v| weight_on(weights, v, joint)).sum::<f64>() / 3.0;
+                let w = idx
+                    .iter()
+                    .map(|&v| weight_on(weights, v, joint))
+                    .sum::<f64>()
+                    / 3.0;
                 if w < MIN_BONE_WEIGHT {
                     continue;
                 }
@@ -178,7 +182,9 @@ impl GarmentSurface {
             let idx = template.faces[f].map(|c| c as usize);
             let first = vertices.len();
             let mut near: Vec<(f64, usize)> = (0..body)
-                .filter(|v| !idx.contains(v) && weight_on(weights, *v, joint) >= 0.5 * MIN_BONE_WEIGHT)
+                .filter(|v| {
+                    !idx.contains(v) && weight_on(weights, *v, joint) >= 0.5 * MIN_BONE_WEIGHT
+                })
                 .map(|v| (template.vertices[v].distance(position), v))
                 .collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -362,7 +368,10 @@ mod tests {
         let skeleton = &performer.skeleton;
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose()).unwrap();
         for (a, b) in suit.boards().iter().zip(snapped.boards()) {
-            let d = rest.point(&a.point()).unwrap().distance(rest.point(&b.point()).unwrap());
+            let d = rest
+                .point(&a.point())
+                .unwrap()
+                .distance(rest.point(&b.point()).unwrap());
             eprintln!("{}: snapped {:.1} mm", a.name, 1e3 * d);
             assert!(d < 0.12, "{} snapped {d} m", a.name);
         }
@@ -396,7 +405,10 @@ mod tests {
             .zip(&bent.board_positions)
             .map(|(b, p)| p.distance(fk.point(&b.point()).unwrap()))
             .collect();
-        eprintln!("moved (mm): {:?}", moved.iter().map(|m| (1e3 * m).round()).collect::<Vec<_>>());
+        eprintln!(
+            "moved (mm): {:?}",
+            moved.iter().map(|m| (1e3 * m).round()).collect::<Vec<_>>()
+        );
         assert!(moved.iter().cloned().fold(0.0, f64::max) > 0.001);
     }
 }

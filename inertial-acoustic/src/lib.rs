@@ -75,6 +75,8 @@
 mod ekf;
 mod error;
 mod evaluate;
+#[cfg(feature = "validation")]
+mod garment;
 mod inertial;
 mod initialise;
 mod local_joints;
@@ -82,8 +84,6 @@ mod orientation;
 mod params;
 #[cfg(feature = "validation")]
 pub mod recordings;
-#[cfg(feature = "validation")]
-mod garment;
 #[cfg(feature = "validation")]
 pub mod simulate;
 mod suit;

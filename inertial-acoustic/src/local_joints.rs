@@ -58,7 +58,9 @@ pub(crate) fn rate_matrix(axes: [DVec3; 3], angles: [f64; 3]) -> DMat3 {
 /// the columns `e` of an Euler-rate matrix and the rates.
 pub(crate) fn velocity_product(e: DMat3, rates: DVec3) -> DVec3 {
     let (c, r) = ([e.x_axis, e.y_axis, e.z_axis], rates.to_array());
-    c[0].cross(c[1]) * (r[0] * r[1]) + c[0].cross(c[2]) * (r[0] * r[2]) + c[1].cross(c[2]) * (r[1] * r[2])
+    c[0].cross(c[1]) * (r[0] * r[1])
+        + c[0].cross(c[2]) * (r[0] * r[2])
+        + c[1].cross(c[2]) * (r[1] * r[2])
 }
 
 /// Wraps `v` by whole turns to lie within π of `near`.
@@ -140,16 +142,18 @@ pub(crate) fn to_recentred(
         DVec3::new(state[3], state[4], state[5]),
         DVec3::new(state[6], state[7], state[8]),
     );
-    let eps = decompose(a_new, triple_rotation(axes, delta) * r_c.transpose(), [0.0; 3]);
+    let eps = decompose(
+        a_new,
+        triple_rotation(axes, delta) * r_c.transpose(),
+        [0.0; 3],
+    );
     let e = rate_matrix(axes, delta);
     let e_new = rate_matrix(a_new, eps);
     let inv = e_new.inverse();
     let new_rate = inv * (e * rate);
-    let new_acc =
-        inv * (e * acc + velocity_product(e, rate) - velocity_product(e_new, new_rate));
+    let new_acc = inv * (e * acc + velocity_product(e, rate) - velocity_product(e_new, new_rate));
     [
-        eps[0], eps[1], eps[2], new_rate.x, new_rate.y, new_rate.z, new_acc.x, new_acc.y,
-        new_acc.z,
+        eps[0], eps[1], eps[2], new_rate.x, new_rate.y, new_rate.z, new_acc.x, new_acc.y, new_acc.z,
     ]
 }
 
@@ -211,8 +215,14 @@ mod tests {
         let axes = [DVec3::Z, DVec3::X, -DVec3::Y];
         let (th, rate) = ([0.4, 1.3, -0.7], DVec3::new(0.5, -1.0, 2.0));
         let h = 1e-6;
-        let plus = triple_rotation(axes, [th[0] + h * rate.x, th[1] + h * rate.y, th[2] + h * rate.z]);
-        let minus = triple_rotation(axes, [th[0] - h * rate.x, th[1] - h * rate.y, th[2] - h * rate.z]);
+        let plus = triple_rotation(
+            axes,
+            [th[0] + h * rate.x, th[1] + h * rate.y, th[2] + h * rate.z],
+        );
+        let minus = triple_rotation(
+            axes,
+            [th[0] - h * rate.x, th[1] - h * rate.y, th[2] - h * rate.z],
+        );
         let r = triple_rotation(axes, th);
         let w = (plus - minus) * (0.5 / h) * r.transpose();
         let omega = DVec3::new(w.y_axis.z, w.z_axis.x, w.x_axis.y);
@@ -223,7 +233,11 @@ mod tests {
     #[test]
     fn velocity_product_matches_finite_differences_of_omega() {
         let axes = [DVec3::Y, -DVec3::Z, DVec3::X];
-        let (th, rate, acc) = ([0.4, 1.3, -0.7], DVec3::new(0.5, -1.0, 2.0), DVec3::new(0.3, 0.2, -0.6));
+        let (th, rate, acc) = (
+            [0.4, 1.3, -0.7],
+            DVec3::new(0.5, -1.0, 2.0),
+            DVec3::new(0.3, 0.2, -0.6),
+        );
         let h = 1e-6;
         let omega = |t: f64| {
             let a = [
@@ -267,7 +281,11 @@ mod tests {
         let mut p = vec![0.0; n * n];
         for r in 0..n {
             for c in 0..n {
-                p[c * n + r] = if r == c { 2.0 + r as f64 } else { 0.1 * (r + c) as f64 };
+                p[c * n + r] = if r == c {
+                    2.0 + r as f64
+                } else {
+                    0.1 * (r + c) as f64
+                };
             }
         }
         let m = [[1.0, -0.3, 0.0], [0.2, 1.1, 0.5], [0.0, 0.4, 0.9]];

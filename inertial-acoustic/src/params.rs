@@ -266,7 +266,11 @@ impl FilterParams {
         positive("initial_sigma.2", self.initial_sigma.2)?;
         positive("gravity_m_s2", self.gravity_m_s2)?;
         positive("divergence_rate", self.divergence_rate)?;
-        in_range("recentre_rad", self.recentre_rad, 0.0..=std::f64::consts::PI)?;
+        in_range(
+            "recentre_rad",
+            self.recentre_rad,
+            0.0..=std::f64::consts::PI,
+        )?;
         let s = self.sensors;
         if !(s.accelerometers || s.gyroscopes || s.distances) {
             return Err(Error::InvalidParam {

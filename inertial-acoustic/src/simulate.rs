@@ -23,6 +23,7 @@
 //!   calibrated from static placements 30–90 cm apart.
 
 use crate::ekf::{DistanceMeasurement, FrameObservations, InertialReading, KnownDofs};
+pub use crate::garment::{GarmentPose, GarmentSurface, MIN_PATCH, PATCH_RADIUS_M};
 use crate::inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 use crate::params::{
     UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S,
@@ -40,7 +41,6 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use skin_core::check::{non_negative, positive};
 use skin_core::math::{DQuat, DVec3};
-pub use crate::garment::{GarmentPose, GarmentSurface, MIN_PATCH, PATCH_RADIUS_M};
 use skin_core::skeleton::{ForwardKinematics, Motion, Skeleton};
 use skin_core::studio::{DeformationParams, Performer};
 use std::f64::consts::{PI, TAU};
@@ -575,8 +575,7 @@ impl SuitSimulator {
     ) -> Result<Self> {
         params.validate()?;
         let skeleton = &performer.skeleton;
-        let (_, nominal) =
-            GarmentSurface::new(performer, deformation, &Suit::vlasic(skeleton)?)?;
+        let (_, nominal) = GarmentSurface::new(performer, deformation, &Suit::vlasic(skeleton)?)?;
         let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
         let placed = perturbed(skeleton, &nominal, &params, &mut rng)?;
         let (surface, true_suit) = GarmentSurface::new(performer, deformation, &placed)?;
@@ -928,8 +927,9 @@ impl SuitSimulator {
                 let to_local = q.inverse();
                 let f = to_local * (a + up);
                 let w = to_local
-                    * (rotation_vector(plus.board_rotations[b] * minus.board_rotations[b].inverse())
-                        / (2.0 * h));
+                    * (rotation_vector(
+                        plus.board_rotations[b] * minus.board_rotations[b].inverse(),
+                    ) / (2.0 * h));
                 let bone = &frames_true[b];
                 let rigid = fk.point(&self.true_suit.boards()[b].point())?;
                 skin[b].add(
