@@ -17,7 +17,7 @@
 
 use crate::suit::{SensorBoard, Suit, UltrasonicSource};
 use crate::{Error, Result};
-use skin_core::math::{DMat3, DQuat, DVec3};
+use skin_core::math::{fit_similarity, Alignment, DQuat, DVec3};
 use skin_core::mesh::{closest_point_on_triangle, SkinWeights, TriMesh};
 use skin_core::skeleton::{AttachedPoint, Skeleton};
 use skin_core::studio::{DeformationParams, DeformationState, Performer};
@@ -65,40 +65,10 @@ pub struct GarmentSurface {
     patches: Performer,
     boards: Vec<Attachment>,
     sources: Vec<Attachment>,
+    /// Source emission axes in their joint frames.
     source_normals: Vec<DVec3>,
     /// The template vertex each patch vertex copies.
     origin: Vec<usize>,
-}
-
-/// The rotation that best maps the centred `rest` points onto the centred `posed` ones
-/// (Kabsch, least squares, proper rotation).
-fn best_rotation(rest: &[DVec3], posed: &[DVec3]) -> DQuat {
-    let n = rest.len().max(1) as f64;
-    let c0 = rest.iter().copied().sum::<DVec3>() / n;
-    let c1 = posed.iter().copied().sum::<DVec3>() / n;
-    let mut h = nalgebra::Matrix3::<f64>::zeros();
-    for (a, b) in rest.iter().zip(posed) {
-        let (a, b) = (*a - c0, *b - c1);
-        h += nalgebra::Vector3::new(b.x, b.y, b.z) * nalgebra::RowVector3::new(a.x, a.y, a.z);
-    }
-    let svd = h.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return DQuat::IDENTITY;
-    };
-    let d = (u * v_t).determinant().signum();
-    let r = u * nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * v_t;
-    let m = DMat3::from_cols_array(&[
-        r[(0, 0)],
-        r[(1, 0)],
-        r[(2, 0)],
-        r[(0, 1)],
-        r[(1, 1)],
-        r[(2, 1)],
-        r[(0, 2)],
-        r[(1, 2)],
-        r[(2, 2)],
-    ]);
-    DQuat::from_mat3(&m).normalize()
 }
 
 /// Skin weight of `joint` at vertex `v`.
@@ -202,19 +172,25 @@ impl GarmentSurface {
             Ok((first, vertices.len() - first, bary, position))
         };
         let world_rest = rest.world_from_joint();
-        let mut boards = Vec::new();
-        let mut snapped_boards = Vec::new();
-        for b in suit.boards() {
-            let (first, patch, bary, position) = snap(b.joint, b.offset)?;
-            let w = world_rest[b.joint];
-            boards.push(Attachment {
+        // One attachment: the item's patch, and its offset in its joint frame on the skin.
+        let mut attach = |joint: usize, offset: DVec3, rotation: DQuat| -> Result<_> {
+            let (first, patch, bary, position) = snap(joint, offset)?;
+            let w = world_rest[joint];
+            let attachment = Attachment {
                 first,
                 patch,
                 bary,
-                world_rest: DQuat::from_mat3(&w.matrix3) * b.joint_from_sensor,
-            });
+                world_rest: DQuat::from_mat3(&w.matrix3) * rotation,
+            };
+            Ok((attachment, w.inverse().transform_point3(position)))
+        };
+        let mut boards = Vec::new();
+        let mut snapped_boards = Vec::new();
+        for b in suit.boards() {
+            let (a, offset) = attach(b.joint, b.offset, b.joint_from_sensor)?;
+            boards.push(a);
             snapped_boards.push(SensorBoard {
-                offset: w.inverse().transform_point3(position),
+                offset,
                 ..b.clone()
             });
         }
@@ -222,17 +198,11 @@ impl GarmentSurface {
         let mut snapped_sources = Vec::new();
         let mut source_normals = Vec::new();
         for s in suit.sources() {
-            let (first, patch, bary, position) = snap(s.joint, s.offset)?;
-            let w = world_rest[s.joint];
-            sources.push(Attachment {
-                first,
-                patch,
-                bary,
-                world_rest: DQuat::IDENTITY,
-            });
-            source_normals.push(w.matrix3 * s.normal);
+            let (a, offset) = attach(s.joint, s.offset, DQuat::IDENTITY)?;
+            source_normals.push(s.normal);
+            sources.push(a);
             snapped_sources.push(UltrasonicSource {
-                offset: w.inverse().transform_point3(position),
+                offset,
                 ..s.clone()
             });
         }
@@ -307,25 +277,31 @@ impl GarmentSurface {
     /// The placement of every board and source at pose θ.
     ///
     /// # Errors
-    /// As [`Performer::pose`] (a θ of another skeleton).
+    /// As [`Performer::pose`] (a θ of another skeleton); as [`fit_similarity`] for a skin
+    /// patch degenerated into a line.
     pub fn pose(&self, theta: &[f64]) -> Result<GarmentPose> {
         let posed = self
             .patches
             .pose(theta, &mut DeformationState::default(), 0.0)?;
         let v = &posed.true_vertices;
         let rest = &self.patches.template.vertices;
-        let place = |a: &Attachment| {
+        let place = |a: &Attachment| -> Result<(DVec3, DQuat)> {
             let (p0, p1, p2) = (v[a.first], v[a.first + 1], v[a.first + 2]);
             let position = p0 * a.bary[0] + p1 * a.bary[1] + p2 * a.bary[2];
             let range = a.first..a.first + a.patch;
-            let turn = best_rotation(&rest[range.clone()], &v[range]);
-            (position, turn * a.world_rest)
+            let turn = fit_similarity(&rest[range.clone()], &v[range], None, Alignment::Rigid)?;
+            Ok((position, turn.rotation * a.world_rest))
         };
-        let (board_positions, board_rotations) = self.boards.iter().map(place).unzip();
+        let (mut board_positions, mut board_rotations) = (Vec::new(), Vec::new());
+        for a in &self.boards {
+            let (p, q) = place(a)?;
+            board_positions.push(p);
+            board_rotations.push(q);
+        }
         let mut source_positions = Vec::with_capacity(self.sources.len());
         let mut source_normals = Vec::with_capacity(self.sources.len());
         for (a, n) in self.sources.iter().zip(&self.source_normals) {
-            let (p, q) = place(a);
+            let (p, q) = place(a)?;
             source_positions.push(p);
             source_normals.push(q * *n);
         }
