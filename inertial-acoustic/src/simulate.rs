@@ -5,12 +5,15 @@
 //!   a smooth blend into its first frame (§4.4.4's rest pose), and interpolated by natural
 //!   cubic splines so θ, θ̇, θ̈ exist at any time.
 //! * **Garment.** Each board and source sits where [`Suit::vlasic`] puts it, off by a random
-//!   placement error (position and orientation) the filter does not know, and slides along its
-//!   bone with the bone's joint angles (skin and garment motion; see the docs for why this
-//!   stands in for the studio's pose-driven deformation).
+//!   placement error (position and orientation) the filter does not know. On a studio
+//!   performer ([`SuitSimulator::on_performer`]) it is attached to the performer's skin
+//!   ([`GarmentSurface`]) and moves with its pose-driven deformation; on a bare skeleton
+//!   ([`SuitSimulator::new`]) it slides along its bone with the bone's joint angles instead.
+//!   [`SuitSimulator::with_rigid_attachment`] fixes the same placements to the bones.
 //! * **Inertial.** Accelerations by second differences of the true garment positions (an
-//!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities from the
-//!   skeleton's rates; the paper's white noise (0.02 m/s², 0.002 rad/s), per-axis zero and
+//!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities by central
+//!   differences of the boards' true orientations; the paper's white noise (0.02 m/s², 0.002
+//!   rad/s), per-axis zero and
 //!   slope errors, a gyroscope bias random walk, 12-bit counts (four 10-bit samples
 //!   accumulated), 6-bit delta modulation with error-correcting code and scrambling, random bit
 //!   errors; decoded and calibrated by the §4.3.3 procedure (±g poses and ±45 rpm turntable
@@ -74,8 +77,9 @@ pub struct SimulationParams {
     pub placement_sd_m: f64,
     /// Garment placement error: orientation, degrees (per axis). Default: 3.
     pub placement_sd_deg: f64,
-    /// Skin and garment slide along the bone per radian of the bone's joint angles, metres.
-    /// Default: 0.01.
+    /// Skin and garment slide along the bone per radian of the bone's joint angles, metres
+    /// (the skin-motion stand-in of [`SuitSimulator::new`]; a suit on a performer's surface
+    /// does not use it). Default: 0.01.
     pub skin_slide_m_per_rad: f64,
     /// Source amplitude at 1 m on its axis (microphone units). Default: 1.
     pub source_amplitude: f64,
