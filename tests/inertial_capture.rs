@@ -7,7 +7,9 @@
 
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::skeleton::{human_skeleton, HumanParams, Skeleton};
-use dynamic_shapes::core::studio::{exercise_motion, ExerciseParams};
+use dynamic_shapes::core::studio::{
+    exercise_motion, makehuman_performer, DeformationParams, ExerciseParams,
+};
 use dynamic_shapes::inertial::simulate::{
     prepare_motion, run_filter, table_4_1, SimulatedRecording, SimulationParams, SuitSimulator,
 };
@@ -101,6 +103,74 @@ fn exercise_motion_table_4_1_from_raw_signals() {
     }
     let r = run_filter(&s, &deaf, tuned(), true, &j).unwrap();
     assert!(r.stats.iter().all(|st| st.mean_deg < 15.0), "{:?}", r.stats);
+}
+
+/// The suit on the garment over the MakeHuman performer's skin: boards and sources move with
+/// the pose-driven deformation (measured against the same suit fixed to the bones), the
+/// floor echo sits under the performer's feet, and the filter still ranks as it should.
+#[test]
+fn garment_suit_moves_with_the_skin() {
+    let deformation = DeformationParams::default().with_flap(None);
+    let performer =
+        makehuman_performer(example_kit::data_path("makehuman").unwrap(), &deformation).unwrap();
+    let s = performer.skeleton.clone();
+    let params = SimulationParams::default();
+    let sim = SuitSimulator::on_performer(&performer, &deformation, params).unwrap();
+    assert!(sim.on_garment_surface());
+    let rigid = sim.clone().with_rigid_attachment();
+    assert!(!rigid.on_garment_surface());
+    assert_eq!(sim.nominal_suit(), rigid.nominal_suit());
+    let cal = sim.calibrate_offsets(3).unwrap();
+    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(6.0)).unwrap();
+    let smooth = prepare_motion(&s, &motion, &params).unwrap();
+    let rec = sim.record(&smooth, &cal.offsets).unwrap();
+    let rec_rigid = rigid.record(&smooth, &cal.offsets).unwrap();
+    // Skin motion: millimetres to centimetres on the trunk, none on the rigid suit.
+    let largest = rec.skin_motion.iter().map(|m| m.max_mm).fold(0.0, f64::max);
+    assert!(largest > 2.0 && largest < 50.0, "{:?}", rec.skin_motion);
+    let head = rec.skin_motion.iter().find(|m| m.board == "head").unwrap();
+    assert!(head.max_mm < 0.01, "{head:?}");
+    assert!(rec_rigid
+        .skin_motion
+        .iter()
+        .all(|m| m.max_mm < 1e-6 && m.max_deg < 1e-4));
+    // The floor echo is under the feet, not through the body: clean line-of-sight pulses.
+    let los = &rec.los_distance_errors_m;
+    let los_mean = los.iter().map(|e| e.abs()).sum::<f64>() / los.len() as f64;
+    assert!(
+        los.len() > 500 && los_mean < 0.005,
+        "{} {los_mean}",
+        los.len()
+    );
+    let j = joints(&s);
+    let run = |r: &SimulatedRecording, sensors: SensorSet| {
+        let f = run_filter(&s, r, tuned().with_sensors(sensors), true, &j).unwrap();
+        f.stats.iter().map(|st| st.mean_deg).collect::<Vec<_>>()
+    };
+    let agd = run(&rec, SensorSet::ALL);
+    let agd_rigid = run(&rec_rigid, SensorSet::ALL);
+    let local = run_filter(&s, &rec, tuned().with_recentre_rad(0.3), true, &j).unwrap();
+    assert_eq!(local.diverged_frames, 0);
+    let agd_local: Vec<f64> = local.stats.iter().map(|st| st.mean_deg).collect();
+    let a = run(
+        &rec,
+        SensorSet {
+            gyroscopes: false,
+            distances: false,
+            ..SensorSet::ALL
+        },
+    );
+    eprintln!(
+        "A+G+D on the garment {agd:?}, re-centred {agd_local:?}, rigid {agd_rigid:?}, \
+         A on the garment {a:?}"
+    );
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert!(agd.iter().chain(&agd_rigid).all(|e| e.is_finite()));
+    assert!(mean(&agd) * 4.0 < mean(&a), "A+G+D {agd:?} vs A {a:?}");
+    assert!(
+        mean(&agd_local) * 4.0 < mean(&a),
+        "re-centred {agd_local:?} vs A {a:?}"
+    );
 }
 
 #[test]

@@ -20,12 +20,16 @@
 //! the initial covariance, and the frame's [`StepReport::diverged`] is set: the filter never
 //! emits a NaN pose.
 
+use crate::local_joints::{
+    decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, to_recentred, transport,
+    triple_rotation,
+};
 use crate::params::FilterParams;
 use crate::suit::Suit;
 use crate::{Context, Error, Result, ResultExt};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
-use skin_core::math::{DQuat, DVec3};
+use skin_core::math::{DMat3, DQuat, DVec3};
 use skin_core::skeleton::{
     AngularFrame, AttachedFrame, AttachedPoint, ForwardKinematics, JointRates, Skeleton,
 };
@@ -126,7 +130,19 @@ impl Row {
 /// The filter. Build with [`SkeletalEkf::new`], feed one [`FrameObservations`] per frame.
 #[derive(Debug, Clone)]
 pub struct SkeletalEkf {
+    /// The filter's own copy of the skeleton: 3-DOF joints re-centred (module
+    /// `local_joints`).
     skeleton: Skeleton,
+    /// The skeleton as given (the reported pose's parameterisation).
+    original: Skeleton,
+    /// Per joint: the true frame is the filter's frame times this rotation.
+    conj: Vec<DMat3>,
+    /// Re-centred joints: joint, state slots of its three DOFs, original axes.
+    local: Vec<(usize, [usize; 3], [DVec3; 3])>,
+    /// The pose in the original skeleton's angles.
+    out_theta: Vec<f64>,
+    /// The previous frame's `out_theta` (decomposition branch).
+    prev_out: Vec<f64>,
     suit: Suit,
     params: FilterParams,
     known: Vec<usize>,
@@ -137,7 +153,8 @@ pub struct SkeletalEkf {
     p: DMatrix<f64>,
     p0: DMatrix<f64>,
     good_theta: DVector<f64>,
-    theta: Vec<f64>,
+    /// θ in the filter's chart (re-centred joints local).
+    chart_theta: Vec<f64>,
     theta_dot: Vec<f64>,
     theta_ddot: Vec<f64>,
     gyro_offsets: Vec<DVec3>,
@@ -236,14 +253,28 @@ impl SkeletalEkf {
             .collect();
         let frames: Vec<AttachedFrame> = suit.boards().iter().map(|b| b.frame()).collect();
         let rows = 3 * points.len();
+        let local = (0..nj)
+            .filter(|&j| skeleton.joints()[j].parent.is_some())
+            .filter_map(|j| {
+                let axes = orthogonal_triple(&skeleton, j)?;
+                let d: Vec<usize> = skeleton.joint_dofs(j).collect();
+                let slots = [slot[d[0]]?, slot[d[1]]?, slot[d[2]]?];
+                Some((j, slots, axes))
+            })
+            .collect();
         Ok(SkeletalEkf {
+            original: skeleton.clone(),
+            conj: vec![DMat3::IDENTITY; nj],
+            local,
+            out_theta: initial_pose.to_vec(),
+            prev_out: initial_pose.to_vec(),
             fk: ForwardKinematics::new(&skeleton),
             rates: JointRates::new(&skeleton),
             mb: vec![DMatrix::zeros(3 * frames.len(), n); 4],
             mp: DMatrix::zeros(rows, n),
             bias: vec![DVec3::ZERO; points.len()],
             gyro_offsets: vec![DVec3::ZERO; suit.boards().len()],
-            theta: initial_pose.to_vec(),
+            chart_theta: initial_pose.to_vec(),
             theta_dot: vec![0.0; n],
             theta_ddot: vec![0.0; n],
             good_theta: x.rows(0, nf).into_owned(),
@@ -288,12 +319,14 @@ impl SkeletalEkf {
         self.nf
     }
 
-    /// The current full pose θ (known DOFs as last supplied).
+    /// The current full pose θ in the skeleton's own angles (known DOFs as last supplied).
     pub fn theta(&self) -> &[f64] {
-        &self.theta
+        &self.out_theta
     }
 
-    /// The current full rates θ̇.
+    /// The current full rates θ̇ of the filter's parameterisation: the skeleton's own rates,
+    /// except for 3-DOF joints while [`FilterParams::recentre_rad`] re-centres them (then the
+    /// rates of the local angles about the last re-centring).
     pub fn theta_dot(&self) -> &[f64] {
         &self.theta_dot
     }
@@ -347,7 +380,7 @@ impl SkeletalEkf {
                     skin_core::check::all_finite(what, v.iter())?;
                 }
                 for (i, &d) in self.known.iter().enumerate() {
-                    self.theta[d] = k.theta[i];
+                    self.chart_theta[d] = k.theta[i];
                     self.theta_dot[d] = k.theta_dot[i];
                     self.theta_ddot[d] = k.theta_ddot[i];
                 }
@@ -355,7 +388,7 @@ impl SkeletalEkf {
             None => skin_core::check::same_size("known DOF values", nk, 0)?,
         }
         let mut report = StepReport::default();
-        self.predict();
+        self.predict()?;
         let sensors = self.params.sensors;
         let result = (|| -> Result<()> {
             if sensors.gyroscopes {
@@ -387,12 +420,121 @@ impl SkeletalEkf {
             self.good_theta.copy_from(&self.x.rows(0, nf));
         }
         self.sync_full();
+        self.sync_output();
         Ok(report)
     }
 
-    /// Eq. 4.5–4.6 with the block form of F.
-    fn predict(&mut self) {
+    /// The pose in the original skeleton's angles: re-centred joints composed with their
+    /// folded rotations and decomposed on their original axes; other joints as they are.
+    fn sync_output(&mut self) {
+        self.out_theta.copy_from_slice(&self.chart_theta);
+        for &(j, _, axes) in &self.local {
+            let parent = self.original.joints()[j].parent;
+            let g_p = parent.map_or(DMat3::IDENTITY, |p| self.conj[p]);
+            if self.conj[j] == g_p {
+                continue;
+            }
+            let d: Vec<usize> = self.skeleton.joint_dofs(j).collect();
+            let now = self.skeleton.joints()[j].dofs.iter().map(|f| f.axis);
+            let now: Vec<DVec3> = now.collect();
+            let r = triple_rotation(
+                [now[0], now[1], now[2]],
+                [
+                    self.chart_theta[d[0]],
+                    self.chart_theta[d[1]],
+                    self.chart_theta[d[2]],
+                ],
+            );
+            let original = g_p.transpose() * r * self.conj[j];
+            let prev = [
+                self.prev_out[d[0]],
+                self.prev_out[d[1]],
+                self.prev_out[d[2]],
+            ];
+            let v = decompose(axes, original, prev);
+            for (i, &di) in d.iter().enumerate() {
+                self.out_theta[di] = v[i];
+            }
+        }
+        self.prev_out.copy_from_slice(&self.out_theta);
+    }
+
+    /// Re-centres every 3-DOF joint whose angles left `±recentre_rad` (module
+    /// `local_joints`): folds its rotation into the filter's skeleton and suit, zeroes its
+    /// angles, maps its rates and accelerations and transports the covariance (P full).
+    fn recentre(&mut self) -> Result<()> {
+        let threshold = self.params.recentre_rad;
+        if threshold <= 0.0 {
+            return Ok(());
+        }
+        let nf = self.nf;
+        let n = 3 * nf;
+        let mut joints: Option<Vec<skin_core::skeleton::Joint>> = None;
+        let mut boards = self.suit.boards().to_vec();
+        let mut sources = self.suit.sources().to_vec();
+        for k in 0..self.local.len() {
+            let (j, slots, _) = self.local[k];
+            let delta = slots.map(|s| self.x[s]);
+            if delta.iter().all(|v| v.abs() < threshold) {
+                continue;
+            }
+            let js = joints.get_or_insert_with(|| self.skeleton.joints().to_vec());
+            let axes = [js[j].dofs[0].axis, js[j].dofs[1].axis, js[j].dofs[2].axis];
+            let r = triple_rotation(axes, delta);
+            let a_new = axes.map(|a| r * a);
+            let idx: [usize; 9] = std::array::from_fn(|k| (k / 3) * nf + slots[k % 3]);
+            let state = idx.map(|i| self.x[i]);
+            let new = to_recentred(axes, a_new, r, state);
+            for (&i, v) in idx.iter().zip(new) {
+                self.x[i] = v;
+            }
+            for &s in &slots {
+                self.x[s] = 0.0;
+                self.good_theta[s] = 0.0;
+            }
+            // First-order transport: M = (R_c A)⁻¹ E(δ) on each block (module docs).
+            let m =
+                DMat3::from_cols(a_new[0], a_new[1], a_new[2]).inverse() * rate_matrix(axes, delta);
+            let m: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|k| m.col(k)[i]));
+            for blk in 0..3 {
+                transport(self.p.as_mut_slice(), n, slots.map(|s| blk * nf + s), m);
+            }
+            let inside = subtree(js, j);
+            fold_rotation(js, &inside, j, r);
+            let q = DQuat::from_mat3(&r).normalize();
+            for (c, g) in self.conj.iter_mut().enumerate() {
+                if inside[c] {
+                    *g = r * *g;
+                }
+            }
+            for p in self.points.iter_mut().filter(|p| inside[p.joint]) {
+                p.offset = r * p.offset;
+            }
+            for f in self.frames.iter_mut().filter(|f| inside[f.joint]) {
+                f.joint_from_frame = q * f.joint_from_frame;
+            }
+            for b in boards.iter_mut().filter(|b| inside[b.joint]) {
+                b.offset = r * b.offset;
+                b.joint_from_sensor = q * b.joint_from_sensor;
+            }
+            for s in sources.iter_mut().filter(|s| inside[s.joint]) {
+                s.offset = r * s.offset;
+                s.normal = (r * s.normal).normalize();
+            }
+        }
+        if let Some(js) = joints {
+            self.skeleton = Skeleton::new(js)?;
+            self.fk = ForwardKinematics::new(&self.skeleton);
+            self.rates = JointRates::new(&self.skeleton);
+            self.suit = Suit::new(&self.skeleton, boards, sources)?;
+        }
+        Ok(())
+    }
+
+    /// Eq. 4.5–4.6 with the block form of F (after re-centring the 3-DOF joints).
+    fn predict(&mut self) -> Result<()> {
         self.symmetrise();
+        self.recentre()?;
         let nf = self.nf;
         let dt = self.params.frame_time_s;
         for i in 0..nf {
@@ -428,6 +570,7 @@ impl SkeletalEkf {
         for i in 0..nf {
             self.p[(2 * nf + i, 2 * nf + i)] += q;
         }
+        Ok(())
     }
 
     /// Full θ, θ̇, θ̈ from the state (known entries untouched).
@@ -435,7 +578,7 @@ impl SkeletalEkf {
         let nf = self.nf;
         for (d, s) in self.slot.iter().enumerate() {
             if let Some(s) = *s {
-                self.theta[d] = self.x[s];
+                self.chart_theta[d] = self.x[s];
                 self.theta_dot[d] = self.x[nf + s];
                 self.theta_ddot[d] = self.x[2 * nf + s];
             }
@@ -446,9 +589,13 @@ impl SkeletalEkf {
     fn linearise(&mut self) -> Result<()> {
         self.sync_full();
         self.skeleton
-            .forward_kinematics_into(&self.theta, &mut self.fk)?;
-        self.skeleton
-            .rates_into(&self.theta, &self.theta_dot, &self.fk, &mut self.rates)?;
+            .forward_kinematics_into(&self.chart_theta, &mut self.fk)?;
+        self.skeleton.rates_into(
+            &self.chart_theta,
+            &self.theta_dot,
+            &self.fk,
+            &mut self.rates,
+        )?;
         self.x0.copy_from(&self.x);
         Ok(())
     }
@@ -807,6 +954,69 @@ mod tests {
     use super::*;
     use skin_core::skeleton::{human_skeleton, HumanParams};
 
+    /// What the sensors see: world positions, orientations, velocities and angular
+    /// velocities of every board (and source positions).
+    fn sensed(ekf: &mut SkeletalEkf) -> Vec<[f64; 3]> {
+        ekf.linearise().unwrap();
+        let mut out = Vec::new();
+        for p in &ekf.points {
+            out.push(ekf.fk.point(p).unwrap().to_array());
+            out.push(ekf.rates.point_velocity(&ekf.fk, p).unwrap().to_array());
+        }
+        for f in &ekf.frames {
+            let q = ekf.fk.frame_rotation(f).unwrap();
+            out.push((q * DVec3::X).to_array());
+            out.push((q * DVec3::Y).to_array());
+            let w = ekf
+                .rates
+                .frame_angular_velocity(&ekf.fk, f, AngularFrame::Local);
+            out.push(w.unwrap().to_array());
+        }
+        out
+    }
+
+    /// Re-centring changes the chart, not the body: every sensor's pose and rates are the
+    /// same before and after, and the reported angles give the same joint rotations.
+    #[test]
+    fn recentring_keeps_what_the_sensors_see_and_the_reported_pose() {
+        let skeleton = human_skeleton(&HumanParams::default()).unwrap();
+        let suit = Suit::vlasic(&skeleton).unwrap();
+        let mut pose = skeleton.rest_pose();
+        let mut rates = vec![0.0; skeleton.dof_count()];
+        for (i, name) in ["chest", "r_shoulder", "l_shoulder", "l_hip", "r_elbow"]
+            .iter()
+            .enumerate()
+        {
+            let j = skeleton.joint_index(name).unwrap();
+            for (k, d) in skeleton.joint_dofs(j).enumerate() {
+                pose[d] = 0.4 + 0.3 * (i + k) as f64 * if k == 1 { -1.0 } else { 1.0 };
+                rates[d] = 0.5 - 0.4 * k as f64 + 0.2 * i as f64;
+            }
+        }
+        let params = FilterParams::default().with_recentre_rad(0.3);
+        let mut ekf = SkeletalEkf::new(skeleton.clone(), suit, &pose, params, &[]).unwrap();
+        let nf = ekf.nf;
+        for (d, s) in ekf.slot.clone().iter().enumerate() {
+            ekf.x[nf + s.unwrap()] = rates[d];
+        }
+        let before = sensed(&mut ekf);
+        ekf.symmetrise();
+        ekf.recentre().unwrap();
+        assert!(ekf.conj.iter().any(|g| *g != DMat3::IDENTITY));
+        let after = sensed(&mut ekf);
+        for (a, b) in before.iter().zip(&after) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() < 1e-9, "{a:?} vs {b:?}");
+            }
+        }
+        ekf.sync_output();
+        let fk_a = skeleton.forward_kinematics(&pose).unwrap();
+        let fk_b = skeleton.forward_kinematics(ekf.theta()).unwrap();
+        for (a, b) in fk_a.world_from_joint().iter().zip(fk_b.world_from_joint()) {
+            assert!(a.abs_diff_eq(*b, 1e-9), "{a:?} vs {b:?}");
+        }
+    }
+
     /// Deferred block downdates (and the pending corrections of `P hᵀ`) give the textbook
     /// sequential update `P ← P − P hᵀ h P / (h P hᵀ + r)` on a dense copy.
     #[test]
@@ -818,8 +1028,8 @@ mod tests {
             SkeletalEkf::new(skeleton, suit, &rest, FilterParams::default(), &[]).unwrap();
         let n = 3 * ekf.nf;
         // A correlated, symmetric positive definite P (two predictions from P0).
-        ekf.predict();
-        ekf.predict();
+        ekf.predict().unwrap();
+        ekf.predict().unwrap();
         ekf.symmetrise();
         let mut p = ekf.p.clone();
         let mut x = ekf.x.clone();

@@ -20,6 +20,7 @@
 //! | inertial processing | `inertial.rs` | [`AxisCalibration`], [`DeltaCodec`] | §4.2.3, §4.3.2–4.3.3 |
 //! | initialisation | `initialise.rs` | [`initialise`] | §4.4.4 |
 //! | pose estimation | `ekf.rs` | [`SkeletalEkf`], [`FrameObservations`] | §4.4.1–4.4.3 |
+//! | local 3-DOF joints | `local_joints.rs` | (private; [`FilterParams::recentre_rad`]) | §4.4 (not in the thesis) |
 //! | one board's orientation | `orientation.rs` | [`OrientationEkf`], [`RestAlignment`], [`heading_inclination_rmse`] | §4.4 for a single rotation |
 //! | evaluation | `evaluate.rs` | [`joint_orientation_errors_deg`], [`ErrorStats`] | §4.5 |
 //!
@@ -29,7 +30,8 @@
 //! Validation equipment sits behind the cargo feature `validation`: the module `simulate`
 //! (inertial readings with noise, bias, scale and quantisation, and raw 140 kHz microphone
 //! streams with 10-cycle 40 kHz pulses, 1/r amplitude, directivity, body occlusion, a floor
-//! reflection and noise, all driven by studio motions) and the module `recordings` (the real
+//! reflection and noise, all driven by studio motions; the suit rides on the studio
+//! performer's deforming surface, `simulate::GarmentSurface`) and the module `recordings` (the real
 //! BROAD and x-io IMU logs shipped in `data/`, read and run through [`OrientationEkf`]).
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, boards or sources says where
@@ -73,8 +75,11 @@
 mod ekf;
 mod error;
 mod evaluate;
+#[cfg(feature = "validation")]
+mod garment;
 mod inertial;
 mod initialise;
+mod local_joints;
 mod orientation;
 mod params;
 #[cfg(feature = "validation")]

@@ -5,12 +5,15 @@
 //!   a smooth blend into its first frame (§4.4.4's rest pose), and interpolated by natural
 //!   cubic splines so θ, θ̇, θ̈ exist at any time.
 //! * **Garment.** Each board and source sits where [`Suit::vlasic`] puts it, off by a random
-//!   placement error (position and orientation) the filter does not know, and slides along its
-//!   bone with the bone's joint angles (skin and garment motion; see the docs for why this
-//!   stands in for the studio's pose-driven deformation).
+//!   placement error (position and orientation) the filter does not know. On a studio
+//!   performer ([`SuitSimulator::on_performer`]) it is attached to the performer's skin
+//!   ([`GarmentSurface`]) and moves with its pose-driven deformation; on a bare skeleton
+//!   ([`SuitSimulator::new`]) it slides along its bone with the bone's joint angles instead.
+//!   [`SuitSimulator::with_rigid_attachment`] fixes the same placements to the bones.
 //! * **Inertial.** Accelerations by second differences of the true garment positions (an
-//!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities from the
-//!   skeleton's rates; the paper's white noise (0.02 m/s², 0.002 rad/s), per-axis zero and
+//!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities by central
+//!   differences of the boards' true orientations; the paper's white noise (0.02 m/s², 0.002
+//!   rad/s), per-axis zero and
 //!   slope errors, a gyroscope bias random walk, 12-bit counts (four 10-bit samples
 //!   accumulated), 6-bit delta modulation with error-correcting code and scrambling, random bit
 //!   errors; decoded and calibrated by the §4.3.3 procedure (±g poses and ±45 rpm turntable
@@ -23,6 +26,7 @@
 //!   calibrated from static placements 30–90 cm apart.
 
 use crate::ekf::{DistanceMeasurement, FrameObservations, InertialReading, KnownDofs};
+pub use crate::garment::{GarmentPose, GarmentSurface, MIN_PATCH, PATCH_RADIUS_M};
 use crate::inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 use crate::params::{
     UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S,
@@ -40,7 +44,8 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use skin_core::check::{non_negative, positive};
 use skin_core::math::{DQuat, DVec3};
-use skin_core::skeleton::{AngularFrame, Motion, Skeleton};
+use skin_core::skeleton::{ForwardKinematics, Motion, Skeleton};
+use skin_core::studio::{DeformationParams, Performer};
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 
@@ -72,8 +77,9 @@ pub struct SimulationParams {
     pub placement_sd_m: f64,
     /// Garment placement error: orientation, degrees (per axis). Default: 3.
     pub placement_sd_deg: f64,
-    /// Skin and garment slide along the bone per radian of the bone's joint angles, metres.
-    /// Default: 0.01.
+    /// Skin and garment slide along the bone per radian of the bone's joint angles, metres
+    /// (the skin-motion stand-in of [`SuitSimulator::new`]; a suit on a performer's surface
+    /// does not use it). Default: 0.01.
     pub skin_slide_m_per_rad: f64,
     /// Source amplitude at 1 m on its axis (microphone units). Default: 1.
     pub source_amplitude: f64,
@@ -372,6 +378,55 @@ fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
     ((p0 + d1 * s) - (q0 + d2 * t)).length()
 }
 
+/// `nominal` with random placement errors (position per axis `placement_sd_m`, half that for
+/// sources; orientation per axis `placement_sd_deg`).
+fn perturbed(
+    skeleton: &Skeleton,
+    nominal: &Suit,
+    params: &SimulationParams,
+    rng: &mut ChaCha8Rng,
+) -> Result<Suit> {
+    let normal = Normal::new(0.0, 1.0).map_err(|e| Error::InvalidParam {
+        name: "normal",
+        reason: e.to_string(),
+    })?;
+    let mut g3 = |s: f64| {
+        DVec3::new(
+            normal.sample(&mut *rng),
+            normal.sample(&mut *rng),
+            normal.sample(&mut *rng),
+        ) * s
+    };
+    let boards: Vec<SensorBoard> = nominal
+        .boards()
+        .iter()
+        .map(|b| SensorBoard {
+            offset: b.offset + g3(params.placement_sd_m),
+            joint_from_sensor: b.joint_from_sensor
+                * DQuat::from_scaled_axis(g3(params.placement_sd_deg.to_radians())),
+            ..b.clone()
+        })
+        .collect();
+    let sources: Vec<UltrasonicSource> = nominal
+        .sources()
+        .iter()
+        .map(|s| UltrasonicSource {
+            offset: s.offset + g3(0.5 * params.placement_sd_m),
+            ..s.clone()
+        })
+        .collect();
+    Suit::new(skeleton, boards, sources)
+}
+
+/// The rotation vector of `q` (shortest way round).
+fn rotation_vector(q: DQuat) -> DVec3 {
+    if q.w < 0.0 {
+        (-q).to_scaled_axis()
+    } else {
+        q.to_scaled_axis()
+    }
+}
+
 /// One 140 Hz frame of truth.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TruthFrame {
@@ -410,6 +465,56 @@ pub struct SimulatedRecording {
     pub inertial_frames_flagged: usize,
     /// Bit errors corrected by the code.
     pub bits_corrected: usize,
+    /// Per board: how far it moved relative to its bone (the skin motion) after the rest hold.
+    pub skin_motion: Vec<SkinMotion>,
+}
+
+/// How far one board moved relative to its bone over a recording: its position and axes
+/// against the same rest placement fixed rigidly to the bone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkinMotion {
+    /// Board name.
+    pub board: String,
+    /// Mean displacement, millimetres.
+    pub mean_mm: f64,
+    /// Largest displacement, millimetres.
+    pub max_mm: f64,
+    /// Mean rotation of the board's axes, degrees.
+    pub mean_deg: f64,
+    /// Largest rotation, degrees.
+    pub max_deg: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct SkinAccumulator {
+    n: usize,
+    sum_m: f64,
+    max_m: f64,
+    sum_rad: f64,
+    max_rad: f64,
+}
+
+impl SkinAccumulator {
+    fn add(&mut self, counted: bool, distance_m: f64, angle_rad: f64) {
+        if counted {
+            self.n += 1;
+            self.sum_m += distance_m;
+            self.max_m = self.max_m.max(distance_m);
+            self.sum_rad += angle_rad;
+            self.max_rad = self.max_rad.max(angle_rad);
+        }
+    }
+
+    fn finish(&self, board: &str) -> SkinMotion {
+        let n = self.n.max(1) as f64;
+        SkinMotion {
+            board: board.to_string(),
+            mean_mm: 1e3 * self.sum_m / n,
+            max_mm: 1e3 * self.max_m,
+            mean_deg: (self.sum_rad / n).to_degrees(),
+            max_deg: self.max_rad.to_degrees(),
+        }
+    }
 }
 
 /// Static offset calibration of the sources (§4.3.3).
@@ -433,13 +538,19 @@ pub struct SuitSimulator {
     params: SimulationParams,
     ultrasound: UltrasoundParams,
     capsules: Vec<Capsule>,
+    /// The garment surface the boards and sources ride on, if any.
+    garment: Option<GarmentSurface>,
+    /// Height of the floor (reflections), metres.
+    floor_y: f64,
     slide_dir: Vec<DVec3>,
     /// Per-source electrical delay, seconds (why calibrated offsets differ between sources).
     source_lags_s: Vec<f64>,
 }
 
 impl SuitSimulator {
-    /// The thesis's suit on `skeleton` with random placement errors.
+    /// The thesis's suit on `skeleton` with random placement errors; boards slide along their
+    /// bone by [`SimulationParams::skin_slide_m_per_rad`] (the stand-in for skin motion when
+    /// there is no performer surface).
     ///
     /// # Errors
     /// As [`Suit::vlasic`]; [`Error::Core`] for invalid parameters.
@@ -447,36 +558,71 @@ impl SuitSimulator {
         params.validate()?;
         let nominal = Suit::vlasic(skeleton)?;
         let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
-        let normal = Normal::new(0.0, 1.0).map_err(|e| Error::InvalidParam {
-            name: "normal",
-            reason: e.to_string(),
-        })?;
-        let mut g3 = |s: f64| {
-            DVec3::new(
-                normal.sample(&mut rng),
-                normal.sample(&mut rng),
-                normal.sample(&mut rng),
-            ) * s
-        };
-        let boards: Vec<SensorBoard> = nominal
-            .boards()
+        let true_suit = perturbed(skeleton, &nominal, &params, &mut rng)?;
+        Self::assemble(skeleton, nominal, true_suit, None, 0.0, params, &mut rng)
+    }
+
+    /// The thesis's suit on the garment over `performer`'s skin ([`GarmentSurface`]): the
+    /// table's positions are snapped to the rest body surface (the nominal suit the filter is
+    /// told), the true placements carry the random placement errors and are snapped too, and
+    /// every board and source then moves with the performer's pose-driven deformation
+    /// (`deformation`: the parameters the performer was built with) instead of rigidly with
+    /// its bone. [`SimulationParams::skin_slide_m_per_rad`] is not used.
+    ///
+    /// # Errors
+    /// As [`Suit::vlasic`] and [`GarmentSurface::new`]; [`Error::Core`] for invalid
+    /// parameters.
+    pub fn on_performer(
+        performer: &Performer,
+        deformation: &DeformationParams,
+        params: SimulationParams,
+    ) -> Result<Self> {
+        params.validate()?;
+        let skeleton = &performer.skeleton;
+        let (_, nominal) = GarmentSurface::new(performer, deformation, &Suit::vlasic(skeleton)?)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5u64);
+        let placed = perturbed(skeleton, &nominal, &params, &mut rng)?;
+        let (surface, true_suit) = GarmentSurface::new(performer, deformation, &placed)?;
+        // The floor under the performer's feet at rest (the template's lowest point).
+        let floor_y = performer
+            .template
+            .vertices
             .iter()
-            .map(|b| SensorBoard {
-                offset: b.offset + g3(params.placement_sd_m),
-                joint_from_sensor: b.joint_from_sensor
-                    * DQuat::from_scaled_axis(g3(params.placement_sd_deg.to_radians())),
-                ..b.clone()
-            })
-            .collect();
-        let sources: Vec<UltrasonicSource> = nominal
-            .sources()
-            .iter()
-            .map(|s| UltrasonicSource {
-                offset: s.offset + g3(0.5 * params.placement_sd_m),
-                ..s.clone()
-            })
-            .collect();
-        let true_suit = Suit::new(skeleton, boards, sources)?;
+            .map(|v| v.y)
+            .fold(f64::INFINITY, f64::min);
+        Self::assemble(
+            skeleton,
+            nominal,
+            true_suit,
+            Some(surface),
+            floor_y,
+            params,
+            &mut rng,
+        )
+    }
+
+    /// The same suit (same nominal and true placements, same seed) fixed rigidly to the bones:
+    /// no surface deformation and no slide — the baseline that shows what skin motion costs.
+    pub fn with_rigid_attachment(mut self) -> Self {
+        self.garment = None;
+        self.params.skin_slide_m_per_rad = 0.0;
+        self
+    }
+
+    /// Whether the boards and sources ride on a performer's deforming surface.
+    pub fn on_garment_surface(&self) -> bool {
+        self.garment.is_some()
+    }
+
+    fn assemble(
+        skeleton: &Skeleton,
+        nominal: Suit,
+        true_suit: Suit,
+        garment: Option<GarmentSurface>,
+        floor_y: f64,
+        params: SimulationParams,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Self> {
         let mut capsules = Vec::new();
         for (j, joint) in skeleton.joints().iter().enumerate() {
             let r = capsule_radius(&joint.name);
@@ -507,6 +653,8 @@ impl SuitSimulator {
             skeleton: skeleton.clone(),
             nominal,
             true_suit,
+            garment,
+            floor_y,
             params,
             ultrasound: UltrasoundParams::default(),
             capsules,
@@ -520,24 +668,49 @@ impl SuitSimulator {
         &self.nominal
     }
 
-    /// Garment position of board `b` at pose θ (placement error plus skin slide), world.
-    fn board_position(
-        &self,
-        fk: &skin_core::skeleton::ForwardKinematics,
-        theta: &[f64],
-        b: usize,
-    ) -> Result<DVec3> {
-        let board = &self.true_suit.boards()[b];
-        let slide: f64 = self
-            .skeleton
-            .joint_dofs(board.joint)
-            .filter(|&d| self.skeleton.is_rotation(d))
-            .map(|d| theta[d])
-            .sum::<f64>()
-            * self.params.skin_slide_m_per_rad;
-        let mut p = board.point();
-        p.offset += self.slide_dir[b] * slide;
-        Ok(fk.point(&p)?)
+    /// Forward kinematics at θ and the world placement of every board and source: on the
+    /// garment surface, or fixed to the bone (plus the slide rule).
+    fn placement(&self, theta: &[f64]) -> Result<(ForwardKinematics, GarmentPose)> {
+        let fk = self.skeleton.forward_kinematics(theta)?;
+        if let Some(g) = &self.garment {
+            let pose = g.pose(theta)?;
+            return Ok((fk, pose));
+        }
+        let (mut board_positions, mut board_rotations) = (Vec::new(), Vec::new());
+        for (b, board) in self.true_suit.boards().iter().enumerate() {
+            let slide: f64 = self
+                .skeleton
+                .joint_dofs(board.joint)
+                .filter(|&d| self.skeleton.is_rotation(d))
+                .map(|d| theta[d])
+                .sum::<f64>()
+                * self.params.skin_slide_m_per_rad;
+            let mut p = board.point();
+            p.offset += self.slide_dir[b] * slide;
+            board_positions.push(fk.point(&p)?);
+            board_rotations.push(fk.frame_rotation(&board.frame())?);
+        }
+        let source_positions = self
+            .true_suit
+            .sources()
+            .iter()
+            .map(|s| fk.point(&s.point()))
+            .collect::<std::result::Result<_, _>>()?;
+        let source_normals = self
+            .true_suit
+            .sources()
+            .iter()
+            .map(|s| fk.world_from_joint()[s.joint].matrix3 * s.normal)
+            .collect();
+        Ok((
+            fk,
+            GarmentPose {
+                board_positions,
+                board_rotations,
+                source_positions,
+                source_normals,
+            },
+        ))
     }
 
     /// The piezo burst: 10 cycles with exponential ring-up, then ring-down (τ = 60 µs).
@@ -740,35 +913,34 @@ impl SuitSimulator {
         let mut inertial_s = 0.0;
         let (mut flagged, mut corrected) = (0usize, 0usize);
         let frames_true: Vec<_> = self.true_suit.boards().iter().map(|b| b.frame()).collect();
+        let mut skin = vec![SkinAccumulator::default(); nb];
+        let rest_frames = (p.rest_s / dt).floor() as usize;
         for k in 0..n_frames {
             let t = k as f64 * dt;
             motion.eval(t, &mut th, &mut rate, &mut acc);
             motion.eval(t + h, &mut th_p, &mut scratch_r, &mut scratch_a);
             motion.eval(t - h, &mut th_m, &mut scratch_r, &mut scratch_a);
-            let fk = self
-                .skeleton
-                .forward_kinematics(&th)
-                .at(Context::Frame(k))?;
-            let fk_p = self
-                .skeleton
-                .forward_kinematics(&th_p)
-                .at(Context::Frame(k))?;
-            let fk_m = self
-                .skeleton
-                .forward_kinematics(&th_m)
-                .at(Context::Frame(k))?;
-            let rates = self.skeleton.rates(&th, &rate, &fk).at(Context::Frame(k))?;
+            let (fk, now) = self.placement(&th).at(Context::Frame(k))?;
+            let (_, plus) = self.placement(&th_p).at(Context::Frame(k))?;
+            let (_, minus) = self.placement(&th_m).at(Context::Frame(k))?;
             let mut readings = Vec::with_capacity(nb);
-            let mut board_pos = Vec::with_capacity(nb);
             for b in 0..nb {
-                let pos = self.board_position(&fk, &th, b)?;
-                let a = (self.board_position(&fk_p, &th_p, b)? - 2.0 * pos
-                    + self.board_position(&fk_m, &th_m, b)?)
-                    / (h * h);
-                board_pos.push(pos);
-                let to_local = fk.frame_rotation(&frames_true[b])?.inverse();
+                let pos = now.board_positions[b];
+                let a = (plus.board_positions[b] - 2.0 * pos + minus.board_positions[b]) / (h * h);
+                let q = now.board_rotations[b];
+                let to_local = q.inverse();
                 let f = to_local * (a + up);
-                let w = rates.frame_angular_velocity(&fk, &frames_true[b], AngularFrame::Local)?;
+                let w = to_local
+                    * (rotation_vector(
+                        plus.board_rotations[b] * minus.board_rotations[b].inverse(),
+                    ) / (2.0 * h));
+                let bone = &frames_true[b];
+                let rigid = fk.point(&self.true_suit.boards()[b].point())?;
+                skin[b].add(
+                    k >= rest_frames,
+                    pos.distance(rigid),
+                    q.angle_between(fk.frame_rotation(bone)?),
+                );
                 gyro_bias[b] += DVec3::new(
                     normal.sample(&mut rng),
                     normal.sample(&mut rng),
@@ -815,18 +987,6 @@ impl SuitSimulator {
                 }
                 readings.push(reading);
             }
-            let sources: Vec<DVec3> = self
-                .true_suit
-                .sources()
-                .iter()
-                .map(|s| fk.point(&s.point()))
-                .collect::<std::result::Result<_, _>>()?;
-            let normals = self
-                .true_suit
-                .sources()
-                .iter()
-                .map(|s| fk.world_from_joint()[s.joint].matrix3 * s.normal)
-                .collect();
             let capsules = self
                 .capsules
                 .iter()
@@ -836,9 +996,9 @@ impl SuitSimulator {
                 })
                 .collect();
             geometry.push(Geometry {
-                boards: board_pos,
-                sources,
-                normals,
+                boards: now.board_positions,
+                sources: now.source_positions,
+                normals: now.source_normals,
                 capsules,
             });
             truth.push(TruthFrame { theta: th.clone() });
@@ -856,7 +1016,7 @@ impl SuitSimulator {
             frames: out_frames,
             truth,
             root: roots,
-            rest_frames: (p.rest_s / dt).floor() as usize,
+            rest_frames,
             nominal_suit: self.nominal.clone(),
             true_suit: self.true_suit.clone(),
             ultrasound_s: 0.0,
@@ -867,6 +1027,13 @@ impl SuitSimulator {
             pulses_total: 0,
             inertial_frames_flagged: flagged,
             bits_corrected: corrected,
+            skin_motion: self
+                .true_suit
+                .boards()
+                .iter()
+                .zip(&skin)
+                .map(|(b, acc)| acc.finish(&b.name))
+                .collect(),
         };
         if p.ultrasound {
             self.ultrasonic_pass(&geometry, offsets, &mut rec, &mut rng, &normal)?;
@@ -927,7 +1094,7 @@ impl SuitSimulator {
                     };
                 let lag = self.source_lags_s[j];
                 Self::add_burst(&mut frame, r / c + lag, amp, fs);
-                let mirror = DVec3::new(pi.x, -pi.y, pi.z);
+                let mirror = DVec3::new(pi.x, 2.0 * self.floor_y - pi.y, pi.z);
                 let dm = mirror - pj;
                 let rm = dm.length().max(1e-3);
                 let amp_m = self.params.floor_reflection * self.params.source_amplitude / rm
@@ -1146,6 +1313,9 @@ pub struct TuningPoint {
     pub accelerometer_sigma: f64,
     /// Distance innovation gate, standard deviations (0: none).
     pub distance_gate_sigma: f64,
+    /// Re-centring threshold of the 3-DOF joints (`base`'s; 0: Euler angles throughout).
+    #[serde(default)]
+    pub recentre_rad: f64,
     /// Mean over the evaluated joints of the mean orientation error, degrees (A+G+D, root
     /// supplied).
     pub score_deg: f64,
@@ -1183,6 +1353,7 @@ pub fn tune(
                     process_sigma: q,
                     accelerometer_sigma: sa,
                     distance_gate_sigma: gate,
+                    recentre_rad: base.recentre_rad,
                     score_deg: score,
                 });
             }
