@@ -12,6 +12,7 @@
 use rayon::prelude::*;
 
 use super::lights::Light;
+use super::shadow_bvh::ShadowBvh;
 use crate::math::{DVec3, Ray};
 use crate::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use crate::raster::{RenderedView, NO_TRIANGLE};
@@ -82,6 +83,9 @@ impl LightVisibility {
         }
         check_lights_outside(query, lights)?;
         let normals = vertex_normals(mesh, NormalWeighting::Area)?;
+        // Shadow rays only ask whether anything is in the way: the any-hit hierarchy answers
+        // as `MeshQuery::cast_ray` does, several times faster (see `shadow_bvh`).
+        let bvh = ShadowBvh::new(mesh);
         let n_lights = lights.len();
         let words = n_lights.div_ceil(64).max(1);
         let mut bits = vec![0u64; words * mesh.vertex_count()];
@@ -93,7 +97,7 @@ impl LightVisibility {
                     return;
                 }
                 for (l, light) in lights.iter().enumerate() {
-                    if light.irradiance(p, n) > 0.0 && unoccluded(query, p, n, light, bias_m) {
+                    if light.irradiance(p, n) > 0.0 && unoccluded_any(&bvh, p, n, light, bias_m) {
                         row[l / 64] |= 1 << (l % 64);
                     }
                 }
@@ -202,6 +206,17 @@ pub(crate) fn unoccluded(
     // Inputs are finite and the direction non-zero, so `cast_ray` cannot fail; treat a failure
     // as unoccluded rather than panic.
     !matches!(query.cast_ray(Ray::new(o, d), dist - bias_m), Ok(Some(_)))
+}
+
+/// [`unoccluded`] through the any-hit hierarchy: the same segment, the same answer.
+fn unoccluded_any(bvh: &ShadowBvh, p: DVec3, n: DVec3, light: &Light, bias_m: f64) -> bool {
+    let o = p + n * bias_m;
+    let d = light.position() - o;
+    let dist = d.length();
+    if dist <= bias_m {
+        return true;
+    }
+    !bvh.occluded(o, d, (dist - bias_m) / dist)
 }
 
 /// Checks that no light is inside the (closed, outward-oriented) mesh
