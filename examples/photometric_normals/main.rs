@@ -240,6 +240,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             None => vec![1.0; err.len()],
         };
         acc.concave.extend(power.iter().map(|&p| p < 0.9));
+        // Grazing view: the true normal more than 60° from the direction to the camera.
+        acc.grazing.extend(truth.pixels().map(|n| n.0[2].abs() < 0.5));
         acc.wrinkled
             .extend(dynamic_shapes::photometric::truth::wrinkle_pixels(
                 view,
@@ -314,6 +316,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let wrinkled = region(&|i| acc.body[i] && acc.wrinkled[i]);
     let skin_open = region(&|i| open[i] && acc.skin.get(i).copied().unwrap_or(false));
     let skirt_open = region(&|i| open[i] && !acc.skin.get(i).copied().unwrap_or(true));
+    let facing = region(&|i| open[i] && !acc.grazing[i]);
+    let grazing = region(&|i| open[i] && acc.grazing[i]);
+    let skin_facing = region(&|i| skin_open[i] && !acc.grazing[i]);
+    let skirt_facing = region(&|i| skirt_open[i] && !acc.grazing[i]);
+    let e_facing = summarize(&acc.err, Some(&facing));
+    let e_grazing = summarize(&acc.err, Some(&grazing));
+    let e_skin_facing = summarize(&acc.err, Some(&skin_facing));
+    let e_skirt_facing = summarize(&acc.err, Some(&skirt_facing));
     let e_skin = summarize(&acc.err, Some(&skin_open));
     let e_skirt = summarize(&acc.err, Some(&skirt_open));
     let e_open = summarize(&acc.err, Some(&open));
@@ -446,6 +456,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pct = |q: f64| full_on.get(((full_on.len() as f64 - 1.0) * q).round() as usize).copied();
     let extra = json!({
         "n_best_sweep": n_best_sweep,
+        "normal_median_facing_deg": e_facing.median_deg,
+        "normal_median_grazing_deg": e_grazing.median_deg,
+        "grazing_fraction_outside": e_grazing.pixels as f64 / e_open.pixels.max(1) as f64,
+        "normal_median_skin_facing_deg": e_skin_facing.median_deg,
+        "normal_median_skirt_facing_deg": e_skirt_facing.median_deg,
         "full_on_normalised_p50": pct(0.5),
         "full_on_normalised_p99": pct(0.99),
         "normals_ms_per_view_1024_measured": normals_1024_measured,
@@ -960,6 +975,7 @@ struct Acc {
     body: Vec<bool>,
     skin: Vec<bool>,
     n_best: [Vec<Option<f64>>; N_BEST_SWEEP.len()],
+    grazing: Vec<bool>,
     full_on: Vec<f64>,
     valid: usize,
     covered: usize,

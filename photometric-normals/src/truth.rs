@@ -792,3 +792,45 @@ impl SensorNoise {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sensor_noise_follows_its_model_and_rejects_bad_settings() {
+        let s = SensorNoise::default().with_white_level(0.4);
+        for level in [0.004f32, 0.04, 0.2, 0.38] {
+            let mut im = Rgb32FImage::from_pixel(200, 200, image::Rgb([level; 3]));
+            s.apply(&mut im, 3).unwrap();
+            let v: Vec<f64> = im.as_raw().iter().map(|&x| f64::from(x)).collect();
+            let m = mean(&v);
+            let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
+            let want = s.sigma_at(level);
+            assert!((m - f64::from(level)).abs() < 0.05 * want + 1e-6, "{level}: mean {m}");
+            assert!((sd / want - 1.0).abs() < 0.05, "{level}: sd {sd} vs {want}");
+            // Quantised to 10 bits of the white level.
+            let step = 0.4 / 1023.0;
+            assert!(v.iter().all(|x| ((x / step) - (x / step).round()).abs() < 1e-3));
+        }
+        // Shot noise: brighter pixels are noisier in absolute terms, quieter relative to the
+        // signal; the studio's flat σ = 0.005 is above the model at every level below white.
+        assert!(s.sigma_at(0.4) > s.sigma_at(0.04));
+        assert!(s.sigma_at(0.4) / 0.4 < s.sigma_at(0.04) / 0.04);
+        assert!(s.sigma_at(0.4) < 0.005);
+        // Saturation clips to the white level.
+        let mut im = Rgb32FImage::from_pixel(4, 4, image::Rgb([2.0; 3]));
+        s.apply(&mut im, 1).unwrap();
+        assert!(im.as_raw().iter().all(|&x| (x - 0.4).abs() < 1e-6));
+        let mut im = Rgb32FImage::from_pixel(4, 4, image::Rgb([0.1; 3]));
+        for bad in [
+            SensorNoise { white_level: 0.0, ..s },
+            SensorNoise { white_level: f32::NAN, ..s },
+            SensorNoise { full_well_e: -1.0, ..s },
+            SensorNoise { read_noise_e: -1.0, ..s },
+            SensorNoise { bits: 30, ..s },
+        ] {
+            assert!(bad.apply(&mut im, 1).is_err(), "{bad:?}");
+        }
+    }
+}
