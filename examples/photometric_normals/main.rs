@@ -79,6 +79,11 @@ struct Args {
     /// `--quick`, 6 = three cycles otherwise).
     #[arg(long)]
     maps: Option<usize>,
+    /// Approximate the cast shadows with about this many light direction bins (one shadow
+    /// ray per bin and vertex; 0: exact, one ray per light). Default: exact with `--quick`,
+    /// 100 otherwise.
+    #[arg(long)]
+    light_bins: Option<usize>,
     /// Linear radiance at which the cameras saturate (the exposure).
     #[arg(long, default_value_t = WHITE_LEVEL)]
     white_level: f32,
@@ -92,12 +97,15 @@ struct Args {
     /// `bench/peers/flow.py`); prints one JSON line.
     #[arg(long)]
     flow_only: bool,
+    /// Timed repetitions of `--flow-only` (after one warm-up).
+    #[arg(long, default_value_t = 10)]
+    flow_reps: usize,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     if args.flow_only {
-        let (ms, epe, epe_interior) = peer_flow_workload(1024, 10)?;
+        let (ms, epe, epe_interior) = peer_flow_workload(1024, args.flow_reps)?;
         println!(
             "{}",
             json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior})
@@ -143,8 +151,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1.0 / motion.frame_time_s,
         PatternSchedule::AllEachFrame,
     )?;
+    let light_bins = match args.light_bins.unwrap_or(if quick { 0 } else { 100 }) {
+        0 => None,
+        b => Some(b),
+    };
     if let Some(lighting) = &mut spec.lighting {
         lighting.shadows = !args.no_shadows;
+        lighting.shadow_light_bins = light_bins;
     }
     let noise = if args.no_noise {
         Noise::Off
@@ -394,7 +407,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let stage = run.stage("moving sequence", None);
     let maps = args.maps.unwrap_or(if quick { 1 } else { 6 });
-    let moving = moving_sequence(&cameras, &cals, &light_stage, &params, noise, maps)?;
+    let moving = moving_sequence(
+        &cameras,
+        &cals,
+        &light_stage,
+        &params,
+        noise,
+        maps,
+        light_bins,
+    )?;
     stage.finish(format!(
         "compensated median {:.2}°, uncompensated {:.2}°, flow EPE {:.3} px vs true motion (mean motion {:.2} px)",
         moving["moving_normal_median_deg"].as_f64().unwrap_or(f64::NAN),
@@ -420,6 +441,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "lights": lights.len(),
         "noise": noise.name(),
         "white_level": args.white_level,
+        "shadow_light_bins": light_bins,
         "shadows": !args.no_shadows,
         "normal_median_deg": e_open.median_deg,
         "normal_mean_deg": e_open.mean_deg,
@@ -686,6 +708,7 @@ fn moving_sequence(
     params: &NormalParams,
     noise: Noise,
     maps: usize,
+    light_bins: Option<usize>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
     use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
     use dynamic_shapes::photometric::{
@@ -706,12 +729,18 @@ fn moving_sequence(
     let mut spec =
         light_stage.capture_spec(rig.clone(), CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)?;
     noise.set_studio(&mut spec);
+    if let Some(l) = &mut spec.lighting {
+        l.shadow_light_bins = light_bins;
+    }
     let capture = Capture::new(&performer, &motion, spec)?;
     // The first tracking frame held still under all seven conditions: the static error of
     // the moving sequence's own pose, scored on the pixels the compensated map is scored on.
     let mut still_spec =
         light_stage.capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::AllEachFrame)?;
     noise.set_studio(&mut still_spec);
+    if let Some(l) = &mut still_spec.lighting {
+        l.shadow_light_bins = light_bins;
+    }
     let mut still = Capture::new(&performer, &motion, still_spec)?
         .frames_in(FIRST + 4..FIRST + 5)
         .next()

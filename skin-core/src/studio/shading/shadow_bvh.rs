@@ -360,6 +360,41 @@ mod tests {
     }
 
     #[test]
+    fn binned_visibility_is_close_to_the_exact_one_on_the_dome() {
+        use crate::studio::shading::{dome_lights, light_bins, DomeParams, LightVisibility};
+        // The two spheres standing in the dome (floor at y = -1.5).
+        let mesh = scene();
+        let query = MeshQuery::new(&mesh).unwrap();
+        let dome = DomeParams {
+            floor_centre: DVec3::new(0.0, -1.5, 0.0),
+            ..Default::default()
+        };
+        let lights = dome_lights(&dome).unwrap();
+        let groups = light_bins(&lights, 100);
+        assert!((60..=130).contains(&groups.len()), "{} bins", groups.len());
+        assert_eq!(groups.iter().map(Vec::len).sum::<usize>(), lights.len());
+        let exact = LightVisibility::compute(&mesh, &query, &lights, 1e-4).unwrap();
+        let binned =
+            LightVisibility::compute_binned(&mesh, &query, &lights, 1e-4, None, Some(100))
+                .unwrap();
+        // Same lights above each tangent plane; the disagreements are shadow-edge lights.
+        let (mut differ, mut total, mut occluded) = (0usize, 0usize, 0usize);
+        for v in 0..mesh.vertex_count() {
+            for l in 0..lights.len() {
+                let (a, b) = (exact.visible(v, l), binned.visible(v, l));
+                differ += usize::from(a != b);
+                total += usize::from(a || b);
+                occluded += usize::from(!a && b || a && !b || !a);
+            }
+        }
+        let frac = differ as f64 / total as f64;
+        assert!(frac < 0.05, "{differ} of {total} visible bits differ ({frac})");
+        assert!(occluded > 0);
+        let err = LightVisibility::compute_binned(&mesh, &query, &lights, 1e-4, None, Some(0));
+        assert!(err.is_err());
+    }
+
+    #[test]
     fn an_empty_hierarchy_occludes_nothing() {
         let mesh = TriMesh::new(vec![DVec3::ZERO, DVec3::X, DVec3::X * 2.0], vec![[0, 1, 2]]);
         let Ok(mesh) = mesh else {
