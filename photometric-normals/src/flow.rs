@@ -254,28 +254,6 @@ fn upsample(u: &[[f32; 2]], cw: usize, w: usize, h: usize) -> Vec<[f32; 2]> {
     out
 }
 
-/// Runs `f` compiled for AVX2 when the CPU has it (the build targets baseline x86-64, SSE2;
-/// OpenCV's DIS dispatches its kernels the same way at run time). The per-patch and per-row
-/// kernels below are plain loops over 8-wide partial sums, which the compiler then vectorises
-/// one AVX register wide instead of two SSE registers; no arithmetic changes (no FMA), so the
-/// results are the same on either path up to the order of the final lane sums.
-#[inline(always)]
-fn simd<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2<R>(f: impl FnOnce() -> R) -> R {
-            f()
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-            // calling a `target_feature(enable = "avx2")` function.
-            return unsafe { avx2(f) };
-        }
-    }
-    f()
-}
-
 /// Inverse search of every patch of the grid, then densification.
 fn patch_search(
     a: &Img,
@@ -301,7 +279,7 @@ fn patch_search(
         .collect();
     let flows: Vec<[f32; 2]> = patches
         .par_iter()
-        .map(|&(x0, y0)| simd(|| {
+        .map(|&(x0, y0)| {
             // Start from the mean initial flow of the patch.
             let c = (y0 + ps / 2) * a.w + (x0 + ps / 2);
             let mut u = init[c.min(init.len() - 1)];
@@ -328,7 +306,7 @@ fn patch_search(
                 }
             }
             u
-        }))
+        })
         .collect();
     // Densification: each pixel averages the patches covering it, weighted by 1/max(1, |e|)
     // (intensity errors scaled to 8-bit units).
@@ -347,7 +325,7 @@ fn patch_search(
     // of two rows of the second image (the trick of `warped_sums`).
     let cy = covering(&ys, a.h);
     let mut out = vec![[0.0f32; 2]; a.w * a.h];
-    out.par_chunks_mut(a.w).enumerate().for_each(|(y, row)| simd(|| {
+    out.par_chunks_mut(a.w).enumerate().for_each(|(y, row)| {
         // Σ weight, Σ weight·u, Σ weight·v per pixel of the row.
         let mut acc = vec![[0f32; 3]; a.w];
         let arow = &a.p[y * a.w..(y + 1) * a.w];
@@ -392,7 +370,7 @@ fn patch_search(
                 init[y * a.w + x]
             };
         }
-    }));
+    });
     out
 }
 
@@ -539,7 +517,7 @@ fn refine(a: &Img, b: &Img, u: &mut [[f32; 2]], p: &FlowParams) {
     let mut next = du.clone();
     for _ in 0..p.refine_iters {
         let prev = &du;
-        next.par_chunks_mut(w).enumerate().for_each(|(y, row)| simd(|| {
+        next.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             for (x, d) in row.iter_mut().enumerate() {
                 let i = y * w + x;
                 let n = nb(x, y).map(|j| prev[j]);
@@ -551,7 +529,7 @@ fn refine(a: &Img, b: &Img, u: &mut [[f32; 2]], p: &FlowParams) {
                 let r = c[2] * m[0] + c[3] * m[1] + c[4];
                 *d = [m[0] - c[2] * r, m[1] - c[3] * r];
             }
-        }));
+        });
         std::mem::swap(&mut du, &mut next);
     }
     for (v, d) in u.iter_mut().zip(&du) {
