@@ -235,7 +235,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         acc.base.extend(angular_errors_deg(&baseline, truth)?);
         // Eq. 3.2's N (not given in the thesis), swept on the same images.
         for (i, &n) in N_BEST_SWEEP.iter().enumerate() {
-            let p = NormalParams { n_best: n, ..params };
+            let p = NormalParams {
+                n_best: n,
+                ..params
+            };
             let m = estimate_normals(cam, &cal, &images, Some(&obs.mask), &p)?;
             acc.n_best[i].extend(angular_errors_deg(&m, truth)?);
         }
@@ -254,7 +257,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         acc.concave.extend(power.iter().map(|&p| p < 0.9));
         // Grazing view: the true normal more than 60° from the direction to the camera.
-        acc.grazing.extend(truth.pixels().map(|n| n.0[2].abs() < 0.5));
+        acc.grazing
+            .extend(truth.pixels().map(|n| n.0[2].abs() < 0.5));
         acc.wrinkled
             .extend(dynamic_shapes::photometric::truth::wrinkle_pixels(
                 view,
@@ -475,7 +479,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let mut full_on = acc.full_on.clone();
     full_on.sort_by(f64::total_cmp);
-    let pct = |q: f64| full_on.get(((full_on.len() as f64 - 1.0) * q).round() as usize).copied();
+    let pct = |q: f64| {
+        full_on
+            .get(((full_on.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+    };
     let extra = json!({
         "n_best_sweep": n_best_sweep,
         "normal_median_facing_deg": e_facing.median_deg,
@@ -978,7 +986,11 @@ impl Noise {
     }
 
     /// Reads a rendered image through the camera model (nothing for the others).
-    fn apply(&self, image: &mut image::Rgb32FImage, seed: u64) -> Result<(), Box<dyn std::error::Error>> {
+    fn apply(
+        &self,
+        image: &mut image::Rgb32FImage,
+        seed: u64,
+    ) -> Result<(), Box<dyn std::error::Error>> {
         if let Noise::Sensor(s) = self {
             s.apply(image, seed)?;
         }

@@ -779,9 +779,8 @@ impl SensorNoise {
                 for (i, v) in px.iter_mut().enumerate() {
                     let k = 2 * (y * row + i) as u64;
                     let e = (f64::from(*v) / wl).max(0.0) * fw;
-                    let read = e
-                        + e.sqrt() * rng.normal_at(k)
-                        + self.read_noise_e * rng.normal_at(k + 1);
+                    let read =
+                        e + e.sqrt() * rng.normal_at(k) + self.read_noise_e * rng.normal_at(k + 1);
                     let mut s = (read / fw).clamp(0.0, 1.0);
                     if levels > 0.0 {
                         s = (s * levels).round() / levels;
@@ -807,11 +806,16 @@ mod tests {
             let m = mean(&v);
             let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
             let want = s.sigma_at(level);
-            assert!((m - f64::from(level)).abs() < 0.05 * want + 1e-6, "{level}: mean {m}");
+            assert!(
+                (m - f64::from(level)).abs() < 0.05 * want + 1e-6,
+                "{level}: mean {m}"
+            );
             assert!((sd / want - 1.0).abs() < 0.05, "{level}: sd {sd} vs {want}");
             // Quantised to 10 bits of the white level.
             let step = 0.4 / 1023.0;
-            assert!(v.iter().all(|x| ((x / step) - (x / step).round()).abs() < 1e-3));
+            assert!(v
+                .iter()
+                .all(|x| ((x / step) - (x / step).round()).abs() < 1e-3));
         }
         // Shot noise: brighter pixels are noisier in absolute terms, quieter relative to the
         // signal; the studio's flat σ = 0.005 is above the model at every level below white.
@@ -824,10 +828,22 @@ mod tests {
         assert!(im.as_raw().iter().all(|&x| (x - 0.4).abs() < 1e-6));
         let mut im = Rgb32FImage::from_pixel(4, 4, image::Rgb([0.1; 3]));
         for bad in [
-            SensorNoise { white_level: 0.0, ..s },
-            SensorNoise { white_level: f32::NAN, ..s },
-            SensorNoise { full_well_e: -1.0, ..s },
-            SensorNoise { read_noise_e: -1.0, ..s },
+            SensorNoise {
+                white_level: 0.0,
+                ..s
+            },
+            SensorNoise {
+                white_level: f32::NAN,
+                ..s
+            },
+            SensorNoise {
+                full_well_e: -1.0,
+                ..s
+            },
+            SensorNoise {
+                read_noise_e: -1.0,
+                ..s
+            },
             SensorNoise { bits: 30, ..s },
         ] {
             assert!(bad.apply(&mut im, 1).is_err(), "{bad:?}");

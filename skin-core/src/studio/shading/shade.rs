@@ -329,8 +329,7 @@ fn shade_impl(
                     // others add exactly zero): walk the set bits of their union, in light
                     // order, so the sums are the same as over every light.
                     for (word, active) in active.iter().enumerate() {
-                        let mut bits =
-                            (rows[0][word] | rows[1][word] | rows[2][word]) & active;
+                        let mut bits = (rows[0][word] | rows[1][word] | rows[2][word]) & active;
                         while bits != 0 {
                             let l = word * 64 + bits.trailing_zeros() as usize;
                             bits &= bits - 1;

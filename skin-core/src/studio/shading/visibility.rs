@@ -125,8 +125,7 @@ impl LightVisibility {
                 }
                 let Some(groups) = &groups else {
                     for (l, light) in lights.iter().enumerate() {
-                        if light.irradiance(p, n) > 0.0
-                            && unoccluded_any(&bvh, p, n, light, bias_m)
+                        if light.irradiance(p, n) > 0.0 && unoccluded_any(&bvh, p, n, light, bias_m)
                         {
                             row[l / 64] |= 1 << (l % 64);
                         }
@@ -141,9 +140,8 @@ impl LightVisibility {
                         if lights[l].irradiance(p, n) <= 0.0 {
                             continue;
                         }
-                        let seen = *lit.get_or_insert_with(|| {
-                            unoccluded_any(&bvh, p, n, &lights[l], bias_m)
-                        });
+                        let seen = *lit
+                            .get_or_insert_with(|| unoccluded_any(&bvh, p, n, &lights[l], bias_m));
                         if seen {
                             row[l / 64] |= 1 << (l % 64);
                         }
@@ -203,27 +201,37 @@ pub fn light_bins(lights: &[Light], bins: usize) -> Vec<Vec<usize>> {
     if lights.is_empty() {
         return Vec::new();
     }
-    let centroid =
-        lights.iter().map(Light::position).sum::<DVec3>() / lights.len() as f64;
+    let centroid = lights.iter().map(Light::position).sum::<DVec3>() / lights.len() as f64;
     let bands = ((bins.max(1) as f64 / 2.0).sqrt().round() as usize).max(1);
     let sectors = 2 * bands;
     let mut groups = vec![Vec::new(); bands * sectors];
     let dirs: Vec<DVec3> = lights
         .iter()
-        .map(|l| (l.position() - centroid).try_normalize().unwrap_or(DVec3::Y))
+        .map(|l| {
+            (l.position() - centroid)
+                .try_normalize()
+                .unwrap_or(DVec3::Y)
+        })
         .collect();
     for (l, d) in dirs.iter().enumerate() {
         // Equal area: bands uniform in cos θ ∈ [−1, 1].
         let band = (((1.0 - d.y) / 2.0 * bands as f64) as usize).min(bands - 1);
         let phi = d.z.atan2(d.x) + std::f64::consts::PI;
-        let sector =
-            ((phi / std::f64::consts::TAU * sectors as f64) as usize).min(sectors - 1);
+        let sector = ((phi / std::f64::consts::TAU * sectors as f64) as usize).min(sectors - 1);
         groups[band * sectors + sector].push(l);
     }
     groups.retain(|g| !g.is_empty());
     for g in &mut groups {
-        let mean = g.iter().map(|&l| dirs[l]).sum::<DVec3>().normalize_or_zero();
-        g.sort_by(|&a, &b| mean.dot(dirs[b]).total_cmp(&mean.dot(dirs[a])).then(a.cmp(&b)));
+        let mean = g
+            .iter()
+            .map(|&l| dirs[l])
+            .sum::<DVec3>()
+            .normalize_or_zero();
+        g.sort_by(|&a, &b| {
+            mean.dot(dirs[b])
+                .total_cmp(&mean.dot(dirs[a]))
+                .then(a.cmp(&b))
+        });
     }
     groups
 }
