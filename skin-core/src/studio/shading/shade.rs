@@ -324,6 +324,24 @@ fn shade_impl(
                     _ => [&[][..]; 3],
                 };
                 e.fill(0.0);
+                // Light `l` with weight `w` (visibility × irradiance) into every pattern.
+                let mut add = |l: usize, w: f64| match patterns {
+                    None => e[0] += w,
+                    Some(ps) => {
+                        for (ep, wp) in e.iter_mut().zip(ps) {
+                            *ep += f64::from(wp[l]) * w;
+                        }
+                    }
+                };
+                // Barycentric share of the corners that see light `l`.
+                let corners = |l: usize| {
+                    let (word, bit) = (l / 64, l % 64);
+                    rows.iter()
+                        .zip(lam)
+                        .filter(|(row, _)| row[word] >> bit & 1 == 1)
+                        .map(|(_, w)| w)
+                        .sum::<f64>()
+                };
                 if let Shadows::PerVertex(_) = shadows {
                     // Only lights some corner sees and some pattern uses contribute (the
                     // others add exactly zero): walk the set bits of their union, in light
@@ -334,64 +352,29 @@ fn shade_impl(
                             let l = word * 64 + bits.trailing_zeros() as usize;
                             bits &= bits - 1;
                             let el = prepared[l].irradiance(p, nrm);
-                            if el <= 0.0 {
-                                continue;
-                            }
-                            let bit = l % 64;
-                            let mut v = 0.0;
-                            for (k, row) in rows.iter().enumerate() {
-                                if row[word] >> bit & 1 == 1 {
-                                    v += lam[k];
-                                }
-                            }
-                            match patterns {
-                                None => e[0] += v * el,
-                                Some(ps) => {
-                                    for (ep, wp) in e.iter_mut().zip(ps) {
-                                        *ep += f64::from(wp[l]) * v * el;
-                                    }
-                                }
+                            if el > 0.0 {
+                                add(l, corners(l) * el);
                             }
                         }
                     }
-                    for (op, &ep) in o.iter_mut().zip(&e) {
-                        let k = (ep * std::f64::consts::FRAC_1_PI) as f32;
-                        *op = rho.map(|r| r * k);
-                    }
-                    continue;
-                }
-                for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
-                    let el = prep.irradiance(p, nrm);
-                    if el <= 0.0 {
-                        continue;
-                    }
-                    let v = match shadows {
-                        Shadows::None => 1.0,
-                        Shadows::PerVertex(_) => {
-                            let (word, bit) = (l / 64, l % 64);
-                            let mut v = 0.0;
-                            for (k, row) in rows.iter().enumerate() {
-                                if row[word] >> bit & 1 == 1 {
-                                    v += lam[k];
+                } else {
+                    for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
+                        let el = prep.irradiance(p, nrm);
+                        if el <= 0.0 {
+                            continue;
+                        }
+                        let v = match shadows {
+                            Shadows::None => 1.0,
+                            Shadows::PerVertex(_) => corners(l),
+                            Shadows::PerPixel { query, bias_m } => {
+                                if unoccluded(query, p, nrm, light, *bias_m) {
+                                    1.0
+                                } else {
+                                    0.0
                                 }
                             }
-                            v
-                        }
-                        Shadows::PerPixel { query, bias_m } => {
-                            if unoccluded(query, p, nrm, light, *bias_m) {
-                                1.0
-                            } else {
-                                0.0
-                            }
-                        }
-                    };
-                    match patterns {
-                        None => e[0] += v * el,
-                        Some(ps) => {
-                            for (ep, wp) in e.iter_mut().zip(ps) {
-                                *ep += f64::from(wp[l]) * v * el;
-                            }
-                        }
+                        };
+                        add(l, v * el);
                     }
                 }
                 for (op, &ep) in o.iter_mut().zip(&e) {
