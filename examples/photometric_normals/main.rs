@@ -11,8 +11,10 @@
 //! regions, and against the distant-light baseline (the analytic `n = k/‖k‖`).
 //!
 //! Then §3.2.3 on a moving performer (the skirt performer in the studio's fast motion at 240 fps
-//! under the 8-frame cycle): normals of one tracking frame with and without motion
-//! compensation, and the flow against the studio's true motion. Last, the optical-flow
+//! under the 8-frame cycle): normals of 6 tracking frames (3 cycles; 1 with `--quick`) with
+//! and without motion compensation, with the true motion and held still (diagnostics), and
+//! the flow against the studio's true motion. Sensor noise: `truth::SensorNoise` (shot, read,
+//! 10 bits); the full run bins the dome's lights for the shadow rays (`--light-bins`). Last, the optical-flow
 //! workload of `bench/peers/flow.py` regenerated in Rust (`--flow-only`: only that, at 1024²).
 //!
 //! Writes under `out/photometric_normals/`: `patterns.png` (the 8-frame cycle seen by camera
