@@ -1,7 +1,7 @@
 //! End-to-end validation of photometric-normals (Vlasic thesis §3.2) on the studio, CI-sized:
 //! the MakeHuman performer in the skirt with the albedo texture (no render-time wrinkles: their
 //! refined surface makes the shadow rays 4× slower; the example scores them), under the
-//! 1,200-light dome with cast shadows and sensor noise; two cameras at 256 × 256 calibrated with grey spheres at
+//! 1,200-light dome with cast shadows and the camera model's noise (`SensorNoise`); two cameras at 256 × 256 calibrated with grey spheres at
 //! 7 heights; one static frame rendered under the seven conditions through `Capture`. Normals
 //! are scored against the rasteriser's true normals, outside and inside shadowed concavities,
 //! and against the distant-light baseline (the analytic solution of the same images).
@@ -19,7 +19,7 @@ use dynamic_shapes::core::studio::{
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
     dome_power_fraction, render_sphere_patterns, silhouette_scores, summarize, GreenScreen,
-    LightStage,
+    LightStage, SensorNoise,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
@@ -29,6 +29,11 @@ use dynamic_shapes::photometric::{
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
 const WHITE_LEVEL: f32 = 0.4;
+
+/// The cameras' sensor (`SensorNoise` defaults at the capture's exposure).
+fn sensor() -> SensorNoise {
+    SensorNoise::default().with_white_level(WHITE_LEVEL)
+}
 
 #[test]
 fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
@@ -53,19 +58,26 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(2, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
-    let spec = light_stage
+    let mut spec = light_stage
         .capture_spec(
             rig,
             1.0 / motion.frame_time_s,
             PatternSchedule::AllEachFrame,
         )
         .unwrap();
+    // The camera model (shot + read noise, 10 bits) replaces the studio's flat noise.
+    spec.noise = None;
     let capture = Capture::new(&performer, &motion, spec).unwrap();
-    let frame = capture
+    let mut frame = capture
         .frames_in(frame_index..frame_index + 1)
         .next()
         .unwrap()
         .unwrap();
+    for (c, obs) in frame.observations.iter_mut().enumerate() {
+        for (p, im) in obs.patterns.iter_mut().enumerate() {
+            sensor().apply(im, (8 * c + p) as u64).unwrap();
+        }
+    }
     let t_capture = t0.elapsed().as_secs_f64();
 
     let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
@@ -146,9 +158,9 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         t0.elapsed().as_secs_f64()
     );
     assert!(e_open.pixels > 2000 && e_shadow.pixels > 100);
-    // The goal is 3° (not met with the studio's sensor noise on the dark skirt; see
-    // docs/photometric-normals.md); this bounds the measured ~7° with a margin.
-    assert!(e_open.median_deg <= 9.0);
+    // The goal is 3° (not met: partial shadowing and the lookup itself, see
+    // docs/photometric-normals.md); this bounds the measured ~4° with a margin.
+    assert!(e_open.median_deg <= 6.0);
     assert!(
         e_open.median_deg < b_open.median_deg && e_open.mean_deg < b_open.mean_deg,
         "the calibration beats the distant-light baseline"
@@ -329,12 +341,17 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
     let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
     let rig = Rig::ring(1, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
     let cam = rig.cameras[0].clone();
-    let spec = light_stage
+    let mut spec = light_stage
         .capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)
         .unwrap();
+    spec.noise = None;
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     // Frames 75–83: F X̄ Ȳ Z̄ F X Y Z F around the tracking frame 79.
-    let frames: Vec<_> = capture.frames_in(75..84).map(|f| f.unwrap()).collect();
+    let mut frames: Vec<_> = capture.frames_in(75..84).map(|f| f.unwrap()).collect();
+    for f in &mut frames {
+        let im = f.observations[0].shaded.as_mut().unwrap();
+        sensor().apply(im, f.index as u64).unwrap();
+    }
     let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
     let cal_params = CalibrationParams {
         exposure,
@@ -370,7 +387,7 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         e_c.median_deg, e_c.pixels, e_u.median_deg, e_u.pixels
     );
     assert!(e_c.pixels > 1000);
-    assert!(e_c.median_deg <= 10.0);
+    assert!(e_c.median_deg <= 9.0);
     assert!(
         e_u.median_deg >= 1.5 * e_c.median_deg,
         "without compensation at least 1.5× worse"

@@ -11,8 +11,10 @@
 //! regions, and against the distant-light baseline (the analytic `n = k/‖k‖`).
 //!
 //! Then §3.2.3 on a moving performer (the skirt performer in the studio's fast motion at 240 fps
-//! under the 8-frame cycle): normals of one tracking frame with and without motion
-//! compensation, and the flow against the studio's true motion. Last, the optical-flow
+//! under the 8-frame cycle): normals of 6 tracking frames (3 cycles; 1 with `--quick`) with
+//! and without motion compensation, with the true motion and held still (diagnostics), and
+//! the flow against the studio's true motion. Sensor noise: `truth::SensorNoise` (shot, read,
+//! 10 bits); the full run bins the dome's lights for the shadow rays (`--light-bins`). Last, the optical-flow
 //! workload of `bench/peers/flow.py` regenerated in Rust (`--flow-only`: only that, at 1024²).
 //!
 //! Writes under `out/photometric_normals/`: `patterns.png` (the 8-frame cycle seen by camera
@@ -42,7 +44,7 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, silhouette_scores, summarize, GreenScreen, LightStage,
+    dome_power_fraction, silhouette_scores, summarize, GreenScreen, LightStage, SensorNoise,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
@@ -62,6 +64,8 @@ const SPHERE_RADIUS_M: f64 = 0.2;
 const SPHERE_ALBEDO: f32 = 0.5;
 /// Wrinkled regions: faces with a vertex moved more than this by the wrinkles, m.
 const WRINKLE_MIN_M: f64 = 0.5e-3;
+/// The values of Eq. 3.2's N tried on the static frame.
+const N_BEST_SWEEP: [usize; 5] = [1, 4, 8, 16, 32];
 
 #[derive(Parser, Debug)]
 struct Args {
@@ -70,6 +74,21 @@ struct Args {
     /// No sensor noise.
     #[arg(long)]
     no_noise: bool,
+    /// The studio's additive Gaussian noise (σ = 0.005) instead of the camera model.
+    #[arg(long)]
+    studio_noise: bool,
+    /// Tracking frames of the moving sequence (two per 8-frame cycle; default: 1 with
+    /// `--quick`, 6 = three cycles otherwise).
+    #[arg(long)]
+    maps: Option<usize>,
+    /// Approximate the cast shadows with about this many light direction bins (one shadow
+    /// ray per bin and vertex; 0: exact, one ray per light). Default: exact with `--quick`,
+    /// 100 otherwise.
+    #[arg(long)]
+    light_bins: Option<usize>,
+    /// Linear radiance at which the cameras saturate (the exposure).
+    #[arg(long, default_value_t = WHITE_LEVEL)]
+    white_level: f32,
     /// No cast shadows.
     #[arg(long)]
     no_shadows: bool,
@@ -80,12 +99,15 @@ struct Args {
     /// `bench/peers/flow.py`); prints one JSON line.
     #[arg(long)]
     flow_only: bool,
+    /// Timed repetitions of `--flow-only` (after one warm-up).
+    #[arg(long, default_value_t = 10)]
+    flow_reps: usize,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     if args.flow_only {
-        let (ms, epe, epe_interior) = peer_flow_workload(1024, 10)?;
+        let (ms, epe, epe_interior) = peer_flow_workload(1024, args.flow_reps)?;
         println!(
             "{}",
             json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior})
@@ -131,26 +153,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1.0 / motion.frame_time_s,
         PatternSchedule::AllEachFrame,
     )?;
+    let light_bins = match args.light_bins.unwrap_or(if quick { 0 } else { 100 }) {
+        0 => None,
+        b => Some(b),
+    };
     if let Some(lighting) = &mut spec.lighting {
         lighting.shadows = !args.no_shadows;
+        lighting.shadow_light_bins = light_bins;
     }
-    if args.no_noise {
-        spec.noise = None;
-    }
+    let noise = if args.no_noise {
+        Noise::Off
+    } else if args.studio_noise {
+        Noise::Studio
+    } else {
+        Noise::Sensor(SensorNoise::default().with_white_level(args.white_level))
+    };
+    noise.set_studio(&mut spec);
     let stage = run.stage("capture", None);
     let t = Instant::now();
     let capture = Capture::new(&performer, &motion, spec)?;
-    let frame = capture
+    let mut frame = capture
         .frames_in(frame_index..frame_index + 1)
         .next()
         .ok_or("the frame is in the motion")??;
     let capture_s = t.elapsed().as_secs_f64();
+    for (c, obs) in frame.observations.iter_mut().enumerate() {
+        for (p, im) in obs.patterns.iter_mut().enumerate() {
+            noise.apply(im, (1000 + 8 * c + p) as u64)?;
+        }
+    }
     stage.finish(format!(
         "frame {frame_index} under 7 conditions, {} lights, in {capture_s:.1} s (includes posing the skirt's earlier frames)",
         lights.len()
     ));
 
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
+    let exposure = Exposure::default().with_white_level(args.white_level);
     let cal_params = CalibrationParams {
         exposure,
         ..Default::default()
@@ -198,11 +235,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let truth = view.normals_camera.as_ref().ok_or("normal truth")?;
         let err = angular_errors_deg(&map, truth)?;
         acc.base.extend(angular_errors_deg(&baseline, truth)?);
+        // Eq. 3.2's N (not given in the thesis), swept on the same images.
+        for (i, &n) in N_BEST_SWEEP.iter().enumerate() {
+            let p = NormalParams {
+                n_best: n,
+                ..params
+            };
+            let m = estimate_normals(cam, &cal, &images, Some(&obs.mask), &p)?;
+            acc.n_best[i].extend(angular_errors_deg(&m, truth)?);
+        }
+        // Exposure: how much of the well the brightest body pixels of the full-on frame use.
+        let full = &obs.patterns[Pattern::Full.index()];
+        acc.full_on.extend(
+            obs.mask
+                .iter()
+                .zip(full.pixels())
+                .filter(|(m, _)| *m)
+                .map(|(_, px)| f64::from(px.0[0].max(px.0[1]).max(px.0[2]) / args.white_level)),
+        );
         let power = match &frame.light_visibility {
             Some(vis) => dome_power_fraction(view, &mesh, lights, vis)?,
             None => vec![1.0; err.len()],
         };
         acc.concave.extend(power.iter().map(|&p| p < 0.9));
+        // Grazing view: the true normal more than 60° from the direction to the camera.
+        acc.grazing
+            .extend(truth.pixels().map(|n| n.0[2].abs() < 0.5));
         acc.wrinkled
             .extend(dynamic_shapes::photometric::truth::wrinkle_pixels(
                 view,
@@ -277,6 +335,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let wrinkled = region(&|i| acc.body[i] && acc.wrinkled[i]);
     let skin_open = region(&|i| open[i] && acc.skin.get(i).copied().unwrap_or(false));
     let skirt_open = region(&|i| open[i] && !acc.skin.get(i).copied().unwrap_or(true));
+    let facing = region(&|i| open[i] && !acc.grazing[i]);
+    let grazing = region(&|i| open[i] && acc.grazing[i]);
+    let skin_facing = region(&|i| skin_open[i] && !acc.grazing[i]);
+    let skirt_facing = region(&|i| skirt_open[i] && !acc.grazing[i]);
+    let e_facing = summarize(&acc.err, Some(&facing));
+    let e_grazing = summarize(&acc.err, Some(&grazing));
+    let e_skin_facing = summarize(&acc.err, Some(&skin_facing));
+    let e_skirt_facing = summarize(&acc.err, Some(&skirt_facing));
     let e_skin = summarize(&acc.err, Some(&skin_open));
     let e_skirt = summarize(&acc.err, Some(&skirt_open));
     let e_open = summarize(&acc.err, Some(&open));
@@ -346,7 +412,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     let stage = run.stage("moving sequence", None);
-    let moving = moving_sequence(&cameras, &cals, &light_stage, &params)?;
+    let maps = args.maps.unwrap_or(if quick { 1 } else { 6 });
+    let moving = moving_sequence(
+        &cameras,
+        &cals,
+        &light_stage,
+        &params,
+        noise,
+        maps,
+        light_bins,
+    )?;
     stage.finish(format!(
         "compensated median {:.2}°, uncompensated {:.2}°, flow EPE {:.3} px vs true motion (mean motion {:.2} px)",
         moving["moving_normal_median_deg"].as_f64().unwrap_or(f64::NAN),
@@ -370,7 +445,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "cameras": n_cams,
         "size_px": size,
         "lights": lights.len(),
-        "noise": !args.no_noise,
+        "noise": noise.name(),
+        "white_level": args.white_level,
+        "shadow_light_bins": light_bins,
         "shadows": !args.no_shadows,
         "normal_median_deg": e_open.median_deg,
         "normal_mean_deg": e_open.mean_deg,
@@ -394,7 +471,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "calibration_ms_per_camera": median(&cal_ms),
         "capture_s": capture_s,
     });
+    let n_best_sweep: Vec<_> = N_BEST_SWEEP
+        .iter()
+        .zip(&acc.n_best)
+        .map(|(&n, e)| {
+            let s = summarize(e, Some(&open));
+            json!({"n_best": n, "median_deg": s.median_deg, "mean_deg": s.mean_deg})
+        })
+        .collect();
+    let mut full_on = acc.full_on.clone();
+    full_on.sort_by(f64::total_cmp);
+    let pct = |q: f64| {
+        full_on
+            .get(((full_on.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+    };
     let extra = json!({
+        "n_best_sweep": n_best_sweep,
+        "normal_median_facing_deg": e_facing.median_deg,
+        "normal_median_grazing_deg": e_grazing.median_deg,
+        "grazing_fraction_outside": e_grazing.pixels as f64 / e_open.pixels.max(1) as f64,
+        "normal_median_skin_facing_deg": e_skin_facing.median_deg,
+        "normal_median_skirt_facing_deg": e_skirt_facing.median_deg,
+        "full_on_normalised_p50": pct(0.5),
+        "full_on_normalised_p99": pct(0.99),
         "normals_ms_per_view_1024_measured": normals_1024_measured,
         "normals_ms_all_views": normals_ms,
         "silhouette_iou": silhouette_iou,
@@ -424,6 +524,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "deg",
         )
         .goal(Goal::AtMost(5.0)),
+        Headline::new(
+            "moving_true_motion_median_deg",
+            "moving sequence, compensated with the true motion (diagnostic)",
+            "deg",
+        ),
+        Headline::new(
+            "moving_static_same_pose_median_deg",
+            "first tracking frame held still (diagnostic)",
+            "deg",
+        ),
         Headline::new(
             "moving_uncompensated_median_deg",
             "moving sequence, without compensation (median)",
@@ -581,19 +691,41 @@ fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn st
     ))
 }
 
+/// One captured frame of the moving sequence, reduced to what the normal maps need: the grey
+/// image per camera, the true mesh, and for tracking frames the masks and the view truth.
+struct MovingFrame {
+    index: usize,
+    greys: Vec<dynamic_shapes::core::image::GrayF32Image>,
+    mesh: dynamic_shapes::core::mesh::TriMesh,
+    masks: Vec<dynamic_shapes::core::image::Mask>,
+    views: Vec<dynamic_shapes::core::studio::ViewTruth>,
+}
+
 /// §3.2.3 on a moving performer: the skirt performer (no wrinkles: cheaper shadow rays) in
-/// the studio's fast motion at 240 fps under the 8-frame cycle (`PatternSchedule::Cycle`);
-/// frames 75–83 (`F X̄ Ȳ Z̄ F X Y Z F`) around the tracking frame 79. Normals with and without
-/// motion compensation against the truth of frame 79, and the forward flow (79 → 83) against
-/// the projected true motion of each visible surface point.
+/// the studio's fast motion at 240 fps under the 8-frame cycle (`PatternSchedule::Cycle`),
+/// sensor noise as `noise`. From frame 75 on, `maps` tracking frames 79, 83, … (two per
+/// cycle: `maps` = 6 is three cycles, frames 75–103), each from the nine frames around it
+/// (`F X̄ Ȳ Z̄ F X Y Z F` or `F X Y Z F X̄ Ȳ Z̄ F`). Normals with and without motion
+/// compensation, and with the pattern frames warped by the *true* motion (the diagnostic
+/// that separates the flow's error from what compensation cannot remove: shading that
+/// changes as the surface turns, resampling), all against the truth of the tracking frame on
+/// the same confident pixels; the forward flow against the projected true motion. Frames are
+/// streamed (nine held at a time).
 fn moving_sequence(
     cameras: &[dynamic_shapes::core::camera::Camera],
     cals: &[dynamic_shapes::photometric::HeightCalibration],
     light_stage: &LightStage,
     params: &NormalParams,
+    noise: Noise,
+    maps: usize,
+    light_bins: Option<usize>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
     use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
-    use dynamic_shapes::photometric::{compensate_motion, grey, MotionParams, CYCLE_FRAME_RATE_HZ};
+    use dynamic_shapes::photometric::{
+        compensate_motion, grey, warp, Flow, MotionParams, CYCLE_FRAME_RATE_HZ,
+    };
+    use std::collections::VecDeque;
+    const FIRST: usize = 75;
     let performer = makehuman_performer(
         example_kit::data_path("makehuman")?,
         &DeformationParams::default()
@@ -604,80 +736,203 @@ fn moving_sequence(
     let rig = Rig {
         cameras: cameras.to_vec(),
     };
-    let spec = light_stage.capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)?;
-    let capture = Capture::new(&performer, &motion, spec)?;
-    let frames = capture.frames_in(75..84).collect::<Result<Vec<_>, _>>()?;
-    if frames.len() != 9 {
-        return Err("the motion has frames 75-83".into());
+    let mut spec =
+        light_stage.capture_spec(rig.clone(), CYCLE_FRAME_RATE_HZ, PatternSchedule::Cycle)?;
+    noise.set_studio(&mut spec);
+    if let Some(l) = &mut spec.lighting {
+        l.shadow_light_bins = light_bins;
     }
-    let mid = &frames[4];
-    let next_mesh = frames[8].truth.rendered_mesh(&performer);
-    let mid_mesh = mid.truth.rendered_mesh(&performer);
-    let (mut comp, mut raw, mut body) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut epe, mut mag) = (Vec::new(), Vec::new());
-    for (c, cam) in cameras.iter().enumerate() {
-        let greys: Vec<_> = frames
-            .iter()
-            .map(|f| {
-                f.observations[c]
-                    .shaded
-                    .as_ref()
-                    .map(grey)
-                    .ok_or("shaded image")
-            })
-            .collect::<Result<_, _>>()?;
-        let pats: Vec<_> = (75..84).map(|k| CYCLE[k % 8]).collect();
-        let pairs: Vec<_> = pats.iter().copied().zip(greys.iter()).collect();
-        let compensated = compensate_motion(&pairs, &MotionParams::default())?;
-        let mask = mid.observations[c].mask.and(&compensated.confident)?;
-        let map = estimate_normals(cam, &cals[c], &compensated.images, Some(&mask), params)?;
-        let uncompensated = PatternImages::new(
-            pairs[1..8]
-                .iter()
-                .map(|(p, im)| (*p, (*im).clone()))
-                .collect(),
-        )?;
-        // Scored on the same (confident) pixels as the compensated map.
-        let map_raw = estimate_normals(cam, &cals[c], &uncompensated, Some(&mask), params)?;
-        let truth = mid.truth.views[c]
-            .normals_camera
-            .as_ref()
-            .ok_or("normal truth")?;
-        comp.extend(angular_errors_deg(&map, truth)?);
-        raw.extend(angular_errors_deg(&map_raw, truth)?);
-        body.extend(mid.observations[c].mask.iter());
-        // True forward motion of every body pixel's surface point (same faces: no wrinkles).
-        let view = &mid.truth.views[c];
-        let (Some(tri), Some(bary)) = (&view.triangle_ids, &view.barycentric) else {
-            return Err("triangle truth".into());
-        };
-        for (i, &t) in tri.as_raw().iter().enumerate() {
-            let Some(f) = mid_mesh.faces.get(t as usize) else {
-                continue;
-            };
-            let (b1, b2) = (
-                f64::from(bary.as_raw()[2 * i]),
-                f64::from(bary.as_raw()[2 * i + 1]),
-            );
-            let at = |m: &dynamic_shapes::core::mesh::TriMesh| {
-                m.vertices[f[0] as usize] * (1.0 - b1 - b2)
-                    + m.vertices[f[1] as usize] * b1
-                    + m.vertices[f[2] as usize] * b2
-            };
-            let (Ok(p0), Ok(p1)) = (cam.project(at(&mid_mesh)), cam.project(at(&next_mesh))) else {
-                continue;
-            };
-            let truth_u = p1 - p0;
-            let est = compensated.forward.u[i];
-            epe.push(
-                ((f64::from(est[0]) - truth_u.x).powi(2) + (f64::from(est[1]) - truth_u.y).powi(2))
-                    .sqrt(),
-            );
-            mag.push(truth_u.length());
+    let capture = Capture::new(&performer, &motion, spec)?;
+    // The first tracking frame held still under all seven conditions: the static error of
+    // the moving sequence's own pose, scored on the pixels the compensated map is scored on.
+    let mut still_spec =
+        light_stage.capture_spec(rig, CYCLE_FRAME_RATE_HZ, PatternSchedule::AllEachFrame)?;
+    noise.set_studio(&mut still_spec);
+    if let Some(l) = &mut still_spec.lighting {
+        l.shadow_light_bins = light_bins;
+    }
+    let mut still = Capture::new(&performer, &motion, still_spec)?
+        .frames_in(FIRST + 4..FIRST + 5)
+        .next()
+        .ok_or("the frame is in the motion")??;
+    let mut still_images = Vec::new();
+    for (c, obs) in still.observations.iter_mut().enumerate() {
+        for (p, im) in obs.patterns.iter_mut().enumerate() {
+            noise.apply(im, (5000 + 8 * c + p) as u64)?;
         }
+        still_images.push(PatternImages::from_rgb(
+            &PATTERNS
+                .iter()
+                .zip(&obs.patterns)
+                .map(|(&p, im)| (p, im))
+                .collect::<Vec<_>>(),
+        )?);
+    }
+    let mut still_err = Vec::new();
+    let last = FIRST + 4 * maps.max(1) + 4;
+    let (mut comp, mut raw, mut truef, mut body) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut epe, mut mag) = (Vec::new(), Vec::new());
+    let mut per_map = Vec::new();
+    let mut still_summary = json!({});
+    let mut window: VecDeque<MovingFrame> = VecDeque::new();
+    let t0 = Instant::now();
+    let mut capture_s = 0.0;
+    let mut t_frame = Instant::now();
+    for frame in capture.frames_in(FIRST..last + 1) {
+        let mut frame = frame?;
+        capture_s += t_frame.elapsed().as_secs_f64();
+        let k = frame.index;
+        let tracking = CYCLE[k % 8] == Pattern::Full;
+        let mut greys = Vec::new();
+        for (c, obs) in frame.observations.iter_mut().enumerate() {
+            let im = obs.shaded.as_mut().ok_or("shaded image")?;
+            noise.apply(im, (k * 64 + c) as u64)?;
+            greys.push(grey(im));
+        }
+        let mesh = frame.truth.rendered_mesh(&performer);
+        let (masks, views) = if tracking {
+            (
+                frame.observations.iter().map(|o| o.mask.clone()).collect(),
+                std::mem::take(&mut frame.truth.views),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        drop(frame);
+        window.push_back(MovingFrame {
+            index: k,
+            greys,
+            mesh,
+            masks,
+            views,
+        });
+        if window.len() > 9 {
+            window.pop_front();
+        }
+        t_frame = Instant::now();
+        if window.len() < 9 || CYCLE[window[4].index % 8] != Pattern::Full {
+            continue;
+        }
+        let mid = &window[4];
+        let (mut m_comp, mut m_raw, mut m_true, mut m_body) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (c, cam) in cameras.iter().enumerate() {
+            let pairs: Vec<_> = window
+                .iter()
+                .map(|f| (CYCLE[f.index % 8], &f.greys[c]))
+                .collect();
+            let compensated = compensate_motion(&pairs, &MotionParams::default())?;
+            let mask = mid.masks[c].and(&compensated.confident)?;
+            let map = estimate_normals(cam, &cals[c], &compensated.images, Some(&mask), params)?;
+            let uncompensated = PatternImages::new(
+                pairs[1..8]
+                    .iter()
+                    .map(|(p, im)| (*p, (*im).clone()))
+                    .collect(),
+            )?;
+            // Scored on the same (confident) pixels as the compensated map.
+            let map_raw = estimate_normals(cam, &cals[c], &uncompensated, Some(&mask), params)?;
+            let view = &mid.views[c];
+            let truth = view.normals_camera.as_ref().ok_or("normal truth")?;
+            let (Some(tri), Some(bary)) = (&view.triangle_ids, &view.barycentric) else {
+                return Err("triangle truth".into());
+            };
+            // True motion of every pixel's surface point to each frame of the window (same
+            // faces: no wrinkles); zero off the body.
+            let true_flow = |to: &dynamic_shapes::core::mesh::TriMesh| -> Flow {
+                let u = tri
+                    .as_raw()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &t)| {
+                        let Some(f) = mid.mesh.faces.get(t as usize) else {
+                            return [0.0, 0.0];
+                        };
+                        let (b1, b2) = (
+                            f64::from(bary.as_raw()[2 * i]),
+                            f64::from(bary.as_raw()[2 * i + 1]),
+                        );
+                        let at = |m: &dynamic_shapes::core::mesh::TriMesh| {
+                            m.vertices[f[0] as usize] * (1.0 - b1 - b2)
+                                + m.vertices[f[1] as usize] * b1
+                                + m.vertices[f[2] as usize] * b2
+                        };
+                        match (cam.project(at(&mid.mesh)), cam.project(at(to))) {
+                            (Ok(p0), Ok(p1)) => [(p1.x - p0.x) as f32, (p1.y - p0.y) as f32],
+                            _ => [0.0, 0.0],
+                        }
+                    })
+                    .collect();
+                Flow {
+                    width: truth.width(),
+                    height: truth.height(),
+                    u,
+                }
+            };
+            let mut true_images = vec![(Pattern::Full, pairs[4].1.clone())];
+            for (i, f) in window.iter().enumerate() {
+                if i % 4 != 0 {
+                    true_images.push((pairs[i].0, warp(&f.greys[c], &true_flow(&f.mesh), 1.0)?));
+                }
+            }
+            let map_true = estimate_normals(
+                cam,
+                &cals[c],
+                &PatternImages::new(true_images)?,
+                Some(&mask),
+                params,
+            )?;
+            if mid.index == FIRST + 4 {
+                let m = estimate_normals(cam, &cals[c], &still_images[c], Some(&mask), params)?;
+                still_err.extend(angular_errors_deg(&m, truth)?);
+            }
+            m_comp.extend(angular_errors_deg(&map, truth)?);
+            m_raw.extend(angular_errors_deg(&map_raw, truth)?);
+            m_true.extend(angular_errors_deg(&map_true, truth)?);
+            m_body.extend(mid.masks[c].iter());
+            let forward_truth = true_flow(&window[8].mesh);
+            for (i, &t) in tri.as_raw().iter().enumerate() {
+                if (t as usize) >= mid.mesh.faces.len() {
+                    continue;
+                }
+                let (tu, est) = (forward_truth.u[i], compensated.forward.u[i]);
+                epe.push(f64::from(
+                    ((est[0] - tu[0]).powi(2) + (est[1] - tu[1]).powi(2)).sqrt(),
+                ));
+                mag.push(f64::from((tu[0].powi(2) + tu[1].powi(2)).sqrt()));
+            }
+        }
+        let (ec, er, et) = (
+            summarize(&m_comp, Some(&m_body)),
+            summarize(&m_raw, Some(&m_body)),
+            summarize(&m_true, Some(&m_body)),
+        );
+        if mid.index == FIRST + 4 {
+            let e = summarize(&still_err, Some(&m_body));
+            still_summary = json!({
+                "moving_static_same_pose_median_deg": e.median_deg,
+                "moving_first_map_compensated_median_deg": ec.median_deg,
+                "moving_first_map_true_motion_median_deg": et.median_deg,
+            });
+        }
+        per_map.push(json!({
+            "tracking_frame": mid.index,
+            "compensated_median_deg": ec.median_deg,
+            "uncompensated_median_deg": er.median_deg,
+            "true_motion_median_deg": et.median_deg,
+            "scored_pixels": ec.pixels,
+        }));
+        comp.extend(m_comp);
+        raw.extend(m_raw);
+        truef.extend(m_true);
+        body.extend(m_body);
+    }
+    if per_map.len() != maps.max(1) {
+        return Err(format!("expected {maps} tracking frames, got {}", per_map.len()).into());
     }
     let e_comp = summarize(&comp, Some(&body));
     let e_raw = summarize(&raw, Some(&body));
+    let e_true = summarize(&truef, Some(&body));
     let valid = comp
         .iter()
         .zip(&body)
@@ -691,17 +946,66 @@ fn moving_sequence(
             dynamic_shapes::core::stats::mean(v)
         }
     };
-    Ok(json!({
+    let mut out = json!({
         "moving_normal_median_deg": e_comp.median_deg,
         "moving_normal_mean_deg": e_comp.mean_deg,
         "moving_uncompensated_median_deg": e_raw.median_deg,
         "moving_uncompensated_mean_deg": e_raw.mean_deg,
+        "moving_true_motion_median_deg": e_true.median_deg,
+        "moving_true_motion_mean_deg": e_true.mean_deg,
         "moving_valid_fraction": valid,
         "moving_scored_pixels": e_comp.pixels,
         "moving_uncompensated_scored_pixels": e_raw.pixels,
+        "moving_maps": per_map.len(),
+        "moving_frames": last + 1 - FIRST,
+        "moving_per_map": per_map,
+        "moving_capture_s": capture_s,
+        "moving_s": t0.elapsed().as_secs_f64(),
         "studio_flow_epe_px": m(&epe),
         "studio_motion_mean_px": m(&mag),
-    }))
+    });
+    if let (Some(o), Some(s)) = (out.as_object_mut(), still_summary.as_object()) {
+        o.extend(s.clone());
+    }
+    Ok(out)
+}
+
+/// The sensor noise of a run: the camera model (`SensorNoise`, default), the studio's
+/// additive Gaussian (`--studio-noise`), or none (`--no-noise`).
+#[derive(Clone, Copy)]
+enum Noise {
+    Sensor(SensorNoise),
+    Studio,
+    Off,
+}
+
+impl Noise {
+    /// Keeps the studio's own noise only for `Noise::Studio`.
+    fn set_studio(&self, spec: &mut dynamic_shapes::core::studio::CaptureSpec) {
+        if !matches!(self, Noise::Studio) {
+            spec.noise = None;
+        }
+    }
+
+    /// Reads a rendered image through the camera model (nothing for the others).
+    fn apply(
+        &self,
+        image: &mut image::Rgb32FImage,
+        seed: u64,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        if let Noise::Sensor(s) = self {
+            s.apply(image, seed)?;
+        }
+        Ok(())
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            Noise::Sensor(_) => "sensor (shot + read + 10-bit)",
+            Noise::Studio => "studio additive sigma 0.005",
+            Noise::Off => "none",
+        }
+    }
 }
 
 /// Per-pixel scores of all cameras, concatenated.
@@ -713,6 +1017,9 @@ struct Acc {
     wrinkled: Vec<bool>,
     body: Vec<bool>,
     skin: Vec<bool>,
+    n_best: [Vec<Option<f64>>; N_BEST_SWEEP.len()],
+    grazing: Vec<bool>,
+    full_on: Vec<f64>,
     valid: usize,
     covered: usize,
 }

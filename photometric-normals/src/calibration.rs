@@ -162,16 +162,20 @@ impl LookupTable {
     /// `max_j ‖k − k_j‖ − ‖k − k_i‖`, summed and renormalised (camera frame). When every
     /// distance is equal (e.g. `n_best` = 1) the weights are equal.
     pub fn lookup(&self, key: DVec3, n_best: NonZero<usize>) -> Option<DVec3> {
+        // Eq. 3.2 needs the N matches, not their order: unsorted saves the sort.
         let found = self
             .tree
             .query(&key.to_array())
             .nearest_n::<SquaredEuclidean<f64>>(n_best)
+            .unsorted()
             .execute();
-        let d: Vec<f64> = found.iter().map(|f| f.distance.max(0.0).sqrt()).collect();
-        let dmax = d.iter().copied().fold(0.0, f64::max);
+        let dmax = found
+            .iter()
+            .map(|f| f.distance.max(0.0).sqrt())
+            .fold(0.0, f64::max);
         let mut n = DVec3::ZERO;
-        for (f, di) in found.iter().zip(&d) {
-            n += self.normals[f.item as usize] * (dmax - di);
+        for f in &found {
+            n += self.normals[f.item as usize] * (dmax - f.distance.max(0.0).sqrt());
         }
         if n.length_squared() < 1e-24 {
             n = found

@@ -260,12 +260,13 @@ impl<'a> Capture<'a> {
                 let vis = if lighting.shadows {
                     let refs: Vec<&RenderedView> = views.iter().collect();
                     let needed = vertices_seen(mesh, &refs)?;
-                    Some(LightVisibility::compute_for(
+                    Some(LightVisibility::compute_binned(
                         mesh,
                         &query,
                         &lighting.lights,
                         lighting.shadow_bias_m,
                         Some(&needed),
+                        lighting.shadow_light_bins,
                     )?)
                 } else {
                     None

@@ -30,6 +30,11 @@ pub struct CaptureLighting {
     /// Offset of shadow-ray origins along the normal, m. Default:
     /// [`DEFAULT_SHADOW_BIAS_M`].
     pub shadow_bias_m: f64,
+    /// Approximate the cast shadows with about this many light direction bins, one shadow
+    /// ray per bin and vertex ([`crate::studio::shading::LightVisibility::compute_binned`]);
+    /// `None`: one ray per light (exact). Default: `None`.
+    #[serde(default)]
+    pub shadow_light_bins: Option<usize>,
     /// Light-stage patterns switching the lights on and off (e.g. the half-on patterns of
     /// Vlasic thesis Eq. 3.1); `None`: every light on in every frame. Default: `None`.
     #[serde(default)]
@@ -69,8 +74,16 @@ impl CaptureLighting {
             texture: None,
             shadows: true,
             shadow_bias_m: DEFAULT_SHADOW_BIAS_M,
+            shadow_light_bins: None,
             patterns: None,
         }
+    }
+
+    /// Returns the lighting with shadows approximated by about `bins` light direction bins
+    /// (`None`: exact; see [`CaptureLighting::shadow_light_bins`]).
+    pub fn with_shadow_light_bins(mut self, bins: Option<usize>) -> Self {
+        self.shadow_light_bins = bins;
+        self
     }
 
     /// Returns the lighting with light-stage patterns (`None`: all lights on).

@@ -16,15 +16,19 @@
 //! | `lights.rs` | [`Light`] and its irradiance |
 //! | `dome.rs` | [`dome_lights`]: the light-stage dome of Vlasic §3.2.1 at real positions |
 //! | `visibility.rs` | [`LightVisibility`]: per-vertex shadow-ray visibility through the BVH, lights-inside-the-body check |
+//! | `shadow_bvh.rs` | the any-hit hierarchy of the shadow rays (binned SAH, `f32` boxes, `f64` triangles) |
 //! | `shade.rs` | [`shade`]: per-pixel Lambertian shading of a [`crate::raster::RenderedView`] with an [`Albedo`]; [`shade_patterns`]: the same under several light patterns in one pass |
 
 mod dome;
 mod lights;
 mod shade;
+mod shadow_bvh;
 mod visibility;
 
 pub use dome::{dome_lights, DomeParams};
 pub use lights::Light;
 pub(crate) use shade::check_patterns;
 pub use shade::{shade, shade_patterns, srgb8, Albedo, ShadedView, Shadows};
-pub use visibility::{check_lights_outside, vertices_seen, LightVisibility, DEFAULT_SHADOW_BIAS_M};
+pub use visibility::{
+    check_lights_outside, light_bins, vertices_seen, LightVisibility, DEFAULT_SHADOW_BIAS_M,
+};

@@ -270,6 +270,14 @@ fn shade_impl(
     mesh.validate()?;
     let normals = vertex_normals(mesh, NormalWeighting::Area)?;
     let prepared: Vec<PreparedLight> = lights.iter().map(PreparedLight::new).collect();
+    // Bit `l` set when some pattern gives light `l` a non-zero weight (every light without
+    // patterns), in the words of `LightVisibility` rows.
+    let mut active = vec![0u64; lights.len().div_ceil(64).max(1)];
+    for l in 0..lights.len() {
+        if patterns.is_none_or(|ps| ps.iter().any(|w| w[l] != 0.0)) {
+            active[l / 64] |= 1 << (l % 64);
+        }
+    }
     let w = view.width as usize;
     let np = patterns.map_or(1, <[_]>::len);
     // Pixel-major: the `np` radiances of a pixel are adjacent.
@@ -316,38 +324,57 @@ fn shade_impl(
                     _ => [&[][..]; 3],
                 };
                 e.fill(0.0);
-                for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
-                    let el = prep.irradiance(p, nrm);
-                    if el <= 0.0 {
-                        continue;
+                // Light `l` with weight `w` (visibility × irradiance) into every pattern.
+                let mut add = |l: usize, w: f64| match patterns {
+                    None => e[0] += w,
+                    Some(ps) => {
+                        for (ep, wp) in e.iter_mut().zip(ps) {
+                            *ep += f64::from(wp[l]) * w;
+                        }
                     }
-                    let v = match shadows {
-                        Shadows::None => 1.0,
-                        Shadows::PerVertex(_) => {
-                            let (word, bit) = (l / 64, l % 64);
-                            let mut v = 0.0;
-                            for (k, row) in rows.iter().enumerate() {
-                                if row[word] >> bit & 1 == 1 {
-                                    v += lam[k];
+                };
+                // Barycentric share of the corners that see light `l`.
+                let corners = |l: usize| {
+                    let (word, bit) = (l / 64, l % 64);
+                    rows.iter()
+                        .zip(lam)
+                        .filter(|(row, _)| row[word] >> bit & 1 == 1)
+                        .map(|(_, w)| w)
+                        .sum::<f64>()
+                };
+                if let Shadows::PerVertex(_) = shadows {
+                    // Only lights some corner sees and some pattern uses contribute (the
+                    // others add exactly zero): walk the set bits of their union, in light
+                    // order, so the sums are the same as over every light.
+                    for (word, active) in active.iter().enumerate() {
+                        let mut bits = (rows[0][word] | rows[1][word] | rows[2][word]) & active;
+                        while bits != 0 {
+                            let l = word * 64 + bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            let el = prepared[l].irradiance(p, nrm);
+                            if el > 0.0 {
+                                add(l, corners(l) * el);
+                            }
+                        }
+                    }
+                } else {
+                    for (l, (light, prep)) in lights.iter().zip(&prepared).enumerate() {
+                        let el = prep.irradiance(p, nrm);
+                        if el <= 0.0 {
+                            continue;
+                        }
+                        let v = match shadows {
+                            Shadows::None => 1.0,
+                            Shadows::PerVertex(_) => corners(l),
+                            Shadows::PerPixel { query, bias_m } => {
+                                if unoccluded(query, p, nrm, light, *bias_m) {
+                                    1.0
+                                } else {
+                                    0.0
                                 }
                             }
-                            v
-                        }
-                        Shadows::PerPixel { query, bias_m } => {
-                            if unoccluded(query, p, nrm, light, *bias_m) {
-                                1.0
-                            } else {
-                                0.0
-                            }
-                        }
-                    };
-                    match patterns {
-                        None => e[0] += v * el,
-                        Some(ps) => {
-                            for (ep, wp) in e.iter_mut().zip(ps) {
-                                *ep += f64::from(wp[l]) * v * el;
-                            }
-                        }
+                        };
+                        add(l, v * el);
                     }
                 }
                 for (op, &ep) in o.iter_mut().zip(&e) {
