@@ -40,7 +40,7 @@ use dynamic_shapes::core::mesh::{
     decimate, evaluate_surface_points, save_gltf_animation, MeshQuery, MeshSequence, SkinWeights,
     SurfacePoint, TriMesh, UvLayout,
 };
-use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
@@ -48,7 +48,8 @@ use dynamic_shapes::core::studio::{
     Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, silhouette_error_pct, DeformationTransfer, FrameObservation,
+    capture_sequence, edge_error_pct, fit_ellipsoids, initialise_pose, silhouette_error_pct,
+    AutoInitParams, DeformationTransfer, EllipsoidModel, EllipsoidObservations, FrameObservation,
     PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
     SilhouetteParams, Template, UserRay, VisualHullParams,
 };
@@ -101,6 +102,12 @@ struct Cli {
     /// `ShapeParams::w_anchor` (0: the thesis' Eq. 2.2).
     #[arg(long, default_value_t = 0.0)]
     anchor_weight: f64,
+    /// Start the tracker from the automatic first-frame initialisation
+    /// (`initialise_pose`: global search over the ellipsoid model, then its robust fit to the
+    /// first hull and silhouettes) instead of the first frame's true pose; adds the
+    /// `auto_init_*` figures (first frame: the automatic start against the rest-pose start).
+    #[arg(long)]
+    auto_init: bool,
     /// Only the runs with these names (e.g. `skirt_walk`); default: all.
     #[arg(long = "run", value_name = "NAME")]
     runs: Vec<String>,
@@ -332,13 +339,22 @@ fn capture_run(
     stage.finish(format!("{} frames", truths.len()));
     let n = truths.len() as f64;
 
-    // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0.
+    // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0,
+    // or (`--auto-init`) the automatic initialisation replaces it.
+    let first_pose = if args.auto_init {
+        let stage = run.stage(&format!("{name}: automatic first pose"), None);
+        let theta = auto_init(template, &observations[0], &truths[0].theta, &name, figures)?;
+        stage.finish("");
+        theta
+    } else {
+        truths[0].theta.clone()
+    };
     let stage = run.stage(&format!("{name}: pose and shape"), None);
     let params = PoseParams::default();
     let result = capture_sequence(
         template,
         &observations,
-        &truths[0].theta,
+        &first_pose,
         &[],
         &params,
         &shape_params,
@@ -485,6 +501,90 @@ fn capture_run(
 
 /// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
 /// up in one camera's view and the frame re-optimised at once; the time of that, ms.
+/// Mean joint position error (mm) and mean bone direction error (degrees; axial twist
+/// excluded) of `theta` against `truth` on the skeleton `sk`.
+fn pose_errors(
+    sk: &Skeleton,
+    theta: &[f64],
+    truth: &[f64],
+) -> Result<(f64, f64), Box<dyn std::error::Error>> {
+    let est = sk.forward_kinematics(theta)?.joint_positions();
+    let tru = sk.forward_kinematics(truth)?.joint_positions();
+    let joint_mm = 1e3
+        * est
+            .iter()
+            .zip(&tru)
+            .map(|(a, b)| (*a - *b).length())
+            .sum::<f64>()
+        / est.len() as f64;
+    let angles: Vec<f64> = sk
+        .joints()
+        .iter()
+        .enumerate()
+        .filter_map(|(j, joint)| {
+            let p = joint.parent?;
+            let (a, b) = (est[j] - est[p], tru[j] - tru[p]);
+            (a.length() > 1e-6 && b.length() > 1e-6)
+                .then(|| a.normalize().dot(b.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
+        })
+        .collect();
+    Ok((joint_mm, mean(&angles)))
+}
+
+/// The automatic first pose (`initialise_pose`) of a run's first frame, with its errors and
+/// those of the baseline that could have won (the rest pose at the hull's centroid, then the
+/// same robust fit) under `{name}_auto_init_*` and `{name}_rest_init_*`.
+fn auto_init(
+    template: &Template,
+    first: &FrameObservation,
+    truth: &[f64],
+    name: &str,
+    figures: &mut Map<String, Value>,
+) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+    let sk = template.skeleton();
+    let model = EllipsoidModel::with_end_sites(sk.clone(), 0.1)?;
+    let params = AutoInitParams::default();
+    let t = Instant::now();
+    let auto = initialise_pose(&model, &first.hull, &first.rays, &params)?;
+    let auto_s = t.elapsed().as_secs_f64();
+    // Baseline: the rest pose moved to the hull samples' centroid, then the same fit.
+    let v = &first.hull.polygon().vertices;
+    let step = v.len().div_ceil(params.points).max(1);
+    let points: Vec<DVec3> = v.iter().step_by(step).copied().collect();
+    let centroid = points.iter().fold(DVec3::ZERO, |a, p| a + *p) / points.len().max(1) as f64;
+    let mut rest = sk.rest_pose();
+    let root = sk.forward_kinematics(&rest)?.joint_positions()[0];
+    // The root's first three DOFs are its translations (x, y, z).
+    for (r, d) in rest.iter_mut().zip((centroid - root).to_array()) {
+        *r += d;
+    }
+    let rest_fit = fit_ellipsoids(
+        &model,
+        &model.initial_state(&rest, params.half_width_m)?,
+        &EllipsoidObservations {
+            points,
+            markers: Vec::new(),
+            rays: first.rays.clone(),
+        },
+        &params.fit,
+    )?;
+    for (key, theta) in [
+        ("auto_init", auto.theta()),
+        ("auto_init_global", auto.global.theta.as_slice()),
+        ("rest_init", rest_fit.state.theta.as_slice()),
+    ] {
+        let (joint_mm, angle_deg) = pose_errors(sk, theta, truth)?;
+        figures.insert(format!("{name}_{key}_joint_error_mm"), json!(joint_mm));
+        figures.insert(format!("{name}_{key}_angle_error_deg"), json!(angle_deg));
+    }
+    figures.insert(format!("{name}_auto_init_s"), json!(auto_s));
+    figures.insert(
+        format!("{name}_auto_init_evaluations"),
+        json!(auto.evaluations),
+    );
+    Ok(auto.fit.state.theta)
+}
+
 fn reoptimise_ms(
     template: &Template,
     observations: &[FrameObservation],
@@ -808,6 +908,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.insert("image_width_px".into(), json!(size.0));
     figures.insert("image_height_px".into(), json!(size.1));
     figures.insert("user_constraints".into(), json!(0));
+    if args.auto_init {
+        figures.insert("first_pose".into(), json!("automatic"));
+    }
     figures.insert("skirt_runs".into(), json!(skirt_runs));
     figures.insert("peak_rss_mb".into(), json!(example_kit::peak_rss_mb()));
     for h in [
