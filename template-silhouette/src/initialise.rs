@@ -12,10 +12,12 @@
 //!    ([`AutoInitParams::heading_offsets_deg`]); every candidate is scored with the rest
 //!    limbs, and the best of each sign goes on.
 //! 3. **Coordinate search** per joint, top down ([`AutoInitParams::sweeps`] sweeps): every
-//!    joint that moves an ellipsoid tries a grid of its rotation DOFs over their limits
-//!    ([`AutoInitParams::grid_steps`] values each: e.g. an arm down / out / forward / up, a
-//!    knee straight / bent), keeping the best; the root's height tries ±
-//!    [`AutoInitParams::root_height_steps_m`].
+//!    joint that moves an ellipsoid tries a grid of its swing (first two rotation DOFs) and
+//!    its moving children's first rotation DOF over their limits
+//!    ([`AutoInitParams::grid_steps`] values each: e.g. an arm down / out / forward / up with
+//!    the elbow straight / bent), keeping the best; the root's height tries ±
+//!    [`AutoInitParams::root_height_steps_m`]; then a local descent over every DOF with
+//!    shrinking steps ([`AutoInitParams::refine_steps_deg`]).
 //!
 //! The score is a truncated chamfer cost: each hull sample's distance to the nearest
 //! ellipsoid surface (radial approximation), and each ellipsoid's axis samples' distance
@@ -57,6 +59,9 @@ pub struct AutoInitParams {
     pub heading_offsets_deg: Vec<f64>,
     /// Root height offsets tried in each sweep, metres. Default −0.15…0.15 every 0.05.
     pub root_height_steps_m: Vec<f64>,
+    /// Steps of the local descent after each sweep's grid, degrees (root translations: 0.2 cm
+    /// per degree). Default 16, 8, 4, 2.
+    pub refine_steps_deg: Vec<f64>,
     /// Samples along each ellipsoid's axis for the "inside the hull" term. Default 5.
     pub axis_samples: usize,
     /// The world's up direction (the heading turns about the root's rotation DOF closest to
@@ -78,6 +83,7 @@ impl Default for AutoInitParams {
             sweeps: 2,
             heading_offsets_deg: vec![-30.0, -15.0, 0.0, 15.0, 30.0],
             root_height_steps_m: vec![-0.15, -0.1, -0.05, 0.0, 0.05, 0.1, 0.15],
+            refine_steps_deg: vec![16.0, 8.0, 4.0, 2.0],
             axis_samples: 5,
             up: DVec3::Y,
             fit: EllipsoidParams {
@@ -126,6 +132,26 @@ pub struct AutoInit {
     pub fit: EllipsoidFit,
     /// Candidate poses scored by the global search.
     pub evaluations: usize,
+    /// Per heading family (the principal axis' two signs): the root's heading after the
+    /// search (radians, about its vertical DOF) and the global score reached.
+    pub headings: Vec<(f64, f64)>,
+}
+
+/// The global score of [`initialise_pose`] for the pose `theta` (default proportions,
+/// [`AutoInitParams::half_width_m`]): for diagnosing whether a wrong start comes from the score
+/// (the true pose scores higher) or from the search.
+///
+/// # Errors
+/// Invalid parameters, a hull without surface samples, a θ of the wrong size.
+pub fn initial_pose_score(
+    model: &EllipsoidModel,
+    hull: &VisualHull,
+    theta: &[f64],
+    params: &AutoInitParams,
+) -> Result<f64> {
+    params.validate()?;
+    let scorer = Scorer::new(model, hull, params)?;
+    scorer.cost(&model.initial_state(theta, params.half_width_m)?)
 }
 
 impl AutoInit {
@@ -155,7 +181,23 @@ fn radial_distance(e: &Ellipsoid, p: DVec3) -> f64 {
     u.length() * (1.0 - 1.0 / r)
 }
 
-impl Scorer<'_> {
+impl<'a> Scorer<'a> {
+    fn new(model: &'a EllipsoidModel, hull: &'a VisualHull, params: &'a AutoInitParams) -> Result<Self> {
+        let vertices = &hull.polygon().vertices;
+        if vertices.is_empty() {
+            return Err(Error::Empty {
+                what: "visual-hull samples",
+            });
+        }
+        let step = vertices.len().div_ceil(params.points).max(1);
+        Ok(Scorer {
+            model,
+            hull,
+            points: vertices.iter().step_by(step).copied().collect(),
+            params,
+        })
+    }
+
     fn cost(&self, state: &EllipsoidState) -> Result<f64> {
         let tau = self.params.truncation_m;
         let es = self.model.ellipsoids(state)?;
@@ -244,14 +286,7 @@ pub fn initialise_pose(
 ) -> Result<AutoInit> {
     params.validate()?;
     let up = params.up.normalize();
-    let vertices = &hull.polygon().vertices;
-    if vertices.is_empty() {
-        return Err(Error::Empty {
-            what: "visual-hull samples",
-        });
-    }
-    let step = vertices.len().div_ceil(params.points).max(1);
-    let points: Vec<DVec3> = vertices.iter().step_by(step).copied().collect();
+    let scorer = Scorer::new(model, hull, params)?;
     let sk = model.skeleton();
     let root_dofs = sk.joint_dofs(0);
     let invalid = |reason: &str| {
@@ -280,12 +315,6 @@ pub fn initialise_pose(
         .filter(|&d| sk.dof(d).axis.dot(up).abs() > 0.9)
         .ok_or_else(|| invalid("needs a rotation DOF about the vertical"))?;
     let yaw_sign = sk.dof(yaw).axis.dot(up).signum();
-    let scorer = Scorer {
-        model,
-        hull,
-        points,
-        params,
-    };
     let mut evaluations = 0;
 
     // 1. Root position: the rest model's root moved to the hull's centroid.
@@ -358,7 +387,12 @@ pub fn initialise_pose(
         }
         v
     };
+    let refined: Vec<usize> = root_dofs
+        .clone()
+        .chain(movers.iter().flat_map(|&j| sk.joint_dofs(j)))
+        .collect();
     let mut best: Option<(Vec<f64>, f64)> = None;
+    let mut headings = Vec::new();
     for start in starts {
         let mut current = start;
         let mut cost = scorer.cost(&EllipsoidState {
@@ -382,7 +416,19 @@ pub fn initialise_pose(
             evaluations += candidates.len();
             (current, cost) = scorer.best(candidates, &base)?;
             for &j in &movers {
-                let dofs: Vec<usize> = sk.joint_dofs(j).filter(|&d| sk.is_rotation(d)).collect();
+                // The joint's swing (its first two rotation DOFs; a third is the twist about
+                // the bone, unobservable on its own ellipsoid) with each moving child's first
+                // rotation DOF (an arm's elbow, a leg's knee), so a bent limb is found at once.
+                let mut dofs: Vec<usize> = sk
+                    .joint_dofs(j)
+                    .filter(|&d| sk.is_rotation(d))
+                    .take(2)
+                    .collect();
+                dofs.extend(
+                    sk.children(j)
+                        .filter(|c| movers.contains(c))
+                        .filter_map(|c| sk.joint_dofs(c).find(|&d| sk.is_rotation(d))),
+                );
                 let mut candidates = vec![current.clone()];
                 for d in &dofs {
                     let vs = values(*d);
@@ -401,7 +447,28 @@ pub fn initialise_pose(
                 evaluations += candidates.len();
                 (current, cost) = scorer.best(candidates, &base)?;
             }
+            // Local descent: every searched DOF (and the root's) ± a shrinking step.
+            for step in &params.refine_steps_deg {
+                let step = step.to_radians();
+                for &d in &refined {
+                    let delta = if sk.is_rotation(d) { step } else { step * 0.2 };
+                    let candidates: Vec<Vec<f64>> = [-delta, delta, 0.0]
+                        .iter()
+                        .map(|x| {
+                            let mut t = current.clone();
+                            t[d] += x;
+                            if let Some(l) = sk.dof(d).limits {
+                                t[d] = t[d].clamp(l.min, l.max);
+                            }
+                            t
+                        })
+                        .collect();
+                    evaluations += candidates.len();
+                    (current, cost) = scorer.best(candidates, &base)?;
+                }
+            }
         }
+        headings.push((current[yaw], cost));
         if best.as_ref().is_none_or(|b| cost < b.1) {
             best = Some((current, cost));
         }
@@ -424,5 +491,6 @@ pub fn initialise_pose(
         global_cost,
         fit,
         evaluations,
+        headings,
     })
 }
