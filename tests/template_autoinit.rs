@@ -15,15 +15,19 @@ use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
 };
 use dynamic_shapes::template::{
-    fit_ellipsoids, initial_pose_score, initialise_pose, AutoInitParams, EllipsoidModel, EllipsoidObservations,
-    FrameObservation, SilhouetteParams, VisualHullParams,
+    fit_ellipsoids, initial_pose_score, initialise_pose, AutoInitParams, EllipsoidModel,
+    EllipsoidObservations, FrameObservation, SilhouetteParams, VisualHullParams,
 };
 
 /// Mean joint position error (mm) and mean bone direction error (degrees).
 fn pose_errors(sk: &Skeleton, theta: &[f64], truth: &[f64]) -> (f64, f64, Vec<f64>) {
     let est = sk.forward_kinematics(theta).unwrap().joint_positions();
     let tru = sk.forward_kinematics(truth).unwrap().joint_positions();
-    let joint: Vec<f64> = est.iter().zip(&tru).map(|(a, b)| 1e3 * a.distance(*b)).collect();
+    let joint: Vec<f64> = est
+        .iter()
+        .zip(&tru)
+        .map(|(a, b)| 1e3 * a.distance(*b))
+        .collect();
     let angles: Vec<f64> = sk
         .joints()
         .iter()
@@ -31,7 +35,13 @@ fn pose_errors(sk: &Skeleton, theta: &[f64], truth: &[f64]) -> (f64, f64, Vec<f6
         .filter_map(|(j, joint)| {
             let p = joint.parent?;
             let (a, b) = (est[j] - est[p], tru[j] - tru[p]);
-            Some(a.normalize().dot(b.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
+            Some(
+                a.normalize()
+                    .dot(b.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees(),
+            )
         })
         .collect();
     (mean(&joint), mean(&angles), angles)
@@ -72,7 +82,11 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
         let auto = initialise_pose(&model, &obs.hull, &obs.rays, &params).unwrap();
         let auto_s = t.elapsed().as_secs_f64();
         let v = &obs.hull.polygon().vertices;
-        let points: Vec<DVec3> = v.iter().step_by(v.len().div_ceil(params.points)).copied().collect();
+        let points: Vec<DVec3> = v
+            .iter()
+            .step_by(v.len().div_ceil(params.points))
+            .copied()
+            .collect();
         let centroid = points.iter().fold(DVec3::ZERO, |a, p| a + *p) / points.len() as f64;
         let mut rest = sk.rest_pose();
         let r0 = sk.forward_kinematics(&rest).unwrap().joint_positions()[0];
@@ -105,7 +119,10 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
         );
         println!("  truth root {:?}", &truth[..6]);
         println!("  auto  root {:?}", &auto.theta()[..6]);
-        println!("  per-bone deg {:?}", a_all.iter().map(|a| a.round()).collect::<Vec<_>>());
+        println!(
+            "  per-bone deg {:?}",
+            a_all.iter().map(|a| a.round()).collect::<Vec<_>>()
+        );
         assert!(a_deg < r_deg && a_mm < r_mm);
     }
 }

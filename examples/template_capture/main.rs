@@ -524,8 +524,13 @@ fn pose_errors(
         .filter_map(|(j, joint)| {
             let p = joint.parent?;
             let (a, b) = (est[j] - est[p], tru[j] - tru[p]);
-            (a.length() > 1e-6 && b.length() > 1e-6)
-                .then(|| a.normalize().dot(b.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
+            (a.length() > 1e-6 && b.length() > 1e-6).then(|| {
+                a.normalize()
+                    .dot(b.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            })
         })
         .collect();
     Ok((joint_mm, mean(&angles)))

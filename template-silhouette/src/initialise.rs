@@ -182,7 +182,11 @@ fn radial_distance(e: &Ellipsoid, p: DVec3) -> f64 {
 }
 
 impl<'a> Scorer<'a> {
-    fn new(model: &'a EllipsoidModel, hull: &'a VisualHull, params: &'a AutoInitParams) -> Result<Self> {
+    fn new(
+        model: &'a EllipsoidModel,
+        hull: &'a VisualHull,
+        params: &'a AutoInitParams,
+    ) -> Result<Self> {
         let vertices = &hull.polygon().vertices;
         if vertices.is_empty() {
             return Err(Error::Empty {
@@ -223,7 +227,9 @@ impl<'a> Scorer<'a> {
                 } else {
                     0.8 * (2.0 * i as f64 / (k - 1) as f64 - 1.0)
                 };
-                let d = self.hull.distance(e.centre + e.axis * (t * e.half_length))?;
+                let d = self
+                    .hull
+                    .distance(e.centre + e.axis * (t * e.half_length))?;
                 if d.signed_m < 0.0 {
                     reverse += weight * (-d.signed_m).min(tau).powi(2);
                 }
@@ -295,10 +301,7 @@ pub fn initialise_pose(
             reason: reason.to_string(),
         })
     };
-    let translations: Vec<usize> = root_dofs
-        .clone()
-        .filter(|&d| !sk.is_rotation(d))
-        .collect();
+    let translations: Vec<usize> = root_dofs.clone().filter(|&d| !sk.is_rotation(d)).collect();
     if translations.len() < 3 {
         return Err(invalid("needs three translation DOFs"));
     }
@@ -360,20 +363,18 @@ pub fn initialise_pose(
     // 3. Coordinate search per joint, top down, from each heading.
     let movers: Vec<usize> = (1..sk.joint_count())
         .filter(|&j| {
-            model
-                .bones()
-                .iter()
-                .any(|b| sk.chain_dofs(b.parent).iter().any(|&d| sk.dof_joint(d) == j))
-                && sk.joint_dofs(j).any(|d| sk.is_rotation(d))
+            model.bones().iter().any(|b| {
+                sk.chain_dofs(b.parent)
+                    .iter()
+                    .any(|&d| sk.dof_joint(d) == j)
+            }) && sk.joint_dofs(j).any(|d| sk.is_rotation(d))
         })
         .collect();
     let values = |d: usize| -> Vec<f64> {
-        let (lo, hi) = sk
-            .dof(d)
-            .limits
-            .map_or((-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2), |l| {
-                (l.min, l.max)
-            });
+        let (lo, hi) = sk.dof(d).limits.map_or(
+            (-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2),
+            |l| (l.min, l.max),
+        );
         let k = params.grid_steps;
         let mut v: Vec<f64> = if k == 1 {
             vec![0.5 * (lo + hi)]
