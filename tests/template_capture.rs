@@ -8,11 +8,13 @@
 
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::skeleton::Motion;
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
+    Performer,
 };
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
@@ -25,16 +27,16 @@ fn rms_mm(a: &[DVec3], b: &[DVec3]) -> f64 {
     1e3 * rms(&d)
 }
 
-#[test]
-fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
+/// The MakeHuman body (no skirt) in the exercise motion and the ring of §2.5.1 around it (the
+/// MakeHuman template is centred on its pelvis, not standing on y = 0): 8 cameras at
+/// 480 × 360, 3.5 m away, slightly above the pelvis.
+fn body_exercise_studio() -> (Performer, Motion, Vec<Camera>, CaptureSpec) {
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
         &DeformationParams::default(),
     )
     .unwrap();
     let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
-    // The ring of §2.5.1 around the performer (the MakeHuman template is centred on its
-    // pelvis, not standing on y = 0): 8 cameras 3.5 m away, slightly above the pelvis.
     let root = performer
         .skeleton
         .forward_kinematics(motion.frame(0))
@@ -44,6 +46,12 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
     let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
     let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    (performer, motion, cameras, spec)
+}
+
+#[test]
+fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
+    let (performer, motion, cameras, spec) = body_exercise_studio();
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     let frames: Vec<_> = capture
         .frames_stepped(40..56, 2)
@@ -231,4 +239,54 @@ fn a_decimated_textured_template_takes_an_edit_to_a_posed_frame() {
     );
     let m = mean(&moved);
     assert!((0.015..0.04).contains(&m), "edited vertices moved {m} m");
+}
+
+/// Automatic first-frame initialisation (issue 12, "use it"): `initialise_pose` from one
+/// frame's visual hull and contour rays only (no markers, no stereo points, no user
+/// constraint), scored against the true pose and against the baseline that could have won
+/// (the rest pose moved to the hull's centroid, then the same robust ellipsoid fit).
+#[test]
+fn automatic_first_pose_beats_the_rest_pose_start() {
+    use dynamic_shapes::template::{
+        initial_pose_score, initialise_pose, pose_error, rest_pose_start, AutoInitParams,
+        EllipsoidModel,
+    };
+    let (performer, motion, cameras, spec) = body_exercise_studio();
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let sk = &performer.skeleton;
+    let model = EllipsoidModel::with_end_sites(sk.clone(), 0.1).unwrap();
+    let params = AutoInitParams::default();
+    for f in [40usize, 60] {
+        let frame = capture.frames_stepped(f..f + 1, 1).next().unwrap().unwrap();
+        let truth = &frame.truth.theta;
+        let obs = FrameObservation::new(
+            &cameras,
+            &frame.masks(),
+            &VisualHullParams::default(),
+            &SilhouetteParams::default(),
+        )
+        .unwrap();
+        let t = Instant::now();
+        let auto = initialise_pose(&model, &obs.hull, &obs.rays, &params).unwrap();
+        let auto_s = t.elapsed().as_secs_f64();
+        let rest_fit = rest_pose_start(&model, &obs.hull, &obs.rays, &params).unwrap();
+        let err = |theta: &[f64]| {
+            let (m, rad) = pose_error(sk, theta, truth).unwrap();
+            (1e3 * m, rad.to_degrees())
+        };
+        let (a_mm, a_deg) = err(auto.theta());
+        let (g_mm, g_deg) = err(&auto.global.theta);
+        let (r_mm, r_deg) = err(&rest_fit.state.theta);
+        println!(
+            "frame {f}: automatic {a_mm:.0} mm {a_deg:.1} deg (global step {g_mm:.0} mm \
+             {g_deg:.1} deg, {} candidates, {auto_s:.2} s); rest start {r_mm:.0} mm {r_deg:.1} deg",
+            auto.evaluations
+        );
+        println!(
+            "  headings {:?}; true pose scores {:.3}",
+            auto.headings,
+            initial_pose_score(&model, &obs.hull, truth, &params).unwrap()
+        );
+        assert!(a_deg < r_deg && a_mm < r_mm);
+    }
 }

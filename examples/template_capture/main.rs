@@ -40,7 +40,7 @@ use dynamic_shapes::core::mesh::{
     decimate, evaluate_surface_points, save_gltf_animation, MeshQuery, MeshSequence, SkinWeights,
     SurfacePoint, TriMesh, UvLayout,
 };
-use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
@@ -48,8 +48,8 @@ use dynamic_shapes::core::studio::{
     Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, fit_ellipsoids, initialise_pose, silhouette_error_pct,
-    AutoInitParams, DeformationTransfer, EllipsoidModel, EllipsoidObservations, FrameObservation,
+    capture_sequence, edge_error_pct, initialise_pose, pose_error, rest_pose_start,
+    silhouette_error_pct, AutoInitParams, DeformationTransfer, EllipsoidModel, FrameObservation,
     PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
     SilhouetteParams, Template, UserRay, VisualHullParams,
 };
@@ -501,41 +501,6 @@ fn capture_run(
 
 /// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
 /// up in one camera's view and the frame re-optimised at once; the time of that, ms.
-/// Mean joint position error (mm) and mean bone direction error (degrees; axial twist
-/// excluded) of `theta` against `truth` on the skeleton `sk`.
-fn pose_errors(
-    sk: &Skeleton,
-    theta: &[f64],
-    truth: &[f64],
-) -> Result<(f64, f64), Box<dyn std::error::Error>> {
-    let est = sk.forward_kinematics(theta)?.joint_positions();
-    let tru = sk.forward_kinematics(truth)?.joint_positions();
-    let joint_mm = 1e3
-        * est
-            .iter()
-            .zip(&tru)
-            .map(|(a, b)| (*a - *b).length())
-            .sum::<f64>()
-        / est.len() as f64;
-    let angles: Vec<f64> = sk
-        .joints()
-        .iter()
-        .enumerate()
-        .filter_map(|(j, joint)| {
-            let p = joint.parent?;
-            let (a, b) = (est[j] - est[p], tru[j] - tru[p]);
-            (a.length() > 1e-6 && b.length() > 1e-6).then(|| {
-                a.normalize()
-                    .dot(b.normalize())
-                    .clamp(-1.0, 1.0)
-                    .acos()
-                    .to_degrees()
-            })
-        })
-        .collect();
-    Ok((joint_mm, mean(&angles)))
-}
-
 /// The automatic first pose (`initialise_pose`) of a run's first frame, with its errors and
 /// those of the baseline that could have won (the rest pose at the hull's centroid, then the
 /// same robust fit) under `{name}_auto_init_*` and `{name}_rest_init_*`.
@@ -553,34 +518,18 @@ fn auto_init(
     let auto = initialise_pose(&model, &first.hull, &first.rays, &params)?;
     let auto_s = t.elapsed().as_secs_f64();
     // Baseline: the rest pose moved to the hull samples' centroid, then the same fit.
-    let v = &first.hull.polygon().vertices;
-    let step = v.len().div_ceil(params.points).max(1);
-    let points: Vec<DVec3> = v.iter().step_by(step).copied().collect();
-    let centroid = points.iter().fold(DVec3::ZERO, |a, p| a + *p) / points.len().max(1) as f64;
-    let mut rest = sk.rest_pose();
-    let root = sk.forward_kinematics(&rest)?.joint_positions()[0];
-    // The root's first three DOFs are its translations (x, y, z).
-    for (r, d) in rest.iter_mut().zip((centroid - root).to_array()) {
-        *r += d;
-    }
-    let rest_fit = fit_ellipsoids(
-        &model,
-        &model.initial_state(&rest, params.half_width_m)?,
-        &EllipsoidObservations {
-            points,
-            markers: Vec::new(),
-            rays: first.rays.clone(),
-        },
-        &params.fit,
-    )?;
+    let rest_fit = rest_pose_start(&model, &first.hull, &first.rays, &params)?;
     for (key, theta) in [
         ("auto_init", auto.theta()),
         ("auto_init_global", auto.global.theta.as_slice()),
         ("rest_init", rest_fit.state.theta.as_slice()),
     ] {
-        let (joint_mm, angle_deg) = pose_errors(sk, theta, truth)?;
-        figures.insert(format!("{name}_{key}_joint_error_mm"), json!(joint_mm));
-        figures.insert(format!("{name}_{key}_angle_error_deg"), json!(angle_deg));
+        let (joint_m, angle) = pose_error(sk, theta, truth)?;
+        figures.insert(format!("{name}_{key}_joint_error_mm"), json!(1e3 * joint_m));
+        figures.insert(
+            format!("{name}_{key}_angle_error_deg"),
+            json!(angle.to_degrees()),
+        );
     }
     figures.insert(format!("{name}_auto_init_s"), json!(auto_s));
     figures.insert(

@@ -27,6 +27,7 @@
 use rayon::prelude::*;
 use skin_core::check;
 use skin_core::math::DVec3;
+use skin_core::skeleton::Skeleton;
 
 use crate::ellipsoid::{
     fit_ellipsoids, Ellipsoid, EllipsoidFit, EllipsoidModel, EllipsoidObservations,
@@ -494,4 +495,71 @@ pub fn initialise_pose(
         evaluations,
         headings,
     })
+}
+
+/// Pose error of `theta` against `truth` on `skeleton`: the mean joint position error
+/// (metres) and the mean bone direction error (radians; the angle between each joint's
+/// parent → joint vectors, so axial twist is excluded). For scoring a start against the truth.
+///
+/// # Errors
+/// A θ of the wrong size or non-finite (skin-core's errors inside [`Error::Core`]).
+pub fn pose_error(skeleton: &Skeleton, theta: &[f64], truth: &[f64]) -> Result<(f64, f64)> {
+    let est = skeleton.forward_kinematics(theta)?.joint_positions();
+    let tru = skeleton.forward_kinematics(truth)?.joint_positions();
+    let n = est.len().max(1) as f64;
+    let joint = est
+        .iter()
+        .zip(&tru)
+        .map(|(a, b)| a.distance(*b))
+        .sum::<f64>()
+        / n;
+    let angles: Vec<f64> = skeleton
+        .joints()
+        .iter()
+        .enumerate()
+        .filter_map(|(j, joint)| {
+            let p = joint.parent?;
+            let (a, b) = (est[j] - est[p], tru[j] - tru[p]);
+            (a.length() > 1e-9 && b.length() > 1e-9)
+                .then(|| a.normalize().dot(b.normalize()).clamp(-1.0, 1.0).acos())
+        })
+        .collect();
+    let angle = angles.iter().sum::<f64>() / angles.len().max(1) as f64;
+    Ok((joint, angle))
+}
+
+/// The baseline [`initialise_pose`] must beat: the rest pose with its root moved to the hull
+/// samples' centroid (no global search), then the same robust fit to the hull samples and
+/// `rays` — what the `ellipsoid_fit` example measured as the automatic start before this
+/// module.
+///
+/// # Errors
+/// As [`initialise_pose`].
+pub fn rest_pose_start(
+    model: &EllipsoidModel,
+    hull: &VisualHull,
+    rays: &[ContourRay],
+    params: &AutoInitParams,
+) -> Result<EllipsoidFit> {
+    params.validate()?;
+    let scorer = Scorer::new(model, hull, params)?;
+    let sk = model.skeleton();
+    let mut theta = sk.rest_pose();
+    let root = sk.forward_kinematics(&theta)?.joint_positions()[0];
+    let n = scorer.points.len() as f64;
+    let shift = scorer.points.iter().fold(DVec3::ZERO, |s, p| s + *p) / n - root;
+    for d in sk.joint_dofs(0).filter(|&d| !sk.is_rotation(d)) {
+        theta[d] += shift.dot(sk.dof(d).axis);
+    }
+    let obs = EllipsoidObservations {
+        points: scorer.points,
+        markers: Vec::new(),
+        rays: rays.to_vec(),
+    };
+    fit_ellipsoids(
+        model,
+        &model.initial_state(&theta, params.half_width_m)?,
+        &obs,
+        &params.fit,
+    )
 }
