@@ -292,6 +292,14 @@ pub fn initialise_pose(
     params: &AutoInitParams,
 ) -> Result<AutoInit> {
     params.validate()?;
+    if rays
+        .iter()
+        .any(|r| !(r.origin.is_finite() && r.direction.is_finite()))
+    {
+        return Err(Error::NonFinite {
+            what: "contour rays",
+        });
+    }
     let up = params.up.normalize();
     let scorer = Scorer::new(model, hull, params)?;
     let sk = model.skeleton();
@@ -562,4 +570,65 @@ pub fn rest_pose_start(
         &obs,
         &params.fit,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::visual_hull::tests::{ring, sphere_mask};
+    use crate::visual_hull::VisualHullParams;
+    use skin_core::image::Mask;
+    use skin_core::skeleton::{human_skeleton, HumanParams};
+
+    fn setup() -> (EllipsoidModel, VisualHull) {
+        let cams = ring(4, 160, 120);
+        let masks: Vec<Mask> = cams
+            .iter()
+            .map(|c| sphere_mask(c, DVec3::new(0.0, 1.0, 0.0), 0.3))
+            .collect();
+        let hull = VisualHull::new(&cams, &masks, &VisualHullParams::default()).unwrap();
+        let sk = human_skeleton(&HumanParams::default()).unwrap();
+        (EllipsoidModel::with_end_sites(sk, 0.1).unwrap(), hull)
+    }
+
+    #[test]
+    fn bad_input_is_reported() {
+        let (model, hull) = setup();
+        let bad = |p: AutoInitParams| initialise_pose(&model, &hull, &[], &p).is_err();
+        assert!(bad(AutoInitParams {
+            points: 0,
+            ..AutoInitParams::default()
+        }));
+        assert!(bad(AutoInitParams {
+            truncation_m: f64::NAN,
+            ..AutoInitParams::default()
+        }));
+        assert!(bad(AutoInitParams {
+            heading_offsets_deg: vec![],
+            ..AutoInitParams::default()
+        }));
+        assert!(bad(AutoInitParams {
+            up: DVec3::ZERO,
+            ..AutoInitParams::default()
+        }));
+        // No root rotation DOF about a diagonal "up".
+        assert!(bad(AutoInitParams {
+            up: DVec3::new(1.0, 1.0, 1.0),
+            ..AutoInitParams::default()
+        }));
+        let nan_ray = ContourRay {
+            origin: DVec3::new(f64::NAN, 0.0, 0.0),
+            direction: DVec3::Z,
+            normal: DVec3::X,
+        };
+        assert!(matches!(
+            initialise_pose(&model, &hull, &[nan_ray], &AutoInitParams::default()),
+            Err(Error::NonFinite { .. })
+        ));
+        let sk = model.skeleton();
+        assert!(pose_error(sk, &[0.0; 3], &sk.rest_pose()).is_err());
+        let (m, a) = pose_error(sk, &sk.rest_pose(), &sk.rest_pose()).unwrap();
+        assert!(m == 0.0 && a < 1e-6, "{m} m, {a} rad");
+        assert!(initial_pose_score(&model, &hull, &[0.0; 3], &AutoInitParams::default()).is_err());
+    }
 }
