@@ -6,7 +6,9 @@
 //! motion and the real CMU 131_01 walk — and, for reference, the body alone in the exercise.
 //! Per frame: the visual hull (§2.3.2) and the contour rays (§2.4.2); the skeleton tracked
 //! through the hulls with the refinement term (§2.3.1, §2.3.3; the first frame's true pose
-//! stands in for the user's fit of the first frame, no other user constraint); then
+//! stands in for the user's fit of the first frame, no other user constraint; with
+//! `--auto-init` the automatic initialisation `initialise_pose` replaces it, no user
+//! constraint at all); then
 //! Algorithm 1 (§2.4.2). Scored against the performer's true posed mesh, against linear
 //! blend skinning driven by the same estimated poses (`lbs_*`) and by the true poses
 //! (`lbs_true_pose_*`). The legs inside the skirt are part of the template and of the truth
