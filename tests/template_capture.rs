@@ -283,8 +283,9 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
             auto.evaluations
         );
         println!(
-            "  headings {:?}; true pose scores {:.3}",
+            "  headings {:?}; fit kept {}; true pose scores {:.3}",
             auto.headings,
+            auto.fit_kept,
             initial_pose_score(&model, &obs.hull, truth, &params).unwrap()
         );
         assert!(a_deg < r_deg && a_mm < r_mm);

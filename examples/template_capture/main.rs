@@ -538,7 +538,8 @@ fn auto_init(
         format!("{name}_auto_init_evaluations"),
         json!(auto.evaluations),
     );
-    Ok(auto.fit.state.theta)
+    figures.insert(format!("{name}_auto_init_fit_kept"), json!(auto.fit_kept));
+    Ok(auto.theta().to_vec())
 }
 
 fn reoptimise_ms(

@@ -128,9 +128,11 @@ pub struct AutoInit {
     pub global: EllipsoidState,
     /// The global score of [`AutoInit::global`].
     pub global_cost: f64,
-    /// The local robust fit from [`AutoInit::global`]; its `state.theta` is the tracker's
-    /// first pose.
+    /// The local robust fit from [`AutoInit::global`].
     pub fit: EllipsoidFit,
+    /// Whether the fit (its pose, lengths and widths) scores lower than [`AutoInit::global`] on
+    /// the global score, hence its pose is kept as the first pose.
+    pub fit_kept: bool,
     /// Candidate poses scored by the global search.
     pub evaluations: usize,
     /// Per heading family (the principal axis' two signs): the root's heading after the
@@ -156,9 +158,14 @@ pub fn initial_pose_score(
 }
 
 impl AutoInit {
-    /// The skeleton pose θ for the template tracker's first frame.
+    /// The skeleton pose θ for the template tracker's first frame: the fit's when it scores
+    /// lower than the global step's, else the global step's.
     pub fn theta(&self) -> &[f64] {
-        &self.fit.state.theta
+        if self.fit_kept {
+            &self.fit.state.theta
+        } else {
+            &self.global.theta
+        }
     }
 }
 
@@ -496,7 +503,9 @@ pub fn initialise_pose(
         rays: rays.to_vec(),
     };
     let fit = fit_ellipsoids(model, &global, &obs, &params.fit)?;
+    let fit_cost = scorer.cost(&fit.state)?;
     Ok(AutoInit {
+        fit_kept: fit_cost <= global_cost,
         global,
         global_cost,
         fit,
