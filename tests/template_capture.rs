@@ -291,3 +291,80 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
         assert!(a_deg < r_deg && a_mm < r_mm);
     }
 }
+
+/// Automatic sizing (issue 12, "use it"): bone lengths and limb widths from the first frames of
+/// a performer whose proportions differ from the default by up to 10 %, fitted over the frames
+/// together (`fit_ellipsoids_multi`) from what the tracker has (8 silhouettes' contour rays,
+/// visual-hull samples) and from the automatic first poses, against the same fit from the rest
+/// pose at each hull's centroid.
+#[test]
+fn sizing_from_the_automatic_start_finds_directions_better_than_from_rest() {
+    use dynamic_shapes::template::{
+        ellipsoid_scenario, fit_ellipsoids_multi, initialise_pose, score_ellipsoids,
+        AutoInitParams, EllipsoidScenarioParams, EllipsoidState, VisualHull,
+    };
+    let scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
+        cameras: 8,
+        end_sites: true,
+        ..EllipsoidScenarioParams::default()
+    })
+    .unwrap();
+    let model = &scenario.model;
+    let params = AutoInitParams::default();
+    let t = Instant::now();
+    let (mut auto, mut rest, mut obs) = (vec![], vec![], vec![]);
+    for f in &scenario.frames {
+        let hull =
+            VisualHull::new(&scenario.cameras, &f.masks, &VisualHullParams::default()).unwrap();
+        let rays = &f.observations.rays;
+        let a = initialise_pose(model, &hull, rays, &params).unwrap();
+        auto.push(model.initial_state(a.theta(), params.half_width_m).unwrap());
+        let v = &hull.polygon().vertices;
+        let points: Vec<DVec3> = v
+            .iter()
+            .step_by(v.len().div_ceil(params.points))
+            .copied()
+            .collect();
+        // The baseline (as `ellipsoid_fit`'s `tracker_inputs_from_rest_*`): the rest pose at
+        // the hull samples' centroid; the root's first three DOFs are its translations.
+        let sk = model.skeleton();
+        let mut theta = sk.rest_pose();
+        let root = sk.forward_kinematics(&theta).unwrap().joint_positions()[0];
+        let c = points.iter().fold(DVec3::ZERO, |a, p| a + *p) / points.len() as f64;
+        for (t, d) in theta.iter_mut().zip((c - root).to_array()) {
+            *t += d;
+        }
+        rest.push(model.initial_state(&theta, params.half_width_m).unwrap());
+        obs.push(dynamic_shapes::template::EllipsoidObservations {
+            points,
+            markers: Vec::new(),
+            rays: rays.clone(),
+        });
+    }
+    let init_s = t.elapsed().as_secs_f64();
+    let score = |starts: &[EllipsoidState]| {
+        let fit = fit_ellipsoids_multi(model, starts, &obs, &params.fit).unwrap();
+        let s: Vec<_> = fit
+            .states
+            .iter()
+            .zip(&scenario.frames)
+            .map(|(s, f)| score_ellipsoids(model, s, &f.truth).unwrap())
+            .collect();
+        let m = |g: fn(&dynamic_shapes::template::EllipsoidScores) -> f64| {
+            mean(&s.iter().map(g).collect::<Vec<_>>())
+        };
+        (
+            m(|s| s.bone_length_error_mm),
+            m(|s| s.width_error_mm),
+            m(|s| s.joint_angle_error_deg),
+        )
+    };
+    let (al, aw, ad) = score(&auto);
+    let (rl, rw, rd) = score(&rest);
+    println!(
+        "sizing over {} frames: automatic start lengths {al:.1} mm widths {aw:.1} mm \
+         directions {ad:.1} deg; rest start {rl:.1} / {rw:.1} / {rd:.1} ({init_s:.1} s)",
+        scenario.frames.len()
+    );
+    assert!(ad < rd, "directions {ad} vs {rd}");
+}
