@@ -318,16 +318,6 @@ fn sizing_from_the_automatic_start_finds_directions_better_than_from_rest() {
             VisualHull::new(&scenario.cameras, &f.masks, &VisualHullParams::default()).unwrap();
         let rays = &f.observations.rays;
         let a = initialise_pose(model, &hull, rays, &params).unwrap();
-        let (m, d) =
-            dynamic_shapes::template::pose_error(model.skeleton(), a.theta(), &f.truth.theta)
-                .unwrap();
-        println!(
-            "DBG {:.0} mm {:.1} deg truth root {:?} auto {:?}",
-            1e3 * m,
-            d.to_degrees(),
-            &f.truth.theta[..6],
-            &a.theta()[..6]
-        );
         auto.push(model.initial_state(a.theta(), params.half_width_m).unwrap());
         let v = &hull.polygon().vertices;
         let points: Vec<DVec3> = v
