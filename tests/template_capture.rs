@@ -8,11 +8,13 @@
 
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::skeleton::Motion;
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
+    Performer,
 };
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
@@ -25,16 +27,16 @@ fn rms_mm(a: &[DVec3], b: &[DVec3]) -> f64 {
     1e3 * rms(&d)
 }
 
-#[test]
-fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
+/// The MakeHuman body (no skirt) in the exercise motion and the ring of §2.5.1 around it (the
+/// MakeHuman template is centred on its pelvis, not standing on y = 0): 8 cameras at
+/// 480 × 360, 3.5 m away, slightly above the pelvis.
+fn body_exercise_studio() -> (Performer, Motion, Vec<Camera>, CaptureSpec) {
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
         &DeformationParams::default(),
     )
     .unwrap();
     let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
-    // The ring of §2.5.1 around the performer (the MakeHuman template is centred on its
-    // pelvis, not standing on y = 0): 8 cameras 3.5 m away, slightly above the pelvis.
     let root = performer
         .skeleton
         .forward_kinematics(motion.frame(0))
@@ -44,6 +46,12 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
     let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
     let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    (performer, motion, cameras, spec)
+}
+
+#[test]
+fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
+    let (performer, motion, cameras, spec) = body_exercise_studio();
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     let frames: Vec<_> = capture
         .frames_stepped(40..56, 2)
@@ -231,4 +239,132 @@ fn a_decimated_textured_template_takes_an_edit_to_a_posed_frame() {
     );
     let m = mean(&moved);
     assert!((0.015..0.04).contains(&m), "edited vertices moved {m} m");
+}
+
+/// Automatic first-frame initialisation (issue 12, "use it"): `initialise_pose` from one
+/// frame's visual hull and contour rays only (no markers, no stereo points, no user
+/// constraint), scored against the true pose and against the baseline that could have won
+/// (the rest pose moved to the hull's centroid, then the same robust ellipsoid fit).
+#[test]
+fn automatic_first_pose_beats_the_rest_pose_start() {
+    use dynamic_shapes::template::{
+        initial_pose_score, initialise_pose, pose_error, rest_pose_start, AutoInitParams,
+        EllipsoidModel,
+    };
+    let (performer, motion, cameras, spec) = body_exercise_studio();
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let sk = &performer.skeleton;
+    let model = EllipsoidModel::with_end_sites(sk.clone(), 0.1).unwrap();
+    let params = AutoInitParams::default();
+    for f in [40usize, 60] {
+        let frame = capture.frames_stepped(f..f + 1, 1).next().unwrap().unwrap();
+        let truth = &frame.truth.theta;
+        let obs = FrameObservation::new(
+            &cameras,
+            &frame.masks(),
+            &VisualHullParams::default(),
+            &SilhouetteParams::default(),
+        )
+        .unwrap();
+        let t = Instant::now();
+        let auto = initialise_pose(&model, &obs.hull, &obs.rays, &params).unwrap();
+        let auto_s = t.elapsed().as_secs_f64();
+        let rest_fit = rest_pose_start(&model, &obs.hull, &obs.rays, &params).unwrap();
+        let err = |theta: &[f64]| {
+            let (m, rad) = pose_error(sk, theta, truth).unwrap();
+            (1e3 * m, rad.to_degrees())
+        };
+        let (a_mm, a_deg) = err(auto.theta());
+        let (g_mm, g_deg) = err(&auto.global.theta);
+        let (r_mm, r_deg) = err(&rest_fit.state.theta);
+        println!(
+            "frame {f}: automatic {a_mm:.0} mm {a_deg:.1} deg (global step {g_mm:.0} mm \
+             {g_deg:.1} deg, {} candidates, {auto_s:.2} s); rest start {r_mm:.0} mm {r_deg:.1} deg",
+            auto.evaluations
+        );
+        println!(
+            "  headings {:?}; fit kept {}; true pose scores {:.3}",
+            auto.headings,
+            auto.fit_kept,
+            initial_pose_score(&model, &obs.hull, truth, &params).unwrap()
+        );
+        assert!(a_deg < r_deg && a_mm < r_mm);
+    }
+}
+
+/// Automatic sizing (issue 12, "use it"): bone lengths and limb widths from the first frames of
+/// a performer whose proportions differ from the default by up to 10 %, fitted over the frames
+/// together (`fit_ellipsoids_multi`) from what the tracker has (8 silhouettes' contour rays,
+/// visual-hull samples) and from the automatic first poses, against the same fit from the rest
+/// pose at each hull's centroid.
+#[test]
+fn sizing_from_the_automatic_start_finds_directions_better_than_from_rest() {
+    use dynamic_shapes::template::{
+        ellipsoid_scenario, fit_ellipsoids_multi, initialise_pose, score_ellipsoids,
+        AutoInitParams, EllipsoidScenarioParams, EllipsoidState, VisualHull,
+    };
+    let scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
+        cameras: 8,
+        end_sites: true,
+        ..EllipsoidScenarioParams::default()
+    })
+    .unwrap();
+    let model = &scenario.model;
+    let params = AutoInitParams::default();
+    let t = Instant::now();
+    let (mut auto, mut rest, mut obs) = (vec![], vec![], vec![]);
+    for f in &scenario.frames {
+        let hull =
+            VisualHull::new(&scenario.cameras, &f.masks, &VisualHullParams::default()).unwrap();
+        let rays = &f.observations.rays;
+        let a = initialise_pose(model, &hull, rays, &params).unwrap();
+        auto.push(model.initial_state(a.theta(), params.half_width_m).unwrap());
+        let v = &hull.polygon().vertices;
+        let points: Vec<DVec3> = v
+            .iter()
+            .step_by(v.len().div_ceil(params.points))
+            .copied()
+            .collect();
+        // The baseline (as `ellipsoid_fit`'s `tracker_inputs_from_rest_*`): the rest pose at
+        // the hull samples' centroid; the root's first three DOFs are its translations.
+        let sk = model.skeleton();
+        let mut theta = sk.rest_pose();
+        let root = sk.forward_kinematics(&theta).unwrap().joint_positions()[0];
+        let c = points.iter().fold(DVec3::ZERO, |a, p| a + *p) / points.len() as f64;
+        for (t, d) in theta.iter_mut().zip((c - root).to_array()) {
+            *t += d;
+        }
+        rest.push(model.initial_state(&theta, params.half_width_m).unwrap());
+        obs.push(dynamic_shapes::template::EllipsoidObservations {
+            points,
+            markers: Vec::new(),
+            rays: rays.clone(),
+        });
+    }
+    let init_s = t.elapsed().as_secs_f64();
+    let score = |starts: &[EllipsoidState]| {
+        let fit = fit_ellipsoids_multi(model, starts, &obs, &params.fit).unwrap();
+        let s: Vec<_> = fit
+            .states
+            .iter()
+            .zip(&scenario.frames)
+            .map(|(s, f)| score_ellipsoids(model, s, &f.truth).unwrap())
+            .collect();
+        let m = |g: fn(&dynamic_shapes::template::EllipsoidScores) -> f64| {
+            mean(&s.iter().map(g).collect::<Vec<_>>())
+        };
+        (
+            m(|s| s.bone_length_error_mm),
+            m(|s| s.width_error_mm),
+            m(|s| s.joint_angle_error_deg),
+        )
+    };
+    let (al, aw, ad) = score(&auto);
+    let (rl, rw, rd) = score(&rest);
+    println!(
+        "sizing over {} frames: automatic start lengths {al:.1} mm widths {aw:.1} mm \
+         directions {ad:.1} deg; rest start {rl:.1} / {rw:.1} / {rd:.1} ({init_s:.1} s)",
+        scenario.frames.len()
+    );
+    assert!(ad < rd, "directions {ad} vs {rd}");
 }

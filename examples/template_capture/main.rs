@@ -6,7 +6,9 @@
 //! motion and the real CMU 131_01 walk — and, for reference, the body alone in the exercise.
 //! Per frame: the visual hull (§2.3.2) and the contour rays (§2.4.2); the skeleton tracked
 //! through the hulls with the refinement term (§2.3.1, §2.3.3; the first frame's true pose
-//! stands in for the user's fit of the first frame, no other user constraint); then
+//! stands in for the user's fit of the first frame, no other user constraint; with
+//! `--auto-init` the automatic initialisation `initialise_pose` replaces it, no user
+//! constraint at all); then
 //! Algorithm 1 (§2.4.2). Scored against the performer's true posed mesh, against linear
 //! blend skinning driven by the same estimated poses (`lbs_*`) and by the true poses
 //! (`lbs_true_pose_*`). The legs inside the skirt are part of the template and of the truth
@@ -48,7 +50,8 @@ use dynamic_shapes::core::studio::{
     Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, silhouette_error_pct, DeformationTransfer, FrameObservation,
+    capture_sequence, edge_error_pct, initialise_pose, pose_error, rest_pose_start,
+    silhouette_error_pct, AutoInitParams, DeformationTransfer, EllipsoidModel, FrameObservation,
     PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
     SilhouetteParams, Template, UserRay, VisualHullParams,
 };
@@ -101,6 +104,12 @@ struct Cli {
     /// `ShapeParams::w_anchor` (0: the thesis' Eq. 2.2).
     #[arg(long, default_value_t = 0.0)]
     anchor_weight: f64,
+    /// Start the tracker from the automatic first-frame initialisation
+    /// (`initialise_pose`: global search over the ellipsoid model, then its robust fit to the
+    /// first hull and silhouettes) instead of the first frame's true pose; adds the
+    /// `auto_init_*` figures (first frame: the automatic start against the rest-pose start).
+    #[arg(long)]
+    auto_init: bool,
     /// Only the runs with these names (e.g. `skirt_walk`); default: all.
     #[arg(long = "run", value_name = "NAME")]
     runs: Vec<String>,
@@ -332,13 +341,22 @@ fn capture_run(
     stage.finish(format!("{} frames", truths.len()));
     let n = truths.len() as f64;
 
-    // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0.
+    // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0,
+    // or (`--auto-init`) the automatic initialisation replaces it.
+    let first_pose = if args.auto_init {
+        let stage = run.stage(&format!("{name}: automatic first pose"), None);
+        let theta = auto_init(template, &observations[0], &truths[0].theta, &name, figures)?;
+        stage.finish("");
+        theta
+    } else {
+        truths[0].theta.clone()
+    };
     let stage = run.stage(&format!("{name}: pose and shape"), None);
     let params = PoseParams::default();
     let result = capture_sequence(
         template,
         &observations,
-        &truths[0].theta,
+        &first_pose,
         &[],
         &params,
         &shape_params,
@@ -485,6 +503,45 @@ fn capture_run(
 
 /// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
 /// up in one camera's view and the frame re-optimised at once; the time of that, ms.
+/// The automatic first pose (`initialise_pose`) of a run's first frame, with its errors and
+/// those of the baseline that could have won (the rest pose at the hull's centroid, then the
+/// same robust fit) under `{name}_auto_init_*` and `{name}_rest_init_*`.
+fn auto_init(
+    template: &Template,
+    first: &FrameObservation,
+    truth: &[f64],
+    name: &str,
+    figures: &mut Map<String, Value>,
+) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+    let sk = template.skeleton();
+    let model = EllipsoidModel::with_end_sites(sk.clone(), 0.1)?;
+    let params = AutoInitParams::default();
+    let t = Instant::now();
+    let auto = initialise_pose(&model, &first.hull, &first.rays, &params)?;
+    let auto_s = t.elapsed().as_secs_f64();
+    // Baseline: the rest pose moved to the hull samples' centroid, then the same fit.
+    let rest_fit = rest_pose_start(&model, &first.hull, &first.rays, &params)?;
+    for (key, theta) in [
+        ("auto_init", auto.theta()),
+        ("auto_init_global", auto.global.theta.as_slice()),
+        ("rest_init", rest_fit.state.theta.as_slice()),
+    ] {
+        let (joint_m, angle) = pose_error(sk, theta, truth)?;
+        figures.insert(format!("{name}_{key}_joint_error_mm"), json!(1e3 * joint_m));
+        figures.insert(
+            format!("{name}_{key}_angle_error_deg"),
+            json!(angle.to_degrees()),
+        );
+    }
+    figures.insert(format!("{name}_auto_init_s"), json!(auto_s));
+    figures.insert(
+        format!("{name}_auto_init_evaluations"),
+        json!(auto.evaluations),
+    );
+    figures.insert(format!("{name}_auto_init_fit_kept"), json!(auto.fit_kept));
+    Ok(auto.theta().to_vec())
+}
+
 fn reoptimise_ms(
     template: &Template,
     observations: &[FrameObservation],
@@ -808,6 +865,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.insert("image_width_px".into(), json!(size.0));
     figures.insert("image_height_px".into(), json!(size.1));
     figures.insert("user_constraints".into(), json!(0));
+    if args.auto_init {
+        figures.insert("first_pose".into(), json!("automatic"));
+    }
     figures.insert("skirt_runs".into(), json!(skirt_runs));
     figures.insert("peak_rss_mb".into(), json!(example_kit::peak_rss_mb()));
     for h in [

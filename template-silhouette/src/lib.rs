@@ -91,6 +91,7 @@
 mod editing;
 mod ellipsoid;
 mod error;
+mod initialise;
 mod interactive;
 mod metrics;
 mod molding;
@@ -113,6 +114,9 @@ pub use ellipsoid::{
     MarkerObservation,
 };
 pub use error::{Context, Error, Result, ResultExt};
+pub use initialise::{
+    initial_pose_score, initialise_pose, pose_error, rest_pose_start, AutoInit, AutoInitParams,
+};
 pub use interactive::PoseEditor;
 pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
