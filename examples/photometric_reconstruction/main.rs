@@ -1,4 +1,4 @@
-//! Per-view surfaces of photometric-normals part 2 (Vlasic 2010 thesis §3.3.1–§3.3.2) on the
+//! Part 2 of photometric-normals (Vlasic 2010 thesis §3.3, §3.4): per-view surfaces, both passes and Table 3.1 on the
 //! synthetic studio.
 //!
 //! The MakeHuman performer in the skirt with the albedo texture, under the 1,200-light dome
@@ -9,12 +9,16 @@
 //! §3.3's per-view stage: Eq. 3.3 integration with the hull's discontinuities removed,
 //! matching of the ring's neighbouring pairs with the surface metric (epipolar-plane grids,
 //! four-state dynamic programming), integration again without the discontinuities matching
-//! found, matching again and the Eq. 3.4 offsets. The same runs with the rasteriser's exact
-//! normals as a control. Pass 2 then runs with a stand-in for the pass-1 mesh (the union of
-//! the pass-1 offset surfaces as one mesh, rendered per camera; the thesis uses the merged,
-//! hole-filled mesh that the merging stage builds), and the four matching metrics are
-//! compared on one pair (Figure 3-5). Every stage is scored against the true depth maps beside the hull
-//! alone (the baseline that could win).
+//! found, matching again and the Eq. 3.4 offsets. The same per-view stage runs with the
+//! rasteriser's exact normals as a control. Then the two passes of §3.3 ([`reconstruct`]):
+//! the pass-1 surfaces merged (VRIP, §3.3.3) and hole-filled (screened Poisson, the merged
+//! mesh's samples at weight 1 and the visual hull's at 0.01), and pass 2 with that mesh as
+//! the proxy, merged and filled again. Each pass is scored by Table 3.1 (coverage, normal
+//! deviation, local normal deviation, on the merged mesh before hole filling) and by the
+//! distance of the merged and filled meshes to the true mesh, beside the visual hull's
+//! surface (the baseline that could win); the four matching metrics are compared on one pair
+//! (Figure 3-5). Every per-view stage is scored against the true depth maps beside the hull
+//! alone.
 //!
 //! Last, the workload of `bench/peers/normal_integration.py` regenerated in Rust (Eq. 3.3 on
 //! a 512² Gaussian-bump depth map with analytic normals and a 1 cm-noise prior, α = 10⁻³):
@@ -24,7 +28,9 @@
 //! Writes under `out/photometric_reconstruction/`: `per_view_error.png` (camera 0's depth error
 //! per stage with a colour bar, in the manner of Figure 3-8's first column),
 //! `matching.png` (camera 0's matched pixels and discontinuities, as Figure 3-6 colours
-//! them), `view_<c>.ply` (each offset surface as a mesh), `figures.json`, `manifest.json`;
+//! them), `stages.png` (camera 0's surface, merged and hole-filled meshes of both passes
+//! coloured by distance to the truth, as Figure 3-8), `view_<c>.ply` (each offset surface as
+//! a mesh), `pass{1,2}_{merged,filled}.ply`, `figures.json`, `manifest.json`;
 //! the last stdout line is one JSON object.
 //!
 //! `cargo run --release --example photometric_reconstruction [-- --quick]` (`--quick`: 8
@@ -90,9 +96,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut run = Run::start(
         "photometric_reconstruction",
         &args.common,
-        "Per-view surfaces (Vlasic §3.3.1–3.3.2): visual-hull proxy, Eq. 3.3 integration of the \
-         part-1 normal maps, pairwise matching and Eq. 3.4 offsets on the studio performer in \
-         the skirt, scored against the true depth maps beside the hull alone.",
+        "The two passes of Vlasic §3.3: visual-hull proxy, Eq. 3.3 integration of the part-1 \
+         normal maps, pairwise matching and Eq. 3.4 offsets, VRIP merging and screened Poisson \
+         hole filling, then again with the pass-1 mesh as proxy, on the studio performer in \
+         the skirt; Table 3.1 and distances to the true mesh beside the visual hull.",
     )?;
     let stage = run.stage("normal integration (peer workload)", None);
     let peer = peer_integration_workload(args.peer_size)?;
