@@ -352,44 +352,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let view0 = depth_map_mesh(&cameras[0], &est.surfaces[0], jump)?;
     let view0_d = surface_distance(&view0, &mesh)?;
-    let panels = [
-        (
-            &view0,
-            &view0_d.per_vertex_mm,
-            "camera 0's surface (pass 1)",
-        ),
-        (
-            &rec.pass1.merged.mesh,
-            &distances[0].0.per_vertex_mm,
-            "merged (pass 1)",
-        ),
-        (
-            &rec.pass1.filled.mesh,
-            &distances[0].1.per_vertex_mm,
-            "hole-filled (pass 1)",
-        ),
-        (
-            &rec.pass2.merged.mesh,
-            &distances[1].0.per_vertex_mm,
-            "merged (pass 2)",
-        ),
-        (
-            &rec.pass2.filled.mesh,
-            &distances[1].1.per_vertex_mm,
-            "hole-filled (pass 2)",
-        ),
-    ]
-    .iter()
-    .map(
-        |(m, e, label)| -> Result<RgbImage, Box<dyn std::error::Error>> {
-            Ok(titled(
-                &error_render(m, e, &cameras[0], MESH_ERROR_MAX_MM)?,
-                label,
-                None,
-            )?)
-        },
-    )
-    .collect::<Result<Vec<_>, _>>()?;
+    let mut inputs = vec![(
+        &view0,
+        &view0_d.per_vertex_mm,
+        "camera 0's surface (pass 1)".to_string(),
+    )];
+    for (k, (pass, (merged_d, filled_d))) in
+        [&rec.pass1, &rec.pass2].iter().zip(&distances).enumerate()
+    {
+        inputs.push((
+            &pass.merged.mesh,
+            &merged_d.per_vertex_mm,
+            format!("merged (pass {})", k + 1),
+        ));
+        inputs.push((
+            &pass.filled.mesh,
+            &filled_d.per_vertex_mm,
+            format!("hole-filled (pass {})", k + 1),
+        ));
+    }
+    let panels = inputs
+        .iter()
+        .map(
+            |(m, e, label)| -> Result<RgbImage, Box<dyn std::error::Error>> {
+                Ok(titled(
+                    &error_render(m, e, &cameras[0], MESH_ERROR_MAX_MM)?,
+                    label,
+                    None,
+                )?)
+            },
+        )
+        .collect::<Result<Vec<_>, _>>()?;
     let ramp = |t: f64| error_colour(Some(t * MESH_ERROR_MAX_MM), MESH_ERROR_MAX_MM);
     let img = with_colour_bar(
         &titled(
