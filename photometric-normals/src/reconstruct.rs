@@ -2,11 +2,13 @@
 //! and screened Poisson hole filling, first with the visual hull as the proxy and then with
 //! the hole-filled mesh of the first pass.
 //!
-//! Thesis, §3.3 intro: "we first compute the per-view surfaces with the visual hull as the
-//! proxy, merge them and fill the holes; the resulting mesh is a much better proxy, so we
-//! repeat the process with it" (pass 2: α = 10⁻⁵, the matching band guided by the proxy).
-//! §3.3.3: the merged mesh's oriented samples are weighted 1 and the visual hull's 0.01 in
-//! the Poisson reconstruction, so that the hull only shapes the holes.
+//! Thesis, §3.3 intro: "The resulting closed mesh is now an excellent approximation to the
+//! true shape of the surface, and in particular is a better surface proxy than the visual
+//! hull. Therefore, we may repeat all three stages of our reconstruction algorithm, using the
+//! new proxy mesh instead of the visual hull wherever needed" (pass 2: α = 10⁻⁵, the
+//! matching band guided by the proxy). §3.3.3: "we provide oriented point samples taken from
+//! both the VRIP reconstruction and the visual hull, giving significantly lower weight (0.01)
+//! to the latter" — in both passes here.
 
 use std::time::Instant;
 
@@ -26,7 +28,7 @@ use crate::{
 pub struct ReconstructParams {
     /// The visual hull's rendering as the pass-1 proxy.
     pub hull: VisualHullParams,
-    /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻³).
+    /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻⁶).
     pub pass1: SurfaceParams,
     /// The per-view stage of pass 2. Default [`SurfaceParams::pass2`] (α = 10⁻⁵, band
     /// guided by the proxy).
