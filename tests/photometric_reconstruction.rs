@@ -12,7 +12,7 @@ use std::time::Instant;
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::mesh::{is_closed, points_to_surface, MeshQuery, TriMesh};
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
@@ -20,10 +20,10 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, estimate_normals, match_pair, matching_images, per_view_surfaces,
-    rendered_normals, CalibrationParams, DepthMap, Exposure, MatchMetric, MatchView,
-    MatchingParams, NormalMap, NormalParams, PatternImages, SurfaceParams, VisualHull,
-    VisualHullParams, PATTERNS,
+    depth_errors, estimate_normals, hull_samples, match_pair, matching_images, per_view_surfaces,
+    reconstruct, rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap,
+    Exposure, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, NormalParams,
+    PatternImages, ReconstructParams, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -39,7 +39,7 @@ fn render(camera: &Camera, mesh: &TriMesh) -> RenderedView {
 }
 
 #[test]
-fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
+fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     let t0 = Instant::now();
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
@@ -216,4 +216,81 @@ fn integrated_views_beat_the_visual_hull_with_exact_and_estimated_normals() {
         "{e:?}"
     );
     assert!(e.coverage_pct > 50.0, "{e:?}");
+
+    // The two passes of §3.3 on the exact normals (4 mm voxels, Poisson depth 7 for CI),
+    // scored with Table 3.1 from the data and against the true mesh beside the hull's surface.
+    let t = Instant::now();
+    let rparams = ReconstructParams::default()
+        .with_voxel_m(0.004)
+        .with_poisson_depth(7);
+    let rec = reconstruct(&ring.cameras, &exact, &hull, &pairs, &rparams).unwrap();
+    let t_two_pass = t.elapsed().as_secs_f64();
+    let hull_points: Vec<DVec3> = hull_samples(&ring.cameras, &proxies, 0.04, 1.0)
+        .unwrap()
+        .iter()
+        .map(|s| s.position)
+        .collect();
+    let hull_d = points_to_surface(&hull_points, &MeshQuery::new(&mesh).unwrap()).unwrap();
+    let mut hull_mm: Vec<f64> = hull_d.per_vertex.iter().map(|d| d * 1e3).collect();
+    hull_mm.sort_by(f64::total_cmp);
+    let hull_median_mm = hull_mm[hull_mm.len() / 2];
+    let hull_p95_mm = hull_mm[hull_mm.len() * 95 / 100];
+    let mut rows = Vec::new();
+    for pass in [&rec.pass1, &rec.pass2] {
+        let table = table_metrics(
+            &ring.cameras,
+            &exact,
+            &silhouettes,
+            &pass.views.surfaces,
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )
+        .unwrap();
+        let merged = surface_distance(&pass.merged.mesh, &mesh).unwrap();
+        let filled = surface_distance(&pass.filled.mesh, &mesh).unwrap();
+        println!(
+            "{table:?}; merged median {:.1} p95 {:.1} mm; filled median {:.1} p95 {:.1} mm; {:?}",
+            merged.median_mm, merged.p95_mm, filled.median_mm, filled.p95_mm, pass.times
+        );
+        assert!(is_closed(&pass.filled.mesh).unwrap());
+        rows.push((table, merged, filled));
+    }
+    println!(
+        "hull surface median {hull_median_mm:.1} p95 {hull_p95_mm:.1} mm; two passes \
+         {t_two_pass:.1} s"
+    );
+    let (p1, p2) = (&rows[0], &rows[1]);
+    let (m1, m2) = ((p1.1.median_mm, p1.1.p95_mm), (p2.1.median_mm, p2.1.p95_mm));
+    // At 256² a pixel covers ≈ 1 cm, and the merged meshes are only slightly closer to the
+    // truth than the hull's surface in median (measured 6.6 and 6.1 mm against 6.8 mm); pass 2
+    // improves on pass 1 (the p95 most: 51 → 35 mm).
+    assert!(m2.0 < hull_median_mm, "{m2:?} vs hull {hull_median_mm}");
+    assert!(m2.0 <= m1.0 && m2.1 < m1.1, "{m2:?} vs pass 1 {m1:?}");
+    assert!(
+        p2.0.coverage_pct > 50.0 && p2.0.coverage_pct >= p1.0.coverage_pct,
+        "{:?} vs {:?}",
+        p2.0,
+        p1.0
+    );
+    assert!(p2.0.normal_dev_deg < 15.0, "{:?}", p2.0);
+    // Bad input is an error, not a panic.
+    assert!(reconstruct(&ring.cameras, &exact[..2], &hull, &pairs, &rparams).is_err());
+    assert!(table_metrics(
+        &ring.cameras,
+        &exact,
+        &silhouettes[..1],
+        &rec.pass2.views.surfaces,
+        &rec.pass2.merged.mesh,
+        &MetricParams::default(),
+    )
+    .is_err());
+    assert!(table_metrics(
+        &ring.cameras,
+        &exact,
+        &silhouettes,
+        &rec.pass2.views.surfaces,
+        &rec.pass2.merged.mesh,
+        &MetricParams { near_m: f64::NAN },
+    )
+    .is_err());
 }

@@ -1,4 +1,4 @@
-//! Per-view surfaces of photometric-normals part 2 (Vlasic 2010 thesis §3.3.1–§3.3.2) on the
+//! Part 2 of photometric-normals (Vlasic 2010 thesis §3.3, §3.4): per-view surfaces, both passes and Table 3.1 on the
 //! synthetic studio.
 //!
 //! The MakeHuman performer in the skirt with the albedo texture, under the 1,200-light dome
@@ -9,12 +9,16 @@
 //! §3.3's per-view stage: Eq. 3.3 integration with the hull's discontinuities removed,
 //! matching of the ring's neighbouring pairs with the surface metric (epipolar-plane grids,
 //! four-state dynamic programming), integration again without the discontinuities matching
-//! found, matching again and the Eq. 3.4 offsets. The same runs with the rasteriser's exact
-//! normals as a control. Pass 2 then runs with a stand-in for the pass-1 mesh (the union of
-//! the pass-1 offset surfaces as one mesh, rendered per camera; the thesis uses the merged,
-//! hole-filled mesh that the merging stage builds), and the four matching metrics are
-//! compared on one pair (Figure 3-5). Every stage is scored against the true depth maps beside the hull
-//! alone (the baseline that could win).
+//! found, matching again and the Eq. 3.4 offsets. The same per-view stage runs with the
+//! rasteriser's exact normals as a control. Then the two passes of §3.3 ([`reconstruct`]):
+//! the pass-1 surfaces merged (VRIP, §3.3.3) and hole-filled (screened Poisson, the merged
+//! mesh's samples at weight 1 and the visual hull's at 0.01), and pass 2 with that mesh as
+//! the proxy, merged and filled again. Each pass is scored by Table 3.1 (coverage, normal
+//! deviation, local normal deviation, on the merged mesh before hole filling) and by the
+//! distance of the merged and filled meshes to the true mesh, beside the visual hull's
+//! surface (the baseline that could win); the four matching metrics are compared on one pair
+//! (Figure 3-5). Every per-view stage is scored against the true depth maps beside the hull
+//! alone.
 //!
 //! Last, the workload of `bench/peers/normal_integration.py` regenerated in Rust (Eq. 3.3 on
 //! a 512² Gaussian-bump depth map with analytic normals and a 1 cm-noise prior, α = 10⁻³):
@@ -24,12 +28,15 @@
 //! Writes under `out/photometric_reconstruction/`: `per_view_error.png` (camera 0's depth error
 //! per stage with a colour bar, in the manner of Figure 3-8's first column),
 //! `matching.png` (camera 0's matched pixels and discontinuities, as Figure 3-6 colours
-//! them), `view_<c>.ply` (each offset surface as a mesh), `figures.json`, `manifest.json`;
+//! them), `stages.png` (camera 0's surface, merged and hole-filled meshes of both passes
+//! coloured by distance to the truth, as Figure 3-8), `view_<c>.ply` (each offset surface as
+//! a mesh), `pass{1,2}_{merged,filled}.ply`, `figures.json`, `manifest.json`;
 //! the last stdout line is one JSON object.
 //!
 //! `cargo run --release --example photometric_reconstruction [-- --quick]` (`--quick`: 8
 //! cameras at 256²; the full run: 8 cameras at 512²; `--size` and `--cameras` change them).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+#![recursion_limit = "256"] // the figures' json! literal
 
 use std::time::Instant;
 
@@ -40,19 +47,20 @@ use serde_json::json;
 use dynamic_shapes::core::camera::{Camera, Intrinsics, RadialDistortion, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DAffine3, DVec3};
-use dynamic_shapes::core::mesh::{write_ply, PlyEncoding, TriMesh};
+use dynamic_shapes::core::mesh::{points_to_surface, write_ply, MeshQuery, PlyEncoding, TriMesh};
 use dynamic_shapes::core::random::SplitMix64;
-use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
+use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
     GarmentParams, PatternSchedule, SkirtParams,
 };
 use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, depth_map_mesh, estimate_normals, integrate_normals, match_pair, matching_images,
-    mesh_proxy_depth, per_view_surfaces, rendered_normals, CalibrationParams, DepthMap, Exposure,
-    IntegrationParams, MatchMetric, MatchView, MatchingParams, NormalMap, NormalParams,
-    PatternImages, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    depth_errors, depth_map_mesh, estimate_normals, hull_samples, integrate_normals, match_pair,
+    matching_images, per_view_surfaces, reconstruct, rendered_normals, surface_distance,
+    table_metrics, CalibrationParams, DepthMap, Exposure, IntegrationParams, MatchMetric,
+    MatchView, MatchingParams, MetricParams, NormalMap, NormalParams, PatternImages,
+    ReconstructParams, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
     PATTERNS,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
@@ -62,6 +70,8 @@ use example_kit::{Goal, Headline, Run};
 const WHITE_LEVEL: f32 = 0.4;
 /// Top of the depth-error colour scale, mm.
 const ERROR_MAX_MM: f64 = 50.0;
+/// Top of the mesh-distance colour scale, mm.
+const MESH_ERROR_MAX_MM: f64 = 10.0;
 
 #[derive(Parser, Debug)]
 struct Args {
@@ -86,9 +96,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut run = Run::start(
         "photometric_reconstruction",
         &args.common,
-        "Per-view surfaces (Vlasic §3.3.1–3.3.2): visual-hull proxy, Eq. 3.3 integration of the \
-         part-1 normal maps, pairwise matching and Eq. 3.4 offsets on the studio performer in \
-         the skirt, scored against the true depth maps beside the hull alone.",
+        "The two passes of Vlasic §3.3: visual-hull proxy, Eq. 3.3 integration of the part-1 \
+         normal maps, pairwise matching and Eq. 3.4 offsets, VRIP merging and screened Poisson \
+         hole filling, then again with the pass-1 mesh as proxy, on the studio performer in \
+         the skirt; Table 3.1 and distances to the true mesh beside the visual hull.",
     )?;
     let stage = run.stage("normal integration (peer workload)", None);
     let peer = peer_integration_workload(args.peer_size)?;
@@ -210,47 +221,79 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
     let params = SurfaceParams::default();
-    let stage = run.stage("per-view surfaces, part-1 normals", None);
+    // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
+    let rparams = ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
+    let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
-    let est = per_view_surfaces(&cameras, &estimated, &proxies, &pairs, Some(&hull), &params)?;
-    let t_est = t.elapsed().as_secs_f64();
+    let rec = reconstruct(&cameras, &estimated, &hull, &pairs, &rparams)?;
+    let t_two_pass = t.elapsed().as_secs_f64();
+    let est = &rec.pass1.views;
     let est_err = est.errors_against(&truths, &proxies, &estimated)?;
-    stage.finish(summary(&est_err));
+    let pass2 = &rec.pass2.views;
+    let pass2_err = pass2.errors_against(&truths, &rec.pass2.proxies, &estimated)?;
+    stage.finish(format!(
+        "pass 1: {}; pass 2: {}",
+        summary(&est_err),
+        summary(&pass2_err)
+    ));
+    let t_est = rec.pass1.times.per_view_s;
+    let t_pass2 = rec.pass2.times.per_view_s;
     let stage = run.stage("per-view surfaces, exact normals (control)", None);
     let ctl = per_view_surfaces(&cameras, &exact, &proxies, &pairs, Some(&hull), &params)?;
     let ctl_err = ctl.errors_against(&truths, &proxies, &exact)?;
     stage.finish(summary(&ctl_err));
 
-    // Pass 2 (§3.3) with a stand-in proxy: the union of the pass-1 offset surfaces as one mesh
-    // (the thesis uses the merged, hole-filled mesh, which the merging stage builds).
-    let stage = run.stage("pass 2 (union of pass-1 surfaces as proxy)", None);
-    let mut union = TriMesh::default();
-    for (cam, surface) in cameras.iter().zip(&est.surfaces) {
-        let jump = IntegrationParams::jump_threshold_m(0.04, size);
-        if let Ok(m) = depth_map_mesh(cam, surface, jump) {
-            let base = union.vertices.len() as u32;
-            union.vertices.extend(m.vertices);
-            union
-                .faces
-                .extend(m.faces.iter().map(|f| f.map(|v| v + base)));
-        }
+    // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
+    let stage = run.stage("Table 3.1 metrics and distances to the true mesh", Some(2));
+    let mut table = serde_json::Map::new();
+    let mut distances = Vec::new();
+    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
+        let m = table_metrics(
+            &cameras,
+            &estimated,
+            &silhouettes,
+            &pass.views.surfaces,
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
+        let merged_d = surface_distance(&pass.merged.mesh, &mesh)?;
+        let filled_d = surface_distance(&pass.filled.mesh, &mesh)?;
+        table.insert(
+            name.into(),
+            json!({
+                "coverage_pct": m.coverage_pct,
+                "normal_dev_deg": m.normal_dev_deg,
+                "local_normal_dev_deg": m.local_normal_dev_deg,
+                "measured_px": m.measured_px,
+                "covered_px": m.covered_px,
+                "surface_median_mm": merged_d.median_mm,
+                "surface_p95_mm": merged_d.p95_mm,
+                "filled_surface_median_mm": filled_d.median_mm,
+                "filled_surface_p95_mm": filled_d.p95_mm,
+                "merged_vertices": pass.merged.mesh.vertices.len(),
+                "filled_vertices": pass.filled.mesh.vertices.len(),
+                "samples": pass.samples,
+                "proxy_s": pass.times.proxy_s,
+                "per_view_s": pass.times.per_view_s,
+                "merge_s": pass.times.merge_s,
+                "poisson_s": pass.times.poisson_s,
+            }),
+        );
+        distances.push((merged_d, filled_d));
+        stage.inc(1);
     }
-    let proxies2: Vec<DepthMap> = cameras
+    // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
+    let hull_points: Vec<DVec3> = hull_samples(&cameras, &proxies, rparams.hull_jump_m, 1.0)?
         .iter()
-        .map(|c| mesh_proxy_depth(c, &union))
-        .collect::<Result<_, _>>()?;
-    let t = Instant::now();
-    let pass2 = per_view_surfaces(
-        &cameras,
-        &estimated,
-        &proxies2,
-        &pairs,
-        Some(&hull),
-        &SurfaceParams::pass2(),
-    )?;
-    let t_pass2 = t.elapsed().as_secs_f64();
-    let pass2_err = pass2.errors_against(&truths, &proxies2, &estimated)?;
-    stage.finish(summary(&pass2_err));
+        .map(|s| s.position)
+        .collect();
+    let hull_d = points_to_surface(&hull_points, &MeshQuery::new(&mesh)?)?;
+    let mut hull_mm: Vec<f64> = hull_d.per_vertex.iter().map(|d| d * 1e3).collect();
+    hull_mm.sort_by(f64::total_cmp);
+    let hull_surface_median_mm = hull_mm[hull_mm.len() / 2];
+    stage.finish(format!(
+        "{table:?}; hull median {hull_surface_median_mm:.1} mm"
+    ));
 
     // Figure 3-5's comparison: the four metrics on the pair (0, 1), same surfaces and band.
     let stage = run.stage("four matching metrics on pair 0-1", Some(4));
@@ -288,9 +331,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     stage.finish(format!("{metric_figures:?}"));
 
-    pictures(&mut run, &est, &proxies[0], &truths[0])?;
+    pictures(&mut run, est, &proxies[0], &truths[0])?;
+    let jump = IntegrationParams::jump_threshold_m(0.04, size);
     for (c, (cam, surface)) in cameras.iter().zip(&est.surfaces).enumerate() {
-        let jump = IntegrationParams::jump_threshold_m(0.04, size);
         if let Ok(m) = depth_map_mesh(cam, surface, jump) {
             write_ply(
                 run.path(&format!("view_{c}.ply")),
@@ -299,6 +342,68 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
         }
     }
+    for (name, m) in [
+        ("pass1_merged", &rec.pass1.merged.mesh),
+        ("pass1_filled", &rec.pass1.filled.mesh),
+        ("pass2_merged", &rec.pass2.merged.mesh),
+        ("pass2_filled", &rec.pass2.filled.mesh),
+    ] {
+        write_ply(run.path(&format!("{name}.ply")), m, PlyEncoding::default())?;
+    }
+    let view0 = depth_map_mesh(&cameras[0], &est.surfaces[0], jump)?;
+    let view0_d = surface_distance(&view0, &mesh)?;
+    let mut inputs = vec![(
+        &view0,
+        &view0_d.per_vertex_mm,
+        "camera 0's surface (pass 1)".to_string(),
+    )];
+    for (k, (pass, (merged_d, filled_d))) in
+        [&rec.pass1, &rec.pass2].iter().zip(&distances).enumerate()
+    {
+        inputs.push((
+            &pass.merged.mesh,
+            &merged_d.per_vertex_mm,
+            format!("merged (pass {})", k + 1),
+        ));
+        inputs.push((
+            &pass.filled.mesh,
+            &filled_d.per_vertex_mm,
+            format!("hole-filled (pass {})", k + 1),
+        ));
+    }
+    let panels = inputs
+        .iter()
+        .map(
+            |(m, e, label)| -> Result<RgbImage, Box<dyn std::error::Error>> {
+                Ok(titled(
+                    &error_render(m, e, &cameras[0], MESH_ERROR_MAX_MM)?,
+                    label,
+                    None,
+                )?)
+            },
+        )
+        .collect::<Result<Vec<_>, _>>()?;
+    let ramp = |t: f64| error_colour(Some(t * MESH_ERROR_MAX_MM), MESH_ERROR_MAX_MM);
+    let img = with_colour_bar(
+        &titled(
+            &side_by_side(&panels)?,
+            "Reconstruction stages (as Figure 3-8), coloured by distance to the true mesh",
+            Some("seen from camera 0; part-1 normals"),
+        )?,
+        &ColourBar {
+            label: "distance to the true surface (mm)",
+            min: 0.0,
+            max: MESH_ERROR_MAX_MM,
+            ramp: &ramp,
+            note: Some("above the top: red"),
+        },
+    )?;
+    run.save_picture(
+        "stages.png",
+        &img,
+        "Camera 0's per-view surface, the merged and the hole-filled meshes of both passes, \
+         shaded and coloured by each vertex's distance to the true mesh (mm, colour bar).",
+    )?;
 
     let mut figures = json!({
         "cameras": n_cams,
@@ -335,6 +440,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "pass2_coverage_pct": pass2_err.coverage_pct,
         "pass2_s": t_pass2,
         "pass2_errors": pass2_err,
+        "two_pass_s": t_two_pass,
+        "table_3_1": table,
+        "pass1_coverage_pct": table["pass1"]["coverage_pct"],
+        "pass1_normal_dev_deg": table["pass1"]["normal_dev_deg"],
+        "pass1_local_normal_dev_deg": table["pass1"]["local_normal_dev_deg"],
+        "pass1_surface_median_mm": table["pass1"]["surface_median_mm"],
+        "pass2_table_coverage_pct": table["pass2"]["coverage_pct"],
+        "normal_dev_deg": table["pass2"]["normal_dev_deg"],
+        "local_normal_dev_deg": table["pass2"]["local_normal_dev_deg"],
+        "surface_median_mm": table["pass2"]["surface_median_mm"],
+        "surface_p95_mm": table["pass2"]["surface_p95_mm"],
+        "filled_surface_median_mm": table["pass2"]["filled_surface_median_mm"],
+        "filled_surface_p95_mm": table["pass2"]["filled_surface_p95_mm"],
+        "hull_surface_median_mm": hull_surface_median_mm,
     });
     if let (Some(f), Some(p)) = (figures.as_object_mut(), peer_figures.as_object()) {
         f.extend(p.clone());
@@ -372,9 +491,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
         Headline::new(
             "pass2_offset_median_mm",
-            "pass 2 after Eq. 3.4 (median; union of pass-1 surfaces as proxy)",
+            "pass 2 after Eq. 3.4 (median; hole-filled pass-1 mesh as proxy)",
             "mm",
         ),
+        Headline::new(
+            "pass2_table_coverage_pct",
+            "Table 3.1 coverage, pass-2 merged mesh",
+            "%",
+        )
+        .goal(Goal::AtLeast(90.0)),
+        Headline::new(
+            "normal_dev_deg",
+            "Table 3.1 normal deviation, pass-2 merged mesh",
+            "deg",
+        )
+        .goal(Goal::AtMost(8.0)),
+        Headline::new(
+            "local_normal_dev_deg",
+            "Table 3.1 local normal deviation, pass-2 merged mesh",
+            "deg",
+        )
+        .goal(Goal::AtMost(1.5)),
+        Headline::new(
+            "surface_median_mm",
+            "pass-2 merged mesh to the true mesh (median)",
+            "mm",
+        )
+        .goal(Goal::AtMost(2.0))
+        .note("baseline: the visual hull's surface (hull_surface_median_mm)"),
+        Headline::new(
+            "filled_surface_median_mm",
+            "pass-2 hole-filled mesh to the true mesh (median)",
+            "mm",
+        ),
+        Headline::new(
+            "hull_surface_median_mm",
+            "visual hull surface to the true mesh (median)",
+            "mm",
+        ),
+        Headline::new("two_pass_s", "both passes, all stages", "s"),
         Headline::new("per_view_s", "per-view stage, all views (one pass)", "s"),
         Headline::new(
             "peer_integration_s",
@@ -387,6 +542,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     run.finish(figures)?;
     Ok(())
+}
+
+/// `mesh` seen from `cam`, coloured by per-vertex distance (mm) up to `max_mm`, shaded.
+fn error_render(
+    mesh: &TriMesh,
+    err_mm: &[f64],
+    cam: &Camera,
+    max_mm: f64,
+) -> Result<RgbImage, Box<dyn std::error::Error>> {
+    let params = RenderParams::default()
+        .with_buffers(Buffers {
+            triangle: true,
+            normal: true,
+            ..Buffers::MASK_ONLY
+        })
+        .with_cull_back_faces(false)
+        .with_allow_empty(true);
+    let view = Rasterizer::new(cam).render(mesh, &params)?;
+    Ok(RgbImage::from_fn(view.width, view.height, |x, y| {
+        let i = (y * view.width + x) as usize;
+        let t = view.triangle[i];
+        if t == NO_TRIANGLE {
+            return Rgb([255, 255, 255]);
+        }
+        let f = mesh.faces[t as usize];
+        let e = f.iter().map(|&v| err_mm[v as usize]).sum::<f64>() / 3.0;
+        let shade = 0.35 + 0.65 * f64::from(view.normal_camera[i][2].abs());
+        Rgb(error_colour(Some(e), max_mm).map(|c| (f64::from(c) * shade) as u8))
+    }))
 }
 
 fn summary(e: &SurfaceErrors) -> String {

@@ -31,6 +31,8 @@
 //! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
 //! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
 //! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
+//! | `reconstruct.rs` | the two passes: per-view surfaces against the hull, merge, Poisson with hull samples at 0.01; again with the hole-filled mesh as proxy | [`reconstruct`], [`ReconstructParams`], [`Reconstruction`], [`Pass`] | §3.3, §3.3.3 |
+//! | `metrics.rs` | Table 3.1: coverage, normal deviation, local normal deviation from the data alone; distance to a true mesh | [`table_metrics`], [`TableMetrics`], [`surface_distance`] | §3.4 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
@@ -99,6 +101,7 @@ mod integrate;
 mod marching_cubes;
 mod matching;
 mod merge;
+mod metrics;
 mod motion;
 mod normals;
 mod offsets;
@@ -107,6 +110,7 @@ mod patterns;
 pub mod peer_workloads;
 mod poisson;
 mod proxy;
+mod reconstruct;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -125,6 +129,7 @@ pub use matching::{
     MatchingParams, PairMatches, ViewMatches,
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
+pub use metrics::{surface_distance, table_metrics, MetricParams, SurfaceDistance, TableMetrics};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
@@ -137,4 +142,7 @@ pub use patterns::{
 };
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
 pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
+pub use reconstruct::{
+    hull_samples, reconstruct, Pass, PassTimes, ReconstructParams, Reconstruction,
+};
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};

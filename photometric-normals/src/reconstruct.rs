@@ -1,0 +1,283 @@
+//! The two passes of §3.3: per-view surfaces against a proxy, volumetric merging (§3.3.3)
+//! and screened Poisson hole filling, first with the visual hull as the proxy and then with
+//! the hole-filled mesh of the first pass.
+//!
+//! Thesis, §3.3 intro: "The resulting closed mesh is now an excellent approximation to the
+//! true shape of the surface, and in particular is a better surface proxy than the visual
+//! hull. Therefore, we may repeat all three stages of our reconstruction algorithm, using the
+//! new proxy mesh instead of the visual hull wherever needed" (pass 2: α = 10⁻⁵, the
+//! matching band guided by the proxy). §3.3.3: "we provide oriented point samples taken from
+//! both the VRIP reconstruction and the visual hull, giving significantly lower weight (0.01)
+//! to the latter" — in both passes here.
+
+use std::time::Instant;
+
+use skin_core::camera::Camera;
+use skin_core::check;
+use skin_core::mesh::TriMesh;
+
+use crate::{
+    depth_map_mesh, merge_views, mesh_proxy_depth, per_view_surfaces, screened_poisson, Context,
+    DepthMap, Error, IntegrationParams, MergeParams, MergeView, MergedSurface, NormalMap,
+    OrientedSample, PoissonParams, PoissonSurface, Result, ResultExt, SurfaceParams, ViewSurfaces,
+    VisualHull, VisualHullParams,
+};
+
+/// Parameters of the two-pass pipeline ([`reconstruct`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReconstructParams {
+    /// The visual hull's rendering as the pass-1 proxy.
+    pub hull: VisualHullParams,
+    /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻⁶).
+    pub pass1: SurfaceParams,
+    /// The per-view stage of pass 2. Default [`SurfaceParams::pass2`] (α = 10⁻⁵, band
+    /// guided by the proxy).
+    pub pass2: SurfaceParams,
+    /// Volumetric merging (thesis: 2 mm voxels, 6 cm ramps).
+    pub merge: MergeParams,
+    /// Hole filling. Default depth 9 (≈ 4 mm cells over a 2 m performer).
+    pub poisson: PoissonParams,
+    /// Weight of the visual hull's samples in the hole filling. Thesis: 0.01 (the merged
+    /// mesh's samples weigh 1).
+    pub hull_weight: f64,
+    /// Largest depth step (m, at [`crate::THESIS_WIDTH_PX`]; scaled to the image width) that
+    /// the hull's per-view meshes bridge when they are turned into samples. Default 4 cm.
+    pub hull_jump_m: f64,
+}
+
+impl Default for ReconstructParams {
+    fn default() -> Self {
+        Self {
+            hull: VisualHullParams::default(),
+            pass1: SurfaceParams::default(),
+            pass2: SurfaceParams::pass2(),
+            merge: MergeParams::default(),
+            poisson: PoissonParams::default().with_depth(9),
+            hull_weight: 0.01,
+            hull_jump_m: 0.04,
+        }
+    }
+}
+
+impl ReconstructParams {
+    /// With another Poisson depth.
+    pub fn with_poisson_depth(mut self, depth: u32) -> Self {
+        self.poisson = self.poisson.with_depth(depth);
+        self
+    }
+
+    /// With another merging voxel size, m.
+    pub fn with_voxel_m(mut self, voxel_m: f64) -> Self {
+        self.merge = self.merge.with_voxel_m(voxel_m);
+        self
+    }
+}
+
+/// Wall times of one pass, s.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PassTimes {
+    /// Rendering the proxy per camera.
+    pub proxy_s: f64,
+    /// The per-view stage (integration, matching, offsets).
+    pub per_view_s: f64,
+    /// Volumetric merging.
+    pub merge_s: f64,
+    /// Hole filling.
+    pub poisson_s: f64,
+}
+
+/// One pass of §3.3.
+#[derive(Debug, Clone)]
+pub struct Pass {
+    /// The proxy's depth per camera (pass 1: the visual hull; pass 2: the pass-1 mesh).
+    pub proxies: Vec<DepthMap>,
+    /// The per-view surfaces.
+    pub views: ViewSurfaces,
+    /// Their volumetric merge, before hole filling (what Table 3.1 scores).
+    pub merged: MergedSurface,
+    /// The hole-filled, closed mesh.
+    pub filled: PoissonSurface,
+    /// Oriented samples given to the hole filling (merged + hull).
+    pub samples: usize,
+    /// Wall times.
+    pub times: PassTimes,
+}
+
+/// Both passes.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    /// Pass 1: the visual hull as the proxy.
+    pub pass1: Pass,
+    /// Pass 2: the hole-filled pass-1 mesh as the proxy.
+    pub pass2: Pass,
+}
+
+/// The visual hull's surface as oriented samples: each camera's hull depth map meshed
+/// ([`depth_map_mesh`]), one sample per vertex with its normal turned toward the camera (the
+/// hull's visible side faces it), all with `weight`.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for counts that differ; errors of the meshing (a view whose hull
+/// has no triangle is skipped, not an error); [`Error::Empty`] if no view gives a sample.
+pub fn hull_samples(
+    cameras: &[Camera],
+    proxies: &[DepthMap],
+    jump_m: f64,
+    weight: f64,
+) -> Result<Vec<OrientedSample>> {
+    check::same_size("hull depth maps per camera", cameras.len(), proxies.len())?;
+    check::positive("weight", weight)?;
+    let mut samples = Vec::new();
+    for (c, (cam, proxy)) in cameras.iter().zip(proxies).enumerate() {
+        let jump = IntegrationParams::jump_threshold_m(jump_m, proxy.width);
+        let mesh = match depth_map_mesh(cam, proxy, jump) {
+            Ok(m) => m,
+            Err(Error::Empty { .. }) => continue,
+            Err(e) => return Err(e).at(Context::Camera(c)),
+        };
+        let eye = cam.centre();
+        samples.extend(
+            OrientedSample::from_mesh(&mesh, weight)
+                .at(Context::Camera(c))?
+                .into_iter()
+                .map(|mut s| {
+                    if s.normal.dot(eye - s.position) < 0.0 {
+                        s.normal = -s.normal;
+                    }
+                    s
+                }),
+        );
+    }
+    if samples.is_empty() {
+        return Err(Error::Empty {
+            what: "visual hull samples",
+        });
+    }
+    Ok(samples)
+}
+
+/// One pass: the per-view stage against `proxies`, the merge and the hole filling with
+/// `hull` samples beside the merged mesh's.
+#[allow(clippy::too_many_arguments)]
+fn run_pass(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    proxies: Vec<DepthMap>,
+    proxy_s: f64,
+    pairs: &[(usize, usize)],
+    hull: &VisualHull,
+    hull_samples: &[OrientedSample],
+    surface: &SurfaceParams,
+    params: &ReconstructParams,
+) -> Result<Pass> {
+    let t = Instant::now();
+    let views = per_view_surfaces(cameras, normals, &proxies, pairs, Some(hull), surface)?;
+    let per_view_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let inputs: Vec<MergeView> = cameras
+        .iter()
+        .zip(&views.surfaces)
+        .map(|(c, d)| MergeView::new(c, d))
+        .collect();
+    let merged = merge_views(&inputs, &params.merge)?;
+    let merge_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut samples = OrientedSample::from_mesh(&merged.mesh, 1.0)?;
+    samples.extend_from_slice(hull_samples);
+    let filled = screened_poisson(&samples, &params.poisson)?;
+    let poisson_s = t.elapsed().as_secs_f64();
+    Ok(Pass {
+        proxies,
+        views,
+        merged,
+        filled,
+        samples: samples.len(),
+        times: PassTimes {
+            proxy_s,
+            per_view_s,
+            merge_s,
+            poisson_s,
+        },
+    })
+}
+
+/// The two passes of §3.3 from per-camera normal maps and the visual hull of the
+/// silhouettes: pass 1 with the hull as proxy → merge → screened Poisson with the hull's
+/// samples at `hull_weight`; pass 2 with the hole-filled pass-1 mesh as proxy
+/// ([`mesh_proxy_depth`]) → merge → Poisson.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if the hull's cameras are not `cameras` (count) or the normal
+/// maps' count differs; [`Error::InvalidParam`] for a bad hull weight; errors of the stages
+/// (a camera's named by [`Error::At`]).
+pub fn reconstruct(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    hull: &VisualHull,
+    pairs: &[(usize, usize)],
+    params: &ReconstructParams,
+) -> Result<Reconstruction> {
+    check::same_size("hull cameras", cameras.len(), hull.cameras().len())?;
+    check::same_size("normal maps per camera", cameras.len(), normals.len())?;
+    check::positive("hull_weight", params.hull_weight)?;
+    check::positive("hull_jump_m", params.hull_jump_m)?;
+    let t = Instant::now();
+    let hull_depths = hull.depth_maps(&params.hull)?;
+    let proxy_s = t.elapsed().as_secs_f64();
+    let hull_points = hull_samples(
+        cameras,
+        &hull_depths,
+        params.hull_jump_m,
+        params.hull_weight,
+    )?;
+    let pass1 = run_pass(
+        cameras,
+        normals,
+        hull_depths,
+        proxy_s,
+        pairs,
+        hull,
+        &hull_points,
+        &params.pass1,
+        params,
+    )?;
+    let pass2 = second_pass(
+        cameras,
+        normals,
+        hull,
+        pairs,
+        &hull_points,
+        &pass1.filled.mesh,
+        params,
+    )?;
+    Ok(Reconstruction { pass1, pass2 })
+}
+
+fn second_pass(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    hull: &VisualHull,
+    pairs: &[(usize, usize)],
+    hull_points: &[OrientedSample],
+    proxy: &TriMesh,
+    params: &ReconstructParams,
+) -> Result<Pass> {
+    let t = Instant::now();
+    let proxies = cameras
+        .iter()
+        .enumerate()
+        .map(|(c, cam)| mesh_proxy_depth(cam, proxy).at(Context::Camera(c)))
+        .collect::<Result<Vec<_>>>()?;
+    let proxy_s = t.elapsed().as_secs_f64();
+    run_pass(
+        cameras,
+        normals,
+        proxies,
+        proxy_s,
+        pairs,
+        hull,
+        hull_points,
+        &params.pass2,
+        params,
+    )
+}
