@@ -206,6 +206,10 @@ pub struct EllipsoidParams {
     /// four-frame fit from a pose with 5° noise per rotation: width error 3.8 / 8.9 / 39 mm
     /// and direction 1.7° / 5.5° / 12° with 2 / 1 / 0 pose-only rounds).
     pub pose_only_rounds: usize,
+    /// Fit the pose alone in every round, the lengths, widths and half-lengths held at their
+    /// start (tracking a performer of known proportions, as [`crate::size_performer`] does
+    /// between its first frame and the frames it sizes from). Default false.
+    pub pose_only: bool,
     /// Floor of every half-width, metres; a width ending on it is a collapsed ellipsoid
     /// ([`fit_ellipsoids`] errors). Default 0.005.
     pub min_half_width_m: f64,
@@ -234,6 +238,7 @@ impl Default for EllipsoidParams {
             lm_iterations: 4,
             lm_tolerance: 1e-3,
             pose_only_rounds: 2,
+            pose_only: false,
             min_half_width_m: 0.005,
             scale_range: (0.8, 1.2),
             min_observations_per_bone: 5,
@@ -1194,7 +1199,8 @@ pub fn fit_ellipsoids_multi(
         if params.irls_rounds > 1 {
             reweight(&mut problem, &residuals);
         }
-        let pose_only = round < params.pose_only_rounds && round + 1 < params.irls_rounds;
+        let pose_only = params.pose_only
+            || (round < params.pose_only_rounds && round + 1 < params.irls_rounds);
         let (s, cost) = problem.solve(states, pose_only)?;
         states = s;
         round_costs.push(cost);
@@ -1222,7 +1228,7 @@ pub fn fit_ellipsoids_multi(
             })
             .at(Context::Joint(bone.joint()));
         }
-        if state.half_width[b] <= params.min_half_width_m * (1.0 + 1e-9) {
+        if !params.pose_only && state.half_width[b] <= params.min_half_width_m * (1.0 + 1e-9) {
             return Err(Error::Core(skin_core::Error::Degenerate {
                 what: format!(
                     "ellipsoid collapsed to the minimum half-width {} m",

@@ -68,6 +68,11 @@ pub struct AutoInitParams {
     /// The world's up direction (the heading turns about the root's rotation DOF closest to
     /// it). Default +Y (the studio's).
     pub up: DVec3,
+    /// A known heading: the value of the root's rotation DOF about the vertical (radians,
+    /// e.g. tracked from the previous frames, as [`crate::size_performer`] does). The heading
+    /// step then tries [`AutoInitParams::heading_offsets_deg`] around it only, instead of
+    /// both signs of the hull's principal axis. Default `None`.
+    pub heading_hint_rad: Option<f64>,
     /// Parameters of the local robust fit after the global step. Default
     /// [`EllipsoidParams::default`] with `sigma_point_m` 0.02 (hull samples lie outside the
     /// body by the hull's excess; measured in the `ellipsoid_fit` example).
@@ -87,6 +92,7 @@ impl Default for AutoInitParams {
             refine_steps_deg: vec![16.0, 8.0, 4.0, 2.0],
             axis_samples: 5,
             up: DVec3::Y,
+            heading_hint_rad: None,
             fit: EllipsoidParams {
                 sigma_point_m: 0.02,
                 ..EllipsoidParams::default()
@@ -111,6 +117,7 @@ impl AutoInitParams {
             .heading_offsets_deg
             .iter()
             .chain(&self.root_height_steps_m)
+            .chain(&self.heading_hint_rad)
         {
             check::finite("heading/height offset", h)?;
         }
@@ -195,17 +202,10 @@ impl<'a> Scorer<'a> {
         hull: &'a VisualHull,
         params: &'a AutoInitParams,
     ) -> Result<Self> {
-        let vertices = &hull.polygon().vertices;
-        if vertices.is_empty() {
-            return Err(Error::Empty {
-                what: "visual-hull samples",
-            });
-        }
-        let step = vertices.len().div_ceil(params.points).max(1);
         Ok(Scorer {
             model,
             hull,
-            points: vertices.iter().step_by(step).copied().collect(),
+            points: hull_samples(hull, params.points)?,
             params,
         })
     }
@@ -246,6 +246,44 @@ impl<'a> Scorer<'a> {
         Ok(forward + reverse)
     }
 
+    /// Coordinate descent from `current` (scoring `cost`): each DOF of `dofs` ± each step of
+    /// `steps_deg` in turn (root translations: 0.2 cm per degree), within its limits. Returns
+    /// the pose, its score and the poses scored.
+    fn descend(
+        &self,
+        mut current: Vec<f64>,
+        mut cost: f64,
+        base: &EllipsoidState,
+        dofs: &[usize],
+        steps_deg: &[f64],
+    ) -> Result<(Vec<f64>, f64, usize)> {
+        let sk = self.model.skeleton();
+        let mut evaluations = 0;
+        for step in steps_deg {
+            let step = step.to_radians();
+            for &d in dofs {
+                let delta = if sk.is_rotation(d) { step } else { step * 0.2 };
+                let candidates: Vec<Vec<f64>> = [-delta, delta]
+                    .iter()
+                    .map(|x| {
+                        let mut t = current.clone();
+                        t[d] += x;
+                        if let Some(l) = sk.dof(d).limits {
+                            t[d] = t[d].clamp(l.min, l.max);
+                        }
+                        t
+                    })
+                    .collect();
+                evaluations += candidates.len();
+                let (t, c) = self.best(candidates, base)?;
+                if c < cost {
+                    (current, cost) = (t, c);
+                }
+            }
+        }
+        Ok((current, cost, evaluations))
+    }
+
     /// The best of `candidates` (θ vectors), scored in parallel.
     fn best(&self, candidates: Vec<Vec<f64>>, base: &EllipsoidState) -> Result<(Vec<f64>, f64)> {
         let scored = candidates
@@ -266,6 +304,86 @@ impl<'a> Scorer<'a> {
                 what: "candidate poses",
             })
     }
+}
+
+/// The root's rotation DOF about `up` (unit), if it has one.
+pub(crate) fn yaw_dof(sk: &Skeleton, up: DVec3) -> Option<usize> {
+    sk.joint_dofs(0)
+        .filter(|&d| sk.is_rotation(d))
+        .max_by(|&a, &b| {
+            sk.dof(a)
+                .axis
+                .dot(up)
+                .abs()
+                .total_cmp(&sk.dof(b).axis.dot(up).abs())
+        })
+        .filter(|&d| sk.dof(d).axis.dot(up).abs() > 0.9)
+}
+
+/// The joints below the root whose rotation moves an ellipsoid (the coordinate search's).
+fn moving_joints(model: &EllipsoidModel) -> Vec<usize> {
+    let sk = model.skeleton();
+    (1..sk.joint_count())
+        .filter(|&j| {
+            model.bones().iter().any(|b| {
+                sk.chain_dofs(b.parent)
+                    .iter()
+                    .any(|&d| sk.dof_joint(d) == j)
+            }) && sk.joint_dofs(j).any(|d| sk.is_rotation(d))
+        })
+        .collect()
+}
+
+/// The root's DOFs and those of [`moving_joints`]: what the local descent moves.
+fn searched_dofs(model: &EllipsoidModel) -> Vec<usize> {
+    let sk = model.skeleton();
+    sk.joint_dofs(0)
+        .chain(moving_joints(model).iter().flat_map(|&j| sk.joint_dofs(j)))
+        .collect()
+}
+
+/// Tracking by the global score (for [`crate::size_performer`]): the coordinate descent of
+/// [`initialise_pose`] ([`AutoInitParams::refine_steps_deg`] is replaced by `steps_deg`) from
+/// `theta` on `hull`, default proportions and [`AutoInitParams::half_width_m`]. Returns the
+/// pose and its score.
+///
+/// # Errors
+/// As [`initial_pose_score`].
+pub(crate) fn descend_pose(
+    model: &EllipsoidModel,
+    hull: &VisualHull,
+    theta: &[f64],
+    params: &AutoInitParams,
+    steps_deg: &[f64],
+) -> Result<(Vec<f64>, f64)> {
+    params.validate()?;
+    let scorer = Scorer::new(model, hull, params)?;
+    let base = model.initial_state(theta, params.half_width_m)?;
+    let cost = scorer.cost(&base)?;
+    let (t, c, _) = scorer.descend(
+        base.theta.clone(),
+        cost,
+        &base,
+        &searched_dofs(model),
+        steps_deg,
+    )?;
+    Ok((t, c))
+}
+
+/// About `n` visual-hull surface samples: the hull polygon's vertices, evenly subsampled
+/// (the attractors of [`initialise_pose`] and of the sizing).
+///
+/// # Errors
+/// [`Error::Empty`] for a hull without surface samples.
+pub(crate) fn hull_samples(hull: &VisualHull, n: usize) -> Result<Vec<DVec3>> {
+    let vertices = &hull.polygon().vertices;
+    if vertices.is_empty() {
+        return Err(Error::Empty {
+            what: "visual-hull samples",
+        });
+    }
+    let step = vertices.len().div_ceil(n.max(1)).max(1);
+    Ok(vertices.iter().step_by(step).copied().collect())
 }
 
 /// Azimuth about `up` (from `a` towards `up × a`) of the principal horizontal axis of
@@ -321,18 +439,7 @@ pub fn initialise_pose(
     if translations.len() < 3 {
         return Err(invalid("needs three translation DOFs"));
     }
-    let yaw = root_dofs
-        .clone()
-        .filter(|&d| sk.is_rotation(d))
-        .max_by(|&a, &b| {
-            sk.dof(a)
-                .axis
-                .dot(up)
-                .abs()
-                .total_cmp(&sk.dof(b).axis.dot(up).abs())
-        })
-        .filter(|&d| sk.dof(d).axis.dot(up).abs() > 0.9)
-        .ok_or_else(|| invalid("needs a rotation DOF about the vertical"))?;
+    let yaw = yaw_dof(sk, up).ok_or_else(|| invalid("needs a rotation DOF about the vertical"))?;
     let yaw_sign = sk.dof(yaw).axis.dot(up).signum();
     let mut evaluations = 0;
 
@@ -362,13 +469,17 @@ pub fn initialise_pose(
         .collect();
     let turn = principal_azimuth(&scorer.points, up, a) - principal_azimuth(&rest_samples, up, a);
     let mut starts = Vec::new();
-    for sign in [0.0, std::f64::consts::PI] {
+    let families = match params.heading_hint_rad {
+        Some(h) => vec![yaw_sign * h],
+        None => vec![turn, turn + std::f64::consts::PI],
+    };
+    for family in families {
         let candidates: Vec<Vec<f64>> = params
             .heading_offsets_deg
             .iter()
             .map(|o| {
                 let mut t = theta.clone();
-                t[yaw] = yaw_sign * (turn + sign + o.to_radians());
+                t[yaw] = yaw_sign * (family + o.to_radians());
                 t
             })
             .collect();
@@ -377,15 +488,7 @@ pub fn initialise_pose(
     }
 
     // 3. Coordinate search per joint, top down, from each heading.
-    let movers: Vec<usize> = (1..sk.joint_count())
-        .filter(|&j| {
-            model.bones().iter().any(|b| {
-                sk.chain_dofs(b.parent)
-                    .iter()
-                    .any(|&d| sk.dof_joint(d) == j)
-            }) && sk.joint_dofs(j).any(|d| sk.is_rotation(d))
-        })
-        .collect();
+    let movers = moving_joints(model);
     let values = |d: usize| -> Vec<f64> {
         let (lo, hi) = sk.dof(d).limits.map_or(
             (-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2),
@@ -404,10 +507,7 @@ pub fn initialise_pose(
         }
         v
     };
-    let refined: Vec<usize> = root_dofs
-        .clone()
-        .chain(movers.iter().flat_map(|&j| sk.joint_dofs(j)))
-        .collect();
+    let refined = searched_dofs(model);
     let mut best: Option<(Vec<f64>, f64)> = None;
     let mut headings = Vec::new();
     for start in starts {
@@ -465,25 +565,10 @@ pub fn initialise_pose(
                 (current, cost) = scorer.best(candidates, &base)?;
             }
             // Local descent: every searched DOF (and the root's) ± a shrinking step.
-            for step in &params.refine_steps_deg {
-                let step = step.to_radians();
-                for &d in &refined {
-                    let delta = if sk.is_rotation(d) { step } else { step * 0.2 };
-                    let candidates: Vec<Vec<f64>> = [-delta, delta, 0.0]
-                        .iter()
-                        .map(|x| {
-                            let mut t = current.clone();
-                            t[d] += x;
-                            if let Some(l) = sk.dof(d).limits {
-                                t[d] = t[d].clamp(l.min, l.max);
-                            }
-                            t
-                        })
-                        .collect();
-                    evaluations += candidates.len();
-                    (current, cost) = scorer.best(candidates, &base)?;
-                }
-            }
+            let n;
+            (current, cost, n) =
+                scorer.descend(current, cost, &base, &refined, &params.refine_steps_deg)?;
+            evaluations += n;
         }
         headings.push((current[yaw], cost));
         if best.as_ref().is_none_or(|b| cost < b.1) {

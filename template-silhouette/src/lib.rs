@@ -24,6 +24,8 @@
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `editing.rs` | a template edit carried to every frame by deformation transfer | [`DeformationTransfer`] | §2.5.3, Figure 2-9 |
 //! | `ellipsoid.rs` | articulated ellipsoids (Eq. 3) fitted by joint least squares to attractor points, markers and silhouette rays, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
+//! | `initialise.rs` | the tracker's automatic first pose: global heading / per-joint grid search on the hull, then the ellipsoid fit | [`initialise_pose`], [`AutoInitParams`] | issue 12; Fua et al. §4.2, §5 |
+//! | `sizing.rs` | the performer's bone lengths and widths from the first frames: automatic first pose, pose-only tracking, one fit over the most varied frames | [`size_performer`], [`SizingParams`], [`Sizing`] | issue 12; Fua et al. §5; Vlasic §2.5.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -99,6 +101,7 @@ mod pipeline;
 mod pose;
 mod shape;
 mod silhouette_constraints;
+mod sizing;
 mod template;
 mod visual_hull;
 
@@ -138,6 +141,7 @@ pub use silhouette_constraints::{
     SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
     DEFAULT_NORMAL_SCALE,
 };
+pub use sizing::{size_from_poses, size_performer, Sizing, SizingParams, SizingTracker};
 pub use template::Template;
 pub use visual_hull::{
     ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,

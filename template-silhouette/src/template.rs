@@ -138,6 +138,48 @@ impl Template {
         )?)
     }
 
+    /// This template re-rigged to `skeleton`, the same joint tree with other bone lengths (a
+    /// performer sized by [`crate::size_performer`]): each rest vertex moves with its skin
+    /// weights' blend of the joints' rest-frame moves (linear blend skinning from this
+    /// skeleton's rest frames, θ = 0, to the new one's), so a vertex carried by one bone
+    /// follows its joint and the limbs keep their cross-sections. Weights and loose vertices
+    /// are kept.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] for a skeleton with another joint count or other parents; as
+    /// [`Template::new`].
+    pub fn resized(&self, skeleton: Skeleton) -> Result<Template> {
+        let (old, new) = (self.skeleton.joints(), skeleton.joints());
+        if old.len() != new.len() || old.iter().zip(new).any(|(a, b)| a.parent != b.parent) {
+            return Err(Error::InvalidParam {
+                name: "skeleton",
+                reason: format!(
+                    "the resized skeleton must have the template's joint tree ({} joints)",
+                    old.len()
+                ),
+            });
+        }
+        let rest = |sk: &Skeleton| -> Result<Vec<DAffine3>> {
+            Ok(sk
+                .forward_kinematics(&vec![0.0; sk.dof_count()])?
+                .world_from_joint()
+                .to_vec())
+        };
+        let moves: Vec<DAffine3> = rest(&self.skeleton)?
+            .iter()
+            .zip(rest(&skeleton)?)
+            .map(|(a, b)| b * a.inverse())
+            .collect();
+        let vertices = skin(&self.mesh.vertices, &self.weights, &moves)?;
+        let loose = self.loose.clone();
+        Template::new(self.mesh_with(vertices), skeleton, self.weights.clone())?
+            .with_loose_vertices(if loose.is_empty() {
+                vec![false; self.vertex_count()]
+            } else {
+                loose
+            })
+    }
+
     /// The vertices whose largest weight is at least `min_weight` (the *nearly-rigid*
     /// vertices of §2.4.2 for `min_weight` = 0.95), with that bone; loose vertices
     /// ([`Template::with_loose_vertices`]) excepted.
@@ -232,6 +274,30 @@ pub(crate) mod tests {
         let mut open = t.mesh().clone();
         open.faces.pop();
         assert!(Template::new(open, t.skeleton().clone(), t.weights().clone()).is_ok());
+    }
+
+    #[test]
+    fn a_resized_template_follows_its_longer_bone() {
+        let t = bendy();
+        let mut joints = t.skeleton().joints().to_vec();
+        joints[1].offset *= 1.2; // the child 0.6 m up instead of 0.5
+        let r = t.resized(Skeleton::new(joints).unwrap()).unwrap();
+        for (a, b) in t.mesh().vertices.iter().zip(&r.mesh().vertices) {
+            // Below the blend region: unmoved; above it: 0.1 m up; in between: a blend.
+            let expected = a.y + 0.1 * ((a.y - 0.4) / 0.2).clamp(0.0, 1.0);
+            assert!((b.y - expected).abs() < 1e-12 && (b.x - a.x).abs() < 1e-12);
+        }
+        // The rest pose still skins to the (resized) template.
+        let rest = r.skin(&r.skeleton().rest_pose()).unwrap();
+        assert!(rest
+            .iter()
+            .zip(&r.mesh().vertices)
+            .all(|(a, b)| (*a - *b).length() < 1e-12));
+        let other = Skeleton::new(t.skeleton().joints()[..1].to_vec()).unwrap();
+        assert!(matches!(
+            t.resized(other),
+            Err(Error::InvalidParam { name: "skeleton", .. })
+        ));
     }
 
     #[test]

@@ -1,0 +1,310 @@
+//! Automatic sizing of the template tracker's performer (issue 12, "use it"): bone lengths and
+//! limb widths estimated from the first frames of the sequence, from what the tracker has —
+//! each frame's visual hull (surface samples as attractors) and silhouette contour rays; no
+//! markers, no stereo points. The thesis sized its skeletons by hand (Vlasic 2010 §2.5.1);
+//! here the articulated ellipsoid model of Fua et al. (§4.2) is fitted over several frames
+//! at once with shared lengths and widths (§5, [`fit_ellipsoids_multi`]).
+//!
+//! The frames are consecutive, so the poses come from temporal continuity rather than from a
+//! global search per frame (which can flip the heading on a fast-motion frame, traced on the
+//! studio):
+//! 1. frame 0: [`initialise_pose`] (global search + robust fit);
+//! 2. every next frame: the pose-only robust fit ([`fit_ellipsoids`] with
+//!    [`EllipsoidParams::pose_only`]) from the previous frame's pose, extrapolated at constant velocity
+//!    (`2θ_{t−1} − θ_{t−2}`, as the tracker's forward pass, Vlasic §2.3.3), default
+//!    proportions and the first frame's fitted widths (a bone without observations keeps its
+//!    predicted pose);
+//! 3. [`SizingParams::frames`] of the tracked frames with the most varied poses (farthest
+//!    point sampling on the rotation DOFs, from frame 0): one fit over them with shared length
+//!    scales and widths, starting from their tracked poses and default proportions.
+//!
+//! [`Template::resized`](crate::Template::resized) applies the result to the tracker's
+//! template.
+
+use skin_core::check;
+use skin_core::skeleton::Skeleton;
+
+use crate::ellipsoid::{
+    fit_ellipsoids, fit_ellipsoids_multi, EllipsoidModel, EllipsoidMultiFit,
+    EllipsoidObservations, EllipsoidParams, EllipsoidState,
+};
+use crate::error::{Context, Error, Result, ResultExt};
+use crate::initialise::{
+    descend_pose, hull_samples, initial_pose_score, initialise_pose, yaw_dof, AutoInit,
+    AutoInitParams,
+};
+use crate::pipeline::FrameObservation;
+
+/// Parameters of [`size_performer`]. Neither paper gives numbers; ours, per field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SizingParams {
+    /// The first frame's automatic initialisation; its `points` (hull samples per frame) and
+    /// `half_width_m` (starting widths) serve every frame. Default [`AutoInitParams::default`].
+    pub init: AutoInitParams,
+    /// Frames fitted together for the sizes, spread evenly over the sequence (frame 0 and the
+    /// last among them). Default 8 (the `ellipsoid_fit` scenario's 8-frame fit).
+    pub frames: usize,
+    /// Predict each frame's start at constant velocity (`2θ_{t−1} − θ_{t−2}`); else the
+    /// previous pose. Default true.
+    pub extrapolate: bool,
+    /// At each chosen frame, run [`initialise_pose`] again with the tracked heading as its
+    /// hint ([`AutoInitParams::heading_hint_rad`]) and keep its pose when it scores lower than
+    /// the tracked one (the tracking then continues from it). Default true.
+    pub reinitialise: bool,
+    /// How each frame after the first is tracked. Default [`SizingTracker::Descent`].
+    pub tracker: SizingTracker,
+    /// The joint fit over the chosen frames. Default `init.fit` (hull samples at σ 2 cm).
+    pub fit: EllipsoidParams,
+}
+
+impl Default for SizingParams {
+    fn default() -> Self {
+        let init = AutoInitParams::default();
+        SizingParams {
+            fit: init.fit.clone(),
+            init,
+            frames: 8,
+            extrapolate: true,
+            reinitialise: true,
+            tracker: SizingTracker::default(),
+        }
+    }
+}
+
+/// How [`size_performer`] tracks the frames after the first, from the previous pose.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SizingTracker {
+    /// The pose-only robust ellipsoid fit to the hull samples and contour rays
+    /// ([`fit_ellipsoids`] with [`EllipsoidParams::pose_only`]).
+    Fit,
+    /// The coordinate descent of [`initialise_pose`]'s global score (truncated chamfer to
+    /// the hull) with these steps, degrees.
+    Descent(Vec<f64>),
+}
+
+impl Default for SizingTracker {
+    fn default() -> Self {
+        SizingTracker::Descent(vec![8.0, 4.0, 2.0])
+    }
+}
+
+/// Result of [`size_performer`].
+#[derive(Debug, Clone)]
+pub struct Sizing {
+    /// The first frame's automatic initialisation ([`size_performer`]; `None` from
+    /// [`size_from_poses`]).
+    pub init: Option<AutoInit>,
+    /// Every frame's tracked state (default proportions).
+    pub tracked: Vec<EllipsoidState>,
+    /// Indices of the frames fitted together.
+    pub chosen: Vec<usize>,
+    /// The chosen frames whose pose came from the hinted global search
+    /// ([`SizingParams::reinitialise`]) rather than from tracking.
+    pub reinitialised: Vec<usize>,
+    /// The joint fit over [`Sizing::chosen`] (its states are in that order).
+    pub fit: EllipsoidMultiFit,
+}
+
+impl Sizing {
+    /// The fitted shared unknowns (length scales, half-widths, half-lengths) with the first
+    /// chosen frame's pose.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] if the fit holds no frame (not produced by [`size_performer`]).
+    pub fn state(&self) -> Result<&EllipsoidState> {
+        self.fit.states.first().ok_or(Error::Empty {
+            what: "sized frames",
+        })
+    }
+
+    /// The performer's skeleton: the model's default skeleton with every bone scaled by its
+    /// fitted length scale ([`EllipsoidModel::scaled_skeleton`]).
+    ///
+    /// # Errors
+    /// A model other than the one sized (wrong sizes).
+    pub fn skeleton(&self, model: &EllipsoidModel) -> Result<Skeleton> {
+        model.scaled_skeleton(self.state()?)
+    }
+}
+
+/// Estimates the performer's bone lengths and limb widths from the first frames of a sequence
+/// (the module docs give the steps), from the tracker's own inputs: `frames` are consecutive
+/// frames' visual hulls and contour rays, frame 0 first.
+///
+/// # Errors
+/// Invalid parameters, no frame, errors of [`initialise_pose`] (frame 0), of the per-frame fits
+/// and of the joint fit (each wrapped in [`Error::At`] with [`Context::Frame`]).
+pub fn size_performer(
+    model: &EllipsoidModel,
+    frames: &[FrameObservation],
+    params: &SizingParams,
+) -> Result<Sizing> {
+    check::nonzero("frames", frames.len())?;
+    check::nonzero("sized frames", params.frames)?;
+    let first = frames.first().ok_or(Error::Empty {
+        what: "sizing frames",
+    })?;
+    let init = initialise_pose(model, &first.hull, &first.rays, &params.init)
+        .at(Context::Frame(0))?;
+    let observations = frames
+        .iter()
+        .enumerate()
+        .map(|(f, o)| {
+            Ok(EllipsoidObservations {
+                points: hull_samples(&o.hull, params.init.points).at(Context::Frame(f))?,
+                markers: Vec::new(),
+                rays: o.rays.clone(),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    // Tracking: default proportions, the first fit's widths, pose-only rounds.
+    let widths = if init.fit_kept {
+        init.fit.state.half_width.clone()
+    } else {
+        init.global.half_width.clone()
+    };
+    // A bone briefly hidden in the hull (an arm against the torso) keeps its predicted pose
+    // rather than stopping the track.
+    let track = EllipsoidParams {
+        pose_only: true,
+        min_observations_per_bone: 0,
+        ..params.init.fit.clone()
+    };
+    let chosen = spread(frames.len(), params.frames);
+    let sk = model.skeleton();
+    let yaw = yaw_dof(sk, params.init.up.normalize());
+    let mut tracked = vec![EllipsoidState {
+        half_width: widths.clone(),
+        ..model.initial_state(init.theta(), params.init.half_width_m)?
+    }];
+    let mut reinitialised = Vec::new();
+    for (f, obs) in observations.iter().enumerate().skip(1) {
+        let prev = &tracked[f - 1].theta;
+        let theta: Vec<f64> = match (params.extrapolate, f.checked_sub(2)) {
+            (true, Some(pp)) => prev
+                .iter()
+                .zip(&tracked[pp].theta)
+                .map(|(a, b)| 2.0 * a - b)
+                .collect(),
+            _ => prev.clone(),
+        };
+        let theta: Vec<f64> = theta
+            .iter()
+            .enumerate()
+            .map(|(d, &t)| sk.dof(d).limits.map_or(t, |l| t.clamp(l.min, l.max)))
+            .collect();
+        let start = EllipsoidState {
+            half_width: widths.clone(),
+            ..model.initial_state(&theta, params.init.half_width_m)?
+        };
+        let mut state = match &params.tracker {
+            SizingTracker::Fit => {
+                fit_ellipsoids(model, &start, obs, &track)
+                    .at(Context::Frame(f))?
+                    .state
+            }
+            SizingTracker::Descent(steps) => {
+                let (theta, _) = descend_pose(model, &frames[f].hull, &theta, &params.init, steps)
+                    .at(Context::Frame(f))?;
+                EllipsoidState { theta, ..start }
+            }
+        };
+        if params.reinitialise && chosen.contains(&f) {
+            // The global search again, its heading near the tracked one; kept when it scores
+            // lower than the tracked pose.
+            let hinted = AutoInitParams {
+                heading_hint_rad: yaw.map(|d| state.theta[d]),
+                ..params.init.clone()
+            };
+            let hull = &frames[f].hull;
+            match initialise_pose(model, hull, &frames[f].rays, &hinted) {
+                Ok(again) => {
+                    let cost = |t: &[f64]| initial_pose_score(model, hull, t, &params.init);
+                    if cost(again.theta())? < cost(&state.theta)? {
+                        state.theta = again.theta().to_vec();
+                        reinitialised.push(f);
+                    }
+                }
+                // Its local fit failed (a collapsed or empty ellipsoid): the tracked pose stays.
+                Err(e) => log::warn!("frame {f}: re-initialisation failed ({e}); tracked pose kept"),
+            }
+        }
+        tracked.push(state);
+    }
+    let poses: Vec<Vec<f64>> = tracked.iter().map(|s| s.theta.clone()).collect();
+    let sized = size_from_poses(model, frames, &poses, params)?;
+    Ok(Sizing {
+        init: Some(init),
+        tracked,
+        reinitialised,
+        ..sized
+    })
+}
+
+/// [`SizingParams::frames`] frames spread evenly over `n` (frame 0 and the last among them).
+fn spread(n: usize, k: usize) -> Vec<usize> {
+    let k = k.min(n);
+    if k <= 1 {
+        return vec![0];
+    }
+    let mut c: Vec<usize> = (0..k).map(|i| (i * (n - 1) + (k - 1) / 2) / (k - 1)).collect();
+    c.dedup();
+    c
+}
+
+/// The sizing step alone, from poses tracked by other means (the template tracker's
+/// [`crate::track`] at default proportions, for one): [`SizingParams::frames`] frames spread
+/// evenly over the sequence, fitted together ([`fit_ellipsoids_multi`], shared length scales
+/// and widths) from their poses, default proportions and
+/// [`AutoInitParams::half_width_m`], to the hull samples and contour rays of `frames`.
+///
+/// # Errors
+/// Invalid parameters; `frames` and `poses` of different lengths or empty; errors of
+/// [`fit_ellipsoids_multi`].
+pub fn size_from_poses(
+    model: &EllipsoidModel,
+    frames: &[FrameObservation],
+    poses: &[Vec<f64>],
+    params: &SizingParams,
+) -> Result<Sizing> {
+    check::nonzero("frames", frames.len())?;
+    check::nonzero("sized frames", params.frames)?;
+    check::same_size("poses vs frames", frames.len(), poses.len())?;
+    let chosen = spread(frames.len(), params.frames);
+    let tracked = poses
+        .iter()
+        .map(|t| model.initial_state(t, params.init.half_width_m))
+        .collect::<Result<Vec<_>>>()?;
+    let obs = chosen
+        .iter()
+        .map(|&f| {
+            Ok(EllipsoidObservations {
+                points: hull_samples(&frames[f].hull, params.init.points).at(Context::Frame(f))?,
+                markers: Vec::new(),
+                rays: frames[f].rays.clone(),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let starts: Vec<EllipsoidState> = chosen.iter().map(|&f| tracked[f].clone()).collect();
+    let fit = fit_ellipsoids_multi(model, &starts, &obs, &params.fit)?;
+    Ok(Sizing {
+        init: None,
+        tracked,
+        chosen,
+        reinitialised: Vec::new(),
+        fit,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skin_core::skeleton::{human_skeleton, HumanParams};
+
+    #[test]
+    fn bad_input_is_reported() {
+        let sk = human_skeleton(&HumanParams::default()).unwrap();
+        let model = EllipsoidModel::with_end_sites(sk, 0.1).unwrap();
+        assert!(size_performer(&model, &[], &SizingParams::default()).is_err());
+    }
+}
