@@ -292,24 +292,36 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
     }
 }
 
-/// Automatic sizing (issue 12, "use it"): bone lengths and limb widths from the first second
-/// of a performer whose proportions differ from the default by up to 10 % (the
-/// `ellipsoid_fit` scenario's performer, fast motion frames 0…59 at 60 Hz, 8 cameras), from
-/// what the tracker has (hull samples, contour rays): `size_performer` initialises frame 0,
-/// tracks the next frames from the previous pose, and fits the 8 most varied frames together.
-/// Against the baseline that could have won: no sizing (default proportions, 5 cm widths) at
-/// the same tracked poses.
+/// Automatic sizing (issue 12, "use it") and its use by the tracker, with no user constraint:
+/// a performer whose bone lengths differ from the default by up to 10 % (the `ellipsoid_fit`
+/// scenario's, procedural body), the first half second of a swinging motion (the fast motion
+/// at 0.5–1 Hz, 30 frames at 60 Hz), 8 cameras at 400 × 300; only hulls and contour rays.
+///
+/// 1. The automatic first pose (`size_performer` runs `initialise_pose` on frame 0), the
+///    template tracker at default proportions from it, then `size_from_poses`: 8 frames spread
+///    over the half second fitted together. Baseline that could have won: default proportions
+///    (5 cm widths) at the same poses. Also `size_performer`'s own tracking (the pose-only
+///    ellipsoid fit frame to frame): printed.
+/// 2. The template re-rigged to the sized skeleton (`Template::resized`), tracked again from
+///    the same first pose; against the default-proportion track and the true skeleton's.
 #[test]
-fn sizing_from_the_first_second_beats_default_proportions() {
+fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
+    use dynamic_shapes::core::studio::{procedural_performer, FastMotionParams, ProceduralBodyParams};
     use dynamic_shapes::template::{
-        ellipsoid_scenario, pose_error, score_ellipsoids, size_performer,
-        EllipsoidScenarioParams, EllipsoidScores, SizingParams,
+        ellipsoid_scenario, score_ellipsoids, size_from_poses, size_performer, track,
+        EllipsoidScenarioParams, EllipsoidScores, PoseFrame, PoseModel, ScenarioMotion,
+        SizingParams,
     };
+    let t = Instant::now();
     let scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
         cameras: 8,
         end_sites: true,
-        frames: (0..60).collect(),
-        points: 100,
+        frames: (0..30).collect(),
+        motion: ScenarioMotion::Fast(FastMotionParams {
+            frequency_hz: (0.5, 1.0),
+            ..FastMotionParams::default()
+        }),
+        points: 100, // unused here: the tracker's inputs are the hulls and the rays
         markers: 0,
         ..EllipsoidScenarioParams::default()
     })
@@ -328,87 +340,46 @@ fn sizing_from_the_first_second_beats_default_proportions() {
             .unwrap()
         })
         .collect();
-    let mut params = SizingParams::default();
-    if let Ok(m) = std::env::var("SIZING_TRACKER") {
-        if m == "fit" {
-            params.tracker = dynamic_shapes::template::SizingTracker::Fit;
-        }
-    }
-    if std::env::var("SIZING_NOREINIT").is_ok() {
-        params.reinitialise = false;
-    }
-    if std::env::var("SIZING_NOEXTRAP").is_ok() {
-        params.extrapolate = false;
-    }
+    let scenario_s = t.elapsed().as_secs_f64();
+    let params = SizingParams::default();
     let t = Instant::now();
-    let sizing = size_performer(model, &obs, &params).unwrap();
-    let sizing_s = t.elapsed().as_secs_f64();
-    // Tracking: every frame's bone direction error against the truth.
-    let tracked_deg: Vec<f64> = sizing
-        .tracked
-        .iter()
-        .zip(&scenario.frames)
-        .map(|(s, f)| {
-            pose_error(model.skeleton(), &s.theta, &f.truth.theta)
-                .unwrap()
-                .1
-                .to_degrees()
-        })
-        .collect();
-    println!("tracked deg per frame: {:?}", tracked_deg.iter().map(|d| d.round()).collect::<Vec<_>>());
-    let limb_deg: Vec<f64> = sizing
-        .tracked
-        .iter()
-        .zip(&scenario.frames)
-        .map(|(s, f)| score_ellipsoids(model, s, &f.truth).unwrap().joint_angle_error_deg.round())
-        .collect();
-    println!("tracked limb deg per frame: {limb_deg:?}");
-    let true_deg: Vec<f64> = scenario.frames.windows(2).map(|w| pose_error(model.skeleton(), &w[0].truth.theta, &w[1].truth.theta).unwrap().1.to_degrees()).collect();
-    println!("true motion deg per frame: {:?}", true_deg.iter().map(|d| (d * 10.0).round() / 10.0).collect::<Vec<_>>());
-    // The template tracker's poses at default proportions from the automatic first pose.
-    let performer = dynamic_shapes::core::studio::procedural_performer(
-        &dynamic_shapes::core::studio::ProceduralBodyParams::default(),
-    )
+    let own = size_performer(model, &obs, &params).unwrap();
+    let own_s = t.elapsed().as_secs_f64();
+    let first = own.init.as_ref().unwrap().theta().to_vec();
+
+    // The template tracker (no shape refinement) at default proportions.
+    let performer = procedural_performer(&ProceduralBodyParams {
+        grid_spacing_m: 0.02, // the scenario's
+        ..ProceduralBodyParams::default()
+    })
     .unwrap();
-    let template = Template::new(
+    let default_template = Template::new(
         performer.template.clone(),
         performer.skeleton.clone(),
         performer.weights.clone(),
     )
     .unwrap();
-    let t = Instant::now();
-    let pose_model = dynamic_shapes::template::PoseModel::new(&template, &PoseParams::default()).unwrap();
-    let pframes: Vec<_> = obs
+    let frames: Vec<PoseFrame<'_>> = obs
         .iter()
-        .map(|o| dynamic_shapes::template::PoseFrame { hull: &o.hull, rays: &o.rays, user: &[] })
-        .collect();
-    let first = sizing.init.as_ref().unwrap().theta().to_vec();
-    let track = dynamic_shapes::template::track(&pose_model, &pframes, &first, None, &PoseParams::default()).unwrap();
-    let track_s = t.elapsed().as_secs_f64();
-    let tmpl_deg: Vec<f64> = track
-        .poses
-        .iter()
-        .zip(&scenario.frames)
-        .map(|(p, f)| {
-            let s = model.initial_state(p, 0.05).unwrap();
-            score_ellipsoids(model, &s, &f.truth).unwrap().joint_angle_error_deg.round()
+        .map(|o| PoseFrame {
+            hull: &o.hull,
+            rays: &o.rays,
+            user: &[],
         })
         .collect();
-    println!("template tracker limb deg per frame ({track_s:.1} s): {tmpl_deg:?}");
+    let run = |template: &Template| {
+        let m = PoseModel::new(template, &PoseParams::default()).unwrap();
+        track(&m, &frames, &first, None, &PoseParams::default())
+            .unwrap()
+            .poses
+    };
     let t = Instant::now();
-    let from_tracker = dynamic_shapes::template::size_from_poses(model, &obs, &track.poses, &params).unwrap();
-    let tsized: Vec<EllipsoidScores> = from_tracker
-        .fit
-        .states
-        .iter()
-        .zip(&from_tracker.chosen)
-        .map(|(s, &f)| score_ellipsoids(model, s, &scenario.frames[f].truth).unwrap())
-        .collect();
-    let tbase: Vec<EllipsoidScores> = from_tracker
-        .chosen
-        .iter()
-        .map(|&f| score_ellipsoids(model, &from_tracker.tracked[f], &scenario.frames[f].truth).unwrap())
-        .collect();
+    let default_poses = run(&default_template);
+    let track_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let sizing = size_from_poses(model, &obs, &default_poses, &params).unwrap();
+    let size_s = t.elapsed().as_secs_f64();
+
     let mean_of = |s: &[EllipsoidScores]| {
         let m = |g: fn(&EllipsoidScores) -> f64| mean(&s.iter().map(g).collect::<Vec<_>>());
         (
@@ -417,46 +388,76 @@ fn sizing_from_the_first_second_beats_default_proportions() {
             m(|s| s.joint_angle_error_deg),
         )
     };
-    let sized: Vec<EllipsoidScores> = sizing
-        .fit
-        .states
-        .iter()
-        .zip(&sizing.chosen)
-        .map(|(s, &f)| score_ellipsoids(model, s, &scenario.frames[f].truth).unwrap())
-        .collect();
-    let baseline: Vec<EllipsoidScores> = sizing
-        .chosen
-        .iter()
-        .map(|&f| {
-            let s = model
-                .initial_state(&sizing.tracked[f].theta, params.init.half_width_m)
-                .unwrap();
-            score_ellipsoids(model, &s, &scenario.frames[f].truth).unwrap()
-        })
-        .collect();
-    let (sl, sw, sd) = mean_of(&sized);
-    let (bl, bw, bd) = mean_of(&baseline);
+    let scores = |states: &[dynamic_shapes::template::EllipsoidState], chosen: &[usize]| {
+        let s: Vec<EllipsoidScores> = states
+            .iter()
+            .zip(chosen)
+            .map(|(s, &f)| score_ellipsoids(model, s, &scenario.frames[f].truth).unwrap())
+            .collect();
+        mean_of(&s)
+    };
+    let baseline: Vec<_> = sizing.chosen.iter().map(|&f| sizing.tracked[f].clone()).collect();
+    let (sl, sw, sd) = scores(&sizing.fit.states, &sizing.chosen);
+    let (bl, bw, bd) = scores(&baseline, &sizing.chosen);
+    let (ol, ow, od) = scores(&own.fit.states, &own.chosen);
+    let own_base: Vec<_> = own.chosen.iter().map(|&f| own.tracked[f].clone()).collect();
+    let (_, _, obd) = scores(&own_base, &own.chosen);
     println!(
-        "tracked bone directions over {} frames: mean {:.1} deg, max {:.1} deg; chosen {:?}",
-        tracked_deg.len(),
-        mean(&tracked_deg),
-        tracked_deg.iter().fold(0f64, |a, b| a.max(*b)),
+        "scenario {scenario_s:.1} s; sizing from the template tracker's poses (frames {:?}): \
+         lengths {sl:.1} mm widths {sw:.1} mm directions {sd:.1} deg; default proportions \
+         {bl:.1} / {bw:.1} / {bd:.1} (track {track_s:.1} s, fit {size_s:.1} s)",
         sizing.chosen
     );
-    println!("re-initialised: {:?}", sizing.reinitialised);
-    for &f in &sizing.chosen {
-        let sc = |t: &[f64]| dynamic_shapes::template::initial_pose_score(model, &obs[f].hull, t, &params.init).unwrap();
-        println!("frame {f}: score tracked {:.3} true {:.3}", sc(&sizing.tracked[f].theta), sc(&scenario.frames[f].truth.theta));
-    }
     println!(
-        "sizing: lengths {sl:.1} mm widths {sw:.1} mm directions {sd:.1} deg; default \
-         proportions {bl:.1} / {bw:.1} / {bd:.1} ({sizing_s:.1} s)"
+        "size_performer (ellipsoid tracking): {ol:.1} / {ow:.1} / {od:.1}, its tracked poses \
+         {obd:.1} deg ({own_s:.1} s)"
     );
-    let (tl, tw, td) = mean_of(&tsized);
-    let (ul, uw, ud) = mean_of(&tbase);
+
+    // 2. The tracker with the sized template, against default proportions and the truth.
+    let sized_template = default_template
+        .resized(sizing.skeleton(model).unwrap())
+        .unwrap();
+    let true_template = default_template
+        .resized(model.scaled_skeleton(&scenario.frames[0].truth).unwrap())
+        .unwrap();
+    let true_sk = true_template.skeleton().clone();
+    let figures = |template: &Template, poses: &[Vec<f64>]| {
+        let (mut joint, mut vertex, mut sil) = (0.0, 0.0, 0.0);
+        for (f, (p, fr)) in poses.iter().zip(&scenario.frames).enumerate() {
+            let est = template.skeleton().forward_kinematics(p).unwrap();
+            let tru = true_sk.forward_kinematics(&fr.truth.theta).unwrap();
+            joint += 1e3
+                * mean(
+                    &est.joint_positions()
+                        .iter()
+                        .zip(tru.joint_positions())
+                        .map(|(a, b)| a.distance(b))
+                        .collect::<Vec<_>>(),
+                );
+            let skinned = template.skin(p).unwrap();
+            vertex += rms_mm(&skinned, &fr.mesh.vertices);
+            if f % 5 == 0 {
+                sil += mean(
+                    &silhouette_error_pct(&template.mesh_with(skinned), &scenario.cameras, &fr.masks)
+                        .unwrap(),
+                );
+            }
+        }
+        let n = poses.len() as f64;
+        (joint / n, sil / (n / 5.0).ceil(), vertex / n)
+    };
+    let t = Instant::now();
+    let sized_poses = run(&sized_template);
+    let true_poses = run(&true_template);
+    let rerun_s = t.elapsed().as_secs_f64();
+    let (dj, ds, dv) = figures(&default_template, &default_poses);
+    let (zj, zs, zv) = figures(&sized_template, &sized_poses);
+    let (tj, ts, tv) = figures(&true_template, &true_poses);
     println!(
-        "sizing from the template tracker's poses: lengths {tl:.1} mm widths {tw:.1} mm directions {td:.1} deg; default \
-         proportions {ul:.1} / {uw:.1} / {ud:.1} ({:.1} s)", t.elapsed().as_secs_f64()
+        "tracker (joint mm / silhouette % / vertex mm): default proportions {dj:.1} / {ds:.2} / \
+         {dv:.1}; sized {zj:.1} / {zs:.2} / {zv:.1}; true skeleton {tj:.1} / {ts:.2} / {tv:.1} \
+         ({rerun_s:.1} s)"
     );
-    assert!(sw < bw, "widths {sw} vs {bw}");
+    assert!(sw < 0.6 * bw, "widths {sw} vs {bw}");
+    assert!(sd < bd, "directions {sd} vs {bd}");
 }

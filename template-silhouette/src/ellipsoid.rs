@@ -1333,5 +1333,5 @@ mod validation;
 #[cfg(feature = "validation")]
 pub use validation::{
     ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
-    EllipsoidScores, ScenarioFrame,
+    EllipsoidScores, ScenarioFrame, ScenarioMotion,
 };

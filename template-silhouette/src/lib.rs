@@ -109,7 +109,7 @@ pub use editing::{DeformationTransfer, DEFAULT_ANCHOR_WEIGHT, DEFAULT_UNEDITED_T
 #[cfg(feature = "validation")]
 pub use ellipsoid::{
     ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
-    EllipsoidScores, ScenarioFrame,
+    EllipsoidScores, ScenarioFrame, ScenarioMotion,
 };
 pub use ellipsoid::{
     fit_ellipsoids, fit_ellipsoids_multi, fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidFit,

@@ -6,17 +6,25 @@
 //! at once with shared lengths and widths (§5, [`fit_ellipsoids_multi`]).
 //!
 //! The frames are consecutive, so the poses come from temporal continuity rather than from a
-//! global search per frame (which can flip the heading on a fast-motion frame, traced on the
+//! global search per frame (which flipped the heading on fast-motion frames 20 and 40 of the
 //! studio):
 //! 1. frame 0: [`initialise_pose`] (global search + robust fit);
-//! 2. every next frame: the pose-only robust fit ([`fit_ellipsoids`] with
-//!    [`EllipsoidParams::pose_only`]) from the previous frame's pose, extrapolated at constant velocity
+//! 2. every next frame, from the previous pose extrapolated at constant velocity
 //!    (`2θ_{t−1} − θ_{t−2}`, as the tracker's forward pass, Vlasic §2.3.3), default
-//!    proportions and the first frame's fitted widths (a bone without observations keeps its
-//!    predicted pose);
-//! 3. [`SizingParams::frames`] of the tracked frames with the most varied poses (farthest
-//!    point sampling on the rotation DOFs, from frame 0): one fit over them with shared length
-//!    scales and widths, starting from their tracked poses and default proportions.
+//!    proportions: the coordinate descent of [`initialise_pose`]'s score
+//!    ([`SizingTracker::Descent`]) or the pose-only robust fit to the hull samples and rays
+//!    ([`SizingTracker::Fit`], [`EllipsoidParams::pose_only`]; a bone without observations
+//!    keeps its predicted pose); optionally ([`SizingParams::reinitialise`]) the global search
+//!    again at the sized frames with the tracked heading as its hint;
+//! 3. [`size_from_poses`]: [`SizingParams::frames`] frames spread evenly over the sequence,
+//!    fitted together with shared length scales and widths, from their poses and default
+//!    proportions.
+//!
+//! [`size_from_poses`] takes poses tracked by other means instead — the template tracker's
+//! ([`crate::track`]) at default proportions from the automatic first pose, which is what
+//! measured best (`tests/template_capture.rs`, docs/template-silhouette.md: the ellipsoid
+//! model's own tracking drifts within a few frames; its score, without a torso ellipsoid,
+//! ranks wrong poses below the true one).
 //!
 //! [`Template::resized`](crate::Template::resized) applies the result to the tracker's
 //! template.
@@ -49,7 +57,8 @@ pub struct SizingParams {
     pub extrapolate: bool,
     /// At each chosen frame, run [`initialise_pose`] again with the tracked heading as its
     /// hint ([`AutoInitParams::heading_hint_rad`]) and keep its pose when it scores lower than
-    /// the tracked one (the tracking then continues from it). Default true.
+    /// the tracked one (the tracking then continues from it). Default false (measured on the
+    /// studio, fast motion: kept on 1 of 7 frames, 3× the time).
     pub reinitialise: bool,
     /// How each frame after the first is tracked. Default [`SizingTracker::Descent`].
     pub tracker: SizingTracker,
@@ -65,7 +74,7 @@ impl Default for SizingParams {
             init,
             frames: 8,
             extrapolate: true,
-            reinitialise: true,
+            reinitialise: false,
             tracker: SizingTracker::default(),
         }
     }

@@ -28,7 +28,8 @@ use skin_core::random::SplitMix64;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::{
-    fast_motion, procedural_performer, studio_ring, FastMotionParams, ProceduralBodyParams,
+    exercise_motion, fast_motion, procedural_performer, studio_ring, ExerciseParams,
+    FastMotionParams, ProceduralBodyParams,
 };
 use skin_core::{check, Context};
 
@@ -65,6 +66,9 @@ pub struct EllipsoidScenarioParams {
     pub pose_noise_deg: f64,
     /// Frames of the studio's fast motion. Default 0, 20, 40.
     pub frames: Vec<usize>,
+    /// The studio motion the frames are taken from. Default the fast motion
+    /// ([`FastMotionParams::default`]: 60 Hz, limb swings at 1.5–3 Hz).
+    pub motion: ScenarioMotion,
     /// Marching-cubes spacing of the procedural performer, metres. Default 0.02.
     pub grid_spacing_m: f64,
     /// Model the end-site segments too (hands, feet, head;
@@ -86,10 +90,20 @@ impl Default for EllipsoidScenarioParams {
             image_size: (400, 300),
             pose_noise_deg: 5.0,
             frames: vec![0, 20, 40],
+            motion: ScenarioMotion::Fast(FastMotionParams::default()),
             grid_spacing_m: 0.02,
             end_sites: false,
         }
     }
+}
+
+/// The studio motion of [`ellipsoid_scenario`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScenarioMotion {
+    /// The fast motion (brisk swings of every DOF).
+    Fast(FastMotionParams),
+    /// The free multi-DOF exercise (slow, deliberate: what a tracker follows frame to frame).
+    Exercise(ExerciseParams),
 }
 
 /// One frame of the scenario.
@@ -288,7 +302,10 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         rest_truth.half_width[b] = fit_half_width(&model, &rest_truth, b, &limb)
             .at(Context::Joint(model.bones()[b].joint()))?;
     }
-    let motion = fast_motion(&default_sk, &FastMotionParams::default())?;
+    let motion = match &params.motion {
+        ScenarioMotion::Fast(p) => fast_motion(&default_sk, p)?,
+        ScenarioMotion::Exercise(p) => exercise_motion(&default_sk, p)?,
+    };
     let rig = studio_ring(params.cameras, params.image_size.0, params.image_size.1)?;
     let cameras = rig.cameras.clone();
     let rasterizers: Vec<Rasterizer> = cameras.iter().map(Rasterizer::new).collect();
