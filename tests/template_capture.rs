@@ -306,7 +306,9 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
 ///    the same first pose; against the default-proportion track and the true skeleton's.
 #[test]
 fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
-    use dynamic_shapes::core::studio::{procedural_performer, FastMotionParams, ProceduralBodyParams};
+    use dynamic_shapes::core::studio::{
+        procedural_performer, FastMotionParams, ProceduralBodyParams,
+    };
     use dynamic_shapes::template::{
         ellipsoid_scenario, score_ellipsoids, size_from_poses, size_performer, track,
         EllipsoidScenarioParams, EllipsoidScores, PoseFrame, PoseModel, ScenarioMotion,
@@ -396,7 +398,11 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
             .collect();
         mean_of(&s)
     };
-    let baseline: Vec<_> = sizing.chosen.iter().map(|&f| sizing.tracked[f].clone()).collect();
+    let baseline: Vec<_> = sizing
+        .chosen
+        .iter()
+        .map(|&f| sizing.tracked[f].clone())
+        .collect();
     let (sl, sw, sd) = scores(&sizing.fit.states, &sizing.chosen);
     let (bl, bw, bd) = scores(&baseline, &sizing.chosen);
     let (ol, ow, od) = scores(&own.fit.states, &own.chosen);
@@ -438,8 +444,12 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
             vertex += rms_mm(&skinned, &fr.mesh.vertices);
             if f % 5 == 0 {
                 sil += mean(
-                    &silhouette_error_pct(&template.mesh_with(skinned), &scenario.cameras, &fr.masks)
-                        .unwrap(),
+                    &silhouette_error_pct(
+                        &template.mesh_with(skinned),
+                        &scenario.cameras,
+                        &fr.masks,
+                    )
+                    .unwrap(),
                 );
             }
         }

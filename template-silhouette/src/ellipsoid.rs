@@ -1219,8 +1219,8 @@ pub fn fit_ellipsoids_multi(
         if params.irls_rounds > 1 {
             reweight(&mut problem, &residuals);
         }
-        let pose_only = params.pose_only
-            || (round < params.pose_only_rounds && round + 1 < params.irls_rounds);
+        let pose_only =
+            params.pose_only || (round < params.pose_only_rounds && round + 1 < params.irls_rounds);
         let (s, cost) = problem.solve(states, pose_only)?;
         states = s;
         round_costs.push(cost);

@@ -33,8 +33,8 @@ use skin_core::check;
 use skin_core::skeleton::Skeleton;
 
 use crate::ellipsoid::{
-    fit_ellipsoids, fit_ellipsoids_multi, EllipsoidModel, EllipsoidMultiFit,
-    EllipsoidObservations, EllipsoidParams, EllipsoidState,
+    fit_ellipsoids, fit_ellipsoids_multi, EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations,
+    EllipsoidParams, EllipsoidState,
 };
 use crate::error::{Context, Error, Result, ResultExt};
 use crate::initialise::{
@@ -153,8 +153,8 @@ pub fn size_performer(
     let first = frames.first().ok_or(Error::Empty {
         what: "sizing frames",
     })?;
-    let init = initialise_pose(model, &first.hull, &first.rays, &params.init)
-        .at(Context::Frame(0))?;
+    let init =
+        initialise_pose(model, &first.hull, &first.rays, &params.init).at(Context::Frame(0))?;
     let observations = frames
         .iter()
         .enumerate()
@@ -235,7 +235,9 @@ pub fn size_performer(
                     }
                 }
                 // Its local fit failed (a collapsed or empty ellipsoid): the tracked pose stays.
-                Err(e) => log::warn!("frame {f}: re-initialisation failed ({e}); tracked pose kept"),
+                Err(e) => {
+                    log::warn!("frame {f}: re-initialisation failed ({e}); tracked pose kept")
+                }
             }
         }
         tracked.push(state);
@@ -256,7 +258,9 @@ fn spread(n: usize, k: usize) -> Vec<usize> {
     if k <= 1 {
         return vec![0];
     }
-    let mut c: Vec<usize> = (0..k).map(|i| (i * (n - 1) + (k - 1) / 2) / (k - 1)).collect();
+    let mut c: Vec<usize> = (0..k)
+        .map(|i| (i * (n - 1) + (k - 1) / 2) / (k - 1))
+        .collect();
     c.dedup();
     c
 }

@@ -296,7 +296,10 @@ pub(crate) mod tests {
         let other = Skeleton::new(t.skeleton().joints()[..1].to_vec()).unwrap();
         assert!(matches!(
             t.resized(other),
-            Err(Error::InvalidParam { name: "skeleton", .. })
+            Err(Error::InvalidParam {
+                name: "skeleton",
+                ..
+            })
         ));
     }
 
