@@ -31,7 +31,11 @@ fn main() {
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();
-    let sizes = if sizes.is_empty() { vec![256, 512] } else { sizes };
+    let sizes = if sizes.is_empty() {
+        vec![256, 512]
+    } else {
+        sizes
+    };
     for size in sizes {
         let (cams, truth) = scene(size);
         let view = |c: usize| MatchView {
