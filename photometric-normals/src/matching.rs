@@ -513,10 +513,15 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
             - sxx * syy * szz
             - syz * szx * sxy
             - szy * syx * sxz);
-    let c0 = det4(&k);
-    // Newton from the upper bound 1 decreases monotonically onto the largest root.
+    // The determinant of N by its 2 × 2 minors (rows 0-1 against rows 2-3), which the
+    // adjugate below reuses.
+    let lo = minors2(&k[2], &k[3]);
+    let c0 = laplace(&k[0], &k[1], &lo);
+    // Newton from the upper bound 1 decreases monotonically onto the largest root and
+    // converges quadratically: stop once a step is below 10⁻¹³ (relative), where rounding
+    // takes over.
     let mut l = 1.0f64;
-    for _ in 0..60 {
+    for _ in 0..50 {
         let l2 = l * l;
         let p = (l2 + c2) * l2 + c1 * l + c0;
         let dp = (4.0 * l2 + 2.0 * c2) * l + c1;
@@ -525,7 +530,7 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
         }
         let step = p / dp;
         l -= step;
-        if step.abs() <= 1e-15 * l.abs().max(1e-300) {
+        if step.abs() <= 1e-13 * l.abs().max(1e-12) {
             break;
         }
     }
@@ -533,22 +538,21 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     for (i, row) in m.iter_mut().enumerate() {
         row[i] -= l;
     }
-    // The eigenvector: the longest column of adj(N − λI).
-    let mut best = [0.0; 4];
-    let mut best_norm = 0.0;
-    for col in 0..4 {
-        let mut q = [0.0; 4];
-        for (row, v) in q.iter_mut().enumerate() {
-            // adj[row][col] = (−1)^(row+col) · minor(col, row).
-            let sign = if (row + col) % 2 == 0 { 1.0 } else { -1.0 };
-            *v = sign * minor3(&m, col, row);
-        }
-        let norm = q.iter().map(|v| v * v).sum::<f64>();
-        if norm > best_norm {
-            best_norm = norm;
-            best = q;
-        }
-    }
+    // The eigenvector: the longest column of adj(N − λI) (N symmetric: the cofactors of a
+    // row). Cofactors of rows 0 and 1 expand the 3 × 3 minors along row 1 or 0 with the
+    // 2 × 2 minors of rows 2-3; those of rows 2 and 3 along row 3 or 2 with rows 0-1's.
+    let lo = minors2(&m[2], &m[3]);
+    let hi = minors2(&m[0], &m[1]);
+    let columns = [
+        cofactors(&m[1], &lo, 1.0),
+        cofactors(&m[0], &lo, -1.0),
+        cofactors(&m[3], &hi, 1.0),
+        cofactors(&m[2], &hi, -1.0),
+    ];
+    let (best, best_norm) = columns
+        .iter()
+        .map(|q| (*q, q.iter().map(|v| v * v).sum::<f64>()))
+        .fold(([0.0; 4], 0.0), |acc, c| if c.1 > acc.1 { c } else { acc });
     if !(best_norm > 0.0 && best_norm.is_finite()) {
         // A degenerate key matrix (e.g. collinear points): any optimum; take identity.
         return Some([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
@@ -574,26 +578,36 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     ])
 }
 
-/// The determinant of the 3 × 3 matrix left when row `skip_r` and column `skip_c` are removed.
-fn minor3(m: &[[f64; 4]; 4], skip_r: usize, skip_c: usize) -> f64 {
-    let mut a = [[0.0; 3]; 3];
-    for (ri, r) in (0..4).filter(|&r| r != skip_r).enumerate() {
-        for (ci, c) in (0..4).filter(|&c| c != skip_c).enumerate() {
-            a[ri][ci] = m[r][c];
-        }
-    }
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+/// The six 2 × 2 minors of two rows, columns `(0,1), (0,2), (0,3), (1,2), (1,3), (2,3)`.
+fn minors2(r: &[f64; 4], s: &[f64; 4]) -> [f64; 6] {
+    [
+        r[0] * s[1] - r[1] * s[0],
+        r[0] * s[2] - r[2] * s[0],
+        r[0] * s[3] - r[3] * s[0],
+        r[1] * s[2] - r[2] * s[1],
+        r[1] * s[3] - r[3] * s[1],
+        r[2] * s[3] - r[3] * s[2],
+    ]
 }
 
-fn det4(m: &[[f64; 4]; 4]) -> f64 {
-    (0..4)
-        .map(|c| {
-            let sign = if c % 2 == 0 { 1.0 } else { -1.0 };
-            sign * m[0][c] * minor3(m, 0, c)
-        })
-        .sum()
+/// The 3 × 3 determinants of `row` over the two rows whose 2 × 2 minors are `m2`, one per
+/// left-out column `c`, signed as cofactors `(−1)^c · sign`.
+fn cofactors(row: &[f64; 4], m2: &[f64; 6], sign: f64) -> [f64; 4] {
+    let [m01, m02, m03, m12, m13, m23] = *m2;
+    [
+        sign * (row[1] * m23 - row[2] * m13 + row[3] * m12),
+        -sign * (row[0] * m23 - row[2] * m03 + row[3] * m02),
+        sign * (row[0] * m13 - row[1] * m03 + row[3] * m01),
+        -sign * (row[0] * m12 - row[1] * m02 + row[2] * m01),
+    ]
+}
+
+/// The determinant of a 4 × 4 matrix from its rows 0, 1 and the 2 × 2 minors `m23` of rows
+/// 2, 3 (Laplace expansion by complementary minors).
+fn laplace(r0: &[f64; 4], r1: &[f64; 4], m23: &[f64; 6]) -> f64 {
+    let m01 = minors2(r0, r1);
+    m01[0] * m23[5] - m01[1] * m23[4] + m01[2] * m23[3] + m01[3] * m23[2] - m01[4] * m23[1]
+        + m01[5] * m23[0]
 }
 
 const LV: usize = 0;
