@@ -385,49 +385,6 @@ impl<'a> Prepared<'a> {
         })
     }
 
-    /// Mean distance between this view's surface window around `own` and the other
-    /// surface's window (rendered here) around `centre` (the pixel of the other sample's
-    /// point), after the optimal rigid alignment. `pairs` is scratch space.
-    fn surface_distance(
-        &self,
-        own: usize,
-        centre: Option<usize>,
-        half: i64,
-        pairs: &mut Vec<(DVec3, DVec3)>,
-    ) -> f64 {
-        let Some(centre) = centre else {
-            return f64::INFINITY;
-        };
-        pairs.clear();
-        let (w, h) = (i64::from(self.width), i64::from(self.height));
-        let (ox, oy) = ((own % w as usize) as i64, (own / w as usize) as i64);
-        let (cx, cy) = ((centre % w as usize) as i64, (centre / w as usize) as i64);
-        // The same window order as `window`: rows, then columns.
-        for dy in -half..=half {
-            let (ya, yb) = (oy + dy, cy + dy);
-            if ya < 0 || yb < 0 || ya >= h || yb >= h {
-                continue;
-            }
-            for dx in -half..=half {
-                let (xa, xb) = (ox + dx, cx + dx);
-                if xa < 0 || xb < 0 || xa >= w || xb >= w {
-                    continue;
-                }
-                if let (Some(a), Some(b)) = (
-                    self.points[(ya * w + xa) as usize],
-                    self.other_points[(yb * w + xb) as usize],
-                ) {
-                    pairs.push((a, b));
-                }
-            }
-        }
-        let full = ((2 * half + 1) * (2 * half + 1)) as usize;
-        if pairs.len() * 2 < full {
-            return f64::INFINITY;
-        }
-        rigid_residual(pairs)
-    }
-
     fn stack_at(&self, pixel: usize, out: &mut Vec<f64>, from: usize) -> bool {
         let Some(images) = self.view.images else {
             return false;
@@ -453,10 +410,18 @@ fn rigid_residual(pairs: &[(DVec3, DVec3)]) -> f64 {
     let n = pairs.len() as f64;
     let ca = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
     let cb = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
+    aligned_distance(pairs.len(), || {
+        pairs.iter().map(|(a, b)| (*a - ca, *b - cb))
+    })
+}
+
+/// The mean distance of `n` centred point pairs (`centred` yields them, twice) under the
+/// optimal rotation.
+fn aligned_distance<I: Iterator<Item = (DVec3, DVec3)>>(n: usize, centred: impl Fn() -> I) -> f64 {
     let mut h = [[0.0f64; 3]; 3];
     let mut g = 0.0;
-    for (a, b) in pairs {
-        let (a, b) = ((*a - ca).to_array(), (*b - cb).to_array());
+    for (a, b) in centred() {
+        let (a, b) = (a.to_array(), b.to_array());
         for (r, row) in h.iter_mut().enumerate() {
             for (c, v) in row.iter_mut().enumerate() {
                 *v += a[r] * b[c];
@@ -476,19 +441,107 @@ fn rigid_residual(pairs: &[(DVec3, DVec3)]) -> f64 {
     let Some(r) = horn_rotation(&h) else {
         return f64::INFINITY;
     };
-    pairs
-        .iter()
+    centred()
         .map(|(a, b)| {
-            let a = *a - ca;
             let ra = DVec3::new(
                 r[0][0] * a.x + r[0][1] * a.y + r[0][2] * a.z,
                 r[1][0] * a.x + r[1][1] * a.y + r[1][2] * a.z,
                 r[2][0] * a.x + r[2][1] * a.y + r[2][2] * a.z,
             );
-            (ra - (*b - cb)).length()
+            (ra - b).length()
         })
         .sum::<f64>()
-        / n
+        / n as f64
+}
+
+/// The surface windows of a plane's samples, gathered once per plane: `k = window²` points
+/// per sample in window order (rows, then columns; `NaN` where the pixel is outside the image
+/// or has no surface), and the centroid of each window whose points all exist.
+struct Windows {
+    k: usize,
+    points: Vec<DVec3>,
+    centroids: Vec<Option<DVec3>>,
+}
+
+impl Windows {
+    /// The windows of `field` (per pixel of a `width × height` image) around `centres`.
+    fn gather(
+        field: &[Option<DVec3>],
+        (width, height): (u32, u32),
+        centres: impl Iterator<Item = Option<usize>>,
+        half: i64,
+    ) -> Self {
+        let (w, h) = (i64::from(width), i64::from(height));
+        let side = (2 * half + 1) as usize;
+        let k = side * side;
+        let mut points = Vec::new();
+        let mut centroids = Vec::new();
+        for centre in centres {
+            let start = points.len();
+            match centre {
+                None => points.resize(start + k, DVec3::NAN),
+                Some(c) => {
+                    let (cx, cy) = ((c % width as usize) as i64, (c / width as usize) as i64);
+                    for dy in -half..=half {
+                        for dx in -half..=half {
+                            let (x, y) = (cx + dx, cy + dy);
+                            let p = (x >= 0 && y >= 0 && x < w && y < h)
+                                .then(|| field[(y * w + x) as usize])
+                                .flatten();
+                            points.push(p.unwrap_or(DVec3::NAN));
+                        }
+                    }
+                }
+            }
+            let window = &points[start..];
+            centroids.push(
+                window
+                    .iter()
+                    .all(|p| !p.x.is_nan())
+                    .then(|| window.iter().copied().sum::<DVec3>() / k as f64),
+            );
+        }
+        Self {
+            k,
+            points,
+            centroids,
+        }
+    }
+
+    fn window(&self, s: usize) -> &[DVec3] {
+        &self.points[s * self.k..(s + 1) * self.k]
+    }
+}
+
+/// The surface metric's distance between the window `s` of `own` (a view's surface) and the
+/// window `t` of `other` (the other surface rendered into that view): the mean distance of
+/// the pairs of existing points after the optimal rigid alignment, `∞` if fewer than half
+/// the window's pairs exist. `pairs` is scratch space.
+fn window_distance(
+    own: &Windows,
+    s: usize,
+    other: &Windows,
+    t: usize,
+    pairs: &mut Vec<(DVec3, DVec3)>,
+) -> f64 {
+    let (a, b) = (own.window(s), other.window(t));
+    if let (Some(ca), Some(cb)) = (own.centroids[s], other.centroids[t]) {
+        // Full windows: the centroids are the ones `rigid_residual` would compute.
+        return aligned_distance(a.len(), || {
+            a.iter().zip(b).map(move |(p, q)| (*p - ca, *q - cb))
+        });
+    }
+    pairs.clear();
+    pairs.extend(
+        a.iter()
+            .zip(b)
+            .filter(|(p, q)| !p.x.is_nan() && !q.x.is_nan())
+            .map(|(p, q)| (*p, *q)),
+    );
+    if pairs.len() * 2 < own.k {
+        return f64::INFINITY;
+    }
+    rigid_residual(pairs)
 }
 
 /// The rotation `R` maximising `Σ bᵢ · R aᵢ` for the cross-covariance `h = Σ aᵢ bᵢᵀ` (scaled
@@ -865,18 +918,24 @@ fn match_plane(
     let guide_b: Vec<f64> = lr.pixels.iter().map(|&i| pr.guide.depth_m[i]).collect();
     let e_b: Vec<f64> = lr.rays.iter().map(|r| r.dot(w)).collect();
     let surface = params.metric == MatchMetric::SurfaceRigid;
-    let centre_of =
-        |from: &Prepared<'_>, to: &Prepared<'_>, pixels: &[usize]| -> Vec<Option<usize>> {
-            if surface {
-                pixels
-                    .iter()
-                    .map(|&i| from.points[i].and_then(|x| to.pixel_of(x)))
-                    .collect()
-            } else {
-                Vec::new()
-            }
-        };
-    let (centre_a, centre_b) = (centre_of(pl, pr, &ll.pixels), centre_of(pr, pl, &lr.pixels));
+    // The surface metric's windows: around each sample in its own surface, and around the
+    // pixel of the sample's point in the other view's rendering of this surface.
+    let windows = |own: &Prepared<'_>, to: &Prepared<'_>, pixels: &[usize]| {
+        let n = if surface { pixels.len() } else { 0 };
+        let own_windows = Windows::gather(
+            &own.points,
+            (own.width, own.height),
+            pixels[..n].iter().map(|&i| Some(i)),
+            half,
+        );
+        let centres = pixels[..n]
+            .iter()
+            .map(|&i| own.points[i].and_then(|x| to.pixel_of(x)));
+        let other_windows = Windows::gather(&to.other_points, (to.width, to.height), centres, half);
+        (own_windows, other_windows)
+    };
+    let (own_a, in_right_a) = windows(pl, pr, &ll.pixels);
+    let (own_b, in_left_b) = windows(pr, pl, &lr.pixels);
     for a in 0..na {
         let ia = ll.pixels[a];
         let guide_a = pl.guide.depth_m[ia];
@@ -919,12 +978,12 @@ fn match_plane(
             };
             let c = match params.metric {
                 MatchMetric::SurfaceRigid => {
-                    let left = pl.surface_distance(ia, centre_b[b], half, &mut pairs);
+                    let left = window_distance(&own_a, a, &in_left_b, b, &mut pairs);
                     // The larger of the two: the second is not needed once the first is ∞.
                     if left == f64::INFINITY {
                         left
                     } else {
-                        left.max(pr.surface_distance(ib, centre_a[a], half, &mut pairs))
+                        left.max(window_distance(&own_b, b, &in_right_a, a, &mut pairs))
                     }
                 }
                 MatchMetric::FullOnWindow | MatchMetric::IlluminationStack => {
