@@ -454,6 +454,56 @@ fn aligned_distance<I: Iterator<Item = (DVec3, DVec3)>>(n: usize, centred: impl 
         / n as f64
 }
 
+/// [`aligned_distance`] of two full windows, centred (`xs, ys, zs`), with the sum `g` of
+/// both windows' squared norms.
+fn aligned_distance_full(
+    (ax, ay, az): (&[f64], &[f64], &[f64]),
+    (bx, by, bz): (&[f64], &[f64], &[f64]),
+    g: f64,
+) -> f64 {
+    if g <= 0.0 {
+        return 0.0;
+    }
+    let k = ax
+        .len()
+        .min(ay.len())
+        .min(az.len())
+        .min(bx.len())
+        .min(by.len())
+        .min(bz.len());
+    let (ax, ay, az, bx, by, bz) = (&ax[..k], &ay[..k], &az[..k], &bx[..k], &by[..k], &bz[..k]);
+    let mut h = [0.0f64; 9];
+    for i in 0..k {
+        let (x, y, z) = (ax[i], ay[i], az[i]);
+        let (u, v, w) = (bx[i], by[i], bz[i]);
+        h[0] += x * u;
+        h[1] += x * v;
+        h[2] += x * w;
+        h[3] += y * u;
+        h[4] += y * v;
+        h[5] += y * w;
+        h[6] += z * u;
+        h[7] += z * v;
+        h[8] += z * w;
+    }
+    let s = 1.0 / (0.5 * g);
+    let h = h.map(|v| v * s);
+    let Some(r) = horn_rotation(&[[h[0], h[1], h[2]], [h[3], h[4], h[5]], [h[6], h[7], h[8]]])
+    else {
+        return f64::INFINITY;
+    };
+    let [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]] = r;
+    let mut sum = 0.0;
+    for i in 0..k {
+        let (x, y, z) = (ax[i], ay[i], az[i]);
+        let dx = r00 * x + r01 * y + r02 * z - bx[i];
+        let dy = r10 * x + r11 * y + r12 * z - by[i];
+        let dz = r20 * x + r21 * y + r22 * z - bz[i];
+        sum += (dx * dx + dy * dy + dz * dz).sqrt();
+    }
+    sum / k as f64
+}
+
 /// The surface windows of a plane's samples, gathered once per plane: `k = window²` points
 /// per sample in window order (rows, then columns; `NaN` where the pixel is outside the image
 /// or has no surface), and the centroid of each window whose points all exist.
@@ -461,6 +511,11 @@ struct Windows {
     k: usize,
     points: Vec<DVec3>,
     centroids: Vec<Option<DVec3>>,
+    /// Per window: its points less the centroid (of full windows; else the points), as `k`
+    /// xs, then ys, then zs.
+    centred: Vec<f64>,
+    /// Per window: the sum of the centred points' squared norms.
+    spread: Vec<f64>,
 }
 
 impl Windows {
@@ -476,6 +531,8 @@ impl Windows {
         let k = side * side;
         let mut points = Vec::new();
         let mut centroids = Vec::new();
+        let mut centred = Vec::new();
+        let mut spread = Vec::new();
         for centre in centres {
             let start = points.len();
             match centre {
@@ -494,18 +551,31 @@ impl Windows {
                 }
             }
             let window = &points[start..];
-            centroids.push(
-                window
-                    .iter()
-                    .all(|p| !p.x.is_nan())
-                    .then(|| window.iter().copied().sum::<DVec3>() / k as f64),
-            );
+            let centroid = window
+                .iter()
+                .all(|p| !p.x.is_nan())
+                .then(|| window.iter().copied().sum::<DVec3>() / k as f64);
+            let c = centroid.unwrap_or(DVec3::ZERO);
+            centred.extend(window.iter().map(|p| p.x - c.x));
+            centred.extend(window.iter().map(|p| p.y - c.y));
+            centred.extend(window.iter().map(|p| p.z - c.z));
+            spread.push(window.iter().map(|p| (*p - c).length_squared()).sum());
+            centroids.push(centroid);
         }
         Self {
             k,
             points,
             centroids,
+            centred,
+            spread,
         }
+    }
+
+    fn centred(&self, s: usize) -> (&[f64], &[f64], &[f64]) {
+        let w = &self.centred[3 * s * self.k..3 * (s + 1) * self.k];
+        let (x, yz) = w.split_at(self.k);
+        let (y, z) = yz.split_at(self.k);
+        (x, y, z)
     }
 
     fn window(&self, s: usize) -> &[DVec3] {
@@ -525,11 +595,13 @@ fn window_distance(
     pairs: &mut Vec<(DVec3, DVec3)>,
 ) -> f64 {
     let (a, b) = (own.window(s), other.window(t));
-    if let (Some(ca), Some(cb)) = (own.centroids[s], other.centroids[t]) {
+    if own.centroids[s].is_some() && other.centroids[t].is_some() {
         // Full windows: the centroids are the ones `rigid_residual` would compute.
-        return aligned_distance(a.len(), || {
-            a.iter().zip(b).map(move |(p, q)| (*p - ca, *q - cb))
-        });
+        return aligned_distance_full(
+            own.centred(s),
+            other.centred(t),
+            own.spread[s] + other.spread[t],
+        );
     }
     pairs.clear();
     pairs.extend(
