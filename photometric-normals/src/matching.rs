@@ -646,14 +646,15 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     // converges quadratically: stop once a step is below 10⁻¹³ (relative), where rounding
     // takes over.
     let mut l = 1.0f64;
+    let mut slope = 0.0;
     for _ in 0..50 {
         let l2 = l * l;
         let p = (l2 + c2) * l2 + c1 * l + c0;
-        let dp = (4.0 * l2 + 2.0 * c2) * l + c1;
-        if dp == 0.0 {
+        slope = (4.0 * l2 + 2.0 * c2) * l + c1;
+        if slope == 0.0 {
             break;
         }
-        let step = p / dp;
+        let step = p / slope;
         l -= step;
         if step.abs() <= 1e-13 * l.abs().max(1e-12) {
             break;
@@ -666,18 +667,26 @@ fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     // The eigenvector: the longest column of adj(N − λI) (N symmetric: the cofactors of a
     // row). Cofactors of rows 0 and 1 expand the 3 × 3 minors along row 1 or 0 with the
     // 2 × 2 minors of rows 2-3; those of rows 2 and 3 along row 3 or 2 with rows 0-1's.
+    // Column j is p'(λ) vⱼ v for the unit eigenvector v, and some |vⱼ|² ≥ 1/4: take the first
+    // column with |vⱼ|² ≥ 0.1 (well conditioned), else the longest.
+    let accept = 0.1 * slope * slope;
     let lo = minors2(&m[2], &m[3]);
-    let hi = minors2(&m[0], &m[1]);
-    let columns = [
-        cofactors(&m[1], &lo, 1.0),
-        cofactors(&m[0], &lo, -1.0),
-        cofactors(&m[3], &hi, 1.0),
-        cofactors(&m[2], &hi, -1.0),
-    ];
-    let (best, best_norm) = columns
-        .iter()
-        .map(|q| (*q, q.iter().map(|v| v * v).sum::<f64>()))
-        .fold(([0.0; 4], 0.0), |acc, c| if c.1 > acc.1 { c } else { acc });
+    let (mut best, mut best_norm) = ([0.0; 4], 0.0);
+    for j in 0..4 {
+        let q = match j {
+            0 => cofactors(&m[1], &lo, 1.0),
+            1 => cofactors(&m[0], &lo, -1.0),
+            2 => cofactors(&m[3], &minors2(&m[0], &m[1]), 1.0),
+            _ => cofactors(&m[2], &minors2(&m[0], &m[1]), -1.0),
+        };
+        let norm = q.iter().map(|v| v * v).sum::<f64>();
+        if norm > best_norm {
+            (best, best_norm) = (q, norm);
+        }
+        if norm >= accept {
+            break;
+        }
+    }
     if !(best_norm > 0.0 && best_norm.is_finite()) {
         // A degenerate key matrix (e.g. collinear points): any optimum; take identity.
         return Some([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
@@ -980,7 +989,6 @@ fn match_plane(
         return out;
     }
     let mut costs = vec![f64::INFINITY; na * nb];
-    let mut points = vec![DVec3::ZERO; na * nb];
     let mut stack = (Vec::new(), Vec::new());
     let mut pairs = Vec::with_capacity(params.window_px * params.window_px);
     // Per sample, once per plane: the guide depth, the ray's dot with the centres' offset
@@ -1023,17 +1031,10 @@ fn match_plane(
             }
             // `closest_approach`, term for term.
             let ray_b = lr.rays[b];
-            let dot = ray_a.dot(ray_b);
-            let denom = 1.0 - dot * dot;
-            if denom < 1e-12 {
+            let Some((ta, tb)) = meet(ray_a, d_a, ray_b, e_b[b]) else {
                 continue;
-            }
-            let ta = (dot * e_b[b] - d_a) / denom;
-            if (ta - guide_a).abs() > params.band_m {
-                continue;
-            }
-            let tb = (e_b[b] - dot * d_a) / denom;
-            if (tb - gb).abs() > params.band_m {
+            };
+            if (ta - guide_a).abs() > params.band_m || (tb - gb).abs() > params.band_m {
                 continue;
             }
             let (pa, pb) = (pl.centre + ray_a * ta, pr.centre + ray_b * tb);
@@ -1068,7 +1069,6 @@ fn match_plane(
             };
             out.evaluated += 1;
             costs[a * nb + b] = c;
-            points[a * nb + b] = x;
         }
     }
     let finite: Vec<f64> = costs.iter().copied().filter(|c| c.is_finite()).collect();
@@ -1086,7 +1086,12 @@ fn match_plane(
     out.path_matches = path.len();
     let mut prev: Option<(usize, usize, f64, f64)> = None;
     for &(a, b) in &path {
-        let x = points[a * nb + b];
+        // The cell's point again (path cells are evaluated cells, whose rays meet).
+        let (ray_a, ray_b) = (ll.rays[a], lr.rays[b]);
+        let Some((ta, tb)) = meet(ray_a, ray_a.dot(w), ray_b, ray_b.dot(w)) else {
+            continue;
+        };
+        let x = 0.5 * (pl.centre + ray_a * ta + pr.centre + ray_b * tb);
         let (ia, ib) = (ll.pixels[a], lr.pixels[b]);
         let (za, zb) = ((x - pl.centre).length(), (x - pr.centre).length());
         if let Some((pa, pb, pza, pzb)) = prev {
@@ -1104,6 +1109,18 @@ fn match_plane(
         }
     }
     out
+}
+
+/// Where two rays (unit directions `ray_a`, `ray_b` from the two centres, and their dot
+/// products `d_a`, `e_b` with the centres' offset `left − right`) come closest: the
+/// parameters along each, `None` for parallel rays.
+fn meet(ray_a: DVec3, d_a: f64, ray_b: DVec3, e_b: f64) -> Option<(f64, f64)> {
+    let dot = ray_a.dot(ray_b);
+    let denom = 1.0 - dot * dot;
+    if denom < 1e-12 {
+        return None;
+    }
+    Some(((dot * e_b - d_a) / denom, (e_b - dot * d_a) / denom))
 }
 
 fn pixel_distance(i: usize, j: usize, width: u32) -> f64 {
