@@ -6,15 +6,20 @@
 
 use std::time::Instant;
 
-use photometric_normals::{match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams};
+use photometric_normals::{
+    match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, VisualHull,
+};
 use skin_core::camera::{Camera, Intrinsics, Rig};
+use skin_core::image::Mask;
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
 
+/// The ring of eight cameras and their true depth maps (the first two are matched; all
+/// eight carve the visual hull).
 fn scene(size: u32) -> (Vec<Camera>, Vec<DepthMap>) {
     let k = Intrinsics::from_horizontal_fov(0.5, size, size).expect("intrinsics");
     let rig = Rig::ring(8, 3.0, 0.0, DVec3::ZERO, DVec3::Y, k).expect("rig");
-    let cams = rig.cameras[..2].to_vec();
+    let cams = rig.cameras;
     let mut mesh = uv_sphere(DVec3::ZERO, 0.4, 192, 384).expect("sphere");
     for v in &mut mesh.vertices {
         *v *= 1.0 + 0.05 * (5.0 * v.x).sin() * (5.0 * v.y).cos();
@@ -52,43 +57,55 @@ fn main() {
     };
     for size in sizes {
         let (cams, truth) = scene(size);
-        let view = |c: usize| MatchView {
-            camera: &cams[c],
-            surface: &truth[c],
-            guide: None,
-            images: None,
-        };
-        let params = MatchingParams::default();
-        let runs = if size >= 1024 { 1 } else { 3 };
-        let mut best = f64::INFINITY;
-        let mut best_cpu = f64::INFINITY;
-        let mut result = None;
-        for _ in 0..runs {
-            let (t, cpu) = (Instant::now(), cpu_seconds());
-            let m = match_pair(&view(0), &view(1), None, &params).expect("match");
-            best = best.min(t.elapsed().as_secs_f64());
-            best_cpu = best_cpu.min(cpu_seconds() - cpu);
-            result = Some(m);
-        }
-        let m = result.expect("one run");
-        let mut err: Vec<f64> = m
-            .left
-            .target
-            .depth_m
+        let masks: Vec<Mask> = truth
             .iter()
-            .zip(&truth[0].depth_m)
-            .filter(|(a, b)| !a.is_nan() && !b.is_nan())
-            .map(|(a, b)| (a - b).abs() * 1e3)
+            .map(|d| {
+                Mask::from_fn(size, size, |x, y| {
+                    !d.depth_m[(y * size + x) as usize].is_nan()
+                })
+            })
             .collect();
-        err.sort_by(f64::total_cmp);
-        let q = |f: f64| err[((err.len() - 1) as f64 * f) as usize];
-        println!(
-            "{{\"size_px\": {size}, \"seconds_per_pair\": {best:.4}, \"cpu_seconds_per_pair\": {best_cpu:.2}, \"cells_evaluated\": {}, \"good_matches\": {}, \"discontinuities\": {}, \"match_median_mm\": {:.4}, \"match_p95_mm\": {:.4}}}",
+        let hull = VisualHull::new(&cams, &masks).expect("hull");
+        for with_hull in [false, true] {
+            let view = |c: usize| MatchView {
+                camera: &cams[c],
+                surface: &truth[c],
+                guide: None,
+                images: None,
+            };
+            let params = MatchingParams::default();
+            let runs = if size >= 1024 { 1 } else { 3 };
+            let mut best = f64::INFINITY;
+            let mut best_cpu = f64::INFINITY;
+            let mut result = None;
+            for _ in 0..runs {
+                let (t, cpu) = (Instant::now(), cpu_seconds());
+                let m = match_pair(&view(0), &view(1), with_hull.then_some(&hull), &params)
+                    .expect("match");
+                best = best.min(t.elapsed().as_secs_f64());
+                best_cpu = best_cpu.min(cpu_seconds() - cpu);
+                result = Some(m);
+            }
+            let m = result.expect("one run");
+            let mut err: Vec<f64> = m
+                .left
+                .target
+                .depth_m
+                .iter()
+                .zip(&truth[0].depth_m)
+                .filter(|(a, b)| !a.is_nan() && !b.is_nan())
+                .map(|(a, b)| (a - b).abs() * 1e3)
+                .collect();
+            err.sort_by(f64::total_cmp);
+            let q = |f: f64| err[((err.len() - 1) as f64 * f) as usize];
+            println!(
+            "{{\"size_px\": {size}, \"hull\": {with_hull}, \"seconds_per_pair\": {best:.4}, \"cpu_seconds_per_pair\": {best_cpu:.2}, \"cells_evaluated\": {}, \"good_matches\": {}, \"discontinuities\": {}, \"match_median_mm\": {:.4}, \"match_p95_mm\": {:.4}}}",
             m.stats.cells_evaluated,
             m.stats.good_matches,
             m.stats.discontinuities,
             q(0.5),
             q(0.95)
         );
+        }
     }
 }

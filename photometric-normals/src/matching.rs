@@ -760,55 +760,59 @@ fn lowest_cost_path(
 ) -> Vec<(usize, usize)> {
     let (ri, rj) = (na + 1, nb + 1);
     let at = |i: usize, j: usize| i * rj + j;
-    let mut dist = vec![[f64::INFINITY; 4]; ri * rj];
+    // The costs of rows i − 1 and i (rolling); the back-pointers of all cells.
+    let mut above = vec![[f64::INFINITY; 4]; rj];
+    let mut here = vec![[f64::INFINITY; 4]; rj];
     let mut from = vec![[u8::MAX; 4]; ri * rj];
-    dist[at(0, 0)][LO] = 0.0;
     let matched = |s: usize| s == LV || s == RV;
+    let offer = |s: usize, v: f64, p: usize, best: &mut [f64; 4], arg: &mut [u8; 4]| {
+        if v < best[s] {
+            best[s] = v;
+            arg[s] = p as u8;
+        }
+    };
     for i in 0..ri {
         for j in 0..rj {
             if i == 0 && j == 0 {
+                here[0] = [f64::INFINITY; 4];
+                here[0][LO] = 0.0;
                 continue;
             }
             let mut best = [f64::INFINITY; 4];
             let mut arg = [u8::MAX; 4];
-            let offer = |s: usize, v: f64, p: usize, best: &mut [f64; 4], arg: &mut [u8; 4]| {
-                if v < best[s] {
-                    best[s] = v;
-                    arg[s] = p as u8;
-                }
-            };
             if i > 0 && j > 0 {
                 let c = costs[(i - 1) * nb + (j - 1)];
                 if c.is_finite() {
                     // Diagonal match from any state; left-slanted from a match at (i−1, j).
-                    for (p, &prev) in dist[at(i - 1, j - 1)].iter().enumerate() {
+                    for (p, &prev) in above[j - 1].iter().enumerate() {
                         let pen = if matched(p) { 0.0 } else { disc };
                         offer(LV, prev + c + pen, p, &mut best, &mut arg);
                     }
                     for p in [LV, RV] {
-                        offer(LV, dist[at(i - 1, j)][p] + c, 4 + p, &mut best, &mut arg);
-                        offer(RV, dist[at(i, j - 1)][p] + c, p, &mut best, &mut arg);
+                        offer(LV, above[j][p] + c, 4 + p, &mut best, &mut arg);
+                        offer(RV, here[j - 1][p] + c, p, &mut best, &mut arg);
                     }
                 }
             }
             if i > 0 {
-                for (p, &prev) in dist[at(i - 1, j)].iter().enumerate() {
+                for (p, &prev) in above[j].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
                     offer(LO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
             if j > 0 {
-                for (p, &prev) in dist[at(i, j - 1)].iter().enumerate() {
+                for (p, &prev) in here[j - 1].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
                     offer(RO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
-            dist[at(i, j)] = best;
+            here[j] = best;
             from[at(i, j)] = arg;
         }
+        std::mem::swap(&mut above, &mut here);
     }
-    // Backtrack from the cheapest end state.
-    let end = dist[at(na, nb)];
+    // Backtrack from the cheapest end state (row na is `above` after the last swap).
+    let end = above[nb];
     let Some(mut s) = (0..4)
         .filter(|&s| end[s].is_finite())
         .min_by(|&a, &b| end[a].total_cmp(&end[b]))

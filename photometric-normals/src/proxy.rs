@@ -141,11 +141,12 @@ impl VisualHull {
     /// and the point's camera depth; `None` behind the camera.
     fn camera_distance(&self, c: usize, p: DVec3) -> Option<(f64, f64)> {
         let cam = &self.cameras[c];
-        let z = cam.camera_from_world().transform_point3(p).z;
+        let pc = cam.camera_from_world().transform_point3(p);
+        let z = pc.z;
         if z <= 1e-6 {
             return None;
         }
-        let px = cam.project(p).ok()?;
+        let px = cam.project_camera_point(pc).ok()?.pixel;
         let (w, h) = (
             f64::from(cam.intrinsics.width - 1),
             f64::from(cam.intrinsics.height - 1),
@@ -180,7 +181,12 @@ impl VisualHull {
 
     /// Whether `p` lies inside every camera's silhouette cone.
     pub fn contains(&self, p: DVec3) -> bool {
-        self.hull_distance(p, None).0 <= 0.0
+        // `hull_distance(p, None).0 <= 0.0`, stopping at the first camera that sees `p`
+        // outside its silhouette (or cannot see it).
+        (0..self.cameras.len()).all(|c| {
+            self.camera_distance(c, p)
+                .is_some_and(|(sd, _)| !(sd > 0.0))
+        })
     }
 
     /// The hull's depth along each silhouette pixel ray of camera `view` (first entry point;
