@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use photometric_normals::{
-    match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, VisualHull,
+    depth_errors, match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, VisualHull,
 };
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::image::Mask;
@@ -87,24 +87,14 @@ fn main() {
                 result = Some(m);
             }
             let m = result.expect("one run");
-            let mut err: Vec<f64> = m
-                .left
-                .target
-                .depth_m
-                .iter()
-                .zip(&truth[0].depth_m)
-                .filter(|(a, b)| !a.is_nan() && !b.is_nan())
-                .map(|(a, b)| (a - b).abs() * 1e3)
-                .collect();
-            err.sort_by(f64::total_cmp);
-            let q = |f: f64| err[((err.len() - 1) as f64 * f) as usize];
+            let err = depth_errors(&m.left.target, &truth[0], None).expect("errors");
             println!(
             "{{\"size_px\": {size}, \"hull\": {with_hull}, \"seconds_per_pair\": {best:.4}, \"cpu_seconds_per_pair\": {best_cpu:.2}, \"cells_evaluated\": {}, \"good_matches\": {}, \"discontinuities\": {}, \"match_median_mm\": {:.4}, \"match_p95_mm\": {:.4}}}",
             m.stats.cells_evaluated,
             m.stats.good_matches,
             m.stats.discontinuities,
-            q(0.5),
-            q(0.95)
+            err.median_mm,
+            err.p95_mm
         );
         }
     }
