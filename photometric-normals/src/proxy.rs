@@ -185,7 +185,7 @@ impl VisualHull {
         // outside its silhouette (or cannot see it).
         (0..self.cameras.len()).all(|c| {
             self.camera_distance(c, p)
-                .is_some_and(|(sd, _)| !(sd > 0.0))
+                .is_some_and(|(sd, _)| sd <= 0.0 || sd.is_nan())
         })
     }
 
