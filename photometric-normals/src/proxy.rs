@@ -141,12 +141,11 @@ impl VisualHull {
     /// and the point's camera depth; `None` behind the camera.
     fn camera_distance(&self, c: usize, p: DVec3) -> Option<(f64, f64)> {
         let cam = &self.cameras[c];
-        let pc = cam.camera_from_world().transform_point3(p);
-        let z = pc.z;
+        let z = cam.camera_from_world().transform_point3(p).z;
         if z <= 1e-6 {
             return None;
         }
-        let px = cam.project_camera_point(pc).ok()?.pixel;
+        let px = cam.project(p).ok()?;
         let (w, h) = (
             f64::from(cam.intrinsics.width - 1),
             f64::from(cam.intrinsics.height - 1),
