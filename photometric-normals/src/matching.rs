@@ -34,7 +34,6 @@
 //! matched depth above 1 cm per pixel ([`IntegrationParams::match_jump_m`](crate::IntegrationParams))
 //! between consecutive matches are depth discontinuities (red).
 
-use nalgebra::Matrix3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
@@ -386,25 +385,6 @@ impl<'a> Prepared<'a> {
         })
     }
 
-    /// Mean distance between this view's surface window around `own` and the other
-    /// surface's window (rendered here) around the projection of `other_point`, after the
-    /// optimal rigid alignment.
-    fn surface_distance(&self, own: usize, other_point: DVec3, half: i64) -> f64 {
-        let Some(centre) = self.pixel_of(other_point) else {
-            return f64::INFINITY;
-        };
-        let pairs: Vec<(DVec3, DVec3)> = self
-            .window(own, half)
-            .zip(self.window(centre, half))
-            .filter_map(|(a, b)| Some((self.points[a?]?, self.other_points[b?]?)))
-            .collect();
-        let full = ((2 * half + 1) * (2 * half + 1)) as usize;
-        if pairs.len() * 2 < full {
-            return f64::INFINITY;
-        }
-        rigid_residual(&pairs)
-    }
-
     fn stack_at(&self, pixel: usize, out: &mut Vec<f64>, from: usize) -> bool {
         let Some(images) = self.view.images else {
             return false;
@@ -417,49 +397,351 @@ impl<'a> Prepared<'a> {
     }
 }
 
-/// Mean distance of corresponding points after the optimal rigid alignment (Kabsch).
+/// Mean distance of corresponding points after the optimal rigid alignment (the Kabsch
+/// problem: the rotation that minimises the summed squared distances of the centred points).
+///
+/// The rotation is found as Horn's unit quaternion — the eigenvector of the largest
+/// eigenvalue of the 4 × 4 key matrix of the cross-covariance — with the eigenvalue from
+/// Newton's method on the key matrix's characteristic polynomial (Theobald's QCP, Liu et al.
+/// 2010) and the eigenvector as the longest column of the adjugate of `N − λI`. This is the
+/// Kabsch rotation with the reflection fix, found in a fixed small number of operations
+/// instead of a 3 × 3 SVD.
 fn rigid_residual(pairs: &[(DVec3, DVec3)]) -> f64 {
     let n = pairs.len() as f64;
     let ca = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
     let cb = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
-    let mut h = Matrix3::zeros();
-    for (a, b) in pairs {
-        let (a, b) = (*a - ca, *b - cb);
-        h += nalgebra::Vector3::new(a.x, a.y, a.z)
-            * nalgebra::Vector3::new(b.x, b.y, b.z).transpose();
-    }
-    let svd = h.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return f64::INFINITY;
-    };
-    let mut d = Matrix3::identity();
-    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = vt.transpose() * d * u.transpose();
-    pairs
-        .iter()
-        .map(|(a, b)| {
-            let a = *a - ca;
-            let ra = r * nalgebra::Vector3::new(a.x, a.y, a.z);
-            (DVec3::new(ra.x, ra.y, ra.z) - (*b - cb)).length()
-        })
-        .sum::<f64>()
-        / n
+    aligned_distance(pairs.len(), || {
+        pairs.iter().map(|(a, b)| (*a - ca, *b - cb))
+    })
 }
 
-/// Closest approach of two rays (unit directions): the parameters along each and the gap.
-fn closest_approach(o1: DVec3, d1: DVec3, o2: DVec3, d2: DVec3) -> Option<(f64, f64, f64)> {
-    let w = o1 - o2;
-    let (b, d, e) = (d1.dot(d2), d1.dot(w), d2.dot(w));
-    let denom = 1.0 - b * b;
-    if denom < 1e-12 {
+/// The mean distance of `n` centred point pairs (`centred` yields them, twice) under the
+/// optimal rotation.
+fn aligned_distance<I: Iterator<Item = (DVec3, DVec3)>>(n: usize, centred: impl Fn() -> I) -> f64 {
+    let mut h = [[0.0f64; 3]; 3];
+    let mut g = 0.0;
+    for (a, b) in centred() {
+        let (a, b) = (a.to_array(), b.to_array());
+        for (r, row) in h.iter_mut().enumerate() {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v += a[r] * b[c];
+            }
+        }
+        g += a.iter().chain(&b).map(|v| v * v).sum::<f64>();
+    }
+    if g <= 0.0 {
+        // Every point at its centroid: nothing to align.
+        return 0.0;
+    }
+    // Scale to unit mean squared spread so that the tolerances below are relative.
+    let s = 1.0 / (0.5 * g);
+    for v in h.iter_mut().flatten() {
+        *v *= s;
+    }
+    let Some(r) = horn_rotation(&h) else {
+        return f64::INFINITY;
+    };
+    centred()
+        .map(|(a, b)| {
+            let ra = DVec3::new(
+                r[0][0] * a.x + r[0][1] * a.y + r[0][2] * a.z,
+                r[1][0] * a.x + r[1][1] * a.y + r[1][2] * a.z,
+                r[2][0] * a.x + r[2][1] * a.y + r[2][2] * a.z,
+            );
+            (ra - b).length()
+        })
+        .sum::<f64>()
+        / n as f64
+}
+
+/// [`aligned_distance`] of two full windows, centred (`xs, ys, zs`), with the sum `g` of
+/// both windows' squared norms.
+fn aligned_distance_full(
+    (ax, ay, az): (&[f64], &[f64], &[f64]),
+    (bx, by, bz): (&[f64], &[f64], &[f64]),
+    g: f64,
+) -> f64 {
+    if g <= 0.0 {
+        return 0.0;
+    }
+    let k = ax
+        .len()
+        .min(ay.len())
+        .min(az.len())
+        .min(bx.len())
+        .min(by.len())
+        .min(bz.len());
+    let (ax, ay, az, bx, by, bz) = (&ax[..k], &ay[..k], &az[..k], &bx[..k], &by[..k], &bz[..k]);
+    let mut h = [0.0f64; 9];
+    for i in 0..k {
+        let (x, y, z) = (ax[i], ay[i], az[i]);
+        let (u, v, w) = (bx[i], by[i], bz[i]);
+        h[0] += x * u;
+        h[1] += x * v;
+        h[2] += x * w;
+        h[3] += y * u;
+        h[4] += y * v;
+        h[5] += y * w;
+        h[6] += z * u;
+        h[7] += z * v;
+        h[8] += z * w;
+    }
+    let s = 1.0 / (0.5 * g);
+    let h = h.map(|v| v * s);
+    let Some(r) = horn_rotation(&[[h[0], h[1], h[2]], [h[3], h[4], h[5]], [h[6], h[7], h[8]]])
+    else {
+        return f64::INFINITY;
+    };
+    let [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]] = r;
+    let mut sum = 0.0;
+    for i in 0..k {
+        let (x, y, z) = (ax[i], ay[i], az[i]);
+        let dx = r00 * x + r01 * y + r02 * z - bx[i];
+        let dy = r10 * x + r11 * y + r12 * z - by[i];
+        let dz = r20 * x + r21 * y + r22 * z - bz[i];
+        sum += (dx * dx + dy * dy + dz * dz).sqrt();
+    }
+    sum / k as f64
+}
+
+/// The surface windows of a plane's samples, gathered once per plane: `k = window²` points
+/// per sample in window order (rows, then columns; `NaN` where the pixel is outside the image
+/// or has no surface), and the centroid of each window whose points all exist.
+struct Windows {
+    k: usize,
+    points: Vec<DVec3>,
+    centroids: Vec<Option<DVec3>>,
+    /// Per window: its points less the centroid (of full windows; else the points), as `k`
+    /// xs, then ys, then zs.
+    centred: Vec<f64>,
+    /// Per window: the sum of the centred points' squared norms.
+    spread: Vec<f64>,
+}
+
+impl Windows {
+    /// The windows of `field` (per pixel of a `width × height` image) around `centres`.
+    fn gather(
+        field: &[Option<DVec3>],
+        (width, height): (u32, u32),
+        centres: impl Iterator<Item = Option<usize>>,
+        half: i64,
+    ) -> Self {
+        let (w, h) = (i64::from(width), i64::from(height));
+        let side = (2 * half + 1) as usize;
+        let k = side * side;
+        let mut points = Vec::new();
+        let mut centroids = Vec::new();
+        let mut centred = Vec::new();
+        let mut spread = Vec::new();
+        for centre in centres {
+            let start = points.len();
+            match centre {
+                None => points.resize(start + k, DVec3::NAN),
+                Some(c) => {
+                    let (cx, cy) = ((c % width as usize) as i64, (c / width as usize) as i64);
+                    for dy in -half..=half {
+                        for dx in -half..=half {
+                            let (x, y) = (cx + dx, cy + dy);
+                            let p = (x >= 0 && y >= 0 && x < w && y < h)
+                                .then(|| field[(y * w + x) as usize])
+                                .flatten();
+                            points.push(p.unwrap_or(DVec3::NAN));
+                        }
+                    }
+                }
+            }
+            let window = &points[start..];
+            let centroid = window
+                .iter()
+                .all(|p| !p.x.is_nan())
+                .then(|| window.iter().copied().sum::<DVec3>() / k as f64);
+            let c = centroid.unwrap_or(DVec3::ZERO);
+            centred.extend(window.iter().map(|p| p.x - c.x));
+            centred.extend(window.iter().map(|p| p.y - c.y));
+            centred.extend(window.iter().map(|p| p.z - c.z));
+            spread.push(window.iter().map(|p| (*p - c).length_squared()).sum());
+            centroids.push(centroid);
+        }
+        Self {
+            k,
+            points,
+            centroids,
+            centred,
+            spread,
+        }
+    }
+
+    fn centred(&self, s: usize) -> (&[f64], &[f64], &[f64]) {
+        let w = &self.centred[3 * s * self.k..3 * (s + 1) * self.k];
+        let (x, yz) = w.split_at(self.k);
+        let (y, z) = yz.split_at(self.k);
+        (x, y, z)
+    }
+
+    fn window(&self, s: usize) -> &[DVec3] {
+        &self.points[s * self.k..(s + 1) * self.k]
+    }
+}
+
+/// The surface metric's distance between the window `s` of `own` (a view's surface) and the
+/// window `t` of `other` (the other surface rendered into that view): the mean distance of
+/// the pairs of existing points after the optimal rigid alignment, `∞` if fewer than half
+/// the window's pairs exist. `pairs` is scratch space.
+fn window_distance(
+    own: &Windows,
+    s: usize,
+    other: &Windows,
+    t: usize,
+    pairs: &mut Vec<(DVec3, DVec3)>,
+) -> f64 {
+    let (a, b) = (own.window(s), other.window(t));
+    if own.centroids[s].is_some() && other.centroids[t].is_some() {
+        // Full windows: the centroids are the ones `rigid_residual` would compute.
+        return aligned_distance_full(
+            own.centred(s),
+            other.centred(t),
+            own.spread[s] + other.spread[t],
+        );
+    }
+    pairs.clear();
+    pairs.extend(
+        a.iter()
+            .zip(b)
+            .filter(|(p, q)| !p.x.is_nan() && !q.x.is_nan())
+            .map(|(p, q)| (*p, *q)),
+    );
+    if pairs.len() * 2 < own.k {
+        return f64::INFINITY;
+    }
+    rigid_residual(pairs)
+}
+
+/// The rotation `R` maximising `Σ bᵢ · R aᵢ` for the cross-covariance `h = Σ aᵢ bᵢᵀ` (scaled
+/// so that the sum of both point sets' squared norms is 2): Horn's quaternion method with
+/// Theobald's QCP eigenvalue. `None` for non-finite input.
+fn horn_rotation(h: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let [[sxx, sxy, sxz], [syx, syy, syz], [szx, szy, szz]] = *h;
+    // Horn's key matrix N (symmetric 4 × 4); its largest eigenvalue is at most 1 here.
+    let k = [
+        [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],
+        [syz - szy, sxx - syy - szz, sxy + syx, szx + sxz],
+        [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
+        [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
+    ];
+    if k.iter().flatten().any(|v| !v.is_finite()) {
         return None;
     }
-    let t1 = (b * e - d) / denom;
-    let t2 = (e - b * d) / denom;
-    let gap = ((o1 + d1 * t1) - (o2 + d2 * t2)).length();
-    Some((t1, t2, gap))
+    // Characteristic polynomial λ⁴ + c2 λ² + c1 λ + c0 (N is traceless).
+    let c2 = -2.0 * h.iter().flatten().map(|v| v * v).sum::<f64>();
+    let c1 = 8.0
+        * (sxx * syz * szy + syy * szx * sxz + szz * sxy * syx
+            - sxx * syy * szz
+            - syz * szx * sxy
+            - szy * syx * sxz);
+    // The determinant of N by its 2 × 2 minors (rows 0-1 against rows 2-3), which the
+    // adjugate below reuses.
+    let lo = minors2(&k[2], &k[3]);
+    let c0 = laplace(&k[0], &k[1], &lo);
+    // Newton from the upper bound 1 decreases monotonically onto the largest root and
+    // converges quadratically: stop once a step is below 10⁻¹³ (relative), where rounding
+    // takes over.
+    let mut l = 1.0f64;
+    let mut slope = 0.0;
+    for _ in 0..50 {
+        let l2 = l * l;
+        let p = (l2 + c2) * l2 + c1 * l + c0;
+        slope = (4.0 * l2 + 2.0 * c2) * l + c1;
+        if slope == 0.0 {
+            break;
+        }
+        let step = p / slope;
+        l -= step;
+        if step.abs() <= 1e-13 * l.abs().max(1e-12) {
+            break;
+        }
+    }
+    let mut m = k;
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] -= l;
+    }
+    // The eigenvector: the longest column of adj(N − λI) (N symmetric: the cofactors of a
+    // row). Cofactors of rows 0 and 1 expand the 3 × 3 minors along row 1 or 0 with the
+    // 2 × 2 minors of rows 2-3; those of rows 2 and 3 along row 3 or 2 with rows 0-1's.
+    // Column j is p'(λ) vⱼ v for the unit eigenvector v, and some |vⱼ|² ≥ 1/4: take the first
+    // column with |vⱼ|² ≥ 0.1 (well conditioned), else the longest.
+    let accept = 0.1 * slope * slope;
+    let lo = minors2(&m[2], &m[3]);
+    let (mut best, mut best_norm) = ([0.0; 4], 0.0);
+    for j in 0..4 {
+        let q = match j {
+            0 => cofactors(&m[1], &lo, 1.0),
+            1 => cofactors(&m[0], &lo, -1.0),
+            2 => cofactors(&m[3], &minors2(&m[0], &m[1]), 1.0),
+            _ => cofactors(&m[2], &minors2(&m[0], &m[1]), -1.0),
+        };
+        let norm = q.iter().map(|v| v * v).sum::<f64>();
+        if norm > best_norm {
+            (best, best_norm) = (q, norm);
+        }
+        if norm >= accept {
+            break;
+        }
+    }
+    if !(best_norm > 0.0 && best_norm.is_finite()) {
+        // A degenerate key matrix (e.g. collinear points): any optimum; take identity.
+        return Some([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    }
+    let inv = 1.0 / best_norm.sqrt();
+    let [w, x, y, z] = best.map(|v| v * inv);
+    Some([
+        [
+            w * w + x * x - y * y - z * z,
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            w * w - x * x + y * y - z * z,
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            w * w - x * x - y * y + z * z,
+        ],
+    ])
+}
+
+/// The six 2 × 2 minors of two rows, columns `(0,1), (0,2), (0,3), (1,2), (1,3), (2,3)`.
+fn minors2(r: &[f64; 4], s: &[f64; 4]) -> [f64; 6] {
+    [
+        r[0] * s[1] - r[1] * s[0],
+        r[0] * s[2] - r[2] * s[0],
+        r[0] * s[3] - r[3] * s[0],
+        r[1] * s[2] - r[2] * s[1],
+        r[1] * s[3] - r[3] * s[1],
+        r[2] * s[3] - r[3] * s[2],
+    ]
+}
+
+/// The 3 × 3 determinants of `row` over the two rows whose 2 × 2 minors are `m2`, one per
+/// left-out column `c`, signed as cofactors `(−1)^c · sign`.
+fn cofactors(row: &[f64; 4], m2: &[f64; 6], sign: f64) -> [f64; 4] {
+    let [m01, m02, m03, m12, m13, m23] = *m2;
+    [
+        sign * (row[1] * m23 - row[2] * m13 + row[3] * m12),
+        -sign * (row[0] * m23 - row[2] * m03 + row[3] * m02),
+        sign * (row[0] * m13 - row[1] * m03 + row[3] * m01),
+        -sign * (row[0] * m12 - row[1] * m02 + row[2] * m01),
+    ]
+}
+
+/// The determinant of a 4 × 4 matrix from its rows 0, 1 and the 2 × 2 minors `m23` of rows
+/// 2, 3 (Laplace expansion by complementary minors).
+fn laplace(r0: &[f64; 4], r1: &[f64; 4], m23: &[f64; 6]) -> f64 {
+    let m01 = minors2(r0, r1);
+    m01[0] * m23[5] - m01[1] * m23[4] + m01[2] * m23[3] + m01[3] * m23[2] - m01[4] * m23[1]
+        + m01[5] * m23[0]
 }
 
 const LV: usize = 0;
@@ -478,55 +760,59 @@ fn lowest_cost_path(
 ) -> Vec<(usize, usize)> {
     let (ri, rj) = (na + 1, nb + 1);
     let at = |i: usize, j: usize| i * rj + j;
-    let mut dist = vec![[f64::INFINITY; 4]; ri * rj];
+    // The costs of rows i − 1 and i (rolling); the back-pointers of all cells.
+    let mut above = vec![[f64::INFINITY; 4]; rj];
+    let mut here = vec![[f64::INFINITY; 4]; rj];
     let mut from = vec![[u8::MAX; 4]; ri * rj];
-    dist[at(0, 0)][LO] = 0.0;
     let matched = |s: usize| s == LV || s == RV;
+    let offer = |s: usize, v: f64, p: usize, best: &mut [f64; 4], arg: &mut [u8; 4]| {
+        if v < best[s] {
+            best[s] = v;
+            arg[s] = p as u8;
+        }
+    };
     for i in 0..ri {
         for j in 0..rj {
             if i == 0 && j == 0 {
+                here[0] = [f64::INFINITY; 4];
+                here[0][LO] = 0.0;
                 continue;
             }
             let mut best = [f64::INFINITY; 4];
             let mut arg = [u8::MAX; 4];
-            let offer = |s: usize, v: f64, p: usize, best: &mut [f64; 4], arg: &mut [u8; 4]| {
-                if v < best[s] {
-                    best[s] = v;
-                    arg[s] = p as u8;
-                }
-            };
             if i > 0 && j > 0 {
                 let c = costs[(i - 1) * nb + (j - 1)];
                 if c.is_finite() {
                     // Diagonal match from any state; left-slanted from a match at (i−1, j).
-                    for (p, &prev) in dist[at(i - 1, j - 1)].iter().enumerate() {
+                    for (p, &prev) in above[j - 1].iter().enumerate() {
                         let pen = if matched(p) { 0.0 } else { disc };
                         offer(LV, prev + c + pen, p, &mut best, &mut arg);
                     }
                     for p in [LV, RV] {
-                        offer(LV, dist[at(i - 1, j)][p] + c, 4 + p, &mut best, &mut arg);
-                        offer(RV, dist[at(i, j - 1)][p] + c, p, &mut best, &mut arg);
+                        offer(LV, above[j][p] + c, 4 + p, &mut best, &mut arg);
+                        offer(RV, here[j - 1][p] + c, p, &mut best, &mut arg);
                     }
                 }
             }
             if i > 0 {
-                for (p, &prev) in dist[at(i - 1, j)].iter().enumerate() {
+                for (p, &prev) in above[j].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
                     offer(LO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
             if j > 0 {
-                for (p, &prev) in dist[at(i, j - 1)].iter().enumerate() {
+                for (p, &prev) in here[j - 1].iter().enumerate() {
                     let pen = if matched(p) { disc } else { 0.0 };
                     offer(RO, prev + occ + pen, p, &mut best, &mut arg);
                 }
             }
-            dist[at(i, j)] = best;
+            here[j] = best;
             from[at(i, j)] = arg;
         }
+        std::mem::swap(&mut above, &mut here);
     }
-    // Backtrack from the cheapest end state.
-    let end = dist[at(na, nb)];
+    // Backtrack from the cheapest end state (row na is `above` after the last swap).
+    let end = above[nb];
     let Some(mut s) = (0..4)
         .filter(|&s| end[s].is_finite())
         .min_by(|&a, &b| end[a].total_cmp(&end[b]))
@@ -707,42 +993,76 @@ fn match_plane(
         return out;
     }
     let mut costs = vec![f64::INFINITY; na * nb];
-    let mut points = vec![DVec3::ZERO; na * nb];
     let mut stack = (Vec::new(), Vec::new());
+    let mut pairs = Vec::with_capacity(params.window_px * params.window_px);
+    // Per sample, once per plane: the guide depth, the ray's dot with the centres' offset
+    // (closest approach then costs one dot product per cell) and, for the surface metric,
+    // the pixel of the sample's surface point in the other view.
+    let w = pl.centre - pr.centre;
+    let guide_b: Vec<f64> = lr.pixels.iter().map(|&i| pr.guide.depth_m[i]).collect();
+    let e_b: Vec<f64> = lr.rays.iter().map(|r| r.dot(w)).collect();
+    let surface = params.metric == MatchMetric::SurfaceRigid;
+    // The surface metric's windows: around each sample in its own surface, and around the
+    // pixel of the sample's point in the other view's rendering of this surface.
+    let windows = |own: &Prepared<'_>, to: &Prepared<'_>, pixels: &[usize]| {
+        let n = if surface { pixels.len() } else { 0 };
+        let own_windows = Windows::gather(
+            &own.points,
+            (own.width, own.height),
+            pixels[..n].iter().map(|&i| Some(i)),
+            half,
+        );
+        let centres = pixels[..n]
+            .iter()
+            .map(|&i| own.points[i].and_then(|x| to.pixel_of(x)));
+        let other_windows = Windows::gather(&to.other_points, (to.width, to.height), centres, half);
+        (own_windows, other_windows)
+    };
+    let (own_a, in_right_a) = windows(pl, pr, &ll.pixels);
+    let (own_b, in_left_b) = windows(pr, pl, &lr.pixels);
     for a in 0..na {
         let ia = ll.pixels[a];
         let guide_a = pl.guide.depth_m[ia];
         if guide_a.is_nan() {
             continue;
         }
+        let ray_a = ll.rays[a];
+        let d_a = ray_a.dot(w);
         for b in 0..nb {
-            let ib = lr.pixels[b];
-            let guide_b = pr.guide.depth_m[ib];
-            if guide_b.is_nan() {
+            let gb = guide_b[b];
+            if gb.is_nan() {
                 continue;
             }
-            let Some((ta, tb, gap)) =
-                closest_approach(pl.centre, ll.rays[a], pr.centre, lr.rays[b])
-            else {
+            // `closest_approach`, term for term.
+            let ray_b = lr.rays[b];
+            let Some((ta, tb)) = meet(ray_a, d_a, ray_b, e_b[b]) else {
                 continue;
             };
-            if (ta - guide_a).abs() > params.band_m
-                || (tb - guide_b).abs() > params.band_m
-                || gap > 2.0 * pl.pixel_footprint(ta).max(pr.pixel_footprint(tb))
-            {
+            if (ta - guide_a).abs() > params.band_m || (tb - gb).abs() > params.band_m {
                 continue;
             }
-            let x = 0.5 * (pl.centre + ll.rays[a] * ta + pr.centre + lr.rays[b] * tb);
+            let (pa, pb) = (pl.centre + ray_a * ta, pr.centre + ray_b * tb);
+            if (pa - pb).length() > 2.0 * pl.pixel_footprint(ta).max(pr.pixel_footprint(tb)) {
+                continue;
+            }
+            let ib = lr.pixels[b];
+            let x = 0.5 * (pl.centre + ray_a * ta + pr.centre + ray_b * tb);
             if hull.is_some_and(|h| !h.contains(x)) {
                 continue;
             }
-            let (Some(xa), Some(xb)) = (pl.points[ia], pr.points[ib]) else {
+            let (true, Some(xb)) = (pl.points[ia].is_some(), pr.points[ib]) else {
                 continue;
             };
             let c = match params.metric {
-                MatchMetric::SurfaceRigid => pl
-                    .surface_distance(ia, xb, half)
-                    .max(pr.surface_distance(ib, xa, half)),
+                MatchMetric::SurfaceRigid => {
+                    let left = window_distance(&own_a, a, &in_left_b, b, &mut pairs);
+                    // The larger of the two: the second is not needed once the first is ∞.
+                    if left == f64::INFINITY {
+                        left
+                    } else {
+                        left.max(window_distance(&own_b, b, &in_right_a, a, &mut pairs))
+                    }
+                }
                 MatchMetric::FullOnWindow | MatchMetric::IlluminationStack => {
                     let from = usize::from(params.metric == MatchMetric::IlluminationStack);
                     window_difference(pl, pr, ia, ib, half, from, &mut stack)
@@ -753,7 +1073,6 @@ fn match_plane(
             };
             out.evaluated += 1;
             costs[a * nb + b] = c;
-            points[a * nb + b] = x;
         }
     }
     let finite: Vec<f64> = costs.iter().copied().filter(|c| c.is_finite()).collect();
@@ -771,7 +1090,12 @@ fn match_plane(
     out.path_matches = path.len();
     let mut prev: Option<(usize, usize, f64, f64)> = None;
     for &(a, b) in &path {
-        let x = points[a * nb + b];
+        // The cell's point again (path cells are evaluated cells, whose rays meet).
+        let (ray_a, ray_b) = (ll.rays[a], lr.rays[b]);
+        let Some((ta, tb)) = meet(ray_a, ray_a.dot(w), ray_b, ray_b.dot(w)) else {
+            continue;
+        };
+        let x = 0.5 * (pl.centre + ray_a * ta + pr.centre + ray_b * tb);
         let (ia, ib) = (ll.pixels[a], lr.pixels[b]);
         let (za, zb) = ((x - pl.centre).length(), (x - pr.centre).length());
         if let Some((pa, pb, pza, pzb)) = prev {
@@ -789,6 +1113,18 @@ fn match_plane(
         }
     }
     out
+}
+
+/// Where two rays (unit directions `ray_a`, `ray_b` from the two centres, and their dot
+/// products `d_a`, `e_b` with the centres' offset `left − right`) come closest: the
+/// parameters along each, `None` for parallel rays.
+fn meet(ray_a: DVec3, d_a: f64, ray_b: DVec3, e_b: f64) -> Option<(f64, f64)> {
+    let dot = ray_a.dot(ray_b);
+    let denom = 1.0 - dot * dot;
+    if denom < 1e-12 {
+        return None;
+    }
+    Some(((dot * e_b - d_a) / denom, (e_b - dot * d_a) / denom))
 }
 
 fn pixel_distance(i: usize, j: usize, width: u32) -> f64 {
@@ -879,6 +1215,82 @@ fn projected_difference(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Matrix3;
+
+    /// The reference: Kabsch by a 3 × 3 SVD with the reflection fix.
+    fn rigid_residual_svd(pairs: &[(DVec3, DVec3)]) -> f64 {
+        let n = pairs.len() as f64;
+        let ca = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
+        let cb = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
+        let mut h = Matrix3::zeros();
+        for (a, b) in pairs {
+            let (a, b) = (*a - ca, *b - cb);
+            h += nalgebra::Vector3::new(a.x, a.y, a.z)
+                * nalgebra::Vector3::new(b.x, b.y, b.z).transpose();
+        }
+        let svd = h.svd(true, true);
+        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+        let mut d = Matrix3::identity();
+        if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+            d[(2, 2)] = -1.0;
+        }
+        let r = vt.transpose() * d * u.transpose();
+        pairs
+            .iter()
+            .map(|(a, b)| {
+                let a = *a - ca;
+                let ra = r * nalgebra::Vector3::new(a.x, a.y, a.z);
+                (DVec3::new(ra.x, ra.y, ra.z) - (*b - cb)).length()
+            })
+            .sum::<f64>()
+            / n
+    }
+
+    #[test]
+    fn quaternion_kabsch_equals_the_svd_kabsch() {
+        let rng = skin_core::random::SplitMix64::new(7);
+        let mut draws = 0u64;
+        let mut uniform = || {
+            draws += 1;
+            rng.uniform_at(draws)
+        };
+        let mut worst: f64 = 0.0;
+        for trial in 0..2000 {
+            let n = 13 + trial % 13;
+            let q = skin_core::math::DQuat::from_axis_angle(
+                DVec3::new(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalize(),
+                6.0 * uniform() - 3.0,
+            );
+            // Patch-like sets: a 5 × 5 grid of cm-sized points, some planar, bent,
+            // mirrored or noisy, at a few metres from the origin.
+            let kind = trial % 4;
+            let pairs: Vec<(DVec3, DVec3)> = (0..n)
+                .map(|k| {
+                    let p = DVec3::new(
+                        (k % 5) as f64 * 0.005,
+                        (k / 5) as f64 * 0.005,
+                        if kind == 0 { 0.0 } else { 0.002 * uniform() },
+                    ) + DVec3::new(1.0, 2.0, 3.0);
+                    let mut m = q * p + DVec3::new(0.3, -0.1, 0.2);
+                    match kind {
+                        1 => m += DVec3::splat(0.001) * (uniform() - 0.5),
+                        2 => m.z = -m.z,
+                        3 => m += DVec3::new(0.0, 0.0, 0.003 * (p.x * 300.0).sin()),
+                        _ => {}
+                    }
+                    (p, m)
+                })
+                .collect();
+            let (fast, slow) = (rigid_residual(&pairs), rigid_residual_svd(&pairs));
+            let scale = slow.abs().max(1e-6);
+            worst = worst.max((fast - slow).abs() / scale);
+            assert!(
+                (fast - slow).abs() <= 1e-7 * scale,
+                "trial {trial}: {fast} vs {slow}"
+            );
+        }
+        eprintln!("worst relative difference {worst:e}");
+    }
 
     #[test]
     fn rigid_residual_ignores_a_rigid_motion_and_sees_a_bend() {
@@ -890,7 +1302,7 @@ mod tests {
             .iter()
             .map(|p| (*p, q * *p + DVec3::new(0.1, -0.2, 0.3)))
             .collect();
-        assert!(rigid_residual(&moved) < 1e-12);
+        assert!(rigid_residual(&moved) < 1e-9);
         let bent: Vec<(DVec3, DVec3)> = pts
             .iter()
             .map(|p| (*p, *p + DVec3::Z * (p.x * 10.0).powi(2) * 0.01))

@@ -180,7 +180,12 @@ impl VisualHull {
 
     /// Whether `p` lies inside every camera's silhouette cone.
     pub fn contains(&self, p: DVec3) -> bool {
-        self.hull_distance(p, None).0 <= 0.0
+        // `hull_distance(p, None).0 <= 0.0`, stopping at the first camera that sees `p`
+        // outside its silhouette (or cannot see it).
+        (0..self.cameras.len()).all(|c| {
+            self.camera_distance(c, p)
+                .is_some_and(|(sd, _)| sd <= 0.0 || sd.is_nan())
+        })
     }
 
     /// The hull's depth along each silhouette pixel ray of camera `view` (first entry point;
