@@ -27,8 +27,6 @@
 //! voxels dense. Blocks are filled in parallel (rayon); each voxel's value depends only on
 //! the views, so the result does not depend on the thread count.
 
-use std::collections::{HashMap, HashSet};
-
 use rayon::prelude::*;
 use skin_core::camera::Camera;
 use skin_core::check;
@@ -36,7 +34,7 @@ use skin_core::image::{distance_to_background, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 
-use crate::marching_cubes::{march_cells, Node};
+use crate::marching_cubes::{cell_straddles, march_cells, Node, NodeMap, NodeSet};
 use crate::{Context, DepthMap, Error, Result, ResultExt};
 
 /// Voxels along each side of a block of the sparse volume.
@@ -311,7 +309,7 @@ fn prepare<'a>(view: &MergeView<'a>, params: &MergeParams) -> Result<PreparedVie
 }
 
 /// Blocks (by block coordinates) that a view's ramp crosses.
-fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node>> {
+fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<NodeSet<Node>> {
     let block_m = params.voxel_m * BLOCK as f64;
     // Subsample pixels so that neighbouring samples are at most half a block apart at the
     // farthest depth.
@@ -328,10 +326,10 @@ fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node
     if ys.last() != Some(&(view.height - 1)) {
         ys.push(view.height - 1);
     }
-    let per_row: Vec<Result<HashSet<Node>>> = ys
+    let per_row: Vec<Result<NodeSet<Node>>> = ys
         .par_iter()
         .map(|&y| {
-            let mut set = HashSet::new();
+            let mut set = NodeSet::default();
             let mut xs: Vec<usize> = (0..view.width).step_by(stride).collect();
             if xs.last() != Some(&(view.width - 1)) {
                 xs.push(view.width - 1);
@@ -351,7 +349,7 @@ fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node
             Ok(set)
         })
         .collect();
-    let mut all = HashSet::new();
+    let mut all = NodeSet::default();
     for s in per_row {
         all.extend(s?);
     }
@@ -510,7 +508,7 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         .enumerate()
         .map(|(i, v)| prepare(v, params).at(Context::Camera(i)))
         .collect::<Result<Vec<_>>>()?;
-    let mut keys = HashSet::new();
+    let mut keys = NodeSet::default();
     for (i, v) in prepared.iter().enumerate() {
         keys.extend(view_blocks(v, params).at(Context::Camera(i))?);
     }
@@ -524,7 +522,7 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         .iter()
         .map(|b| b.weight.iter().filter(|&&w| w > 0.0).count())
         .sum();
-    let index: HashMap<Node, usize> = keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
+    let index: NodeMap<Node, usize> = keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
     let value = |n: Node| -> Option<f64> {
         let b = [
             n[0].div_euclid(BLOCK),
@@ -536,9 +534,16 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         let i = (l[0] + BLOCK * (l[1] + BLOCK * l[2])) as usize;
         (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
     };
-    let cells = keys
-        .iter()
-        .flat_map(|&b| (0..BLOCK_LEN).map(move |i| block_node(b, i)));
+    // Only cells with a sign change draw anything: find them in parallel (same order as a
+    // sequential walk over the blocks, so the mesh does not depend on the thread count).
+    let cells: Vec<Node> = keys
+        .par_iter()
+        .flat_map_iter(|&b| {
+            (0..BLOCK_LEN)
+                .map(move |i| block_node(b, i))
+                .filter(move |&c| cell_straddles(c, value, 0.0))
+        })
+        .collect();
     let mesh = march_cells(cells, value, 0.0, |n| node_position(n, params.voxel_m))?;
     Ok(MergedSurface {
         mesh,
