@@ -247,6 +247,14 @@ fn cubic_edge_zero(f0: f64, f1: f64, f2: f64, f3: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+#[cfg(test)]
+pub(crate) mod tests_support {
+    /// The private cubic edge fit, for the Poisson tests.
+    pub(crate) fn cubic_zero(f0: f64, f1: f64, f2: f64, f3: f64) -> f64 {
+        super::cubic_edge_zero(f0, f1, f2, f3)
+    }
+}
+
 /// [`march_cells`] with a choice of vertex placement on the edges.
 pub(crate) fn march_cells_with(
     cells: impl IntoIterator<Item = Node>,

@@ -367,9 +367,20 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
     let mut weight = vec![0.0f32; BLOCK_LEN];
     let half = 0.5 * params.ramp_m;
     let taper = 0.25 * params.ramp_m;
-    let near: Vec<&PreparedView> = views
+    // Each view that may see the block, with the range of camera distances at which a voxel
+    // can get a sample from it (the footprint's depths ± half the ramp, and a hair more).
+    let near: Vec<(&PreparedView, DVec3, f64, f64)> = views
         .iter()
-        .filter(|v| block_may_see(b, v, params))
+        .filter_map(|v| {
+            let (dmin, dmax) = block_may_see(b, v, params)?;
+            let margin = 1e-9 * (1.0 + dmax);
+            Some((
+                v,
+                v.camera.centre(),
+                dmin - half - margin,
+                dmax + half + margin,
+            ))
+        })
         .collect();
     if near.is_empty() {
         return Block { distance, weight };
@@ -378,14 +389,21 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
         let node = block_node(b, i);
         let p = node_position(node, params.voxel_m);
         let (mut sw, mut swd) = (0.0, 0.0);
-        for v in &near {
+        for &(v, centre, lo, hi) in &near {
+            // The bilinear depth lies within the footprint's depth range, so a voxel whose
+            // distance is outside it by more than half the ramp gets |s| > half: skip it
+            // before projecting (the result is the same).
+            let range = (p - centre).length();
+            if range < lo || range > hi {
+                continue;
+            }
             let Ok(proj) = v.camera.project(p) else {
                 continue;
             };
             let Some((d, w)) = v.sample(proj, params.max_depth_jump_m) else {
                 continue;
             };
-            let s = d - (p - v.camera.centre()).length();
+            let s = d - range;
             if s.abs() > half || w <= 0.0 {
                 continue;
             }
@@ -404,8 +422,9 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
 /// Whether any voxel of block `b` can get a sample from view `v`: the block's pixel footprint
 /// (its corners' projections) overlaps the image, and the distances of the block's points to
 /// the camera overlap the ramp around the depths in that footprint. A conservative test: it
-/// only skips views that would contribute nothing.
-fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
+/// only skips views that would contribute nothing. Returns the range of depths in the
+/// footprint (unbounded when a corner is behind the camera).
+fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> Option<(f64, f64)> {
     let lo = node_position(b.map(|c| c * BLOCK), params.voxel_m);
     let side = (BLOCK - 1) as f64 * params.voxel_m;
     let centre = lo + DVec3::splat(0.5 * side);
@@ -422,13 +441,13 @@ fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
             lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64) * side;
         // A corner behind the camera: keep the view (no cheap bound).
         let Ok(px) = v.camera.project(p) else {
-            return true;
+            return Some((f64::NEG_INFINITY, f64::INFINITY));
         };
         (u0, v0, u1, v1) = (u0.min(px.x), v0.min(px.y), u1.max(px.x), v1.max(px.y));
     }
     let (w, h) = (v.width as f64, v.height as f64);
     if u1 < 0.0 || v1 < 0.0 || u0 > w - 1.0 || v0 > h - 1.0 {
-        return false;
+        return None;
     }
     // Bilinear samples use the pixels around the projection: widen by one pixel.
     let x0 = (u0.floor() - 1.0).max(0.0) as usize;
@@ -445,7 +464,8 @@ fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
         }
     }
     let half = 0.5 * params.ramp_m;
-    dmin <= dmax && dist - radius <= dmax + half && dist + radius >= dmin - half
+    (dmin <= dmax && dist - radius <= dmax + half && dist + radius >= dmin - half)
+        .then_some((dmin, dmax))
 }
 
 fn block_node(b: Node, i: usize) -> Node {
@@ -536,12 +556,41 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
     };
     // Only cells with a sign change draw anything: find them in parallel (same order as a
     // sequential walk over the blocks, so the mesh does not depend on the thread count).
+    // Per block, the blocks at offsets (0|1, 0|1, 0|1) hold all its cells' corners: look
+    // them up once, then read the voxels directly.
     let cells: Vec<Node> = keys
         .par_iter()
-        .flat_map_iter(|&b| {
-            (0..BLOCK_LEN)
-                .map(move |i| block_node(b, i))
-                .filter(move |&c| cell_straddles(c, value, 0.0))
+        .enumerate()
+        .flat_map_iter(|(bi, &b)| {
+            let around: [Option<&Block>; 8] = std::array::from_fn(|k| {
+                if k == 0 {
+                    return Some(&blocks[bi]);
+                }
+                let o = [(k & 1) as i64, ((k >> 1) & 1) as i64, ((k >> 2) & 1) as i64];
+                index
+                    .get(&[b[0] + o[0], b[1] + o[1], b[2] + o[2]])
+                    .map(|&j| &blocks[j])
+            });
+            let local = move |l: [i64; 3]| -> Option<f64> {
+                let k = usize::from(l[0] >= BLOCK)
+                    | usize::from(l[1] >= BLOCK) << 1
+                    | usize::from(l[2] >= BLOCK) << 2;
+                let block = around[k]?;
+                let m = l.map(|c| c % BLOCK);
+                let i = (m[0] + BLOCK * (m[1] + BLOCK * m[2])) as usize;
+                (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
+            };
+            (0..BLOCK_LEN).filter_map(move |i| {
+                let c = block_node(b, i);
+                let l = [
+                    c[0] - b[0] * BLOCK,
+                    c[1] - b[1] * BLOCK,
+                    c[2] - b[2] * BLOCK,
+                ];
+                let at =
+                    |n: Node| local([n[0] - c[0] + l[0], n[1] - c[1] + l[1], n[2] - c[2] + l[2]]);
+                cell_straddles(c, at, 0.0).then_some(c)
+            })
         })
         .collect();
     let mesh = march_cells(cells, value, 0.0, |n| node_position(n, params.voxel_m))?;

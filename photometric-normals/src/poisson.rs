@@ -1071,6 +1071,100 @@ mod tests {
     }
 
     #[test]
+    fn multigrid_on_the_bands_solves_the_same_system() {
+        let samples = holed_sphere(8_000);
+        let p = PoissonParams::default().with_depth(6);
+        let jacobi = screened_poisson(&samples, &p).unwrap();
+        let mg = screened_poisson(&samples, &p.with_multigrid_bands(true)).unwrap();
+        // Same levels, each converged; V-cycles need fewer iterations on every level.
+        for (a, b) in jacobi.levels.iter().zip(&mg.levels) {
+            assert_eq!(a.nodes, b.nodes);
+            assert!(a.residual <= p.tolerance && b.residual <= p.tolerance);
+            assert!(b.iterations <= a.iterations, "{a:?} vs {b:?}");
+        }
+        // The complete levels are always multigrid: a handful of iterations.
+        assert!(jacobi.levels[..4].iter().all(|l| l.iterations < 20));
+        assert!((jacobi.iso_value - mg.iso_value).abs() < 1e-3);
+        assert_eq!(jacobi.mesh.vertex_count(), mg.mesh.vertex_count());
+    }
+
+    #[test]
+    fn kernel_areas_of_a_plane_match_its_density() {
+        // A regular grid of samples on a tilted plane, 1 mm apart in unit-cube units: every
+        // interior sample stands for 1 mm², whatever the plane's position in the grid.
+        let (u, v) = (DVec3::new(1.0, 0.0, 0.3).normalize(), DVec3::Y);
+        let qs: Vec<DVec3> = (0..200)
+            .flat_map(|i| (0..200).map(move |j| (i, j)))
+            .map(|(i, j)| DVec3::splat(0.3) + u * (i as f64 * 1e-3) + v * (j as f64 * 1e-3))
+            .collect();
+        let areas = kernel_areas(&qs, 8).unwrap();
+        let interior: Vec<f64> = qs
+            .iter()
+            .zip(&areas)
+            .filter(|(q, _)| {
+                let d = **q - DVec3::splat(0.3);
+                (0.03..0.17).contains(&d.dot(u)) && (0.03..0.17).contains(&d.dot(v))
+            })
+            .map(|(_, &a)| a / 1e-6)
+            .collect();
+        let (lo, hi) = interior
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+        assert!(lo > 0.97 && hi < 1.03, "{lo} .. {hi}");
+    }
+
+    #[test]
+    fn cubic_edge_zero_finds_the_root() {
+        // f(x) = x − 0.3 sampled at −1, 0, 1, 2: the cubic is the line.
+        let t = crate::marching_cubes::tests_support::cubic_zero(-1.3, -0.3, 0.7, 1.7);
+        assert!((t - 0.3).abs() < 1e-9, "{t}");
+        // f(x) = tanh(2(x − 0.6)): closer to the true zero than linear interpolation.
+        let f = |x: f64| (2.0 * (x - 0.6)).tanh();
+        let t = crate::marching_cubes::tests_support::cubic_zero(f(-1.0), f(0.0), f(1.0), f(2.0));
+        let linear = f(0.0) / (f(0.0) - f(1.0));
+        assert!((t - 0.6).abs() < (linear - 0.6).abs(), "{t} vs {linear}");
+    }
+
+    #[test]
+    fn specks_are_dropped_and_kept_on_request() {
+        // A large sphere and a far, tiny one (one sample cluster): the speck goes by default.
+        let mut samples = holed_sphere(20_000);
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let small = DVec3::new(0.3, 0.3, -0.3);
+        samples.extend((0..300).map(|i| {
+            let z = -1.0 + 2.0 * (i as f64 + 0.5) / 300.0;
+            let rho = (1.0 - z * z).sqrt();
+            let n = DVec3::new(
+                rho * (golden * i as f64).cos(),
+                rho * (golden * i as f64).sin(),
+                z,
+            );
+            OrientedSample {
+                position: small + n * 0.03,
+                normal: n,
+                weight: 1.0,
+            }
+        }));
+        let p = PoissonParams::default().with_depth(6);
+        let kept = screened_poisson(&samples, &p.with_min_component_fraction(0.0)).unwrap();
+        let dropped = screened_poisson(&samples, &p.with_min_component_fraction(0.1)).unwrap();
+        assert_eq!(kept.dropped_components, 0);
+        assert_eq!(dropped.dropped_components, 1);
+        assert!(kept
+            .mesh
+            .vertices
+            .iter()
+            .any(|v| (*v - small).length() < 0.05));
+        assert!(dropped
+            .mesh
+            .vertices
+            .iter()
+            .all(|v| (*v - small).length() > 0.05));
+        assert!(EdgeTopology::new(&dropped.mesh).unwrap().is_closed());
+        assert!(screened_poisson(&samples, &p.with_min_component_fraction(1.5)).is_err());
+    }
+
+    #[test]
     fn rejects_bad_samples() {
         let mut s = holed_sphere(100);
         let p = PoissonParams::default().with_depth(5);
