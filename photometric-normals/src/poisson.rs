@@ -486,38 +486,48 @@ fn unit_samples(
     (out, origin, side)
 }
 
-/// Radius of the density kernel, in cells of the finest level.
+/// Radius of the density kernel at most, in cells of the finest level.
 const DENSITY_RADIUS_CELLS: f64 = 4.0;
+/// Neighbours the density kernel spans at most (dense samples shrink its radius, so the cost
+/// does not grow with the sample density).
+const DENSITY_NEIGHBOURS: usize = 40;
 
 /// The surface area each sample stands for, `1 / σᵢ` with `σᵢ` the local sample density per
-/// unit area, estimated by a smooth kernel over the samples within `r` =
-/// [`DENSITY_RADIUS_CELLS`] finest cells: `ρᵢ = Σⱼ (1 − dᵢⱼ²/r²)²`, which for samples of a
-/// plane at density `σ` is `σ π r² / 3`, so `aᵢ = π r² / (3 ρᵢ)`. Unlike a count per grid
-/// cell, this does not depend on where the surface cuts the grid (a plane clipping a cell's
-/// corner leaves few samples in it, and a per-cell count then gives each of them a large
-/// area: a wiggle of the iso-surface at the grid's period). `None` if the kd-tree cannot be
-/// built (heavily duplicated samples).
+/// unit area, estimated by a smooth kernel over the samples within `rᵢ` (the
+/// [`DENSITY_NEIGHBOURS`]-th neighbour's distance, at most [`DENSITY_RADIUS_CELLS`] finest
+/// cells): `ρᵢ = Σⱼ (1 − dᵢⱼ²/rᵢ²)²`, which for samples of a plane at density `σ` is
+/// `σ π rᵢ² / 3`, so `aᵢ = π rᵢ² / (3 ρᵢ)`. Unlike a count per grid cell, this does not
+/// depend on where the surface cuts the grid (a plane clipping a cell's corner leaves few
+/// samples in it, and a per-cell count then gives each of them a large area: a wiggle of the
+/// iso-surface at the grid's period). `None` if the kd-tree cannot be built (heavily
+/// duplicated samples).
 fn kernel_areas(qs: &[DVec3], depth: u32) -> Option<Vec<f64>> {
     let keys: Vec<[f64; 3]> = qs.iter().map(|q| q.to_array()).collect();
     let tree = ImmutableKdTree::<f64, 3>::new_from_slice(&keys).ok()?;
     let r = DENSITY_RADIUS_CELLS / (1u64 << depth) as f64;
-    let r2 = r * r;
-    let kernel = std::f64::consts::PI * r2 / 3.0;
+    let k = std::num::NonZero::new(DENSITY_NEIGHBOURS.min(keys.len()))?;
     Some(
         keys.par_iter()
-            .map(|k| {
-                let rho: f64 = tree
-                    .query(k)
-                    .within::<SquaredEuclidean<f64>>(r2)
+            .map(|key| {
+                let found = tree
+                    .query(key)
+                    .nearest_n::<SquaredEuclidean<f64>>(k)
                     .unsorted()
-                    .execute()
+                    .execute();
+                let far = found.iter().fold(0.0f64, |a, f| a.max(f.distance));
+                let r2 = if found.len() < k.get() || far <= 0.0 {
+                    r * r
+                } else {
+                    far.min(r * r)
+                };
+                let rho: f64 = found
                     .iter()
                     .map(|f| {
                         let t = (1.0 - f.distance / r2).max(0.0);
                         t * t
                     })
                     .sum();
-                kernel / rho.max(1.0)
+                std::f64::consts::PI * r2 / 3.0 / rho.max(1.0)
             })
             .collect(),
     )
