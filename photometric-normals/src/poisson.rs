@@ -18,8 +18,8 @@
 //! gradient energy is the 7-point finite-difference form (`V` averaged onto grid edges), the
 //! screening term is mass-lumped onto nodes (`Σᵢ wᵢ aᵢ φₙ(pᵢ)`), and the domain boundary is
 //! free (Neumann). The sample area `aᵢ` is `1 / σᵢ`, the inverse of the local sample density
-//! per unit area estimated by a smooth kernel over the samples within 4 finest cells
-//! (`ρᵢ = Σⱼ (1 − dᵢⱼ²/r²)²`, `σᵢ = 3ρᵢ / (π r²)`), so confidences scale a sample's pull
+//! per unit area estimated by a smooth kernel over the 40 nearest samples within at most 4
+//! finest cells (`ρᵢ = Σⱼ (1 − dᵢⱼ²/rᵢ²)²`, `σᵢ = 3ρᵢ / (π rᵢ²)`), so confidences scale a sample's pull
 //! relative to equally dense samples, as in Kazhdan's code (which splats a B-spline density
 //! two levels above the finest). A per-cell count, used before, gave samples in cells that the
 //! surface only clips a large area each: a wiggle of the surface at the grid's period, the
