@@ -59,6 +59,24 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
+/// CPU time of the whole process so far (all threads, user + system), ms, from
+/// `/proc/self/stat` (Linux; `None` elsewhere). The machine is shared, so wall time alone
+/// says little about the work done.
+fn cpu_ms() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are the 14th and 15th
+    // fields of the line, in clock ticks of 10 ms.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks * 10.0)
+}
+
+/// CPU ms spent since `start` (`None` where unavailable).
+fn cpu_since(start: Option<f64>) -> Option<f64> {
+    Some(cpu_ms()? - start?)
+}
+
 /// Distance figures (mm) of per-vertex distances (m).
 fn distance_figures(d_m: &[f64]) -> Value {
     let mm: Vec<f64> = d_m.iter().map(|d| d * 1e3).collect();
@@ -197,7 +215,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // The thesis's settings: 2 mm voxels, 6 cm ramp, then hole filling.
     let stage = run.stage("merge at the thesis's settings", None);
+    let cpu0 = cpu_ms();
     let (merge_ms, merged) = timed_merge(&views, &MergeParams::default(), 1)?;
+    let merge_cpu_ms = cpu_since(cpu0);
     let merged_d = scene_distances(&merged.mesh);
     stage.finish(format!("{merge_ms:.0} ms, {} blocks", merged.stats.blocks));
     let stage = run.stage("hole filling", None);
@@ -205,8 +225,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let proxy = tsdf_proxy_samples(0.01, 0.01)?;
     samples.extend(&proxy);
     let t = Instant::now();
+    let cpu0 = cpu_ms();
     let filled = screened_poisson(&samples, &PoissonParams::default())?;
     let fill_ms = ms(t);
+    let fill_cpu_ms = cpu_since(cpu0);
     let filled_d = scene_distances(&filled.mesh);
     stage.finish(format!("{fill_ms:.0} ms"));
 
@@ -222,8 +244,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut last: Option<PoissonSurface> = None;
     for &depth in depths {
         let t = Instant::now();
+        let cpu0 = cpu_ms();
         let s = screened_poisson(&sphere_samples, &PoissonParams::default().with_depth(depth))?;
         let elapsed = ms(t);
+        let cpu = cpu_since(cpu0);
         let (r, cut) = POISSON_SPHERE;
         let err: Vec<f64> = s
             .mesh
@@ -243,10 +267,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "depth": depth,
             "points": n_points,
             "poisson_ms": elapsed,
+            "poisson_cpu_ms": cpu,
             "err_observed_mm": mean(&observed),
             "max_observed_mm": observed.iter().fold(0.0f64, |a, &b| a.max(b)),
             "err_all_mm": mean(&err) * 1e3,
             "vertices": s.mesh.vertex_count(),
+            "dropped_components": s.dropped_components,
             "triangles": s.mesh.face_count(),
             "levels": s.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
             "topology": topology(&s.mesh),
@@ -254,6 +280,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }));
         last = Some(s);
     }
+    // The same solve with multigrid V-cycles preconditioning the band levels too (the
+    // default uses them on the complete levels only): iterations and CPU time side by side.
+    let cpu0 = cpu_ms();
+    let t = Instant::now();
+    let mg = screened_poisson(
+        &sphere_samples,
+        &PoissonParams::default()
+            .with_depth(depths[0])
+            .with_multigrid_bands(true),
+    )?;
+    let multigrid_bands = json!({
+        "depth": depths[0],
+        "poisson_ms": ms(t),
+        "poisson_cpu_ms": cpu_since(cpu0),
+        "levels": mg.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
+    });
     stage.finish(format!("{} runs", poisson_runs.len()));
 
     // Pictures and meshes.
@@ -338,7 +380,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "quick": quick,
         "image_size": size,
         "merge_ms": merge_ms,
+        "merge_cpu_ms": merge_cpu_ms,
         "poisson_ms": fill_ms,
+        "poisson_cpu_ms": fill_cpu_ms,
         "blocks": merged.stats.blocks,
         "voxels_allocated": merged.stats.voxels_allocated,
         "voxels_observed": merged.stats.voxels_observed,
@@ -352,6 +396,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "thesis_merge": {
             "params": "voxel 2 mm, ramp 6 cm, thesis weights",
             "merge_ms": merge_ms,
+            "merge_cpu_ms": merge_cpu_ms,
             "faces": merged.mesh.face_count(),
             "distance": distance_figures(&merged_d),
             "topology": topology(&merged.mesh),
@@ -360,6 +405,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "samples_merged": samples.len() - proxy.len(),
             "samples_proxy": proxy.len(),
             "poisson_ms": fill_ms,
+            "poisson_cpu_ms": fill_cpu_ms,
+            "dropped_components": filled.dropped_components,
             "levels": filled.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations})).collect::<Vec<_>>(),
             "distance": distance_figures(&filled_d),
             "distance_observed_z_above_-0.05": distance_figures(&observed_fill),
@@ -380,6 +427,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             },
         },
         "peer_poisson": poisson_runs,
+        "poisson_multigrid_bands": multigrid_bands,
         "poisson_err_observed_mm": p0["err_observed_mm"],
         "poisson_err_all_mm": p0["err_all_mm"],
         "poisson_depth_ms": p0["poisson_ms"],

@@ -27,8 +27,6 @@
 //! voxels dense. Blocks are filled in parallel (rayon); each voxel's value depends only on
 //! the views, so the result does not depend on the thread count.
 
-use std::collections::{HashMap, HashSet};
-
 use rayon::prelude::*;
 use skin_core::camera::Camera;
 use skin_core::check;
@@ -36,7 +34,7 @@ use skin_core::image::{distance_to_background, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 
-use crate::marching_cubes::{march_cells, Node};
+use crate::marching_cubes::{cell_straddles, march_cells, Node, NodeMap, NodeSet};
 use crate::{Context, DepthMap, Error, Result, ResultExt};
 
 /// Voxels along each side of a block of the sparse volume.
@@ -311,7 +309,7 @@ fn prepare<'a>(view: &MergeView<'a>, params: &MergeParams) -> Result<PreparedVie
 }
 
 /// Blocks (by block coordinates) that a view's ramp crosses.
-fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node>> {
+fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<NodeSet<Node>> {
     let block_m = params.voxel_m * BLOCK as f64;
     // Subsample pixels so that neighbouring samples are at most half a block apart at the
     // farthest depth.
@@ -328,10 +326,10 @@ fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node
     if ys.last() != Some(&(view.height - 1)) {
         ys.push(view.height - 1);
     }
-    let per_row: Vec<Result<HashSet<Node>>> = ys
+    let per_row: Vec<Result<NodeSet<Node>>> = ys
         .par_iter()
         .map(|&y| {
-            let mut set = HashSet::new();
+            let mut set = NodeSet::default();
             let mut xs: Vec<usize> = (0..view.width).step_by(stride).collect();
             if xs.last() != Some(&(view.width - 1)) {
                 xs.push(view.width - 1);
@@ -351,7 +349,7 @@ fn view_blocks(view: &PreparedView, params: &MergeParams) -> Result<HashSet<Node
             Ok(set)
         })
         .collect();
-    let mut all = HashSet::new();
+    let mut all = NodeSet::default();
     for s in per_row {
         all.extend(s?);
     }
@@ -369,9 +367,20 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
     let mut weight = vec![0.0f32; BLOCK_LEN];
     let half = 0.5 * params.ramp_m;
     let taper = 0.25 * params.ramp_m;
-    let near: Vec<&PreparedView> = views
+    // Each view that may see the block, with the range of camera distances at which a voxel
+    // can get a sample from it (the footprint's depths ± half the ramp, and a hair more).
+    let near: Vec<(&PreparedView, DVec3, f64, f64)> = views
         .iter()
-        .filter(|v| block_may_see(b, v, params))
+        .filter_map(|v| {
+            let (dmin, dmax) = block_may_see(b, v, params)?;
+            let margin = 1e-9 * (1.0 + dmax);
+            Some((
+                v,
+                v.camera.centre(),
+                dmin - half - margin,
+                dmax + half + margin,
+            ))
+        })
         .collect();
     if near.is_empty() {
         return Block { distance, weight };
@@ -380,14 +389,21 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
         let node = block_node(b, i);
         let p = node_position(node, params.voxel_m);
         let (mut sw, mut swd) = (0.0, 0.0);
-        for v in &near {
+        for &(v, centre, lo, hi) in &near {
+            // The bilinear depth lies within the footprint's depth range, so a voxel whose
+            // distance is outside it by more than half the ramp gets |s| > half: skip it
+            // before projecting (the result is the same).
+            let range = (p - centre).length();
+            if range < lo || range > hi {
+                continue;
+            }
             let Ok(proj) = v.camera.project(p) else {
                 continue;
             };
             let Some((d, w)) = v.sample(proj, params.max_depth_jump_m) else {
                 continue;
             };
-            let s = d - (p - v.camera.centre()).length();
+            let s = d - range;
             if s.abs() > half || w <= 0.0 {
                 continue;
             }
@@ -406,8 +422,9 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
 /// Whether any voxel of block `b` can get a sample from view `v`: the block's pixel footprint
 /// (its corners' projections) overlaps the image, and the distances of the block's points to
 /// the camera overlap the ramp around the depths in that footprint. A conservative test: it
-/// only skips views that would contribute nothing.
-fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
+/// only skips views that would contribute nothing. Returns the range of depths in the
+/// footprint (unbounded when a corner is behind the camera).
+fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> Option<(f64, f64)> {
     let lo = node_position(b.map(|c| c * BLOCK), params.voxel_m);
     let side = (BLOCK - 1) as f64 * params.voxel_m;
     let centre = lo + DVec3::splat(0.5 * side);
@@ -424,13 +441,13 @@ fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
             lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64) * side;
         // A corner behind the camera: keep the view (no cheap bound).
         let Ok(px) = v.camera.project(p) else {
-            return true;
+            return Some((f64::NEG_INFINITY, f64::INFINITY));
         };
         (u0, v0, u1, v1) = (u0.min(px.x), v0.min(px.y), u1.max(px.x), v1.max(px.y));
     }
     let (w, h) = (v.width as f64, v.height as f64);
     if u1 < 0.0 || v1 < 0.0 || u0 > w - 1.0 || v0 > h - 1.0 {
-        return false;
+        return None;
     }
     // Bilinear samples use the pixels around the projection: widen by one pixel.
     let x0 = (u0.floor() - 1.0).max(0.0) as usize;
@@ -447,7 +464,8 @@ fn block_may_see(b: Node, v: &PreparedView, params: &MergeParams) -> bool {
         }
     }
     let half = 0.5 * params.ramp_m;
-    dmin <= dmax && dist - radius <= dmax + half && dist + radius >= dmin - half
+    (dmin <= dmax && dist - radius <= dmax + half && dist + radius >= dmin - half)
+        .then_some((dmin, dmax))
 }
 
 fn block_node(b: Node, i: usize) -> Node {
@@ -510,7 +528,7 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         .enumerate()
         .map(|(i, v)| prepare(v, params).at(Context::Camera(i)))
         .collect::<Result<Vec<_>>>()?;
-    let mut keys = HashSet::new();
+    let mut keys = NodeSet::default();
     for (i, v) in prepared.iter().enumerate() {
         keys.extend(view_blocks(v, params).at(Context::Camera(i))?);
     }
@@ -524,7 +542,7 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         .iter()
         .map(|b| b.weight.iter().filter(|&&w| w > 0.0).count())
         .sum();
-    let index: HashMap<Node, usize> = keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
+    let index: NodeMap<Node, usize> = keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
     let value = |n: Node| -> Option<f64> {
         let b = [
             n[0].div_euclid(BLOCK),
@@ -536,9 +554,45 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
         let i = (l[0] + BLOCK * (l[1] + BLOCK * l[2])) as usize;
         (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
     };
-    let cells = keys
-        .iter()
-        .flat_map(|&b| (0..BLOCK_LEN).map(move |i| block_node(b, i)));
+    // Only cells with a sign change draw anything: find them in parallel (same order as a
+    // sequential walk over the blocks, so the mesh does not depend on the thread count).
+    // Per block, the blocks at offsets (0|1, 0|1, 0|1) hold all its cells' corners: look
+    // them up once, then read the voxels directly.
+    let cells: Vec<Node> = keys
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(bi, &b)| {
+            let around: [Option<&Block>; 8] = std::array::from_fn(|k| {
+                if k == 0 {
+                    return Some(&blocks[bi]);
+                }
+                let o = [(k & 1) as i64, ((k >> 1) & 1) as i64, ((k >> 2) & 1) as i64];
+                index
+                    .get(&[b[0] + o[0], b[1] + o[1], b[2] + o[2]])
+                    .map(|&j| &blocks[j])
+            });
+            let local = move |l: [i64; 3]| -> Option<f64> {
+                let k = usize::from(l[0] >= BLOCK)
+                    | usize::from(l[1] >= BLOCK) << 1
+                    | usize::from(l[2] >= BLOCK) << 2;
+                let block = around[k]?;
+                let m = l.map(|c| c % BLOCK);
+                let i = (m[0] + BLOCK * (m[1] + BLOCK * m[2])) as usize;
+                (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
+            };
+            (0..BLOCK_LEN).filter_map(move |i| {
+                let c = block_node(b, i);
+                let l = [
+                    c[0] - b[0] * BLOCK,
+                    c[1] - b[1] * BLOCK,
+                    c[2] - b[2] * BLOCK,
+                ];
+                let at =
+                    |n: Node| local([n[0] - c[0] + l[0], n[1] - c[1] + l[1], n[2] - c[2] + l[2]]);
+                cell_straddles(c, at, 0.0).then_some(c)
+            })
+        })
+        .collect();
     let mesh = march_cells(cells, value, 0.0, |n| node_position(n, params.voxel_m))?;
     Ok(MergedSurface {
         mesh,
