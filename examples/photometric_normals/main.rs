@@ -36,15 +36,13 @@ use clap::Parser;
 use image::{Rgb, RgbImage};
 use serde_json::json;
 
-use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
-    GarmentParams, PatternSchedule, SkirtParams, WrinkleParams,
-};
+use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, silhouette_scores, summarize, GreenScreen, LightStage, SensorNoise,
+    dome_power_fraction, silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage,
+    SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
@@ -127,32 +125,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     )?;
     let stage = run.stage("performer", None);
-    let performer = makehuman_performer(
+    let scene = StudioScene::new(
         example_kit::data_path("makehuman")?,
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
-            .with_wrinkles(Some(WrinkleParams::default())),
+        &skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
+        n_cams,
+        size,
     )?;
-    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
-    let frame_index = 45;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(frame_index))?
-        .joint_positions()[0];
-    let light_stage = LightStage::around(&performer.template, root)?;
+    let (performer, light_stage, root) = (&scene.performer, &scene.stage, scene.root);
+    let frame_index = scene.frame_index;
     let heights = light_stage.sphere_heights_m();
-    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
+    let (centre, lights) = (light_stage.centre, &light_stage.lights);
     stage.finish(format!("{} vertices", performer.vertex_count()));
 
-    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
-    let rig = Rig::ring(n_cams, 3.5, floor_y + 1.7, root, DVec3::Y, k)?;
-    let cameras = rig.cameras.clone();
-    let mut spec = light_stage.capture_spec(
-        rig,
-        1.0 / motion.frame_time_s,
-        PatternSchedule::AllEachFrame,
-    )?;
+    let cameras = scene.ring.cameras.clone();
+    let mut spec = scene.capture_spec(scene.ring.clone())?;
     let light_bins = match args.light_bins.unwrap_or(if quick { 0 } else { 100 }) {
         0 => None,
         b => Some(b),
@@ -171,11 +157,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     noise.set_studio(&mut spec);
     let stage = run.stage("capture", None);
     let t = Instant::now();
-    let capture = Capture::new(&performer, &motion, spec)?;
-    let mut frame = capture
-        .frames_in(frame_index..frame_index + 1)
-        .next()
-        .ok_or("the frame is in the motion")??;
+    let mut frame = scene.capture(spec)?;
     let capture_s = t.elapsed().as_secs_f64();
     for (c, obs) in frame.observations.iter_mut().enumerate() {
         for (p, im) in obs.patterns.iter_mut().enumerate() {
@@ -195,7 +177,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let params = NormalParams::default()
         .with_exposure(exposure)
         .with_performance_centre(root);
-    let mesh = frame.truth.rendered_mesh(&performer);
+    let mesh = frame.truth.rendered_mesh(performer);
     let fine = frame
         .truth
         .fine
@@ -726,12 +708,7 @@ fn moving_sequence(
     };
     use std::collections::VecDeque;
     const FIRST: usize = 75;
-    let performer = makehuman_performer(
-        example_kit::data_path("makehuman")?,
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
-    )?;
+    let performer = makehuman_performer(example_kit::data_path("makehuman")?, &skirt_subject())?;
     let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
     let rig = Rig {
         cameras: cameras.to_vec(),

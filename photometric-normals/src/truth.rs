@@ -3,21 +3,25 @@
 //! wrinkled regions) and the distant-light baseline (the analytic solution the thesis
 //! replaces by its data-driven lookup).
 
+use std::path::Path;
+
 use image::Rgb32FImage;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
-use skin_core::camera::Rig;
+use skin_core::camera::{Intrinsics, Rig};
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams, RenderedView};
+use skin_core::skeleton::Motion;
 use skin_core::stats::{mean, median};
 use skin_core::studio::shading::{
     dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
 use skin_core::studio::{
-    CaptureLighting, CaptureSpec, FineSurface, LightPatterns, PatternSchedule, PixelNoise,
-    TextureParams, ViewTruth,
+    exercise_motion, makehuman_performer, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
+    DeformationParams, ExerciseParams, FineSurface, GarmentParams, LightPatterns, PatternSchedule,
+    Performer, PixelNoise, SheetParams, SkirtParams, TextureParams, ViewTruth,
 };
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
@@ -116,6 +120,127 @@ impl LightStage {
         (0..SPHERE_HEIGHTS)
             .map(|i| self.floor_y + SPHERE_LOWEST_M + SPHERE_STEP_M * i as f64)
             .collect()
+    }
+}
+
+/// The frame of the exercise motion every studio scene of the photometric validation shows
+/// (a static pose with the arms and legs apart and the skirt in motion).
+pub const STUDIO_FRAME: usize = 45;
+/// Radius of the studio scene's camera ring around the root, m.
+pub const RING_RADIUS_M: f64 = 3.5;
+/// Height of the ring's cameras above the floor, m.
+pub const RING_HEIGHT_M: f64 = 1.7;
+/// Horizontal field of view of the ring's cameras, degrees.
+pub const RING_HFOV_DEG: f64 = 40.0;
+
+/// The MakeHuman performer in the skirt (no flap, no wrinkles): the validation's main subject.
+pub fn skirt_subject() -> DeformationParams {
+    DeformationParams::default()
+        .with_flap(None)
+        .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
+}
+
+/// The sheet-covered figure, the thesis' "Ghost" (§3.4, Figure 3-9): the MakeHuman performer
+/// under the studio's draped sheet ([`SheetParams::default`]), no flap, no wrinkles.
+pub fn ghost_subject() -> DeformationParams {
+    DeformationParams::default()
+        .with_flap(None)
+        .with_garment(Some(GarmentParams::Sheet(SheetParams::default())))
+}
+
+/// The studio scene of the photometric validation: a subject (the performer built with some
+/// [`DeformationParams`], e.g. [`skirt_subject`] or [`ghost_subject`]) playing the exercise
+/// motion, frame [`STUDIO_FRAME`], on the [`LightStage`] around its root, seen by a ring of
+/// cameras [`RING_RADIUS_M`] from the root, [`RING_HEIGHT_M`] above the floor, with a
+/// [`RING_HFOV_DEG`] field of view.
+#[derive(Debug, Clone)]
+pub struct StudioScene {
+    /// The subject.
+    pub performer: Performer,
+    /// The exercise motion ([`ExerciseParams::default`]).
+    pub motion: Motion,
+    /// The captured frame of `motion` ([`STUDIO_FRAME`]).
+    pub frame_index: usize,
+    /// The root joint's position in that frame, world, m.
+    pub root: DVec3,
+    /// The light stage around the performer.
+    pub stage: LightStage,
+    /// The camera ring, looking at the root.
+    pub ring: Rig,
+}
+
+impl StudioScene {
+    /// The scene of the subject `subject` (MakeHuman files in `makehuman_dir`) with a ring of
+    /// `cameras` cameras of `size_px × size_px` pixels.
+    ///
+    /// # Errors
+    /// Errors of the performer (e.g. missing files), the motion, the light stage and the rig
+    /// (e.g. no cameras, a zero size).
+    pub fn new(
+        makehuman_dir: impl AsRef<Path>,
+        subject: &DeformationParams,
+        cameras: usize,
+        size_px: u32,
+    ) -> Result<Self> {
+        let performer = makehuman_performer(makehuman_dir, subject)?;
+        let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
+        let frame_index = STUDIO_FRAME;
+        let root = performer
+            .skeleton
+            .forward_kinematics(motion.frame(frame_index))?
+            .joint_positions()
+            .first()
+            .copied()
+            .ok_or(Error::Empty {
+                what: "skeleton joints",
+            })?;
+        let stage = LightStage::around(&performer.template, root)?;
+        let k = Intrinsics::from_horizontal_fov(RING_HFOV_DEG.to_radians(), size_px, size_px)?;
+        let ring = Rig::ring(
+            cameras,
+            RING_RADIUS_M,
+            stage.floor_y + RING_HEIGHT_M,
+            root,
+            DVec3::Y,
+            k,
+        )?;
+        Ok(StudioScene {
+            performer,
+            motion,
+            frame_index,
+            root,
+            stage,
+            ring,
+        })
+    }
+
+    /// [`LightStage::capture_spec`] of `rig` (e.g. the ring or part of it) at the motion's
+    /// frame rate, all seven conditions each frame.
+    ///
+    /// # Errors
+    /// As [`LightStage::capture_spec`].
+    pub fn capture_spec(&self, rig: Rig) -> Result<CaptureSpec> {
+        self.stage.capture_spec(
+            rig,
+            1.0 / self.motion.frame_time_s,
+            PatternSchedule::AllEachFrame,
+        )
+    }
+
+    /// The captured frame [`Self::frame_index`] under `spec` (the earlier frames are posed,
+    /// not rendered, so the garment's dynamics are those of a full run).
+    ///
+    /// # Errors
+    /// Errors of the capture.
+    pub fn capture(&self, spec: CaptureSpec) -> Result<CaptureFrame> {
+        let capture = Capture::new(&self.performer, &self.motion, spec)?;
+        let frame = capture
+            .frames_in(self.frame_index..self.frame_index + 1)
+            .next()
+            .ok_or(Error::Empty {
+                what: "the studio frame in the motion",
+            })??;
+        Ok(frame)
     }
 }
 
