@@ -129,7 +129,10 @@ pub use matching::{
     MatchingParams, PairMatches, ViewMatches,
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
-pub use metrics::{surface_distance, table_metrics, MetricParams, SurfaceDistance, TableMetrics};
+pub use metrics::{
+    displacement_survival, surface_distance, table_metrics, DisplacementSurvival, MetricParams,
+    SurfaceDistance, TableMetrics,
+};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{

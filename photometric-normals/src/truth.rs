@@ -133,6 +133,12 @@ pub const RING_HEIGHT_M: f64 = 1.7;
 /// Horizontal field of view of the ring's cameras, degrees.
 pub const RING_HFOV_DEG: f64 = 40.0;
 
+/// The frame of the exercise motion the Ghost is captured at: the first. The studio's sheet
+/// ([`SheetParams::default`]) settles on the rest pose and stays finite under the exercise
+/// motion for one frame only: its vertices reach ≈ 30 m at frame 2 and 4 km at frame 3 (the
+/// cloth simulation diverges), so later frames cannot be rendered.
+pub const GHOST_FRAME: usize = 0;
+
 /// The MakeHuman performer in the skirt (no flap, no wrinkles): the validation's main subject.
 pub fn skirt_subject() -> DeformationParams {
     DeformationParams::default()
@@ -182,9 +188,32 @@ impl StudioScene {
         cameras: usize,
         size_px: u32,
     ) -> Result<Self> {
+        Self::at_frame(makehuman_dir, subject, STUDIO_FRAME, cameras, size_px)
+    }
+
+    /// [`StudioScene::new`] at frame `frame_index` of the exercise motion instead of
+    /// [`STUDIO_FRAME`] (e.g. [`GHOST_FRAME`] for the Ghost).
+    ///
+    /// # Errors
+    /// As [`StudioScene::new`]; a frame past the motion's end.
+    pub fn at_frame(
+        makehuman_dir: impl AsRef<Path>,
+        subject: &DeformationParams,
+        frame_index: usize,
+        cameras: usize,
+        size_px: u32,
+    ) -> Result<Self> {
         let performer = makehuman_performer(makehuman_dir, subject)?;
         let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
-        let frame_index = STUDIO_FRAME;
+        if frame_index >= motion.frame_count() {
+            return Err(Error::InvalidParam {
+                name: "frame_index",
+                reason: format!(
+                    "frame {frame_index} past the motion's {} frames",
+                    motion.frame_count()
+                ),
+            });
+        }
         let root = performer
             .skeleton
             .forward_kinematics(motion.frame(frame_index))?
