@@ -15,8 +15,8 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule};
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, render_sphere_patterns, silhouette_scores, skirt_subject, summarize,
-    GreenScreen, LightStage, SensorNoise, StudioScene,
+    dome_power_fraction, pattern_images, render_sphere_patterns, silhouette_scores, skirt_subject,
+    summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
@@ -71,18 +71,10 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     let mut valid = (0usize, 0usize);
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
-        let cal =
-            calibrate_camera(cam, lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+        let cal = scene.calibrate(cam, &cal_params).unwrap();
         let t_cal = t.elapsed().as_secs_f64();
         let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let images = pattern_images(obs).unwrap();
         let t = Instant::now();
         let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params).unwrap();
         let t_normals = t.elapsed().as_secs_f64();

@@ -14,15 +14,12 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{is_closed, points_to_surface, MeshQuery, TriMesh};
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::core::studio::CaptureSpec;
-use dynamic_shapes::photometric::truth::{
-    calibrate_camera, ghost_subject, skirt_subject, StudioScene, GHOST_FRAME,
-};
+use dynamic_shapes::photometric::truth::{pattern_images, skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
     depth_errors, estimate_normals, hull_samples, match_pair, matching_images, per_view_surfaces,
     reconstruct, rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap,
     Exposure, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, NormalParams,
-    PatternImages, ReconstructParams, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
+    ReconstructParams, SurfaceParams, VisualHull, VisualHullParams,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -47,7 +44,7 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         SIZE,
     )
     .unwrap();
-    let (performer, stage, ring, root) = (&scene.performer, &scene.stage, &scene.ring, scene.root);
+    let (performer, ring, root) = (&scene.performer, &scene.ring, scene.root);
     // The light stage photographs two neighbouring views (45° apart) for part 1's normals.
     let photographed = Rig {
         cameras: ring.cameras[..2].to_vec(),
@@ -105,26 +102,9 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     let estimated: Vec<NormalMap> = (0..2)
         .map(|c| {
             let cam = &ring.cameras[c];
-            let cal = calibrate_camera(
-                cam,
-                &stage.lights,
-                stage.centre,
-                root,
-                &stage.sphere_heights_m(),
-                0.2,
-                0.5,
-                &cal_params,
-            )
-            .unwrap();
+            let cal = scene.calibrate(cam, &cal_params).unwrap();
             let obs = &frame.observations[c];
-            let images = PatternImages::from_rgb(
-                &PATTERNS
-                    .iter()
-                    .zip(&obs.patterns)
-                    .map(|(&p, im)| (p, im))
-                    .collect::<Vec<_>>(),
-            )
-            .unwrap();
+            let images = pattern_images(obs).unwrap();
             stacks.push(matching_images(&images));
             estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap()
         })
@@ -273,85 +253,4 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         &MetricParams { near_m: f64::NAN },
     )
     .is_err());
-}
-
-/// The thesis' "Ghost" (§3.4, Figure 3-9): the figure under the studio's draped sheet, seen by
-/// the same ring, reconstructed by both passes from exact normals (CI-sized as above). The
-/// sheet hides the limbs, so the hull is a smooth bell and the surface's detail is the cloth's.
-#[test]
-fn the_sheet_covered_ghost_reconstructs_closer_than_its_visual_hull() {
-    let t0 = Instant::now();
-    let scene = StudioScene::at_frame(
-        example_kit::data_path("makehuman").unwrap(),
-        &ghost_subject(),
-        GHOST_FRAME,
-        CAMERAS,
-        SIZE,
-    )
-    .unwrap();
-    // The silhouettes come from the rasterised truth: no light-stage images needed here.
-    let spec = CaptureSpec::masks_only(scene.ring.clone())
-        .with_frame_rate_hz(1.0 / scene.motion.frame_time_s);
-    let frame = scene.capture(spec).unwrap();
-    let mesh = frame.truth.rendered_mesh(&scene.performer);
-    let (lo, hi) = mesh.vertices.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(a, b), v| (a.min(*v), b.max(*v)),
-    );
-    println!(
-        "Ghost mesh: {} vertices, box {lo} – {hi}",
-        mesh.vertices.len()
-    );
-    let cameras = &scene.ring.cameras;
-    let views: Vec<RenderedView> = cameras.iter().map(|c| render(c, &mesh)).collect();
-    let silhouettes: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
-    let exact: Vec<NormalMap> = cameras
-        .iter()
-        .zip(&views)
-        .map(|(c, v)| rendered_normals(c, v).unwrap())
-        .collect();
-    let hull = VisualHull::new(cameras, &silhouettes).unwrap();
-    let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
-    let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
-    let rparams = ReconstructParams::default()
-        .with_voxel_m(0.004)
-        .with_poisson_depth(7);
-    let rec = reconstruct(cameras, &exact, &hull, &pairs, &rparams).unwrap();
-    let hull_points: Vec<DVec3> = hull_samples(cameras, &proxies, 0.04, 1.0)
-        .unwrap()
-        .iter()
-        .map(|s| s.position)
-        .collect();
-    let hull_d = points_to_surface(&hull_points, &MeshQuery::new(&mesh).unwrap()).unwrap();
-    let mut hull_mm: Vec<f64> = hull_d.per_vertex.iter().map(|d| d * 1e3).collect();
-    hull_mm.sort_by(f64::total_cmp);
-    let hull_median_mm = hull_mm[hull_mm.len() / 2];
-    let table = table_metrics(
-        cameras,
-        &exact,
-        &silhouettes,
-        &rec.pass2.views.surfaces,
-        &rec.pass2.merged.mesh,
-        &MetricParams::default(),
-    )
-    .unwrap();
-    let merged = surface_distance(&rec.pass2.merged.mesh, &mesh).unwrap();
-    let filled = surface_distance(&rec.pass2.filled.mesh, &mesh).unwrap();
-    println!(
-        "Ghost: {table:?}; merged median {:.1} p95 {:.1} mm; filled median {:.1} mm; hull \
-         surface median {hull_median_mm:.1} mm; {:.1} s",
-        merged.median_mm,
-        merged.p95_mm,
-        filled.median_mm,
-        t0.elapsed().as_secs_f64()
-    );
-    assert!(
-        merged.median_mm < hull_median_mm,
-        "{merged:?} vs hull {hull_median_mm}"
-    );
-    assert!(
-        table.coverage_pct > 50.0 && table.normal_dev_deg < 15.0,
-        "{table:?}"
-    );
-    assert!(is_closed(&rec.pass2.filled.mesh).unwrap());
 }

@@ -40,9 +40,8 @@ use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
-    angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage,
-    SensorNoise, StudioScene,
+    angular_errors_deg, colour_scores, distant_light_normals, dome_power_fraction, pattern_images,
+    silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
@@ -57,9 +56,6 @@ use example_kit::{Goal, Headline, Run};
 const WHITE_LEVEL: f32 = 0.4;
 /// Top of the error colour scale, degrees.
 const ERROR_MAX_DEG: f64 = 20.0;
-/// Calibration sphere radius, m, and albedo.
-const SPHERE_RADIUS_M: f64 = 0.2;
-const SPHERE_ALBEDO: f32 = 0.5;
 /// Wrinkled regions: faces with a vertex moved more than this by the wrinkles, m.
 const WRINKLE_MIN_M: f64 = 0.5e-3;
 /// The values of Eq. 3.2's N tried on the static frame.
@@ -133,8 +129,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let (performer, light_stage, root) = (&scene.performer, &scene.stage, scene.root);
     let frame_index = scene.frame_index;
-    let heights = light_stage.sphere_heights_m();
-    let (centre, lights) = (light_stage.centre, &light_stage.lights);
+    let lights = &light_stage.lights;
     stage.finish(format!("{} vertices", performer.vertex_count()));
 
     let cameras = scene.ring.cameras.clone();
@@ -190,25 +185,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut cals = Vec::new();
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
-        let cal = calibrate_camera(
-            cam,
-            lights,
-            centre,
-            root,
-            &heights,
-            SPHERE_RADIUS_M,
-            SPHERE_ALBEDO,
-            &cal_params,
-        )?;
+        let cal = scene.calibrate(cam, &cal_params)?;
         cal_ms.push(t.elapsed().as_secs_f64() * 1e3);
         let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )?;
+        let images = pattern_images(obs)?;
         let t = Instant::now();
         let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params)?;
         normals_ms.push(t.elapsed().as_secs_f64() * 1e3);
@@ -398,7 +378,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let moving = moving_sequence(
         &cameras,
         &cals,
-        &light_stage,
+        light_stage,
         &params,
         noise,
         maps,

@@ -53,7 +53,7 @@ use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::studio::{FineSurface, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
-    calibrate_camera, ghost_subject, skirt_subject, StudioScene, GHOST_FRAME, RING_RADIUS_M,
+    ghost_subject, pattern_images, skirt_subject, StudioScene, GHOST_FRAME, RING_RADIUS_M,
     STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
@@ -61,8 +61,8 @@ use dynamic_shapes::photometric::{
     integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
     rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap, Exposure,
     IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    NormalParams, PatternImages, ReconstructParams, Reconstruction, SurfaceDistance, SurfaceErrors,
-    SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams, PATTERNS,
+    NormalParams, ReconstructParams, Reconstruction, SurfaceDistance, SurfaceErrors, SurfaceParams,
+    ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -586,7 +586,7 @@ fn observe(
         &format!("{name}: normal maps (part 1)"),
         Some(n_cams as u64),
     );
-    let (light_stage, root) = (&scene.stage, scene.root);
+    let root = scene.root;
     let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
     let cal_params = CalibrationParams {
         exposure,
@@ -598,24 +598,9 @@ fn observe(
     let mut estimated = Vec::with_capacity(n_cams);
     let mut stacks = Vec::with_capacity(n_cams);
     for (c, cam) in cameras.iter().enumerate() {
-        let cal = calibrate_camera(
-            cam,
-            &light_stage.lights,
-            light_stage.centre,
-            root,
-            &light_stage.sphere_heights_m(),
-            0.2,
-            0.5,
-            &cal_params,
-        )?;
+        let cal = scene.calibrate(cam, &cal_params)?;
         let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )?;
+        let images = pattern_images(obs)?;
         estimated.push(estimate_normals(
             cam,
             &cal,
@@ -870,6 +855,12 @@ fn subject_run(
     Ok(out)
 }
 
+/// Table 3.1 of each pass (by name) and its merged and filled meshes' distances to the truth.
+type PassScores = (
+    serde_json::Map<String, serde_json::Value>,
+    Vec<(SurfaceDistance, SurfaceDistance)>,
+);
+
 /// Table 3.1 of both passes (on the merged meshes, before hole filling) and the merged and
 /// filled meshes' distances to the true mesh `truth`.
 fn score_passes(
@@ -878,13 +869,7 @@ fn score_passes(
     silhouettes: &[Mask],
     rec: &Reconstruction,
     truth: &TriMesh,
-) -> Result<
-    (
-        serde_json::Map<String, serde_json::Value>,
-        Vec<(SurfaceDistance, SurfaceDistance)>,
-    ),
-    Box<dyn std::error::Error>,
-> {
+) -> Result<PassScores, Box<dyn std::error::Error>> {
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
     for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {

@@ -19,9 +19,10 @@ use skin_core::studio::shading::{
     dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
 use skin_core::studio::{
-    exercise_motion, makehuman_performer, Capture, CaptureFrame, CaptureLighting, CaptureSpec,
-    DeformationParams, ExerciseParams, FineSurface, GarmentParams, LightPatterns, PatternSchedule,
-    Performer, PixelNoise, SheetParams, SkirtParams, TextureParams, ViewTruth,
+    exercise_motion, makehuman_performer, CameraObservation, Capture, CaptureFrame,
+    CaptureLighting, CaptureSpec, DeformationParams, ExerciseParams, FineSurface, GarmentParams,
+    LightPatterns, PatternSchedule, Performer, PixelNoise, SheetParams, SkirtParams, TextureParams,
+    ViewTruth,
 };
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
@@ -44,6 +45,10 @@ pub const SPHERE_LOWEST_M: f64 = 0.2;
 pub const SPHERE_STEP_M: f64 = 0.25;
 /// The number of calibration sphere heights (§3.2.3).
 pub const SPHERE_HEIGHTS: usize = 7;
+/// Radius of the studio's grey calibration spheres, m.
+pub const SPHERE_RADIUS_M: f64 = 0.2;
+/// Albedo of the studio's grey calibration spheres.
+pub const SPHERE_ALBEDO: f32 = 0.5;
 
 /// The light stage set up around a performer: the floor just under its rest template, the
 /// default dome standing on that floor centred under `root`, its lights and the centre of its
@@ -256,6 +261,29 @@ impl StudioScene {
         )
     }
 
+    /// §3.2.3 calibration of `camera` on this scene's stage ([`calibrate_camera`]): grey
+    /// spheres of [`SPHERE_RADIUS_M`] and [`SPHERE_ALBEDO`] at the stage's
+    /// [`LightStage::sphere_heights_m`] above the root.
+    ///
+    /// # Errors
+    /// As [`calibrate_camera`].
+    pub fn calibrate(
+        &self,
+        camera: &Camera,
+        params: &CalibrationParams,
+    ) -> Result<HeightCalibration> {
+        calibrate_camera(
+            camera,
+            &self.stage.lights,
+            self.stage.centre,
+            self.root,
+            &self.stage.sphere_heights_m(),
+            SPHERE_RADIUS_M,
+            SPHERE_ALBEDO,
+            params,
+        )
+    }
+
     /// The captured frame [`Self::frame_index`] under `spec` (the earlier frames are posed,
     /// not rendered, so the garment's dynamics are those of a full run).
     ///
@@ -271,6 +299,21 @@ impl StudioScene {
             })??;
         Ok(frame)
     }
+}
+
+/// The seven images of `observation` (captured with [`PatternSchedule::AllEachFrame`]) as
+/// [`PatternImages`], in [`PATTERNS`] order.
+///
+/// # Errors
+/// As [`PatternImages::from_rgb`] (e.g. an observation without the seven images).
+pub fn pattern_images(observation: &CameraObservation) -> Result<PatternImages> {
+    PatternImages::from_rgb(
+        &PATTERNS
+            .iter()
+            .zip(&observation.patterns)
+            .map(|(&p, im)| (p, im))
+            .collect::<Vec<_>>(),
+    )
 }
 
 /// The studio's [`LightPatterns`]: the 8-frame [`CYCLE`] for [`PatternSchedule::Cycle`], the
