@@ -57,14 +57,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     }
     let t_capture = t0.elapsed().as_secs_f64();
 
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
+    let (exposure, cal_params, params) = scene.photometric_params(WHITE_LEVEL);
     let mesh = frame.truth.rendered_mesh(performer);
     let (mut err, mut base, mut concave, mut body) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());

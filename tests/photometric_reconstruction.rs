@@ -17,9 +17,9 @@ use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::photometric::truth::{pattern_images, skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
     depth_errors, estimate_normals, hull_samples, match_pair, matching_images, per_view_surfaces,
-    reconstruct, rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap,
-    Exposure, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, NormalParams,
-    ReconstructParams, SurfaceParams, VisualHull, VisualHullParams,
+    reconstruct, rendered_normals, surface_distance, table_metrics, DepthMap, MatchMetric,
+    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, SurfaceParams,
+    VisualHull, VisualHullParams,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -44,7 +44,7 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         SIZE,
     )
     .unwrap();
-    let (performer, ring, root) = (&scene.performer, &scene.ring, scene.root);
+    let (performer, ring) = (&scene.performer, &scene.ring);
     // The light stage photographs two neighbouring views (45° apart) for part 1's normals.
     let photographed = Rig {
         cameras: ring.cameras[..2].to_vec(),
@@ -90,14 +90,7 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
 
     // Estimated normals (part 1) on the two photographed views, one pair.
     let t = Instant::now();
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let normal_params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
+    let (_, cal_params, normal_params) = scene.photometric_params(WHITE_LEVEL);
     let mut stacks = Vec::new();
     let estimated: Vec<NormalMap> = (0..2)
         .map(|c| {

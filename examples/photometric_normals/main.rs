@@ -44,8 +44,8 @@ use dynamic_shapes::photometric::truth::{
     silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
-    estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
-    SilhouetteParams, CYCLE, PATTERNS,
+    estimate_normals, Exposure, NormalMap, NormalParams, Pattern, PatternImages, SilhouetteParams,
+    CYCLE, PATTERNS,
 };
 use example_kit::plot::{
     error_colour, label_rows, side_by_side, titled, with_colour_bar, ColourBar,
@@ -127,7 +127,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         n_cams,
         size,
     )?;
-    let (performer, light_stage, root) = (&scene.performer, &scene.stage, scene.root);
+    let (performer, light_stage) = (&scene.performer, &scene.stage);
     let frame_index = scene.frame_index;
     let lights = &light_stage.lights;
     stage.finish(format!("{} vertices", performer.vertex_count()));
@@ -164,14 +164,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         lights.len()
     ));
 
-    let exposure = Exposure::default().with_white_level(args.white_level);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
+    let (exposure, cal_params, params) = scene.photometric_params(args.white_level);
     let mesh = frame.truth.rendered_mesh(performer);
     let fine = frame
         .truth

@@ -20,6 +20,12 @@
 //! (Figure 3-5). Every per-view stage is scored against the true depth maps beside the hull
 //! alone.
 //!
+//! Then (unless `--skirt-only`) the same part-1 normals, both passes, Table 3.1 and distances
+//! for two more subjects: the thesis' Ghost (the figure under the studio's draped sheet, at
+//! frame 0: the sheet's simulation diverges later) and the skirt with the studio's wrinkles,
+//! for which [`displacement_survival`] measures how much of the true wrinkle height the
+//! meshes keep (`wrinkle_amplitude_ratio`, beside the visual hull's).
+//!
 //! Last, the workload of `bench/peers/normal_integration.py` regenerated in Rust (Eq. 3.3 on
 //! a 512² Gaussian-bump depth map with analytic normals and a 1 cm-noise prior, α = 10⁻³):
 //! the time of [`integrate_normals`] and its RMS depth error, to set beside the Python peer's
@@ -30,7 +36,9 @@
 //! `matching.png` (camera 0's matched pixels and discontinuities, as Figure 3-6 colours
 //! them), `stages.png` (camera 0's surface, merged and hole-filled meshes of both passes
 //! coloured by distance to the truth, as Figure 3-8), `view_<c>.ply` (each offset surface as
-//! a mesh), `pass{1,2}_{merged,filled}.ply`, `figures.json`, `manifest.json`;
+//! a mesh), `pass{1,2}_{merged,filled}.ply`, `stages_{ghost,wrinkled}.png` and
+//! `{ghost,wrinkled}_pass2_{merged,filled}.ply` for the other subjects, `wrinkles_wrinkled.png`
+//! (true against reconstructed wrinkle heights), `figures.json`, `manifest.json`;
 //! the last stdout line is one JSON object.
 //!
 //! `cargo run --release --example photometric_reconstruction [-- --quick]` (`--quick`: 8
@@ -59,10 +67,9 @@ use dynamic_shapes::photometric::truth::{
 use dynamic_shapes::photometric::{
     depth_errors, depth_map_mesh, displacement_survival, estimate_normals, hull_samples,
     integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
-    rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap, Exposure,
-    IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    NormalParams, ReconstructParams, Reconstruction, SurfaceDistance, SurfaceErrors, SurfaceParams,
-    ViewSurfaces, VisualHull, VisualHullParams,
+    rendered_normals, surface_distance, table_metrics, DepthMap, IntegrationParams, MatchMetric,
+    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, Reconstruction,
+    SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -586,15 +593,7 @@ fn observe(
         &format!("{name}: normal maps (part 1)"),
         Some(n_cams as u64),
     );
-    let root = scene.root;
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let normal_params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
+    let (_, cal_params, normal_params) = scene.photometric_params(WHITE_LEVEL);
     let mut estimated = Vec::with_capacity(n_cams);
     let mut stacks = Vec::with_capacity(n_cams);
     for (c, cam) in cameras.iter().enumerate() {

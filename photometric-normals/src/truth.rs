@@ -26,7 +26,7 @@ use skin_core::studio::{
 };
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
-use crate::normals::NormalMap;
+use crate::normals::{NormalMap, NormalParams};
 use crate::patterns::{grey, key, patterns_weights, Exposure, PatternImages, CYCLE, PATTERNS};
 use crate::{Error, Result};
 
@@ -282,6 +282,24 @@ impl StudioScene {
             SPHERE_ALBEDO,
             params,
         )
+    }
+
+    /// The photometric parameters of this scene's cameras when they saturate at linear
+    /// intensity `white_level`: the exposure, the calibration's parameters and the normal
+    /// estimation's (performance centre at the root; everything else at its default).
+    pub fn photometric_params(
+        &self,
+        white_level: f32,
+    ) -> (Exposure, CalibrationParams, NormalParams) {
+        let exposure = Exposure::default().with_white_level(white_level);
+        let calibration = CalibrationParams {
+            exposure,
+            ..Default::default()
+        };
+        let normals = NormalParams::default()
+            .with_exposure(exposure)
+            .with_performance_centre(self.root);
+        (exposure, calibration, normals)
     }
 
     /// The captured frame [`Self::frame_index`] under `spec` (the earlier frames are posed,
