@@ -12,14 +12,11 @@ use std::time::Instant;
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
-    GarmentParams, PatternSchedule, SkirtParams,
-};
+use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule};
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, render_sphere_patterns, silhouette_scores, summarize, GreenScreen,
-    LightStage, SensorNoise,
+    dome_power_fraction, pattern_images, render_sphere_patterns, silhouette_scores, skirt_subject,
+    summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
@@ -38,41 +35,21 @@ fn sensor() -> SensorNoise {
 #[test]
 fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     let t0 = Instant::now();
-    let performer = makehuman_performer(
+    let scene = StudioScene::new(
         example_kit::data_path("makehuman").unwrap(),
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+        &skirt_subject(),
+        2,
+        256,
     )
     .unwrap();
-    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
-    let frame_index = 45;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(frame_index))
-        .unwrap()
-        .joint_positions()[0];
-    let light_stage = LightStage::around(&performer.template, root).unwrap();
+    let (performer, light_stage, root) = (&scene.performer, &scene.stage, scene.root);
     let heights = light_stage.sphere_heights_m();
-    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
-    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), 256, 256).unwrap();
-    let rig = Rig::ring(2, 3.5, floor_y + 1.7, root, DVec3::Y, k).unwrap();
-    let cameras = rig.cameras.clone();
-    let mut spec = light_stage
-        .capture_spec(
-            rig,
-            1.0 / motion.frame_time_s,
-            PatternSchedule::AllEachFrame,
-        )
-        .unwrap();
+    let (centre, lights) = (light_stage.centre, &light_stage.lights);
+    let cameras = scene.ring.cameras.clone();
+    let mut spec = scene.capture_spec(scene.ring.clone()).unwrap();
     // The camera model (shot + read noise, 10 bits) replaces the studio's flat noise.
     spec.noise = None;
-    let capture = Capture::new(&performer, &motion, spec).unwrap();
-    let mut frame = capture
-        .frames_in(frame_index..frame_index + 1)
-        .next()
-        .unwrap()
-        .unwrap();
+    let mut frame = scene.capture(spec).unwrap();
     for (c, obs) in frame.observations.iter_mut().enumerate() {
         for (p, im) in obs.patterns.iter_mut().enumerate() {
             sensor().apply(im, (8 * c + p) as u64).unwrap();
@@ -80,32 +57,17 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
     }
     let t_capture = t0.elapsed().as_secs_f64();
 
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
-    let mesh = frame.truth.rendered_mesh(&performer);
+    let (exposure, cal_params, params) = scene.photometric_params(WHITE_LEVEL);
+    let mesh = frame.truth.rendered_mesh(performer);
     let (mut err, mut base, mut concave, mut body) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut valid = (0usize, 0usize);
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
-        let cal =
-            calibrate_camera(cam, lights, centre, root, &heights, 0.2, 0.5, &cal_params).unwrap();
+        let cal = scene.calibrate(cam, &cal_params).unwrap();
         let t_cal = t.elapsed().as_secs_f64();
         let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let images = pattern_images(obs).unwrap();
         let t = Instant::now();
         let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params).unwrap();
         let t_normals = t.elapsed().as_secs_f64();
@@ -324,9 +286,7 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
     };
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+        &skirt_subject(),
     )
     .unwrap();
     let motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();

@@ -9,21 +9,17 @@
 
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
+use dynamic_shapes::core::camera::{Camera, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{is_closed, points_to_surface, MeshQuery, TriMesh};
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
-    GarmentParams, PatternSchedule, SkirtParams,
-};
-use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
+use dynamic_shapes::photometric::truth::{pattern_images, skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
     depth_errors, estimate_normals, hull_samples, match_pair, matching_images, per_view_surfaces,
-    reconstruct, rendered_normals, surface_distance, table_metrics, CalibrationParams, DepthMap,
-    Exposure, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, NormalParams,
-    PatternImages, ReconstructParams, SurfaceParams, VisualHull, VisualHullParams, PATTERNS,
+    reconstruct, rendered_normals, surface_distance, table_metrics, DepthMap, MatchMetric,
+    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, SurfaceParams,
+    VisualHull, VisualHullParams,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -41,41 +37,22 @@ fn render(camera: &Camera, mesh: &TriMesh) -> RenderedView {
 #[test]
 fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     let t0 = Instant::now();
-    let performer = makehuman_performer(
+    let scene = StudioScene::new(
         example_kit::data_path("makehuman").unwrap(),
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+        &skirt_subject(),
+        CAMERAS,
+        SIZE,
     )
     .unwrap();
-    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
-    let frame_index = 45;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(frame_index))
-        .unwrap()
-        .joint_positions()[0];
-    let stage = LightStage::around(&performer.template, root).unwrap();
-    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), SIZE, SIZE).unwrap();
-    let ring = Rig::ring(CAMERAS, 3.5, stage.floor_y + 1.7, root, DVec3::Y, k).unwrap();
+    let (performer, ring) = (&scene.performer, &scene.ring);
     // The light stage photographs two neighbouring views (45° apart) for part 1's normals.
     let photographed = Rig {
         cameras: ring.cameras[..2].to_vec(),
     };
-    let spec = stage
-        .capture_spec(
-            photographed,
-            1.0 / motion.frame_time_s,
-            PatternSchedule::AllEachFrame,
-        )
+    let frame = scene
+        .capture(scene.capture_spec(photographed).unwrap())
         .unwrap();
-    let capture = Capture::new(&performer, &motion, spec).unwrap();
-    let frame = capture
-        .frames_in(frame_index..frame_index + 1)
-        .next()
-        .unwrap()
-        .unwrap();
-    let mesh = frame.truth.rendered_mesh(&performer);
+    let mesh = frame.truth.rendered_mesh(performer);
     let views: Vec<RenderedView> = ring.cameras.iter().map(|c| render(c, &mesh)).collect();
     let t_capture = t0.elapsed().as_secs_f64();
 
@@ -113,38 +90,14 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
 
     // Estimated normals (part 1) on the two photographed views, one pair.
     let t = Instant::now();
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let normal_params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
+    let (_, cal_params, normal_params) = scene.photometric_params(WHITE_LEVEL);
     let mut stacks = Vec::new();
     let estimated: Vec<NormalMap> = (0..2)
         .map(|c| {
             let cam = &ring.cameras[c];
-            let cal = calibrate_camera(
-                cam,
-                &stage.lights,
-                stage.centre,
-                root,
-                &stage.sphere_heights_m(),
-                0.2,
-                0.5,
-                &cal_params,
-            )
-            .unwrap();
+            let cal = scene.calibrate(cam, &cal_params).unwrap();
             let obs = &frame.observations[c];
-            let images = PatternImages::from_rgb(
-                &PATTERNS
-                    .iter()
-                    .zip(&obs.patterns)
-                    .map(|(&p, im)| (p, im))
-                    .collect::<Vec<_>>(),
-            )
-            .unwrap();
+            let images = pattern_images(obs).unwrap();
             stacks.push(matching_images(&images));
             estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params).unwrap()
         })

@@ -36,19 +36,16 @@ use clap::Parser;
 use image::{Rgb, RgbImage};
 use serde_json::json;
 
-use dynamic_shapes::core::camera::{Intrinsics, Rig};
+use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
-    GarmentParams, PatternSchedule, SkirtParams, WrinkleParams,
-};
+use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
-    angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
-    dome_power_fraction, silhouette_scores, summarize, GreenScreen, LightStage, SensorNoise,
+    angular_errors_deg, colour_scores, distant_light_normals, dome_power_fraction, pattern_images,
+    silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
-    estimate_normals, CalibrationParams, Exposure, NormalMap, NormalParams, Pattern, PatternImages,
-    SilhouetteParams, CYCLE, PATTERNS,
+    estimate_normals, Exposure, NormalMap, NormalParams, Pattern, PatternImages, SilhouetteParams,
+    CYCLE, PATTERNS,
 };
 use example_kit::plot::{
     error_colour, label_rows, side_by_side, titled, with_colour_bar, ColourBar,
@@ -59,9 +56,6 @@ use example_kit::{Goal, Headline, Run};
 const WHITE_LEVEL: f32 = 0.4;
 /// Top of the error colour scale, degrees.
 const ERROR_MAX_DEG: f64 = 20.0;
-/// Calibration sphere radius, m, and albedo.
-const SPHERE_RADIUS_M: f64 = 0.2;
-const SPHERE_ALBEDO: f32 = 0.5;
 /// Wrinkled regions: faces with a vertex moved more than this by the wrinkles, m.
 const WRINKLE_MIN_M: f64 = 0.5e-3;
 /// The values of Eq. 3.2's N tried on the static frame.
@@ -127,32 +121,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     )?;
     let stage = run.stage("performer", None);
-    let performer = makehuman_performer(
+    let scene = StudioScene::new(
         example_kit::data_path("makehuman")?,
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
-            .with_wrinkles(Some(WrinkleParams::default())),
+        &skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
+        n_cams,
+        size,
     )?;
-    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
-    let frame_index = 45;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(frame_index))?
-        .joint_positions()[0];
-    let light_stage = LightStage::around(&performer.template, root)?;
-    let heights = light_stage.sphere_heights_m();
-    let (floor_y, centre, lights) = (light_stage.floor_y, light_stage.centre, &light_stage.lights);
+    let (performer, light_stage) = (&scene.performer, &scene.stage);
+    let frame_index = scene.frame_index;
+    let lights = &light_stage.lights;
     stage.finish(format!("{} vertices", performer.vertex_count()));
 
-    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
-    let rig = Rig::ring(n_cams, 3.5, floor_y + 1.7, root, DVec3::Y, k)?;
-    let cameras = rig.cameras.clone();
-    let mut spec = light_stage.capture_spec(
-        rig,
-        1.0 / motion.frame_time_s,
-        PatternSchedule::AllEachFrame,
-    )?;
+    let cameras = scene.ring.cameras.clone();
+    let mut spec = scene.capture_spec(scene.ring.clone())?;
     let light_bins = match args.light_bins.unwrap_or(if quick { 0 } else { 100 }) {
         0 => None,
         b => Some(b),
@@ -171,11 +152,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     noise.set_studio(&mut spec);
     let stage = run.stage("capture", None);
     let t = Instant::now();
-    let capture = Capture::new(&performer, &motion, spec)?;
-    let mut frame = capture
-        .frames_in(frame_index..frame_index + 1)
-        .next()
-        .ok_or("the frame is in the motion")??;
+    let mut frame = scene.capture(spec)?;
     let capture_s = t.elapsed().as_secs_f64();
     for (c, obs) in frame.observations.iter_mut().enumerate() {
         for (p, im) in obs.patterns.iter_mut().enumerate() {
@@ -187,15 +164,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         lights.len()
     ));
 
-    let exposure = Exposure::default().with_white_level(args.white_level);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
-    let mesh = frame.truth.rendered_mesh(&performer);
+    let (exposure, cal_params, params) = scene.photometric_params(args.white_level);
+    let mesh = frame.truth.rendered_mesh(performer);
     let fine = frame
         .truth
         .fine
@@ -208,25 +178,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut cals = Vec::new();
     for (c, cam) in cameras.iter().enumerate() {
         let t = Instant::now();
-        let cal = calibrate_camera(
-            cam,
-            lights,
-            centre,
-            root,
-            &heights,
-            SPHERE_RADIUS_M,
-            SPHERE_ALBEDO,
-            &cal_params,
-        )?;
+        let cal = scene.calibrate(cam, &cal_params)?;
         cal_ms.push(t.elapsed().as_secs_f64() * 1e3);
         let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )?;
+        let images = pattern_images(obs)?;
         let t = Instant::now();
         let map = estimate_normals(cam, &cal, &images, Some(&obs.mask), &params)?;
         normals_ms.push(t.elapsed().as_secs_f64() * 1e3);
@@ -416,7 +371,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let moving = moving_sequence(
         &cameras,
         &cals,
-        &light_stage,
+        light_stage,
         &params,
         noise,
         maps,
@@ -726,12 +681,7 @@ fn moving_sequence(
     };
     use std::collections::VecDeque;
     const FIRST: usize = 75;
-    let performer = makehuman_performer(
-        example_kit::data_path("makehuman")?,
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
-    )?;
+    let performer = makehuman_performer(example_kit::data_path("makehuman")?, &skirt_subject())?;
     let motion = fast_motion(&performer.skeleton, &FastMotionParams::default())?;
     let rig = Rig {
         cameras: cameras.to_vec(),

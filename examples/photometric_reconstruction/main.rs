@@ -20,6 +20,12 @@
 //! (Figure 3-5). Every per-view stage is scored against the true depth maps beside the hull
 //! alone.
 //!
+//! Then (unless `--skirt-only`) the same part-1 normals, both passes, Table 3.1 and distances
+//! for two more subjects: the thesis' Ghost (the figure under the studio's draped sheet, at
+//! frame 0: the sheet's simulation diverges later) and the skirt with the studio's wrinkles,
+//! for which [`displacement_survival`] measures how much of the true wrinkle height the
+//! meshes keep (`wrinkle_amplitude_ratio`, beside the visual hull's).
+//!
 //! Last, the workload of `bench/peers/normal_integration.py` regenerated in Rust (Eq. 3.3 on
 //! a 512² Gaussian-bump depth map with analytic normals and a 1 cm-noise prior, α = 10⁻³):
 //! the time of [`integrate_normals`] and its RMS depth error, to set beside the Python peer's
@@ -30,7 +36,9 @@
 //! `matching.png` (camera 0's matched pixels and discontinuities, as Figure 3-6 colours
 //! them), `stages.png` (camera 0's surface, merged and hole-filled meshes of both passes
 //! coloured by distance to the truth, as Figure 3-8), `view_<c>.ply` (each offset surface as
-//! a mesh), `pass{1,2}_{merged,filled}.ply`, `figures.json`, `manifest.json`;
+//! a mesh), `pass{1,2}_{merged,filled}.ply`, `stages_{ghost,wrinkled}.png` and
+//! `{ghost,wrinkled}_pass2_{merged,filled}.ply` for the other subjects, `wrinkles_wrinkled.png`
+//! (true against reconstructed wrinkle heights), `figures.json`, `manifest.json`;
 //! the last stdout line is one JSON object.
 //!
 //! `cargo run --release --example photometric_reconstruction [-- --quick]` (`--quick`: 8
@@ -44,26 +52,29 @@ use clap::Parser;
 use image::{Rgb, RgbImage};
 use serde_json::json;
 
-use dynamic_shapes::core::camera::{Camera, Intrinsics, RadialDistortion, Rig};
+use dynamic_shapes::core::camera::{Camera, Intrinsics, RadialDistortion};
+use dynamic_shapes::core::image::GrayF32Image;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DAffine3, DVec3};
 use dynamic_shapes::core::mesh::{points_to_surface, write_ply, MeshQuery, PlyEncoding, TriMesh};
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, DeformationParams, ExerciseParams,
-    GarmentParams, PatternSchedule, SkirtParams,
+use dynamic_shapes::core::studio::{FineSurface, WrinkleParams};
+use dynamic_shapes::photometric::truth::{
+    ghost_subject, pattern_images, skirt_subject, StudioScene, GHOST_FRAME, RING_RADIUS_M,
+    STUDIO_FRAME,
 };
-use dynamic_shapes::photometric::truth::{calibrate_camera, LightStage};
 use dynamic_shapes::photometric::{
-    depth_errors, depth_map_mesh, estimate_normals, hull_samples, integrate_normals, match_pair,
-    matching_images, per_view_surfaces, reconstruct, rendered_normals, surface_distance,
-    table_metrics, CalibrationParams, DepthMap, Exposure, IntegrationParams, MatchMetric,
-    MatchView, MatchingParams, MetricParams, NormalMap, NormalParams, PatternImages,
-    ReconstructParams, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
-    PATTERNS,
+    depth_errors, depth_map_mesh, displacement_survival, estimate_normals, hull_samples,
+    integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
+    rendered_normals, surface_distance, table_metrics, DepthMap, IntegrationParams, MatchMetric,
+    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, Reconstruction,
+    SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
 };
-use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
+use example_kit::plot::{
+    error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
+    Style,
+};
 use example_kit::{Goal, Headline, Run};
 
 /// Linear intensity at which the cameras saturate (the capture's exposure).
@@ -89,6 +100,12 @@ struct Args {
     /// Size of the peer workload, px.
     #[arg(long, default_value_t = 512)]
     peer_size: u32,
+    /// Only the performer in the skirt (not the Ghost and the wrinkled skirt after it).
+    #[arg(long)]
+    skirt_only: bool,
+    /// Light bins of the wrinkled subject's cast shadows (0: exact; see `photometric_normals`).
+    #[arg(long, default_value_t = 100)]
+    wrinkle_light_bins: usize,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -126,98 +143,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size = args.size.unwrap_or(if run.quick() { 256 } else { 512 });
     let n_cams = args.cameras.max(2);
 
-    let stage = run.stage("performer and capture", None);
-    let performer = makehuman_performer(
+    let scene = StudioScene::new(
         example_kit::data_path("makehuman")?,
-        &DeformationParams::default()
-            .with_flap(None)
-            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+        &skirt_subject(),
+        n_cams,
+        size,
     )?;
-    let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
-    let frame_index = 45;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(frame_index))?
-        .joint_positions()[0];
-    let light_stage = LightStage::around(&performer.template, root)?;
-    let k = Intrinsics::from_horizontal_fov(40f64.to_radians(), size, size)?;
-    let rig = Rig::ring(n_cams, 3.5, light_stage.floor_y + 1.7, root, DVec3::Y, k)?;
-    let cameras = rig.cameras.clone();
-    let spec = light_stage.capture_spec(
-        rig,
-        1.0 / motion.frame_time_s,
-        PatternSchedule::AllEachFrame,
-    )?;
-    let capture = Capture::new(&performer, &motion, spec)?;
-    let frame = capture
-        .frames_in(frame_index..frame_index + 1)
-        .next()
-        .ok_or("no frame")??;
-    let mesh = frame.truth.rendered_mesh(&performer);
-    let views: Vec<RenderedView> = cameras
-        .iter()
-        .map(|c| {
-            Rasterizer::new(c).render(&mesh, &RenderParams::default().with_cull_back_faces(false))
-        })
-        .collect::<Result<_, _>>()?;
-    let truths: Vec<DepthMap> = views
-        .iter()
-        .map(DepthMap::from_view)
-        .collect::<Result<_, _>>()?;
-    stage.finish(format!("{n_cams} cameras at {size}²"));
-
-    let stage = run.stage("normal maps (part 1)", Some(n_cams as u64));
-    let exposure = Exposure::default().with_white_level(WHITE_LEVEL);
-    let cal_params = CalibrationParams {
-        exposure,
-        ..Default::default()
-    };
-    let normal_params = NormalParams::default()
-        .with_exposure(exposure)
-        .with_performance_centre(root);
-    let mut estimated = Vec::with_capacity(n_cams);
-    let mut stacks = Vec::with_capacity(n_cams);
-    for (c, cam) in cameras.iter().enumerate() {
-        let cal = calibrate_camera(
-            cam,
-            &light_stage.lights,
-            light_stage.centre,
-            root,
-            &light_stage.sphere_heights_m(),
-            0.2,
-            0.5,
-            &cal_params,
-        )?;
-        let obs = &frame.observations[c];
-        let images = PatternImages::from_rgb(
-            &PATTERNS
-                .iter()
-                .zip(&obs.patterns)
-                .map(|(&p, im)| (p, im))
-                .collect::<Vec<_>>(),
-        )?;
-        estimated.push(estimate_normals(
-            cam,
-            &cal,
-            &images,
-            Some(&obs.mask),
-            &normal_params,
-        )?);
-        stacks.push(matching_images(&images));
-        stage.inc(1);
-    }
+    let Observed {
+        cameras,
+        mesh,
+        views,
+        truths,
+        estimated,
+        stacks,
+        silhouettes,
+        hull,
+        proxies,
+        t_hull,
+        ..
+    } = observe(&run, &scene, "skirt", Shadowing::Exact)?;
     let exact: Vec<NormalMap> = cameras
         .iter()
         .zip(&views)
         .map(|(c, v)| rendered_normals(c, v))
         .collect::<Result<_, _>>()?;
-    stage.finish("done");
-
-    let stage = run.stage("visual hull proxy", None);
-    let silhouettes: Vec<Mask> = frame.observations.iter().map(|o| o.mask.clone()).collect();
-    let hull = VisualHull::new(&cameras, &silhouettes)?;
-    let proxies = hull.depth_maps(&VisualHullParams::default())?;
-    let t_hull = stage.finish(format!("{} views", proxies.len()));
 
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
     let params = SurfaceParams::default();
@@ -244,53 +193,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     stage.finish(summary(&ctl_err));
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
-    let stage = run.stage("Table 3.1 metrics and distances to the true mesh", Some(2));
-    let mut table = serde_json::Map::new();
-    let mut distances = Vec::new();
-    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
-        let m = table_metrics(
-            &cameras,
-            &estimated,
-            &silhouettes,
-            &pass.views.surfaces,
-            &pass.merged.mesh,
-            &MetricParams::default(),
-        )?;
-        let merged_d = surface_distance(&pass.merged.mesh, &mesh)?;
-        let filled_d = surface_distance(&pass.filled.mesh, &mesh)?;
-        table.insert(
-            name.into(),
-            json!({
-                "coverage_pct": m.coverage_pct,
-                "normal_dev_deg": m.normal_dev_deg,
-                "local_normal_dev_deg": m.local_normal_dev_deg,
-                "measured_px": m.measured_px,
-                "covered_px": m.covered_px,
-                "surface_median_mm": merged_d.median_mm,
-                "surface_p95_mm": merged_d.p95_mm,
-                "filled_surface_median_mm": filled_d.median_mm,
-                "filled_surface_p95_mm": filled_d.p95_mm,
-                "merged_vertices": pass.merged.mesh.vertices.len(),
-                "filled_vertices": pass.filled.mesh.vertices.len(),
-                "samples": pass.samples,
-                "proxy_s": pass.times.proxy_s,
-                "per_view_s": pass.times.per_view_s,
-                "merge_s": pass.times.merge_s,
-                "poisson_s": pass.times.poisson_s,
-            }),
-        );
-        distances.push((merged_d, filled_d));
-        stage.inc(1);
-    }
+    let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
+    let (table, distances) = score_passes(&cameras, &estimated, &silhouettes, &rec, &mesh)?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
-    let hull_points: Vec<DVec3> = hull_samples(&cameras, &proxies, rparams.hull_jump_m, 1.0)?
-        .iter()
-        .map(|s| s.position)
-        .collect();
-    let hull_d = points_to_surface(&hull_points, &MeshQuery::new(&mesh)?)?;
-    let mut hull_mm: Vec<f64> = hull_d.per_vertex.iter().map(|d| d * 1e3).collect();
-    hull_mm.sort_by(f64::total_cmp);
-    let hull_surface_median_mm = hull_mm[hull_mm.len() / 2];
+    let hull_surface_median_mm = hull_surface_median_mm(&cameras, &proxies, &rparams, &mesh)?;
     stage.finish(format!(
         "{table:?}; hull median {hull_surface_median_mm:.1} mm"
     ));
@@ -371,36 +277,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             format!("hole-filled (pass {})", k + 1),
         ));
     }
-    let panels = inputs
-        .iter()
-        .map(
-            |(m, e, label)| -> Result<RgbImage, Box<dyn std::error::Error>> {
-                Ok(titled(
-                    &error_render(m, e, &cameras[0], MESH_ERROR_MAX_MM)?,
-                    label,
-                    None,
-                )?)
-            },
-        )
-        .collect::<Result<Vec<_>, _>>()?;
-    let ramp = |t: f64| error_colour(Some(t * MESH_ERROR_MAX_MM), MESH_ERROR_MAX_MM);
-    let img = with_colour_bar(
-        &titled(
-            &side_by_side(&panels)?,
-            "Reconstruction stages (as Figure 3-8), coloured by distance to the true mesh",
-            Some("seen from camera 0; part-1 normals"),
-        )?,
-        &ColourBar {
-            label: "distance to the true surface (mm)",
-            min: 0.0,
-            max: MESH_ERROR_MAX_MM,
-            ramp: &ramp,
-            note: Some("above the top: red"),
-        },
-    )?;
-    run.save_picture(
+    stages_picture(
+        &mut run,
         "stages.png",
-        &img,
+        &cameras[0],
+        &inputs,
+        "Reconstruction stages (as Figure 3-8), coloured by distance to the true mesh",
         "Camera 0's per-view surface, the merged and the hole-filled meshes of both passes, \
          shaded and coloured by each vertex's distance to the true mesh (mm, colour bar).",
     )?;
@@ -455,6 +337,106 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "filled_surface_p95_mm": table["pass2"]["filled_surface_p95_mm"],
         "hull_surface_median_mm": hull_surface_median_mm,
     });
+    // The other subjects: the Ghost (the sheet-covered figure, §3.4) and the skirt with the
+    // studio's wrinkles (how much of their amplitude survives).
+    let mut headlines = Vec::new();
+    if !args.skirt_only {
+        let wrinkled = skirt_subject().with_wrinkles(Some(WrinkleParams::default()));
+        let bins = match args.wrinkle_light_bins {
+            0 => Shadowing::Exact,
+            b => Shadowing::Binned(b),
+        };
+        // The Ghost at the first frame: the studio's sheet diverges under the exercise motion
+        // from the second frame on (see `GHOST_FRAME`).
+        for (name, subject, frame, shadows) in [
+            ("ghost", ghost_subject(), GHOST_FRAME, Shadowing::Exact),
+            ("wrinkled", wrinkled, STUDIO_FRAME, bins),
+        ] {
+            let t = Instant::now();
+            let scene = StudioScene::at_frame(
+                example_kit::data_path("makehuman")?,
+                &subject,
+                frame,
+                n_cams,
+                size,
+            )?;
+            let mut f = subject_run(&mut run, name, &scene, &pairs, &rparams, shadows)?;
+            f["wall_s"] = json!(t.elapsed().as_secs_f64());
+            f["frame"] = json!(frame);
+            figures[name] = f;
+        }
+        for key in [
+            "coverage_pct",
+            "normal_dev_deg",
+            "local_normal_dev_deg",
+            "surface_median_mm",
+            "surface_p95_mm",
+            "filled_surface_median_mm",
+            "hull_surface_median_mm",
+        ] {
+            figures[format!("ghost_{key}")] = figures["ghost"][key].clone();
+        }
+        for key in [
+            "wrinkle_amplitude_ratio",
+            "wrinkle_filled_amplitude_ratio",
+            "wrinkle_hull_amplitude_ratio",
+            "wrinkle_correlation",
+            "wrinkle_true_rms_mm",
+            "wrinkle_max_mm",
+            "pixel_footprint_mm",
+        ] {
+            figures[key] = figures["wrinkled"][key].clone();
+        }
+        headlines = vec![
+            Headline::new(
+                "ghost_coverage_pct",
+                "Ghost: Table 3.1 coverage, pass-2 merged mesh",
+                "%",
+            )
+            .goal(Goal::AtLeast(90.0)),
+            Headline::new(
+                "ghost_normal_dev_deg",
+                "Ghost: Table 3.1 normal deviation, pass 2",
+                "deg",
+            )
+            .goal(Goal::AtMost(8.0)),
+            Headline::new(
+                "ghost_local_normal_dev_deg",
+                "Ghost: Table 3.1 local normal deviation, pass 2",
+                "deg",
+            )
+            .goal(Goal::AtMost(1.5)),
+            Headline::new(
+                "ghost_surface_median_mm",
+                "Ghost: pass-2 merged mesh to the true mesh (median)",
+                "mm",
+            )
+            .goal(Goal::AtMost(2.0))
+            .note("baseline: ghost_hull_surface_median_mm"),
+            Headline::new(
+                "ghost_hull_surface_median_mm",
+                "Ghost: visual hull surface to the true mesh (median)",
+                "mm",
+            ),
+            Headline::new(
+                "wrinkle_amplitude_ratio",
+                "wrinkle amplitude kept by the pass-2 merged mesh (slope)",
+                "",
+            )
+            .note("baseline: the visual hull's slope (wrinkle_hull_amplitude_ratio)"),
+            Headline::new(
+                "wrinkle_hull_amplitude_ratio",
+                "wrinkle amplitude kept by the visual hull (slope)",
+                "",
+            ),
+            Headline::new(
+                "wrinkle_true_rms_mm",
+                "true wrinkle height RMS (wrinkle region)",
+                "mm",
+            )
+            .note("against pixel_footprint_mm"),
+        ];
+    }
     if let (Some(f), Some(p)) = (figures.as_object_mut(), peer_figures.as_object()) {
         f.extend(p.clone());
     }
@@ -537,10 +519,451 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "s",
         )
         .note("compare with bench/peers/normal_integration.py run on the same machine"),
-    ] {
+    ]
+    .into_iter()
+    .chain(headlines)
+    {
         run.headline(h);
     }
     run.finish(figures)?;
+    Ok(())
+}
+
+/// One subject on the studio ring: the true mesh and views, part 1's normal maps from the
+/// light stage's images, the silhouettes and the visual hull rendered per camera.
+struct Observed {
+    cameras: Vec<Camera>,
+    mesh: TriMesh,
+    views: Vec<RenderedView>,
+    truths: Vec<DepthMap>,
+    estimated: Vec<NormalMap>,
+    stacks: Vec<Vec<GrayF32Image>>,
+    /// The wrinkled fine surface the cameras saw, when the subject has wrinkles.
+    fine: Option<FineSurface>,
+    silhouettes: Vec<Mask>,
+    hull: VisualHull,
+    proxies: Vec<DepthMap>,
+    t_hull: f64,
+}
+
+/// How a capture casts shadows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Shadowing {
+    /// Every light's shadow ray (the studio's default).
+    Exact,
+    /// Shadows of about this many light-direction bins (`photometric_normals`' full run).
+    Binned(usize),
+}
+
+/// Captures `scene` on its whole ring (cast shadows as `shadows`), renders the truth, estimates part 1's normal maps and the visual hull proxies.
+fn observe(
+    run: &Run,
+    scene: &StudioScene,
+    name: &str,
+    shadows: Shadowing,
+) -> Result<Observed, Box<dyn std::error::Error>> {
+    let cameras = scene.ring.cameras.clone();
+    let (n_cams, size) = (
+        cameras.len(),
+        cameras.first().map_or(0, |c| c.intrinsics.width),
+    );
+    let stage = run.stage(&format!("{name}: performer and capture"), None);
+    let mut spec = scene.capture_spec(scene.ring.clone())?;
+    if let Some(lighting) = &mut spec.lighting {
+        match shadows {
+            Shadowing::Exact => {}
+            Shadowing::Binned(bins) => lighting.shadow_light_bins = Some(bins),
+        }
+    }
+    let frame = scene.capture(spec)?;
+    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let views: Vec<RenderedView> = cameras
+        .iter()
+        .map(|c| {
+            Rasterizer::new(c).render(&mesh, &RenderParams::default().with_cull_back_faces(false))
+        })
+        .collect::<Result<_, _>>()?;
+    let truths: Vec<DepthMap> = views
+        .iter()
+        .map(DepthMap::from_view)
+        .collect::<Result<_, _>>()?;
+    stage.finish(format!("{n_cams} cameras at {size}²"));
+
+    let stage = run.stage(
+        &format!("{name}: normal maps (part 1)"),
+        Some(n_cams as u64),
+    );
+    let (_, cal_params, normal_params) = scene.photometric_params(WHITE_LEVEL);
+    let mut estimated = Vec::with_capacity(n_cams);
+    let mut stacks = Vec::with_capacity(n_cams);
+    for (c, cam) in cameras.iter().enumerate() {
+        let cal = scene.calibrate(cam, &cal_params)?;
+        let obs = &frame.observations[c];
+        let images = pattern_images(obs)?;
+        estimated.push(estimate_normals(
+            cam,
+            &cal,
+            &images,
+            Some(&obs.mask),
+            &normal_params,
+        )?);
+        stacks.push(matching_images(&images));
+        stage.inc(1);
+    }
+    stage.finish("done");
+
+    let stage = run.stage(&format!("{name}: visual hull proxy"), None);
+    let silhouettes: Vec<Mask> = frame.observations.iter().map(|o| o.mask.clone()).collect();
+    let hull = VisualHull::new(&cameras, &silhouettes)?;
+    let proxies = hull.depth_maps(&VisualHullParams::default())?;
+    let t_hull = stage.finish(format!("{} views", proxies.len()));
+    Ok(Observed {
+        cameras,
+        fine: frame.truth.fine.clone(),
+        mesh,
+        views,
+        truths,
+        estimated,
+        stacks,
+        silhouettes,
+        hull,
+        proxies,
+        t_hull,
+    })
+}
+
+/// Fine vertices moved more than this by the wrinkles are the wrinkle region, m (as in
+/// `photometric_normals`).
+const WRINKLE_MIN_M: f64 = 0.5e-3;
+/// How far along the smooth surface's normal the reconstruction is looked for, m.
+const WRINKLE_REACH_M: f64 = 0.01;
+/// Most points drawn per series of the wrinkle scatter plot.
+const SCATTER_POINTS: usize = 4000;
+
+/// Another subject through the same two passes (pass `rparams` and ring `pairs`): Table 3.1,
+/// distances to the true mesh beside the visual hull's, and — for a subject with wrinkles —
+/// how much of the wrinkle displacement the meshes keep ([`displacement_survival`]), with a
+/// scatter plot `wrinkles.png`.
+fn subject_run(
+    run: &mut Run,
+    name: &str,
+    scene: &StudioScene,
+    pairs: &[(usize, usize)],
+    rparams: &ReconstructParams,
+    shadows: Shadowing,
+) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
+    let obs = observe(run, scene, name, shadows)?;
+    let stage = run.stage(&format!("{name}: two passes"), None);
+    let t = Instant::now();
+    let rec = reconstruct(&obs.cameras, &obs.estimated, &obs.hull, pairs, rparams)?;
+    let two_pass_s = t.elapsed().as_secs_f64();
+    let per_view =
+        rec.pass2
+            .views
+            .errors_against(&obs.truths, &rec.pass2.proxies, &obs.estimated)?;
+    let (table, distances) = score_passes(
+        &obs.cameras,
+        &obs.estimated,
+        &obs.silhouettes,
+        &rec,
+        &obs.mesh,
+    )?;
+    let zero = vec![0.0; obs.mesh.vertices.len()];
+    let (merged_d, filled_d) = &distances[1];
+    stages_picture(
+        run,
+        &format!("stages_{name}.png"),
+        &obs.cameras[0],
+        &[
+            (&obs.mesh, &zero, "true surface".to_string()),
+            (
+                &rec.pass2.merged.mesh,
+                &merged_d.per_vertex_mm,
+                "merged (pass 2)".into(),
+            ),
+            (
+                &rec.pass2.filled.mesh,
+                &filled_d.per_vertex_mm,
+                "hole-filled (pass 2)".into(),
+            ),
+        ],
+        &format!(
+            "{name}: the true surface and both pass-2 meshes, coloured by distance to the truth"
+        ),
+        &format!(
+            "The {name} subject's true surface and the pass-2 merged and hole-filled meshes seen \
+             from camera 0, coloured by each vertex's distance to the true mesh (mm, colour bar)."
+        ),
+    )?;
+    let hull_median = hull_surface_median_mm(&obs.cameras, &obs.proxies, rparams, &obs.mesh)?;
+    stage.finish(format!(
+        "{}; hull median {hull_median:.1} mm",
+        summary(&per_view)
+    ));
+    let p2 = &table["pass2"];
+    let mut out = json!({
+        "table_3_1": table,
+        "coverage_pct": p2["coverage_pct"],
+        "normal_dev_deg": p2["normal_dev_deg"],
+        "local_normal_dev_deg": p2["local_normal_dev_deg"],
+        "surface_median_mm": p2["surface_median_mm"],
+        "surface_p95_mm": p2["surface_p95_mm"],
+        "filled_surface_median_mm": p2["filled_surface_median_mm"],
+        "filled_surface_p95_mm": p2["filled_surface_p95_mm"],
+        "hull_surface_median_mm": hull_median,
+        "pass2_offset_median_mm": per_view.offset.median_mm,
+        "pass2_coverage_pct": per_view.coverage_pct,
+        "true_vertices": obs.mesh.vertices.len(),
+        "hull_s": obs.t_hull,
+        "two_pass_s": two_pass_s,
+    });
+    for (mesh, file) in [
+        (&rec.pass2.merged.mesh, "merged"),
+        (&rec.pass2.filled.mesh, "filled"),
+    ] {
+        write_ply(
+            run.path(&format!("{name}_pass2_{file}.ply")),
+            mesh,
+            PlyEncoding::default(),
+        )?;
+    }
+    let Some(fine) = &obs.fine else {
+        return Ok(out);
+    };
+
+    // How much of the studio's wrinkle amplitude survives.
+    let stage = run.stage(&format!("{name}: wrinkle amplitude"), None);
+    let smooth = TriMesh::new(
+        fine.mesh
+            .vertices
+            .iter()
+            .zip(&fine.wrinkle_displacement)
+            .map(|(v, d)| *v - *d)
+            .collect(),
+        fine.mesh.faces.clone(),
+    )?;
+    let region: Vec<bool> = fine
+        .wrinkle_displacement
+        .iter()
+        .map(|d| d.length() > WRINKLE_MIN_M)
+        .collect();
+    // The baseline that could win: the visual hull's surface, its per-view meshes joined.
+    let jump = IntegrationParams::jump_threshold_m(rparams.hull_jump_m, obs.truths[0].width);
+    let mut hull_mesh = TriMesh::new(Vec::new(), Vec::new())?;
+    for (cam, proxy) in obs.cameras.iter().zip(&obs.proxies) {
+        if let Ok(m) = depth_map_mesh(cam, proxy, jump) {
+            let base = hull_mesh.vertices.len() as u32;
+            hull_mesh.vertices.extend(m.vertices);
+            hull_mesh
+                .faces
+                .extend(m.faces.iter().map(|f| f.map(|v| v + base)));
+        }
+    }
+    let mut survival = serde_json::Map::new();
+    let mut scatter = Vec::new();
+    for (label, key, mesh) in [
+        ("pass-2 merged", "pass2_merged", &rec.pass2.merged.mesh),
+        ("pass-2 hole-filled", "pass2_filled", &rec.pass2.filled.mesh),
+        ("pass-1 merged", "pass1_merged", &rec.pass1.merged.mesh),
+        ("visual hull (baseline)", "hull", &hull_mesh),
+    ] {
+        let s = displacement_survival(
+            &smooth,
+            &fine.wrinkle_displacement,
+            &region,
+            mesh,
+            WRINKLE_REACH_M,
+        )?;
+        survival.insert(key.into(), serde_json::to_value(&s)?);
+        scatter.push((label, s));
+    }
+    let size = obs.truths[0].width;
+    let fx = obs.cameras[0].intrinsics.fx;
+    // A pixel's footprint on a surface facing the camera at the ring's radius, mm.
+    let pixel_mm = RING_RADIUS_M / fx * 1e3;
+    let main = &scatter[0].1;
+    stage.finish(format!(
+        "slope {:.2} (hull {:.2}), correlation {:.2}, true RMS {:.2} mm, pixel {pixel_mm:.1} mm",
+        main.slope, scatter[3].1.slope, main.correlation, main.true_rms_mm
+    ));
+    let colours = [
+        [200, 30, 30],
+        [30, 90, 200],
+        [230, 150, 20],
+        [120, 120, 120],
+    ];
+    let mut chart = Chart::new(
+        format!("Wrinkle amplitude that survives ({name}, {size}² px)"),
+        "true wrinkle height along the smooth normal (mm)",
+        "reconstructed height (mm)",
+    );
+    chart.y_from_zero = false;
+    chart.marker_px = 1;
+    chart.legend = LegendPosition::UpperLeft;
+    let lim = 1.5 * main.true_rms_mm.max(0.5) * 2f64.sqrt() + 1.0;
+    chart.x_range = Some((-lim, lim));
+    chart.y_range = Some((-2.0 * lim, 2.0 * lim));
+    for ((label, s), colour) in scatter.iter().zip(colours).rev() {
+        let step = s.heights_mm.len().div_ceil(SCATTER_POINTS).max(1);
+        chart = chart.with(Series::new(
+            format!("{label}: slope {:.2}, r = {:.2}", s.slope, s.correlation),
+            colour,
+            Style::Markers,
+            s.heights_mm
+                .iter()
+                .step_by(step)
+                .map(|h| (h[0], h[1]))
+                .collect(),
+        ));
+    }
+    chart = chart.with(Series::new(
+        "all amplitude kept (slope 1)",
+        [0, 0, 0],
+        Style::Dashed,
+        vec![(-lim, -lim), (lim, lim)],
+    ));
+    run.save_picture(
+        &format!("wrinkles_{name}.png"),
+        &chart.draw()?,
+        "Per wrinkle-region vertex of the true fine surface: the true wrinkle height along the \
+         smooth surface's normal against the reconstructed mesh's height there (nearest hit \
+         along ±normal within 1 cm), for the pass-2 merged and hole-filled meshes, pass 1's \
+         merged mesh and the visual hull (the baseline); the legend gives each fit's slope \
+         (amplitude ratio) and correlation.",
+    )?;
+    if let Some(o) = out.as_object_mut() {
+        o.insert("wrinkle_survival".into(), survival.into());
+        o.insert("wrinkle_amplitude_ratio".into(), json!(main.slope));
+        o.insert(
+            "wrinkle_filled_amplitude_ratio".into(),
+            json!(scatter[1].1.slope),
+        );
+        o.insert(
+            "wrinkle_hull_amplitude_ratio".into(),
+            json!(scatter[3].1.slope),
+        );
+        o.insert("wrinkle_correlation".into(), json!(main.correlation));
+        o.insert("wrinkle_true_rms_mm".into(), json!(main.true_rms_mm));
+        o.insert("wrinkle_max_mm".into(), json!(fine.max_wrinkle_m() * 1e3));
+        o.insert(
+            "wrinkle_region_vertices".into(),
+            json!(region.iter().filter(|&&r| r).count()),
+        );
+        o.insert("pixel_footprint_mm".into(), json!(pixel_mm));
+    }
+    Ok(out)
+}
+
+/// Table 3.1 of each pass (by name) and its merged and filled meshes' distances to the truth.
+type PassScores = (
+    serde_json::Map<String, serde_json::Value>,
+    Vec<(SurfaceDistance, SurfaceDistance)>,
+);
+
+/// Table 3.1 of both passes (on the merged meshes, before hole filling) and the merged and
+/// filled meshes' distances to the true mesh `truth`.
+fn score_passes(
+    cameras: &[Camera],
+    estimated: &[NormalMap],
+    silhouettes: &[Mask],
+    rec: &Reconstruction,
+    truth: &TriMesh,
+) -> Result<PassScores, Box<dyn std::error::Error>> {
+    let mut table = serde_json::Map::new();
+    let mut distances = Vec::new();
+    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
+        let m = table_metrics(
+            cameras,
+            estimated,
+            silhouettes,
+            &pass.views.surfaces,
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
+        let merged_d = surface_distance(&pass.merged.mesh, truth)?;
+        let filled_d = surface_distance(&pass.filled.mesh, truth)?;
+        table.insert(
+            name.into(),
+            json!({
+                "coverage_pct": m.coverage_pct,
+                "normal_dev_deg": m.normal_dev_deg,
+                "local_normal_dev_deg": m.local_normal_dev_deg,
+                "measured_px": m.measured_px,
+                "covered_px": m.covered_px,
+                "surface_median_mm": merged_d.median_mm,
+                "surface_p95_mm": merged_d.p95_mm,
+                "filled_surface_median_mm": filled_d.median_mm,
+                "filled_surface_p95_mm": filled_d.p95_mm,
+                "merged_vertices": pass.merged.mesh.vertices.len(),
+                "filled_vertices": pass.filled.mesh.vertices.len(),
+                "samples": pass.samples,
+                "proxy_s": pass.times.proxy_s,
+                "per_view_s": pass.times.per_view_s,
+                "merge_s": pass.times.merge_s,
+                "poisson_s": pass.times.poisson_s,
+            }),
+        );
+        distances.push((merged_d, filled_d));
+    }
+    Ok((table, distances))
+}
+
+/// The median distance of the visual hull's surface (its per-view meshes' vertices) to the
+/// true mesh, mm: the baseline that could win.
+fn hull_surface_median_mm(
+    cameras: &[Camera],
+    proxies: &[DepthMap],
+    rparams: &ReconstructParams,
+    truth: &TriMesh,
+) -> Result<f64, Box<dyn std::error::Error>> {
+    let hull_points: Vec<DVec3> = hull_samples(cameras, proxies, rparams.hull_jump_m, 1.0)?
+        .iter()
+        .map(|s| s.position)
+        .collect();
+    let hull_d = points_to_surface(&hull_points, &MeshQuery::new(truth)?)?;
+    let mut hull_mm: Vec<f64> = hull_d.per_vertex.iter().map(|d| d * 1e3).collect();
+    hull_mm.sort_by(f64::total_cmp);
+    Ok(hull_mm[hull_mm.len() / 2])
+}
+
+/// `inputs` (mesh, per-vertex distance to the truth in mm, label) side by side as seen by
+/// `camera`, coloured by the distance, with a colour bar: saved as `file`.
+fn stages_picture(
+    run: &mut Run,
+    file: &str,
+    camera: &Camera,
+    inputs: &[(&TriMesh, &Vec<f64>, String)],
+    title: &str,
+    caption: &str,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let panels = inputs
+        .iter()
+        .map(
+            |(m, e, label)| -> Result<RgbImage, Box<dyn std::error::Error>> {
+                Ok(titled(
+                    &error_render(m, e, camera, MESH_ERROR_MAX_MM)?,
+                    label,
+                    None,
+                )?)
+            },
+        )
+        .collect::<Result<Vec<_>, _>>()?;
+    let ramp = |t: f64| error_colour(Some(t * MESH_ERROR_MAX_MM), MESH_ERROR_MAX_MM);
+    let img = with_colour_bar(
+        &titled(
+            &side_by_side(&panels)?,
+            title,
+            Some("seen from camera 0; part-1 normals"),
+        )?,
+        &ColourBar {
+            label: "distance to the true surface (mm)",
+            min: 0.0,
+            max: MESH_ERROR_MAX_MM,
+            ramp: &ramp,
+            note: Some("above the top: red"),
+        },
+    )?;
+    run.save_picture(file, &img, caption)?;
     Ok(())
 }
 

@@ -85,8 +85,9 @@
 //!
 //! ## Validation
 //!
-//! With the cargo feature `validation`, the public module `truth` holds the studio's light
-//! patterns and calibration spheres, ground-truth scoring (angular error, shadowed
+//! With the cargo feature `validation`, the public module `truth` holds the studio scene of
+//! the validation (`StudioScene`: a subject, its light stage and camera ring), the studio's
+//! light patterns and calibration spheres, ground-truth scoring (angular error, shadowed
 //! concavities, wrinkled regions) and the distant-light baseline; `peer_workloads` regenerates
 //! the peer benchmarks' merging and Poisson inputs (workloads 6a and 6b) with their truth.
 #![warn(missing_docs)]
@@ -129,7 +130,10 @@ pub use matching::{
     MatchingParams, PairMatches, ViewMatches,
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
-pub use metrics::{surface_distance, table_metrics, MetricParams, SurfaceDistance, TableMetrics};
+pub use metrics::{
+    displacement_survival, surface_distance, table_metrics, DisplacementSurvival, MetricParams,
+    SurfaceDistance, TableMetrics,
+};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{

@@ -13,14 +13,17 @@
 //!   normals for the neighbors". Here per pixel: for each covered pixel and each of its right
 //!   and lower neighbours that is covered too, |∠(n_mesh(p), n_mesh(q)) −
 //!   ∠(n_meas(p), n_meas(q))|, averaged over all such pairs (degrees).
+//!
+//! Beyond the thesis: [`surface_distance`] to a true mesh, and [`displacement_survival`], the
+//! share of a known relief (the studio's wrinkles) a reconstruction keeps.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
 use skin_core::image::Mask;
-use skin_core::math::DVec3;
-use skin_core::mesh::{one_sided_distance, TriMesh};
+use skin_core::math::{DVec3, Ray};
+use skin_core::mesh::{one_sided_distance, vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use skin_core::raster::{Rasterizer, RenderParams};
 
 use crate::{rendered_normals, Context, DepthMap, Error, NormalMap, Result, ResultExt};
@@ -217,6 +220,107 @@ pub fn surface_distance(mesh: &TriMesh, truth: &TriMesh) -> Result<SurfaceDistan
     })
 }
 
+/// How much of a known displacement of a surface (e.g. the studio's wrinkles) a reconstructed
+/// mesh keeps ([`displacement_survival`]). Displacements are signed heights along the smooth
+/// surface's normal; the figures are over the measured vertices.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DisplacementSurvival {
+    /// Vertices in the region (with a non-zero displacement asked for).
+    pub region_vertices: usize,
+    /// Of those, the vertices where the reconstruction was found within reach along the
+    /// normal (the figures below are over these).
+    pub vertices: usize,
+    /// Least-squares slope of the reconstructed height on the true height (with an
+    /// intercept): 1 keeps the whole amplitude, 0 none of it.
+    pub slope: f64,
+    /// Intercept of that fit, mm (the reconstruction's mean offset from the smooth surface).
+    pub intercept_mm: f64,
+    /// Pearson correlation of the true and reconstructed heights.
+    pub correlation: f64,
+    /// RMS of the true heights, mm.
+    pub true_rms_mm: f64,
+    /// RMS of the reconstructed heights about their mean, mm.
+    pub reconstructed_rms_mm: f64,
+    /// `[true, reconstructed]` height of every measured vertex, mm (for plots).
+    #[serde(skip)]
+    pub heights_mm: Vec<[f64; 2]>,
+}
+
+/// How much of a known surface displacement a reconstruction keeps (beyond the thesis; the
+/// issue's "wrinkle amplitude that survives").
+///
+/// `smooth` is the surface without the displacement; `displacement[i]` moves its vertex `i`
+/// to the displaced (true) surface; `region[i]` selects the vertices measured. Per selected
+/// vertex `p` with unit normal `n` (area-weighted, of `smooth`): the true height is
+/// `displacement[i] · n`; the reconstructed height is the signed distance along `±n` from
+/// `p` to the nearest hit on `reconstructed` within `reach_m` (vertices without one are left
+/// out). The figures are the least-squares slope and intercept of reconstructed on true
+/// height, their correlation and RMS amplitudes.
+///
+/// # Errors
+/// Size mismatches of `displacement` and `region` with `smooth`; a non-positive or NaN
+/// `reach_m`; [`Error::Empty`] when fewer than 3 vertices are measured or the true heights
+/// do not vary; mesh errors (non-finite vertices, empty meshes).
+pub fn displacement_survival(
+    smooth: &TriMesh,
+    displacement: &[DVec3],
+    region: &[bool],
+    reconstructed: &TriMesh,
+    reach_m: f64,
+) -> Result<DisplacementSurvival> {
+    let n = smooth.vertices.len();
+    check::same_size("displacements", n, displacement.len())?;
+    check::same_size("region flags", n, region.len())?;
+    check::positive("reach_m", reach_m)?;
+    let normals = vertex_normals(smooth, NormalWeighting::Area)?;
+    let query = MeshQuery::new(reconstructed)?;
+    let selected: Vec<usize> = (0..n).filter(|&i| region[i]).collect();
+    let pairs = selected
+        .par_iter()
+        .map(|&i| -> Result<Option<(f64, f64)>> {
+            let (p, nrm) = (smooth.vertices[i], normals[i]);
+            if nrm.length_squared() < 0.5 {
+                return Ok(None);
+            }
+            let hit = |d: DVec3| query.cast_ray(Ray::new(p, d), reach_m);
+            let up = hit(nrm)?.map(|h| h.t);
+            let down = hit(-nrm)?.map(|h| -h.t);
+            let h = match (up, down) {
+                (Some(a), Some(b)) => Some(if a.abs() <= b.abs() { a } else { b }),
+                (a, b) => a.or(b),
+            };
+            Ok(h.map(|h| (displacement[i].dot(nrm), h)))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let pairs: Vec<(f64, f64)> = pairs.into_iter().flatten().collect();
+    let m = pairs.len() as f64;
+    let mean = |f: &dyn Fn(&(f64, f64)) -> f64| pairs.iter().map(f).sum::<f64>() / m;
+    let (mx, my) = (mean(&|p| p.0), mean(&|p| p.1));
+    let sxx = mean(&|p| (p.0 - mx).powi(2));
+    let syy = mean(&|p| (p.1 - my).powi(2));
+    let sxy = mean(&|p| (p.0 - mx) * (p.1 - my));
+    if pairs.len() < 3 || sxx.is_nan() || sxx <= 0.0 {
+        return Err(Error::Empty {
+            what: "vertices with a varying displacement and a reconstruction within reach",
+        });
+    }
+    let slope = sxy / sxx;
+    Ok(DisplacementSurvival {
+        region_vertices: selected.len(),
+        vertices: pairs.len(),
+        slope,
+        intercept_mm: (my - slope * mx) * 1e3,
+        correlation: if syy > 0.0 {
+            sxy / (sxx * syy).sqrt()
+        } else {
+            0.0
+        },
+        true_rms_mm: mean(&|p| p.0 * p.0).sqrt() * 1e3,
+        reconstructed_rms_mm: syy.sqrt() * 1e3,
+        heights_mm: pairs.iter().map(|p| [p.0 * 1e3, p.1 * 1e3]).collect(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -260,5 +364,68 @@ mod tests {
         );
         let nan = MetricParams { near_m: f64::NAN };
         assert!(table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &nan).is_err());
+    }
+
+    #[test]
+    fn displacement_survival_measures_the_kept_share_of_a_known_relief() {
+        // A sphere with a 2 mm, 2 cm-wavelength relief along its normals (as the studio's
+        // wrinkles), reconstructed in full, at half amplitude, and not at all.
+        let smooth = uv_sphere(DVec3::ZERO, 0.3, 96, 192).unwrap();
+        let relief = |p: DVec3| 0.002 * (std::f64::consts::TAU * p.y / 0.02).sin();
+        let with = |k: f64| {
+            let mut m = smooth.clone();
+            for v in &mut m.vertices {
+                *v += v.normalize() * k * relief(*v);
+            }
+            m
+        };
+        let displacement: Vec<DVec3> = smooth
+            .vertices
+            .iter()
+            .map(|v| v.normalize() * relief(*v))
+            .collect();
+        // The band |y| < 0.2 m (away from the poles' thin triangles).
+        let region: Vec<bool> = smooth.vertices.iter().map(|v| v.y.abs() < 0.2).collect();
+        let s = |m: &TriMesh| displacement_survival(&smooth, &displacement, &region, m, 0.02);
+        // The figures without the per-vertex heights (for messages).
+        let fig = |s: &DisplacementSurvival| {
+            (
+                s.vertices,
+                s.slope,
+                s.intercept_mm,
+                s.correlation,
+                s.true_rms_mm,
+            )
+        };
+        let full = s(&with(1.0)).unwrap();
+        assert!(
+            (full.slope - 1.0).abs() < 0.05 && full.correlation > 0.99,
+            "{:?}",
+            fig(&full)
+        );
+        // A 2 mm sine sampled at the sphere's rings (6 mm apart): RMS near 2 / √2 mm.
+        assert!((1.0..1.5).contains(&full.true_rms_mm), "{:?}", fig(&full));
+        assert_eq!(full.heights_mm.len(), full.vertices);
+        let half = s(&with(0.5)).unwrap();
+        assert!((half.slope - 0.5).abs() < 0.05, "{:?}", fig(&half));
+        let none = s(&smooth).unwrap();
+        assert!(none.slope.abs() < 0.05, "{:?}", fig(&none));
+        assert!(none.vertices > 1000 && none.vertices <= none.region_vertices);
+        // A sphere 1 cm larger is found, offset, with the relief's slope still 0.
+        let shifted = uv_sphere(DVec3::ZERO, 0.31, 96, 192).unwrap();
+        let off = s(&shifted).unwrap();
+        assert!(
+            off.slope.abs() < 0.05 && (off.intercept_mm - 10.0).abs() < 0.5,
+            "{:?}",
+            fig(&off)
+        );
+        // Bad input.
+        assert!(s(&uv_sphere(DVec3::ZERO, 0.4, 48, 96).unwrap()).is_err()); // out of reach
+        assert!(
+            displacement_survival(&smooth, &displacement[1..], &region, &smooth, 0.02).is_err()
+        );
+        assert!(displacement_survival(&smooth, &displacement, &region, &smooth, f64::NAN).is_err());
+        let nowhere = vec![false; region.len()];
+        assert!(displacement_survival(&smooth, &displacement, &nowhere, &smooth, 0.02).is_err());
     }
 }

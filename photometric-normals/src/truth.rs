@@ -3,25 +3,30 @@
 //! wrinkled regions) and the distant-light baseline (the analytic solution the thesis
 //! replaces by its data-driven lookup).
 
+use std::path::Path;
+
 use image::Rgb32FImage;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
-use skin_core::camera::Rig;
+use skin_core::camera::{Intrinsics, Rig};
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams, RenderedView};
+use skin_core::skeleton::Motion;
 use skin_core::stats::{mean, median};
 use skin_core::studio::shading::{
     dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
 };
 use skin_core::studio::{
-    CaptureLighting, CaptureSpec, FineSurface, LightPatterns, PatternSchedule, PixelNoise,
-    TextureParams, ViewTruth,
+    exercise_motion, makehuman_performer, CameraObservation, Capture, CaptureFrame,
+    CaptureLighting, CaptureSpec, DeformationParams, ExerciseParams, FineSurface, GarmentParams,
+    LightPatterns, PatternSchedule, Performer, PixelNoise, SheetParams, SkirtParams, TextureParams,
+    ViewTruth,
 };
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
-use crate::normals::NormalMap;
+use crate::normals::{NormalMap, NormalParams};
 use crate::patterns::{grey, key, patterns_weights, Exposure, PatternImages, CYCLE, PATTERNS};
 use crate::{Error, Result};
 
@@ -40,6 +45,10 @@ pub const SPHERE_LOWEST_M: f64 = 0.2;
 pub const SPHERE_STEP_M: f64 = 0.25;
 /// The number of calibration sphere heights (§3.2.3).
 pub const SPHERE_HEIGHTS: usize = 7;
+/// Radius of the studio's grey calibration spheres, m.
+pub const SPHERE_RADIUS_M: f64 = 0.2;
+/// Albedo of the studio's grey calibration spheres.
+pub const SPHERE_ALBEDO: f32 = 0.5;
 
 /// The light stage set up around a performer: the floor just under its rest template, the
 /// default dome standing on that floor centred under `root`, its lights and the centre of its
@@ -117,6 +126,212 @@ impl LightStage {
             .map(|i| self.floor_y + SPHERE_LOWEST_M + SPHERE_STEP_M * i as f64)
             .collect()
     }
+}
+
+/// The frame of the exercise motion every studio scene of the photometric validation shows
+/// (a static pose with the arms and legs apart and the skirt in motion).
+pub const STUDIO_FRAME: usize = 45;
+/// Radius of the studio scene's camera ring around the root, m.
+pub const RING_RADIUS_M: f64 = 3.5;
+/// Height of the ring's cameras above the floor, m.
+pub const RING_HEIGHT_M: f64 = 1.7;
+/// Horizontal field of view of the ring's cameras, degrees.
+pub const RING_HFOV_DEG: f64 = 40.0;
+
+/// The frame of the exercise motion the Ghost is captured at: the first. The studio's sheet
+/// ([`SheetParams::default`]) settles on the rest pose and stays finite under the exercise
+/// motion for one frame only: its vertices reach ≈ 30 m at frame 2 and 4 km at frame 3 (the
+/// cloth simulation diverges), so later frames cannot be rendered.
+pub const GHOST_FRAME: usize = 0;
+
+/// The MakeHuman performer in the skirt (no flap, no wrinkles): the validation's main subject.
+pub fn skirt_subject() -> DeformationParams {
+    DeformationParams::default()
+        .with_flap(None)
+        .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
+}
+
+/// The sheet-covered figure, the thesis' "Ghost" (§3.4, Figure 3-9): the MakeHuman performer
+/// under the studio's draped sheet ([`SheetParams::default`]), no flap, no wrinkles.
+pub fn ghost_subject() -> DeformationParams {
+    DeformationParams::default()
+        .with_flap(None)
+        .with_garment(Some(GarmentParams::Sheet(SheetParams::default())))
+}
+
+/// The studio scene of the photometric validation: a subject (the performer built with some
+/// [`DeformationParams`], e.g. [`skirt_subject`] or [`ghost_subject`]) playing the exercise
+/// motion, frame [`STUDIO_FRAME`], on the [`LightStage`] around its root, seen by a ring of
+/// cameras [`RING_RADIUS_M`] from the root, [`RING_HEIGHT_M`] above the floor, with a
+/// [`RING_HFOV_DEG`] field of view.
+#[derive(Debug, Clone)]
+pub struct StudioScene {
+    /// The subject.
+    pub performer: Performer,
+    /// The exercise motion ([`ExerciseParams::default`]).
+    pub motion: Motion,
+    /// The captured frame of `motion` ([`STUDIO_FRAME`]).
+    pub frame_index: usize,
+    /// The root joint's position in that frame, world, m.
+    pub root: DVec3,
+    /// The light stage around the performer.
+    pub stage: LightStage,
+    /// The camera ring, looking at the root.
+    pub ring: Rig,
+}
+
+impl StudioScene {
+    /// The scene of the subject `subject` (MakeHuman files in `makehuman_dir`) with a ring of
+    /// `cameras` cameras of `size_px × size_px` pixels.
+    ///
+    /// # Errors
+    /// Errors of the performer (e.g. missing files), the motion, the light stage and the rig
+    /// (e.g. no cameras, a zero size).
+    pub fn new(
+        makehuman_dir: impl AsRef<Path>,
+        subject: &DeformationParams,
+        cameras: usize,
+        size_px: u32,
+    ) -> Result<Self> {
+        Self::at_frame(makehuman_dir, subject, STUDIO_FRAME, cameras, size_px)
+    }
+
+    /// [`StudioScene::new`] at frame `frame_index` of the exercise motion instead of
+    /// [`STUDIO_FRAME`] (e.g. [`GHOST_FRAME`] for the Ghost).
+    ///
+    /// # Errors
+    /// As [`StudioScene::new`]; a frame past the motion's end.
+    pub fn at_frame(
+        makehuman_dir: impl AsRef<Path>,
+        subject: &DeformationParams,
+        frame_index: usize,
+        cameras: usize,
+        size_px: u32,
+    ) -> Result<Self> {
+        let performer = makehuman_performer(makehuman_dir, subject)?;
+        let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default())?;
+        if frame_index >= motion.frame_count() {
+            return Err(Error::InvalidParam {
+                name: "frame_index",
+                reason: format!(
+                    "frame {frame_index} past the motion's {} frames",
+                    motion.frame_count()
+                ),
+            });
+        }
+        let root = performer
+            .skeleton
+            .forward_kinematics(motion.frame(frame_index))?
+            .joint_positions()
+            .first()
+            .copied()
+            .ok_or(Error::Empty {
+                what: "skeleton joints",
+            })?;
+        let stage = LightStage::around(&performer.template, root)?;
+        let k = Intrinsics::from_horizontal_fov(RING_HFOV_DEG.to_radians(), size_px, size_px)?;
+        let ring = Rig::ring(
+            cameras,
+            RING_RADIUS_M,
+            stage.floor_y + RING_HEIGHT_M,
+            root,
+            DVec3::Y,
+            k,
+        )?;
+        Ok(StudioScene {
+            performer,
+            motion,
+            frame_index,
+            root,
+            stage,
+            ring,
+        })
+    }
+
+    /// [`LightStage::capture_spec`] of `rig` (e.g. the ring or part of it) at the motion's
+    /// frame rate, all seven conditions each frame.
+    ///
+    /// # Errors
+    /// As [`LightStage::capture_spec`].
+    pub fn capture_spec(&self, rig: Rig) -> Result<CaptureSpec> {
+        self.stage.capture_spec(
+            rig,
+            1.0 / self.motion.frame_time_s,
+            PatternSchedule::AllEachFrame,
+        )
+    }
+
+    /// §3.2.3 calibration of `camera` on this scene's stage ([`calibrate_camera`]): grey
+    /// spheres of [`SPHERE_RADIUS_M`] and [`SPHERE_ALBEDO`] at the stage's
+    /// [`LightStage::sphere_heights_m`] above the root.
+    ///
+    /// # Errors
+    /// As [`calibrate_camera`].
+    pub fn calibrate(
+        &self,
+        camera: &Camera,
+        params: &CalibrationParams,
+    ) -> Result<HeightCalibration> {
+        calibrate_camera(
+            camera,
+            &self.stage.lights,
+            self.stage.centre,
+            self.root,
+            &self.stage.sphere_heights_m(),
+            SPHERE_RADIUS_M,
+            SPHERE_ALBEDO,
+            params,
+        )
+    }
+
+    /// The photometric parameters of this scene's cameras when they saturate at linear
+    /// intensity `white_level`: the exposure, the calibration's parameters and the normal
+    /// estimation's (performance centre at the root; everything else at its default).
+    pub fn photometric_params(
+        &self,
+        white_level: f32,
+    ) -> (Exposure, CalibrationParams, NormalParams) {
+        let exposure = Exposure::default().with_white_level(white_level);
+        let calibration = CalibrationParams {
+            exposure,
+            ..Default::default()
+        };
+        let normals = NormalParams::default()
+            .with_exposure(exposure)
+            .with_performance_centre(self.root);
+        (exposure, calibration, normals)
+    }
+
+    /// The captured frame [`Self::frame_index`] under `spec` (the earlier frames are posed,
+    /// not rendered, so the garment's dynamics are those of a full run).
+    ///
+    /// # Errors
+    /// Errors of the capture.
+    pub fn capture(&self, spec: CaptureSpec) -> Result<CaptureFrame> {
+        let capture = Capture::new(&self.performer, &self.motion, spec)?;
+        let frame = capture
+            .frames_in(self.frame_index..self.frame_index + 1)
+            .next()
+            .ok_or(Error::Empty {
+                what: "the studio frame in the motion",
+            })??;
+        Ok(frame)
+    }
+}
+
+/// The seven images of `observation` (captured with [`PatternSchedule::AllEachFrame`]) as
+/// [`PatternImages`], in [`PATTERNS`] order.
+///
+/// # Errors
+/// As [`PatternImages::from_rgb`] (e.g. an observation without the seven images).
+pub fn pattern_images(observation: &CameraObservation) -> Result<PatternImages> {
+    PatternImages::from_rgb(
+        &PATTERNS
+            .iter()
+            .zip(&observation.patterns)
+            .map(|(&p, im)| (p, im))
+            .collect::<Vec<_>>(),
+    )
 }
 
 /// The studio's [`LightPatterns`]: the 8-frame [`CYCLE`] for [`PatternSchedule::Cycle`], the
