@@ -64,13 +64,22 @@ fn main() {
         .iter()
         .map(|n| s.joint_index(n).unwrap())
         .collect();
-    let motion = exercise_motion(
-        &s,
-        &ExerciseParams::default()
-            .with_duration_s(seconds)
-            .with_seed(seed),
-    )
-    .unwrap();
+    let motion = if args.get(3).is_some_and(|a| a == "walk") {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
+        let bvh = skin_core::skeleton::BvhParams::default();
+        let retarget = skin_core::studio::RetargetParams::default();
+        skin_core::studio::play_bvh(path, &bvh, &s, 1.0 / 120.0, &retarget)
+            .unwrap()
+            .motion
+    } else {
+        exercise_motion(
+            &s,
+            &ExerciseParams::default()
+                .with_duration_s(seconds)
+                .with_seed(seed),
+        )
+        .unwrap()
+    };
     let base = SimulationParams::default();
     let smooth = prepare_motion(&s, &motion, &base).unwrap();
     let tuned = FilterParams::default()
@@ -93,6 +102,35 @@ fn main() {
     // (a) Oracle: the filter's own h(θ_true), no noise.
     let suit = Suit::vlasic(&s).unwrap();
     let oracle = model_recording(&s, &suit, &smooth, base.rest_s).unwrap();
+    {
+        // How fast the true right upper arm turns (physical), and its Euler-angle rates.
+        let w: Vec<f64> = oracle
+            .frames
+            .iter()
+            .map(|f| f.inertial[9].map_or(0.0, |r| r.gyro_rad_s.length()))
+            .collect();
+        let sh: Vec<usize> = s.joint_dofs(s.joint_index("r_shoulder").unwrap()).collect();
+        let dt = 1.0 / 140.0;
+        let mut max_rate = 0.0f64;
+        let mut near = 0usize;
+        for k in 1..oracle.truth.len() {
+            for &d in &sh {
+                let r = (oracle.truth[k].theta[d] - oracle.truth[k - 1].theta[d]) / dt;
+                max_rate = max_rate.max(r.abs());
+            }
+            near += usize::from(oracle.truth[k].theta[sh[1]].abs().to_degrees() > 75.0);
+        }
+        let mut sorted = w.clone();
+        sorted.sort_by(f64::total_cmp);
+        println!(
+            "true r_upper_arm |ω|: median {:.2}, 99th percentile {:.2}, max {:.2} rad/s; \
+             largest r_shoulder Euler rate {max_rate:.1} rad/s; frames with |abduction| > 75°: {near} of {}",
+            sorted[sorted.len() / 2],
+            sorted[sorted.len() * 99 / 100],
+            sorted[sorted.len() - 1],
+            oracle.truth.len()
+        );
+    }
     for (name, p) in [
         ("tuned q4 σa2", tuned),
         ("thesis q0.04 σa0.02", thesis),
@@ -148,6 +186,7 @@ fn main() {
         ("sim, all errors off", off),
         ("off, ranges ×4 (coarser LSB, faster slew)", SimulationParams { accel_range: 4.0 * base.accel_range, gyro_range: 4.0 * base.gyro_range, ..off }),
         ("off, ranges ×¼ (finer LSB, slower slew)", SimulationParams { accel_range: 0.25 * base.accel_range, gyro_range: 0.25 * base.gyro_range, ..off }),
+        ("off, one 12-bit sample per count", SimulationParams { accumulate_10bit: false, ..off }),
         ("+ white noise", SimulationParams { accel_noise: base.accel_noise, gyro_noise: base.gyro_noise, ..off }),
         ("+ zero & scale (calibrated)", SimulationParams { accel_zero_sd: base.accel_zero_sd, gyro_zero_sd: base.gyro_zero_sd, scale_sd: base.scale_sd, ..off }),
         ("+ gyro bias walk", SimulationParams { gyro_bias_walk: base.gyro_bias_walk, ..off }),
@@ -158,6 +197,7 @@ fn main() {
         ("+ ultrasound", SimulationParams { ultrasound: true, ..off }),
         ("everything but placement 3°", SimulationParams { seed, placement_sd_deg: 0.0, ..base }),
         ("everything (default)", SimulationParams { seed, ..base }),
+        ("everything, one 12-bit sample per count", SimulationParams { seed, accumulate_10bit: false, ..base }),
     ];
     for (name, sp) in variants {
         let sim = SuitSimulator::new(&s, sp).unwrap();

@@ -71,6 +71,11 @@ pub struct SimulationParams {
     /// range; at ±8.7 rad/s (500 °/s) it is 18 rad/s², below the exercise motion's angular
     /// accelerations, and the slew lag alone costs the shoulders tens of degrees.
     pub gyro_range: f64,
+    /// Whether each 12-bit count is four 10-bit samples accumulated (§4.2.3, the default) or
+    /// one 12-bit sample (a diagnostic: without noise of at least about one 10-bit step the
+    /// accumulation gains no precision, and the counts keep 10-bit steps). Default: true.
+    #[serde(default = "default_true")]
+    pub accumulate_10bit: bool,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
     pub bit_error_rate: f64,
     /// Garment placement error: position, metres (per axis). Default: 0.01.
@@ -115,6 +120,7 @@ impl Default for SimulationParams {
             gyro_bias_walk: 0.0005,
             accel_range: 6.0 * GRAVITY_M_S2,
             gyro_range: 20.0,
+            accumulate_10bit: true,
             bit_error_rate: 2e-4,
             placement_sd_m: 0.01,
             placement_sd_deg: 3.0,
@@ -170,6 +176,10 @@ impl SimulationParams {
         positive("rest_s", self.rest_s)?;
         Ok(())
     }
+}
+
+fn default_true() -> bool {
+    true
 }
 
 /// Natural cubic splines through every DOF of a motion.
@@ -299,11 +309,16 @@ struct Channel {
     zero: f64,
     slope: f64,
     noise: f64,
+    accumulate: bool,
 }
 
 impl Channel {
     /// 12-bit count of `value` (four noisy 10-bit samples accumulated, §4.2.3).
     fn count(&self, value: f64, rng: &mut ChaCha8Rng, normal: &Normal<f64>) -> i32 {
+        if !self.accumulate {
+            let v = self.zero + self.slope * (value + self.noise * normal.sample(rng));
+            return (v.round() as i32).clamp(0, 4095);
+        }
         let mut acc = 0i32;
         for _ in 0..4 {
             let v = self.zero + self.slope * (value + self.noise * normal.sample(rng));
@@ -861,6 +876,7 @@ impl SuitSimulator {
                 zero: 0.0,
                 slope: 0.0,
                 noise: 0.0,
+                accumulate: p.accumulate_10bit,
             }; CHANNELS];
             for (c, x) in ch.iter_mut().enumerate() {
                 let (range, zero_sd, noise) = if c < 3 {
@@ -873,6 +889,7 @@ impl SuitSimulator {
                     zero: 2048.0 + slope * zero_sd * normal.sample(&mut rng),
                     slope,
                     noise,
+                    accumulate: p.accumulate_10bit,
                 };
             }
             channels.push(ch);
