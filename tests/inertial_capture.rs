@@ -118,10 +118,7 @@ fn exercise_motion_table_4_1_from_raw_signals() {
 fn oracle_measurements_are_tracked_in_the_local_chart() {
     let s = human_skeleton(&HumanParams::default()).unwrap();
     let params = SimulationParams::default();
-    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(8.0)).unwrap();
-    let smooth = prepare_motion(&s, &motion, &params).unwrap();
     let suit = Suit::vlasic(&s).unwrap();
-    let oracle = model_recording(&s, &suit, &smooth, params.rest_s).unwrap();
     let mut j = joints(&s);
     j.extend(["chest", "spine"].map(|n| s.joint_index(n).unwrap()));
     let p = FilterParams::default()
@@ -133,34 +130,65 @@ fn oracle_measurements_are_tracked_in_the_local_chart() {
         distances: false,
         ..SensorSet::ALL
     };
-    let local = run_filter(&s, &oracle, p.with_recentre_rad(0.3), true, &j).unwrap();
-    let local_g = run_filter(&s, &oracle, p.with_recentre_rad(0.3).with_sensors(gyro), true, &j)
-        .unwrap();
-    let euler_g = run_filter(&s, &oracle, p.with_sensors(gyro), true, &j).unwrap();
     let means = |r: &FilterRun| r.stats.iter().map(|st| st.mean_deg).collect::<Vec<_>>();
-    eprintln!(
-        "oracle: local A+G+D {:?}, local G {:?}, Euler G {:?}",
-        means(&local),
-        means(&local_g),
-        means(&euler_g)
-    );
-    assert_eq!(local.diverged_frames + local_g.diverged_frames, 0);
-    assert!(means(&local).iter().all(|&e| e < 1.5), "{:?}", means(&local));
-    assert!(means(&local_g).iter().all(|&e| e < 2.0), "{:?}", means(&local_g));
-    assert!(
-        euler_g.stats[1].mean_deg > 2.0 * local_g.stats[1].mean_deg,
-        "Euler {:?} vs local {:?}",
-        means(&euler_g),
-        means(&local_g)
-    );
-    // Unbiased innovations for every sensor type: |mean ν/√s| small.
-    for (t, per_board) in INNOVATION_TYPES.iter().zip(&local.innovations) {
-        let (n, sum) = per_board
-            .iter()
-            .fold((0, 0.0), |(n, s), b| (n + b.count, s + b.sum_normalised));
-        assert!(n > 0, "{t}");
-        assert!((sum / n as f64).abs() < 0.2, "{t}: mean ν/√s {}", sum / n as f64);
+    let (mut euler_shoulder, mut local_shoulder) = (0.0, 0.0);
+    for seed in [1, 4] {
+        let motion = exercise_motion(
+            &s,
+            &ExerciseParams::default()
+                .with_duration_s(10.0)
+                .with_seed(seed),
+        )
+        .unwrap();
+        let smooth = prepare_motion(&s, &motion, &params).unwrap();
+        let oracle = model_recording(&s, &suit, &smooth, params.rest_s).unwrap();
+        let local = run_filter(&s, &oracle, p.with_recentre_rad(0.3), true, &j).unwrap();
+        let local_g = run_filter(
+            &s,
+            &oracle,
+            p.with_recentre_rad(0.3).with_sensors(gyro),
+            true,
+            &j,
+        )
+        .unwrap();
+        let euler_g = run_filter(&s, &oracle, p.with_sensors(gyro), true, &j).unwrap();
+        eprintln!(
+            "oracle, seed {seed}: local A+G+D {:?}, local G {:?}, Euler G {:?}",
+            means(&local),
+            means(&local_g),
+            means(&euler_g)
+        );
+        assert_eq!(local.diverged_frames + local_g.diverged_frames, 0);
+        assert!(
+            means(&local).iter().all(|&e| e < 2.0),
+            "{:?}",
+            means(&local)
+        );
+        assert!(
+            means(&local_g).iter().all(|&e| e < 3.0),
+            "{:?}",
+            means(&local_g)
+        );
+        euler_shoulder += euler_g.stats[1].mean_deg;
+        local_shoulder += local_g.stats[1].mean_deg;
+        // Unbiased innovations for every sensor type: |mean ν/√s| small.
+        for (t, per_board) in INNOVATION_TYPES.iter().zip(&local.innovations) {
+            let (n, sum) = per_board
+                .iter()
+                .fold((0, 0.0), |(n, s), b| (n + b.count, s + b.sum_normalised));
+            assert!(n > 0, "{t}");
+            assert!(
+                (sum / n as f64).abs() < 0.2,
+                "{t}: mean ν/√s {}",
+                sum / n as f64
+            );
+        }
     }
+    // The Euler chart, fed the same perfect gyroscopes, drifts on the shoulder.
+    assert!(
+        euler_shoulder > 3.0 * local_shoulder,
+        "Euler {euler_shoulder} vs local {local_shoulder} (sum over seeds)"
+    );
 }
 
 #[test]

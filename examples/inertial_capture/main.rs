@@ -201,9 +201,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .with_measurement_sigmas(0.02, gyro_sigma, 0.0025);
             for g in tune(&skeleton, &tune_rec, base, &joints, qs, sas, gates)? {
                 let share = g.score_deg / tune_seeds.len() as f64;
-                let key = (g.process_sigma, g.accelerometer_sigma, g.distance_gate_sigma);
+                let key = (
+                    g.process_sigma,
+                    g.accelerometer_sigma,
+                    g.distance_gate_sigma,
+                );
                 match grid.iter_mut().find(|(o, s)| {
-                    (o.process_sigma, o.accelerometer_sigma, o.distance_gate_sigma) == key
+                    (
+                        o.process_sigma,
+                        o.accelerometer_sigma,
+                        o.distance_gate_sigma,
+                    ) == key
                         && *s == gyro_sigma
                 }) {
                     Some((o, _)) => o.score_deg += share,

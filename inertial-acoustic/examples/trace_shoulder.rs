@@ -9,7 +9,9 @@ use inertial_acoustic::simulate::{
     model_recording, prepare_motion, run_filter, SimulatedRecording, SimulationParams,
     SuitSimulator,
 };
-use inertial_acoustic::{initialise, FilterParams, InnovationStats, SensorSet, Suit, INNOVATION_TYPES};
+use inertial_acoustic::{
+    initialise, FilterParams, InnovationStats, SensorSet, Suit, INNOVATION_TYPES,
+};
 use skin_core::skeleton::{human_skeleton, HumanParams, Skeleton};
 use skin_core::studio::{exercise_motion, ExerciseParams};
 
@@ -34,11 +36,13 @@ fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, jo
     // Consistency: per sensor type, all boards and the right upper arm (board 9).
     let mut c = String::new();
     for (t, per_board) in INNOVATION_TYPES.iter().zip(&r.innovations) {
-        let all = per_board.iter().fold(InnovationStats::default(), |a, b| InnovationStats {
-            count: a.count + b.count,
-            sum_normalised: a.sum_normalised + b.sum_normalised,
-            sum_nis: a.sum_nis + b.sum_nis,
-        });
+        let all = per_board
+            .iter()
+            .fold(InnovationStats::default(), |a, b| InnovationStats {
+                count: a.count + b.count,
+                sum_normalised: a.sum_normalised + b.sum_normalised,
+                sum_nis: a.sum_nis + b.sum_nis,
+            });
         if all.count > 0 {
             c += &format!(
                 " {t}: NIS {:.2} mean ν/√s {:+.2} (r_upper_arm NIS {:.2}, {:+.2});",
@@ -136,10 +140,19 @@ fn main() {
         ("thesis q0.04 σa0.02", thesis),
         ("tuned, re-centred 0.3", tuned.with_recentre_rad(0.3)),
         ("q100 σa2", tuned.with_process_sigma(100.0)),
-        ("q100 σa2, re-centred 0.3", tuned.with_process_sigma(100.0).with_recentre_rad(0.3)),
+        (
+            "q100 σa2, re-centred 0.3",
+            tuned.with_process_sigma(100.0).with_recentre_rad(0.3),
+        ),
     ] {
         for set in sets {
-            line(&format!("oracle h(θ), {name}"), &s, &oracle, p.with_sensors(set), &joints);
+            line(
+                &format!("oracle h(θ), {name}"),
+                &s,
+                &oracle,
+                p.with_sensors(set),
+                &joints,
+            );
         }
     }
     if args.get(3).is_some_and(|a| a == "oracle") {
@@ -159,7 +172,13 @@ fn main() {
                             .with_process_sigma(q)
                             .with_measurement_sigmas(sa, sg, 0.0025)
                             .with_recentre_rad(rc);
-                        line(&format!("σg {sg} σa {sa} q {q} recentre {rc}"), &s, &rec, p, &joints);
+                        line(
+                            &format!("σg {sg} σa {sa} q {q} recentre {rc}"),
+                            &s,
+                            &rec,
+                            p,
+                            &joints,
+                        );
                     }
                 }
             }
@@ -184,20 +203,105 @@ fn main() {
     };
     let variants: Vec<(&str, SimulationParams)> = vec![
         ("sim, all errors off", off),
-        ("off, ranges ×4 (coarser LSB, faster slew)", SimulationParams { accel_range: 4.0 * base.accel_range, gyro_range: 4.0 * base.gyro_range, ..off }),
-        ("off, ranges ×¼ (finer LSB, slower slew)", SimulationParams { accel_range: 0.25 * base.accel_range, gyro_range: 0.25 * base.gyro_range, ..off }),
-        ("off, one 12-bit sample per count", SimulationParams { accumulate_10bit: false, ..off }),
-        ("+ white noise", SimulationParams { accel_noise: base.accel_noise, gyro_noise: base.gyro_noise, ..off }),
-        ("+ zero & scale (calibrated)", SimulationParams { accel_zero_sd: base.accel_zero_sd, gyro_zero_sd: base.gyro_zero_sd, scale_sd: base.scale_sd, ..off }),
-        ("+ gyro bias walk", SimulationParams { gyro_bias_walk: base.gyro_bias_walk, ..off }),
-        ("+ bit errors", SimulationParams { bit_error_rate: base.bit_error_rate, ..off }),
-        ("+ placement 1 cm", SimulationParams { placement_sd_m: base.placement_sd_m, ..off }),
-        ("+ placement 3°", SimulationParams { placement_sd_deg: base.placement_sd_deg, ..off }),
-        ("+ slide", SimulationParams { skin_slide_m_per_rad: base.skin_slide_m_per_rad, ..off }),
-        ("+ ultrasound", SimulationParams { ultrasound: true, ..off }),
-        ("everything but placement 3°", SimulationParams { seed, placement_sd_deg: 0.0, ..base }),
+        (
+            "off, ranges ×4 (coarser LSB, faster slew)",
+            SimulationParams {
+                accel_range: 4.0 * base.accel_range,
+                gyro_range: 4.0 * base.gyro_range,
+                ..off
+            },
+        ),
+        (
+            "off, ranges ×¼ (finer LSB, slower slew)",
+            SimulationParams {
+                accel_range: 0.25 * base.accel_range,
+                gyro_range: 0.25 * base.gyro_range,
+                ..off
+            },
+        ),
+        (
+            "off, one 12-bit sample per count",
+            SimulationParams {
+                accumulate_10bit: false,
+                ..off
+            },
+        ),
+        (
+            "+ white noise",
+            SimulationParams {
+                accel_noise: base.accel_noise,
+                gyro_noise: base.gyro_noise,
+                ..off
+            },
+        ),
+        (
+            "+ zero & scale (calibrated)",
+            SimulationParams {
+                accel_zero_sd: base.accel_zero_sd,
+                gyro_zero_sd: base.gyro_zero_sd,
+                scale_sd: base.scale_sd,
+                ..off
+            },
+        ),
+        (
+            "+ gyro bias walk",
+            SimulationParams {
+                gyro_bias_walk: base.gyro_bias_walk,
+                ..off
+            },
+        ),
+        (
+            "+ bit errors",
+            SimulationParams {
+                bit_error_rate: base.bit_error_rate,
+                ..off
+            },
+        ),
+        (
+            "+ placement 1 cm",
+            SimulationParams {
+                placement_sd_m: base.placement_sd_m,
+                ..off
+            },
+        ),
+        (
+            "+ placement 3°",
+            SimulationParams {
+                placement_sd_deg: base.placement_sd_deg,
+                ..off
+            },
+        ),
+        (
+            "+ slide",
+            SimulationParams {
+                skin_slide_m_per_rad: base.skin_slide_m_per_rad,
+                ..off
+            },
+        ),
+        (
+            "+ ultrasound",
+            SimulationParams {
+                ultrasound: true,
+                ..off
+            },
+        ),
+        (
+            "everything but placement 3°",
+            SimulationParams {
+                seed,
+                placement_sd_deg: 0.0,
+                ..base
+            },
+        ),
         ("everything (default)", SimulationParams { seed, ..base }),
-        ("everything, one 12-bit sample per count", SimulationParams { seed, accumulate_10bit: false, ..base }),
+        (
+            "everything, one 12-bit sample per count",
+            SimulationParams {
+                seed,
+                accumulate_10bit: false,
+                ..base
+            },
+        ),
     ];
     for (name, sp) in variants {
         let sim = SuitSimulator::new(&s, sp).unwrap();
@@ -217,12 +321,24 @@ fn main() {
             let init = initialise(&s, &rec.nominal_suit, &rec.truth[0].theta, &rest).unwrap();
             let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
             let mut out = String::new();
-            for (b, (est, tru)) in init.suit.boards().iter().zip(rec.true_suit.boards()).enumerate() {
+            for (b, (est, tru)) in init
+                .suit
+                .boards()
+                .iter()
+                .zip(rec.true_suit.boards())
+                .enumerate()
+            {
                 let qe = fk.frame_rotation(&est.frame()).unwrap();
                 let qt = fk.frame_rotation(&tru.frame()).unwrap();
                 let d = qt * qe.inverse(); // world-frame error rotation
-                let v = if d.w < 0.0 { (-d).to_scaled_axis() } else { d.to_scaled_axis() };
-                let before = fk.frame_rotation(&rec.nominal_suit.boards()[b].frame()).unwrap();
+                let v = if d.w < 0.0 {
+                    (-d).to_scaled_axis()
+                } else {
+                    d.to_scaled_axis()
+                };
+                let before = fk
+                    .frame_rotation(&rec.nominal_suit.boards()[b].frame())
+                    .unwrap();
                 out += &format!(
                     " {}: {:.1}° (about up {:+.1}°, placement {:.1}°);",
                     est.name,
@@ -233,7 +349,11 @@ fn main() {
             }
             println!("    residual board misalignment after §4.4.4:{out}");
         }
-        let set = if sp.ultrasound { SensorSet::ALL } else { sets[1] };
+        let set = if sp.ultrasound {
+            SensorSet::ALL
+        } else {
+            sets[1]
+        };
         line(name, &s, &rec, tuned.with_sensors(set), &joints);
         line(
             &format!("{name}, re-centred"),

@@ -319,7 +319,9 @@ impl SkeletalEkf {
             dense: vec![0.0; n],
             pend: vec![0.0; DEFER * big_n],
             npend: 0,
-            innovations: std::array::from_fn(|_| vec![InnovationStats::default(); suit.boards().len()]),
+            innovations: std::array::from_fn(|_| {
+                vec![InnovationStats::default(); suit.boards().len()]
+            }),
             counting: (0, 0),
             x,
             p: p0.clone(),
