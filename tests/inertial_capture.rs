@@ -16,7 +16,7 @@ use dynamic_shapes::inertial::simulate::{
 };
 use dynamic_shapes::inertial::{
     Context, DistanceMeasurement, Error, FilterParams, FrameObservations, InertialReading,
-    SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
+    InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
 };
 
 /// The filter noise levels the example's tuning grid selects on its separate tuning clip
@@ -173,14 +173,12 @@ fn oracle_measurements_are_tracked_in_the_local_chart() {
         local_shoulder += local_g.stats[1].mean_deg;
         // Unbiased innovations for every sensor type: |mean ν/√s| small.
         for (t, per_board) in INNOVATION_TYPES.iter().zip(&local.innovations) {
-            let (n, sum) = per_board
-                .iter()
-                .fold((0, 0.0), |(n, s), b| (n + b.count, s + b.sum_normalised));
-            assert!(n > 0, "{t}");
+            let all = InnovationStats::pooled(per_board);
+            assert!(all.count > 0, "{t}");
             assert!(
-                (sum / n as f64).abs() < 0.2,
+                all.mean_normalised().abs() < 0.2,
                 "{t}: mean ν/√s {}",
-                sum / n as f64
+                all.mean_normalised()
             );
         }
     }

@@ -97,13 +97,7 @@ fn run_json(r: &FilterRun) -> Value {
 fn consistency(r: &FilterRun) -> Value {
     let mut out = serde_json::Map::new();
     for (t, per_board) in INNOVATION_TYPES.iter().zip(&r.innovations) {
-        let all = per_board
-            .iter()
-            .fold(InnovationStats::default(), |a, b| InnovationStats {
-                count: a.count + b.count,
-                sum_normalised: a.sum_normalised + b.sum_normalised,
-                sum_nis: a.sum_nis + b.sum_nis,
-            });
+        let all = InnovationStats::pooled(per_board);
         let arm = per_board.get(9).copied().unwrap_or_default();
         out.insert(
             (*t).to_string(),

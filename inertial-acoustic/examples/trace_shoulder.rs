@@ -36,13 +36,7 @@ fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, jo
     // Consistency: per sensor type, all boards and the right upper arm (board 9).
     let mut c = String::new();
     for (t, per_board) in INNOVATION_TYPES.iter().zip(&r.innovations) {
-        let all = per_board
-            .iter()
-            .fold(InnovationStats::default(), |a, b| InnovationStats {
-                count: a.count + b.count,
-                sum_normalised: a.sum_normalised + b.sum_normalised,
-                sum_nis: a.sum_nis + b.sum_nis,
-            });
+        let all = InnovationStats::pooled(per_board);
         if all.count > 0 {
             c += &format!(
                 " {t}: NIS {:.2} mean ν/√s {:+.2} (r_upper_arm NIS {:.2}, {:+.2});",

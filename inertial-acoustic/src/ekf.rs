@@ -121,6 +121,17 @@ impl InnovationStats {
     pub fn mean_nis(&self) -> f64 {
         self.sum_nis / self.count.max(1) as f64
     }
+
+    /// The statistics of several channels pooled (e.g. every board of one sensor type).
+    pub fn pooled<'a>(stats: impl IntoIterator<Item = &'a InnovationStats>) -> Self {
+        stats
+            .into_iter()
+            .fold(InnovationStats::default(), |a, b| InnovationStats {
+                count: a.count + b.count,
+                sum_normalised: a.sum_normalised + b.sum_normalised,
+                sum_nis: a.sum_nis + b.sum_nis,
+            })
+    }
 }
 
 /// The sensor types of [`SkeletalEkf::innovation_stats`], in its order.
