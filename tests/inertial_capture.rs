@@ -11,11 +11,12 @@ use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, DeformationParams, ExerciseParams,
 };
 use dynamic_shapes::inertial::simulate::{
-    prepare_motion, run_filter, table_4_1, SimulatedRecording, SimulationParams, SuitSimulator,
+    model_recording, prepare_motion, run_filter, table_4_1, FilterRun, SimulatedRecording,
+    SimulationParams, SuitSimulator,
 };
 use dynamic_shapes::inertial::{
     Context, DistanceMeasurement, Error, FilterParams, FrameObservations, InertialReading,
-    SensorSet, SkeletalEkf, Suit,
+    InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
 };
 
 /// The filter noise levels the example's tuning grid selects on its separate tuning clip
@@ -108,6 +109,86 @@ fn exercise_motion_table_4_1_from_raw_signals() {
 /// The suit on the garment over the MakeHuman performer's skin: boards and sources move with
 /// the pose-driven deformation (measured against the same suit fixed to the bones), the
 /// floor echo sits under the performer's feet, and the filter still ranks as it should.
+/// Oracle measurements (issue 15): the filter's OWN models h(θ_true) along the true
+/// trajectory, no noise. The local chart of the 3-DOF joints must track every joint to
+/// about the one-frame lag of Eq. 4.1; in Euler angles throughout the right shoulder drifts
+/// with gyroscopes alone (linearisation near gimbal lock) — the baseline that shows the
+/// test can fail — and the filter's innovations are unbiased.
+#[test]
+fn oracle_measurements_are_tracked_in_the_local_chart() {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    let params = SimulationParams::default();
+    let suit = Suit::vlasic(&s).unwrap();
+    let mut j = joints(&s);
+    j.extend(["chest", "spine"].map(|n| s.joint_index(n).unwrap()));
+    let p = FilterParams::default()
+        .with_process_sigma(4.0)
+        .with_measurement_sigmas(2.0, 0.002, 0.0025)
+        .with_distance_gate_sigma(4.0);
+    let gyro = SensorSet {
+        accelerometers: false,
+        distances: false,
+        ..SensorSet::ALL
+    };
+    let means = |r: &FilterRun| r.stats.iter().map(|st| st.mean_deg).collect::<Vec<_>>();
+    let (mut euler_shoulder, mut local_shoulder) = (0.0, 0.0);
+    for seed in [1, 4] {
+        let motion = exercise_motion(
+            &s,
+            &ExerciseParams::default()
+                .with_duration_s(10.0)
+                .with_seed(seed),
+        )
+        .unwrap();
+        let smooth = prepare_motion(&s, &motion, &params).unwrap();
+        let oracle = model_recording(&s, &suit, &smooth, params.rest_s).unwrap();
+        let local = run_filter(&s, &oracle, p.with_recentre_rad(0.3), true, &j).unwrap();
+        let local_g = run_filter(
+            &s,
+            &oracle,
+            p.with_recentre_rad(0.3).with_sensors(gyro),
+            true,
+            &j,
+        )
+        .unwrap();
+        let euler_g = run_filter(&s, &oracle, p.with_sensors(gyro), true, &j).unwrap();
+        eprintln!(
+            "oracle, seed {seed}: local A+G+D {:?}, local G {:?}, Euler G {:?}",
+            means(&local),
+            means(&local_g),
+            means(&euler_g)
+        );
+        assert_eq!(local.diverged_frames + local_g.diverged_frames, 0);
+        assert!(
+            means(&local).iter().all(|&e| e < 2.0),
+            "{:?}",
+            means(&local)
+        );
+        assert!(
+            means(&local_g).iter().all(|&e| e < 3.0),
+            "{:?}",
+            means(&local_g)
+        );
+        euler_shoulder += euler_g.stats[1].mean_deg;
+        local_shoulder += local_g.stats[1].mean_deg;
+        // Unbiased innovations for every sensor type: |mean ν/√s| small.
+        for (t, per_board) in INNOVATION_TYPES.iter().zip(&local.innovations) {
+            let all = InnovationStats::pooled(per_board);
+            assert!(all.count > 0, "{t}");
+            assert!(
+                all.mean_normalised().abs() < 0.2,
+                "{t}: mean ν/√s {}",
+                all.mean_normalised()
+            );
+        }
+    }
+    // The Euler chart, fed the same perfect gyroscopes, drifts on the shoulder.
+    assert!(
+        euler_shoulder > 3.0 * local_shoulder,
+        "Euler {euler_shoulder} vs local {local_shoulder} (sum over seeds)"
+    );
+}
+
 #[test]
 fn garment_suit_moves_with_the_skin() {
     let deformation = DeformationParams::default().with_flap(None);
@@ -224,6 +305,16 @@ fn corrupted_link_and_bad_inputs() {
         distances: vec![],
     };
     assert!(ekf.step(&short, None).is_err());
+    // Covariance of a DOF the skeleton lacks; an oracle without a rest hold.
+    assert!(ekf.theta_covariance(&[0, 999]).is_err());
+    assert_eq!(ekf.theta_covariance(&[7, 8]).unwrap().len(), 4);
+    let smooth = prepare_motion(
+        &s,
+        &exercise_motion(&s, &ExerciseParams::default().with_duration_s(1.0)).unwrap(),
+        &SimulationParams::default(),
+    )
+    .unwrap();
+    assert!(model_recording(&s, ekf.suit(), &smooth, 0.0).is_err());
 
     // A diverging filter (absurd readings) is reset and flagged, never a NaN pose.
     let wild = InertialReading {

@@ -96,6 +96,47 @@ pub struct StepReport {
     pub distances_rejected: usize,
 }
 
+/// Running innovation statistics of one sensor channel (a board's gyroscope, accelerometer
+/// or microphone), for consistency checks: with a consistent filter the normalised
+/// innovations `ν/√s` have mean ≈ 0 and their squares (NIS) mean ≈ 1; a mean far from 0 shows
+/// a modelling error (lever arm, frame, gravity sign, time alignment), a NIS far above 1
+/// noise levels too small for what the model misses.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct InnovationStats {
+    /// Scalar updates counted (gated ones included, rejected ones not).
+    pub count: usize,
+    /// Sum of the normalised innovations `ν / √s`.
+    pub sum_normalised: f64,
+    /// Sum of the normalised innovations squared `ν² / s`.
+    pub sum_nis: f64,
+}
+
+impl InnovationStats {
+    /// Mean normalised innovation (≈ 0 for an unbiased model).
+    pub fn mean_normalised(&self) -> f64 {
+        self.sum_normalised / self.count.max(1) as f64
+    }
+
+    /// Mean normalised innovation squared (≈ 1 for a consistent filter).
+    pub fn mean_nis(&self) -> f64 {
+        self.sum_nis / self.count.max(1) as f64
+    }
+
+    /// The statistics of several channels pooled (e.g. every board of one sensor type).
+    pub fn pooled<'a>(stats: impl IntoIterator<Item = &'a InnovationStats>) -> Self {
+        stats
+            .into_iter()
+            .fold(InnovationStats::default(), |a, b| InnovationStats {
+                count: a.count + b.count,
+                sum_normalised: a.sum_normalised + b.sum_normalised,
+                sum_nis: a.sum_nis + b.sum_nis,
+            })
+    }
+}
+
+/// The sensor types of [`SkeletalEkf::innovation_stats`], in its order.
+pub const INNOVATION_TYPES: [&str; 3] = ["gyroscope", "accelerometer", "distance"];
+
 /// A sensor type's observation rows, run with the board Jacobian buffers.
 type BoardRows =
     fn(&mut SkeletalEkf, &FrameObservations, &mut StepReport, &mut [DMatrix<f64>]) -> Result<()>;
@@ -176,6 +217,10 @@ pub struct SkeletalEkf {
     /// (row-major, `DEFER × 3nf`), applied to P's lower triangle in blocks.
     pend: Vec<f64>,
     npend: usize,
+    /// Per sensor type (gyroscope, accelerometer, distance) and board.
+    innovations: [Vec<InnovationStats>; 3],
+    /// Where the current scalar update's innovation is counted: (type, board).
+    counting: (usize, usize),
 }
 
 /// Scalar updates whose rank-1 downdates of P are applied together: P's lower triangle is
@@ -285,6 +330,10 @@ impl SkeletalEkf {
             dense: vec![0.0; n],
             pend: vec![0.0; DEFER * big_n],
             npend: 0,
+            innovations: std::array::from_fn(|_| {
+                vec![InnovationStats::default(); suit.boards().len()]
+            }),
+            counting: (0, 0),
             x,
             p: p0.clone(),
             p0,
@@ -329,6 +378,35 @@ impl SkeletalEkf {
     /// rates of the local angles about the last re-centring).
     pub fn theta_dot(&self) -> &[f64] {
         &self.theta_dot
+    }
+
+    /// Innovation statistics since the filter was built, per sensor type
+    /// ([`INNOVATION_TYPES`]: gyroscope, accelerometer, distance) and per board (distances
+    /// counted at their microphone's board).
+    pub fn innovation_stats(&self) -> &[Vec<InnovationStats>; 3] {
+        &self.innovations
+    }
+
+    /// The current covariance of the angles `dofs` (rad², in the filter's chart; zero rows
+    /// and columns for known DOFs), row-major `dofs.len()²` — with [`SkeletalEkf::theta`]
+    /// against the truth it gives the NEES of a joint.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a DOF outside the skeleton.
+    pub fn theta_covariance(&self, dofs: &[usize]) -> Result<Vec<f64>> {
+        let n = self.slot.len();
+        let mut out = Vec::with_capacity(dofs.len() * dofs.len());
+        for &a in dofs {
+            skin_core::check::index("DOF", a, n)?;
+            for &b in dofs {
+                skin_core::check::index("DOF", b, n)?;
+                out.push(match (self.slot[a], self.slot[b]) {
+                    (Some(i), Some(j)) => self.p[(i.max(j), i.min(j))],
+                    _ => 0.0,
+                });
+            }
+        }
+        Ok(out)
     }
 
     /// The suit the filter uses.
@@ -633,6 +711,12 @@ impl SkeletalEkf {
         if s.is_nan() || s <= 0.0 {
             return false;
         }
+        let (kind, board) = self.counting;
+        if let Some(st) = self.innovations[kind].get_mut(board) {
+            st.count += 1;
+            st.sum_normalised += innov / s.sqrt();
+            st.sum_nis += innov * innov / s;
+        }
         if gate_sigma > 0.0 && innov * innov > gate_sigma * gate_sigma * s {
             return false;
         }
@@ -758,6 +842,7 @@ impl SkeletalEkf {
                 AngularFrame::Local,
             )?;
             let chain = self.skeleton.chain_dofs(self.frames[b].joint).to_vec();
+            self.counting = (0, b);
             for axis in 0..3 {
                 self.row.clear();
                 for &d in &chain {
@@ -842,6 +927,7 @@ impl SkeletalEkf {
                 })
                 .collect();
             let z = reading.accel_m_s2;
+            self.counting = (1, b);
             for axis in 0..3 {
                 self.row.clear();
                 for &(s, ht, hd, hdd) in &cols {
@@ -934,6 +1020,7 @@ impl SkeletalEkf {
                 }
                 let d = d - age * d_rate;
                 let sigma = self.params.distance_sigma_m / w;
+                self.counting = (2, m.sensor);
                 if self.scalar_update(
                     m.distance_m - d,
                     sigma * sigma,

@@ -90,7 +90,8 @@ mod suit;
 mod ultrasound;
 
 pub use ekf::{
-    DistanceMeasurement, FrameObservations, InertialReading, KnownDofs, SkeletalEkf, StepReport,
+    DistanceMeasurement, FrameObservations, InertialReading, InnovationStats, KnownDofs,
+    SkeletalEkf, StepReport, INNOVATION_TYPES,
 };
 pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, ErrorStats};

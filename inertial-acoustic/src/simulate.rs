@@ -71,6 +71,11 @@ pub struct SimulationParams {
     /// range; at ±8.7 rad/s (500 °/s) it is 18 rad/s², below the exercise motion's angular
     /// accelerations, and the slew lag alone costs the shoulders tens of degrees.
     pub gyro_range: f64,
+    /// Whether each 12-bit count is four 10-bit samples accumulated (§4.2.3, the default) or
+    /// one 12-bit sample (a diagnostic: without noise of at least about one 10-bit step the
+    /// accumulation gains no precision, and the counts keep 10-bit steps). Default: true.
+    #[serde(default = "default_true")]
+    pub accumulate_10bit: bool,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
     pub bit_error_rate: f64,
     /// Garment placement error: position, metres (per axis). Default: 0.01.
@@ -115,6 +120,7 @@ impl Default for SimulationParams {
             gyro_bias_walk: 0.0005,
             accel_range: 6.0 * GRAVITY_M_S2,
             gyro_range: 20.0,
+            accumulate_10bit: true,
             bit_error_rate: 2e-4,
             placement_sd_m: 0.01,
             placement_sd_deg: 3.0,
@@ -170,6 +176,10 @@ impl SimulationParams {
         positive("rest_s", self.rest_s)?;
         Ok(())
     }
+}
+
+fn default_true() -> bool {
+    true
 }
 
 /// Natural cubic splines through every DOF of a motion.
@@ -299,11 +309,16 @@ struct Channel {
     zero: f64,
     slope: f64,
     noise: f64,
+    accumulate: bool,
 }
 
 impl Channel {
     /// 12-bit count of `value` (four noisy 10-bit samples accumulated, §4.2.3).
     fn count(&self, value: f64, rng: &mut ChaCha8Rng, normal: &Normal<f64>) -> i32 {
+        if !self.accumulate {
+            let v = self.zero + self.slope * (value + self.noise * normal.sample(rng));
+            return (v.round() as i32).clamp(0, 4095);
+        }
         let mut acc = 0i32;
         for _ in 0..4 {
             let v = self.zero + self.slope * (value + self.noise * normal.sample(rng));
@@ -449,8 +464,10 @@ pub struct SimulatedRecording {
     pub nominal_suit: Suit,
     /// The true suit at the rest pose (with placement errors).
     pub true_suit: Suit,
-    /// Seconds spent in ultrasonic processing (filters, detection, confidences).
+    /// Seconds spent in ultrasonic processing (filters, detection, confidences), wall clock.
     pub ultrasound_s: f64,
+    /// The same, CPU time of the thread that ran it.
+    pub ultrasound_cpu_s: f64,
     /// Seconds spent in inertial decoding (descrambling, ECC, delta decoding, calibration).
     pub inertial_s: f64,
     /// Detected minus true distance of every used pulse with a clear line of sight, metres.
@@ -859,6 +876,7 @@ impl SuitSimulator {
                 zero: 0.0,
                 slope: 0.0,
                 noise: 0.0,
+                accumulate: p.accumulate_10bit,
             }; CHANNELS];
             for (c, x) in ch.iter_mut().enumerate() {
                 let (range, zero_sd, noise) = if c < 3 {
@@ -871,6 +889,7 @@ impl SuitSimulator {
                     zero: 2048.0 + slope * zero_sd * normal.sample(&mut rng),
                     slope,
                     noise,
+                    accumulate: p.accumulate_10bit,
                 };
             }
             channels.push(ch);
@@ -1020,6 +1039,7 @@ impl SuitSimulator {
             nominal_suit: self.nominal.clone(),
             true_suit: self.true_suit.clone(),
             ultrasound_s: 0.0,
+            ultrasound_cpu_s: 0.0,
             inertial_s,
             los_distance_errors_m: Vec::new(),
             detections: Vec::new(),
@@ -1057,7 +1077,9 @@ impl SuitSimulator {
         let duration = (geometry.len() - 1) as f64 * dt;
         let mut det = PulseDetector::new(self.ultrasound)?;
         let mut previous: Vec<Option<f64>> = vec![None; nb * ns];
-        let mut frame = vec![0f32; SAMPLES_PER_PULSE];
+        let mut frames = vec![vec![0f32; SAMPLES_PER_PULSE]; nb];
+        let mut truth = vec![(0.0, 0.0, false); nb];
+        let mut measured: Vec<Option<DistanceMeasurement>> = vec![None; nb];
         let board_joint: Vec<usize> = self.true_suit.boards().iter().map(|b| b.joint).collect();
         let source_joint: Vec<usize> = self.true_suit.sources().iter().map(|s| s.joint).collect();
         let mut slot = 0usize;
@@ -1074,8 +1096,11 @@ impl SuitSimulator {
                 &geometry[(k0 + 1).min(geometry.len() - 1)],
                 kf - k0 as f64,
             );
+            // The slot's raw frames first (simulation), then their processing (timed as one
+            // block: the stage's wall and thread CPU time).
             for (i, &mic_joint) in board_joint.iter().enumerate() {
-                self.background(&mut frame, rng, normal);
+                let frame = &mut frames[i];
+                self.background(frame, rng, normal);
                 let (pi, pj) = (g.boards[i], g.sources[j]);
                 let diff = pi - pj;
                 let r = diff.length().max(1e-3);
@@ -1093,17 +1118,20 @@ impl SuitSimulator {
                         1.0
                     };
                 let lag = self.source_lags_s[j];
-                Self::add_burst(&mut frame, r / c + lag, amp, fs);
+                Self::add_burst(frame, r / c + lag, amp, fs);
                 let mirror = DVec3::new(pi.x, 2.0 * self.floor_y - pi.y, pi.z);
                 let dm = mirror - pj;
                 let rm = dm.length().max(1e-3);
                 let amp_m = self.params.floor_reflection * self.params.source_amplitude / rm
                     * Self::directivity(g.normals[j].dot(dm) / rm);
-                Self::add_burst(&mut frame, rm / c + lag, amp_m, fs);
+                Self::add_burst(frame, rm / c + lag, amp_m, fs);
+                truth[i] = (r, cos, occluded);
                 rec.pulses_total += 1;
-                let t0 = Instant::now();
-                let detection = det.detect(&frame).at(Context::Frame(slot))?;
-                let measurement = detection.map(|x| {
+            }
+            let (t0, c0) = (Instant::now(), thread_cpu_s());
+            for (i, (frame, out)) in frames.iter().zip(measured.iter_mut()).enumerate() {
+                let detection = det.detect(frame).at(Context::Frame(slot))?;
+                *out = detection.map(|x| {
                     let d = det.distance_m(&x, offsets[j]);
                     let pair = i * ns + j;
                     let w = det.strength_confidence(&x, d)
@@ -1117,8 +1145,11 @@ impl SuitSimulator {
                         age_s: 0.0,
                     }
                 });
-                rec.ultrasound_s += t0.elapsed().as_secs_f64();
-                if let Some(m) = measurement {
+            }
+            rec.ultrasound_s += t0.elapsed().as_secs_f64();
+            rec.ultrasound_cpu_s += thread_cpu_s() - c0;
+            for (m, &(r, cos, occluded)) in measured.iter().zip(&truth) {
+                if let Some(m) = *m {
                     rec.pulses_heard += 1;
                     rec.detections
                         .push((m.distance_m - r, m.confidence, !occluded && cos > 0.0));
@@ -1202,10 +1233,29 @@ pub struct FilterRun {
     pub stats: Vec<crate::ErrorStats>,
     /// Frames at which the filter diverged and was reset.
     pub diverged_frames: usize,
-    /// Seconds of EKF compute (initialisation and steps).
+    /// Seconds of EKF compute (initialisation and steps), wall clock.
     pub ekf_s: f64,
+    /// Seconds of EKF compute, CPU time of the (single) thread that ran it: the code's cost
+    /// without the time the thread waited for a core on a loaded machine.
+    #[serde(default)]
+    pub ekf_cpu_s: f64,
     /// Distances used.
     pub distances_used: usize,
+    /// The filter's innovation statistics at the end of the run, per sensor type
+    /// ([`crate::INNOVATION_TYPES`]) and board.
+    #[serde(default)]
+    pub innovations: [Vec<crate::InnovationStats>; 3],
+    /// Per evaluated joint: mean NEES of its angles over the frames after the rest hold
+    /// (`(θ − θ_true)ᵀ P⁻¹ (θ − θ_true)`, angles wrapped to ±π; ≈ the joint's DOF count for a
+    /// consistent filter). Exact in the Euler chart; with re-centred joints P is in the local
+    /// chart and the figure is first-order.
+    #[serde(default)]
+    pub nees_mean: Vec<f64>,
+}
+
+/// CPU time of the calling thread, seconds (0 where the platform cannot tell).
+fn thread_cpu_s() -> f64 {
+    cpu_time::ThreadTime::try_now().map_or(0.0, |t| t.as_duration().as_secs_f64())
 }
 
 /// Initialises (§4.4.4, on the rest hold) and runs the EKF over `rec` with `params`,
@@ -1229,7 +1279,10 @@ pub fn run_filter(
             what: "frames after the rest hold",
         });
     }
-    let t0 = Instant::now();
+    for &j in joints {
+        skin_core::check::index("joint", j, skeleton.joint_count())?;
+    }
+    let (t0, c0) = (Instant::now(), thread_cpu_s());
     let rest_pose = &rec.truth[0].theta;
     let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
         .iter()
@@ -1243,9 +1296,14 @@ pub fn run_filter(
     };
     let mut ekf = SkeletalEkf::new(skeleton.clone(), init.suit, rest_pose, params, &known)?
         .with_gyro_offsets(init.gyro_offsets)?;
-    let mut errors = vec![Vec::new(); joints.len()];
     let (mut diverged, mut used) = (0, 0);
-    let mut scoring_s = 0.0;
+    // The estimates are kept and scored after the loop, so that the timing is the filter's.
+    let mut estimates = Vec::with_capacity(rec.frames.len() - rec.rest_frames);
+    let joint_dofs: Vec<Vec<usize>> = joints
+        .iter()
+        .map(|&j| skeleton.joint_dofs(j).collect())
+        .collect();
+    let mut covariances = Vec::with_capacity(estimates.capacity());
     for (k, f) in rec.frames.iter().enumerate() {
         let r = ekf
             .step(f, root_supplied.then(|| &rec.root[k]))
@@ -1253,16 +1311,42 @@ pub fn run_filter(
         diverged += usize::from(r.diverged);
         used += r.distances_used;
         if k >= rec.rest_frames {
-            let ts = Instant::now();
-            let e =
-                joint_orientation_errors_deg(skeleton, ekf.theta(), &rec.truth[k].theta, joints)?;
-            for (acc, v) in errors.iter_mut().zip(e) {
-                acc.push(v);
-            }
-            scoring_s += ts.elapsed().as_secs_f64();
+            estimates.push(ekf.theta().to_vec());
+            let cov = joint_dofs
+                .iter()
+                .map(|d| ekf.theta_covariance(d))
+                .collect::<Result<Vec<_>>>()?;
+            covariances.push(cov);
         }
     }
-    let ekf_s = t0.elapsed().as_secs_f64() - scoring_s;
+    let (ekf_s, ekf_cpu_s) = (t0.elapsed().as_secs_f64(), thread_cpu_s() - c0);
+    let mut errors = vec![Vec::new(); joints.len()];
+    let mut nees = vec![0.0; joints.len()];
+    for (i, (est, cov)) in estimates.iter().zip(&covariances).enumerate() {
+        let truth = &rec.truth[rec.rest_frames + i].theta;
+        let e = joint_orientation_errors_deg(skeleton, est, truth, joints)?;
+        for (acc, v) in errors.iter_mut().zip(e) {
+            acc.push(v);
+        }
+        for ((n, d), c) in nees.iter_mut().zip(&joint_dofs).zip(cov) {
+            let m = d.len();
+            let diff = nalgebra::DVector::from_iterator(
+                m,
+                d.iter().map(|&q| {
+                    let v = est[q] - truth[q];
+                    v - TAU * (v / TAU).round()
+                }),
+            );
+            let p = DMatrix::from_row_slice(m, m, c);
+            if let Some(inv) = p.try_inverse() {
+                *n += diff.dot(&(inv * &diff));
+            }
+        }
+    }
+    let nees_mean = nees
+        .iter()
+        .map(|n| n / estimates.len().max(1) as f64)
+        .collect();
     let stats = errors
         .iter()
         .map(|e| ErrorStats::of(e))
@@ -1274,7 +1358,10 @@ pub fn run_filter(
         stats,
         diverged_frames: diverged,
         ekf_s,
+        ekf_cpu_s,
         distances_used: used,
+        innovations: ekf.innovation_stats().clone(),
+        nees_mean,
     })
 }
 
@@ -1400,4 +1487,112 @@ pub fn treadmill_motion(skeleton: &Skeleton, walk: &Motion, duration_s: f64) -> 
         frames[(yaw, k)] = walk.frames[(yaw, 0)];
     }
     Ok(Motion::new(walk.frame_time_s, frames)?)
+}
+
+/// Oracle observations (diagnosis of the filter, not a simulation of the suit): the
+/// filter's OWN measurement models evaluated along the true trajectory of `motion` with
+/// `suit` — gyroscopes by Eq. 4.3 (`Rᵀ J_ω θ̇`), accelerometers by Eq. 4.2
+/// (`Rᵀ (J θ̈ + J̇θ̇ + g)`), distances by Eq. 4.4 (`‖p_i − p_j‖`, one source per frame in
+/// turn, every microphone in its field of view, confidence 1, no age) — without noise,
+/// bias, quantisation, placement error or skin motion. A filter fed these must track the
+/// truth to within its own lag; if it does not, the error is in the filter (dynamics,
+/// Jacobians, initialisation), not in the sensing. `rest_s` is the rest hold at the start of
+/// `motion` (as [`prepare_motion`] put it there).
+///
+/// # Errors
+/// As [`Skeleton::forward_kinematics`] and the skeleton's rate and Jacobian routines (with
+/// the frame in [`Error::At`]); [`Error::Core`] for a non-positive `rest_s`.
+pub fn model_recording(
+    skeleton: &Skeleton,
+    suit: &Suit,
+    motion: &SmoothMotion,
+    rest_s: f64,
+) -> Result<SimulatedRecording> {
+    positive("rest_s", rest_s)?;
+    let dt = 1.0 / INERTIAL_RATE_HZ;
+    let n_frames = (motion.duration_s() / dt).floor() as usize + 1;
+    let nd = skeleton.dof_count();
+    let (nb, ns) = (suit.boards().len(), suit.sources().len());
+    let (mut th, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
+    let points: Vec<_> = suit.boards().iter().map(|b| b.point()).collect();
+    let frames: Vec<_> = suit.boards().iter().map(|b| b.frame()).collect();
+    let root: Vec<usize> = skeleton.joint_dofs(0).collect();
+    let up = DVec3::new(0.0, GRAVITY_M_S2, 0.0);
+    let mut jac = DMatrix::zeros(3 * nb, nd);
+    let mut bias = vec![DVec3::ZERO; nb];
+    let mut out = Vec::with_capacity(n_frames);
+    let (mut truth, mut roots) = (Vec::with_capacity(n_frames), Vec::with_capacity(n_frames));
+    for k in 0..n_frames {
+        motion.eval(k as f64 * dt, &mut th, &mut rate, &mut acc);
+        let mut model = || -> Result<FrameObservations> {
+            let fk = skeleton.forward_kinematics(&th)?;
+            let rates = skeleton.rates(&th, &rate, &fk)?;
+            skeleton.point_jacobians_into(&fk, &points, &mut jac)?;
+            skeleton.point_bias_accelerations_into(&fk, &rates, &points, &mut bias)?;
+            let mut inertial = Vec::with_capacity(nb);
+            for b in 0..nb {
+                let mut a = bias[b];
+                for &d in skeleton.chain_dofs(points[b].joint) {
+                    a += DVec3::new(jac[(3 * b, d)], jac[(3 * b + 1, d)], jac[(3 * b + 2, d)])
+                        * acc[d];
+                }
+                let to_local = fk.frame_rotation(&frames[b])?.inverse();
+                inertial.push(Some(InertialReading {
+                    gyro_rad_s: rates.frame_angular_velocity(
+                        &fk,
+                        &frames[b],
+                        skin_core::skeleton::AngularFrame::Local,
+                    )?,
+                    accel_m_s2: to_local * (a + up),
+                }));
+            }
+            let mut distances = Vec::new();
+            if ns > 0 {
+                let s = &suit.sources()[k % ns];
+                let ps = fk.point(&s.point())?;
+                let normal = fk.world_from_joint()[s.joint].matrix3 * s.normal;
+                for (b, p) in points.iter().enumerate() {
+                    let diff = fk.point(p)? - ps;
+                    if normal.dot(diff) > 0.0 {
+                        distances.push(DistanceMeasurement {
+                            sensor: b,
+                            source: k % ns,
+                            distance_m: diff.length(),
+                            confidence: 1.0,
+                            age_s: 0.0,
+                        });
+                    }
+                }
+            }
+            Ok(FrameObservations {
+                inertial,
+                distances,
+            })
+        };
+        out.push(model().at(Context::Frame(k))?);
+        truth.push(TruthFrame { theta: th.clone() });
+        roots.push(KnownDofs {
+            theta: root.iter().map(|&d| th[d]).collect(),
+            theta_dot: root.iter().map(|&d| rate[d]).collect(),
+            theta_ddot: root.iter().map(|&d| acc[d]).collect(),
+        });
+    }
+    Ok(SimulatedRecording {
+        frames: out,
+        truth,
+        root: roots,
+        rest_frames: (rest_s / dt).floor() as usize,
+        nominal_suit: suit.clone(),
+        true_suit: suit.clone(),
+        ultrasound_s: 0.0,
+        ultrasound_cpu_s: 0.0,
+        inertial_s: 0.0,
+        los_distance_errors_m: Vec::new(),
+        detections: Vec::new(),
+        pulses_heard: 0,
+        pulses_total: 0,
+        inertial_frames_flagged: 0,
+        bits_corrected: 0,
+        skin_motion: Vec::new(),
+    })
 }
