@@ -32,7 +32,7 @@ use nalgebra_sparse::{CooMatrix, CscMatrix};
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
-use skin_core::image::Mask;
+use skin_core::image::{label_components, Mask, Neighbourhood};
 use skin_core::lsq::{LsqParams, LsqProblem};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::raster::RenderedView;
@@ -322,41 +322,16 @@ pub fn rendered_normals(camera: &Camera, view: &RenderedView) -> Result<NormalMa
 }
 
 /// Labels the 4-connected regions of `inside` (row-major); `usize::MAX` outside.
-pub(crate) fn regions(width: u32, height: u32, inside: &[bool]) -> (Vec<usize>, usize) {
-    let (w, h) = (width as usize, height as usize);
-    let mut label = vec![usize::MAX; w * h];
-    let mut count = 0;
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if !inside[start] || label[start] != usize::MAX {
-            continue;
-        }
-        label[start] = count;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            let (x, y) = (i % w, i / w);
-            let mut visit = |j: usize| {
-                if inside[j] && label[j] == usize::MAX {
-                    label[j] = count;
-                    stack.push(j);
-                }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
-            }
-        }
-        count += 1;
-    }
-    (label, count)
+pub(crate) fn regions(width: u32, height: u32, inside: &[bool]) -> Result<(Vec<usize>, usize)> {
+    let c = label_components(
+        &Mask::from_bools(width, height, inside)?,
+        true,
+        Neighbourhood::Four,
+    )?;
+    let label = (0..c.label.len())
+        .map(|i| c.component_of(i).unwrap_or(usize::MAX))
+        .collect();
+    Ok((label, c.count()))
 }
 
 /// Integrates `normals` (camera frame, as [`NormalMap`]) seen by `camera` into depths along
@@ -417,7 +392,7 @@ pub fn integrate_normals(
         }
     }
     // Regions without a proxy depth (scale undetermined) or too small are left out.
-    let (label, count) = regions(w, h, &inside);
+    let (label, count) = regions(w, h, &inside)?;
     let mut size = vec![0usize; count];
     let mut anchored = vec![false; count];
     for i in 0..n_px {
