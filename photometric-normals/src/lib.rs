@@ -103,6 +103,7 @@ mod matching;
 mod merge;
 mod metrics;
 mod motion;
+mod multigrid;
 mod normals;
 mod offsets;
 mod patterns;
@@ -122,7 +123,7 @@ pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
     depth_errors, depth_jumps, integrate_normals, rendered_normals, DepthErrors, Integrated,
-    IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+    IntegrationParams, IntegrationReport, IntegrationSolver, THESIS_WIDTH_PX,
 };
 pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
@@ -131,6 +132,7 @@ pub use matching::{
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use metrics::{surface_distance, table_metrics, MetricParams, SurfaceDistance, TableMetrics};
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
+pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
     depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceErrors,
