@@ -20,14 +20,17 @@
 //! the weak mode is the constant, plain geometric multigrid applies.
 //!
 //! **The hierarchy.** Each coarse unknown aggregates the (up to four) foreground pixels of a
-//! 2 × 2 block of the finer grid; the prolongation `P` is piecewise constant and the coarse
+//! 2 × 2 block of the finer grid that lie in one connected region (a view splits into
+//! several regions at silhouettes and removed discontinuities: each has its own scale mode,
+//! lifted only by α, which a coarse unknown shared by two regions could not represent); the
+//! prolongation `P` is piecewise constant and the coarse
 //! operator is Galerkin's `Pᵀ N' P`. For a 5-point stencil this product is again a 5-point
 //! stencil on the half-size grid (blocks touch only through their 4-neighbours), so every
 //! level has the fine level's data layout and costs a quarter of it: O(n) memory and work per
 //! cycle. Galerkin operators respect the mask exactly (no rediscretisation of boundaries or
-//! of the varying weights `((n_i + n_j)ᵀ r)²`, which vanish at grazing angles), and a region
-//! splits off or merges at coarse levels without special cases. The coarsest level (≤
-//! [`COARSEST_UNKNOWNS`] unknowns, at the latest a 1 × 1 grid) is solved by dense Cholesky.
+//! of the varying weights `((n_i + n_j)ᵀ r)²`, which vanish at grazing angles). The coarsest
+//! level (≤ [`COARSEST_UNKNOWNS`] unknowns, at the latest a 1 × 1 grid with one unknown per
+//! region) is solved by dense Cholesky.
 //!
 //! **The cycle and the Krylov method.** One V-cycle with symmetric Gauss–Seidel smoothing
 //! (forward before the coarse correction, backward after) is a symmetric positive definite
@@ -39,9 +42,12 @@
 //! [`MultigridParams::coarse_scale`] (Vaněk's over-correction), which keeps the preconditioner
 //! SPD for values below 2.
 //!
-//! **Stopping.** CG stops when the residual of the scaled system falls to
-//! [`MultigridParams::tolerance`] times the warm start's residual (the proxy's disagreement
-//! with the normals), or after [`MultigridParams::max_iterations`].
+//! **Stopping.** CG stops when the residual of the normal equations (in depth units, i.e. the
+//! scaled residual divided by `z₀`) falls to [`MultigridParams::tolerance`] times the warm
+//! start's residual (the proxy's disagreement with the normals), or after
+//! [`MultigridParams::max_iterations`].
+
+use std::collections::HashMap;
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -55,8 +61,8 @@ pub const COARSEST_UNKNOWNS: usize = 256;
 /// Knobs of the multigrid-preconditioned conjugate gradients solve of Eq. 3.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MultigridParams {
-    /// CG stops when the residual norm of the scaled normal equations falls to this fraction
-    /// of the warm start's. Default 10⁻⁷ (ours: on the 512² and 1024² sphere views of the
+    /// CG stops when the residual norm of the normal equations falls to this fraction of the
+    /// warm start's. Default 10⁻⁷ (ours: on the 512² and 1024² sphere views of the
     /// benchmark the depths stay within a nanometre of the direct solve's; see
     /// `docs/photometric-normals.md`).
     pub tolerance: f64,
@@ -72,6 +78,10 @@ pub struct MultigridParams {
     /// 1.8 (ours: on the 1024² sphere view, 1.0 needs 57 iterations, 1.6 19, 1.8 13, 1.9
     /// 11; 1.8 keeps a margin from 2).
     pub coarse_scale: f64,
+    /// Coarse-grid visits per level: 1 is a V-cycle, 2 a W-cycle (still O(n) with 2 × 2
+    /// aggregation: each level costs a quarter of the finer one, visited twice as often).
+    /// Default 1 (ours).
+    pub cycle_index: usize,
 }
 
 impl Default for MultigridParams {
@@ -81,6 +91,7 @@ impl Default for MultigridParams {
             max_iterations: 200,
             smoothing_sweeps: 1,
             coarse_scale: 1.8,
+            cycle_index: 1,
         }
     }
 }
@@ -92,6 +103,7 @@ impl MultigridParams {
         check::nonzero("multigrid smoothing_sweeps", self.smoothing_sweeps)?;
         check::positive("multigrid coarse_scale", self.coarse_scale)?;
         check::in_range("multigrid coarse_scale", self.coarse_scale, 0.0..=1.99)?;
+        check::in_range("multigrid cycle_index", self.cycle_index as f64, 1.0..=2.0)?;
         Ok(())
     }
 }
@@ -171,70 +183,73 @@ impl Level {
         x[k] = (b[k] - off) * self.inv_diag[k];
     }
 
-    /// The 2 × 2-aggregated Galerkin operator `Pᵀ A P` and each unknown's aggregate.
-    fn coarsen(&self, height: usize) -> (Level, usize, Vec<u32>) {
+    /// The 2 × 2-aggregated Galerkin operator `Pᵀ A P` and each unknown's aggregate. An
+    /// aggregate holds the unknowns of one block that belong to one connected region
+    /// (`region`), so that every region keeps unknowns of its own down to the coarsest level
+    /// (its scale mode, lifted only by α, stays representable there).
+    fn coarsen(&self, height: usize, region: &[u32]) -> (Level, usize, Vec<u32>) {
         let (cw, ch) = (self.width.div_ceil(2), height.div_ceil(2));
         let block = |cell: usize| (cell / self.width / 2) * cw + (cell % self.width) / 2;
-        let mut at = vec![u32::MAX; cw * ch];
-        for &c in &self.cell {
-            at[block(c)] = 0;
-        }
+        let mut ids: HashMap<(usize, u32), u32> = HashMap::with_capacity(self.len() / 3 + 1);
         let mut cell = Vec::new();
-        for (b, slot) in at.iter_mut().enumerate() {
-            if *slot == 0 {
-                *slot = cell.len() as u32;
-                cell.push(b);
-            }
-        }
-        let agg: Vec<u32> = self.cell.iter().map(|&c| at[block(c)]).collect();
+        let agg: Vec<u32> = self
+            .cell
+            .iter()
+            .zip(region)
+            .map(|(&c, &r)| {
+                let b = block(c);
+                *ids.entry((b, r)).or_insert_with(|| {
+                    cell.push(b);
+                    (cell.len() - 1) as u32
+                })
+            })
+            .collect();
         let nc = cell.len();
         let mut diag = vec![0.0; nc];
         let mut coef = vec![[0.0; 4]; nc];
+        let mut nbr: Vec<[u32; 4]> = (0..nc as u32).map(|k| [k; 4]).collect();
         for k in 0..self.len() {
             let a = agg[k] as usize;
             diag[a] += self.diag[k];
             for d in 0..4 {
                 let j = self.nbr[k][d] as usize;
-                if self.coef[k][d] == 0.0 {
+                if j == k {
                     continue;
                 }
                 if agg[j] as usize == a {
                     diag[a] += self.coef[k][d];
                 } else {
+                    // The block next to `a` in direction `d`, same region: one aggregate.
                     coef[a][d] += self.coef[k][d];
+                    nbr[a][d] = agg[j];
                 }
             }
         }
-        let nbr = cell
-            .iter()
-            .enumerate()
-            .map(|(k, &b)| {
-                let (x, y) = (b % cw, b / cw);
-                let look = |nx: usize, ny: usize| {
-                    let j = at[ny * cw + nx];
-                    if j == u32::MAX {
-                        k as u32
-                    } else {
-                        j
-                    }
-                };
-                let mut n = [k as u32; 4];
-                if x > 0 {
-                    n[LEFT] = look(x - 1, y);
-                }
-                if x + 1 < cw {
-                    n[RIGHT] = look(x + 1, y);
-                }
-                if y > 0 {
-                    n[UP] = look(x, y - 1);
-                }
-                if y + 1 < ch {
-                    n[DOWN] = look(x, y + 1);
-                }
-                n
-            })
-            .collect();
         (Level::new(cw, cell, diag, nbr, coef), ch, agg)
+    }
+
+    /// The connected region of each unknown (union–find over the couplings).
+    fn regions(&self) -> Vec<u32> {
+        fn root(parent: &mut [u32], mut k: u32) -> u32 {
+            while parent[k as usize] != k {
+                let p = parent[parent[k as usize] as usize];
+                parent[k as usize] = p;
+                k = p;
+            }
+            k
+        }
+        let mut parent: Vec<u32> = (0..self.len() as u32).collect();
+        for k in 0..self.len() {
+            for &j in &self.nbr[k] {
+                let (a, b) = (root(&mut parent, k as u32), root(&mut parent, j));
+                if a != b {
+                    parent[a.max(b) as usize] = a.min(b);
+                }
+            }
+        }
+        (0..self.len() as u32)
+            .map(|k| root(&mut parent, k))
+            .collect()
     }
 
     fn dense(&self) -> DMatrix<f64> {
@@ -261,6 +276,7 @@ struct Hierarchy {
 
 impl Hierarchy {
     fn new(fine: Level, height: usize, params: MultigridParams) -> Result<Self> {
+        let mut region = fine.regions();
         let mut levels = vec![fine];
         let mut agg = Vec::new();
         let mut h = height;
@@ -268,7 +284,12 @@ impl Hierarchy {
             if last.len() <= COARSEST_UNKNOWNS || (last.width <= 1 && h <= 1) {
                 break;
             }
-            let (coarse, ch, map) = last.coarsen(h);
+            let (coarse, ch, map) = last.coarsen(h, &region);
+            let mut next = vec![0; coarse.len()];
+            for (k, &a) in map.iter().enumerate() {
+                next[a as usize] = region[k];
+            }
+            region = next;
             h = ch;
             agg.push(map);
             levels.push(coarse);
@@ -305,17 +326,20 @@ impl Hierarchy {
                 a.relax(k, b, x);
             }
         }
-        let mut r = vec![0.0; a.len()];
-        a.apply(x, &mut r);
         let map = &self.agg[l];
+        let mut r = vec![0.0; a.len()];
         let mut bc = vec![0.0; self.levels[l + 1].len()];
-        for k in 0..a.len() {
-            bc[map[k] as usize] += b[k] - r[k];
-        }
         let mut xc = vec![0.0; bc.len()];
-        self.cycle(l + 1, &bc, &mut xc);
-        for k in 0..a.len() {
-            x[k] += self.params.coarse_scale * xc[map[k] as usize];
+        for _ in 0..self.params.cycle_index {
+            a.apply(x, &mut r);
+            bc.fill(0.0);
+            for k in 0..a.len() {
+                bc[map[k] as usize] += b[k] - r[k];
+            }
+            self.cycle(l + 1, &bc, &mut xc);
+            for k in 0..a.len() {
+                x[k] += self.params.coarse_scale * xc[map[k] as usize];
+            }
         }
         for _ in 0..self.params.smoothing_sweeps {
             for k in (0..a.len()).rev() {
@@ -356,26 +380,32 @@ pub(crate) fn solve(
     params: &MultigridParams,
 ) -> Result<(Vec<f64>, MultigridStats)> {
     params.validate()?;
-    let GridSystem {
-        width,
-        height,
-        pixels,
-        rows,
-        anchors,
-        alpha,
-    } = *system;
-    let n = pixels.len();
-    check::same_size("multigrid warm start", n, z0.len())?;
-    let w = width as usize;
-    // The scaled operator N' = D N D, D = diag(z0), and right-hand side D α Cᵀ z̄.
+    check::same_size("multigrid warm start", system.pixels.len(), z0.len())?;
+    let (fine, b) = scaled_level(system, z0)?;
+    let mg = Hierarchy::new(fine, system.height as usize, *params)?;
+    let t0 = vec![1.0; z0.len()];
+    let (t, iterations, relative_residual) =
+        pcg(&mg, &b, t0, z0, params.tolerance, params.max_iterations);
+    let stats = MultigridStats {
+        iterations,
+        relative_residual,
+        levels: mg.levels.len(),
+    };
+    Ok((t.iter().zip(z0).map(|(t, z)| t * z).collect(), stats))
+}
+
+/// The fine level of `system` in the variables `t = z / scale` (`N' = D N D`, `D =
+/// diag(scale)`) and its right-hand side `D α Cᵀ z̄`.
+fn scaled_level(system: &GridSystem<'_>, scale: &[f64]) -> Result<(Level, Vec<f64>)> {
+    let n = system.pixels.len();
     let mut diag = vec![0.0; n];
     let mut nbr: Vec<[u32; 4]> = (0..n as u32).map(|k| [k; 4]).collect();
     let mut coef = vec![[0.0; 4]; n];
-    for &(i, u, j, v) in rows {
-        let (su, sv) = (u * z0[i], v * z0[j]);
+    for &(i, u, j, v) in system.rows {
+        let (su, sv) = (u * scale[i], v * scale[j]);
         diag[i] += su * su;
         diag[j] += sv * sv;
-        let (fwd, back) = if pixels[j] == pixels[i] + 1 {
+        let (fwd, back) = if system.pixels[j] == system.pixels[i] + 1 {
             (RIGHT, LEFT)
         } else {
             (DOWN, UP)
@@ -386,9 +416,9 @@ pub(crate) fn solve(
         coef[j][back] += su * sv;
     }
     let mut b = vec![0.0; n];
-    for &(k, d) in anchors {
-        diag[k] += alpha * z0[k] * z0[k];
-        b[k] += alpha * z0[k] * d;
+    for &(k, d) in system.anchors {
+        diag[k] += system.alpha * scale[k] * scale[k];
+        b[k] += system.alpha * scale[k] * d;
     }
     if diag.iter().any(|d| *d <= 0.0 || !d.is_finite()) {
         return Err(Error::InvalidParam {
@@ -396,32 +426,53 @@ pub(crate) fn solve(
             reason: "an unknown has no constraint (zero diagonal of the normal matrix)".into(),
         });
     }
-    let fine = Level::new(w, pixels.to_vec(), diag, nbr, coef);
-    let mg = Hierarchy::new(fine, height as usize, *params)?;
+    let fine = Level::new(
+        system.width as usize,
+        system.pixels.to_vec(),
+        diag,
+        nbr,
+        coef,
+    );
+    Ok((fine, b))
+}
+
+/// Preconditioned CG on the finest level of `mg` from `t`. Residuals are measured unscaled
+/// (`r / scale`: the residual of the normal equations of the depths), relative to the
+/// start's. Returns (t, iterations, relative residual).
+fn pcg(
+    mg: &Hierarchy,
+    b: &[f64],
+    mut t: Vec<f64>,
+    scale: &[f64],
+    tolerance: f64,
+    max_iterations: usize,
+) -> (Vec<f64>, usize, f64) {
+    let n = b.len();
     let a = &mg.levels[0];
-    // Preconditioned CG from t = 1 (z = z0).
-    let mut t = vec![1.0; n];
+    let unscaled = |r: &[f64]| {
+        r.iter()
+            .zip(scale)
+            .map(|(r, s)| (r / s).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
     let mut r = vec![0.0; n];
     a.apply(&t, &mut r);
-    for (ri, bi) in r.iter_mut().zip(&b) {
+    for (ri, bi) in r.iter_mut().zip(b) {
         *ri = bi - *ri;
     }
-    let r0 = dot(&r, &r).sqrt();
-    let mut stats = MultigridStats {
-        iterations: 0,
-        relative_residual: 0.0,
-        levels: mg.levels.len(),
-    };
+    let r0 = unscaled(&r);
+    let mut iterations = 0;
     if r0 == 0.0 {
-        return Ok((z0.to_vec(), stats));
+        return (t, iterations, 0.0);
     }
+    let mut rel = 1.0;
     let mut zr = vec![0.0; n];
     mg.cycle(0, &r, &mut zr);
     let mut p = zr.clone();
     let mut rz = dot(&r, &zr);
     let mut ap = vec![0.0; n];
-    let mut rel = 1.0;
-    while stats.iterations < params.max_iterations && rel > params.tolerance {
+    while iterations < max_iterations {
         a.apply(&p, &mut ap);
         let pap = dot(&p, &ap);
         if pap <= 0.0 || !pap.is_finite() {
@@ -432,9 +483,9 @@ pub(crate) fn solve(
             t[k] += step * p[k];
             r[k] -= step * ap[k];
         }
-        stats.iterations += 1;
-        rel = dot(&r, &r).sqrt() / r0;
-        if rel <= params.tolerance {
+        iterations += 1;
+        rel = unscaled(&r) / r0;
+        if rel <= tolerance {
             break;
         }
         mg.cycle(0, &r, &mut zr);
@@ -445,6 +496,5 @@ pub(crate) fn solve(
             p[k] = zr[k] + beta * p[k];
         }
     }
-    stats.relative_residual = rel;
-    Ok((t.iter().zip(z0).map(|(t, z)| t * z).collect(), stats))
+    (t, iterations, rel)
 }
