@@ -83,21 +83,16 @@ pub struct IntegrationParams {
 }
 
 /// The solver of Eq. 3.3's normal equations `(AᵀA + α CᵀC) z = α Cᵀ z̄`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub enum IntegrationSolver {
     /// Sparse Cholesky through [`skin_core::lsq`] (exact to rounding; the pattern is analysed
-    /// and factorised once per call, super-linear in the pixel count).
+    /// and factorised once per call, super-linear in the pixel count). The default.
+    #[default]
     Direct,
     /// Conjugate gradients preconditioned by an aggregation-multigrid V-cycle on the
     /// foreground pixels, warm-started from the proxy depth (O(n) per iteration; see the
     /// module `multigrid.rs` for the design).
     Multigrid(MultigridParams),
-}
-
-impl Default for IntegrationSolver {
-    fn default() -> Self {
-        Self::Direct
-    }
 }
 
 impl IntegrationSolver {
