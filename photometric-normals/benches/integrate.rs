@@ -149,8 +149,11 @@ fn main() {
         }
         return;
     }
-    for size in [512, 1024] {
-        summary(size);
+    // Under `cargo bench` (not `cargo test --benches`, which runs each benchmark once).
+    if args.iter().any(|a| a == "--bench") {
+        for size in [512, 1024] {
+            summary(size);
+        }
     }
     let mut c = Criterion::default().configure_from_args();
     for size in [512u32, 1024] {
