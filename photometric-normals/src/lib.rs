@@ -28,7 +28,8 @@
 //! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
 //! | `poisson.rs` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
 //! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
-//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
+//! | `multigrid.rs` | the O(n) solver of Eq. 3.3: conjugate gradients preconditioned by a V-cycle of 2 × 2 region-wise aggregation (Galerkin), scaled by and warm-started from the proxy depth | [`MultigridParams`], [`COARSEST_UNKNOWNS`] | §3.3.1 Eq. 3.3 |
+//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`IntegrationSolver`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
 //! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
 //! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
 //! | `reconstruct.rs` | the two passes: per-view surfaces against the hull, merge, Poisson with hull samples at 0.01; again with the hole-filled mesh as proxy | [`reconstruct`], [`ReconstructParams`], [`Reconstruction`], [`Pass`] | §3.3, §3.3.3 |
@@ -104,6 +105,7 @@ mod matching;
 mod merge;
 mod metrics;
 mod motion;
+mod multigrid;
 mod normals;
 mod offsets;
 mod patterns;
@@ -123,7 +125,7 @@ pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
     depth_errors, depth_jumps, integrate_normals, rendered_normals, DepthErrors, Integrated,
-    IntegrationParams, IntegrationReport, THESIS_WIDTH_PX,
+    IntegrationParams, IntegrationReport, IntegrationSolver, THESIS_WIDTH_PX,
 };
 pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
@@ -135,6 +137,7 @@ pub use metrics::{
     SurfaceDistance, TableMetrics,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
+pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
     depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceErrors,

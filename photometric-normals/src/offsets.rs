@@ -128,7 +128,7 @@ pub fn depth_offsets(
     let mut inside: Vec<bool> = (0..n_px)
         .map(|i| !surface.depth_m[i].is_nan() && f64::from(far.as_raw()[i]) <= limit)
         .collect();
-    let (label, count) = regions(w, h, &inside);
+    let (label, count) = regions(w, h, &inside)?;
     let mut anchored = vec![false; count];
     for i in 0..n_px {
         if label[i] != usize::MAX && !target[i].is_nan() {

@@ -25,7 +25,10 @@
 
 use image::Rgb32FImage;
 use serde::{Deserialize, Serialize};
-use skin_core::image::{remove_small_components, BackgroundModel, BackgroundParams, Mask};
+use skin_core::image::{
+    label_components, remove_small_components, BackgroundModel, BackgroundParams, Mask,
+    Neighbourhood,
+};
 
 use crate::{Error, Result};
 
@@ -246,11 +249,10 @@ pub fn extract_silhouette(
     }
     let keyed = Mask::from_bools(w, h, &flags)?;
     let cleaned = remove_small_components(&keyed, params.min_component_px)?;
-    let mut flags = cleaned.to_bools();
-    let (holes_filled, filled_px, holes_kept) =
-        fill_holes(&mut flags, w, h, frame, backdrop, params);
+    let (mask, holes_filled, filled_px, holes_kept) =
+        fill_holes(&cleaned, frame, backdrop, params)?;
     Ok(Silhouette {
-        mask: Mask::from_bools(w, h, &flags)?,
+        mask,
         subtracted_px,
         keyed_px,
         holes_filled,
@@ -261,59 +263,24 @@ pub fn extract_silhouette(
 
 /// Fills the enclosed background components of at most `max_hole_px` pixels whose colour
 /// statistics differ from the backdrop's. Returns
-/// (holes filled, pixels filled, small holes kept).
+/// (the filled mask, holes filled, pixels filled, small holes kept).
 fn fill_holes(
-    fg: &mut [bool],
-    w: u32,
-    h: u32,
+    mask: &Mask,
     frame: &Rgb32FImage,
     backdrop: &Backdrop,
     params: &SilhouetteParams,
-) -> (usize, usize, usize) {
-    let (wu, hu) = (w as usize, h as usize);
+) -> Result<(Mask, usize, usize, usize)> {
     let chroma_at = |i: usize| -> [f32; 3] {
         let s = &frame.as_raw()[3 * i..3 * i + 3];
         chromaticity([s[0], s[1], s[2]])
     };
-    let mut seen = vec![false; fg.len()];
+    // The 4-connected background components (holes have the dual of the foreground's
+    // 8-connectivity).
+    let holes = label_components(mask, false, Neighbourhood::Four)?;
+    let mut fg = mask.to_bools();
     let (mut filled, mut filled_px, mut kept) = (0, 0, 0);
-    let mut component = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..fg.len() {
-        if fg[start] || seen[start] {
-            continue;
-        }
-        // One 4-connected background component.
-        component.clear();
-        stack.push(start);
-        seen[start] = true;
-        let mut touches_border = false;
-        while let Some(i) = stack.pop() {
-            component.push(i);
-            let (x, y) = (i % wu, i / wu);
-            if x == 0 || y == 0 || x + 1 == wu || y + 1 == hu {
-                touches_border = true;
-            }
-            let mut visit = |j: usize| {
-                if !fg[j] && !seen[j] {
-                    seen[j] = true;
-                    stack.push(j);
-                }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < wu {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - wu);
-            }
-            if y + 1 < hu {
-                visit(i + wu);
-            }
-        }
-        if touches_border || component.len() > params.max_hole_px {
+    for (k, component) in holes.members().into_iter().enumerate() {
+        if holes.touches_border[k] || component.len() > params.max_hole_px {
             continue;
         }
         let inside = stats(component.iter().map(|&i| chroma_at(i)));
@@ -332,7 +299,12 @@ fn fill_holes(
             kept += 1;
         }
     }
-    (filled, filled_px, kept)
+    Ok((
+        Mask::from_bools(mask.width(), mask.height(), &fg)?,
+        filled,
+        filled_px,
+        kept,
+    ))
 }
 
 /// Mean chromaticity variance of the backdrop's sensor noise over some pixels: the model's

@@ -31,30 +31,76 @@ fn check_labelable(mask: &Mask) -> Result<()> {
     Ok(())
 }
 
-/// Connected components of the pixels whose flag equals `value`.
-struct Components {
-    /// Per pixel: component index + 1, or 0 for pixels of the other value.
-    label: Vec<u32>,
-    /// Per component: pixel count.
-    area: Vec<usize>,
-    /// Per component: whether it touches the image border.
-    touches_border: Vec<bool>,
+/// Which neighbours of a pixel are connected to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Neighbourhood {
+    /// Left, right, up and down.
+    Four,
+    /// The four above and the four diagonal neighbours.
+    Eight,
 }
 
-/// Labels the connected components of pixels with `flags[i] == value` by breadth-first flood
-/// fill (4- or 8-connectivity), linear in the pixel count. Written here rather than using
-/// `imageproc::region_labelling` (the test oracle) because clean-up also needs each
-/// component's border contact, which the flood fill records in the same pass on the mask's
-/// flags without image conversions.
-fn components(mask: &Mask, value: bool, eight: bool) -> Components {
+/// The connected components of a mask's pixels of one value ([`label_components`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Components {
+    /// Per pixel (row-major): component index + 1, or 0 for a pixel of the other value.
+    pub label: Vec<u32>,
+    /// Per component: pixel count.
+    pub area: Vec<usize>,
+    /// Per component: whether it touches the image border.
+    pub touches_border: Vec<bool>,
+}
+
+impl Components {
+    /// Number of components.
+    pub fn count(&self) -> usize {
+        self.area.len()
+    }
+
+    /// The component (0-based) of pixel `i` (row-major), `None` for a pixel of the other
+    /// value or out of range.
+    pub fn component_of(&self, i: usize) -> Option<usize> {
+        match self.label.get(i) {
+            Some(&l) if l > 0 => Some(l as usize - 1),
+            _ => None,
+        }
+    }
+
+    /// The row-major pixel indices of each component, in ascending order.
+    pub fn members(&self) -> Vec<Vec<usize>> {
+        let mut out: Vec<Vec<usize>> = self.area.iter().map(|&a| Vec::with_capacity(a)).collect();
+        for (i, &l) in self.label.iter().enumerate() {
+            if l > 0 {
+                out[l as usize - 1].push(i);
+            }
+        }
+        out
+    }
+}
+
+/// Labels the connected components of the pixels of `mask` whose flag equals `value`
+/// (`true`: foreground pieces; `false`: background regions such as holes) by flood fill,
+/// linear in the pixel count. Components are numbered in row-major order of their first
+/// pixel. Written here rather than using `imageproc::region_labelling` (the test oracle)
+/// because callers also need each component's border contact, which the flood fill records
+/// in the same pass on the mask's flags without image conversions.
+///
+/// # Errors
+/// [`Error::InvalidParam`] if the mask has 2³² pixels or more (labels are `u32`).
+pub fn label_components(
+    mask: &Mask,
+    value: bool,
+    neighbourhood: Neighbourhood,
+) -> Result<Components> {
+    check_labelable(mask)?;
     let (w, h) = (mask.width() as usize, mask.height() as usize);
     let flags = mask.to_bools();
     let mut label = vec![0u32; flags.len()];
     let mut area = Vec::new();
     let mut touches_border = Vec::new();
     let mut stack = Vec::new();
-    let offsets: &[(isize, isize)] = if eight {
-        &[
+    let offsets: &[(isize, isize)] = match neighbourhood {
+        Neighbourhood::Eight => &[
             (-1, -1),
             (0, -1),
             (1, -1),
@@ -63,9 +109,8 @@ fn components(mask: &Mask, value: bool, eight: bool) -> Components {
             (-1, 1),
             (0, 1),
             (1, 1),
-        ]
-    } else {
-        &[(0, -1), (-1, 0), (1, 0), (0, 1)]
+        ],
+        Neighbourhood::Four => &[(0, -1), (-1, 0), (1, 0), (0, 1)],
     };
     for seed in 0..flags.len() {
         if flags[seed] != value || label[seed] != 0 {
@@ -73,7 +118,7 @@ fn components(mask: &Mask, value: bool, eight: bool) -> Components {
         }
         area.push(0usize);
         touches_border.push(false);
-        // Fits: callers check that the mask has fewer than 2^32 pixels (hence components).
+        // Fits: checked above that the mask has fewer than 2^32 pixels (hence components).
         let id = area.len() as u32;
         label[seed] = id;
         stack.push(seed);
@@ -97,11 +142,11 @@ fn components(mask: &Mask, value: bool, eight: bool) -> Components {
             }
         }
     }
-    Components {
+    Ok(Components {
         label,
         area,
         touches_border,
-    }
+    })
 }
 
 /// Removes 8-connected foreground components with fewer than `min_px` pixels (they become
@@ -113,8 +158,7 @@ pub fn remove_small_components(mask: &Mask, min_px: usize) -> Result<Mask> {
     if min_px <= 1 || mask.is_empty() {
         return Ok(mask.clone());
     }
-    check_labelable(mask)?;
-    let c = components(mask, true, true);
+    let c = label_components(mask, true, Neighbourhood::Eight)?;
     let keep: Vec<bool> = c
         .label
         .iter()
@@ -132,8 +176,7 @@ pub fn fill_small_holes(mask: &Mask, max_px: usize) -> Result<Mask> {
     if max_px == 0 || mask.is_full() || mask.is_zero_sized() {
         return Ok(mask.clone());
     }
-    check_labelable(mask)?;
-    let c = components(mask, false, false);
+    let c = label_components(mask, false, Neighbourhood::Four)?;
     let fg: Vec<bool> = c
         .label
         .iter()
@@ -203,6 +246,33 @@ mod tests {
             prop_assert_eq!(remove_small_components(&m, min_px).unwrap(), kept);
             prop_assert_eq!(fill_small_holes(&m, max_hole_px).unwrap(), filled);
         }
+    }
+
+    #[test]
+    fn labels_components_with_either_connectivity() {
+        // Two pixels touching diagonally, and a separate vertical pair.
+        let m = Mask::from_bools(
+            4,
+            3,
+            &[
+                true, false, false, true, //
+                false, true, false, true, //
+                false, false, false, false,
+            ],
+        )
+        .unwrap();
+        let four = label_components(&m, true, Neighbourhood::Four).unwrap();
+        assert_eq!(four.count(), 3);
+        assert_eq!(four.members(), vec![vec![0], vec![3, 7], vec![5]]);
+        assert_eq!(four.component_of(1), None);
+        assert_eq!(four.component_of(99), None);
+        let eight = label_components(&m, true, Neighbourhood::Eight).unwrap();
+        assert_eq!(eight.count(), 2);
+        assert_eq!(eight.area, vec![2, 2]);
+        assert_eq!(eight.component_of(5), Some(0));
+        let background = label_components(&m, false, Neighbourhood::Four).unwrap();
+        assert_eq!(background.count(), 1);
+        assert!(background.touches_border[0]);
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! | --- | --- | --- |
 //! | [`Mask`] (`mask.rs`) | bit-packed binary masks, set operations, bounding box, silhouette mismatch (optionally within a band) | Sand et al. 2003 §6.2 (silhouette error) |
 //! | [`BackgroundModel`] (`background.rs`) | background mean and per-pixel threshold map from empty frames, foreground classification | Sand 2003 thesis §4.2, Sand et al. 2003 §4.2 |
-//! | `cleanup.rs` | removal of small foreground specks, filling of small holes | Vlasic 2010 §3.2.1 |
+//! | `cleanup.rs` | connected-component labelling ([`label_components`]), removal of small foreground specks, filling of small holes | Vlasic 2010 §3.2.1 |
 //! | [`extract_contours`] (`contour.rs`) | borders with outward unit normals, arc-length resampling | Fua et al. §5.3, Vlasic 2010 §2.4.2 |
 //! | [`signed_distance`] (`distance.rs`) | exact Euclidean distance transforms, signed distance to the boundary, the boundary band [`Mask::boundary_band`] | Vlasic 2010 §2.3.2; Sand et al. 2003 §6.2 (band) |
 //! | [`sample_bilinear_with_gradient`] (`sample.rs`) | sub-pixel value and gradient of distance fields and depth maps | Vlasic 2010 §2.3.2 |
@@ -49,7 +49,9 @@ pub use background::{
     BackgroundFrame, BackgroundModel, BackgroundParams, Segmentation, DEFAULT_K_SIGMA,
     DEFAULT_MAX_HOLE_PX, DEFAULT_MIN_COMPONENT_PX, DEFAULT_MIN_THRESHOLD,
 };
-pub use cleanup::{fill_small_holes, remove_small_components};
+pub use cleanup::{
+    fill_small_holes, label_components, remove_small_components, Components, Neighbourhood,
+};
 pub use contour::{
     extract_contours, Contour, ContourParams, DEFAULT_MIN_POINTS, DEFAULT_OUTWARD_OFFSET_PX,
     DEFAULT_SAMPLE_STEP_PX, DEFAULT_TANGENT_HALF_WINDOW,
