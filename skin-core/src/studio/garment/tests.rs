@@ -567,3 +567,30 @@ fn skirt_step_cost_at_30_fps() {
         ms.iter().copied().fold(0.0, f64::max)
     );
 }
+
+/// The Ghost under the exercise motion the photometric studio plays (the default
+/// [`crate::studio::ExerciseParams`], whose frame 0 is not the rest pose): over its first 60
+/// frames every sheet vertex stays finite and within 3 m of the root.
+#[test]
+fn sheet_stays_on_the_body_under_the_exercise_motion() {
+    let g = sheet();
+    let p = performer();
+    let motion =
+        crate::studio::exercise_motion(&p.skeleton, &crate::studio::ExerciseParams::default())
+            .unwrap();
+    let first = Motion::new(
+        motion.frame_time_s,
+        motion.frames.columns(0, 60).into_owned(),
+    )
+    .unwrap();
+    let mut worst = 0.0f64;
+    play(g, &first, |k, f, _, sim, _| {
+        let root = f.world_from_joint[0].translation;
+        let far = sim.iter().map(|v| v.distance(root)).fold(0.0, f64::max);
+        eprintln!("frame {k}: farthest sheet vertex {far:.3} m from the root");
+        assert!(sim.iter().all(|v| v.is_finite()), "frame {k}: non-finite");
+        assert!(far < 3.0, "frame {k}: a sheet vertex {far} m from the root");
+        worst = worst.max(far);
+    });
+    eprintln!("sheet under the exercise motion: farthest vertex {worst:.3} m from the root");
+}
