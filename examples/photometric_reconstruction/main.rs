@@ -22,7 +22,7 @@
 //!
 //! Then (unless `--skirt-only`) the same part-1 normals, both passes, Table 3.1 and distances
 //! for two more subjects: the thesis' Ghost (the figure under the studio's draped sheet, at
-//! frame 0: the sheet's simulation diverges later) and the skirt with the studio's wrinkles,
+//! the same frame) and the skirt with the studio's wrinkles,
 //! for which [`displacement_survival`] measures how much of the true wrinkle height the
 //! meshes keep (`wrinkle_amplitude_ratio`, beside the visual hull's).
 //!
@@ -346,8 +346,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             0 => Shadowing::Exact,
             b => Shadowing::Binned(b),
         };
-        // The Ghost at the first frame: the studio's sheet diverges under the exercise motion
-        // from the second frame on (see `GHOST_FRAME`).
+        // The Ghost at the skirt's frame of the exercise motion (`GHOST_FRAME`).
         for (name, subject, frame, shadows) in [
             ("ghost", ghost_subject(), GHOST_FRAME, Shadowing::Exact),
             ("wrinkled", wrinkled, STUDIO_FRAME, bins),

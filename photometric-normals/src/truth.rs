@@ -138,11 +138,11 @@ pub const RING_HEIGHT_M: f64 = 1.7;
 /// Horizontal field of view of the ring's cameras, degrees.
 pub const RING_HFOV_DEG: f64 = 40.0;
 
-/// The frame of the exercise motion the Ghost is captured at: the first. The studio's sheet
-/// ([`SheetParams::default`]) settles on the rest pose and stays finite under the exercise
-/// motion for one frame only: its vertices reach ≈ 30 m at frame 2 and 4 km at frame 3 (the
-/// cloth simulation diverges), so later frames cannot be rendered.
-pub const GHOST_FRAME: usize = 0;
+/// The frame of the exercise motion the Ghost is captured at: the skirt's frame,
+/// [`STUDIO_FRAME`]. (Until skin-core's cloth capped its vertices' speed, the sheet diverged
+/// from the second frame on — a collision push-out at the first, non-rest frame became a
+/// whip along the hanging sheet — and the Ghost could only be captured at frame 0.)
+pub const GHOST_FRAME: usize = STUDIO_FRAME;
 
 /// The MakeHuman performer in the skirt (no flap, no wrinkles): the validation's main subject.
 pub fn skirt_subject() -> DeformationParams {
