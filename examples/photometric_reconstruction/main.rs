@@ -323,6 +323,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "pass2_s": t_pass2,
         "pass2_errors": pass2_err,
         "two_pass_s": t_two_pass,
+        // End to end from the normal maps: the visual-hull proxy, then both passes.
+        "seconds_per_frame": t_hull + t_two_pass,
         "table_3_1": table,
         "pass1_coverage_pct": table["pass1"]["coverage_pct"],
         "pass1_normal_dev_deg": table["pass1"]["normal_dev_deg"],
@@ -510,6 +512,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "visual hull surface to the true mesh (median)",
             "mm",
         ),
+        Headline::new(
+            "seconds_per_frame",
+            "one frame from normal maps: proxy and both passes",
+            "s",
+        )
+        .goal(Goal::AtMost(30.0)),
+        Headline::new("peak_rss_mb", "peak memory of the whole run", "MB")
+            .goal(Goal::AtMost(4000.0)),
         Headline::new("two_pass_s", "both passes, all stages", "s"),
         Headline::new("per_view_s", "per-view stage, all views (one pass)", "s"),
         Headline::new(
@@ -524,6 +534,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         run.headline(h);
     }
+    figures["peak_rss_mb"] = json!(example_kit::peak_rss_mb());
     run.finish(figures)?;
     Ok(())
 }
