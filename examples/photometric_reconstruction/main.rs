@@ -388,32 +388,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ] {
             figures[key] = figures["wrinkled"][key].clone();
         }
-        headlines = vec![
-            Headline::new(
+        headlines = table_goal_headlines(
+            [
                 "ghost_coverage_pct",
-                "Ghost: Table 3.1 coverage, pass-2 merged mesh",
-                "%",
-            )
-            .goal(Goal::AtLeast(90.0)),
-            Headline::new(
                 "ghost_normal_dev_deg",
-                "Ghost: Table 3.1 normal deviation, pass 2",
-                "deg",
-            )
-            .goal(Goal::AtMost(8.0)),
-            Headline::new(
                 "ghost_local_normal_dev_deg",
-                "Ghost: Table 3.1 local normal deviation, pass 2",
-                "deg",
-            )
-            .goal(Goal::AtMost(1.5)),
-            Headline::new(
                 "ghost_surface_median_mm",
-                "Ghost: pass-2 merged mesh to the true mesh (median)",
-                "mm",
-            )
-            .goal(Goal::AtMost(2.0))
-            .note("baseline: ghost_hull_surface_median_mm"),
+            ],
+            "Ghost: ",
+            "ghost_hull_surface_median_mm",
+        );
+        headlines.extend([
             Headline::new(
                 "ghost_hull_surface_median_mm",
                 "Ghost: visual hull surface to the true mesh (median)",
@@ -436,7 +421,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "mm",
             )
             .note("against pixel_footprint_mm"),
-        ];
+        ]);
     }
     if let (Some(f), Some(p)) = (figures.as_object_mut(), peer_figures.as_object()) {
         f.extend(p.clone());
@@ -477,31 +462,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "pass 2 after Eq. 3.4 (median; hole-filled pass-1 mesh as proxy)",
             "mm",
         ),
-        Headline::new(
+    ]
+    .into_iter()
+    .chain(table_goal_headlines(
+        [
             "pass2_table_coverage_pct",
-            "Table 3.1 coverage, pass-2 merged mesh",
-            "%",
-        )
-        .goal(Goal::AtLeast(90.0)),
-        Headline::new(
             "normal_dev_deg",
-            "Table 3.1 normal deviation, pass-2 merged mesh",
-            "deg",
-        )
-        .goal(Goal::AtMost(8.0)),
-        Headline::new(
             "local_normal_dev_deg",
-            "Table 3.1 local normal deviation, pass-2 merged mesh",
-            "deg",
-        )
-        .goal(Goal::AtMost(1.5)),
-        Headline::new(
             "surface_median_mm",
-            "pass-2 merged mesh to the true mesh (median)",
-            "mm",
-        )
-        .goal(Goal::AtMost(2.0))
-        .note("baseline: the visual hull's surface (hull_surface_median_mm)"),
+        ],
+        "",
+        "hull_surface_median_mm",
+    ))
+    .chain([
         Headline::new(
             "filled_surface_median_mm",
             "pass-2 hole-filled mesh to the true mesh (median)",
@@ -528,8 +501,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "s",
         )
         .note("compare with bench/peers/normal_integration.py run on the same machine"),
-    ]
-    .into_iter()
+    ])
     .chain(headlines)
     {
         run.headline(h);
@@ -1180,4 +1152,40 @@ fn peer_integration_workload(n: u32) -> Result<(f64, f64, f64), Box<dyn std::err
         (sum / px as f64).sqrt() * 1e3
     };
     Ok((seconds, rms(&out.depth), rms(&prior)))
+}
+
+/// The four goals on the pass-2 merged mesh (Table 3.1's coverage, normal and local
+/// normal deviation, median distance to the truth) as headlines under `keys`, labels prefixed
+/// by `subject`, with the visual hull's figure `baseline_key` named as the baseline.
+fn table_goal_headlines(keys: [&str; 4], subject: &str, baseline_key: &str) -> Vec<Headline> {
+    let [coverage, normal, local, median] = keys;
+    vec![
+        Headline::new(
+            coverage,
+            &format!("{subject}Table 3.1 coverage, pass-2 merged mesh"),
+            "%",
+        )
+        .goal(Goal::AtLeast(90.0)),
+        Headline::new(
+            normal,
+            &format!("{subject}Table 3.1 normal deviation, pass-2 merged mesh"),
+            "deg",
+        )
+        .goal(Goal::AtMost(8.0)),
+        Headline::new(
+            local,
+            &format!("{subject}Table 3.1 local normal deviation, pass-2 merged mesh"),
+            "deg",
+        )
+        .goal(Goal::AtMost(1.5)),
+        Headline::new(
+            median,
+            &format!("{subject}pass-2 merged mesh to the true mesh (median)"),
+            "mm",
+        )
+        .goal(Goal::AtMost(2.0))
+        .note(&format!(
+            "baseline: the visual hull's surface ({baseline_key})"
+        )),
+    ]
 }
