@@ -12,7 +12,7 @@
 //! stretch constraints (mesh edges at their pattern length) then the bending constraints
 //! (distance between the two vertices opposite each interior edge: a soft resistance to
 //! folding), then collisions ([`super::colliders`]), and `v = (p − x)/h` (capped at
-//! [`MAX_SPEED_M_PER_S`]), `x = p`. Every loop
+//! [`ClothParams::max_speed_m_per_s`] when set), `x = p`. Every loop
 //! runs serially in a fixed order, so results are bit-identical whatever the thread count.
 //!
 //! **Compression.** A stretch edge shorter than its rest length resists with the bending
@@ -33,22 +33,19 @@ use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// Cap on a cloth vertex's speed after each substep, m/s: well above any garment speed a
-/// human motion drives (a hand swings at ≈ 5–8 m/s), below the speeds of a whip crack.
-///
-/// **Why (the Ghost blow-up).** The sheet on the MakeHuman performer under the exercise
-/// motion (whose frame 0 is not the rest pose) diverged: farthest vertex 1.5 m from the root
-/// at frame 0, 33 m at frame 2, 4 km at frame 3. Traced: the first call starts the sheet on
-/// its skinned positions in that pose, where it lies up to 9.4 cm inside a collider capsule;
-/// the first substep's push-out became a 47 m/s velocity (9.4 cm in 2 ms). That kick at the
-/// top of the head travelled one grid row per substep down the nearly inextensible hanging
-/// sheet to its free edge, growing like the crack of a whip (the constraint corrections grew
-/// from 0.14 m to 7.5 m per substep): 2100 m/s at the edge by the next frame. Velocity
-/// `v = (p − x)/h` turns any position correction into speed, so one deep push-out is enough.
-/// The cap bounds that growth without touching normal cloth motion: the skirt never reaches
-/// it in its tests (bit-identical results); the sheet reaches it while falling onto the body
-/// in [`super::Garment::new`]'s settling and on the first frames of a pose far from rest.
-pub(super) const MAX_SPEED_M_PER_S: f64 = 10.0;
+// **The speed cap** ([`ClothParams::max_speed_m_per_s`]; the sheet's default 10 m/s, none
+// for the skirt). Why (the Ghost blow-up): the sheet on the MakeHuman performer under the
+// exercise motion (whose frame 0 is not the rest pose) diverged — farthest vertex 1.5 m from
+// the root at frame 0, 33 m at frame 2, 4 km at frame 3. Traced: the first call starts the
+// sheet on its skinned positions in that pose, where it lies up to 9.4 cm inside a collider
+// capsule; the first substep's push-out became a 47 m/s velocity (9.4 cm in 2 ms). That kick
+// at the top of the head travelled one grid row per substep down the nearly inextensible
+// hanging sheet to its free edge, growing like the crack of a whip (the constraint
+// corrections grew from 0.14 m to 7.5 m per substep): 2100 m/s at the edge by the next frame.
+// Velocity `v = (p − x)/h` turns any position correction into speed, so one deep push-out is
+// enough. The cap bounds that growth; it also fires while the sheet falls onto the body in
+// `Garment::new`'s settling. It is off for the skirt so that the skirt's studio truth (and
+// every figure measured on it) is unchanged.
 
 /// A distance constraint between two vertices with its rest length (metres).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -84,6 +81,9 @@ pub(super) fn check_params(p: &ClothParams) -> Result<()> {
     check::nonzero("cloth.iterations", p.iterations)?;
     check::non_negative("cloth.collision_margin_m", p.collision_margin_m)?;
     check::non_negative("cloth.friction", p.friction)?;
+    if let Some(cap) = p.max_speed_m_per_s {
+        check::positive("cloth.max_speed_m_per_s", cap)?;
+    }
     Ok(())
 }
 
@@ -215,7 +215,11 @@ impl Cloth {
                 }
             }
             for i in 0..n {
-                v[i] = ((pred[i] - x[i]) / h).clamp_length_max(MAX_SPEED_M_PER_S);
+                let vi = (pred[i] - x[i]) / h;
+                v[i] = match p.max_speed_m_per_s {
+                    Some(cap) => vi.clamp_length_max(cap),
+                    None => vi,
+                };
                 x[i] = pred[i];
             }
             before = after;

@@ -95,6 +95,12 @@ pub struct ClothParams {
     pub collision_margin_m: f64,
     /// Coulomb friction coefficient against the body (dimensionless). Default: 0.3.
     pub friction: f64,
+    /// Cap on a vertex's speed after each substep, m/s (`None`: no cap). Default: `None`
+    /// (the skirt never needs it); the sheet's default ([`SheetParams::default`]) is 10 m/s —
+    /// why in the cloth module's docs (a push-out at a non-rest first frame turned into a
+    /// whip along the hanging sheet). Missing in serialised parameters = `None`.
+    #[serde(default)]
+    pub max_speed_m_per_s: Option<f64>,
 }
 
 impl Default for ClothParams {
@@ -109,6 +115,7 @@ impl Default for ClothParams {
             iterations: 1,
             collision_margin_m: 0.008,
             friction: 0.3,
+            max_speed_m_per_s: None,
         }
     }
 }
@@ -242,9 +249,14 @@ pub struct SheetParams {
     /// A settled vertex within this distance of the collision surface of a pin joint's
     /// collider is pinned, metres. Default: 0.01.
     pub pin_distance_m: f64,
-    /// The cloth. Default: [`ClothParams::default`].
+    /// The cloth. Default: [`ClothParams::default`] with its speed capped at 10 m/s
+    /// ([`ClothParams::max_speed_m_per_s`]).
     pub cloth: ClothParams,
 }
+
+/// The sheet's default speed cap, m/s: well above any garment speed a human motion drives
+/// (a hand swings at ≈ 5–8 m/s), below the speeds of a whip crack.
+const SHEET_MAX_SPEED_M_PER_S: f64 = 10.0;
 
 impl Default for SheetParams {
     fn default() -> Self {
@@ -265,7 +277,10 @@ impl Default for SheetParams {
             .map(String::from)
             .to_vec(),
             pin_distance_m: 0.01,
-            cloth: ClothParams::default(),
+            cloth: ClothParams {
+                max_speed_m_per_s: Some(SHEET_MAX_SPEED_M_PER_S),
+                ..ClothParams::default()
+            },
         }
     }
 }

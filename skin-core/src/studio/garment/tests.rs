@@ -434,6 +434,11 @@ fn bad_params_are_rejected_with_their_names() {
         ..Default::default()
     };
     assert!(skirt_err(SkirtParams::default().with_cloth(cloth)).contains("iterations"));
+    let cloth = ClothParams {
+        max_speed_m_per_s: Some(f64::NAN),
+        ..Default::default()
+    };
+    assert!(skirt_err(SkirtParams::default().with_cloth(cloth)).contains("max_speed_m_per_s"));
     let mut p = SkirtParams::default();
     p.knee_joints[0] = "l_kneecap".into();
     assert!(skirt_err(p).contains("l_kneecap"));
