@@ -16,7 +16,8 @@
 //!
 //! The threshold map can be edited after learning (Sand's smaller threshold near the head):
 //! [`BackgroundModel::scale_thresholds_in`]. Optional clean-up ([`BackgroundParams`]) removes
-//! specks and fills small holes (Vlasic 2010 §3.2.1, see [`crate::image::cleanup`]).
+//! specks and fills small holes (Vlasic 2010 §3.2.1, see
+//! [`crate::image::remove_small_components`] and [`crate::image::fill_small_holes`]).
 //!
 //! Intensities are on a `[0, 1]` scale: `f32` images as given, `u8` images divided by 255.
 

@@ -38,7 +38,7 @@
 //! ```
 
 mod background;
-pub mod cleanup;
+mod cleanup;
 mod contour;
 mod distance;
 mod io;
