@@ -48,7 +48,8 @@
 //! markers stay on their bone with the high weight of their small σ. IRLS: the first round
 //! weighs every observation equally (within its type); each later round gives
 //! Tukey's biweight `(1 − (r/c)²)²` (0 beyond `c`) of the residual normalised by a robust
-//! scale per type (`1.4826·median|e|`, not below the type's σ), `c = 4.685` — the paper
+//! scale per type (`1.4826·median|e|` over the observations of that type the previous round
+//! kept — all of them in the first round —, not below the type's σ), `c = 4.685` — the paper
 //! "weighs them inversely proportionally to their residuals"; Tukey's redescending weight
 //! is the variant we chose because it gives gross outliers exactly zero weight.
 //!
@@ -182,10 +183,11 @@ pub struct EllipsoidParams {
     pub sigma_scale_prior: f64,
     /// σ of the prior pulling an end-site segment's length scale (a hand, a foot, the head:
     /// [`EllipsoidModel::with_end_sites`]) to 1. Its scale moves no joint, only the
-    /// ellipsoid's extent along a limb that continues the last bone; with the limb prior the
-    /// forearm and the hand split one nearly cylindrical run freely (measured on the studio,
-    /// 8-frame fit: the right forearm to the scale box's top, +62 mm, its hand to the bottom,
-    /// −38 mm). Default 0.2 (as the limbs').
+    /// ellipsoid's extent along a limb that continues the last bone, so it trades freely with
+    /// that bone's length (measured on the studio, 8-frame fit with σ = 0.2 as the limbs':
+    /// the right forearm to the scale box's top, +62 mm, its hand to the bottom, −38 mm).
+    /// Default 0.002: the end sites keep the default proportions and serve to pin the end
+    /// of the last bone (forearm, shin).
     pub sigma_end_site_scale_prior: f64,
     /// σ of the prior pulling each half-width to its starting value, metres. Default 0.05.
     pub sigma_width_prior_m: f64,
@@ -238,7 +240,7 @@ impl Default for EllipsoidParams {
             sigma_silhouette_m: 0.005,
             sigma_theta_prior: 1.0,
             sigma_scale_prior: 0.2,
-            sigma_end_site_scale_prior: 0.2,
+            sigma_end_site_scale_prior: 0.002,
             sigma_width_prior_m: 0.05,
             sigma_half_length_prior_m: 0.002,
             irls_rounds: 6,
@@ -1082,6 +1084,8 @@ pub struct EllipsoidMultiFit {
     pub observations_per_bone: Vec<usize>,
     /// Points given zero weight by the last IRLS round, per frame.
     pub rejected_points: Vec<usize>,
+    /// Per frame, per attractor point: the bone holding it at the end (`None`: zero weight).
+    pub point_bones: Vec<Vec<Option<usize>>>,
 }
 
 fn check_observations(
@@ -1228,7 +1232,13 @@ pub fn fit_ellipsoids_multi(
     let residuals = problem.assign(&states)?;
     let mut observations_per_bone = vec![0; nb];
     let mut rejected_points = Vec::with_capacity(states.len());
+    let mut point_bones = Vec::with_capacity(states.len());
     for (frame, res) in problem.frames.iter().zip(&residuals) {
+        point_bones.push(
+            (0..frame.obs.points.len())
+                .map(|i| (frame.robust[i] > 0.0).then_some(res[i].1))
+                .collect(),
+        );
         for (i, &(_, b)) in res.iter().enumerate() {
             if frame.robust[i] > 0.0 {
                 observations_per_bone[b] += 1;
@@ -1263,6 +1273,7 @@ pub fn fit_ellipsoids_multi(
         round_costs,
         observations_per_bone,
         rejected_points,
+        point_bones,
     })
 }
 
@@ -1270,16 +1281,27 @@ pub fn fit_ellipsoids_multi(
 /// (pooled over the frames).
 fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
     for kind in [Kind::Point, Kind::Ray, Kind::Marker] {
-        let mut abs: Vec<f64> = problem
-            .frames
-            .iter()
-            .zip(residuals)
-            .flat_map(|(frame, res)| {
-                (0..res.len())
-                    .filter(move |&i| frame.kind(i) == kind)
-                    .map(move |i| res[i].0.abs())
-            })
-            .collect();
+        let abs_of = |kept_only: bool| -> Vec<f64> {
+            problem
+                .frames
+                .iter()
+                .zip(residuals)
+                .flat_map(|(frame, res)| {
+                    (0..res.len())
+                        .filter(move |&i| {
+                            frame.kind(i) == kind && (!kept_only || frame.robust[i] > 0.0)
+                        })
+                        .map(move |i| res[i].0.abs())
+                })
+                .collect()
+        };
+        // The scale of the observations the previous round kept (all of them in the first
+        // round): the median of all |e| with 30 % gross outliers is the 71st percentile of
+        // the inliers', 1.6× their scale.
+        let mut abs = abs_of(true);
+        if abs.is_empty() {
+            abs = abs_of(false);
+        }
         if abs.is_empty() {
             continue;
         }

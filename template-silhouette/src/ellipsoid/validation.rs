@@ -72,7 +72,10 @@ pub struct EllipsoidScenarioParams {
     /// Marching-cubes spacing of the procedural performer, metres. Default 0.02.
     pub grid_spacing_m: f64,
     /// Model the end-site segments too (hands, feet, head;
-    /// [`EllipsoidModel::with_end_sites`]); scores stay over the limbs. Default false.
+    /// [`EllipsoidModel::with_end_sites`]); scores stay over the limbs. Default true: the
+    /// end sites pin the far end of a chain's last bone (forearm, shin), whose length the limb
+    /// model alone leaves weakly determined (measured, 8-frame fit: mean length error 7.5 vs
+    /// 17.4 mm).
     pub end_sites: bool,
 }
 
@@ -92,7 +95,7 @@ impl Default for EllipsoidScenarioParams {
             frames: vec![0, 20, 40],
             motion: ScenarioMotion::Fast(FastMotionParams::default()),
             grid_spacing_m: 0.02,
-            end_sites: false,
+            end_sites: true,
         }
     }
 }
