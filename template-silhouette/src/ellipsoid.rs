@@ -174,6 +174,10 @@ pub struct EllipsoidParams {
     pub sigma_point_m: f64,
     /// A-priori σ of a tracked marker, metres: "much higher weights" (§5.2). Default 0.001.
     pub sigma_marker_m: f64,
+    /// Height of a marker's centre above the skin, metres: a marker's residual is its
+    /// distance to the ellipsoid's surface minus this. Default 0.010 (the studio's balls,
+    /// [`skin_core::studio::DEFAULT_MARKER_OFFSET_M`]: radius 8 mm on a 2 mm base).
+    pub marker_offset_m: f64,
     /// A-priori σ of a silhouette ray's tangency, metres. Default 0.005.
     pub sigma_silhouette_m: f64,
     /// σ of the prior pulling θ to its starting value, radians (metres for translations).
@@ -237,6 +241,7 @@ impl Default for EllipsoidParams {
         EllipsoidParams {
             sigma_point_m: 0.005,
             sigma_marker_m: 0.001,
+            marker_offset_m: skin_core::studio::DEFAULT_MARKER_OFFSET_M,
             sigma_silhouette_m: 0.005,
             sigma_theta_prior: 1.0,
             sigma_scale_prior: 0.2,
@@ -267,6 +272,7 @@ impl EllipsoidParams {
         check::positive("sigma_point_m", self.sigma_point_m)?;
         check::positive("sigma_marker_m", self.sigma_marker_m)?;
         check::positive("sigma_silhouette_m", self.sigma_silhouette_m)?;
+        check::non_negative("marker_offset_m", self.marker_offset_m)?;
         check::positive("sigma_theta_prior", self.sigma_theta_prior)?;
         check::positive("sigma_scale_prior", self.sigma_scale_prior)?;
         check::positive(
@@ -774,7 +780,9 @@ impl Problem<'_> {
                 let (b, x, ev) = match kind {
                     Kind::Marker => {
                         let (b, x) = frame.markers[i - np - nr];
-                        (b, x, model.eval(frames, state, b, x))
+                        let mut ev = model.eval(frames, state, b, x);
+                        ev.e -= self.params.marker_offset_m;
+                        (b, x, ev)
                     }
                     Kind::Point | Kind::Ray if full => {
                         let mut best: [(f64, usize); CANDIDATES] = [(f64::MAX, 0); CANDIDATES];

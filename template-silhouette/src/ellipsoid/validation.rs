@@ -25,11 +25,13 @@ use skin_core::image::Mask;
 use skin_core::math::{DAffine3, DVec3};
 use skin_core::mesh::{skin, SkinWeights, TriMesh};
 use skin_core::random::SplitMix64;
-use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+use skin_core::markers::{track_markers, MarkerDetectParams};
+use skin_core::raster::{Buffers, RenderParams};
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::{
-    exercise_motion, fast_motion, procedural_performer, studio_ring, ExerciseParams,
-    FastMotionParams, ProceduralBodyParams,
+    exercise_motion, fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec,
+    DeformationParams, ExerciseParams, FastMotionParams, MarkerImageStyle, MarkerScenario,
+    MarkerSet, Performer, ProceduralBodyParams, DEFAULT_MARKER_OFFSET_M, DEFAULT_MARKER_RADIUS_M,
 };
 use skin_core::{check, Context};
 
@@ -51,10 +53,8 @@ pub struct EllipsoidScenarioParams {
     pub outlier_fraction: f64,
     /// σ of the inlier points' noise, metres. Default 0.005.
     pub point_sigma_m: f64,
-    /// Markers. Default 20.
+    /// Markers (studio balls rendered, detected, triangulated and tracked). Default 20.
     pub markers: usize,
-    /// σ of the markers' noise, metres. Default 0.001.
-    pub marker_sigma_m: f64,
     /// Bone lengths of the performer differ from the default skeleton's by up to this
     /// fraction. Default 0.10.
     pub length_spread: f64,
@@ -87,7 +87,6 @@ impl Default for EllipsoidScenarioParams {
             outlier_fraction: 0.3,
             point_sigma_m: 0.005,
             markers: 20,
-            marker_sigma_m: 0.001,
             length_spread: 0.10,
             cameras: 3,
             image_size: (400, 300),
@@ -201,6 +200,43 @@ fn adjacent_only(weights: &SkinWeights, sk: &Skeleton) -> Result<SkinWeights> {
     Ok(SkinWeights::from_lists(&lists, sk.joint_count())?)
 }
 
+/// Skeleton distance (joints on the path) between joints `a` and `b`.
+fn joint_distance(sk: &Skeleton, a: usize, b: usize) -> usize {
+    let ancestors = |mut j: usize| {
+        let mut path = vec![j];
+        while let Some(p) = sk.joints()[j].parent {
+            path.push(p);
+            j = p;
+        }
+        path
+    };
+    let (pa, pb) = (ancestors(a), ancestors(b));
+    let common = pa.iter().rev().zip(pb.iter().rev()).take_while(|(x, y)| x == y).count();
+    pa.len() + pb.len() - 2 * common
+}
+
+/// The template's faces without the bridging triangles: the procedural body is one
+/// marching-cubes surface built at a rest pose where forearms touch the hips and hands the
+/// thighs, so triangles join vertices of distant body parts (a forearm's and the pelvis');
+/// posed apart by LBS they become a membrane that is no body surface (traced: it held most of
+/// a raised forearm's points, 12 cm median residual at the true state). A triangle is kept
+/// when the dominant joints of its vertices are at most two joints apart in the skeleton
+/// (a joint region: elbow, shoulder across the clavicle); the cut leaves holes where the parts
+/// touched at rest, which the cameras see through to the far side of the same limb.
+fn separate_parts(faces: &[[u32; 3]], weights: &SkinWeights, sk: &Skeleton) -> Vec<[u32; 3]> {
+    faces
+        .iter()
+        .copied()
+        .filter(|f| {
+            let d: Vec<Option<u32>> = f.iter().map(|&v| dominant(weights, v as usize)).collect();
+            (0..3).all(|e| match (d[e], d[(e + 1) % 3]) {
+                (Some(a), Some(b)) => joint_distance(sk, a as usize, b as usize) <= 2,
+                _ => true,
+            })
+        })
+        .collect()
+}
+
 /// Whether vertex `i` moves with one joint alone (dominant weight ≥ 0.75): a marker's place,
 /// away from the joint regions and webs.
 fn rigid(weights: &SkinWeights, i: usize) -> bool {
@@ -215,7 +251,6 @@ fn rigid(weights: &SkinWeights, i: usize) -> bool {
 pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidScenario> {
     check::in_range("outlier_fraction", params.outlier_fraction, 0.0..=0.9)?;
     check::positive("point_sigma_m", params.point_sigma_m)?;
-    check::positive("marker_sigma_m", params.marker_sigma_m)?;
     check::in_range("length_spread", params.length_spread, 0.0..=0.5)?;
     check::nonzero("points", params.points)?;
     check::nonzero("frames", params.frames.len())?;
@@ -305,35 +340,113 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         rest_truth.half_width[b] = fit_half_width(&model, &rest_truth, b, &limb)
             .at(Context::Joint(model.bones()[b].joint()))?;
     }
+    // The true performer, captured by the studio: its rest mesh without the bridging
+    // triangles (see `separate_parts`), the true skeleton, the adjacent-only weights, no
+    // non-skinning deformation (the ellipsoids model the skinned limbs).
+    let body_faces = separate_parts(&faces, weights, &true_sk);
+    let limb_faces: Vec<[u32; 3]> = {
+        let kept: std::collections::HashSet<[u32; 3]> = body_faces.iter().copied().collect();
+        limb_faces.into_iter().filter(|f| kept.contains(f)).collect()
+    };
+    let true_performer = Performer::new(
+        "procedural, true proportions",
+        TriMesh::new(rest_true.clone(), body_faces)?,
+        true_sk.clone(),
+        weights.clone(),
+        &DeformationParams::none(),
+    )?;
     let motion = match &params.motion {
         ScenarioMotion::Fast(p) => fast_motion(&default_sk, p)?,
         ScenarioMotion::Exercise(p) => exercise_motion(&default_sk, p)?,
     };
+    let rate_hz = 1.0 / motion.frame_time_s;
     let rig = studio_ring(params.cameras, params.image_size.0, params.image_size.1)?;
     let cameras = rig.cameras.clone();
-    let rasterizers: Vec<Rasterizer> = cameras.iter().map(Rasterizer::new).collect();
+    let spec = CaptureSpec::masks_only(rig)
+        .with_frame_rate_hz(rate_hz)
+        .with_seed(params.seed)
+        .with_render(
+            RenderParams::default()
+                .with_buffers(Buffers {
+                    camera_z: true,
+                    ..Buffers::MASK_ONLY
+                })
+                .with_allow_empty(true),
+        );
+    let capture = Capture::new(&true_performer, &motion, spec)?;
+    // Markers: skin markers (the studio's balls, 10 mm off the skin) on rigidly skinned
+    // vertices of the modelled bones, spread along each bone.
+    let limb_vertices: Vec<usize> = (0..rest_true.len())
+        .filter(|&i| vertex_bone[i].is_some() && rigid(weights, i))
+        .collect();
+    let mut marker_bone = Vec::with_capacity(params.markers);
+    let mut marker_vertex = Vec::with_capacity(params.markers);
+    for m in 0..params.markers {
+        let bone_target = m % nb;
+        let on_bone: Vec<usize> = limb_vertices
+            .iter()
+            .copied()
+            .filter(|&i| vertex_bone[i] == Some(bone_target))
+            .collect();
+        if on_bone.is_empty() {
+            return Err(Error::Empty {
+                what: "performer vertices carried by a modelled bone",
+            })
+            .at(Context::Joint(model.bones()[bone_target].joint()));
+        }
+        // Spread along the bone: the vertices are in mesh order, not random.
+        let step = on_bone.len() / (params.markers / nb + 1).max(1);
+        marker_vertex.push(on_bone[((m / nb) * step + step / 2) % on_bone.len()]);
+        marker_bone.push(bone_target);
+    }
+    let marker_set = MarkerSet {
+        vertices: marker_vertex,
+        offset_m: DEFAULT_MARKER_OFFSET_M,
+        radius_m: DEFAULT_MARKER_RADIUS_M,
+    };
+    let last = params.frames.iter().copied().max().unwrap_or(0);
+    check::index("frame", last, capture.frame_count())?;
+    // Every frame up to the last is captured: the markers are tracked through them.
+    let (style, detect) = (MarkerImageStyle::default(), MarkerDetectParams::default());
+    let mut marker_sets = Vec::with_capacity(last + 1);
+    let mut nearest = Vec::with_capacity(last + 1);
+    let mut captured = Vec::with_capacity(params.frames.len());
+    for frame in capture.frames_in(0..last + 1) {
+        let frame = frame?;
+        let k = frame.index;
+        let seen = marker_set
+            .observe(&true_performer, &frame, &cameras, &style, &detect, 1.5, 2)
+            .at(Context::Frame(k))?;
+        marker_sets.push(seen.points);
+        nearest.push(seen.nearest_true);
+        if params.frames.contains(&k) {
+            captured.push(frame);
+        }
+    }
+    let tracks = track_markers(
+        &marker_sets,
+        &MarkerScenario {
+            frame_rate_hz: rate_hz,
+            ..MarkerScenario::default()
+        }
+        .track_params(),
+    )?;
     let mut frames = Vec::with_capacity(params.frames.len());
     let mut normal_k = 0u64;
     for &k in &params.frames {
         let frame = (|| -> Result<ScenarioFrame> {
-            check::index("frame", k, motion.frame_count())?;
-            let theta = motion.frame(k).to_vec();
-            let posed_frames = true_sk
-                .forward_kinematics(&theta)?
-                .world_from_joint()
-                .to_vec();
-            let t: Vec<DAffine3> = posed_frames
+            let cap = captured
                 .iter()
-                .zip(&rest1)
-                .map(|(p, r)| *p * r.inverse())
-                .collect();
-            let verts = skin(&rest_true, weights, &t)?;
-            // Tear the webs: the procedural body is one marching-cubes surface in which parts
-            // touching at rest (forearm and hip, hand and thigh) are fused; posed apart by
-            // LBS, the fused region becomes a membrane of stretched triangles that is no body
-            // surface (traced: it held most of a raised forearm's points, 12 cm median
-            // residual at the true state). Drop every triangle with an edge stretched beyond
-            // `MAX_STRETCH` × its rest length.
+                .find(|c| c.index == k)
+                .ok_or(Error::Empty {
+                    what: "captured frame",
+                })?;
+            let theta = cap.truth.theta.clone();
+            let verts = cap.truth.posed.true_vertices.clone();
+            let mesh = cap.truth.true_mesh(&true_performer);
+            // The 3-D points only: drop the triangles stretched beyond `MAX_STRETCH` × their
+            // rest length (what remains of the joint regions' membranes after
+            // `separate_parts`); the cameras saw the whole surface.
             let intact = |f: &[u32; 3]| {
                 (0..3).all(|e| {
                     let (a, b) = (f[e] as usize, f[(e + 1) % 3] as usize);
@@ -341,8 +454,6 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
                         <= MAX_STRETCH * rest_true[a].distance(rest_true[b]) + 1e-9
                 })
             };
-            let kept: Vec<[u32; 3]> = faces.iter().copied().filter(|f| intact(f)).collect();
-            let mesh = TriMesh::new(verts.clone(), kept)?;
             let limb_faces: Vec<[u32; 3]> =
                 limb_faces.iter().copied().filter(|f| intact(f)).collect();
             // Points: area-uniform on the limb triangles, noisy; then outliers.
@@ -385,53 +496,41 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             for _ in 0..n_out {
                 points.push(lo + (hi - lo) * DVec3::new(uniform(), uniform(), uniform()));
             }
-            // Markers: limb vertices spread over the bones.
-            let limb_vertices: Vec<usize> = (0..verts.len())
-                .filter(|&i| vertex_bone[i].is_some() && rigid(weights, i))
-                .collect();
-            let markers = (0..params.markers)
-                .map(|m| -> Result<MarkerObservation> {
-                    let bone_target = m % nb;
-                    let on_bone: Vec<usize> = limb_vertices
-                        .iter()
-                        .copied()
-                        .filter(|&i| vertex_bone[i] == Some(bone_target))
-                        .collect();
-                    if on_bone.is_empty() {
-                        return Err(Error::Empty {
-                            what: "performer vertices carried by a modelled bone",
-                        })
-                        .at(Context::Joint(model.bones()[bone_target].joint()));
-                    }
-                    // Spread along the bone: the vertices are in mesh order, not random.
-                    let step = on_bone.len() / (params.markers / nb + 1).max(1);
-                    let i = on_bone[((m / nb) * step + step / 2) % on_bone.len()];
-                    Ok(MarkerObservation {
-                        bone: bone_target,
-                        position: Some(
-                            verts[i]
-                                + DVec3::new(gauss(), gauss(), gauss()) * params.marker_sigma_m,
-                        ),
-                    })
-                })
-                .collect::<Result<Vec<_>>>()?;
-            // Silhouettes and their contour rays.
-            let mut masks = Vec::with_capacity(cameras.len());
+            // Markers: the tracked trajectories through frame k, each labelled once, at its
+            // first frame, with its marker (the operator's identification of Fua et al.
+            // §2.4; here the nearest true marker), hence with the marker's bone.
+            let mut markers: Vec<MarkerObservation> = Vec::new();
+            let mut labelled = vec![false; marker_bone.len()];
+            for t in &tracks {
+                if k < t.first_frame || k >= t.end_frame() {
+                    continue;
+                }
+                let label = nearest[t.first_frame][t.points[0]];
+                if label >= marker_bone.len() || labelled[label] {
+                    continue;
+                }
+                labelled[label] = true;
+                markers.push(MarkerObservation {
+                    bone: marker_bone[label],
+                    position: Some(marker_sets[k][t.points[k - t.first_frame]]),
+                });
+            }
+            for (m, seen) in labelled.iter().enumerate() {
+                if !seen {
+                    markers.push(MarkerObservation {
+                        bone: marker_bone[m],
+                        position: None,
+                    });
+                }
+            }
+            // Silhouettes (the capture's masks) and their contour rays.
+            let masks = cap.masks();
             let mut rays = Vec::new();
-            for (c, r) in rasterizers.iter().enumerate() {
-                let view = r
-                    .render(
-                        &mesh,
-                        &RenderParams::default().with_buffers(Buffers::MASK_ONLY),
-                    )
-                    .at(Context::Camera(c))?;
-                let flags: Vec<bool> = view.mask.iter().map(|&m| m != 0).collect();
-                let mask = Mask::from_bools(view.width, view.height, &flags)?;
+            for (c, mask) in masks.iter().enumerate() {
                 rays.extend(
-                    contour_rays(&cameras[c], &mask, &SilhouetteParams::default())
+                    contour_rays(&cameras[c], mask, &SilhouetteParams::default())
                         .at(Context::Camera(c))?,
                 );
-                masks.push(mask);
             }
             let truth = EllipsoidState {
                 theta: theta.clone(),
