@@ -24,6 +24,15 @@ use dynamic_shapes::template::{
     EllipsoidScenario, EllipsoidScenarioParams, EllipsoidScores,
 };
 
+/// The fit's parameters for stereo-like points with gross outliers: the defaults, the IRLS
+/// scale from the observations each round kept (`EllipsoidParams::scale_from_kept`).
+fn robust() -> EllipsoidParams {
+    EllipsoidParams {
+        scale_from_kept: true,
+        ..EllipsoidParams::default()
+    }
+}
+
 fn worse_by(plain: &EllipsoidScores, robust: &EllipsoidScores) -> f64 {
     (plain.bone_length_error_mm / robust.bone_length_error_mm)
         .max(plain.width_error_mm / robust.width_error_mm)
@@ -48,7 +57,7 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
             &scenario.model,
             &frame.start,
             &frame.observations,
-            &EllipsoidParams::default(),
+            &robust(),
         )
         .unwrap();
         let ms = t.elapsed().as_secs_f64() * 1e3;
@@ -66,7 +75,7 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
             &scenario.model,
             &frame.start,
             &frame.observations,
-            &EllipsoidParams::default().with_irls_rounds(1),
+            &robust().with_irls_rounds(1),
         ) {
             Ok(f) => {
                 let p = score_ellipsoids(&scenario.model, &f.state, &frame.truth).unwrap();
@@ -86,14 +95,14 @@ fn ellipsoid_multi_frame_fit_meets_length_width_and_direction_goals() {
     let (starts, obs) = scenario.starts_and_observations();
     let t = Instant::now();
     let fit =
-        fit_ellipsoids_multi(&scenario.model, &starts, &obs, &EllipsoidParams::default()).unwrap();
+        fit_ellipsoids_multi(&scenario.model, &starts, &obs, &robust()).unwrap();
     let ms = t.elapsed().as_secs_f64() * 1e3 / frames.len() as f64;
     println!("{}-frame fit: {ms:.0} ms per frame", frames.len());
     let plain = fit_ellipsoids_multi(
         &scenario.model,
         &starts,
         &obs,
-        &EllipsoidParams::default().with_irls_rounds(1),
+        &robust().with_irls_rounds(1),
     );
     let m = &scenario.model;
     let fl = m.bone_lengths(&fit.states[0]);
@@ -152,7 +161,7 @@ fn ellipsoid_multi_frame_fit_with_end_sites_improves_lengths() {
         .unwrap();
         let (starts, obs) = scenario.starts_and_observations();
         let m = &scenario.model;
-        let fit = fit_ellipsoids_multi(m, &starts, &obs, &EllipsoidParams::default()).unwrap();
+        let fit = fit_ellipsoids_multi(m, &starts, &obs, &robust()).unwrap();
         let s: Vec<EllipsoidScores> = scenario
             .frames
             .iter()
