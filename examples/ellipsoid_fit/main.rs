@@ -275,10 +275,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     figures.insert("per_bone".into(), Value::Object(per_bone));
+    // Bars 0.3 wide, drawn as vertical segments.
     let bars = |v: &[f64], dx: f64| -> Vec<(f64, f64)> {
         v.iter()
             .enumerate()
-            .flat_map(|(b, y)| [(b as f64 + dx, 0.0), (b as f64 + dx, *y)])
+            .flat_map(|(b, y)| {
+                (0..13).flat_map(move |k| {
+                    let x = b as f64 + dx + 0.025 * (k as f64 - 6.0);
+                    [(x, 0.0), (x, *y)]
+                })
+            })
             .collect()
     };
     let lengths_chart = Chart::new(
@@ -306,17 +312,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "inliers (true surface)",
         [20, 60, 220],
         Style::Segments,
-        bars(&inliers.iter().map(|&n| n as f64).collect::<Vec<_>>(), -0.1),
-    ))
+        bars(&inliers.iter().map(|&n| n as f64).collect::<Vec<_>>(), 0.0),
+    ));
+    let outliers_chart = Chart::new(
+        "Gross outliers each ellipsoid holds at the end (8 frames)",
+        "bone index",
+        "outliers with non-zero weight (of 1,500 per frame)",
+    )
     .with(Series::new(
         "gross outliers",
         [220, 40, 40],
         Style::Segments,
-        bars(&outliers.iter().map(|&n| n as f64).collect::<Vec<_>>(), 0.1),
+        bars(&outliers.iter().map(|&n| n as f64).collect::<Vec<_>>(), 0.0),
     ));
     run.save_picture(
         "bones.png",
-        &side_by_side(&[lengths_chart.draw()?, points_chart.draw()?])?,
+        &side_by_side(&[
+            lengths_chart.draw()?,
+            points_chart.draw()?,
+            outliers_chart.draw()?,
+        ])?,
         "per bone: length error and the inlier / outlier points each ellipsoid holds",
     )?;
     // The limb model alone (no end sites), same protocol: the baseline for the lengths.
