@@ -94,8 +94,7 @@ fn ellipsoid_multi_frame_fit_meets_length_width_and_direction_goals() {
     let scenario = scenario(&frames);
     let (starts, obs) = scenario.starts_and_observations();
     let t = Instant::now();
-    let fit =
-        fit_ellipsoids_multi(&scenario.model, &starts, &obs, &robust()).unwrap();
+    let fit = fit_ellipsoids_multi(&scenario.model, &starts, &obs, &robust()).unwrap();
     let ms = t.elapsed().as_secs_f64() * 1e3 / frames.len() as f64;
     println!("{}-frame fit: {ms:.0} ms per frame", frames.len());
     let plain = fit_ellipsoids_multi(
@@ -183,5 +182,8 @@ fn ellipsoid_multi_frame_fit_with_end_sites_improves_lengths() {
          limbs only: {ll:.1} / {lw:.2} / {ld:.2}"
     );
     assert!(el < ll, "lengths {el} vs {ll}");
-    assert!(el <= 10.0 && ew <= 5.0 && ed <= 3.0, "{el} mm, {ew} mm, {ed} deg");
+    assert!(
+        el <= 10.0 && ew <= 5.0 && ed <= 3.0,
+        "{el} mm, {ew} mm, {ed} deg"
+    );
 }

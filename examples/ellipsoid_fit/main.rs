@@ -157,12 +157,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (k, frame) in params.frames.iter().zip(&scenario.frames) {
         let stage = run.stage(&format!("frame {k} alone"), None);
         let t = Instant::now();
-        let fit = fit_ellipsoids(
-            model,
-            &frame.start,
-            &frame.observations,
-            &robust(),
-        )?;
+        let fit = fit_ellipsoids(model, &frame.start, &frame.observations, &robust())?;
         let fit_ms = t.elapsed().as_secs_f64() * 1e3;
         let plain = fit_ellipsoids(
             model,
@@ -195,12 +190,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let multi = fit_ellipsoids_multi(model, &starts, &obs, &robust())?;
     let multi_ms = t.elapsed().as_secs_f64() * 1e3;
     let multi_cpu_ms = cpu.elapsed().as_secs_f64() * 1e3;
-    let multi_plain = fit_ellipsoids_multi(
-        model,
-        &starts,
-        &obs,
-        &robust().with_irls_rounds(1),
-    )?;
+    let multi_plain = fit_ellipsoids_multi(model, &starts, &obs, &robust().with_irls_rounds(1))?;
     stage.finish(format!("{multi_ms:.0} ms"));
     let (mut robust_all, mut plain_all) = (Vec::new(), Vec::new());
     for (i, (k, frame)) in params.frames.iter().zip(&scenario.frames).enumerate() {
@@ -340,12 +330,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..params.clone()
     })?;
     let (limb_starts, limb_obs) = limbs.starts_and_observations();
-    let limb_fit = fit_ellipsoids_multi(
-        &limbs.model,
-        &limb_starts,
-        &limb_obs,
-        &robust(),
-    )?;
+    let limb_fit = fit_ellipsoids_multi(&limbs.model, &limb_starts, &limb_obs, &robust())?;
     let limb_scores: Vec<EllipsoidScores> = limb_fit
         .states
         .iter()

@@ -22,10 +22,10 @@
 
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
+use skin_core::markers::{track_markers, MarkerDetectParams};
 use skin_core::math::{DAffine3, DVec3};
 use skin_core::mesh::{skin, SkinWeights, TriMesh};
 use skin_core::random::SplitMix64;
-use skin_core::markers::{track_markers, MarkerDetectParams};
 use skin_core::raster::{Buffers, RenderParams};
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::{
@@ -211,7 +211,12 @@ fn joint_distance(sk: &Skeleton, a: usize, b: usize) -> usize {
         path
     };
     let (pa, pb) = (ancestors(a), ancestors(b));
-    let common = pa.iter().rev().zip(pb.iter().rev()).take_while(|(x, y)| x == y).count();
+    let common = pa
+        .iter()
+        .rev()
+        .zip(pb.iter().rev())
+        .take_while(|(x, y)| x == y)
+        .count();
     pa.len() + pb.len() - 2 * common
 }
 
@@ -346,7 +351,10 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     let body_faces = separate_parts(&faces, weights, &true_sk);
     let limb_faces: Vec<[u32; 3]> = {
         let kept: std::collections::HashSet<[u32; 3]> = body_faces.iter().copied().collect();
-        limb_faces.into_iter().filter(|f| kept.contains(f)).collect()
+        limb_faces
+            .into_iter()
+            .filter(|f| kept.contains(f))
+            .collect()
     };
     let true_performer = Performer::new(
         "procedural, true proportions",
@@ -435,12 +443,9 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     let mut normal_k = 0u64;
     for &k in &params.frames {
         let frame = (|| -> Result<ScenarioFrame> {
-            let cap = captured
-                .iter()
-                .find(|c| c.index == k)
-                .ok_or(Error::Empty {
-                    what: "captured frame",
-                })?;
+            let cap = captured.iter().find(|c| c.index == k).ok_or(Error::Empty {
+                what: "captured frame",
+            })?;
             let theta = cap.truth.theta.clone();
             let verts = cap.truth.posed.true_vertices.clone();
             let mesh = cap.truth.true_mesh(&true_performer);
