@@ -376,7 +376,8 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         .with_render(
             RenderParams::default()
                 .with_buffers(Buffers {
-                    camera_z: true,
+                    // The markers' occluder.
+                    camera_z: params.markers > 0,
                     ..Buffers::MASK_ONLY
                 })
                 .with_allow_empty(true),
@@ -422,11 +423,16 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
     for frame in capture.frames_in(0..last + 1) {
         let frame = frame?;
         let k = frame.index;
-        let seen = marker_set
-            .observe(&true_performer, &frame, &cameras, &style, &detect, 1.5, 2)
-            .at(Context::Frame(k))?;
-        marker_sets.push(seen.points);
-        nearest.push(seen.nearest_true);
+        if params.markers > 0 {
+            let seen = marker_set
+                .observe(&true_performer, &frame, &cameras, &style, &detect, 1.5, 2)
+                .at(Context::Frame(k))?;
+            marker_sets.push(seen.points);
+            nearest.push(seen.nearest_true);
+        } else {
+            marker_sets.push(Vec::new());
+            nearest.push(Vec::new());
+        }
         if params.frames.contains(&k) {
             captured.push(frame);
         }
