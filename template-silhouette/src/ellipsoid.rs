@@ -48,9 +48,9 @@
 //! markers stay on their bone with the high weight of their small σ. IRLS: the first round
 //! weighs every observation equally (within its type); each later round gives
 //! Tukey's biweight `(1 − (r/c)²)²` (0 beyond `c`) of the residual normalised by a robust
-//! scale per type (`1.4826·median|e|` over the observations of that type the previous round
-//! kept — all of them in the first round —, not below the type's σ), `c = 4.685` — the paper
-//! "weighs them inversely proportionally to their residuals"; Tukey's redescending weight
+//! scale per type (`1.4826·median|e|`, with [`EllipsoidParams::scale_from_kept`] over the
+//! observations of that type the previous round kept, not below the type's σ), `c = 4.685` —
+//! the paper "weighs them inversely proportionally to their residuals"; Tukey's redescending weight
 //! is the variant we chose because it gives gross outliers exactly zero weight.
 //!
 //! One deviation, measured: the paper's first round is an unweighted fit, and the weights
@@ -1313,9 +1313,9 @@ fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
                 })
                 .collect()
         };
-        // The scale of the observations the previous round kept (all of them in the first
-        // round): the median of all |e| with 30 % gross outliers is the 71st percentile of
-        // the inliers', 1.6× their scale.
+        // With `scale_from_kept`, the scale of the observations the previous round kept (all
+        // of them in the first round): the median of all |e| with 30 % gross outliers is the
+        // 71st percentile of the inliers', 1.6× their scale.
         let mut abs = abs_of(problem.params.scale_from_kept);
         if abs.is_empty() {
             abs = abs_of(false);
