@@ -1196,6 +1196,35 @@ mod tests {
     use super::*;
     use skin_core::skeleton::{human_skeleton, HumanParams};
 
+    /// §4.2.3's accumulation of four 10-bit samples gives a 12-bit quantity only with dither:
+    /// a constant rate 0.3 of a 10-bit step above a bin centre reads as the bin without analog
+    /// noise (bias 1.2 counts), and to a tenth of a count with half a step of analog noise.
+    #[test]
+    fn dither_makes_the_accumulated_counts_twelve_bit() {
+        let normal = Normal::new(0.0, 1.0).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let slope = 4096.0 / 40.0; // ±20 rad/s
+        let step10 = 4.0 / slope;
+        let value = 0.3 * step10; // zero at 2048, a bin centre of the 10-bit converter
+        let mean_error = |noise: f64, rng: &mut ChaCha8Rng| {
+            let ch = Channel {
+                zero: 2048.0,
+                slope,
+                noise,
+                accumulate: true,
+            };
+            let n = 20_000;
+            let sum: f64 = (0..n)
+                .map(|_| f64::from(ch.count(value, rng, &normal)))
+                .sum();
+            sum / f64::from(n) - (2048.0 + slope * value)
+        };
+        let plain = mean_error(0.002, &mut rng);
+        let dithered = mean_error(0.002f64.hypot(0.5 * step10), &mut rng);
+        assert!((plain + 1.2).abs() < 0.05, "no dither: bias {plain} counts");
+        assert!(dithered.abs() < 0.1, "dither: bias {dithered} counts");
+    }
+
     #[test]
     fn spline_reproduces_a_parabola_inside() {
         let h = 0.05;
