@@ -196,6 +196,50 @@ fn main() {
         seed,
         ..base
     };
+    if args.get(3).is_some_and(|a| a == "budget") {
+        // (f) Per-cause budget: everything on (dithered front end), then one cause off at a
+        // time; the difference is what that cause costs each joint. A+G+D, root supplied,
+        // the pipeline's tuned point, with and without the heading fit.
+        let pipeline = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        let all = SimulationParams { seed, ..base };
+        for (name, sp) in [
+            ("everything", all),
+            ("− placement 3°", SimulationParams { placement_sd_deg: 0.0, ..all }),
+            ("− placement 1 cm", SimulationParams { placement_sd_m: 0.0, ..all }),
+            ("− slide 1 cm/rad", SimulationParams { skin_slide_m_per_rad: 0.0, ..all }),
+            (
+                "− zero & scale",
+                SimulationParams { accel_zero_sd: 0.0, gyro_zero_sd: 0.0, scale_sd: 0.0, ..all },
+            ),
+            ("− gyro bias walk", SimulationParams { gyro_bias_walk: 0.0, ..all }),
+            ("− bit errors", SimulationParams { bit_error_rate: 0.0, ..all }),
+            (
+                "− white and analog noise",
+                SimulationParams { accel_noise: 0.0, gyro_noise: 0.0, analog_noise_lsb: 0.0, ..all },
+            ),
+            ("− dither (the earlier front end)", SimulationParams { analog_noise_lsb: 0.0, ..all }),
+            ("only quantisation + code (all off)", off),
+        ] {
+            let sim = SuitSimulator::new(&s, sp).unwrap();
+            let offsets = if sp.ultrasound {
+                sim.calibrate_offsets(3).unwrap().offsets
+            } else {
+                vec![0.0; sim.nominal_suit().sources().len()]
+            };
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let set = if sp.ultrasound { SensorSet::ALL } else { sets[1] };
+            let p = pipeline.with_sensors(set);
+            line(name, &s, &rec, p, &joints);
+            let mut r = rec.clone();
+            r.nominal_suit = inertial_acoustic::simulate::refine_recording_headings(&s, &rec, p, true, 6.0)
+                .unwrap()
+                .suit;
+            line(&format!("{name}, heading fit"), &s, &r, p, &joints);
+        }
+        return;
+    }
     if args.get(3).is_some_and(|a| a == "heading") {
         // (e) Per-board heading about gravity, estimated from a first filter pass over the
         // first seconds of motion (beyond §4.4.4), against §4.4.4 alone.
