@@ -479,7 +479,16 @@ fn heading_fit_recovers_turns_about_gravity() {
     eprintln!("heading fit: {fitted} boards, {:?}", h.headings_deg);
     assert!(fitted >= 12, "only {fitted} boards fitted");
     // Bad input.
-    assert!(refine_headings(&s, &nominal, &rest, &poses[..2], &readings[..2], &offsets, dt).is_err());
+    assert!(refine_headings(
+        &s,
+        &nominal,
+        &rest,
+        &poses[..2],
+        &readings[..2],
+        &offsets,
+        dt
+    )
+    .is_err());
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets, f64::NAN).is_err());
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets[1..], dt).is_err());
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings[1..], &offsets, dt).is_err());

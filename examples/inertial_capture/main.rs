@@ -86,11 +86,8 @@ fn variants(
                "innovations": consistency(r)})
     };
     let heading = run_filter(skeleton, &refined, params, true, joints)?;
-    let wide = params.with_measurement_sigmas(
-        params.accelerometer_sigma,
-        params.gyroscope_sigma,
-        0.012,
-    );
+    let wide =
+        params.with_measurement_sigmas(params.accelerometer_sigma, params.gyroscope_sigma, 0.012);
     let inflated = run_filter(skeleton, rec, wide, true, joints)?;
     let both = run_filter(skeleton, &refined, wide, true, joints)?;
     Ok(json!({

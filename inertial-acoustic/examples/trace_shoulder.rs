@@ -206,20 +206,66 @@ fn main() {
         let all = SimulationParams { seed, ..base };
         for (name, sp) in [
             ("everything", all),
-            ("− placement 3°", SimulationParams { placement_sd_deg: 0.0, ..all }),
-            ("− placement 1 cm", SimulationParams { placement_sd_m: 0.0, ..all }),
-            ("− slide 1 cm/rad", SimulationParams { skin_slide_m_per_rad: 0.0, ..all }),
+            (
+                "− placement 3°",
+                SimulationParams {
+                    placement_sd_deg: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− placement 1 cm",
+                SimulationParams {
+                    placement_sd_m: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− slide 1 cm/rad",
+                SimulationParams {
+                    skin_slide_m_per_rad: 0.0,
+                    ..all
+                },
+            ),
             (
                 "− zero & scale",
-                SimulationParams { accel_zero_sd: 0.0, gyro_zero_sd: 0.0, scale_sd: 0.0, ..all },
+                SimulationParams {
+                    accel_zero_sd: 0.0,
+                    gyro_zero_sd: 0.0,
+                    scale_sd: 0.0,
+                    ..all
+                },
             ),
-            ("− gyro bias walk", SimulationParams { gyro_bias_walk: 0.0, ..all }),
-            ("− bit errors", SimulationParams { bit_error_rate: 0.0, ..all }),
+            (
+                "− gyro bias walk",
+                SimulationParams {
+                    gyro_bias_walk: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− bit errors",
+                SimulationParams {
+                    bit_error_rate: 0.0,
+                    ..all
+                },
+            ),
             (
                 "− white and analog noise",
-                SimulationParams { accel_noise: 0.0, gyro_noise: 0.0, analog_noise_lsb: 0.0, ..all },
+                SimulationParams {
+                    accel_noise: 0.0,
+                    gyro_noise: 0.0,
+                    analog_noise_lsb: 0.0,
+                    ..all
+                },
             ),
-            ("− dither (the earlier front end)", SimulationParams { analog_noise_lsb: 0.0, ..all }),
+            (
+                "− dither (the earlier front end)",
+                SimulationParams {
+                    analog_noise_lsb: 0.0,
+                    ..all
+                },
+            ),
             ("only quantisation + code (all off)", off),
         ] {
             let sim = SuitSimulator::new(&s, sp).unwrap();
@@ -229,13 +275,18 @@ fn main() {
                 vec![0.0; sim.nominal_suit().sources().len()]
             };
             let rec = sim.record(&smooth, &offsets).unwrap();
-            let set = if sp.ultrasound { SensorSet::ALL } else { sets[1] };
+            let set = if sp.ultrasound {
+                SensorSet::ALL
+            } else {
+                sets[1]
+            };
             let p = pipeline.with_sensors(set);
             line(name, &s, &rec, p, &joints);
             let mut r = rec.clone();
-            r.nominal_suit = inertial_acoustic::simulate::refine_recording_headings(&s, &rec, p, true, 6.0)
-                .unwrap()
-                .suit;
+            r.nominal_suit =
+                inertial_acoustic::simulate::refine_recording_headings(&s, &rec, p, true, 6.0)
+                    .unwrap()
+                    .suit;
             line(&format!("{name}, heading fit"), &s, &r, p, &joints);
         }
         return;
@@ -247,11 +298,14 @@ fn main() {
             .with_measurement_sigmas(2.0, 0.01, 0.0025)
             .with_recentre_rad(0.3);
         for (name, sp) in [
-            ("+ placement 3° (dither)", SimulationParams {
-                placement_sd_deg: base.placement_sd_deg,
-                analog_noise_lsb: 0.5,
-                ..off
-            }),
+            (
+                "+ placement 3° (dither)",
+                SimulationParams {
+                    placement_sd_deg: base.placement_sd_deg,
+                    analog_noise_lsb: 0.5,
+                    ..off
+                },
+            ),
             ("everything (dither)", SimulationParams { seed, ..base }),
         ] {
             let sim = SuitSimulator::new(&s, sp).unwrap();
@@ -261,7 +315,11 @@ fn main() {
                 vec![0.0; sim.nominal_suit().sources().len()]
             };
             let rec = sim.record(&smooth, &offsets).unwrap();
-            let set = if sp.ultrasound { SensorSet::ALL } else { sets[1] };
+            let set = if sp.ultrasound {
+                SensorSet::ALL
+            } else {
+                sets[1]
+            };
             let p = pipeline.with_sensors(set);
             line(&format!("{name}, §4.4.4 only"), &s, &rec, p, &joints);
             let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
@@ -272,7 +330,11 @@ fn main() {
                     .map(|(e, t)| {
                         let d = fk.frame_rotation(&t.frame()).unwrap()
                             * fk.frame_rotation(&e.frame()).unwrap().inverse();
-                        let v = if d.w < 0.0 { (-d).to_scaled_axis() } else { d.to_scaled_axis() };
+                        let v = if d.w < 0.0 {
+                            (-d).to_scaled_axis()
+                        } else {
+                            d.to_scaled_axis()
+                        };
                         v.y.to_degrees()
                     })
                     .collect()
@@ -282,14 +344,21 @@ fn main() {
                 .map(|f| f.inertial.clone())
                 .collect();
             let init = initialise(&s, &rec.nominal_suit, &rec.truth[0].theta, &rest).unwrap();
-            let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:+.1}")).collect::<Vec<_>>().join(" ");
+            let fmt = |v: &[f64]| {
+                v.iter()
+                    .map(|x| format!("{x:+.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
             let before = heading_err(&init.suit);
             println!("    heading error about up after §4.4.4: {}", fmt(&before));
             for secs in [3.0, 6.0] {
                 let mut r = rec.clone();
                 for pass in 0..2 {
-                    let h = inertial_acoustic::simulate::refine_recording_headings(&s, &r, p, true, secs)
-                        .unwrap();
+                    let h = inertial_acoustic::simulate::refine_recording_headings(
+                        &s, &r, p, true, secs,
+                    )
+                    .unwrap();
                     r.nominal_suit = h.suit;
                     let after = heading_err(&r.nominal_suit);
                     println!(
@@ -298,7 +367,13 @@ fn main() {
                         (before.iter().map(|x| x * x).sum::<f64>() / before.len() as f64).sqrt(),
                         (after.iter().map(|x| x * x).sum::<f64>() / after.len() as f64).sqrt()
                     );
-                    line(&format!("{name}, headings {secs} s pass {pass}"), &s, &r, p, &joints);
+                    line(
+                        &format!("{name}, headings {secs} s pass {pass}"),
+                        &s,
+                        &r,
+                        p,
+                        &joints,
+                    );
                 }
             }
         }
@@ -328,7 +403,10 @@ fn main() {
                     ..base
                 },
             ),
-            ("everything, dither ½ step", SimulationParams { seed, ..base }),
+            (
+                "everything, dither ½ step",
+                SimulationParams { seed, ..base },
+            ),
             (
                 "everything but placement 3°, no dither",
                 SimulationParams {

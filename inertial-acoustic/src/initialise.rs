@@ -204,7 +204,10 @@ pub fn refine_headings(
         headings.push(psi.to_degrees());
         let board = &suit.boards()[b];
         out = out
-            .with_board_orientation(b, board.joint_from_sensor * DQuat::from_axis_angle(up[b], psi))
+            .with_board_orientation(
+                b,
+                board.joint_from_sensor * DQuat::from_axis_angle(up[b], psi),
+            )
             .at(Context::Sensor(b))?;
     }
     Ok(HeadingRefinement {

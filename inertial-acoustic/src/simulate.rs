@@ -1448,10 +1448,16 @@ pub fn refine_recording_headings(
     } else {
         Vec::new()
     };
-    let mut ekf = SkeletalEkf::new(skeleton.clone(), init.suit.clone(), rest_pose, params, &known)?
-        .with_gyro_offsets(init.gyro_offsets.clone())?;
-    let end = (rec.rest_frames + (seconds * INERTIAL_RATE_HZ).round() as usize)
-        .min(rec.frames.len());
+    let mut ekf = SkeletalEkf::new(
+        skeleton.clone(),
+        init.suit.clone(),
+        rest_pose,
+        params,
+        &known,
+    )?
+    .with_gyro_offsets(init.gyro_offsets.clone())?;
+    let end =
+        (rec.rest_frames + (seconds * INERTIAL_RATE_HZ).round() as usize).min(rec.frames.len());
     let mut poses = Vec::with_capacity(end - rec.rest_frames);
     for (k, f) in rec.frames[..end].iter().enumerate() {
         ekf.step(f, root_supplied.then(|| &rec.root[k]))
