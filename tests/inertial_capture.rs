@@ -492,4 +492,8 @@ fn heading_fit_recovers_turns_about_gravity() {
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets, f64::NAN).is_err());
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets[1..], dt).is_err());
     assert!(refine_headings(&s, &nominal, &rest, &poses, &readings[1..], &offsets, dt).is_err());
+    let mut nan = poses.clone();
+    nan[5][7] = f64::NAN;
+    let e = refine_headings(&s, &nominal, &rest, &nan, &readings, &offsets, dt).unwrap_err();
+    assert_eq!(e.contexts(), [Context::Frame(5)]);
 }

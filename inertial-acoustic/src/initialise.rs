@@ -125,7 +125,8 @@ pub struct HeadingRefinement {
 /// # Errors
 /// [`Error::Empty`] for fewer than three poses; [`Error::SizeMismatch`] for readings,
 /// offsets or poses of the wrong size; [`Error::InvalidParam`] for a non-positive or
-/// non-finite `dt`; as [`Skeleton::forward_kinematics`].
+/// non-finite `dt`; a non-finite pose value is an error naming its frame; as
+/// [`Skeleton::forward_kinematics`]. Non-finite gyroscope readings are skipped.
 pub fn refine_headings(
     skeleton: &Skeleton,
     suit: &Suit,
@@ -157,6 +158,7 @@ pub fn refine_headings(
     }
     let mut rotations = Vec::with_capacity(poses.len());
     for (k, pose) in poses.iter().enumerate() {
+        skin_core::check::all_finite("pose", pose).at(Context::Frame(k))?;
         let fk = skeleton.forward_kinematics(pose).at(Context::Frame(k))?;
         let r = frames
             .iter()
