@@ -15,16 +15,18 @@ use dynamic_shapes::inertial::simulate::{
     SimulationParams, SuitSimulator,
 };
 use dynamic_shapes::inertial::{
-    Context, DistanceMeasurement, Error, FilterParams, FrameObservations, InertialReading,
-    InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
+    refine_headings, Context, DistanceMeasurement, Error, FilterParams, FrameObservations,
+    InertialReading, InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
 };
 
 /// The filter noise levels the example's tuning grid selects on its separate tuning clip
-/// (process σ 20 rad/s² per frame, accelerometer σ 2 m/s², distance gate 4σ).
+/// (process σ 20 rad/s² per frame, accelerometer σ 2 m/s², gyroscope σ 0.01 rad/s — the
+/// dithered front end's 12-bit counts carry 0.0098 rad/s of noise at ±20 rad/s — distance
+/// gate 4σ).
 fn tuned() -> FilterParams {
     FilterParams::default()
         .with_process_sigma(20.0)
-        .with_measurement_sigmas(2.0, 0.002, 0.0025)
+        .with_measurement_sigmas(2.0, 0.01, 0.0025)
         .with_distance_gate_sigma(4.0)
 }
 
@@ -422,4 +424,76 @@ fn xio_recording_stays_finite_and_stable() {
         // Measured: 0.77°, 2.29°, 1.16°.
         assert!(sum / (n as f64) < 3.0, "{per_third:?}");
     }
+}
+
+/// The per-board heading step beyond §4.4.4: boards turned about their rest-pose up axis by
+/// known angles (what the gravity alignment cannot see) are turned back by `refine_headings`
+/// from their gyroscope readings along the poses, where the baseline (§4.4.4 alone) keeps the
+/// whole turn; bad input gives errors.
+#[test]
+fn heading_fit_recovers_turns_about_gravity() {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    let params = SimulationParams::default();
+    let nominal = Suit::vlasic(&s).unwrap();
+    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(6.0)).unwrap();
+    let smooth = prepare_motion(&s, &motion, &params).unwrap();
+    // The rest pose is the first frame (the hold before the motion).
+    let probe = model_recording(&s, &nominal, &smooth, params.rest_s).unwrap();
+    let rest = probe.truth[0].theta.clone();
+    let fk = s.forward_kinematics(&rest).unwrap();
+    let turns: Vec<f64> = (0..nominal.boards().len())
+        .map(|b| ((b % 5) as f64 - 2.0) * 2.0 + 1.0)
+        .collect();
+    let mut truth_suit = nominal.clone();
+    for (b, psi) in turns.iter().enumerate() {
+        let board = &nominal.boards()[b];
+        let up = fk.frame_rotation(&board.frame()).unwrap().inverse() * DVec3::Y;
+        let turn = dynamic_shapes::core::math::DQuat::from_axis_angle(up, psi.to_radians());
+        truth_suit = truth_suit
+            .with_board_orientation(b, board.joint_from_sensor * turn)
+            .unwrap();
+    }
+    let rec = model_recording(&s, &truth_suit, &smooth, params.rest_s).unwrap();
+    let poses: Vec<Vec<f64>> = rec.truth[rec.rest_frames..]
+        .iter()
+        .map(|t| t.theta.clone())
+        .collect();
+    let readings: Vec<_> = rec.frames[rec.rest_frames..]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let offsets = vec![DVec3::ZERO; nominal.boards().len()];
+    let dt = 1.0 / 140.0;
+    let h = refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets, dt).unwrap();
+    let mut fitted = 0;
+    for (b, (&got, &want)) in h.headings_deg.iter().zip(&turns).enumerate() {
+        if h.frames_used[b] == 0 {
+            continue;
+        }
+        fitted += 1;
+        assert!(
+            (got - want).abs() < 0.3,
+            "board {b}: fitted {got:.2}°, true {want:.2}° (baseline error {want:.2}°)"
+        );
+    }
+    eprintln!("heading fit: {fitted} boards, {:?}", h.headings_deg);
+    assert!(fitted >= 12, "only {fitted} boards fitted");
+    // Bad input.
+    assert!(refine_headings(
+        &s,
+        &nominal,
+        &rest,
+        &poses[..2],
+        &readings[..2],
+        &offsets,
+        dt
+    )
+    .is_err());
+    assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets, f64::NAN).is_err());
+    assert!(refine_headings(&s, &nominal, &rest, &poses, &readings, &offsets[1..], dt).is_err());
+    assert!(refine_headings(&s, &nominal, &rest, &poses, &readings[1..], &offsets, dt).is_err());
+    let mut nan = poses.clone();
+    nan[5][7] = f64::NAN;
+    let e = refine_headings(&s, &nominal, &rest, &nan, &readings, &offsets, dt).unwrap_err();
+    assert_eq!(e.contexts(), [Context::Frame(5)]);
 }

@@ -191,10 +191,265 @@ fn main() {
         placement_sd_m: 0.0,
         placement_sd_deg: 0.0,
         skin_slide_m_per_rad: 0.0,
+        analog_noise_lsb: 0.0,
         ultrasound: false,
         seed,
         ..base
     };
+    if args.get(3).is_some_and(|a| a == "budget") {
+        // (f) Per-cause budget: everything on (dithered front end), then one cause off at a
+        // time; the difference is what that cause costs each joint. A+G+D, root supplied,
+        // the pipeline's tuned point, with and without the heading fit.
+        let pipeline = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        let all = SimulationParams { seed, ..base };
+        for (name, sp) in [
+            ("everything", all),
+            (
+                "− placement 3°",
+                SimulationParams {
+                    placement_sd_deg: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− placement 1 cm",
+                SimulationParams {
+                    placement_sd_m: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− slide 1 cm/rad",
+                SimulationParams {
+                    skin_slide_m_per_rad: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− zero & scale",
+                SimulationParams {
+                    accel_zero_sd: 0.0,
+                    gyro_zero_sd: 0.0,
+                    scale_sd: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− gyro bias walk",
+                SimulationParams {
+                    gyro_bias_walk: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− bit errors",
+                SimulationParams {
+                    bit_error_rate: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− white and analog noise",
+                SimulationParams {
+                    accel_noise: 0.0,
+                    gyro_noise: 0.0,
+                    analog_noise_lsb: 0.0,
+                    ..all
+                },
+            ),
+            (
+                "− dither (the earlier front end)",
+                SimulationParams {
+                    analog_noise_lsb: 0.0,
+                    ..all
+                },
+            ),
+            ("only quantisation + code (all off)", off),
+        ] {
+            let sim = SuitSimulator::new(&s, sp).unwrap();
+            let offsets = if sp.ultrasound {
+                sim.calibrate_offsets(3).unwrap().offsets
+            } else {
+                vec![0.0; sim.nominal_suit().sources().len()]
+            };
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let set = if sp.ultrasound {
+                SensorSet::ALL
+            } else {
+                sets[1]
+            };
+            let p = pipeline.with_sensors(set);
+            line(name, &s, &rec, p, &joints);
+            let mut r = rec.clone();
+            r.nominal_suit =
+                inertial_acoustic::simulate::refine_recording_headings(&s, &rec, p, true, 6.0)
+                    .unwrap()
+                    .suit;
+            line(&format!("{name}, heading fit"), &s, &r, p, &joints);
+        }
+        return;
+    }
+    if args.get(3).is_some_and(|a| a == "heading") {
+        // (e) Per-board heading about gravity, estimated from a first filter pass over the
+        // first seconds of motion (beyond §4.4.4), against §4.4.4 alone.
+        let pipeline = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        for (name, sp) in [
+            (
+                "+ placement 3° (dither)",
+                SimulationParams {
+                    placement_sd_deg: base.placement_sd_deg,
+                    analog_noise_lsb: 0.5,
+                    ..off
+                },
+            ),
+            ("everything (dither)", SimulationParams { seed, ..base }),
+        ] {
+            let sim = SuitSimulator::new(&s, sp).unwrap();
+            let offsets = if sp.ultrasound {
+                sim.calibrate_offsets(3).unwrap().offsets
+            } else {
+                vec![0.0; sim.nominal_suit().sources().len()]
+            };
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let set = if sp.ultrasound {
+                SensorSet::ALL
+            } else {
+                sets[1]
+            };
+            let p = pipeline.with_sensors(set);
+            line(&format!("{name}, §4.4.4 only"), &s, &rec, p, &joints);
+            let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
+            let heading_err = |suit: &Suit| -> Vec<f64> {
+                suit.boards()
+                    .iter()
+                    .zip(rec.true_suit.boards())
+                    .map(|(e, t)| {
+                        let d = fk.frame_rotation(&t.frame()).unwrap()
+                            * fk.frame_rotation(&e.frame()).unwrap().inverse();
+                        let v = if d.w < 0.0 {
+                            (-d).to_scaled_axis()
+                        } else {
+                            d.to_scaled_axis()
+                        };
+                        v.y.to_degrees()
+                    })
+                    .collect()
+            };
+            let rest: Vec<_> = rec.frames[..rec.rest_frames]
+                .iter()
+                .map(|f| f.inertial.clone())
+                .collect();
+            let init = initialise(&s, &rec.nominal_suit, &rec.truth[0].theta, &rest).unwrap();
+            let fmt = |v: &[f64]| {
+                v.iter()
+                    .map(|x| format!("{x:+.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            let before = heading_err(&init.suit);
+            println!("    heading error about up after §4.4.4: {}", fmt(&before));
+            for secs in [3.0, 6.0] {
+                let mut r = rec.clone();
+                for pass in 0..2 {
+                    let h = inertial_acoustic::simulate::refine_recording_headings(
+                        &s, &r, p, true, secs,
+                    )
+                    .unwrap();
+                    r.nominal_suit = h.suit;
+                    let after = heading_err(&r.nominal_suit);
+                    println!(
+                        "    {secs} s, pass {pass}: heading error {} (RMS {:.2} → {:.2}°)",
+                        fmt(&after),
+                        (before.iter().map(|x| x * x).sum::<f64>() / before.len() as f64).sqrt(),
+                        (after.iter().map(|x| x * x).sum::<f64>() / after.len() as f64).sqrt()
+                    );
+                    line(
+                        &format!("{name}, headings {secs} s pass {pass}"),
+                        &s,
+                        &r,
+                        p,
+                        &joints,
+                    );
+                }
+            }
+        }
+        return;
+    }
+    if args.get(3).is_some_and(|a| a == "frontend") {
+        // (d) The front end as §4.2.3 describes it: analog noise of half a 10-bit step dithers
+        // the converter, so four accumulated samples make a 12-bit quantity (issue 15, fifth
+        // session). Before (no dither) → after, at the pipeline's tuned point.
+        let pipeline = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        for (name, sp) in [
+            ("quantisation only, no dither", off),
+            (
+                "quantisation only, dither ½ step",
+                SimulationParams {
+                    analog_noise_lsb: 0.5,
+                    ..off
+                },
+            ),
+            (
+                "everything, no dither",
+                SimulationParams {
+                    seed,
+                    analog_noise_lsb: 0.0,
+                    ..base
+                },
+            ),
+            (
+                "everything, dither ½ step",
+                SimulationParams { seed, ..base },
+            ),
+            (
+                "everything but placement 3°, no dither",
+                SimulationParams {
+                    seed,
+                    analog_noise_lsb: 0.0,
+                    placement_sd_deg: 0.0,
+                    ..base
+                },
+            ),
+            (
+                "everything but placement 3°, dither ½ step",
+                SimulationParams {
+                    seed,
+                    placement_sd_deg: 0.0,
+                    ..base
+                },
+            ),
+        ] {
+            let sim = SuitSimulator::new(&s, sp).unwrap();
+            let offsets = if sp.ultrasound {
+                sim.calibrate_offsets(3).unwrap().offsets
+            } else {
+                vec![0.0; sim.nominal_suit().sources().len()]
+            };
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let set = if sp.ultrasound {
+                SensorSet::ALL
+            } else {
+                sets[1]
+            };
+            line(name, &s, &rec, pipeline.with_sensors(set), &joints);
+            line(
+                &format!("{name}, σg 0.002"),
+                &s,
+                &rec,
+                pipeline
+                    .with_measurement_sigmas(2.0, 0.002, 0.0025)
+                    .with_sensors(set),
+                &joints,
+            );
+        }
+        return;
+    }
     let variants: Vec<(&str, SimulationParams)> = vec![
         ("sim, all errors off", off),
         (

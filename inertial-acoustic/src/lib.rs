@@ -18,7 +18,7 @@
 //! | suit | `suit.rs` | [`Suit`], [`SensorBoard`], [`UltrasonicSource`] | §4.2.1 |
 //! | ultrasonic processing | `ultrasound.rs` | [`PulseDetector`], [`calibrate_offsets`] | §4.3.1, §4.3.3 |
 //! | inertial processing | `inertial.rs` | [`AxisCalibration`], [`DeltaCodec`] | §4.2.3, §4.3.2–4.3.3 |
-//! | initialisation | `initialise.rs` | [`initialise`] | §4.4.4 |
+//! | initialisation | `initialise.rs` | [`initialise`], [`refine_headings`] (beyond §4.4.4) | §4.4.4 |
 //! | pose estimation | `ekf.rs` | [`SkeletalEkf`], [`FrameObservations`] | §4.4.1–4.4.3 |
 //! | local 3-DOF joints | `local_joints.rs` | (private; [`FilterParams::recentre_rad`]) | §4.4 (not in the thesis) |
 //! | one board's orientation | `orientation.rs` | [`OrientationEkf`], [`RestAlignment`], [`heading_inclination_rmse`] | §4.4 for a single rotation |
@@ -96,7 +96,9 @@ pub use ekf::{
 pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, ErrorStats};
 pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
-pub use initialise::{initialise, Initialisation};
+pub use initialise::{
+    initialise, refine_headings, HeadingRefinement, Initialisation, MIN_HEADING_RATE_RAD_S,
+};
 pub use orientation::{
     heading_inclination_rmse, HeadingInclinationRmse, OrientationEkf, OrientationStep,
     RestAlignment,
