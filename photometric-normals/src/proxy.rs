@@ -430,7 +430,11 @@ mod tests {
             // A quasi-random cloud around the sphere and out to the cameras' ring.
             let f = |k: f64| ((f64::from(i) * k).fract() - 0.5) * 8.0;
             let p = DVec3::new(f(0.618_034), 1.0 + f(0.414_214) * 0.5, f(0.732_051));
-            let p = if i % 2 == 0 { DVec3::new(0.0, 1.0, 0.0) + (p - DVec3::new(0.0, 1.0, 0.0)) * 0.08 } else { p };
+            let p = if i % 2 == 0 {
+                DVec3::new(0.0, 1.0, 0.0) + (p - DVec3::new(0.0, 1.0, 0.0)) * 0.08
+            } else {
+                p
+            };
             let mut all_in = true;
             for c in 0..cams.len() {
                 let (fast, slow) = (hull.camera_distance(c, p), reference(c, p));
@@ -449,7 +453,10 @@ mod tests {
                 outside += 1;
             }
         }
-        assert!(inside > 1000 && outside > 1000 && none > 100, "{inside} {outside} {none}");
+        assert!(
+            inside > 1000 && outside > 1000 && none > 100,
+            "{inside} {outside} {none}"
+        );
     }
 
     #[test]
