@@ -29,6 +29,7 @@ use std::time::Instant;
 
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
@@ -272,13 +273,20 @@ pub fn depth_errors(
 pub(crate) fn camera_rays(camera: &Camera) -> Result<Vec<DVec3>> {
     let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
     let rot = camera.camera_from_world();
-    (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let ray = camera.ray(DVec2::new(f64::from(x), f64::from(y)))?;
-            Ok(rot.transform_vector3(ray.direction))
+    // Rows in parallel (a 1024² camera has a million rays, and every view of every pass and
+    // every matched pair asks for them).
+    let rows: Vec<Vec<DVec3>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    let ray = camera.ray(DVec2::new(f64::from(x), f64::from(y)))?;
+                    Ok(rot.transform_vector3(ray.direction))
+                })
+                .collect::<Result<Vec<DVec3>>>()
         })
-        .collect()
+        .collect::<Result<_>>()?;
+    Ok(rows.concat())
 }
 
 /// Multiplies each region's depths by the least-squares scale `s = Σ z_i z̄_i / Σ z_i²` over

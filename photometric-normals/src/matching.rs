@@ -281,7 +281,7 @@ pub fn depth_map_mesh(camera: &Camera, depth: &DepthMap, max_jump_m: f64) -> Res
 fn world_rays(camera: &Camera) -> Result<Vec<DVec3>> {
     let r = camera.world_from_camera();
     Ok(camera_rays(camera)?
-        .into_iter()
+        .into_par_iter()
         .map(|d| r.transform_vector3(d))
         .collect())
 }

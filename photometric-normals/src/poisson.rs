@@ -615,47 +615,62 @@ fn solve_level(
         }
     }
     // Start values and Dirichlet values from the coarser levels.
-    let mut comp = Composite {
-        levels: coarser,
-        memo: NodeMap::default(),
-        outside: 0.0,
-    };
     let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
         match coarser.len() {
             0 => 0.0,
             n => comp.interpolated_from(n - 1, p),
         }
     };
-    let mut diag = vec![0.0; nn];
-    let mut b = vec![0.0; nn];
-    let mut x = vec![0.0; nn];
-    for (i, &p) in level.nodes.iter().enumerate() {
-        x[i] = start_and_boundary(p, &mut comp);
-        let mut d = params.screening / h * mass[i];
-        let mut rhs = 0.0;
-        for axis in AXES {
-            for s in [-1i64, 1] {
-                let m = add(p, axis, s);
-                if !level.in_domain(m) {
-                    continue;
-                }
-                d += 1.0;
-                let a = axis.iter().position(|&c| c == 1).unwrap_or(0);
-                let (vm, known) = match level.index(m) {
-                    Some(j) => (v[j][a], None),
-                    None => (0.0, Some(start_and_boundary(m, &mut comp))),
-                };
-                let ve = 0.5 * (v[i][a] + vm);
-                // Edge below (s = −1) adds +h·V_e, edge above subtracts it.
-                rhs -= s as f64 * h * ve;
-                if let Some(val) = known {
-                    rhs += val;
-                }
-            }
-        }
-        diag[i] = d;
-        b[i] = rhs;
-    }
+    // Per node, independently (in parallel; each chunk of nodes memoises the coarser
+    // levels' values in its own `Composite`, a cache that does not change any value): the
+    // start value, the diagonal and the right-hand side.
+    let assembled: Vec<(f64, f64, f64)> = level
+        .nodes
+        .par_chunks(ASSEMBLY_CHUNK)
+        .enumerate()
+        .flat_map_iter(|(ci, chunk)| {
+            let mut comp = Composite {
+                levels: coarser,
+                memo: NodeMap::default(),
+                outside: 0.0,
+            };
+            chunk
+                .iter()
+                .enumerate()
+                .map(|(k, &p)| {
+                    let i = ci * ASSEMBLY_CHUNK + k;
+                    let x = start_and_boundary(p, &mut comp);
+                    let mut d = params.screening / h * mass[i];
+                    let mut rhs = 0.0;
+                    for axis in AXES {
+                        for s in [-1i64, 1] {
+                            let m = add(p, axis, s);
+                            if !level.in_domain(m) {
+                                continue;
+                            }
+                            d += 1.0;
+                            let a = axis.iter().position(|&c| c == 1).unwrap_or(0);
+                            let (vm, known) = match level.index(m) {
+                                Some(j) => (v[j][a], None),
+                                None => (0.0, Some(start_and_boundary(m, &mut comp))),
+                            };
+                            let ve = 0.5 * (v[i][a] + vm);
+                            // Edge below (s = −1) adds +h·V_e, edge above subtracts it.
+                            rhs -= s as f64 * h * ve;
+                            if let Some(val) = known {
+                                rhs += val;
+                            }
+                        }
+                    }
+                    (x, d, rhs)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut x: Vec<f64> = assembled.iter().map(|a| a.0).collect();
+    let diag: Vec<f64> = assembled.iter().map(|a| a.1).collect();
+    let b: Vec<f64> = assembled.iter().map(|a| a.2).collect();
+    drop(assembled);
     // Neighbour table (NONE = outside the domain or the band).
     let nbr: Vec<[u32; 6]> = level
         .nodes
@@ -715,6 +730,9 @@ fn solve_level(
         residual,
     }
 }
+
+/// Nodes per parallel task of a level's assembly (each task memoises its own coarser values).
+const ASSEMBLY_CHUNK: usize = 16_384;
 
 /// Damping of the Jacobi smoother (the 3-D 7-point stencil's smoothing optimum is 6/7; a
 /// little less is safer with the screening on the diagonal).

@@ -17,9 +17,9 @@
 //! the border (the image edge bounds the cone, as the silhouette does).
 
 use serde::{Deserialize, Serialize};
-use skin_core::camera::Camera;
+use skin_core::camera::{Camera, MIN_DEPTH_M};
 use skin_core::check;
-use skin_core::image::{sample_bilinear, signed_distance, GrayF32Image, Mask};
+use skin_core::image::{signed_distance, GrayF32Image, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
@@ -139,19 +139,27 @@ impl VisualHull {
 
     /// Signed distance (px, negative inside) of `p`'s projection to camera `c`'s silhouette,
     /// and the point's camera depth; `None` behind the camera.
+    ///
+    /// The hot loop of the hull (every march step of [`VisualHull::depth_map`], every cell of
+    /// the matching grids through [`VisualHull::contains`]): the camera point is transformed
+    /// once and projected term for term as [`Camera::project`] does, and the bilinear look-up
+    /// reads the signed distances' samples directly, term for term as
+    /// [`sample_bilinear`](skin_core::image::sample_bilinear) does — the same values bit for bit, without the second transform,
+    /// the `Result` and the pixel accessor's checks.
+    #[inline]
     fn camera_distance(&self, c: usize, p: DVec3) -> Option<(f64, f64)> {
         let cam = &self.cameras[c];
-        let z = cam.camera_from_world().transform_point3(p).z;
-        if z <= 1e-6 {
+        let pc = cam.camera_from_world().transform_point3(p);
+        let z = pc.z;
+        if z <= 1e-6 || !pc.is_finite() || z <= MIN_DEPTH_M {
             return None;
         }
-        let px = cam.project(p).ok()?;
-        let (w, h) = (
-            f64::from(cam.intrinsics.width - 1),
-            f64::from(cam.intrinsics.height - 1),
-        );
+        let k = &cam.intrinsics;
+        let n = DVec2::new(pc.x / z, pc.y / z);
+        let px = cam.distortion.distort(k, k.pixel_from_normalized(n))?;
+        let (w, h) = (f64::from(k.width - 1), f64::from(k.height - 1));
         let clamped = DVec2::new(px.x.clamp(0.0, w), px.y.clamp(0.0, h));
-        let sd = sample_bilinear(&self.signed[c], clamped)?;
+        let sd = bilinear(&self.signed[c], k.width, k.height, clamped)?;
         Some((sd + (px - clamped).length(), z))
     }
 
@@ -181,11 +189,25 @@ impl VisualHull {
     /// Whether `p` lies inside every camera's silhouette cone.
     pub fn contains(&self, p: DVec3) -> bool {
         // `hull_distance(p, None).0 <= 0.0`, stopping at the first camera that sees `p`
-        // outside its silhouette (or cannot see it).
-        (0..self.cameras.len()).all(|c| {
+        // outside its silhouette (or cannot see it). The camera that rejected the thread's
+        // previous point is asked first: neighbouring queries (a matching grid's cells) are
+        // mostly rejected by the same camera. The answer does not depend on the order.
+        let n = self.cameras.len();
+        let inside = |c: usize| {
             self.camera_distance(c, p)
                 .is_some_and(|(sd, _)| sd <= 0.0 || sd.is_nan())
-        })
+        };
+        let first = LAST_REJECTING.with(std::cell::Cell::get).min(n - 1);
+        if !inside(first) {
+            return false;
+        }
+        for c in (0..n).filter(|&c| c != first) {
+            if !inside(c) {
+                LAST_REJECTING.with(|l| l.set(c));
+                return false;
+            }
+        }
+        true
     }
 
     /// The hull's depth along each silhouette pixel ray of camera `view` (first entry point;
@@ -261,6 +283,44 @@ impl VisualHull {
     }
 }
 
+thread_local! {
+    /// The camera that last found a [`VisualHull::contains`] query outside, per thread.
+    static LAST_REJECTING: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// [`sample_bilinear`](skin_core::image::sample_bilinear) of a camera-sized image at a point inside it (`p` within
+/// `[0, w − 1] × [0, h − 1]`, or `None`), on the samples directly: the same arithmetic, term
+/// for term.
+#[inline]
+fn bilinear(image: &GrayF32Image, w: u32, h: u32, p: DVec2) -> Option<f64> {
+    if w == 0 || h == 0 || !p.is_finite() {
+        return None;
+    }
+    let (max_x, max_y) = (f64::from(w - 1), f64::from(h - 1));
+    if p.x < 0.0 || p.y < 0.0 || p.x > max_x || p.y > max_y {
+        return None;
+    }
+    let x0 = (p.x.floor() as u32).min(w.saturating_sub(2));
+    let y0 = (p.y.floor() as u32).min(h.saturating_sub(2));
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = (p.x - f64::from(x0), p.y - f64::from(y0));
+    let data: &[f32] = image.as_raw();
+    let at = |x: u32, y: u32| {
+        data.get(y as usize * w as usize + x as usize)
+            .map_or(f64::NAN, |v| f64::from(*v))
+    };
+    let (v00, v10, v01, v11) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
+    if ![v00, v10, v01, v11].iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some(
+        v00 * (1.0 - fx) * (1.0 - fy)
+            + v10 * fx * (1.0 - fy)
+            + v01 * (1.0 - fx) * fy
+            + v11 * fx * fy,
+    )
+}
+
 /// A mesh proxy (pass 2 of §3.3: the hole-filled mesh of pass 1) rendered as `camera`'s
 /// depth map through the rasteriser (both faces of each triangle, so an open mesh works too).
 ///
@@ -331,6 +391,72 @@ mod tests {
         assert!((0.0..0.03).contains(&median), "{median}");
         assert!(hull.contains(DVec3::new(0.0, 1.0, 0.0)));
         assert!(!hull.contains(DVec3::new(0.0, 1.6, 0.0)));
+    }
+
+    /// The hot-loop look-up (`camera_distance`, `contains`) gives bit for bit what the
+    /// reference path — `Camera::project` and `sample_bilinear` — gives, on points inside,
+    /// outside, off the image and behind cameras.
+    #[test]
+    fn fast_hull_queries_equal_the_reference_path() {
+        use skin_core::image::sample_bilinear;
+        let (cams, mesh) = sphere_rig(6);
+        let masks: Vec<Mask> = cams
+            .iter()
+            .map(|c| {
+                Rasterizer::new(c)
+                    .render(&mesh, &RenderParams::default())
+                    .unwrap()
+                    .silhouette()
+            })
+            .collect();
+        let hull = VisualHull::new(&cams, &masks).unwrap();
+        let reference = |c: usize, p: DVec3| -> Option<(f64, f64)> {
+            let cam = &hull.cameras[c];
+            let z = cam.camera_from_world().transform_point3(p).z;
+            if z <= 1e-6 {
+                return None;
+            }
+            let px = cam.project(p).ok()?;
+            let (w, h) = (
+                f64::from(cam.intrinsics.width - 1),
+                f64::from(cam.intrinsics.height - 1),
+            );
+            let clamped = DVec2::new(px.x.clamp(0.0, w), px.y.clamp(0.0, h));
+            let sd = sample_bilinear(&hull.signed[c], clamped)?;
+            Some((sd + (px - clamped).length(), z))
+        };
+        let (mut inside, mut outside, mut none) = (0, 0, 0);
+        for i in 0..20_000u32 {
+            // A quasi-random cloud around the sphere and out to the cameras' ring.
+            let f = |k: f64| ((f64::from(i) * k).fract() - 0.5) * 8.0;
+            let p = DVec3::new(f(0.618_034), 1.0 + f(0.414_214) * 0.5, f(0.732_051));
+            let p = if i % 2 == 0 {
+                DVec3::new(0.0, 1.0, 0.0) + (p - DVec3::new(0.0, 1.0, 0.0)) * 0.08
+            } else {
+                p
+            };
+            let mut all_in = true;
+            for c in 0..cams.len() {
+                let (fast, slow) = (hull.camera_distance(c, p), reference(c, p));
+                assert_eq!(
+                    fast.map(|(a, b)| (a.to_bits(), b.to_bits())),
+                    slow.map(|(a, b)| (a.to_bits(), b.to_bits())),
+                    "camera {c} at {p}"
+                );
+                none += usize::from(slow.is_none());
+                all_in &= slow.is_some_and(|(sd, _)| sd <= 0.0 || sd.is_nan());
+            }
+            assert_eq!(hull.contains(p), all_in, "{p}");
+            if all_in {
+                inside += 1;
+            } else {
+                outside += 1;
+            }
+        }
+        assert!(
+            inside > 1000 && outside > 1000 && none > 100,
+            "{inside} {outside} {none}"
+        );
     }
 
     #[test]
