@@ -8,7 +8,10 @@
 //! through the hulls with the refinement term (§2.3.1, §2.3.3; the first frame's true pose
 //! stands in for the user's fit of the first frame, no other user constraint; with
 //! `--auto-init` the automatic initialisation `initialise_pose` replaces it, no user
-//! constraint at all); then
+//! constraint at all; with `--auto-size` the body runs use a performer whose bones differ
+//! from the default by up to 10 % (`Performer::with_bone_scales`), the tracker is given the
+//! default proportions and sizes them itself from its first frames: `auto_size_*` figures
+//! for the tracker with default, sized and true proportions); then
 //! Algorithm 1 (§2.4.2). Scored against the performer's true posed mesh, against linear
 //! blend skinning driven by the same estimated poses (`lbs_*`) and by the true poses
 //! (`lbs_true_pose_*`). The legs inside the skirt are part of the template and of the truth
@@ -428,8 +431,18 @@ fn capture_run(
             model: &size_model,
             reference: &reference_sizes(&size_model, &true_template, 0.05)?,
         };
+        // Diagnostic: the sizing from the true poses (the fit's own error, without the
+        // tracked poses').
+        let true_poses: Vec<Vec<f64>> = truths.iter().map(|t| t.theta.clone()).collect();
+        let oracle = size_from_poses(
+            &size_model,
+            &observations,
+            &true_poses,
+            &SizingParams::default(),
+        )?;
         for (which, state) in [
             ("sized", sizing.state()?.clone()),
+            ("from_true_poses", oracle.state()?.clone()),
             (
                 "default",
                 size_model.initial_state(&sizing.state()?.theta, 0.05)?,
