@@ -395,6 +395,29 @@ mod tests {
     use skin_core::skeleton::{human_skeleton, HumanParams};
 
     #[test]
+    fn reference_sizes_follow_the_template_skeleton() {
+        let t = crate::template::tests::bendy();
+        let model = EllipsoidModel::limbs(t.skeleton().clone(), 0.1).unwrap();
+        assert_eq!(model.bones().len(), 1);
+        let mut joints = t.skeleton().joints().to_vec();
+        joints[1].offset *= 1.2;
+        let longer = t.resized(Skeleton::new(joints).unwrap()).unwrap();
+        let r = reference_sizes(&model, &longer, 0.05).unwrap();
+        assert!((r.length_scale[0] - 1.2).abs() < 1e-12);
+        assert!((r.half_length[0] - 0.3).abs() < 1e-12);
+        // The root's rigid part is the lower half of an ellipsoid 0.15 m in radius.
+        assert!(
+            (0.05..0.16).contains(&r.half_width[0]),
+            "{}",
+            r.half_width[0]
+        );
+        let other =
+            EllipsoidModel::limbs(human_skeleton(&HumanParams::default()).unwrap(), 0.1).unwrap();
+        assert!(reference_sizes(&other, &longer, 0.05).is_err());
+        assert!(reference_sizes(&model, &longer, f64::NAN).is_err());
+    }
+
+    #[test]
     fn bad_input_is_reported() {
         let sk = human_skeleton(&HumanParams::default()).unwrap();
         let model = EllipsoidModel::with_end_sites(sk, 0.1).unwrap();
