@@ -313,7 +313,7 @@ pub fn size_from_poses(
 /// template's own limbs): per bone of `model`, the length scale that makes the model's bone
 /// the template skeleton's (`|offset| / L_b`; an end-site segment's from the end site), the
 /// half-length `½ s_b L_b`, and the half-width of Eq. 3 fitted ([`fit_half_width`]) to the
-/// template's nearly-rigid vertices ([`Template::nearly_rigid`], weight ≥ 0.95) on the bone's
+/// template's nearly-rigid vertices ([`crate::Template::nearly_rigid`], weight ≥ 0.95) on the bone's
 /// parent joint — each assigned to the nearest of that joint's bones — at the rest pose. A
 /// bone without such vertices keeps `default_half_width_m`.
 ///
