@@ -8,7 +8,10 @@
 //! through the hulls with the refinement term (§2.3.1, §2.3.3; the first frame's true pose
 //! stands in for the user's fit of the first frame, no other user constraint; with
 //! `--auto-init` the automatic initialisation `initialise_pose` replaces it, no user
-//! constraint at all); then
+//! constraint at all; with `--auto-size` the body runs use a performer whose bones differ
+//! from the default by up to 10 % (`Performer::with_bone_scales`), the tracker is given the
+//! default proportions and sizes them itself from its first frames: `auto_size_*` figures
+//! for the tracker with default, sized and true proportions); then
 //! Algorithm 1 (§2.4.2). Scored against the performer's true posed mesh, against linear
 //! blend skinning driven by the same estimated poses (`lbs_*`) and by the true poses
 //! (`lbs_true_pose_*`). The legs inside the skirt are part of the template and of the truth
@@ -37,11 +40,13 @@ use clap::Parser;
 use serde_json::{json, Map, Value};
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
+use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DVec3, Ray};
 use dynamic_shapes::core::mesh::{
     decimate, evaluate_surface_points, save_gltf_animation, MeshQuery, MeshSequence, SkinWeights,
     SurfacePoint, TriMesh, UvLayout,
 };
+use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
@@ -50,10 +55,11 @@ use dynamic_shapes::core::studio::{
     Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, initialise_pose, pose_error, rest_pose_start,
-    silhouette_error_pct, AutoInitParams, DeformationTransfer, EllipsoidModel, FrameObservation,
-    PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
-    SilhouetteParams, Template, UserRay, VisualHullParams,
+    capture_sequence, edge_error_pct, initialise_pose, pose_error, reference_sizes,
+    rest_pose_start, score_ellipsoids, silhouette_error_pct, size_from_poses, AutoInitParams,
+    DeformationTransfer, EllipsoidModel, EllipsoidState, FrameObservation, PoseEditor, PoseModel,
+    PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams,
+    SizingParams, Template, UserRay, VisualHullParams,
 };
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -110,12 +116,24 @@ struct Cli {
     /// `auto_init_*` figures (first frame: the automatic start against the rest-pose start).
     #[arg(long)]
     auto_init: bool,
+    /// Automatic sizing (implies `--auto-init`; runs without the skirt only): the performer's
+    /// bones scaled by seeded factors in [0.9, 1.1] (`Performer::with_bone_scales`); the
+    /// tracker's template has the default proportions; the automatic first pose, the tracker
+    /// at default proportions, `size_from_poses` on its poses, the template re-rigged to the
+    /// sized skeleton (`Template::resized`) and tracked again; adds the `auto_size_*` figures
+    /// (sizes, and the tracker with default / sized / true proportions).
+    #[arg(long)]
+    auto_size: bool,
+    /// Seed of `--auto-size`'s bone scale factors.
+    #[arg(long, default_value_t = 12)]
+    size_seed: u64,
     /// Only the runs with these names (e.g. `skirt_walk`); default: all.
     #[arg(long = "run", value_name = "NAME")]
     runs: Vec<String>,
 }
 
 /// The template the tracker is given and where its vertices sit in the performer's rest mesh.
+#[derive(Clone)]
 struct TemplateEmbedding {
     template: Template,
     /// Per template vertex, its fixed barycentric position in the performer's rest mesh (one
@@ -242,20 +260,36 @@ struct Captured {
     frame_time_s: f64,
 }
 
-fn performer(skirt: bool) -> Result<Performer, Box<dyn std::error::Error>> {
+fn deformation(skirt: bool) -> DeformationParams {
     // With the skirt the hip flap is off (DeformationParams::garment: it only distorts the
     // thighs the skirt collides with); the pose-driven muscles stay on in both.
-    let params = if skirt {
+    if skirt {
         DeformationParams::default()
             .with_flap(None)
             .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())))
     } else {
         DeformationParams::default()
-    };
+    }
+}
+
+fn performer(skirt: bool) -> Result<Performer, Box<dyn std::error::Error>> {
     Ok(makehuman_performer(
         example_kit::data_path("makehuman")?,
-        &params,
+        &deformation(skirt),
     )?)
+}
+
+/// `--auto-size`'s bone scale factors: for every joint at the far end of a bone of the
+/// sizing's ellipsoid model, a factor drawn uniformly in [0.9, 1.1] (seeded); 1 elsewhere.
+fn bone_factors(model: &EllipsoidModel, seed: u64) -> Vec<f64> {
+    let rng = SplitMix64::new(seed);
+    let mut factors = vec![1.0; model.skeleton().joint_count()];
+    for (k, bone) in model.bones().iter().enumerate() {
+        if let Some(c) = bone.child {
+            factors[c] = 0.9 + 0.2 * rng.uniform_at(k as u64);
+        }
+    }
+    factors
 }
 
 fn motion(kind: MotionKind, performer: &Performer) -> Result<Motion, Box<dyn std::error::Error>> {
@@ -289,8 +323,19 @@ fn capture_run(
         w_anchor: args.anchor_weight,
         ..ShapeParams::default()
     };
-    let performer = performer(spec.skirt)?;
-    let motion = motion(spec.motion, &performer)?;
+    let default_performer = performer(spec.skirt)?;
+    // The motion is made on the default skeleton (the same angles for every performer).
+    let motion = motion(spec.motion, &default_performer)?;
+    let auto_size = args.auto_size && !spec.skirt;
+    let size_model = EllipsoidModel::with_end_sites(default_performer.skeleton.clone(), 0.1)?;
+    let performer = if auto_size {
+        default_performer.with_bone_scales(
+            &bone_factors(&size_model, args.size_seed),
+            &deformation(spec.skirt),
+        )?
+    } else {
+        default_performer
+    };
     let (name, first) = (spec.name(), spec.motion.first_frame());
     let root = performer
         .skeleton
@@ -301,8 +346,8 @@ fn capture_run(
     let cameras = rig.cameras.clone();
     let capture_spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
     let capture = Capture::new(&performer, &motion, capture_spec)?;
-    let embedding = TemplateEmbedding::new(&performer, args.template_vertices, args.loose_skirt)?;
-    let template = &embedding.template;
+    let mut embedding =
+        TemplateEmbedding::new(&performer, args.template_vertices, args.loose_skirt)?;
 
     // Observations (§2.3.2, §2.4.2).
     let stage = run.stage(
@@ -343,29 +388,118 @@ fn capture_run(
 
     // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0,
     // or (`--auto-init`) the automatic initialisation replaces it.
-    let first_pose = if args.auto_init {
-        let stage = run.stage(&format!("{name}: automatic first pose"), None);
-        let theta = auto_init(template, &observations[0], &truths[0].theta, &name, figures)?;
-        stage.finish("");
-        theta
-    } else {
-        truths[0].theta.clone()
-    };
-    let stage = run.stage(&format!("{name}: pose and shape"), None);
     let params = PoseParams::default();
-    let result = capture_sequence(
-        template,
-        &observations,
-        &first_pose,
-        &[],
-        &params,
-        &shape_params,
-    )?;
-    stage.finish(format!(
-        "pose {:.2} s, shape {:.2} s per frame",
-        result.pose_seconds / n,
-        result.shape_seconds / n
-    ));
+    let sequence = |template: &Template, first_pose: &[f64]| {
+        capture_sequence(
+            template,
+            &observations,
+            first_pose,
+            &[],
+            &params,
+            &shape_params,
+        )
+    };
+    let result = if auto_size {
+        // The tracker is given the default proportions, sized from its own first frames.
+        let true_template = embedding.template.clone();
+        let default_template = true_template.resized(size_model.skeleton().clone())?;
+        let stage = run.stage(&format!("{name}: automatic first pose"), None);
+        let first_pose = auto_init(
+            &default_template,
+            &observations[0],
+            &truths[0].theta,
+            &name,
+            figures,
+        )?;
+        stage.finish("");
+        let stage = run.stage(&format!("{name}: sizing (3 tracker runs)"), None);
+        let t0 = Instant::now();
+        let default_result = sequence(&default_template, &first_pose)?;
+        let t1 = Instant::now();
+        let sizing = size_from_poses(
+            &size_model,
+            &observations,
+            &default_result.poses.poses,
+            &SizingParams::default(),
+        )?;
+        let size_s = t1.elapsed().as_secs_f64();
+        let sized_template = default_template.resized(sizing.skeleton(&size_model)?)?;
+        let sized_result = sequence(&sized_template, &first_pose)?;
+        let true_result = sequence(&true_template, &first_pose)?;
+        let key = |k: &str| format!("{name}_auto_size_{k}");
+        let scored = SizeScoring {
+            model: &size_model,
+            reference: &reference_sizes(&size_model, &true_template, 0.05)?,
+        };
+        // Diagnostic: the sizing from the true poses (the fit's own error, without the
+        // tracked poses').
+        let true_poses: Vec<Vec<f64>> = truths.iter().map(|t| t.theta.clone()).collect();
+        let oracle = size_from_poses(
+            &size_model,
+            &observations,
+            &true_poses,
+            &SizingParams::default(),
+        )?;
+        for (which, state) in [
+            ("sized", sizing.state()?.clone()),
+            ("from_true_poses", oracle.state()?.clone()),
+            (
+                "default",
+                size_model.initial_state(&sizing.state()?.theta, 0.05)?,
+            ),
+        ] {
+            let (length, width, per_bone) = scored.errors(&state)?;
+            figures.insert(key(&format!("{which}_bone_length_error_mm")), json!(length));
+            figures.insert(key(&format!("{which}_width_error_mm")), json!(width));
+            figures.insert(key(&format!("{which}_per_bone_mm")), per_bone);
+        }
+        for (which, template, result) in [
+            ("default", &default_template, &default_result),
+            ("sized", &sized_template, &sized_result),
+            ("true", &true_template, &true_result),
+        ] {
+            let embedded = TemplateEmbedding {
+                template: template.clone(),
+                ..embedding.clone()
+            };
+            let (joint, sil, vertex) =
+                tracker_scores(&embedded, &performer, &truths, &masks, &cameras, result)?;
+            figures.insert(key(&format!("{which}_joint_error_mm")), json!(joint));
+            figures.insert(key(&format!("{which}_silhouette_error_pct")), json!(sil));
+            figures.insert(key(&format!("{which}_vertex_rms_mm")), json!(vertex));
+        }
+        figures.insert(key("frames_sized"), json!(sizing.chosen));
+        figures.insert(key("fit_s"), json!(size_s));
+        figures.insert(key("s"), json!(t0.elapsed().as_secs_f64()));
+        stage.finish("");
+        // The run's figures and pictures are the sized template's.
+        embedding.template = sized_template;
+        sized_result
+    } else {
+        let first_pose = if args.auto_init {
+            let stage = run.stage(&format!("{name}: automatic first pose"), None);
+            let theta = auto_init(
+                &embedding.template,
+                &observations[0],
+                &truths[0].theta,
+                &name,
+                figures,
+            )?;
+            stage.finish("");
+            theta
+        } else {
+            truths[0].theta.clone()
+        };
+        let stage = run.stage(&format!("{name}: pose and shape"), None);
+        let result = sequence(&embedding.template, &first_pose)?;
+        stage.finish(format!(
+            "pose {:.2} s, shape {:.2} s per frame",
+            result.pose_seconds / n,
+            result.shape_seconds / n
+        ));
+        result
+    };
+    let template = &embedding.template;
     // Diagnostic (`--true-pose-shape`): Algorithm 1 on the true poses, which separates the
     // molding's own error from the tracker's.
     let true_shapes = if args.true_pose_shape {
@@ -417,7 +551,10 @@ fn capture_run(
         let est = sk
             .forward_kinematics(&result.poses.poses[t])?
             .joint_positions();
-        let tru = sk.forward_kinematics(&truth.theta)?.joint_positions();
+        let tru = performer
+            .skeleton
+            .forward_kinematics(&truth.theta)?
+            .joint_positions();
         joint.push(
             1e3 * est
                 .iter()
@@ -499,6 +636,86 @@ fn capture_run(
         sil_lbs,
         frame_time_s: motion.frame_time_s * FRAME_STEP as f64,
     })
+}
+
+/// The sizing's errors against the true performer's reference sizes
+/// ([`reference_sizes`]), over the limbs (bones between two joints).
+struct SizeScoring<'a> {
+    model: &'a EllipsoidModel,
+    reference: &'a EllipsoidState,
+}
+
+impl SizeScoring<'_> {
+    /// Mean bone length and half-width errors, mm, and per bone `{joint: [length, width]}`.
+    fn errors(
+        &self,
+        state: &EllipsoidState,
+    ) -> Result<(f64, f64, Value), Box<dyn std::error::Error>> {
+        let at_rest = |s: &EllipsoidState| EllipsoidState {
+            theta: self.model.skeleton().rest_pose(),
+            ..s.clone()
+        };
+        let scores = score_ellipsoids(self.model, &at_rest(state), &at_rest(self.reference))?;
+        let (fitted, truth) = (
+            self.model.bone_lengths(state),
+            self.model.bone_lengths(self.reference),
+        );
+        let sk = self.model.skeleton();
+        let mut per_bone = Map::new();
+        for (b, bone) in self.model.bones().iter().enumerate() {
+            if let Some(c) = bone.child {
+                per_bone.insert(
+                    sk.joints()[c].name.clone(),
+                    json!([
+                        1e3 * (fitted[b] - truth[b]),
+                        1e3 * (state.half_width[b] - self.reference.half_width[b])
+                    ]),
+                );
+            }
+        }
+        Ok((
+            scores.bone_length_error_mm,
+            scores.width_error_mm,
+            Value::Object(per_bone),
+        ))
+    }
+}
+
+/// A tracker run's mean joint error (mm, against the true performer's joints), silhouette
+/// error (%) and vertex RMS of the molded result (mm).
+fn tracker_scores(
+    embedding: &TemplateEmbedding,
+    performer: &Performer,
+    truths: &[FrameTruth],
+    masks: &[Vec<Mask>],
+    cameras: &[Camera],
+    result: &SequenceCapture,
+) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
+    let template = &embedding.template;
+    let (mut joint, mut sil, mut vertex) = (vec![], vec![], vec![]);
+    for (t, truth) in truths.iter().enumerate() {
+        let est = template
+            .skeleton()
+            .forward_kinematics(&result.poses.poses[t])?
+            .joint_positions();
+        let tru = performer
+            .skeleton
+            .forward_kinematics(&truth.theta)?
+            .joint_positions();
+        joint.push(
+            1e3 * mean(
+                &est.iter()
+                    .zip(&tru)
+                    .map(|(a, b)| a.distance(*b))
+                    .collect::<Vec<_>>(),
+            ),
+        );
+        let molded = template.mesh_with(result.shapes.frames[t].clone());
+        sil.push(mean(&silhouette_error_pct(&molded, cameras, &masks[t])?));
+        let true_v = embedding.truth(&truth.true_mesh(performer))?;
+        vertex.push(rms_mm(&molded.vertices, &true_v, None));
+    }
+    Ok((mean(&joint), mean(&sil), mean(&vertex)))
 }
 
 /// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
@@ -788,6 +1005,7 @@ fn editing(
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = Cli::parse();
+    args.auto_init |= args.auto_size;
     let quick = args.common.quick;
     args.true_pose_shape |= quick;
     let size = if quick { (480, 360) } else { (1600, 1200) };
@@ -867,6 +1085,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures.insert("user_constraints".into(), json!(0));
     if args.auto_init {
         figures.insert("first_pose".into(), json!("automatic"));
+    }
+    if args.auto_size {
+        figures.insert("proportions".into(), json!("sized"));
+        figures.insert("size_seed".into(), json!(args.size_seed));
     }
     figures.insert("skirt_runs".into(), json!(skirt_runs));
     figures.insert("peak_rss_mb".into(), json!(example_kit::peak_rss_mb()));

@@ -141,7 +141,9 @@ pub use silhouette_constraints::{
     SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
     DEFAULT_NORMAL_SCALE,
 };
-pub use sizing::{size_from_poses, size_performer, Sizing, SizingParams, SizingTracker};
+pub use sizing::{
+    reference_sizes, size_from_poses, size_performer, Sizing, SizingParams, SizingTracker,
+};
 pub use template::Template;
 pub use visual_hull::{
     ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,

@@ -33,8 +33,8 @@ use skin_core::check;
 use skin_core::skeleton::Skeleton;
 
 use crate::ellipsoid::{
-    fit_ellipsoids, fit_ellipsoids_multi, EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations,
-    EllipsoidParams, EllipsoidState,
+    fit_ellipsoids, fit_ellipsoids_multi, fit_half_width, EllipsoidModel, EllipsoidMultiFit,
+    EllipsoidObservations, EllipsoidParams, EllipsoidState,
 };
 use crate::error::{Context, Error, Result, ResultExt};
 use crate::initialise::{
@@ -309,10 +309,113 @@ pub fn size_from_poses(
     })
 }
 
+/// Reference sizes of a rigged template for scoring a sizing (Fua et al. Eq. 3 on the
+/// template's own limbs): per bone of `model`, the length scale that makes the model's bone
+/// the template skeleton's (`|offset| / L_b`; an end-site segment's from the end site), the
+/// half-length `½ s_b L_b`, and the half-width of Eq. 3 fitted ([`fit_half_width`]) to the
+/// template's nearly-rigid vertices ([`crate::Template::nearly_rigid`], weight ≥ 0.95) on the bone's
+/// parent joint — each assigned to the nearest of that joint's bones — at the rest pose. A
+/// bone without such vertices keeps `default_half_width_m`.
+///
+/// # Errors
+/// A template whose skeleton has another joint tree than the model's
+/// ([`Error::InvalidParam`]); errors of [`fit_half_width`].
+pub fn reference_sizes(
+    model: &EllipsoidModel,
+    template: &crate::Template,
+    default_half_width_m: f64,
+) -> Result<EllipsoidState> {
+    check::positive("default_half_width_m", default_half_width_m)?;
+    let (sk, default) = (template.skeleton(), model.skeleton());
+    let same_tree = sk.joint_count() == default.joint_count()
+        && sk
+            .joints()
+            .iter()
+            .zip(default.joints())
+            .all(|(a, b)| a.parent == b.parent);
+    if !same_tree {
+        return Err(Error::InvalidParam {
+            name: "template",
+            reason: "the template's skeleton must have the model's joint tree".into(),
+        });
+    }
+    let bones = model.bones();
+    let length_scale: Vec<f64> = bones
+        .iter()
+        .zip(model.default_lengths())
+        .map(|(bone, &l)| {
+            let j = &sk.joints()[bone.parent];
+            let v = match bone.child {
+                Some(c) => sk.joints()[c].offset,
+                None => j.end_site.unwrap_or_default(),
+            };
+            v.length() / l
+        })
+        .collect();
+    let mut state = EllipsoidState {
+        half_length: model
+            .default_lengths()
+            .iter()
+            .zip(&length_scale)
+            .map(|(l, s)| 0.5 * l * s)
+            .collect(),
+        length_scale,
+        half_width: vec![default_half_width_m; bones.len()],
+        ..model.initial_state(&sk.rest_pose(), default_half_width_m)?
+    };
+    let ellipsoids = model.ellipsoids(&state)?;
+    let mut points = vec![Vec::new(); bones.len()];
+    let vertices = &template.mesh().vertices;
+    for (v, joint) in template.nearly_rigid(0.95) {
+        let x = vertices[v];
+        let nearest = (0..bones.len())
+            .filter(|&b| bones[b].parent == joint)
+            .map(|b| {
+                let e = &ellipsoids[b];
+                let t = (x - e.centre).dot(e.axis).clamp(-e.half_bone, e.half_bone);
+                (b, x.distance(e.centre + e.axis * t))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((b, _)) = nearest {
+            points[b].push(x);
+        }
+    }
+    for (b, p) in points.iter().enumerate() {
+        if !p.is_empty() {
+            state.half_width[b] =
+                fit_half_width(model, &state, b, p).at(Context::Joint(bones[b].joint()))?;
+        }
+    }
+    Ok(state)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use skin_core::skeleton::{human_skeleton, HumanParams};
+
+    #[test]
+    fn reference_sizes_follow_the_template_skeleton() {
+        let t = crate::template::tests::bendy();
+        let model = EllipsoidModel::limbs(t.skeleton().clone(), 0.1).unwrap();
+        assert_eq!(model.bones().len(), 1);
+        let mut joints = t.skeleton().joints().to_vec();
+        joints[1].offset *= 1.2;
+        let longer = t.resized(Skeleton::new(joints).unwrap()).unwrap();
+        let r = reference_sizes(&model, &longer, 0.05).unwrap();
+        assert!((r.length_scale[0] - 1.2).abs() < 1e-12);
+        assert!((r.half_length[0] - 0.3).abs() < 1e-12);
+        // The root's rigid part is the lower half of an ellipsoid 0.15 m in radius.
+        assert!(
+            (0.05..0.16).contains(&r.half_width[0]),
+            "{}",
+            r.half_width[0]
+        );
+        let other =
+            EllipsoidModel::limbs(human_skeleton(&HumanParams::default()).unwrap(), 0.1).unwrap();
+        assert!(reference_sizes(&other, &longer, 0.05).is_err());
+        assert!(reference_sizes(&model, &longer, f64::NAN).is_err());
+    }
 
     #[test]
     fn bad_input_is_reported() {

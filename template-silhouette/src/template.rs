@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 use skin_core::math::{DAffine3, DVec3};
-use skin_core::mesh::{skin, EdgeTopology, SkinBinding, SkinWeights, TriMesh};
+use skin_core::mesh::{resize_rest, skin, EdgeTopology, SkinBinding, SkinWeights, TriMesh};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 use crate::error::{Error, Result};
@@ -145,32 +145,19 @@ impl Template {
     /// follows its joint and the limbs keep their cross-sections. Weights and loose vertices
     /// are kept.
     ///
+    /// The rule is skin-core's [`resize_rest`] (the studio's `Performer::with_bone_scales`
+    /// uses it too).
+    ///
     /// # Errors
-    /// [`Error::InvalidParam`] for a skeleton with another joint count or other parents; as
+    /// As [`resize_rest`] (a skeleton with another joint count or other parents); as
     /// [`Template::new`].
     pub fn resized(&self, skeleton: Skeleton) -> Result<Template> {
-        let (old, new) = (self.skeleton.joints(), skeleton.joints());
-        if old.len() != new.len() || old.iter().zip(new).any(|(a, b)| a.parent != b.parent) {
-            return Err(Error::InvalidParam {
-                name: "skeleton",
-                reason: format!(
-                    "the resized skeleton must have the template's joint tree ({} joints)",
-                    old.len()
-                ),
-            });
-        }
-        let rest = |sk: &Skeleton| -> Result<Vec<DAffine3>> {
-            Ok(sk
-                .forward_kinematics(&vec![0.0; sk.dof_count()])?
-                .world_from_joint()
-                .to_vec())
-        };
-        let moves: Vec<DAffine3> = rest(&self.skeleton)?
-            .iter()
-            .zip(rest(&skeleton)?)
-            .map(|(a, b)| b * a.inverse())
-            .collect();
-        let vertices = skin(&self.mesh.vertices, &self.weights, &moves)?;
+        let vertices = resize_rest(
+            &self.mesh.vertices,
+            &self.weights,
+            &self.skeleton,
+            &skeleton,
+        )?;
         let loose = self.loose.clone();
         Template::new(self.mesh_with(vertices), skeleton, self.weights.clone())?
             .with_loose_vertices(if loose.is_empty() {
@@ -296,10 +283,10 @@ pub(crate) mod tests {
         let other = Skeleton::new(t.skeleton().joints()[..1].to_vec()).unwrap();
         assert!(matches!(
             t.resized(other),
-            Err(Error::InvalidParam {
+            Err(Error::Core(skin_core::Error::InvalidParam {
                 name: "skeleton",
                 ..
-            })
+            }))
         ));
     }
 

@@ -53,7 +53,9 @@ pub use obj::{
 };
 pub use ply::{read_ply, read_ply_from_reader, write_ply, write_ply_to, PlyEncoding};
 pub use query::{ClosestPoint, MeshQuery, RayHit};
-pub use skinning::{skin, SkinBinding, SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW};
+pub use skinning::{
+    resize_rest, skin, SkinBinding, SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW,
+};
 pub use subdivide::{FaceRefinement, FinePoint, RefineParams, Refinement, DEFAULT_PHONG_ALPHA};
 pub use surface_point::{
     closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,

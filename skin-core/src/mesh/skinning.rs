@@ -277,6 +277,48 @@ pub fn skin(
         .collect())
 }
 
+/// A rest mesh rigged to `from` carried to `to`, the same joint tree with other bone lengths
+/// (a performer with other proportions, a template sized to one): each rest vertex moves with
+/// its skin weights' blend of the joints' rest-frame moves, i.e. linear blend skinning with
+/// `to_rest[j] · from_rest[j]⁻¹` (both skeletons at θ = 0). A vertex carried by one bone
+/// follows its joint, so the limbs keep their cross-sections and only their lengths change;
+/// vertices in a joint region blend the two joints' moves.
+///
+/// # Errors
+/// [`Error::InvalidParam`] for skeletons with other joint counts or other parents; as
+/// [`skin`] (weights of another mesh or skeleton, non-finite input); errors of forward
+/// kinematics.
+pub fn resize_rest(
+    rest: &[DVec3],
+    weights: &SkinWeights,
+    from: &Skeleton,
+    to: &Skeleton,
+) -> Result<Vec<DVec3>> {
+    let (a, b) = (from.joints(), to.joints());
+    if a.len() != b.len() || a.iter().zip(b).any(|(x, y)| x.parent != y.parent) {
+        return Err(Error::InvalidParam {
+            name: "skeleton",
+            reason: format!(
+                "the resized skeleton must have the same joint tree ({} joints, got {})",
+                a.len(),
+                b.len()
+            ),
+        });
+    }
+    let rest_frames = |sk: &Skeleton| -> Result<Vec<DAffine3>> {
+        Ok(sk
+            .forward_kinematics(&sk.rest_pose())?
+            .world_from_joint()
+            .to_vec())
+    };
+    let moves: Vec<DAffine3> = rest_frames(from)?
+        .iter()
+        .zip(rest_frames(to)?)
+        .map(|(a, b)| b * a.inverse())
+        .collect();
+    skin(rest, weights, &moves)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

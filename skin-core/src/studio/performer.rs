@@ -10,7 +10,7 @@ use super::garment::Garment;
 use super::texture::Material;
 use super::wrinkles::{FineSurface, WrinkleModel};
 use crate::math::{DAffine3, DVec3};
-use crate::mesh::{skin, SkinBinding, SkinWeights, TriMesh, UvLayout};
+use crate::mesh::{resize_rest, skin, SkinBinding, SkinWeights, TriMesh, UvLayout};
 use crate::skeleton::{ForwardKinematics, Motion, Skeleton};
 use crate::Result;
 use serde::{Deserialize, Serialize};
@@ -134,6 +134,77 @@ impl Performer {
             body_face_count,
             binding,
         })
+    }
+
+    /// This performer with other bone lengths: joint `j`'s offset from its parent scaled by
+    /// `factors[j]` (one factor per joint; the root's offset is its rest position, so its
+    /// factor is normally 1; end sites are kept). The body's rest mesh is re-rigged to the
+    /// scaled skeleton by [`resize_rest`] (each rest vertex moves with its skin weights'
+    /// blend of the joints' rest-frame moves: limbs keep their cross-sections), then the
+    /// deformation, garment and wrinkles are rebuilt on the new body from `params` as
+    /// [`Performer::new`] does (pass the parameters this performer was built with). The body's
+    /// texture coordinates are kept. All-ones factors give this performer back.
+    ///
+    /// # Errors
+    /// [`crate::Error::SizeMismatch`] unless there is one factor per joint;
+    /// [`crate::Error::InvalidParam`] for a factor that is not finite and positive (naming
+    /// the joint); as [`Performer::new`] and [`Performer::with_body_uvs`].
+    pub fn with_bone_scales(&self, factors: &[f64], params: &DeformationParams) -> Result<Self> {
+        crate::check::same_size(
+            "bone scale factors vs skeleton joints",
+            self.skeleton.joint_count(),
+            factors.len(),
+        )?;
+        let mut joints = self.skeleton.joints().to_vec();
+        for (joint, &f) in joints.iter_mut().zip(factors) {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(crate::Error::InvalidParam {
+                    name: "bone scale factor",
+                    reason: format!(
+                        "joint '{}': must be finite and positive, got {f}",
+                        joint.name
+                    ),
+                });
+            }
+            joint.offset *= f;
+        }
+        let skeleton = Skeleton::new(joints)?;
+        let (body, weights) = self.body()?;
+        let vertices = resize_rest(&body.vertices, &weights, &self.skeleton, &skeleton)?;
+        let body = TriMesh {
+            vertices,
+            faces: body.faces,
+        };
+        let resized = Performer::new(self.name.clone(), body, skeleton, weights, params)?;
+        match &self.uvs {
+            None => Ok(resized),
+            Some(uvs) => {
+                // The body's faces come first and use the first coordinates (`concat`).
+                let faces = uvs.faces[..self.body_face_count.min(uvs.faces.len())].to_vec();
+                let used = faces.iter().flatten().map(|&c| c as usize + 1).max();
+                let coords = uvs.coords[..used.unwrap_or(0).min(uvs.coords.len())].to_vec();
+                resized.with_body_uvs(UvLayout { coords, faces })
+            }
+        }
+    }
+
+    /// The body alone: the template's first vertices and faces (before a garment's) and their
+    /// skin weights, the rest mesh a performer is built from ([`Performer::new`]).
+    ///
+    /// # Errors
+    /// As [`SkinWeights::from_lists`] (not for a performer built by [`Performer::new`]).
+    pub fn body(&self) -> Result<(TriMesh, SkinWeights)> {
+        let mesh = TriMesh {
+            vertices: self.template.vertices[..self.body_vertex_count].to_vec(),
+            faces: self.template.faces[..self.body_face_count].to_vec(),
+        };
+        let lists: Vec<Vec<(u32, f64)>> = (0..self.body_vertex_count)
+            .map(|v| self.weights.influences(v).collect())
+            .collect();
+        Ok((
+            mesh,
+            SkinWeights::from_lists(&lists, self.weights.bone_count())?,
+        ))
     }
 
     /// The template's faces with `vertices` (e.g. [`PosedFrame::true_vertices`]): the posed
@@ -340,4 +411,176 @@ fn with_garment(
         .collect();
     let weights = SkinWeights::from_lists(&lists, weights.bone_count())?;
     Ok((mesh, weights))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{data, makehuman};
+    use super::super::{makehuman_performer, GarmentParams, SkirtParams};
+    use super::*;
+
+    fn ones(p: &Performer) -> Vec<f64> {
+        vec![1.0; p.skeleton.joint_count()]
+    }
+
+    #[test]
+    fn unit_bone_scales_give_the_same_performer() {
+        let p = makehuman();
+        let q = p
+            .with_bone_scales(&ones(p), &DeformationParams::default())
+            .unwrap();
+        // The same joints (Skeleton::new renormalises the DOF axes: equal to rounding).
+        for (a, b) in q.skeleton.joints().iter().zip(p.skeleton.joints()) {
+            assert!(a.name == b.name && a.parent == b.parent && a.offset == b.offset);
+            assert!(a.end_site == b.end_site && a.dofs.len() == b.dofs.len());
+            assert!(a
+                .dofs
+                .iter()
+                .zip(&b.dofs)
+                .all(|(x, y)| x.axis.distance(y.axis) < 1e-12 && x.limits == y.limits));
+        }
+        assert_eq!(q.template.faces, p.template.faces);
+        // The same texture coordinate at every face corner.
+        let corners = |p: &Performer| -> Vec<_> {
+            let uvs = p.uvs.as_ref().unwrap();
+            uvs.faces
+                .iter()
+                .flatten()
+                .map(|&c| uvs.coords[c as usize])
+                .collect()
+        };
+        assert_eq!(corners(&q), corners(p));
+        assert!(q
+            .template
+            .vertices
+            .iter()
+            .zip(&p.template.vertices)
+            .all(|(a, b)| a.distance(*b) < 1e-12));
+        for v in 0..p.vertex_count() {
+            let (a, b): (Vec<_>, Vec<_>) = (
+                p.weights.influences(v).collect(),
+                q.weights.influences(v).collect(),
+            );
+            assert_eq!(a.len(), b.len());
+            assert!(a
+                .iter()
+                .zip(&b)
+                .all(|(x, y)| x.0 == y.0 && (x.1 - y.1).abs() < 1e-12));
+        }
+    }
+
+    #[test]
+    fn a_longer_forearm_moves_the_hand_by_the_offset_change() {
+        let p = makehuman();
+        let sk = &p.skeleton;
+        let wrist = sk.joint_index("l_wrist").unwrap();
+        let mut factors = ones(p);
+        factors[wrist] = 1.1;
+        let q = p
+            .with_bone_scales(&factors, &DeformationParams::default())
+            .unwrap();
+        let change = sk.joints()[wrist].offset * 0.1;
+        assert!(change.length() > 0.02, "forearm {change}");
+        // The wrist's subtree: the wrist and its descendants.
+        let in_hand = |j: u32| {
+            let mut k = Some(j as usize);
+            while let Some(i) = k {
+                if i == wrist {
+                    return true;
+                }
+                k = sk.joints()[i].parent;
+            }
+            false
+        };
+        let (mut hand, mut rest) = (0, 0);
+        for v in 0..p.vertex_count() {
+            let moved = q.template.vertices[v] - p.template.vertices[v];
+            let carried: Vec<bool> = p.weights.influences(v).map(|(j, _)| in_hand(j)).collect();
+            if carried.iter().all(|&h| h) {
+                hand += 1;
+                assert!((moved - change).length() < 1e-9, "hand vertex {v}: {moved}");
+            } else if carried.iter().all(|&h| !h) {
+                rest += 1;
+                assert!(
+                    moved.length() < 1e-9,
+                    "vertex {v} off the hand moved {moved}"
+                );
+            }
+        }
+        assert!(
+            hand > 100 && rest > 1000,
+            "{hand} hand, {rest} other vertices"
+        );
+        // The new skeleton's wrist sits 10 % further from the elbow, and the rest pose still
+        // skins to the new template.
+        assert!(
+            (q.skeleton.joints()[wrist].offset - sk.joints()[wrist].offset * 1.1).length() < 1e-12
+        );
+        let posed = q
+            .pose(
+                &q.skeleton.rest_pose(),
+                &mut DeformationState::default(),
+                0.0,
+            )
+            .unwrap();
+        assert!(posed
+            .lbs_vertices
+            .iter()
+            .zip(&q.template.vertices)
+            .all(|(a, b)| a.distance(*b) < 1e-9));
+    }
+
+    #[test]
+    fn bad_bone_scales_are_refused() {
+        let p = makehuman();
+        let params = DeformationParams::default();
+        let e = p.with_bone_scales(&[1.0; 3], &params).unwrap_err();
+        assert!(matches!(e, crate::Error::SizeMismatch { .. }), "{e}");
+        for bad in [f64::NAN, 0.0, -1.0, f64::INFINITY] {
+            let mut f = ones(p);
+            f[5] = bad;
+            let e = p.with_bone_scales(&f, &params).unwrap_err();
+            assert!(
+                matches!(&e, crate::Error::InvalidParam { name: "bone scale factor", reason } if reason.contains(&p.skeleton.joints()[5].name)),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_skirted_performer_takes_other_bone_lengths() {
+        let params = DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default())));
+        let p = makehuman_performer(data("makehuman"), &params).unwrap();
+        let factors: Vec<f64> = (0..p.skeleton.joint_count())
+            .map(|j| {
+                if j == 0 {
+                    1.0
+                } else {
+                    0.9 + 0.2 * ((j * 7) % 10) as f64 / 10.0
+                }
+            })
+            .collect();
+        let q = p.with_bone_scales(&factors, &params).unwrap();
+        assert!(q.garment().is_some());
+        assert_eq!(q.body().unwrap().0.faces, p.body().unwrap().0.faces);
+        q.uvs.as_ref().unwrap().validate(&q.template).unwrap();
+        let posed = q
+            .pose(
+                &q.skeleton.rest_pose(),
+                &mut DeformationState::default(),
+                0.0,
+            )
+            .unwrap();
+        assert!(posed.true_vertices.iter().all(|v| v.is_finite()));
+        // The body is taller or shorter: the head moved.
+        let head = q.skeleton.joint_index("head").unwrap();
+        let rest = |s: &Skeleton| {
+            s.forward_kinematics(&s.rest_pose())
+                .unwrap()
+                .joint_positions()[head]
+        };
+        assert!(rest(&q.skeleton).distance(rest(&p.skeleton)) > 0.005);
+    }
 }
