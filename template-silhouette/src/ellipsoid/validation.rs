@@ -23,8 +23,8 @@
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
 use skin_core::markers::{track_markers, MarkerDetectParams};
-use skin_core::math::{DAffine3, DVec3};
-use skin_core::mesh::{skin, SkinWeights, TriMesh};
+use skin_core::math::DVec3;
+use skin_core::mesh::{resize_rest, SkinWeights, TriMesh};
 use skin_core::random::SplitMix64;
 use skin_core::raster::{Buffers, RenderParams};
 use skin_core::skeleton::Skeleton;
@@ -159,13 +159,6 @@ pub struct EllipsoidScores {
 /// Largest stretch of a triangle edge (posed / rest length) kept in the true mesh.
 const MAX_STRETCH: f64 = 1.5;
 
-fn rest_frames(sk: &Skeleton) -> Result<Vec<DAffine3>> {
-    Ok(sk
-        .forward_kinematics(&vec![0.0; sk.dof_count()])?
-        .world_from_joint()
-        .to_vec())
-}
-
 fn dominant(weights: &SkinWeights, i: usize) -> Option<u32> {
     weights
         .influences(i)
@@ -297,15 +290,8 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         }
     }
     let true_sk = Skeleton::new(joints)?;
-    let rest0 = rest_frames(&default_sk)?;
-    let rest1 = rest_frames(&true_sk)?;
-    let stretch: Vec<DAffine3> = rest0
-        .iter()
-        .zip(&rest1)
-        .map(|(a, b)| *b * a.inverse())
-        .collect();
     let weights = &adjacent_only(&performer.weights, &default_sk)?;
-    let rest_true = skin(&performer.template.vertices, weights, &stretch)?;
+    let rest_true = resize_rest(&performer.template.vertices, weights, &default_sk, &true_sk)?;
     let faces = performer.template.faces.clone();
     // Limb triangles: all three vertices carried by a modelled bone's joint.
     let limb_joint =
