@@ -45,8 +45,8 @@ fn taubin(mesh: &TriMesh, iters: usize) -> TriMesh {
                     if nb[i].is_empty() {
                         return v[i];
                     }
-                    let c = nb[i].iter().map(|&j| v[j as usize]).sum::<DVec3>()
-                        / nb[i].len() as f64;
+                    let c =
+                        nb[i].iter().map(|&j| v[j as usize]).sum::<DVec3>() / nb[i].len() as f64;
                     v[i] + lambda * (c - v[i])
                 })
                 .collect();
@@ -194,18 +194,25 @@ fn trace_normal_deviation_through_the_stages() {
         let f = rendered_normals(cam, &flat).unwrap();
         for i in 0..f.normals.len() {
             if f.valid[i] && exact[c].valid[i] {
-                flat_sum += f.normals[i].dot(exact[c].normals[i]).clamp(-1.0, 1.0).acos().to_degrees();
+                flat_sum += f.normals[i]
+                    .dot(exact[c].normals[i])
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees();
                 flat_n += 1;
             }
         }
     }
-    println!("TRACE true mesh: flat vs Phong normals, mean {:.2}° over {flat_n} px", flat_sum / flat_n as f64);
+    println!(
+        "TRACE true mesh: flat vs Phong normals, mean {:.2}° over {flat_n} px",
+        flat_sum / flat_n as f64
+    );
     ctx.merged("truth mesh (metric floor)", &out.surfaces, &mesh);
     ctx.per_view("per-view: true depth maps", &truths);
     ctx.per_view("per-view: hull proxy", &proxies);
     ctx.per_view("per-view: integrated (Eq. 3.3)", &out.integrated);
     ctx.per_view("per-view: offsets β=0.1 (default)", &out.surfaces);
-    let mut variants = vec![("β=0.1", out.surfaces.clone())];
+    let mut variants = vec![("β=0.1".to_string(), out.surfaces.clone())];
     let quick = std::env::var("TRACE_QUICK").is_ok();
     let betas: &[f64] = if quick { &[] } else { &[0.01, 0.001, 0.0001] };
     for &beta in betas {
@@ -224,9 +231,9 @@ fn trace_normal_deviation_through_the_stages() {
                 .depth
             })
             .collect();
-        let label = format!("per-view: offsets β={beta}");
-        ctx.per_view(&label, &s);
-        variants.push((if beta == 0.01 { "β=0.01" } else if beta == 0.001 { "β=0.001" } else { "β=0.0001" }, s));
+        let name = format!("β={beta}");
+        ctx.per_view(&format!("per-view: offsets {name}"), &s);
+        variants.push((name, s));
     }
     let merge = |surfaces: &[DepthMap], params: &MergeParams| {
         let inputs: Vec<MergeView> = cams

@@ -218,7 +218,10 @@ fn vertex_samples(
 
 /// The vertex figures from each vertex's most frontal sample: (samples, Σ deviation,
 /// Σ local deviation over edges whose ends were sampled by the same camera, edges).
-fn vertex_sums(best: &[Option<VertexSample>], edges: &[(usize, usize)]) -> (usize, f64, f64, usize) {
+fn vertex_sums(
+    best: &[Option<VertexSample>],
+    edges: &[(usize, usize)],
+) -> (usize, f64, f64, usize) {
     let (mut count, mut dev) = (0, 0.0);
     for s in best.iter().flatten() {
         count += 1;
@@ -352,7 +355,16 @@ pub fn table_metrics(
     for (c, (sums, covered, hit)) in per_camera.into_iter().enumerate() {
         s = s.add(sums);
         let tol = 0.5 * params.near_m;
-        let samples = vertex_samples(c, &cameras[c], &normals[c], &covered, &hit, mesh, &data, tol);
+        let samples = vertex_samples(
+            c,
+            &cameras[c],
+            &normals[c],
+            &covered,
+            &hit,
+            mesh,
+            &data,
+            tol,
+        );
         for (b, v) in best.iter_mut().zip(samples) {
             if let Some(v) = v {
                 if b.is_none_or(|b| v.cosine > b.cosine) {
