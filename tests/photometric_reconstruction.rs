@@ -225,7 +225,13 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         p2.0,
         p1.0
     );
+    // Table 3.1's deviations per vertex (the thesis's form; measured 12.1° and 3.1°) and on
+    // the pixel grid (10.6°, 4.0°). With exact normals the floor is the studio's: its
+    // normals are the Phong normals of a polygonal mesh, 7° from its facets on average.
     assert!(p2.0.normal_dev_deg < 15.0, "{:?}", p2.0);
+    assert!(p2.0.pixel_normal_dev_deg < 15.0, "{:?}", p2.0);
+    assert!(p2.0.local_normal_dev_deg < 5.0, "{:?}", p2.0);
+    assert!(p2.0.vertex_samples > 10_000, "{:?}", p2.0);
     // Bad input is an error, not a panic.
     assert!(reconstruct(&ring.cameras, &exact[..2], &hull, &pairs, &rparams).is_err());
     assert!(table_metrics(

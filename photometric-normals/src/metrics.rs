@@ -6,13 +6,24 @@
 //!
 //! * **coverage** — the percentage of measured normals whose pixel ray hits the mesh within
 //!   `near_m` of the view's own per-view surface (the normal "yielded an actual surface").
-//! * **normal deviation** — the mean angle between the mesh's normal and the measured normal
-//!   at the covered pixels.
+//! * **normal deviation** — per vertex, as the thesis: a camera *samples* a mesh vertex if
+//!   the vertex projects onto covered pixels (at least half of its bilinear footprint) and is
+//!   the surface the camera sees there (its distance to the camera within `near_m / 2` of
+//!   the rendered hit depth interpolated at its projection); the sample's *measured normal* is
+//!   the normal map interpolated bilinearly over the covered pixels, its *mesh normal* the
+//!   area-weighted vertex normal turned toward the camera. Each vertex keeps the sample of
+//!   the camera that sees it most frontally (largest cosine between mesh normal and line of
+//!   sight); the figure is the mean angle between mesh and measured normal over the sampled
+//!   vertices.
 //! * **local normal deviation** — thesis: "the angle between a vertex and its neighbors is
 //!   compared to the angle between the measured normal for that vertex and the measured
-//!   normals for the neighbors". Here per pixel: for each covered pixel and each of its right
-//!   and lower neighbours that is covered too, |∠(n_mesh(p), n_mesh(q)) −
-//!   ∠(n_meas(p), n_meas(q))|, averaged over all such pairs (degrees).
+//!   normals for the neighbors": for each mesh edge (u, v) whose ends were both sampled by
+//!   the same camera, |∠(n_mesh(u), n_mesh(v)) − ∠(n_meas(u), n_meas(v))|, averaged over
+//!   those edges (degrees).
+//! * the **pixel variants** (`pixel_*`, kept for comparison): the same two figures on the
+//!   pixel grid — the rendered mesh's (Phong) normal against the measured normal at every
+//!   covered pixel, and the local figure over each covered pixel's right and lower covered
+//!   neighbours.
 //!
 //! Beyond the thesis: [`surface_distance`] to a true mesh, and [`displacement_survival`], the
 //! share of a known relief (the studio's wrinkles) a reconstruction keeps.
@@ -51,18 +62,182 @@ pub struct TableMetrics {
     pub covered_px: usize,
     /// `100 · covered / measured`.
     pub coverage_pct: f64,
-    /// Mean angle between the mesh's and the measured normals at covered pixels, degrees.
+    /// Mesh vertices sampled by some camera (see the module docs), each once.
+    pub vertex_samples: usize,
+    /// Mean angle between each sampled vertex's normal and the measured normal interpolated
+    /// at its projection, degrees (the thesis's vertex form; see the module docs).
     pub normal_dev_deg: f64,
-    /// Mean local normal deviation (see the module docs), degrees.
+    /// Mean local normal deviation over the mesh's edges (vertex neighbourhoods, as the
+    /// thesis defines it; see the module docs), degrees.
     pub local_normal_dev_deg: f64,
+    /// Pixel variant of `normal_dev_deg`: mean angle between the rendered mesh's and the
+    /// measured normals at covered pixels, degrees.
+    pub pixel_normal_dev_deg: f64,
+    /// Pixel variant of `local_normal_dev_deg`: over right/lower neighbouring covered
+    /// pixels, degrees.
+    pub pixel_local_normal_dev_deg: f64,
 }
 
 fn angle_deg(a: DVec3, b: DVec3) -> f64 {
     a.dot(b).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
-/// Sums of one camera: (measured, covered, Σ deviation, Σ local deviation, local pairs).
-type Sums = (usize, usize, f64, f64, usize);
+/// Sums of one camera: pixel (measured, covered, Σ deviation, Σ local deviation, local
+/// pairs) and vertex (samples, Σ deviation, Σ local deviation, local pairs).
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    measured: usize,
+    covered: usize,
+    dev: f64,
+    local: f64,
+    pairs: usize,
+    v_samples: usize,
+    v_dev: f64,
+    v_local: f64,
+    v_pairs: usize,
+}
+
+impl Sums {
+    fn add(self, o: Self) -> Self {
+        Self {
+            measured: self.measured + o.measured,
+            covered: self.covered + o.covered,
+            dev: self.dev + o.dev,
+            local: self.local + o.local,
+            pairs: self.pairs + o.pairs,
+            v_samples: self.v_samples + o.v_samples,
+            v_dev: self.v_dev + o.v_dev,
+            v_local: self.v_local + o.v_local,
+            v_pairs: self.v_pairs + o.v_pairs,
+        }
+    }
+}
+
+/// The mesh's shared data for the vertex variant: vertex normals and unique edges.
+struct VertexData {
+    normals: Vec<DVec3>,
+    edges: Vec<(usize, usize)>,
+}
+
+impl VertexData {
+    fn new(mesh: &TriMesh) -> Result<Self> {
+        let normals = vertex_normals(mesh, NormalWeighting::Area)?;
+        let mut edges: Vec<(usize, usize)> = mesh
+            .faces
+            .iter()
+            .flat_map(|f| {
+                (0..3).map(move |k| {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    (a.min(b), a.max(b))
+                })
+            })
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        Ok(Self { normals, edges })
+    }
+}
+
+/// One vertex seen by one camera: mesh normal and measured normal (camera frame) and the
+/// cosine between the mesh normal and the line of sight.
+#[derive(Debug, Clone, Copy)]
+struct VertexSample {
+    camera: usize,
+    mesh: DVec3,
+    measured: DVec3,
+    cosine: f64,
+}
+
+/// The vertex variant in one camera: every mesh vertex that projects onto a covered pixel
+/// and is the surface the camera sees there (its distance to the camera within `tol_m` of
+/// the rendered hit depth interpolated at its projection) gets the measured normal
+/// interpolated bilinearly from the covered pixels around its projection; its mesh normal is
+/// its vertex normal in the camera frame, turned toward the camera.
+#[allow(clippy::too_many_arguments)]
+fn vertex_samples(
+    c: usize,
+    camera: &Camera,
+    normals: &NormalMap,
+    covered: &[bool],
+    hit: &DepthMap,
+    mesh: &TriMesh,
+    data: &VertexData,
+    tol_m: f64,
+) -> Vec<Option<VertexSample>> {
+    let (w, h) = (hit.width as usize, hit.height as usize);
+    let from_world = camera.camera_from_world();
+    let centre = camera.centre();
+    let sample = |p: DVec3, n: DVec3| -> Option<VertexSample> {
+        let px = camera.project(p).ok()?;
+        let (x0, y0) = (px.x.floor(), px.y.floor());
+        if !(x0 >= -1.0 && y0 >= -1.0 && x0 < w as f64 && y0 < h as f64) {
+            return None;
+        }
+        let (fx, fy) = (px.x - x0, px.y - y0);
+        let (mut m, mut depth, mut wsum) = (DVec3::ZERO, 0.0, 0.0);
+        for (dx, dy, wt) in [
+            (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
+            (1.0, 0.0, fx * (1.0 - fy)),
+            (0.0, 1.0, (1.0 - fx) * fy),
+            (1.0, 1.0, fx * fy),
+        ] {
+            let (x, y) = (x0 + dx, y0 + dy);
+            if x < 0.0 || y < 0.0 || x >= w as f64 || y >= h as f64 {
+                continue;
+            }
+            let i = y as usize * w + x as usize;
+            if covered[i] {
+                m += wt * normals.normals[i];
+                depth += wt * hit.depth_m[i];
+                wsum += wt;
+            }
+        }
+        // Most of the bilinear footprint must be covered, and the vertex must be the
+        // surface seen there (not one hidden just behind it).
+        if wsum < 0.5 || ((p - centre).length() - depth / wsum).abs() > tol_m {
+            return None;
+        }
+        let measured = m.try_normalize()?;
+        let p_cam = from_world.transform_point3(p);
+        let n = from_world.transform_vector3(n).try_normalize()?;
+        let n = if n.dot(p_cam) > 0.0 { -n } else { n };
+        let cosine = -n.dot(p_cam.try_normalize()?);
+        Some(VertexSample {
+            camera: c,
+            mesh: n,
+            measured,
+            cosine,
+        })
+    };
+    mesh.vertices
+        .par_iter()
+        .zip(&data.normals)
+        .map(|(&p, &n)| sample(p, n))
+        .collect()
+}
+
+/// The vertex figures from each vertex's most frontal sample: (samples, Σ deviation,
+/// Σ local deviation over edges whose ends were sampled by the same camera, edges).
+fn vertex_sums(
+    best: &[Option<VertexSample>],
+    edges: &[(usize, usize)],
+) -> (usize, f64, f64, usize) {
+    let (mut count, mut dev) = (0, 0.0);
+    for s in best.iter().flatten() {
+        count += 1;
+        dev += angle_deg(s.mesh, s.measured);
+    }
+    let (mut local, mut pairs) = (0.0, 0);
+    for &(a, b) in edges {
+        if let (Some(u), Some(v)) = (best[a], best[b]) {
+            if u.camera == v.camera {
+                local += (angle_deg(u.mesh, v.mesh) - angle_deg(u.measured, v.measured)).abs();
+                pairs += 1;
+            }
+        }
+    }
+    (count, dev, local, pairs)
+}
 
 fn camera_sums(
     camera: &Camera,
@@ -71,7 +246,7 @@ fn camera_sums(
     surface: &DepthMap,
     mesh: &TriMesh,
     params: &MetricParams,
-) -> Result<Sums> {
+) -> Result<(Sums, Vec<bool>, DepthMap)> {
     surface.check_camera(camera)?;
     let (w, h) = (surface.width, surface.height);
     check::same_size(
@@ -127,7 +302,15 @@ fn camera_sums(
             }
         }
     }
-    Ok((measured, n_cov, dev, local, pairs))
+    let sums = Sums {
+        measured,
+        covered: n_cov,
+        dev,
+        local,
+        pairs,
+        ..Sums::default()
+    };
+    Ok((sums, covered, hit))
 }
 
 /// Table 3.1's coverage, normal deviation and local normal deviation of `mesh` against the
@@ -151,7 +334,8 @@ pub fn table_metrics(
     check::same_size("silhouettes per camera", n, silhouettes.len())?;
     check::same_size("surfaces per camera", n, surfaces.len())?;
     check::positive("near_m", params.near_m)?;
-    let sums = (0..n)
+    let data = VertexData::new(mesh)?;
+    let per_camera = (0..n)
         .into_par_iter()
         .map(|c| {
             camera_sums(
@@ -164,10 +348,33 @@ pub fn table_metrics(
             )
             .at(Context::Camera(c))
         })
-        .collect::<Result<Vec<Sums>>>()?;
-    let (m, c, d, l, p) = sums.iter().fold((0, 0, 0.0, 0.0, 0), |a, s| {
-        (a.0 + s.0, a.1 + s.1, a.2 + s.2, a.3 + s.3, a.4 + s.4)
-    });
+        .collect::<Result<Vec<_>>>()?;
+    // Each vertex's measured normal from the camera that sees it most frontally.
+    let mut best: Vec<Option<VertexSample>> = vec![None; mesh.vertices.len()];
+    let mut s = Sums::default();
+    for (c, (sums, covered, hit)) in per_camera.into_iter().enumerate() {
+        s = s.add(sums);
+        let tol = 0.5 * params.near_m;
+        let samples = vertex_samples(
+            c,
+            &cameras[c],
+            &normals[c],
+            &covered,
+            &hit,
+            mesh,
+            &data,
+            tol,
+        );
+        for (b, v) in best.iter_mut().zip(samples) {
+            if let Some(v) = v {
+                if b.is_none_or(|b| v.cosine > b.cosine) {
+                    *b = Some(v);
+                }
+            }
+        }
+    }
+    (s.v_samples, s.v_dev, s.v_local, s.v_pairs) = vertex_sums(&best, &data.edges);
+    let (m, c) = (s.measured, s.covered);
     if m == 0 {
         return Err(Error::Empty {
             what: "measured normals inside the silhouettes",
@@ -182,8 +389,23 @@ pub fn table_metrics(
         measured_px: m,
         covered_px: c,
         coverage_pct: 100.0 * c as f64 / m as f64,
-        normal_dev_deg: d / c as f64,
-        local_normal_dev_deg: if p > 0 { l / p as f64 } else { f64::NAN },
+        vertex_samples: s.v_samples,
+        normal_dev_deg: if s.v_samples > 0 {
+            s.v_dev / s.v_samples as f64
+        } else {
+            f64::NAN
+        },
+        local_normal_dev_deg: if s.v_pairs > 0 {
+            s.v_local / s.v_pairs as f64
+        } else {
+            f64::NAN
+        },
+        pixel_normal_dev_deg: s.dev / c as f64,
+        pixel_local_normal_dev_deg: if s.pairs > 0 {
+            s.local / s.pairs as f64
+        } else {
+            f64::NAN
+        },
     })
 }
 

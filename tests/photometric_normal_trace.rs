@@ -1,0 +1,271 @@
+//! Trace of Table 3.1's normal deviation through the stages of §3.3 with the exact-normal
+//! control (issue 14): where are the degrees lost? Ignored by default (a diagnostic, not a
+//! check): `TRACE_SIZE=512 cargo test --release --test photometric_normal_trace -- --ignored
+//! --nocapture`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
+
+use std::time::Instant;
+
+use dynamic_shapes::core::camera::{Camera, Rig};
+use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams, RenderedView};
+use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
+use dynamic_shapes::photometric::{
+    depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
+    surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
+    MetricParams, NormalMap, OffsetParams, SurfaceParams, VisualHull, VisualHullParams,
+};
+
+const CAMERAS: usize = 8;
+
+fn render(camera: &Camera, mesh: &TriMesh) -> RenderedView {
+    Rasterizer::new(camera)
+        .render(mesh, &RenderParams::default().with_cull_back_faces(false))
+        .unwrap()
+}
+
+/// Taubin λ|μ smoothing (no shrinkage), `iters` pairs of steps.
+fn taubin(mesh: &TriMesh, iters: usize) -> TriMesh {
+    let n = mesh.vertices.len();
+    let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for f in &mesh.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            nb[a as usize].push(b);
+            nb[b as usize].push(a);
+        }
+    }
+    let mut v = mesh.vertices.clone();
+    for _ in 0..iters {
+        for lambda in [0.5, -0.53] {
+            let next: Vec<DVec3> = (0..n)
+                .map(|i| {
+                    if nb[i].is_empty() {
+                        return v[i];
+                    }
+                    let c =
+                        nb[i].iter().map(|&j| v[j as usize]).sum::<DVec3>() / nb[i].len() as f64;
+                    v[i] + lambda * (c - v[i])
+                })
+                .collect();
+            v = next;
+        }
+    }
+    TriMesh {
+        vertices: v,
+        faces: mesh.faces.clone(),
+    }
+}
+
+struct Ctx<'a> {
+    cams: &'a [Camera],
+    normals: &'a [NormalMap],
+    sil: &'a [Mask],
+    truth: &'a TriMesh,
+}
+
+impl Ctx<'_> {
+    /// Table 3.1 of `mesh` against all cameras with `surfaces` gating coverage.
+    fn merged(&self, label: &str, surfaces: &[DepthMap], mesh: &TriMesh) {
+        let t = table_metrics(
+            self.cams,
+            self.normals,
+            self.sil,
+            surfaces,
+            mesh,
+            &MetricParams::default(),
+        )
+        .unwrap();
+        let d = surface_distance(mesh, self.truth).unwrap();
+        println!(
+            "TRACE {label:<44} cov {:5.1} %  vertex dev {:5.2}° local {:5.2}°  pixel dev {:5.2}° local {:5.2}° | truth median {:5.2} p95 {:6.1} mm",
+            t.coverage_pct, t.normal_dev_deg, t.local_normal_dev_deg, t.pixel_normal_dev_deg,
+            t.pixel_local_normal_dev_deg, d.median_mm, d.p95_mm
+        );
+    }
+
+    /// Each per-view surface meshed and scored in its own camera, pooled.
+    fn per_view(&self, label: &str, surfaces: &[DepthMap]) {
+        let (mut cov, mut meas, mut dev, mut local) = (0.0, 0.0, 0.0, 0.0);
+        let mut dist = Vec::new();
+        for c in 0..self.cams.len() {
+            let jump = IntegrationParams::jump_threshold_m(0.02, surfaces[c].width);
+            let mesh = depth_map_mesh(&self.cams[c], &surfaces[c], jump).unwrap();
+            let t = table_metrics(
+                &self.cams[c..=c],
+                &self.normals[c..=c],
+                &self.sil[c..=c],
+                &surfaces[c..=c],
+                &mesh,
+                &MetricParams::default(),
+            )
+            .unwrap();
+            let k = t.covered_px as f64;
+            cov += k;
+            meas += t.measured_px as f64;
+            dev += t.pixel_normal_dev_deg * k;
+            local += t.pixel_local_normal_dev_deg * k;
+            dist.extend(surface_distance(&mesh, self.truth).unwrap().per_vertex_mm);
+        }
+        dist.sort_by(f64::total_cmp);
+        println!(
+            "TRACE {label:<44} cov {:5.1} %  dev {:5.2}°  local {:5.2}°  | truth median {:5.2} p95 {:6.1} mm",
+            100.0 * cov / meas,
+            dev / cov,
+            local / cov,
+            dist[dist.len() / 2],
+            dist[dist.len() * 95 / 100]
+        );
+    }
+}
+
+#[test]
+#[ignore = "diagnostic trace, minutes at 512²"]
+fn trace_normal_deviation_through_the_stages() {
+    let size: u32 = std::env::var("TRACE_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(512);
+    let t0 = Instant::now();
+    let scene = StudioScene::new(
+        example_kit::data_path("makehuman").unwrap(),
+        &skirt_subject(),
+        CAMERAS,
+        size,
+    )
+    .unwrap();
+    let frame = scene
+        .capture(
+            scene
+                .capture_spec(Rig {
+                    cameras: scene.ring.cameras[..1].to_vec(),
+                })
+                .unwrap(),
+        )
+        .unwrap();
+    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let cams = &scene.ring.cameras;
+    let views: Vec<RenderedView> = cams.iter().map(|c| render(c, &mesh)).collect();
+    let sil: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
+    let truths: Vec<DepthMap> = views
+        .iter()
+        .map(|v| DepthMap::from_view(v).unwrap())
+        .collect();
+    let exact: Vec<NormalMap> = cams
+        .iter()
+        .zip(&views)
+        .map(|(c, v)| rendered_normals(c, v).unwrap())
+        .collect();
+    let hull = VisualHull::new(cams, &sil).unwrap();
+    let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
+    let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
+    println!("TRACE setup {:.1} s at {size}²", t0.elapsed().as_secs_f64());
+    let t = Instant::now();
+    let out = per_view_surfaces(
+        cams,
+        &exact,
+        &proxies,
+        &pairs,
+        Some(&hull),
+        &SurfaceParams::default(),
+    )
+    .unwrap();
+    println!("TRACE per-view {:.1} s", t.elapsed().as_secs_f64());
+    let ctx = Ctx {
+        cams,
+        normals: &exact,
+        sil: &sil,
+        truth: &mesh,
+    };
+    // The exact normals are the rasteriser's Phong normals of the polygonal true mesh; its
+    // geometric (flat) normals differ from them by this much.
+    let (mut flat_sum, mut flat_n) = (0.0, 0usize);
+    for (c, cam) in cams.iter().enumerate() {
+        let flat = Rasterizer::new(cam)
+            .render(
+                &mesh,
+                &RenderParams::default()
+                    .with_cull_back_faces(false)
+                    .with_normals(NormalMode::Flat),
+            )
+            .unwrap();
+        let f = rendered_normals(cam, &flat).unwrap();
+        for i in 0..f.normals.len() {
+            if f.valid[i] && exact[c].valid[i] {
+                flat_sum += f.normals[i]
+                    .dot(exact[c].normals[i])
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees();
+                flat_n += 1;
+            }
+        }
+    }
+    println!(
+        "TRACE true mesh: flat vs Phong normals, mean {:.2}° over {flat_n} px",
+        flat_sum / flat_n as f64
+    );
+    ctx.merged("truth mesh (metric floor)", &out.surfaces, &mesh);
+    ctx.per_view("per-view: true depth maps", &truths);
+    ctx.per_view("per-view: hull proxy", &proxies);
+    ctx.per_view("per-view: integrated (Eq. 3.3)", &out.integrated);
+    ctx.per_view("per-view: offsets β=0.1 (default)", &out.surfaces);
+    let mut variants = vec![("β=0.1".to_string(), out.surfaces.clone())];
+    let quick = std::env::var("TRACE_QUICK").is_ok();
+    let betas: &[f64] = if quick { &[] } else { &[0.01, 0.001, 0.0001] };
+    for &beta in betas {
+        let s: Vec<DepthMap> = (0..CAMERAS)
+            .map(|c| {
+                let refs: Vec<&DepthMap> = out.matched[c].iter().collect();
+                depth_offsets(
+                    &out.integrated[c],
+                    &refs,
+                    &OffsetParams {
+                        beta,
+                        ..OffsetParams::default()
+                    },
+                )
+                .unwrap()
+                .depth
+            })
+            .collect();
+        let name = format!("β={beta}");
+        ctx.per_view(&format!("per-view: offsets {name}"), &s);
+        variants.push((name, s));
+    }
+    let merge = |surfaces: &[DepthMap], params: &MergeParams| {
+        let inputs: Vec<MergeView> = cams
+            .iter()
+            .zip(surfaces)
+            .map(|(c, d)| MergeView::new(c, d))
+            .collect();
+        merge_views(&inputs, params).unwrap().mesh
+    };
+    let t = Instant::now();
+    let m_truth = merge(&truths, &MergeParams::default());
+    println!("TRACE merge {:.1} s", t.elapsed().as_secs_f64());
+    ctx.merged("merged true depths, 2 mm", &truths, &m_truth);
+    ctx.merged("  + Taubin 3", &truths, &taubin(&m_truth, 3));
+    if !quick {
+        let m_truth1 = merge(&truths, &MergeParams::default().with_voxel_m(0.001));
+        ctx.merged("merged true depths, 1 mm", &truths, &m_truth1);
+    }
+    for (label, s) in &variants {
+        let m = merge(s, &MergeParams::default());
+        ctx.merged(&format!("merged offsets {label}"), s, &m);
+        ctx.merged(&format!("  + Taubin 3 {label}"), s, &taubin(&m, 3));
+        ctx.merged(
+            &format!("  merged uniform weights {label}"),
+            s,
+            &merge(s, &MergeParams::default().with_uniform_weights(true)),
+        );
+        ctx.merged(
+            &format!("  merged ramp 2 cm {label}"),
+            s,
+            &merge(s, &MergeParams::default().with_ramp_m(0.02)),
+        );
+    }
+    println!("TRACE total {:.1} s", t0.elapsed().as_secs_f64());
+}
