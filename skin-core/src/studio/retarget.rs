@@ -215,10 +215,11 @@ pub struct RetargetParams {
     /// slew-limited (the joint catches up at this rate) while the bone's direction (the swing)
     /// stays the source's exactly. Meant for captures whose twist about a nearly straight limb
     /// is poorly determined: CMU 131_01 twists the right humerus at 34 rad/s for 0.1 s as the
-    /// elbow extends (frames 228–238), faster than body-worn gyroscopes measure. Children
-    /// keep their desired world rotations, so a 3-DOF child is unaffected and a 1-/2-DOF
-    /// child (the elbow) absorbs the difference as far as its DOFs allow. Default: `None`
-    /// (rotations as captured).
+    /// elbow extends (frames 228–238), faster than body-worn gyroscopes measure. The
+    /// correction (a rotation about the bone) is applied to the descendants too, so their
+    /// rotations relative to the bone stay the source's (the limb below turns with the
+    /// limited twist: the forearm no longer spins at 34 rad/s, the hand moves off the
+    /// source's during the limited frames). Default: `None` (rotations as captured).
     pub twist_rate_limit_rad_per_s: Option<f64>,
 }
 
@@ -493,6 +494,7 @@ pub fn retarget(
     let mut frames = DMatrix::zeros(target.dof_count(), n);
     let mut src_fk = crate::skeleton::ForwardKinematics::new(source);
     let mut achieved = vec![DMat3::IDENTITY; target.joint_count()];
+    let mut twist_fix: Vec<Option<DMat3>> = vec![None; target.joint_count()];
     for k in 0..n {
         source.forward_kinematics_into(motion.frame(k), &mut src_fk)?;
         let w = src_fk.world_from_joint();
@@ -501,18 +503,30 @@ pub fn retarget(
             let parent = target.joints()[j]
                 .parent
                 .map_or(DMat3::IDENTITY, |p| achieved[p]);
+            // The twist corrections of the ancestors, as one world-frame rotation (`None`: no
+            // correction, so unfiltered joints stay bit for bit the plain retarget's).
+            let inherited = target.joints()[j].parent.and_then(|p| twist_fix[p]);
             let mut desired = match src_of[j] {
-                Some(s) => g * w[s].matrix3 * g.transpose() * correction[j],
+                Some(s) => {
+                    let d = g * w[s].matrix3 * g.transpose() * correction[j];
+                    inherited.map_or(d, |c| c * d)
+                }
                 None => parent,
             };
+            twist_fix[j] = inherited;
             // Twist filter: the twist about the bone between the previous frame's achieved
-            // rotation and this one's, slew-limited; the bone direction `desired · u` is kept.
+            // rotation and this one's, slew-limited; the bone direction `desired · u` is kept,
+            // and the correction (a rotation about the bone) carries on to the descendants so
+            // that their rotations relative to this bone stay the source's.
             if let (Some(u), true) = (twist_axis[j], k > 0) {
                 let step = decompose(achieved[j].transpose() * desired, &[u])
                     .and_then(|t| t.first().copied())
                     .unwrap_or(0.0);
                 if step.abs() > max_twist {
-                    desired *= DMat3::from_axis_angle(u, step.clamp(-max_twist, max_twist) - step);
+                    let fix = DMat3::from_axis_angle(u, step.clamp(-max_twist, max_twist) - step);
+                    let world_fix = desired * fix * desired.transpose();
+                    desired *= fix;
+                    twist_fix[j] = Some(inherited.map_or(world_fix, |c| world_fix * c));
                 }
             }
             let axes: Vec<DVec3> = rot_dofs[j].iter().map(|&d| target.dof(d).axis).collect();

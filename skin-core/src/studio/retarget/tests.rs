@@ -518,6 +518,16 @@ fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
         before > 30.0 && after < limit + 7.0,
         "{before} → {after} rad/s"
     );
+    // The forearm turns with the limited humerus (34.7 rad/s in the source).
+    let e = target.joint_index("r_elbow").unwrap();
+    let (fore_before, fore_after) = (
+        max(&world_speeds(&target, &plain.motion, e)),
+        max(&world_speeds(&target, &limited.motion, e)),
+    );
+    assert!(
+        fore_before > 30.0 && fore_after < 20.0,
+        "forearm {fore_before} → {fore_after} rad/s"
+    );
     // The humerus direction is the source's exactly, in every frame.
     let arm = bone_angles(
         &bvh.skeleton,
