@@ -563,3 +563,39 @@ fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
         .is_err());
     }
 }
+
+/// Trace (run with `--ignored --nocapture`): the fastest DOF rates of the twist-limited walk.
+#[test]
+#[ignore]
+fn trace_dof_rates_of_the_limited_walk() {
+    let bvh = cmu_walk();
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let out = retarget(
+        &bvh.skeleton,
+        &bvh.motion,
+        &target,
+        &JointMap::cmu(),
+        &RetargetParams {
+            twist_rate_limit_rad_per_s: Some(10.0),
+            ..RetargetParams::default()
+        },
+    )
+    .unwrap();
+    let m = &out.motion;
+    let mut rates: Vec<(f64, usize, usize)> = (0..target.dof_count())
+        .filter(|&d| target.is_rotation(d))
+        .map(|d| {
+            (1..m.frame_count())
+                .map(|f| {
+                    let step = m.frames[(d, f)] - m.frames[(d, f - 1)];
+                    let step = step - std::f64::consts::TAU * (step / std::f64::consts::TAU).round();
+                    (step.abs() / m.frame_time_s, d, f)
+                })
+                .fold((0.0, d, 0), |a, b| if b.0 > a.0 { b } else { a })
+        })
+        .collect();
+    rates.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for (r, d, f) in rates.iter().take(10) {
+        println!("{}: {r:.1} rad/s at frame {f}", target.dof(*d).name);
+    }
+}
