@@ -588,7 +588,8 @@ fn trace_dof_rates_of_the_limited_walk() {
             (1..m.frame_count())
                 .map(|f| {
                     let step = m.frames[(d, f)] - m.frames[(d, f - 1)];
-                    let step = step - std::f64::consts::TAU * (step / std::f64::consts::TAU).round();
+                    let step =
+                        step - std::f64::consts::TAU * (step / std::f64::consts::TAU).round();
                     (step.abs() / m.frame_time_s, d, f)
                 })
                 .fold((0.0, d, 0), |a, b| if b.0 > a.0 { b } else { a })
