@@ -415,6 +415,24 @@ fn cmu_walk() -> crate::skeleton::Bvh {
     .unwrap()
 }
 
+/// The CMU walk retargeted onto `target` with the given twist rate limit.
+fn retarget_walk(
+    bvh: &crate::skeleton::Bvh,
+    target: &Skeleton,
+    twist: Option<f64>,
+) -> Result<Retargeted> {
+    retarget(
+        &bvh.skeleton,
+        &bvh.motion,
+        target,
+        &JointMap::cmu(),
+        &RetargetParams {
+            twist_rate_limit_rad_per_s: twist,
+            ..RetargetParams::default()
+        },
+    )
+}
+
 const BONES: [(&str, &str); 8] = [
     ("LeftShoulder", "l_shoulder"),
     ("RightShoulder", "r_shoulder"),
@@ -434,14 +452,7 @@ const BONES: [(&str, &str); 8] = [
 fn retarget_adds_no_angular_velocity_on_the_cmu_walk() {
     let bvh = cmu_walk();
     let target = human_skeleton(&HumanParams::default()).unwrap();
-    let out = retarget(
-        &bvh.skeleton,
-        &bvh.motion,
-        &target,
-        &JointMap::cmu(),
-        &RetargetParams::default(),
-    )
-    .unwrap();
+    let out = retarget_walk(&bvh, &target, None).unwrap();
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
     for (sn, tn) in BONES {
         let a = world_speeds(
@@ -495,19 +506,7 @@ fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
     let bvh = cmu_walk();
     let target = human_skeleton(&HumanParams::default()).unwrap();
     let limit = 10.0;
-    let run = |twist| {
-        retarget(
-            &bvh.skeleton,
-            &bvh.motion,
-            &target,
-            &JointMap::cmu(),
-            &RetargetParams {
-                twist_rate_limit_rad_per_s: twist,
-                ..RetargetParams::default()
-            },
-        )
-        .unwrap()
-    };
+    let run = |twist| retarget_walk(&bvh, &target, twist).unwrap();
     let (plain, limited) = (run(None), run(Some(limit)));
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
     let r = target.joint_index("r_shoulder").unwrap();
@@ -550,17 +549,7 @@ fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
     }
     // No limit below zero or NaN.
     for bad in [0.0, -1.0, f64::NAN] {
-        assert!(retarget(
-            &bvh.skeleton,
-            &bvh.motion,
-            &target,
-            &JointMap::cmu(),
-            &RetargetParams {
-                twist_rate_limit_rad_per_s: Some(bad),
-                ..RetargetParams::default()
-            },
-        )
-        .is_err());
+        assert!(retarget_walk(&bvh, &target, Some(bad)).is_err());
     }
 }
 
@@ -570,17 +559,7 @@ fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
 fn trace_dof_rates_of_the_limited_walk() {
     let bvh = cmu_walk();
     let target = human_skeleton(&HumanParams::default()).unwrap();
-    let out = retarget(
-        &bvh.skeleton,
-        &bvh.motion,
-        &target,
-        &JointMap::cmu(),
-        &RetargetParams {
-            twist_rate_limit_rad_per_s: Some(10.0),
-            ..RetargetParams::default()
-        },
-    )
-    .unwrap();
+    let out = retarget_walk(&bvh, &target, Some(10.0)).unwrap();
     let m = &out.motion;
     let mut rates: Vec<(f64, usize, usize)> = (0..target.dof_count())
         .filter(|&d| target.is_rotation(d))
