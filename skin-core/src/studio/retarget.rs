@@ -16,7 +16,9 @@
 //!    decomposed onto the joint's own rotation DOFs: exactly for three orthogonal axes
 //!    (Euler angles in the DOF order), by dropping the third angle for two, by swing–twist
 //!    for one.
-//! 4. The root follows `s · G · p_src(t)`, with `s` the ratio of the performer's to the
+//! 4. Optionally ([`RetargetParams::twist_rate_limit_rad_per_s`]), a 3-DOF joint's twist
+//!    about its bone from one frame to the next is slew-limited, its swing kept exactly.
+//! 5. The root follows `s · G · p_src(t)`, with `s` the ratio of the performer's to the
 //!    source's leg length (hip → knee → ankle).
 //!
 //! Motions come out at the source frame rate; use [`Motion::resample`] for any other.
@@ -208,6 +210,17 @@ pub struct RetargetParams {
     /// Clamp every frame into the performer's DOF limits. Default: false (mocap slightly
     /// beyond the nominal ranges is kept as captured).
     pub clamp_to_limits: bool,
+    /// Opt-in twist filter: the largest rate (rad/s) at which a 3-DOF joint's bone (one with a
+    /// mapped child) may twist about its own axis from one frame to the next. Faster twist is
+    /// slew-limited (the joint catches up at this rate) while the bone's direction (the swing)
+    /// stays the source's exactly. Meant for captures whose twist about a nearly straight limb
+    /// is poorly determined: CMU 131_01 twists the right humerus at 34 rad/s for 0.1 s as the
+    /// elbow extends (frames 228–238), faster than body-worn gyroscopes measure. The
+    /// correction (a rotation about the bone) is applied to the descendants too, so their
+    /// rotations relative to the bone stay the source's (the limb below turns with the
+    /// limited twist: the forearm no longer spins at 34 rad/s, the hand moves off the
+    /// source's during the limited frames). Default: `None` (rotations as captured).
+    pub twist_rate_limit_rad_per_s: Option<f64>,
 }
 
 /// A retargeted motion.
@@ -324,6 +337,9 @@ pub fn retarget(
     params: &RetargetParams,
 ) -> Result<Retargeted> {
     motion.check_for(source)?;
+    if let Some(v) = params.twist_rate_limit_rad_per_s {
+        crate::check::positive("twist_rate_limit_rad_per_s", v)?;
+    }
     let missing_src: Vec<&str> = map
         .pairs
         .iter()
@@ -458,10 +474,27 @@ pub fn retarget(
         };
         correction[j] = arc(dt, g * ds);
     }
+    // Twist axes (the rest bone direction in the joint frame; performer rest rotations are
+    // the identity) of the joints the twist filter applies to: 3 DOFs and a mapped child.
+    let twist_axis: Vec<Option<DVec3>> = (0..target.joint_count())
+        .map(|j| {
+            let child = target.children(j).find(|&c| src_of[c].is_some())?;
+            let u = (tp[child] - tp[j]).normalize_or_zero();
+            (params.twist_rate_limit_rad_per_s.is_some()
+                && src_of[j].is_some()
+                && j != root_t
+                && rot_dofs[j].len() == 3
+                && u != DVec3::ZERO)
+                .then_some(u)
+        })
+        .collect();
+    let max_twist =
+        params.twist_rate_limit_rad_per_s.unwrap_or(f64::INFINITY) * motion.frame_time_s;
     let n = motion.frame_count();
     let mut frames = DMatrix::zeros(target.dof_count(), n);
     let mut src_fk = crate::skeleton::ForwardKinematics::new(source);
     let mut achieved = vec![DMat3::IDENTITY; target.joint_count()];
+    let mut twist_fix: Vec<Option<DMat3>> = vec![None; target.joint_count()];
     for k in 0..n {
         source.forward_kinematics_into(motion.frame(k), &mut src_fk)?;
         let w = src_fk.world_from_joint();
@@ -470,10 +503,32 @@ pub fn retarget(
             let parent = target.joints()[j]
                 .parent
                 .map_or(DMat3::IDENTITY, |p| achieved[p]);
-            let desired = match src_of[j] {
-                Some(s) => g * w[s].matrix3 * g.transpose() * correction[j],
+            // The twist corrections of the ancestors, as one world-frame rotation (`None`: no
+            // correction, so unfiltered joints stay bit for bit the plain retarget's).
+            let inherited = target.joints()[j].parent.and_then(|p| twist_fix[p]);
+            let mut desired = match src_of[j] {
+                Some(s) => {
+                    let d = g * w[s].matrix3 * g.transpose() * correction[j];
+                    inherited.map_or(d, |c| c * d)
+                }
                 None => parent,
             };
+            twist_fix[j] = inherited;
+            // Twist filter: the twist about the bone between the previous frame's achieved
+            // rotation and this one's, slew-limited; the bone direction `desired · u` is kept,
+            // and the correction (a rotation about the bone) carries on to the descendants so
+            // that their rotations relative to this bone stay the source's.
+            if let (Some(u), true) = (twist_axis[j], k > 0) {
+                let step = decompose(achieved[j].transpose() * desired, &[u])
+                    .and_then(|t| t.first().copied())
+                    .unwrap_or(0.0);
+                if step.abs() > max_twist {
+                    let fix = DMat3::from_axis_angle(u, step.clamp(-max_twist, max_twist) - step);
+                    let world_fix = desired * fix * desired.transpose();
+                    desired *= fix;
+                    twist_fix[j] = Some(inherited.map_or(world_fix, |c| world_fix * c));
+                }
+            }
             let axes: Vec<DVec3> = rot_dofs[j].iter().map(|&d| target.dof(d).axis).collect();
             // Axes were validated above, so the decomposition exists.
             let angles = decompose(parent.transpose() * desired, &axes)

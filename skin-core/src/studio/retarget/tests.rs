@@ -342,6 +342,7 @@ fn unmappable_skeletons_are_rejected_with_names() {
         &identity_map(&target),
         &RetargetParams {
             clamp_to_limits: true,
+            ..RetargetParams::default()
         },
     )
     .unwrap();
@@ -388,5 +389,193 @@ proptest::proptest! {
         let back = DMat3::from_axis_angle(axes[0], got[0]) * DMat3::from_axis_angle(axes[1], got[1]) * DMat3::from_axis_angle(axes[2], got[2]);
         proptest::prop_assert!((back - l).abs_diff_eq(DMat3::ZERO, 1e-9));
         proptest::prop_assert!((got[1] - b).abs() < 1e-9);
+    }
+}
+
+/// World-frame angular speeds (rad/s) of joint `j`'s frame between consecutive frames.
+fn world_speeds(s: &Skeleton, m: &Motion, j: usize) -> Vec<f64> {
+    let rots: Vec<DQuat> = (0..m.frame_count())
+        .map(|f| {
+            let fk = s.forward_kinematics(m.frame(f)).unwrap();
+            DQuat::from_mat3(&fk.world_from_joint()[j].matrix3)
+        })
+        .collect();
+    rots.windows(2)
+        .map(|w| w[1].angle_between(w[0]) / m.frame_time_s)
+        .collect()
+}
+
+fn cmu_walk() -> crate::skeleton::Bvh {
+    read_bvh(
+        data("mocap-cmu/131_01.bvh"),
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+    )
+    .unwrap()
+}
+
+/// The CMU walk retargeted onto `target` with the given twist rate limit.
+fn retarget_walk(
+    bvh: &crate::skeleton::Bvh,
+    target: &Skeleton,
+    twist: Option<f64>,
+) -> Result<Retargeted> {
+    retarget(
+        &bvh.skeleton,
+        &bvh.motion,
+        target,
+        &JointMap::cmu(),
+        &RetargetParams {
+            twist_rate_limit_rad_per_s: twist,
+            ..RetargetParams::default()
+        },
+    )
+}
+
+const BONES: [(&str, &str); 8] = [
+    ("LeftShoulder", "l_shoulder"),
+    ("RightShoulder", "r_shoulder"),
+    ("LeftElbow", "l_elbow"),
+    ("RightElbow", "r_elbow"),
+    ("LeftHip", "l_hip"),
+    ("RightKnee", "r_knee"),
+    ("Chest", "chest"),
+    ("Head", "head"),
+];
+
+/// Issue 15's trace: the retargeted walk spins the right upper arm at 35 rad/s because the
+/// SOURCE does — the retarget adds no spin. 3-DOF joints reproduce the source bone's world
+/// angular velocity exactly (the world rotation is `G R_src Gᵀ C`, C constant); 1- and 2-DOF
+/// joints (knee, elbow, head) stay within a small margin of it.
+#[test]
+fn retarget_adds_no_angular_velocity_on_the_cmu_walk() {
+    let bvh = cmu_walk();
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let out = retarget_walk(&bvh, &target, None).unwrap();
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    for (sn, tn) in BONES {
+        let a = world_speeds(
+            &bvh.skeleton,
+            &bvh.motion,
+            bvh.skeleton.joint_index(sn).unwrap(),
+        );
+        let t = target.joint_index(tn).unwrap();
+        let b = world_speeds(&target, &out.motion, t);
+        if target.joint_dofs(t).len() == 3 {
+            let worst = a
+                .iter()
+                .zip(&b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-6, "{tn}: speeds differ by {worst} rad/s");
+        } else {
+            assert!(
+                max(&b) <= 1.1 * max(&a) + 1.0,
+                "{tn}: {} vs source {}",
+                max(&b),
+                max(&a)
+            );
+        }
+    }
+    // The source's right humerus: 34.9 rad/s at frame 235 (1.96 s), almost all of it twist
+    // about the bone while the elbow extends; the left stays under 9 rad/s.
+    let r = world_speeds(
+        &bvh.skeleton,
+        &bvh.motion,
+        bvh.skeleton.joint_index("RightShoulder").unwrap(),
+    );
+    let l = world_speeds(
+        &bvh.skeleton,
+        &bvh.motion,
+        bvh.skeleton.joint_index("LeftShoulder").unwrap(),
+    );
+    assert!(
+        max(&r) > 30.0 && max(&l) < 9.0,
+        "right {} left {}",
+        max(&r),
+        max(&l)
+    );
+}
+
+/// The opt-in twist rate limit removes the right humerus' twist spike (swing kept exactly:
+/// the upper-arm direction is the source's in every frame) and changes nothing where the
+/// twist is slower than the limit.
+#[test]
+fn twist_rate_limit_caps_the_humerus_spin_and_keeps_the_swing() {
+    let bvh = cmu_walk();
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let limit = 10.0;
+    let run = |twist| retarget_walk(&bvh, &target, twist).unwrap();
+    let (plain, limited) = (run(None), run(Some(limit)));
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let r = target.joint_index("r_shoulder").unwrap();
+    let before = max(&world_speeds(&target, &plain.motion, r));
+    let after = max(&world_speeds(&target, &limited.motion, r));
+    // Swing (≤ 6.6 rad/s in the source) plus the limited twist.
+    assert!(
+        before > 30.0 && after < limit + 7.0,
+        "{before} → {after} rad/s"
+    );
+    // The forearm turns with the limited humerus (34.7 rad/s in the source).
+    let e = target.joint_index("r_elbow").unwrap();
+    let (fore_before, fore_after) = (
+        max(&world_speeds(&target, &plain.motion, e)),
+        max(&world_speeds(&target, &limited.motion, e)),
+    );
+    assert!(
+        fore_before > 30.0 && fore_after < 20.0,
+        "forearm {fore_before} → {fore_after} rad/s"
+    );
+    // The humerus direction is the source's exactly, in every frame.
+    let arm = bone_angles(
+        &bvh.skeleton,
+        &bvh.motion,
+        &target,
+        &limited,
+        [("RightShoulder", "RightElbow", "r_shoulder", "r_elbow")],
+    );
+    assert!(
+        max(&arm) < 1e-6,
+        "upper-arm direction off by {} rad",
+        max(&arm)
+    );
+    // The left arm never twists faster than the limit: bit-identical to the plain retarget.
+    let l = target.joint_index("l_shoulder").unwrap();
+    for d in target.joint_dofs(l) {
+        for f in 0..plain.motion.frame_count() {
+            assert_eq!(plain.motion.frames[(d, f)], limited.motion.frames[(d, f)]);
+        }
+    }
+    // No limit below zero or NaN.
+    for bad in [0.0, -1.0, f64::NAN] {
+        assert!(retarget_walk(&bvh, &target, Some(bad)).is_err());
+    }
+}
+
+/// Trace (run with `--ignored --nocapture`): the fastest DOF rates of the twist-limited walk.
+#[test]
+#[ignore]
+fn trace_dof_rates_of_the_limited_walk() {
+    let bvh = cmu_walk();
+    let target = human_skeleton(&HumanParams::default()).unwrap();
+    let out = retarget_walk(&bvh, &target, Some(10.0)).unwrap();
+    let m = &out.motion;
+    let mut rates: Vec<(f64, usize, usize)> = (0..target.dof_count())
+        .filter(|&d| target.is_rotation(d))
+        .map(|d| {
+            (1..m.frame_count())
+                .map(|f| {
+                    let step = m.frames[(d, f)] - m.frames[(d, f - 1)];
+                    let step =
+                        step - std::f64::consts::TAU * (step / std::f64::consts::TAU).round();
+                    (step.abs() / m.frame_time_s, d, f)
+                })
+                .fold((0.0, d, 0), |a, b| if b.0 > a.0 { b } else { a })
+        })
+        .collect();
+    rates.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for (r, d, f) in rates.iter().take(10) {
+        println!("{}: {r:.1} rad/s at frame {f}", target.dof(*d).name);
     }
 }
