@@ -1267,6 +1267,67 @@ mod tests {
         assert!(r.gyro_rad_s.length() < 0.05);
         assert!(rec.pulses_heard > 0);
     }
+
+    /// The treadmill loops a matched gait cycle: on a noisy periodic "walk" (1.1 s period,
+    /// 4 s) its largest change of any joint rate between frames (second difference) stays
+    /// within 1.5× the walk's own, the held root DOFs are constant, and a walk too short for
+    /// a cycle is refused. The old forward–backward playback fails the first check by 20×:
+    /// each reversal flips the rates in one frame.
+    #[test]
+    fn treadmill_loops_a_gait_cycle_without_jumps() {
+        let sk = human_skeleton(&HumanParams::default()).unwrap();
+        let dt = 1.0 / 120.0;
+        let n = 480;
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 1e-4).unwrap();
+        let tx = sk.dof_index("pelvis.tx").unwrap();
+        let frames = DMatrix::from_fn(sk.dof_count(), n, |d, k| {
+            let t = k as f64 * dt;
+            if d == tx {
+                return t; // walking at 1 m/s
+            }
+            let phase = d as f64 * 0.7;
+            0.4 * (TAU * t / 1.1 + phase).sin()
+                + 0.05 * t * (d % 2) as f64 / 4.0
+                + noise.sample(&mut rng)
+        });
+        let walk = Motion::new(dt, frames).unwrap();
+        let tread = treadmill_motion(&sk, &walk, 20.0).unwrap();
+        assert_eq!(tread.frame_count(), 2401);
+        // Largest second difference (rate change per frame) of any joint angle.
+        let max_jerk = |m: &Motion| {
+            (1..m.frame_count() - 1)
+                .flat_map(|k| (0..sk.dof_count()).map(move |d| (d, k)))
+                .map(|(d, k)| {
+                    (m.frames[(d, k + 1)] - 2.0 * m.frames[(d, k)] + m.frames[(d, k - 1)]).abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        let (walk_jerk, tread_jerk) = (max_jerk(&walk), max_jerk(&tread));
+        assert!(
+            tread_jerk < walk_jerk * 1.5,
+            "treadmill rate change {tread_jerk} vs walk {walk_jerk}"
+        );
+        for name in ["pelvis.tx", "pelvis.tz", "pelvis.yaw"] {
+            let d = sk.dof_index(name).unwrap();
+            assert!((0..tread.frame_count()).all(|k| tread.frames[(d, k)] == walk.frames[(d, 0)]));
+        }
+        let mut standing = walk.clone();
+        standing.frames.row_mut(tx).fill(0.0);
+        standing
+            .frames
+            .row_mut(sk.dof_index("pelvis.tz").unwrap())
+            .fill(0.0);
+        assert!(matches!(
+            treadmill_motion(&sk, &standing, 20.0),
+            Err(Error::InvalidParam { name: "walk", .. })
+        ));
+        let short = Motion::new(dt, walk.frames.columns(0, 90).into_owned()).unwrap();
+        assert!(matches!(
+            treadmill_motion(&sk, &short, 20.0),
+            Err(Error::InvalidParam { name: "walk", .. })
+        ));
+    }
 }
 
 /// One filter run over a simulated recording, scored against its truth.
@@ -1571,13 +1632,27 @@ pub fn tune(
     Ok(out)
 }
 
-/// A treadmill-like motion (Figure 4-7) from a walk: the root's horizontal translation is
-/// removed (the treadmill), its yaw held at the first frame's, and the walk is played forward
-/// and backward until `duration_s` (continuous, no jumps).
+/// Shortest gait cycle [`treadmill_motion`] loops, seconds (a stride is ≈ 1 s).
+pub const TREADMILL_MIN_CYCLE_S: f64 = 0.8;
+
+/// A treadmill-like motion (Figure 4-7) from a walk: a gait cycle of the walk looped until
+/// `duration_s`, the root's horizontal translation removed (the treadmill) and its yaw held
+/// at the first frame's.
+///
+/// **The loop.** The cycle is the pair of frames `i < j`, at least
+/// [`TREADMILL_MIN_CYCLE_S`] apart, whose poses *and* velocities agree best over every DOF
+/// except the three held ones: cost `‖θᵢ − θⱼ‖² + (τ/Δt)² ‖Δθᵢ − Δθⱼ‖²` with τ = 0.1 s
+/// (the usual motion-graph transition cost, Kovar et al. 2002, on joint angles). Frames
+/// `i … j−1` repeat; the residual `θᵢ − θⱼ` is spread linearly over each cycle, so the
+/// looped motion is continuous in angle and, up to the chosen residual, in rate. (An earlier
+/// version played the walk forwards and backwards: every reversal flipped all joint rates in
+/// one frame, an impulse no body and no constant-acceleration filter follows — it made even
+/// the oracle filter diverge on the treadmill.) Only stretches over which the root travels at
+/// [`TREADMILL_MIN_SPEED_M_S`] or more are candidates: a pause matches itself best of all.
 ///
 /// # Errors
 /// As [`Motion::check_for`]; [`Error::InvalidParam`] for a skeleton without the human root
-/// DOFs or a non-positive duration.
+/// DOFs, a non-positive duration or a walk shorter than two cycles' search needs.
 pub fn treadmill_motion(skeleton: &Skeleton, walk: &Motion, duration_s: f64) -> Result<Motion> {
     walk.check_for(skeleton)?;
     positive("duration_s", duration_s)?;
@@ -1588,21 +1663,90 @@ pub fn treadmill_motion(skeleton: &Skeleton, walk: &Motion, duration_s: f64) -> 
         })
     };
     let (tx, tz, yaw) = (find("pelvis.tx")?, find("pelvis.tz")?, find("pelvis.yaw")?);
-    let n = walk.frame_count();
-    let total = (duration_s / walk.frame_time_s).round() as usize + 1;
-    let period = 2 * (n - 1).max(1);
-    let mut frames = DMatrix::zeros(skeleton.dof_count(), total);
+    let (n, nd) = (walk.frame_count(), skeleton.dof_count());
+    let dt = walk.frame_time_s;
+    let min_len = (TREADMILL_MIN_CYCLE_S / dt).round().max(2.0) as usize;
+    if n < min_len + 2 {
+        return Err(Error::InvalidParam {
+            name: "walk",
+            reason: format!(
+                "{n} frames: a gait cycle needs at least {} ({TREADMILL_MIN_CYCLE_S} s)",
+                min_len + 2
+            ),
+        });
+    }
+    let looped: Vec<usize> = (0..nd)
+        .filter(|&d| d != tx && d != tz && d != yaw)
+        .collect();
+    let (start, end) = gait_cycle(walk, &looped, (tx, tz), min_len)?;
+    let len = end - start;
+    let total = (duration_s / dt).round() as usize + 1;
+    let mut frames = DMatrix::zeros(nd, total);
     for k in 0..total {
-        let m = k % period;
-        let src = if m < n { m } else { period - m };
-        for d in 0..skeleton.dof_count() {
-            frames[(d, k)] = walk.frames[(d, src)];
+        let m = k % len;
+        let src = start + m;
+        let ramp = m as f64 / len as f64;
+        for &d in &looped {
+            let residual = walk.frames[(d, start)] - walk.frames[(d, end)];
+            frames[(d, k)] = walk.frames[(d, src)] + ramp * residual;
         }
         frames[(tx, k)] = walk.frames[(tx, 0)];
         frames[(tz, k)] = walk.frames[(tz, 0)];
         frames[(yaw, k)] = walk.frames[(yaw, 0)];
     }
-    Ok(Motion::new(walk.frame_time_s, frames)?)
+    Ok(Motion::new(dt, frames)?)
+}
+
+/// Least average root speed of a looped cycle, m/s: a walking cycle, not a pause (a standing
+/// stretch matches itself best of all).
+pub const TREADMILL_MIN_SPEED_M_S: f64 = 0.5;
+
+/// The frames `(i, j)` of [`treadmill_motion`]'s loop: the lowest transition cost over the
+/// `looped` DOFs among pairs at least `min_len` frames apart over which the root (DOFs
+/// `root_xz`) travels at [`TREADMILL_MIN_SPEED_M_S`] or more on average.
+fn gait_cycle(
+    walk: &Motion,
+    looped: &[usize],
+    root_xz: (usize, usize),
+    min_len: usize,
+) -> Result<(usize, usize)> {
+    let n = walk.frame_count();
+    let dt = walk.frame_time_s;
+    let w = (0.1 / dt).powi(2);
+    let f = &walk.frames;
+    let cost = |i: usize, j: usize| -> f64 {
+        looped
+            .iter()
+            .map(|&d| {
+                let (a, b) = (f[(d, i)], f[(d, j)]);
+                let (va, vb) = (f[(d, i + 1)] - a, f[(d, j + 1)] - b);
+                (a - b).powi(2) + w * (va - vb).powi(2)
+            })
+            .sum()
+    };
+    let travel = |i: usize, j: usize| {
+        let (x, z) = root_xz;
+        (f[(x, j)] - f[(x, i)]).hypot(f[(z, j)] - f[(z, i)])
+    };
+    let mut best: Option<(f64, usize, usize)> = None;
+    for i in 0..n.saturating_sub(1 + min_len) {
+        for j in i + min_len..n - 1 {
+            if travel(i, j) < TREADMILL_MIN_SPEED_M_S * (j - i) as f64 * dt {
+                continue;
+            }
+            let c = cost(i, j);
+            if best.is_none_or(|(b, _, _)| c < b) {
+                best = Some((c, i, j));
+            }
+        }
+    }
+    best.map(|(_, i, j)| (i, j)).ok_or(Error::InvalidParam {
+        name: "walk",
+        reason: format!(
+            "no stretch of at least {:.2} s in which the root travels at {TREADMILL_MIN_SPEED_M_S} m/s",
+            min_len as f64 * dt
+        ),
+    })
 }
 
 /// Oracle observations (diagnosis of the filter, not a simulation of the suit): the
