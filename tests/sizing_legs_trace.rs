@@ -5,6 +5,7 @@
 //! errors with the default fit, with free end-site scales and with one-sided hull samples.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
+use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::Motion;
@@ -12,12 +13,10 @@ use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
     Performer,
 };
-use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::template::{
-    initialise_pose, reference_sizes, score_ellipsoids, track, AutoInitParams, PoseFrame,
-    PoseModel, PoseParams, size_from_poses, EllipsoidModel, EllipsoidParams,
-    EllipsoidState, FrameObservation, SilhouetteParams, SizingParams, Template,
-    VisualHullParams,
+    initialise_pose, reference_sizes, score_ellipsoids, size_from_poses, track, AutoInitParams,
+    EllipsoidModel, EllipsoidParams, EllipsoidState, FrameObservation, PoseFrame, PoseModel,
+    PoseParams, SilhouetteParams, SizingParams, Template, VisualHullParams,
 };
 
 fn studio() -> (Performer, Motion, Vec<Camera>, CaptureSpec) {
@@ -114,16 +113,29 @@ fn trace_leg_lengths() {
                 .forward_kinematics(&sizing.fit.states[k].theta)
                 .unwrap();
             let b = sk.forward_kinematics(&truth[f]).unwrap();
-            for (j, (x, y)) in a.joint_positions().iter().zip(b.joint_positions()).enumerate() {
+            for (j, (x, y)) in a
+                .joint_positions()
+                .iter()
+                .zip(b.joint_positions())
+                .enumerate()
+            {
                 jerr[j] += (*x - y) / sizing.chosen.len() as f64;
             }
         }
         let mut js = String::new();
         for (j, e) in jerr.iter().enumerate() {
-            if name(j).contains("hip") || name(j).contains("knee") || name(j).contains("ankle")
+            if name(j).contains("hip")
+                || name(j).contains("knee")
+                || name(j).contains("ankle")
                 || j == 0
             {
-                js += &format!(" {} ({:+.0},{:+.0},{:+.0})", name(j), 1e3 * e.x, 1e3 * e.y, 1e3 * e.z);
+                js += &format!(
+                    " {} ({:+.0},{:+.0},{:+.0})",
+                    name(j),
+                    1e3 * e.x,
+                    1e3 * e.y,
+                    1e3 * e.z
+                );
             }
         }
         println!("  mean fitted − true joint (mm, x y z):{js}");
@@ -230,10 +242,15 @@ fn trace_leg_lengths() {
     // The tracker's poses at default proportions from the automatic first pose (as the
     // integration test).
     let default_template = true_template.resized(default.skeleton.clone()).unwrap();
-    let first = initialise_pose(&model, &obs[0].hull, &obs[0].rays, &AutoInitParams::default())
-        .unwrap()
-        .theta()
-        .to_vec();
+    let first = initialise_pose(
+        &model,
+        &obs[0].hull,
+        &obs[0].rays,
+        &AutoInitParams::default(),
+    )
+    .unwrap()
+    .theta()
+    .to_vec();
     let pose_frames: Vec<PoseFrame<'_>> = obs
         .iter()
         .map(|o| PoseFrame {
@@ -256,8 +273,18 @@ fn trace_leg_lengths() {
                 },
                 ..base.clone()
             };
-            run(&format!("true poses, σθ {sigma} σt {tr}"), &truth, &p, false);
-            run(&format!("TRACKED poses, σθ {sigma} σt {tr}"), &tracked, &p, false);
+            run(
+                &format!("true poses, σθ {sigma} σt {tr}"),
+                &truth,
+                &p,
+                false,
+            );
+            run(
+                &format!("TRACKED poses, σθ {sigma} σt {tr}"),
+                &tracked,
+                &p,
+                false,
+            );
         }
     }
 }
