@@ -18,7 +18,8 @@
 //!    again at the sized frames with the tracked heading as its hint;
 //! 3. [`size_from_poses`]: [`SizingParams::frames`] frames spread evenly over the sequence,
 //!    fitted together with shared length scales and widths, from their poses and default
-//!    proportions.
+//!    proportions, each frame's root position held near its given pose's
+//!    ([`SizingParams::fit`]).
 //!
 //! [`size_from_poses`] takes poses tracked by other means instead — the template tracker's
 //! ([`crate::track`]) at default proportions from the automatic first pose, which is what
