@@ -621,4 +621,13 @@ fn a_performer_with_other_bone_lengths_is_sized_from_the_tracked_first_frames() 
     let (ol, ow) = sizes(oracle.state().unwrap());
     println!("the sizing from the true poses: lengths {ol:.1} mm widths {ow:.1} mm");
     assert!(sw < 0.9 * dw, "widths {sw} vs default {dw}");
+    // Lengths within 10 % of the default proportions' error from the tracked poses and 20 %
+    // from the true ones (measured 15.4 and 17.1 against 16.0; with the root's position free
+    // in the joint fit, `EllipsoidParams::sigma_translation_prior_m` None, 21.1 and 26.5: the
+    // pelvis rose 6 cm and the thighs lengthened, docs/template-silhouette.md).
+    assert!(sl < 1.1 * dl, "lengths {sl} vs default {dl}");
+    assert!(
+        ol < 1.2 * dl,
+        "lengths from the true poses {ol} vs default {dl}"
+    );
 }

@@ -183,6 +183,11 @@ pub struct EllipsoidParams {
     /// σ of the prior pulling θ to its starting value, radians (metres for translations).
     /// Default 1.0 (weak: only DOFs without data feel it).
     pub sigma_theta_prior: f64,
+    /// σ of the same prior on the translation DOFs (the root's position), metres; `None`:
+    /// [`EllipsoidParams::sigma_theta_prior`]. Default `None`. [`crate::SizingParams`] holds
+    /// the given poses' root (docs/template-silhouette.md, "Sizing": with it free the joint
+    /// fit lifts the pelvis by 6 cm and lengthens the thighs to reach the knees).
+    pub sigma_translation_prior_m: Option<f64>,
     /// σ of the prior pulling each length scale to 1. Default 0.2.
     pub sigma_scale_prior: f64,
     /// σ of the prior pulling an end-site segment's length scale (a hand, a foot, the head:
@@ -253,6 +258,7 @@ impl Default for EllipsoidParams {
             marker_offset_m: skin_core::studio::DEFAULT_MARKER_OFFSET_M,
             sigma_silhouette_m: 0.005,
             sigma_theta_prior: 1.0,
+            sigma_translation_prior_m: None,
             sigma_scale_prior: 0.2,
             sigma_end_site_scale_prior: 0.002,
             sigma_width_prior_m: 0.05,
@@ -284,6 +290,9 @@ impl EllipsoidParams {
         check::positive("sigma_silhouette_m", self.sigma_silhouette_m)?;
         check::non_negative("marker_offset_m", self.marker_offset_m)?;
         check::positive("sigma_theta_prior", self.sigma_theta_prior)?;
+        if let Some(s) = self.sigma_translation_prior_m {
+            check::positive("sigma_translation_prior_m", s)?;
+        }
         check::positive("sigma_scale_prior", self.sigma_scale_prior)?;
         check::positive(
             "sigma_end_site_scale_prior",
@@ -924,8 +933,13 @@ impl Problem<'_> {
             }
         }
         // The θ prior of this frame (a pseudo-observation type, Eq. 7).
-        let pt = 1.0 / (self.params.sigma_theta_prior * self.params.sigma_theta_prior);
+        let pr = 1.0 / (self.params.sigma_theta_prior * self.params.sigma_theta_prior);
+        let ptr = self
+            .params
+            .sigma_translation_prior_m
+            .map_or(pr, |s| 1.0 / (s * s));
         for k in 0..nd {
+            let pt = if sk.is_rotation(k) { pr } else { ptr };
             let r = state.theta[k] - frame.start_theta[k];
             total.cost += pt * r * r;
             if jac {

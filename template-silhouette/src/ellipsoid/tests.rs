@@ -258,6 +258,18 @@ fn bad_input_is_reported() {
         ..Default::default()
     };
     assert!(fit_ellipsoids(&m, &truth, &bad_marker, &p).is_err());
+    for bad in [f64::NAN, 0.0, -1.0] {
+        let q = EllipsoidParams {
+            sigma_translation_prior_m: Some(bad),
+            ..EllipsoidParams::default()
+        };
+        // The parameter is refused before the (empty) observations are looked at.
+        let r = fit_ellipsoids(&m, &truth, &empty, &q);
+        assert!(
+            r.is_err() && !matches!(r, Err(Error::Empty { .. })),
+            "{r:?}"
+        );
+    }
     // No points near the last limb: its ellipsoid is named.
     let last = m.bones().len() - 1;
     let all = surface(&m, &truth, 60, &mut rng);
