@@ -495,44 +495,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             });
         }
     }
-    // Control: the treadmill from the walking segment between the two flicks (BVH frames
-    // 310–780), where the twist-limited walk's fastest DOF rates (r_wrist 87 rad/s at frame
-    // 237, r_shoulder 59 rad/s at 794; skin-core `trace_dof_rates_of_the_limited_walk`) are
-    // not: does the oracle then track?
-    let segment = Motion::new(
-        tread_walk.frame_time_s,
-        tread_walk.frames.columns(310, 471).into_owned(),
-    )?;
-    let seg_tread = treadmill_motion(&skeleton, &segment, treadmill_s)?;
-    let seg_rec = record(&sim, &skeleton, &seg_tread, &sim_params, &cal.offsets);
-    let seg_smooth = prepare_motion(&skeleton, &seg_tread, &sim_params)?;
-    let seg_oracle = model_recording(
-        &skeleton,
-        sim.nominal_suit(),
-        &seg_smooth,
-        sim_params.rest_s,
-    )?;
-    let mut segment_runs = Vec::new();
-    for (source, recording) in [("simulated", &seg_rec), ("oracle", &seg_oracle)] {
-        for distances in [true, false] {
-            let r = run_filter(
-                &skeleton,
-                recording,
-                params.with_sensors(SensorSet {
-                    distances,
-                    ..SensorSet::ALL
-                }),
-                true,
-                &l_shoulder,
-            )?;
-            let e = &r.errors_deg[0];
-            let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-            segment_runs.push(json!({"measurements": source, "distances": distances,
-                "first_5s_deg": mean(&e[..window.min(e.len())]),
-                "last_5s_deg": mean(&e[e.len().saturating_sub(window)..]),
-                "diverged_frames": r.diverged_frames}));
-        }
-    }
     stage.finish(format!(
         "left shoulder, last 5 s: with D {:.1}°, without {:.1}° (oracle {:.1}° / {:.1}°)",
         drift[0].last_5s_deg, drift[1].last_5s_deg, drift[2].last_5s_deg, drift[3].last_5s_deg
@@ -744,7 +706,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "runs": drift.iter().map(|d| json!({"measurements": d.source, "distances": d.distances,
                 "first_5s_deg": d.first_5s_deg, "last_5s_deg": d.last_5s_deg,
                 "diverged_frames": d.diverged_frames})).collect::<Vec<_>>(),
-            "segment_frames_310_780_runs": segment_runs,
         },
         "realtime_factor": motion_s / compute_s,
         "realtime_factor_ultrasound": motion_s / us_s,
