@@ -19,7 +19,7 @@
 use serde::{Deserialize, Serialize};
 use skin_core::camera::{Camera, MIN_DEPTH_M};
 use skin_core::check;
-use skin_core::image::{signed_distance, GrayF32Image, Mask};
+use skin_core::image::{sample_bilinear, signed_distance, GrayF32Image, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
@@ -142,10 +142,9 @@ impl VisualHull {
     ///
     /// The hot loop of the hull (every march step of [`VisualHull::depth_map`], every cell of
     /// the matching grids through [`VisualHull::contains`]): the camera point is transformed
-    /// once and projected term for term as [`Camera::project`] does, and the bilinear look-up
-    /// reads the signed distances' samples directly, term for term as
-    /// [`sample_bilinear`](skin_core::image::sample_bilinear) does — the same values bit for bit, without the second transform,
-    /// the `Result` and the pixel accessor's checks.
+    /// once and projected term for term as [`Camera::project`] does (the same values bit for
+    /// bit, without the second transform and the `Result`), then looked up by
+    /// [`sample_bilinear`], which reads the samples from the raw buffer.
     #[inline]
     fn camera_distance(&self, c: usize, p: DVec3) -> Option<(f64, f64)> {
         let cam = &self.cameras[c];
@@ -159,7 +158,7 @@ impl VisualHull {
         let px = cam.distortion.distort(k, k.pixel_from_normalized(n))?;
         let (w, h) = (f64::from(k.width - 1), f64::from(k.height - 1));
         let clamped = DVec2::new(px.x.clamp(0.0, w), px.y.clamp(0.0, h));
-        let sd = bilinear(&self.signed[c], k.width, k.height, clamped)?;
+        let sd = sample_bilinear(&self.signed[c], clamped)?;
         Some((sd + (px - clamped).length(), z))
     }
 
@@ -288,39 +287,6 @@ thread_local! {
     static LAST_REJECTING: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
-/// [`sample_bilinear`](skin_core::image::sample_bilinear) of a camera-sized image at a point inside it (`p` within
-/// `[0, w − 1] × [0, h − 1]`, or `None`), on the samples directly: the same arithmetic, term
-/// for term.
-#[inline]
-fn bilinear(image: &GrayF32Image, w: u32, h: u32, p: DVec2) -> Option<f64> {
-    if w == 0 || h == 0 || !p.is_finite() {
-        return None;
-    }
-    let (max_x, max_y) = (f64::from(w - 1), f64::from(h - 1));
-    if p.x < 0.0 || p.y < 0.0 || p.x > max_x || p.y > max_y {
-        return None;
-    }
-    let x0 = (p.x.floor() as u32).min(w.saturating_sub(2));
-    let y0 = (p.y.floor() as u32).min(h.saturating_sub(2));
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (fx, fy) = (p.x - f64::from(x0), p.y - f64::from(y0));
-    let data: &[f32] = image.as_raw();
-    let at = |x: u32, y: u32| {
-        data.get(y as usize * w as usize + x as usize)
-            .map_or(f64::NAN, |v| f64::from(*v))
-    };
-    let (v00, v10, v01, v11) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
-    if ![v00, v10, v01, v11].iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    Some(
-        v00 * (1.0 - fx) * (1.0 - fy)
-            + v10 * fx * (1.0 - fy)
-            + v01 * (1.0 - fx) * fy
-            + v11 * fx * fy,
-    )
-}
-
 /// A mesh proxy (pass 2 of §3.3: the hole-filled mesh of pass 1) rendered as `camera`'s
 /// depth map through the rasteriser (both faces of each triangle, so an open mesh works too).
 ///
@@ -398,7 +364,6 @@ mod tests {
     /// outside, off the image and behind cameras.
     #[test]
     fn fast_hull_queries_equal_the_reference_path() {
-        use skin_core::image::sample_bilinear;
         let (cams, mesh) = sphere_rig(6);
         let masks: Vec<Mask> = cams
             .iter()

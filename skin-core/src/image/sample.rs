@@ -20,11 +20,11 @@ pub struct BilinearSample {
     pub gradient: DVec2,
 }
 
-/// Bilinear value and gradient of `image` at `p` (pixels, centres at integers).
-///
-/// Returns `None` if `p` is not finite, lies outside `[0, w−1] × [0, h−1]`, or one of the four
-/// samples used is NaN or infinite (e.g. "no data" in a depth map).
-pub fn sample_bilinear_with_gradient(image: &GrayF32Image, p: DVec2) -> Option<BilinearSample> {
+/// The four samples around `p` and the fractions `(fx, fy)`, read from the raw buffer (the
+/// hot path of every bilinear look-up: no per-pixel accessor); `None` as for
+/// [`sample_bilinear_with_gradient`].
+#[inline]
+fn corners(image: &GrayF32Image, p: DVec2) -> Option<([f64; 4], f64, f64)> {
     let (w, h) = image.dimensions();
     if w == 0 || h == 0 || !p.is_finite() {
         return None;
@@ -38,11 +38,24 @@ pub fn sample_bilinear_with_gradient(image: &GrayF32Image, p: DVec2) -> Option<B
     let y0 = (p.y.floor() as u32).min(h.saturating_sub(2));
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = (p.x - f64::from(x0), p.y - f64::from(y0));
-    let at = |x: u32, y: u32| f64::from(image.get_pixel(x, y).0[0]);
-    let (v00, v10, v01, v11) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
-    if ![v00, v10, v01, v11].iter().all(|v| v.is_finite()) {
+    let data: &[f32] = image.as_raw();
+    let at = |x: u32, y: u32| {
+        data.get(y as usize * w as usize + x as usize)
+            .map_or(f64::NAN, |v| f64::from(*v))
+    };
+    let v = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
+    if !v.iter().all(|v| v.is_finite()) {
         return None;
     }
+    Some((v, fx, fy))
+}
+
+/// Bilinear value and gradient of `image` at `p` (pixels, centres at integers).
+///
+/// Returns `None` if `p` is not finite, lies outside `[0, w−1] × [0, h−1]`, or one of the four
+/// samples used is NaN or infinite (e.g. "no data" in a depth map).
+pub fn sample_bilinear_with_gradient(image: &GrayF32Image, p: DVec2) -> Option<BilinearSample> {
+    let ([v00, v10, v01, v11], fx, fy) = corners(image, p)?;
     let value = v00 * (1.0 - fx) * (1.0 - fy)
         + v10 * fx * (1.0 - fy)
         + v01 * (1.0 - fx) * fy
@@ -55,8 +68,15 @@ pub fn sample_bilinear_with_gradient(image: &GrayF32Image, p: DVec2) -> Option<B
 }
 
 /// Bilinear value of `image` at `p`; `None` as for [`sample_bilinear_with_gradient`].
+#[inline]
 pub fn sample_bilinear(image: &GrayF32Image, p: DVec2) -> Option<f64> {
-    sample_bilinear_with_gradient(image, p).map(|s| s.value)
+    let ([v00, v10, v01, v11], fx, fy) = corners(image, p)?;
+    Some(
+        v00 * (1.0 - fx) * (1.0 - fy)
+            + v10 * fx * (1.0 - fy)
+            + v01 * (1.0 - fx) * fy
+            + v11 * fx * fy,
+    )
 }
 
 #[cfg(test)]
