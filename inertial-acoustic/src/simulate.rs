@@ -1368,6 +1368,36 @@ fn thread_cpu_s() -> f64 {
     cpu_time::ThreadTime::try_now().map_or(0.0, |t| t.as_duration().as_secs_f64())
 }
 
+/// The §4.4.4 start of a filter run on `rec`: the truth's first pose as the rest pose, the
+/// initialisation from the rest hold's readings, the root's DOFs known when supplied.
+fn start_filter(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+) -> Result<(crate::SkeletalEkf, crate::Initialisation)> {
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = crate::initialise(skeleton, &rec.nominal_suit, rest_pose, &rest)?;
+    let known: Vec<usize> = if root_supplied {
+        skeleton.joint_dofs(0).collect()
+    } else {
+        Vec::new()
+    };
+    let ekf = crate::SkeletalEkf::new(
+        skeleton.clone(),
+        init.suit.clone(),
+        rest_pose,
+        params,
+        &known,
+    )?
+    .with_gyro_offsets(init.gyro_offsets.clone())?;
+    Ok((ekf, init))
+}
+
 /// Initialises (§4.4.4, on the rest hold) and runs the EKF over `rec` with `params`,
 /// supplying the root DOFs if `root_supplied`, and scores `joints` against the truth on every
 /// frame after the rest hold.
@@ -1383,7 +1413,7 @@ pub fn run_filter(
     root_supplied: bool,
     joints: &[usize],
 ) -> Result<FilterRun> {
-    use crate::{initialise, joint_orientation_errors_deg, ErrorStats, SkeletalEkf};
+    use crate::{joint_orientation_errors_deg, ErrorStats};
     if rec.frames.len() <= rec.rest_frames + 1 {
         return Err(Error::Empty {
             what: "frames after the rest hold",
@@ -1393,19 +1423,7 @@ pub fn run_filter(
         skin_core::check::index("joint", j, skeleton.joint_count())?;
     }
     let (t0, c0) = (Instant::now(), thread_cpu_s());
-    let rest_pose = &rec.truth[0].theta;
-    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(skeleton, &rec.nominal_suit, rest_pose, &rest)?;
-    let known: Vec<usize> = if root_supplied {
-        skeleton.joint_dofs(0).collect()
-    } else {
-        Vec::new()
-    };
-    let mut ekf = SkeletalEkf::new(skeleton.clone(), init.suit, rest_pose, params, &known)?
-        .with_gyro_offsets(init.gyro_offsets)?;
+    let (mut ekf, _) = start_filter(skeleton, rec, params, root_supplied)?;
     let (mut diverged, mut used) = (0, 0);
     // The estimates are kept and scored after the loop, so that the timing is the filter's.
     let mut estimates = Vec::with_capacity(rec.frames.len() - rec.rest_frames);
@@ -1491,32 +1509,14 @@ pub fn refine_recording_headings(
     root_supplied: bool,
     seconds: f64,
 ) -> Result<crate::HeadingRefinement> {
-    use crate::{initialise, refine_headings, SkeletalEkf};
+    use crate::refine_headings;
     if rec.frames.len() <= rec.rest_frames + 2 {
         return Err(Error::Empty {
             what: "frames after the rest hold",
         });
     }
     non_negative("seconds", seconds)?;
-    let rest_pose = &rec.truth[0].theta;
-    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(skeleton, &rec.nominal_suit, rest_pose, &rest)?;
-    let known: Vec<usize> = if root_supplied {
-        skeleton.joint_dofs(0).collect()
-    } else {
-        Vec::new()
-    };
-    let mut ekf = SkeletalEkf::new(
-        skeleton.clone(),
-        init.suit.clone(),
-        rest_pose,
-        params,
-        &known,
-    )?
-    .with_gyro_offsets(init.gyro_offsets.clone())?;
+    let (mut ekf, init) = start_filter(skeleton, rec, params, root_supplied)?;
     let end =
         (rec.rest_frames + (seconds * INERTIAL_RATE_HZ).round() as usize).min(rec.frames.len());
     let mut poses = Vec::with_capacity(end - rec.rest_frames);
@@ -1534,7 +1534,7 @@ pub fn refine_recording_headings(
     refine_headings(
         skeleton,
         &init.suit,
-        rest_pose,
+        &rec.truth[0].theta,
         &poses,
         &readings,
         &init.gyro_offsets,
