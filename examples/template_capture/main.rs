@@ -47,7 +47,7 @@ use dynamic_shapes::core::mesh::{
     SurfacePoint, TriMesh, UvLayout,
 };
 use dynamic_shapes::core::random::SplitMix64;
-use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
+use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
     exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
@@ -548,21 +548,12 @@ fn capture_run(
     let mut scores = vec![[vec![], vec![], vec![], vec![]]; subsets.len()];
     for (t, truth) in truths.iter().enumerate() {
         let true_v = &embedding.truth(&truth.true_mesh(&performer))?;
-        let est = sk
-            .forward_kinematics(&result.poses.poses[t])?
-            .joint_positions();
-        let tru = performer
-            .skeleton
-            .forward_kinematics(&truth.theta)?
-            .joint_positions();
-        joint.push(
-            1e3 * est
-                .iter()
-                .zip(&tru)
-                .map(|(a, b)| (*a - *b).length())
-                .sum::<f64>()
-                / est.len() as f64,
-        );
+        joint.push(joint_error_mm(
+            sk,
+            &result.poses.poses[t],
+            &performer.skeleton,
+            &truth.theta,
+        )?);
         let lbs = template.skin(&result.poses.poses[t])?;
         let lbs_true = template.skin(&truth.theta)?;
         for (s, (_, subset)) in subsets.iter().enumerate() {
@@ -681,6 +672,20 @@ impl SizeScoring<'_> {
     }
 }
 
+/// Mean distance between the joints of `estimate` posed by `theta` and of the performer's
+/// `truth` skeleton posed by `true_theta`, mm (the skeletons may differ in bone lengths).
+fn joint_error_mm(
+    estimate: &Skeleton,
+    theta: &[f64],
+    truth: &Skeleton,
+    true_theta: &[f64],
+) -> Result<f64, Box<dyn std::error::Error>> {
+    let est = estimate.forward_kinematics(theta)?.joint_positions();
+    let tru = truth.forward_kinematics(true_theta)?.joint_positions();
+    let d: Vec<f64> = est.iter().zip(&tru).map(|(a, b)| a.distance(*b)).collect();
+    Ok(1e3 * mean(&d))
+}
+
 /// A tracker run's mean joint error (mm, against the true performer's joints), silhouette
 /// error (%) and vertex RMS of the molded result (mm).
 fn tracker_scores(
@@ -694,22 +699,12 @@ fn tracker_scores(
     let template = &embedding.template;
     let (mut joint, mut sil, mut vertex) = (vec![], vec![], vec![]);
     for (t, truth) in truths.iter().enumerate() {
-        let est = template
-            .skeleton()
-            .forward_kinematics(&result.poses.poses[t])?
-            .joint_positions();
-        let tru = performer
-            .skeleton
-            .forward_kinematics(&truth.theta)?
-            .joint_positions();
-        joint.push(
-            1e3 * mean(
-                &est.iter()
-                    .zip(&tru)
-                    .map(|(a, b)| a.distance(*b))
-                    .collect::<Vec<_>>(),
-            ),
-        );
+        joint.push(joint_error_mm(
+            template.skeleton(),
+            &result.poses.poses[t],
+            &performer.skeleton,
+            &truth.theta,
+        )?);
         let molded = template.mesh_with(result.shapes.frames[t].clone());
         sil.push(mean(&silhouette_error_pct(&molded, cameras, &masks[t])?));
         let true_v = embedding.truth(&truth.true_mesh(performer))?;
@@ -718,8 +713,6 @@ fn tracker_scores(
     Ok((mean(&joint), mean(&sil), mean(&vertex)))
 }
 
-/// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
-/// up in one camera's view and the frame re-optimised at once; the time of that, ms.
 /// The automatic first pose (`initialise_pose`) of a run's first frame, with its errors and
 /// those of the baseline that could have won (the rest pose at the hull's centroid, then the
 /// same robust fit) under `{name}_auto_init_*` and `{name}_rest_init_*`.
@@ -759,6 +752,8 @@ fn auto_init(
     Ok(auto.theta().to_vec())
 }
 
+/// A user correction (§2.3.3, Figure 2-4): the left wrist of the middle frame dragged 5 cm
+/// up in one camera's view and the frame re-optimised at once; the time of that, ms.
 fn reoptimise_ms(
     template: &Template,
     observations: &[FrameObservation],

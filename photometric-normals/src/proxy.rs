@@ -321,9 +321,9 @@ mod tests {
         (rig.cameras, mesh)
     }
 
-    #[test]
-    fn hull_of_a_sphere_lies_on_or_outside_it_and_close() {
-        let (cams, mesh) = sphere_rig(6);
+    /// [`sphere_rig`] and the visual hull of its rendered silhouettes.
+    fn sphere_hull(n: usize) -> (Vec<Camera>, TriMesh, VisualHull) {
+        let (cams, mesh) = sphere_rig(n);
         let masks: Vec<Mask> = cams
             .iter()
             .map(|c| {
@@ -334,6 +334,12 @@ mod tests {
             })
             .collect();
         let hull = VisualHull::new(&cams, &masks).unwrap();
+        (cams, mesh, hull)
+    }
+
+    #[test]
+    fn hull_of_a_sphere_lies_on_or_outside_it_and_close() {
+        let (cams, mesh, hull) = sphere_hull(6);
         let vh = hull.depth_map(0, &VisualHullParams::default()).unwrap();
         let truth = mesh_proxy_depth(&cams[0], &mesh).unwrap();
         // Gap between the hull and the sphere along the rays (m; > 0 in front of it).
@@ -364,17 +370,7 @@ mod tests {
     /// outside, off the image and behind cameras.
     #[test]
     fn fast_hull_queries_equal_the_reference_path() {
-        let (cams, mesh) = sphere_rig(6);
-        let masks: Vec<Mask> = cams
-            .iter()
-            .map(|c| {
-                Rasterizer::new(c)
-                    .render(&mesh, &RenderParams::default())
-                    .unwrap()
-                    .silhouette()
-            })
-            .collect();
-        let hull = VisualHull::new(&cams, &masks).unwrap();
+        let (cams, _, hull) = sphere_hull(6);
         let reference = |c: usize, p: DVec3| -> Option<(f64, f64)> {
             let cam = &hull.cameras[c];
             let z = cam.camera_from_world().transform_point3(p).z;
