@@ -361,14 +361,7 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
         performer.weights.clone(),
     )
     .unwrap();
-    let frames: Vec<PoseFrame<'_>> = obs
-        .iter()
-        .map(|o| PoseFrame {
-            hull: &o.hull,
-            rays: &o.rays,
-            user: &[],
-        })
-        .collect();
+    let frames: Vec<PoseFrame<'_>> = obs.iter().map(|o| o.pose_frame(&[])).collect();
     let run = |template: &Template| {
         let m = PoseModel::new(template, &PoseParams::default()).unwrap();
         track(&m, &frames, &first, None, &PoseParams::default())
@@ -567,14 +560,7 @@ fn a_performer_with_other_bone_lengths_is_sized_from_the_tracked_first_frames() 
     .theta()
     .to_vec();
     let init_s = t.elapsed().as_secs_f64();
-    let pose_frames: Vec<PoseFrame<'_>> = obs
-        .iter()
-        .map(|o| PoseFrame {
-            hull: &o.hull,
-            rays: &o.rays,
-            user: &[],
-        })
-        .collect();
+    let pose_frames: Vec<PoseFrame<'_>> = obs.iter().map(|o| o.pose_frame(&[])).collect();
     let run = |template: &Template| {
         let m = PoseModel::new(template, &PoseParams::default()).unwrap();
         track(&m, &pose_frames, &first, None, &PoseParams::default())
@@ -861,14 +847,7 @@ fn trace_leg_lengths() {
     .unwrap()
     .theta()
     .to_vec();
-    let pose_frames: Vec<PoseFrame<'_>> = obs
-        .iter()
-        .map(|o| PoseFrame {
-            hull: &o.hull,
-            rays: &o.rays,
-            user: &[],
-        })
-        .collect();
+    let pose_frames: Vec<PoseFrame<'_>> = obs.iter().map(|o| o.pose_frame(&[])).collect();
     let pm = PoseModel::new(&default_template, &PoseParams::default()).unwrap();
     let tracked = track(&pm, &pose_frames, &first, None, &PoseParams::default())
         .unwrap()

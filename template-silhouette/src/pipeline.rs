@@ -52,6 +52,15 @@ impl FrameObservation {
             rays: per_camera.concat(),
         })
     }
+
+    /// The frame as the pose tracker takes it, with `user` rays (§2.3.3; `&[]` for none).
+    pub fn pose_frame<'a>(&'a self, user: &'a [UserRay]) -> PoseFrame<'a> {
+        PoseFrame {
+            hull: &self.hull,
+            rays: &self.rays,
+            user,
+        }
+    }
 }
 
 /// Poses and shapes of a captured sequence, with the time each stage took.
@@ -98,11 +107,7 @@ pub fn capture_sequence(
     let frames: Vec<PoseFrame<'_>> = observations
         .iter()
         .enumerate()
-        .map(|(t, o)| PoseFrame {
-            hull: &o.hull,
-            rays: &o.rays,
-            user: user.get(t).map_or(&[], Vec::as_slice),
-        })
+        .map(|(t, o)| o.pose_frame(user.get(t).map_or(&[], Vec::as_slice)))
         .collect();
     let start = Instant::now();
     let poses = track(&model, &frames, first_guess, Some(&mut estimator), pose)?;
