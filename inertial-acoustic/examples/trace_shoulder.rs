@@ -7,7 +7,7 @@
 
 use inertial_acoustic::simulate::{
     model_recording, prepare_motion, run_filter, SimulatedRecording, SimulationParams,
-    SuitSimulator,
+    SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
     initialise, FilterParams, InnovationStats, SensorSet, Suit, INNOVATION_TYPES,
@@ -51,6 +51,24 @@ fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, jo
         "    NEES neck/shoulder/hip {:.1}/{:.1}/{:.1};{c}",
         r.nees_mean[0], r.nees_mean[1], r.nees_mean[2]
     );
+}
+
+/// The suit simulated with `sp` on `smooth` and the sensors its run uses: the source offsets
+/// calibrated (§4.3.3) and every sensor when the ultrasound is on, else `no_distances`.
+fn simulate(
+    s: &Skeleton,
+    sp: SimulationParams,
+    smooth: &SmoothMotion,
+    no_distances: SensorSet,
+) -> (SimulatedRecording, SensorSet) {
+    let sim = SuitSimulator::new(s, sp).unwrap();
+    if sp.ultrasound {
+        let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+        (sim.record(smooth, &offsets).unwrap(), SensorSet::ALL)
+    } else {
+        let offsets = vec![0.0; sim.nominal_suit().sources().len()];
+        (sim.record(smooth, &offsets).unwrap(), no_distances)
+    }
 }
 
 fn main() {
@@ -268,18 +286,7 @@ fn main() {
             ),
             ("only quantisation + code (all off)", off),
         ] {
-            let sim = SuitSimulator::new(&s, sp).unwrap();
-            let offsets = if sp.ultrasound {
-                sim.calibrate_offsets(3).unwrap().offsets
-            } else {
-                vec![0.0; sim.nominal_suit().sources().len()]
-            };
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            let set = if sp.ultrasound {
-                SensorSet::ALL
-            } else {
-                sets[1]
-            };
+            let (rec, set) = simulate(&s, sp, &smooth, sets[1]);
             let p = pipeline.with_sensors(set);
             line(name, &s, &rec, p, &joints);
             let mut r = rec.clone();
@@ -308,18 +315,7 @@ fn main() {
             ),
             ("everything (dither)", SimulationParams { seed, ..base }),
         ] {
-            let sim = SuitSimulator::new(&s, sp).unwrap();
-            let offsets = if sp.ultrasound {
-                sim.calibrate_offsets(3).unwrap().offsets
-            } else {
-                vec![0.0; sim.nominal_suit().sources().len()]
-            };
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            let set = if sp.ultrasound {
-                SensorSet::ALL
-            } else {
-                sets[1]
-            };
+            let (rec, set) = simulate(&s, sp, &smooth, sets[1]);
             let p = pipeline.with_sensors(set);
             line(&format!("{name}, §4.4.4 only"), &s, &rec, p, &joints);
             let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
@@ -425,18 +421,7 @@ fn main() {
                 },
             ),
         ] {
-            let sim = SuitSimulator::new(&s, sp).unwrap();
-            let offsets = if sp.ultrasound {
-                sim.calibrate_offsets(3).unwrap().offsets
-            } else {
-                vec![0.0; sim.nominal_suit().sources().len()]
-            };
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            let set = if sp.ultrasound {
-                SensorSet::ALL
-            } else {
-                sets[1]
-            };
+            let (rec, set) = simulate(&s, sp, &smooth, sets[1]);
             line(name, &s, &rec, pipeline.with_sensors(set), &joints);
             line(
                 &format!("{name}, σg 0.002"),
@@ -553,13 +538,7 @@ fn main() {
         ),
     ];
     for (name, sp) in variants {
-        let sim = SuitSimulator::new(&s, sp).unwrap();
-        let offsets = if sp.ultrasound {
-            sim.calibrate_offsets(3).unwrap().offsets
-        } else {
-            vec![0.0; sim.nominal_suit().sources().len()]
-        };
-        let rec = sim.record(&smooth, &offsets).unwrap();
+        let (rec, set) = simulate(&s, sp, &smooth, sets[1]);
         if name == "+ placement 3°" {
             // Is the board's frame right after §4.4.4? Residual misalignment per board and
             // its part about gravity at rest (which the accelerometers cannot see).
@@ -598,11 +577,6 @@ fn main() {
             }
             println!("    residual board misalignment after §4.4.4:{out}");
         }
-        let set = if sp.ultrasound {
-            SensorSet::ALL
-        } else {
-            sets[1]
-        };
         line(name, &s, &rec, tuned.with_sensors(set), &joints);
         line(
             &format!("{name}, re-centred"),
