@@ -1,18 +1,23 @@
 //! Diagnosis of the right-shoulder offset (issue 15): oracle measurements from the filter's
-//! own models, then the simulator's error sources added one at a time.
+//! own models, then the simulator's error sources added one at a time. `treadmill` traces the
+//! oracle's left-shoulder drift on the looped walk on the MakeHuman skeleton (sixth session):
+//! per 5 s window the shoulder's error, its axis in the bone frame, the world errors of the
+//! upper arm and chest, the left arm boards' innovations; sensor sets, charts, Eq. 4.1's
+//! first-order step against the exact transition, the gate, q, the twist limit, half speed.
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
-//! [-- SECONDS [SEED]]`
+//! [-- SECONDS [SEED] [walk | oracle | sigmas | budget | treadmill [sensors | causes | gate | q | twist | all]]]`
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // a diagnostic, not library code
 
 use inertial_acoustic::simulate::{
-    model_recording, prepare_motion, run_filter, SimulatedRecording, SimulationParams,
-    SmoothMotion, SuitSimulator,
+    model_recording, prepare_motion, run_filter, treadmill_motion, SimulatedRecording,
+    SimulationParams, SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
-    initialise, FilterParams, InnovationStats, SensorSet, Suit, INNOVATION_TYPES,
+    initialise, FilterParams, InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
 };
-use skin_core::skeleton::{human_skeleton, HumanParams, Skeleton};
+use skin_core::math::{DQuat, DVec3};
+use skin_core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
 use skin_core::studio::{exercise_motion, ExerciseParams};
 
 fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, joints: &[usize]) {
@@ -80,6 +85,15 @@ fn main() {
         .iter()
         .map(|n| s.joint_index(n).unwrap())
         .collect();
+    if args.get(3).is_some_and(|a| a == "treadmill") {
+        // The example's skeleton: the MakeHuman performer's (its drift run's figures).
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
+        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
+        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let what = args.get(4).map_or("all", String::as_str);
+        treadmill_trace(&performer.skeleton, seconds, what);
+        return;
+    }
     let motion = if args.get(3).is_some_and(|a| a == "walk") {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
         let bvh = skin_core::skeleton::BvhParams::default();
@@ -585,5 +599,246 @@ fn main() {
             tuned.with_sensors(set).with_recentre_rad(0.3),
             &joints,
         );
+    }
+}
+
+/// Issue 15, sixth session: the oracle's left-shoulder drift on the treadmill. One filter run
+/// with per-window logs: the left shoulder's mean error, the mean rotation vector of its error
+/// `R_trueᵀ R_est` in the bone's own (upper-arm) frame with its angle to the humerus's long axis,
+/// and the left arm boards' innovation means and distance counts.
+struct Traced {
+    windows: Vec<(f64, DVec3)>,
+    /// Per window: mean world-orientation error (deg) of the upper arm and of the chest.
+    world: Vec<(f64, f64)>,
+    long_axis: DVec3,
+    diverged: usize,
+}
+
+fn traced_run(
+    s: &Skeleton,
+    rec: &SimulatedRecording,
+    p: FilterParams,
+    window_s: f64,
+) -> (Traced, SkeletalEkf) {
+    let j = s.joint_index("l_shoulder").unwrap();
+    let elbow = s.joint_index("l_elbow").unwrap();
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
+    let known: Vec<usize> = s.joint_dofs(0).collect();
+    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, &known)
+        .unwrap()
+        .with_gyro_offsets(init.gyro_offsets.clone())
+        .unwrap();
+    let chest = s.joint_index("chest").unwrap();
+    // (parent → l_shoulder, world l_shoulder, world chest)
+    let rots = |th: &[f64]| {
+        let fk = s.forward_kinematics(th).unwrap();
+        let w = fk.world_from_joint();
+        let parent = s.joints()[j].parent.unwrap();
+        let q = |i: usize| DQuat::from_mat3(&w[i].matrix3);
+        (q(parent).inverse() * q(j), q(j), q(chest))
+    };
+    let (mut sum_arm, mut sum_chest) = (0.0, 0.0);
+    let mut world = Vec::new();
+    let per = (window_s * 140.0).round() as usize;
+    let (mut sum_deg, mut sum_vec, mut n) = (0.0, DVec3::ZERO, 0usize);
+    let mut windows = Vec::new();
+    let mut diverged = 0;
+    for (k, f) in rec.frames.iter().enumerate() {
+        let r = ekf.step(f, Some(&rec.root[k])).unwrap();
+        diverged += usize::from(r.diverged);
+        if k < rec.rest_frames {
+            continue;
+        }
+        let (lt, at, ct) = rots(&rec.truth[k].theta);
+        let (le, ae, ce) = rots(ekf.theta());
+        sum_arm += at.angle_between(ae).to_degrees();
+        sum_chest += ct.angle_between(ce).to_degrees();
+        let e = lt.inverse() * le;
+        let e = if e.w < 0.0 { -e } else { e };
+        let (axis, angle) = e.to_axis_angle();
+        sum_deg += angle.to_degrees();
+        sum_vec += axis * angle.to_degrees();
+        n += 1;
+        if n == per {
+            windows.push((sum_deg / n as f64, sum_vec / n as f64));
+            world.push((sum_arm / n as f64, sum_chest / n as f64));
+            (sum_deg, sum_vec, n) = (0.0, DVec3::ZERO, 0);
+            (sum_arm, sum_chest) = (0.0, 0.0);
+        }
+    }
+    let long_axis = s.joints()[elbow].offset.normalize();
+    (
+        Traced {
+            windows,
+            world,
+            long_axis,
+            diverged,
+        },
+        ekf,
+    )
+}
+
+fn treadmill_line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams) -> f64 {
+    let (t, ekf) = traced_run(s, rec, p, 5.0);
+    let w: Vec<String> = t.windows.iter().map(|(m, _)| format!("{m:.1}")).collect();
+    let last = t.windows.last().map_or(f64::NAN, |w| w.0);
+    println!(
+        "{label:<40} {:<6} L-shoulder per 5 s: {} | div {}",
+        p.sensors.label(),
+        w.join(" "),
+        t.diverged
+    );
+    let w: Vec<String> = t
+        .world
+        .iter()
+        .map(|(a, c)| format!("{a:.1}/{c:.1}"))
+        .collect();
+    println!("    world error upper arm / chest per 5 s: {}", w.join(" "));
+    if let Some((_, v)) = t.windows.last() {
+        let c = v
+            .normalize()
+            .dot(t.long_axis)
+            .abs()
+            .min(1.0)
+            .acos()
+            .to_degrees();
+        println!(
+            "    last-5 s mean error rotation vector (bone frame, deg) [{:+.1} {:+.1} {:+.1}], {c:.0}° from the humerus axis",
+            v.x, v.y, v.z
+        );
+    }
+    let names = ["l_upper_arm", "l_forearm", "l_hand"];
+    let mut c = String::new();
+    for name in names {
+        let b = ekf
+            .suit()
+            .boards()
+            .iter()
+            .position(|b| b.name == name)
+            .unwrap();
+        c += &format!(" {name}:");
+        for (t, per_board) in INNOVATION_TYPES.iter().zip(ekf.innovation_stats()) {
+            let st = per_board[b];
+            if st.count > 0 {
+                c += &format!(
+                    " {t} n {} ν/√s {:+.3} NIS {:.3};",
+                    st.count,
+                    st.mean_normalised(),
+                    st.mean_nis()
+                );
+            }
+        }
+    }
+    println!("   {c}");
+    last
+}
+
+fn treadmill_trace(s: &Skeleton, seconds: f64, what: &str) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
+    let walk = |limit: Option<f64>| {
+        let retarget = skin_core::studio::RetargetParams {
+            twist_rate_limit_rad_per_s: limit,
+            ..skin_core::studio::RetargetParams::default()
+        };
+        skin_core::studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
+            .unwrap()
+            .motion
+    };
+    let base = SimulationParams::default();
+    let suit = Suit::vlasic(s).unwrap();
+    let oracle_of = |m: &Motion| {
+        let smooth = prepare_motion(s, m, &base).unwrap();
+        model_recording(s, &suit, &smooth, base.rest_s).unwrap()
+    };
+    let tuned = FilterParams::default()
+        .with_process_sigma(4.0)
+        .with_measurement_sigmas(2.0, 0.01, 0.0025)
+        .with_distance_gate_sigma(4.0)
+        .with_recentre_rad(0.3);
+    let g = SensorSet {
+        accelerometers: false,
+        distances: false,
+        ..SensorSet::ALL
+    };
+    let ag = SensorSet {
+        distances: false,
+        ..SensorSet::ALL
+    };
+    let tread = treadmill_motion(s, &walk(Some(10.0)), seconds).unwrap();
+    let oracle = oracle_of(&tread);
+    if what == "sensors" || what == "all" {
+        // Before → after: Eq. 4.1's first-order step against the exact transition.
+        for first_order in [true, false] {
+            let p = tuned.with_first_order_step(first_order);
+            let step = if first_order {
+                "θ+Δtθ̇"
+            } else {
+                "θ+Δtθ̇+½Δt²θ̈"
+            };
+            for set in [g, ag, SensorSet::ALL] {
+                let label = format!("oracle, {step}, local 0.3");
+                treadmill_line(&label, s, &oracle, p.with_sensors(set));
+            }
+            let label = format!("oracle, {step}, Euler");
+            treadmill_line(&label, s, &oracle, p.with_recentre_rad(0.0));
+        }
+    }
+    if what == "causes" || what == "all" {
+        // Without the left hand's board (its gyroscope's NIS is in the hundreds).
+        let b = suit
+            .boards()
+            .iter()
+            .position(|b| b.name == "l_hand")
+            .unwrap();
+        let mut no_hand = oracle.clone();
+        for f in no_hand.frames.iter_mut().skip(no_hand.rest_frames) {
+            f.inertial[b] = None;
+        }
+        treadmill_line("oracle without the l_hand board", s, &no_hand, tuned);
+        // The same walk at half speed (each frame twice as long).
+        let slow = Motion::new(2.0 * tread.frame_time_s, tread.frames.clone()).unwrap();
+        treadmill_line(
+            "oracle, walk at half speed (2x longer)",
+            s,
+            &oracle_of(&slow),
+            tuned,
+        );
+    }
+    if what == "gate" || what == "all" {
+        // The 4σ distance gate against none: perfect distances rejected once the arm is off.
+        treadmill_line(
+            "oracle, no distance gate",
+            s,
+            &oracle,
+            tuned.with_distance_gate_sigma(0.0),
+        );
+    }
+    if what == "q" || what == "all" {
+        for q in [0.4, 40.0] {
+            treadmill_line(
+                &format!("oracle, q {q}"),
+                s,
+                &oracle,
+                tuned.with_process_sigma(q),
+            );
+        }
+    }
+    if what == "twist" || what == "all" {
+        for limit in [Some(5.0), None] {
+            let m = treadmill_motion(s, &walk(limit), seconds).unwrap();
+            treadmill_line(
+                &format!("oracle, twist limit {limit:?}"),
+                s,
+                &oracle_of(&m),
+                tuned,
+            );
+        }
+        let w = walk(Some(10.0));
+        treadmill_line("oracle, un-looped walk (8 s)", s, &oracle_of(&w), tuned);
     }
 }

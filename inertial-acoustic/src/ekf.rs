@@ -615,24 +615,40 @@ impl SkeletalEkf {
         self.recentre()?;
         let nf = self.nf;
         let dt = self.params.frame_time_s;
+        // The exact transition of the constant-acceleration model that Eq. 4.1 discretises:
+        // θ gains Δt θ̇ + ½Δt² θ̈ (Eq. 4.1's first-order step drops the ½Δt² θ̈ term, a bias
+        // that made the oracle drift on the treadmill: docs, "The treadmill drift traced").
+        let h2 = if self.params.first_order_step {
+            0.0
+        } else {
+            0.5 * dt * dt
+        };
         for i in 0..nf {
-            self.x[i] += dt * self.x[nf + i];
+            self.x[i] += dt * self.x[nf + i] + h2 * self.x[2 * nf + i];
             self.x[nf + i] += dt * self.x[2 * nf + i];
         }
         let n = 3 * nf;
         let data = self.p.as_mut_slice();
-        // Rows (F P): within each column, block 0 += Δt block 1, then block 1 += Δt block 2.
+        // Rows (F P): within each column, block 0 += Δt block 1 + ½Δt² block 2, then block 1
+        // += Δt block 2.
         for c in 0..n {
             let col = &mut data[c * n..(c + 1) * n];
             for i in 0..nf {
-                col[i] += dt * col[nf + i];
+                col[i] += dt * col[nf + i] + h2 * col[2 * nf + i];
             }
             for i in 0..nf {
                 col[nf + i] += dt * col[2 * nf + i];
             }
         }
-        // Columns ((F P) Fᵀ): column i += Δt column nf + i, then column nf + i += Δt column
-        // 2nf + i.
+        // Columns ((F P) Fᵀ): column i += Δt column nf + i + ½Δt² column 2nf + i, then column
+        // nf + i += Δt column 2nf + i (column 2nf + i itself is unchanged).
+        for i in 0..nf {
+            let (head, tail) = data.split_at_mut(2 * nf * n + i * n);
+            let dst = &mut head[i * n..(i + 1) * n];
+            for (d, s) in dst.iter_mut().zip(&tail[..n]) {
+                *d += h2 * s;
+            }
+        }
         for blk in 0..2 {
             for i in 0..nf {
                 let (a, b) = (blk * nf + i, (blk + 1) * nf + i);

@@ -182,6 +182,13 @@ pub struct FilterParams {
     /// four-seed study; at the tuned, larger process noise 0.3 did — see the docs).
     #[serde(default)]
     pub recentre_rad: f64,
+    /// Time update of θ as Eq. 4.1 prints it, `θ + Δt θ̇` (the first-order step), instead of
+    /// the exact transition of the constant-acceleration model it discretises,
+    /// `θ + Δt θ̇ + ½Δt² θ̈`. The first-order step's missing `½Δt² θ̈` biases every step;
+    /// on a periodic walk that bias made even perfect measurements drift (left shoulder
+    /// 2 → 52° over 60 s, docs "The treadmill drift traced"). Default: false (exact).
+    #[serde(default)]
+    pub first_order_step: bool,
 }
 
 impl Default for FilterParams {
@@ -199,6 +206,7 @@ impl Default for FilterParams {
             sensors: SensorSet::ALL,
             divergence_rate: 60.0,
             recentre_rad: 0.0,
+            first_order_step: false,
         }
     }
 }
@@ -232,6 +240,14 @@ impl FilterParams {
     pub fn with_recentre_rad(self, recentre_rad: f64) -> Self {
         FilterParams {
             recentre_rad,
+            ..self
+        }
+    }
+
+    /// With `first_order_step` replaced (true: Eq. 4.1's `θ + Δt θ̇` as printed).
+    pub fn with_first_order_step(self, first_order_step: bool) -> Self {
+        FilterParams {
+            first_order_step,
             ..self
         }
     }
