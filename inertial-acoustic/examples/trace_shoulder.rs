@@ -91,7 +91,7 @@ fn main() {
         let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
         let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
         let what = args.get(4).map_or("all", String::as_str);
-        treadmill_trace(&performer.skeleton, seconds, what);
+        treadmill_trace(&performer, &deformation, seconds, what);
         return;
     }
     let motion = if args.get(3).is_some_and(|a| a == "walk") {
@@ -738,7 +738,13 @@ fn treadmill_line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: Filter
     last
 }
 
-fn treadmill_trace(s: &Skeleton, seconds: f64, what: &str) {
+fn treadmill_trace(
+    performer: &skin_core::studio::Performer,
+    deformation: &skin_core::studio::DeformationParams,
+    seconds: f64,
+    what: &str,
+) {
+    let s = &performer.skeleton;
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
     let walk = |limit: Option<f64>| {
         let retarget = skin_core::studio::RetargetParams {
@@ -808,6 +814,176 @@ fn treadmill_trace(s: &Skeleton, seconds: f64, what: &str) {
             &oracle_of(&slow),
             tuned,
         );
+    }
+    if what == "suit" || what == "all" {
+        // The simulated suit (garment, rigid on the bones, and the bare-skeleton stand-in)
+        // with and without distances: Figure 4-7 as the data give it.
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let garment = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+        let rigid = garment.clone().with_rigid_attachment();
+        let bare = SuitSimulator::new(s, base).unwrap();
+        for (name, sim) in [
+            ("garment", garment),
+            ("rigid", rigid),
+            ("bare skeleton", bare),
+        ] {
+            let t0 = std::time::Instant::now();
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let sim_s = t0.elapsed().as_secs_f64();
+            for set in [SensorSet::ALL, ag] {
+                treadmill_line(
+                    &format!("simulated, {name} ({sim_s:.0} s)"),
+                    s,
+                    &rec,
+                    tuned.with_sensors(set),
+                );
+            }
+        }
+    }
+    if what == "slew" || what == "all" {
+        // The true boards' angular accelerations against the 6-bit delta code's slew limit
+        // (31 counts per frame: 42 rad/s² at ±20 rad/s).
+        for name in ["l_upper_arm", "l_forearm", "l_hand", "r_forearm", "sternum"] {
+            let b = suit.boards().iter().position(|b| b.name == name).unwrap();
+            let mut acc: Vec<f64> = oracle
+                .frames
+                .windows(2)
+                .map(|w| {
+                    let g = |f: &inertial_acoustic::FrameObservations| {
+                        f.inertial[b].unwrap().gyro_rad_s
+                    };
+                    let d = (g(&w[1]) - g(&w[0])) * 140.0;
+                    d.x.abs().max(d.y.abs()).max(d.z.abs())
+                })
+                .collect();
+            acc.sort_by(f64::total_cmp);
+            let over = acc.iter().filter(|&&a| a > 42.0).count();
+            println!(
+                "{name}: largest per-axis angular acceleration: median {:.1}, 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42 rad/s²",
+                acc[acc.len() / 2],
+                acc[acc.len() * 99 / 100],
+                acc[acc.len() - 1],
+                acc.len()
+            );
+        }
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let off = SimulationParams {
+            accel_noise: 0.0,
+            gyro_noise: 0.0,
+            accel_zero_sd: 0.0,
+            gyro_zero_sd: 0.0,
+            scale_sd: 0.0,
+            gyro_bias_walk: 0.0,
+            bit_error_rate: 0.0,
+            placement_sd_m: 0.0,
+            placement_sd_deg: 0.0,
+            skin_slide_m_per_rad: 0.0,
+            analog_noise_lsb: 0.0,
+            ..base
+        };
+        for (name, sp) in [
+            ("bare, every error off", off),
+            (
+                "bare, every error off, gyro ±60 rad/s",
+                SimulationParams {
+                    gyro_range: 60.0,
+                    ..off
+                },
+            ),
+            (
+                "bare, everything on, gyro ±60 rad/s",
+                SimulationParams {
+                    gyro_range: 60.0,
+                    ..base
+                },
+            ),
+        ] {
+            let sim = SuitSimulator::new(s, sp).unwrap();
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            for set in [SensorSet::ALL, ag] {
+                treadmill_line(name, s, &rec, tuned.with_sensors(set));
+            }
+        }
+    }
+    if what == "smooth" || what == "all" {
+        // More binomial smoothing passes over the treadmill (the scored truth and the suit's
+        // motion alike): how fast the left hand turns, and the simulated suit's drift.
+        for passes in [2usize, 8, 32] {
+            let sp = SimulationParams {
+                smoothing_passes: passes,
+                ..base
+            };
+            let smooth = prepare_motion(s, &tread, &sp).unwrap();
+            let oracle = model_recording(s, &suit, &smooth, sp.rest_s).unwrap();
+            let b = suit
+                .boards()
+                .iter()
+                .position(|b| b.name == "l_hand")
+                .unwrap();
+            let mut acc: Vec<f64> = oracle
+                .frames
+                .windows(2)
+                .map(|w| {
+                    let g = |f: &inertial_acoustic::FrameObservations| {
+                        f.inertial[b].unwrap().gyro_rad_s
+                    };
+                    let d = (g(&w[1]) - g(&w[0])) * 140.0;
+                    d.x.abs().max(d.y.abs()).max(d.z.abs())
+                })
+                .collect();
+            acc.sort_by(f64::total_cmp);
+            let over = acc.iter().filter(|&&a| a > 42.0).count();
+            println!(
+                "{passes} passes: l_hand angular acceleration 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42",
+                acc[acc.len() * 99 / 100],
+                acc[acc.len() - 1],
+                acc.len()
+            );
+            treadmill_line(&format!("oracle, {passes} passes"), s, &oracle, tuned);
+            let sim = SuitSimulator::new(s, sp).unwrap();
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            for set in [SensorSet::ALL, ag] {
+                treadmill_line(
+                    &format!("bare suit, {passes} passes"),
+                    s,
+                    &rec,
+                    tuned.with_sensors(set),
+                );
+            }
+        }
+    }
+    if what == "dofs" || what == "all" {
+        // Per left-arm DOF: the largest rate and acceleration (finite differences) in the
+        // walk and in the looped treadmill, and the loop's residual.
+        let w = walk(Some(10.0));
+        for j in ["l_shoulder", "l_elbow", "l_wrist"] {
+            for d in s.joint_dofs(s.joint_index(j).unwrap()) {
+                let stat = |m: &Motion| {
+                    let h = m.frame_time_s;
+                    let (mut r, mut a) = (0.0f64, 0.0f64);
+                    for k in 1..m.frame_count() - 1 {
+                        let (p, c, n) =
+                            (m.frames[(d, k - 1)], m.frames[(d, k)], m.frames[(d, k + 1)]);
+                        r = r.max(((n - p) / (2.0 * h)).abs());
+                        a = a.max(((n - 2.0 * c + p) / (h * h)).abs());
+                    }
+                    (r, a)
+                };
+                let (rw, aw) = stat(&w);
+                let (rt, at) = stat(&tread);
+                println!("{j} DOF {d}: walk max rate {rw:.1} rad/s, acc {aw:.0} rad/s²; treadmill {rt:.1}, {at:.0}");
+                let jumps: Vec<String> = (1..w.frame_count())
+                    .filter(|&k| (w.frames[(d, k)] - w.frames[(d, k - 1)]).abs() > 1.0)
+                    .map(|k| format!("{k}: {:.2}→{:.2}", w.frames[(d, k - 1)], w.frames[(d, k)]))
+                    .collect();
+                if !jumps.is_empty() {
+                    println!("    jumps > 1 rad in one walk frame: {}", jumps.join(", "));
+                }
+            }
+        }
     }
     if what == "gate" || what == "all" {
         // The 4σ distance gate against none: perfect distances rejected once the arm is off.
