@@ -213,20 +213,9 @@ fn main() {
     }
     // (b) The simulator with every error source off, then each one on.
     let off = SimulationParams {
-        accel_noise: 0.0,
-        gyro_noise: 0.0,
-        accel_zero_sd: 0.0,
-        gyro_zero_sd: 0.0,
-        scale_sd: 0.0,
-        gyro_bias_walk: 0.0,
-        bit_error_rate: 0.0,
-        placement_sd_m: 0.0,
-        placement_sd_deg: 0.0,
-        skin_slide_m_per_rad: 0.0,
-        analog_noise_lsb: 0.0,
         ultrasound: false,
         seed,
-        ..base
+        ..errors_off(base)
     };
     if args.get(3).is_some_and(|a| a == "budget") {
         // (f) Per-cause budget: everything on (dithered front end), then one cause off at a
@@ -602,6 +591,64 @@ fn main() {
     }
 }
 
+/// `base` with every sensing error off (noise, zero and scale, bias walk, bit errors,
+/// placement, slide, dither); the quantisation and the delta code stay.
+fn errors_off(base: SimulationParams) -> SimulationParams {
+    SimulationParams {
+        accel_noise: 0.0,
+        gyro_noise: 0.0,
+        accel_zero_sd: 0.0,
+        gyro_zero_sd: 0.0,
+        scale_sd: 0.0,
+        gyro_bias_walk: 0.0,
+        bit_error_rate: 0.0,
+        placement_sd_m: 0.0,
+        placement_sd_deg: 0.0,
+        skin_slide_m_per_rad: 0.0,
+        analog_noise_lsb: 0.0,
+        ..base
+    }
+}
+
+/// Per frame, the largest per-axis change of board `name`'s true angular rate (rad/s²),
+/// sorted ascending.
+fn angular_accelerations(rec: &SimulatedRecording, suit: &Suit, name: &str) -> Vec<f64> {
+    let b = suit.boards().iter().position(|b| b.name == name).unwrap();
+    let g = |f: &inertial_acoustic::FrameObservations| f.inertial[b].unwrap().gyro_rad_s;
+    let mut acc: Vec<f64> = rec
+        .frames
+        .windows(2)
+        .map(|w| {
+            let d = (g(&w[1]) - g(&w[0])) * 140.0;
+            d.x.abs().max(d.y.abs()).max(d.z.abs())
+        })
+        .collect();
+    acc.sort_by(f64::total_cmp);
+    acc
+}
+
+/// The suit `sim` recorded on `smooth` (offsets calibrated) and filtered with and without
+/// distances.
+fn suit_lines(
+    label: &str,
+    s: &Skeleton,
+    sim: &SuitSimulator,
+    smooth: &SmoothMotion,
+    p: FilterParams,
+) {
+    let t0 = std::time::Instant::now();
+    let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+    let rec = sim.record(smooth, &offsets).unwrap();
+    let label = format!("{label} ({:.0} s)", t0.elapsed().as_secs_f64());
+    let no_d = SensorSet {
+        distances: false,
+        ..SensorSet::ALL
+    };
+    for set in [SensorSet::ALL, no_d] {
+        treadmill_line(&label, s, &rec, p.with_sensors(set));
+    }
+}
+
 /// Issue 15, sixth session: the oracle's left-shoulder drift on the treadmill. One filter run
 /// with per-window logs: the left shoulder's mean error, the mean rotation vector of its error
 /// `R_trueᵀ R_est` in the bone's own (upper-arm) frame with its angle to the humerus's long axis,
@@ -827,37 +874,14 @@ fn treadmill_trace(
             ("rigid", rigid),
             ("bare skeleton", bare),
         ] {
-            let t0 = std::time::Instant::now();
-            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            let sim_s = t0.elapsed().as_secs_f64();
-            for set in [SensorSet::ALL, ag] {
-                treadmill_line(
-                    &format!("simulated, {name} ({sim_s:.0} s)"),
-                    s,
-                    &rec,
-                    tuned.with_sensors(set),
-                );
-            }
+            suit_lines(&format!("simulated, {name}"), s, &sim, &smooth, tuned);
         }
     }
     if what == "slew" || what == "all" {
         // The true boards' angular accelerations against the 6-bit delta code's slew limit
         // (31 counts per frame: 42 rad/s² at ±20 rad/s).
         for name in ["l_upper_arm", "l_forearm", "l_hand", "r_forearm", "sternum"] {
-            let b = suit.boards().iter().position(|b| b.name == name).unwrap();
-            let mut acc: Vec<f64> = oracle
-                .frames
-                .windows(2)
-                .map(|w| {
-                    let g = |f: &inertial_acoustic::FrameObservations| {
-                        f.inertial[b].unwrap().gyro_rad_s
-                    };
-                    let d = (g(&w[1]) - g(&w[0])) * 140.0;
-                    d.x.abs().max(d.y.abs()).max(d.z.abs())
-                })
-                .collect();
-            acc.sort_by(f64::total_cmp);
+            let acc = angular_accelerations(&oracle, &suit, name);
             let over = acc.iter().filter(|&&a| a > 42.0).count();
             println!(
                 "{name}: largest per-axis angular acceleration: median {:.1}, 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42 rad/s²",
@@ -868,20 +892,7 @@ fn treadmill_trace(
             );
         }
         let smooth = prepare_motion(s, &tread, &base).unwrap();
-        let off = SimulationParams {
-            accel_noise: 0.0,
-            gyro_noise: 0.0,
-            accel_zero_sd: 0.0,
-            gyro_zero_sd: 0.0,
-            scale_sd: 0.0,
-            gyro_bias_walk: 0.0,
-            bit_error_rate: 0.0,
-            placement_sd_m: 0.0,
-            placement_sd_deg: 0.0,
-            skin_slide_m_per_rad: 0.0,
-            analog_noise_lsb: 0.0,
-            ..base
-        };
+        let off = errors_off(base);
         for (name, sp) in [
             ("bare, every error off", off),
             (
@@ -900,11 +911,7 @@ fn treadmill_trace(
             ),
         ] {
             let sim = SuitSimulator::new(s, sp).unwrap();
-            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            for set in [SensorSet::ALL, ag] {
-                treadmill_line(name, s, &rec, tuned.with_sensors(set));
-            }
+            suit_lines(name, s, &sim, &smooth, tuned);
         }
     }
     if what == "smooth" || what == "all" {
@@ -917,23 +924,7 @@ fn treadmill_trace(
             };
             let smooth = prepare_motion(s, &tread, &sp).unwrap();
             let oracle = model_recording(s, &suit, &smooth, sp.rest_s).unwrap();
-            let b = suit
-                .boards()
-                .iter()
-                .position(|b| b.name == "l_hand")
-                .unwrap();
-            let mut acc: Vec<f64> = oracle
-                .frames
-                .windows(2)
-                .map(|w| {
-                    let g = |f: &inertial_acoustic::FrameObservations| {
-                        f.inertial[b].unwrap().gyro_rad_s
-                    };
-                    let d = (g(&w[1]) - g(&w[0])) * 140.0;
-                    d.x.abs().max(d.y.abs()).max(d.z.abs())
-                })
-                .collect();
-            acc.sort_by(f64::total_cmp);
+            let acc = angular_accelerations(&oracle, &suit, "l_hand");
             let over = acc.iter().filter(|&&a| a > 42.0).count();
             println!(
                 "{passes} passes: l_hand angular acceleration 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42",
@@ -943,16 +934,13 @@ fn treadmill_trace(
             );
             treadmill_line(&format!("oracle, {passes} passes"), s, &oracle, tuned);
             let sim = SuitSimulator::new(s, sp).unwrap();
-            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
-            let rec = sim.record(&smooth, &offsets).unwrap();
-            for set in [SensorSet::ALL, ag] {
-                treadmill_line(
-                    &format!("bare suit, {passes} passes"),
-                    s,
-                    &rec,
-                    tuned.with_sensors(set),
-                );
-            }
+            suit_lines(
+                &format!("bare suit, {passes} passes"),
+                s,
+                &sim,
+                &smooth,
+                tuned,
+            );
         }
     }
     if what == "dofs" || what == "all" {
