@@ -1166,4 +1166,47 @@ mod tests {
         );
         assert!((&ekf.x - &x).amax() < 1e-12);
     }
+
+    #[test]
+    fn time_update_is_the_exact_constant_acceleration_transition() {
+        let skeleton = human_skeleton(&HumanParams::default()).unwrap();
+        let suit = Suit::vlasic(&skeleton).unwrap();
+        let rest = skeleton.rest_pose();
+        let params = FilterParams::default().with_process_sigma(0.3);
+        for first_order in [false, true] {
+            let p = params.with_first_order_step(first_order);
+            let mut ekf = SkeletalEkf::new(skeleton.clone(), suit.clone(), &rest, p, &[]).unwrap();
+            let (nf, n) = (ekf.nf, 3 * ekf.nf);
+            // A correlated P and a moving state.
+            ekf.predict().unwrap();
+            ekf.predict().unwrap();
+            ekf.symmetrise();
+            for i in 0..n {
+                ekf.x[i] = 0.01 * ((7 * i) % 13) as f64 - 0.05;
+            }
+            let (x, p0) = (ekf.x.clone(), ekf.p.clone());
+            // Dense F: θ += Δt θ̇ + ½Δt² θ̈ (0 with the first-order step), θ̇ += Δt θ̈.
+            let dt = p.frame_time_s;
+            let h2 = if first_order { 0.0 } else { 0.5 * dt * dt };
+            let mut f = DMatrix::<f64>::identity(n, n);
+            for i in 0..nf {
+                f[(i, nf + i)] = dt;
+                f[(i, 2 * nf + i)] = h2;
+                f[(nf + i, 2 * nf + i)] = dt;
+            }
+            let mut q = DMatrix::<f64>::zeros(n, n);
+            for i in 0..nf {
+                q[(2 * nf + i, 2 * nf + i)] = p.process_sigma.powi(2);
+            }
+            let x_ref = &f * x;
+            let p_ref = &f * p0 * f.transpose() + q;
+            ekf.predict().unwrap();
+            assert!((&ekf.x - &x_ref).amax() < 1e-15, "{first_order}");
+            assert!(
+                (&ekf.p - &p_ref).amax() < 1e-12 * p_ref.amax(),
+                "{first_order}: {}",
+                (&ekf.p - &p_ref).amax()
+            );
+        }
+    }
 }
