@@ -943,7 +943,50 @@ fn treadmill_trace(
             );
         }
     }
+    if what == "clamp" || what == "all" {
+        // The walk retargeted with every DOF clamped into the performer's limits (the wrist's
+        // flexion sits near ±π otherwise): the hand's rates, then the garment suit.
+        let retarget = skin_core::studio::RetargetParams {
+            twist_rate_limit_rad_per_s: Some(10.0),
+            clamp_to_limits: true,
+        };
+        let clamped =
+            skin_core::studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
+                .unwrap()
+                .motion;
+        let tread = treadmill_motion(s, &clamped, seconds).unwrap();
+        let oracle = oracle_of(&tread);
+        let rates = angular_accelerations(&oracle, &suit, "l_hand");
+        println!(
+            "clamped: l_hand angular acceleration 99th percentile {:.1}, max {:.1} rad/s²",
+            rates[rates.len() * 99 / 100],
+            rates[rates.len() - 1]
+        );
+        for set in [SensorSet::ALL, ag] {
+            treadmill_line("oracle, clamped walk", s, &oracle, tuned.with_sensors(set));
+        }
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let garment = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+        suit_lines("garment suit, clamped walk", s, &garment, &smooth, tuned);
+    }
     if what == "dofs" || what == "all" {
+        // The boards' largest true per-axis rates against the gyroscopes' ±20 rad/s range.
+        for name in ["l_upper_arm", "l_forearm", "l_hand", "r_hand"] {
+            let b = suit.boards().iter().position(|b| b.name == name).unwrap();
+            let mut rates: Vec<f64> = oracle
+                .frames
+                .iter()
+                .map(|f| f.inertial[b].unwrap().gyro_rad_s.abs().max_element())
+                .collect();
+            rates.sort_by(f64::total_cmp);
+            let over = rates.iter().filter(|&&r| r > 20.0).count();
+            println!(
+                "{name}: largest per-axis rate 99th percentile {:.1}, max {:.1} rad/s; {over} of {} frames beyond ±20 rad/s",
+                rates[rates.len() * 99 / 100],
+                rates[rates.len() - 1],
+                rates.len()
+            );
+        }
         // Per left-arm DOF: the largest rate and acceleration (finite differences) in the
         // walk and in the looped treadmill, and the loop's residual.
         let w = walk(Some(10.0));
