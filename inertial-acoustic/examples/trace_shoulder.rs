@@ -649,6 +649,18 @@ fn suit_lines(
     }
 }
 
+/// Median, 99th percentile and largest of ascending `v`, and how many exceed `limit`.
+fn spread(v: &[f64], limit: f64) -> String {
+    let over = v.iter().filter(|&&a| a > limit).count();
+    format!(
+        "median {:.1}, 99th percentile {:.1}, max {:.1}; {over} of {} frames above {limit}",
+        v[v.len() / 2],
+        v[v.len() * 99 / 100],
+        v[v.len() - 1],
+        v.len()
+    )
+}
+
 /// Issue 15, sixth session: the oracle's left-shoulder drift on the treadmill. One filter run
 /// with per-window logs: the left shoulder's mean error, the mean rotation vector of its error
 /// `R_trueᵀ R_est` in the bone's own (upper-arm) frame with its angle to the humerus's long axis,
@@ -882,13 +894,9 @@ fn treadmill_trace(
         // (31 counts per frame: 42 rad/s² at ±20 rad/s).
         for name in ["l_upper_arm", "l_forearm", "l_hand", "r_forearm", "sternum"] {
             let acc = angular_accelerations(&oracle, &suit, name);
-            let over = acc.iter().filter(|&&a| a > 42.0).count();
             println!(
-                "{name}: largest per-axis angular acceleration: median {:.1}, 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42 rad/s²",
-                acc[acc.len() / 2],
-                acc[acc.len() * 99 / 100],
-                acc[acc.len() - 1],
-                acc.len()
+                "{name}: largest per-axis angular acceleration (rad/s²): {}",
+                spread(&acc, 42.0)
             );
         }
         let smooth = prepare_motion(s, &tread, &base).unwrap();
@@ -925,12 +933,9 @@ fn treadmill_trace(
             let smooth = prepare_motion(s, &tread, &sp).unwrap();
             let oracle = model_recording(s, &suit, &smooth, sp.rest_s).unwrap();
             let acc = angular_accelerations(&oracle, &suit, "l_hand");
-            let over = acc.iter().filter(|&&a| a > 42.0).count();
             println!(
-                "{passes} passes: l_hand angular acceleration 99th percentile {:.1}, max {:.1} rad/s²; {over} of {} frames above 42",
-                acc[acc.len() * 99 / 100],
-                acc[acc.len() - 1],
-                acc.len()
+                "{passes} passes: l_hand angular acceleration (rad/s²): {}",
+                spread(&acc, 42.0)
             );
             treadmill_line(&format!("oracle, {passes} passes"), s, &oracle, tuned);
             let sim = SuitSimulator::new(s, sp).unwrap();
@@ -979,12 +984,9 @@ fn treadmill_trace(
                 .map(|f| f.inertial[b].unwrap().gyro_rad_s.abs().max_element())
                 .collect();
             rates.sort_by(f64::total_cmp);
-            let over = rates.iter().filter(|&&r| r > 20.0).count();
             println!(
-                "{name}: largest per-axis rate 99th percentile {:.1}, max {:.1} rad/s; {over} of {} frames beyond ±20 rad/s",
-                rates[rates.len() * 99 / 100],
-                rates[rates.len() - 1],
-                rates.len()
+                "{name}: largest per-axis rate (rad/s): {}",
+                spread(&rates, 20.0)
             );
         }
         // Per left-arm DOF: the largest rate and acceleration (finite differences) in the
