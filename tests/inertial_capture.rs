@@ -556,8 +556,14 @@ fn treadmill_oracle_distances_hold_the_left_shoulder() {
          A+G {a_first:.2} → {a_last:.2}°, A+G+D first-order step {old_first:.2} → {old_last:.2}°"
     );
     // Measured: 0.6 → 0.6°, 6.0 → 9.4°, 2.1 → 52.1°.
-    assert!(d_last < 2.0 && d_last < d_first + 1.0, "A+G+D {d_first} → {d_last}");
+    assert!(
+        d_last < 2.0 && d_last < d_first + 1.0,
+        "A+G+D {d_first} → {d_last}"
+    );
     assert!(a_last > a_first + 1.0, "A+G {a_first} → {a_last}: no drift");
     assert!(a_last > 4.0 * d_last, "A+G {a_last} vs A+G+D {d_last}");
-    assert!(old_last > 20.0 && old_last > 10.0 * d_last, "first-order step {old_last}");
+    assert!(
+        old_last > 20.0 && old_last > 10.0 * d_last,
+        "first-order step {old_last}"
+    );
 }
