@@ -59,11 +59,13 @@ use dynamic_shapes::core::studio::{
     ExerciseParams, RangeOfMotionParams, RetargetParams,
 };
 use dynamic_shapes::inertial::simulate::{
-    model_recording, prepare_motion, refine_recording_headings, run_filter, table_4_1,
-    treadmill_motion, tune, FilterRun, SimulatedRecording, SimulationParams, SuitSimulator,
-    TuningPoint,
+    estimate_recording_board_noise, model_recording, prepare_motion, refine_recording_headings,
+    run_filter, table_4_1, treadmill_motion, tune, FilterRun, SimulatedRecording, SimulationParams,
+    SuitSimulator, TuningPoint,
 };
-use dynamic_shapes::inertial::{FilterParams, InnovationStats, SensorSet, INNOVATION_TYPES};
+use dynamic_shapes::inertial::{
+    FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+};
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
 
@@ -87,6 +89,7 @@ fn variants(
     let stats = |r: &FilterRun| {
         json!({"neck": r.stats[0].mean_deg, "right_shoulder": r.stats[1].mean_deg,
                "left_hip": r.stats[2].mean_deg, "nees": r.nees_mean,
+               "swing_twist_deg": r.swing_twist_deg,
                "innovations": consistency(r)})
     };
     let heading = run_filter(skeleton, &refined, params, true, joints)?;
@@ -94,12 +97,56 @@ fn variants(
         params.with_measurement_sigmas(params.accelerometer_sigma, params.gyroscope_sigma, 0.012);
     let inflated = run_filter(skeleton, rec, wide, true, joints)?;
     let both = run_filter(skeleton, &refined, wide, true, joints)?;
+    // Issue 15, sixth session: per-board R from a first pass (same seconds as the heading
+    // fit), robust distance updates, and the neck board's readings left out.
+    let with_noise =
+        |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
+            let n = estimate_recording_board_noise(skeleton, r, params, true, HEADING_FIT_S)?;
+            let mut out = r.clone();
+            out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+            Ok(out)
+        };
+    let noisy = with_noise(rec)?;
+    let refined_noisy = with_noise(&refined)?;
+    let (huber, cauchy) = (
+        params.with_distance_robust(RobustLoss::Huber { k: 1.345 }),
+        params.with_distance_robust(RobustLoss::Cauchy { c: 2.385 }),
+    );
+    let mut no_neck = rec.clone();
+    if let Some(b) = rec
+        .nominal_suit
+        .boards()
+        .iter()
+        .position(|b| b.name == "neck")
+    {
+        for f in &mut no_neck.frames[rec.rest_frames..] {
+            f.inertial[b] = None;
+        }
+    }
+    let sigmas = |r: &SimulatedRecording| {
+        r.nominal_suit
+            .board_noise()
+            .iter()
+            .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
+            .collect::<Vec<_>>()
+    };
+    let baseline = run_filter(skeleton, rec, params, true, joints)?;
     Ok(json!({
         "heading_fit_s": HEADING_FIT_S,
         "headings_deg": h.headings_deg,
+        "baseline": stats(&baseline),
         "heading_refined": stats(&heading),
         "distance_sigma_12mm": stats(&inflated),
         "heading_refined_distance_sigma_12mm": stats(&both),
+        "board_sigmas": sigmas(&noisy),
+        "per_board_noise": stats(&run_filter(skeleton, &noisy, params, true, joints)?),
+        "huber": stats(&run_filter(skeleton, rec, huber, true, joints)?),
+        "cauchy": stats(&run_filter(skeleton, rec, cauchy, true, joints)?),
+        "per_board_noise_huber": stats(&run_filter(skeleton, &noisy, huber, true, joints)?),
+        "per_board_noise_cauchy": stats(&run_filter(skeleton, &noisy, cauchy, true, joints)?),
+        "heading_refined_per_board_noise": stats(&run_filter(skeleton, &refined_noisy, params, true, joints)?),
+        "heading_refined_per_board_noise_cauchy": stats(&run_filter(skeleton, &refined_noisy, cauchy, true, joints)?),
+        "neck_board_dropped": stats(&run_filter(skeleton, &no_neck, params, true, joints)?),
     }))
 }
 
@@ -170,7 +217,8 @@ fn consistency(r: &FilterRun) -> Value {
         out.insert(
             (*t).to_string(),
             json!({"count": all.count, "mean_normalised": all.mean_normalised(),
-                   "mean_nis": all.mean_nis(), "r_upper_arm_mean_normalised": arm.mean_normalised(),
+                   "mean_nis": all.mean_nis(), "pass_rate": all.pass_rate(),
+                   "mean_nis_passed": all.mean_nis_passed(), "r_upper_arm_mean_normalised": arm.mean_normalised(),
                    "r_upper_arm_mean_nis": arm.mean_nis()}),
         );
     }
@@ -398,15 +446,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let v_rigid = variants(&skeleton, &rec_rigid, params, &joints)?;
             for (label, v) in [("garment", &v_garment), ("rigid", &v_rigid)] {
                 for key in [
+                    "baseline",
                     "heading_refined",
                     "distance_sigma_12mm",
                     "heading_refined_distance_sigma_12mm",
+                    "per_board_noise",
+                    "huber",
+                    "cauchy",
+                    "per_board_noise_huber",
+                    "per_board_noise_cauchy",
+                    "heading_refined_per_board_noise",
+                    "heading_refined_per_board_noise_cauchy",
+                    "neck_board_dropped",
                 ] {
+                    let f = |a: &Value| a.as_f64().unwrap_or(f64::NAN);
+                    let i = &v[key]["innovations"];
                     stage.println(format!(
-                        "exercise, {label}, {key}: A+G+D with root {:.2}/{:.2}/{:.2}°",
-                        v[key]["neck"].as_f64().unwrap_or(f64::NAN),
-                        v[key]["right_shoulder"].as_f64().unwrap_or(f64::NAN),
-                        v[key]["left_hip"].as_f64().unwrap_or(f64::NAN)
+                        "exercise, {label}, {key}: A+G+D with root {:.2}/{:.2}/{:.2}° | neck swing/twist {:.2}/{:.2}° | NIS gyro {:.2} accel {:.3} | distances ν/σ {:+.1} NIS {:.0} pass {:.3} NIS passed {:.2}",
+                        f(&v[key]["neck"]),
+                        f(&v[key]["right_shoulder"]),
+                        f(&v[key]["left_hip"]),
+                        f(&v[key]["swing_twist_deg"][0][0]),
+                        f(&v[key]["swing_twist_deg"][0][1]),
+                        f(&i["gyroscope"]["mean_nis"]),
+                        f(&i["accelerometer"]["mean_nis"]),
+                        f(&i["distance"]["mean_normalised"]),
+                        f(&i["distance"]["mean_nis"]),
+                        f(&i["distance"]["pass_rate"]),
+                        f(&i["distance"]["mean_nis_passed"]),
                     ));
                 }
             }

@@ -4,7 +4,7 @@
 
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
-use skin_core::math::DQuat;
+use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 /// Mean and standard deviation of an error, degrees.
@@ -67,6 +67,53 @@ pub fn joint_orientation_errors_deg(
             let qa = local_rotation(&fa, skeleton, j);
             let qb = local_rotation(&fb, skeleton, j);
             Ok(qa.angle_between(qb).to_degrees())
+        })
+        .collect()
+}
+
+/// The orientation difference of each joint in `joints` between poses `a` (estimate) and
+/// `b` (truth) split into twist about the bone and swing of the bone (degrees): the error
+/// rotation `E = R_bᵀ R_a` of the joint relative to its parent, in the joint's frame, is
+/// decomposed as `E = swing · twist` with `twist` about the bone's axis (the direction to its
+/// first child, else its end site; a joint without either has all of `E` as swing). Tells
+/// whether a joint's error is a rotation it has a DOF for — e.g. the 2-DOF neck cannot
+/// twist, so its twist error is what a board's twist against the bone leaves.
+///
+/// # Errors
+/// As [`joint_orientation_errors_deg`].
+pub fn joint_swing_twist_errors_deg(
+    skeleton: &Skeleton,
+    a: &[f64],
+    b: &[f64],
+    joints: &[usize],
+) -> Result<Vec<[f64; 2]>> {
+    let fa = skeleton.forward_kinematics(a)?;
+    let fb = skeleton.forward_kinematics(b)?;
+    joints
+        .iter()
+        .map(|&j| {
+            skin_core::check::index("joint", j, skeleton.joint_count())?;
+            let mut e =
+                local_rotation(&fb, skeleton, j).inverse() * local_rotation(&fa, skeleton, j);
+            if e.w < 0.0 {
+                e = -e;
+            }
+            let bone = skeleton
+                .children(j)
+                .next()
+                .map(|c| skeleton.joints()[c].offset)
+                .or(skeleton.joints()[j].end_site)
+                .map(|v| v.normalize_or_zero())
+                .unwrap_or_default();
+            let v = DVec3::new(e.x, e.y, e.z);
+            let twist = 2.0 * f64::atan2(v.dot(bone), e.w);
+            let swing = DQuat::from_axis_angle(bone, twist).inverse();
+            let swing_angle = if bone == DVec3::ZERO {
+                e.angle_between(DQuat::IDENTITY)
+            } else {
+                (e * swing).angle_between(DQuat::IDENTITY)
+            };
+            Ok([swing_angle.to_degrees(), twist.abs().to_degrees()])
         })
         .collect()
 }
