@@ -72,6 +72,9 @@ use example_kit::{Goal, Headline, Run};
 const JOINTS: [&str; 3] = ["neck", "r_shoulder", "l_hip"];
 /// Seconds of motion the per-board heading fit (beyond §4.4.4) uses from the recording's start.
 const HEADING_FIT_S: f64 = 6.0;
+/// Seconds of motion the first pass that estimates the per-board noise (beyond §4.4.2; issue
+/// 15, sixth session) uses from the recording's start — the pipeline's default since then.
+const BOARD_NOISE_S: f64 = 6.0;
 
 /// A+G+D with the root supplied after the per-board heading step beyond §4.4.4
 /// (`refine_recording_headings` over the first `HEADING_FIT_S` of motion), and with the
@@ -203,6 +206,7 @@ fn run_json(r: &FilterRun) -> Value {
         "ekf_s": r.ekf_s,
         "ekf_cpu_s": r.ekf_cpu_s,
         "nees_mean": r.nees_mean,
+        "swing_twist_deg": r.swing_twist_deg,
         "innovations": consistency(r),
     })
 }
@@ -398,6 +402,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut main_table = Vec::new();
     let mut rigid_table = Vec::new();
     let mut euler_table = Vec::new();
+    let mut global_table = Vec::new();
     let mut skin_motion = Vec::new();
     let mut beyond = Value::Null;
     for (name, motion) in [
@@ -406,7 +411,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("cmu_walk", &walk),
     ] {
         let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets);
-        let table = table_4_1(&skeleton, &rec, params, &joints)?;
+        let table = table_4_1(&skeleton, &rec, params, &joints, Some(BOARD_NOISE_S))?;
         let seconds = (rec.frames.len() - 1) as f64 / 140.0;
         let agd = table
             .iter()
@@ -433,7 +438,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             main_table = table.clone();
             skin_motion = rec.skin_motion.clone();
             let rec_rigid = record(&rigid, &skeleton, motion, &sim_params, &cal.offsets);
-            rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints)?;
+            rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints, Some(BOARD_NOISE_S))?;
+            // Before issue 15's sixth session: the global σ for every board.
+            global_table = table_4_1(&skeleton, &rec, params, &joints, None)?;
             // The same recording with the 3-DOF joints in the other chart (Euler angles
             // throughout, or re-centred): before and after the local parameterisation.
             euler_table = table_4_1(
@@ -441,6 +448,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &rec,
                 params.with_recentre_rad(other_chart),
                 &joints,
+                Some(BOARD_NOISE_S),
             )?;
             let v_garment = variants(&skeleton, &rec, params, &joints)?;
             let v_rigid = variants(&skeleton, &rec_rigid, params, &joints)?;
@@ -480,6 +488,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             beyond = json!({"garment": v_garment, "rigid": v_rigid});
             for (label, t) in [
                 ("suit rigid on the bones", &rigid_table),
+                ("global σ (before per-board noise)", &global_table),
                 ("other chart of the 3-DOF joints", &euler_table),
             ] {
                 let r = t
@@ -682,6 +691,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
         .unwrap();
+    let agd_global = global_table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .unwrap();
     let agd_euler = euler_table
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
@@ -808,6 +821,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "performer": "makehuman, pose-driven shapes, no flap",
         "quick": quick,
     });
+    // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
+    // before it.
+    if let Some(f) = figures.as_object_mut() {
+        f.insert(
+            "table_4_1_exercise_global_sigma".into(),
+            global_table.iter().map(run_json).collect(),
+        );
+        f.insert(
+            "agd_global_sigma_deg".into(),
+            json!({"neck": agd_global.stats[0].mean_deg,
+                "right_shoulder": agd_global.stats[1].mean_deg,
+                "left_hip": agd_global.stats[2].mean_deg}),
+        );
+        f.insert("board_noise_s".into(), json!(BOARD_NOISE_S));
+        f.insert(
+            "agd_board_sigmas".into(),
+            agd.board_noise
+                .iter()
+                .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
+                .collect(),
+        );
+    }
     if let (Some(f), Value::Object(r)) = (figures.as_object_mut(), real) {
         f.extend(r);
     }

@@ -258,3 +258,36 @@ pub fn board_noise_from_innovations(
         })
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stats(count: usize, nis: f64) -> InnovationStats {
+        InnovationStats {
+            count,
+            sum_nis: nis * count as f64,
+            ..InnovationStats::default()
+        }
+    }
+
+    /// σ_b = σ √NIS_b above the rating, the rating below it and without updates.
+    #[test]
+    fn board_noise_scales_to_unit_nis_bounded_by_the_global_sigma() {
+        let p = FilterParams::default().with_measurement_sigmas(2.0, 0.01, 0.0025);
+        let all = [
+            vec![stats(30, 25.0), stats(30, 0.2), stats(0, 0.0)],
+            vec![stats(30, 0.05), stats(30, 4.0), stats(30, f64::NAN)],
+            vec![InnovationStats::default(); 3],
+        ];
+        let n = board_noise_from_innovations(&all, 3, &p).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(close(n[0].gyroscope_sigma, 0.05), "{n:?}");
+        assert!(close(n[1].gyroscope_sigma, 0.01) && close(n[2].gyroscope_sigma, 0.01));
+        assert!(close(n[0].accelerometer_sigma, 2.0) && close(n[1].accelerometer_sigma, 4.0));
+        assert!(close(n[2].accelerometer_sigma, 2.0));
+        assert!(board_noise_from_innovations(&all, 4, &p).is_err());
+        let bad = p.with_measurement_sigmas(-1.0, 0.01, 0.0025);
+        assert!(board_noise_from_innovations(&all, 3, &bad).is_err());
+    }
+}

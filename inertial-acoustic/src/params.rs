@@ -337,3 +337,33 @@ impl FilterParams {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Huber caps the correction at k σ, Cauchy lets it fall off; neither touches a small
+    /// innovation.
+    #[test]
+    fn robust_inflation_bounds_the_pull_of_large_innovations() {
+        let huber = RobustLoss::Huber { k: 1.345 };
+        let cauchy = RobustLoss::Cauchy { c: 2.385 };
+        assert_eq!(RobustLoss::None.inflation(100.0), 1.0);
+        assert_eq!(huber.inflation(1.0), 1.0);
+        assert!((cauchy.inflation(0.1) - 1.0).abs() < 0.002);
+        // The correction in σ units is e / inflation(e).
+        for e in [5.0, 50.0, 500.0] {
+            assert!((e / huber.inflation(e) - 1.345).abs() < 1e-12);
+            assert!(e / cauchy.inflation(e) < 2.385 * 2.385 / e + 1e-12);
+        }
+        for bad in [
+            RobustLoss::Huber { k: 0.0 },
+            RobustLoss::Cauchy { c: f64::NAN },
+        ] {
+            assert!(FilterParams::default()
+                .with_distance_robust(bad)
+                .validate()
+                .is_err());
+        }
+    }
+}

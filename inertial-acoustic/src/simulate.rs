@@ -1226,6 +1226,9 @@ pub struct FilterRun {
     /// error, degrees ([`crate::joint_swing_twist_errors_deg`]).
     #[serde(default)]
     pub swing_twist_deg: Vec<[f64; 2]>,
+    /// The per-board measurement noise the run used (the suit's; empty: the global σ).
+    #[serde(default)]
+    pub board_noise: Vec<crate::BoardNoise>,
 }
 
 /// CPU time of the calling thread, seconds (0 where the platform cannot tell).
@@ -1367,6 +1370,7 @@ pub fn run_filter(
         innovations: ekf.innovation_stats().clone(),
         nees_mean,
         swing_twist_deg,
+        board_noise: rec.nominal_suit.board_noise().to_vec(),
     })
 }
 
@@ -1469,27 +1473,55 @@ pub fn estimate_recording_board_noise(
     )
 }
 
-/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
-/// and without the root transform supplied, on one recording, with `params` otherwise.
+/// [`run_filter`] after [`estimate_recording_board_noise`]: per-board measurement noise
+/// from a first pass (same `params`, `root_supplied`) over the rest hold and the first
+/// `seconds` of motion, then the whole recording with the suit so set. The run's
+/// [`FilterRun::board_noise`] holds the σ used; its `ekf_s` and `ekf_cpu_s` include the first
+/// pass.
 ///
 /// # Errors
-/// As [`run_filter`].
+/// As [`estimate_recording_board_noise`] and [`run_filter`].
+pub fn run_filter_board_noise(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    joints: &[usize],
+    seconds: f64,
+) -> Result<FilterRun> {
+    let (t0, c0) = (Instant::now(), thread_cpu_s());
+    let noise = estimate_recording_board_noise(skeleton, rec, params, root_supplied, seconds)?;
+    let (first_s, first_cpu_s) = (t0.elapsed().as_secs_f64(), thread_cpu_s() - c0);
+    let mut adapted = rec.clone();
+    adapted.nominal_suit = adapted.nominal_suit.with_board_noise(noise)?;
+    let mut run = run_filter(skeleton, &adapted, params, root_supplied, joints)?;
+    run.ekf_s += first_s;
+    run.ekf_cpu_s += first_cpu_s;
+    Ok(run)
+}
+
+/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
+/// and without the root transform supplied, on one recording, with `params` otherwise; with
+/// `board_noise_s`, each run estimates its per-board noise from its own first pass over that
+/// many seconds of motion ([`run_filter_board_noise`]), else uses the suit as it is.
+///
+/// # Errors
+/// As [`run_filter`] and [`run_filter_board_noise`].
 pub fn table_4_1(
     skeleton: &Skeleton,
     rec: &SimulatedRecording,
     params: crate::FilterParams,
     joints: &[usize],
+    board_noise_s: Option<f64>,
 ) -> Result<Vec<FilterRun>> {
     let mut out = Vec::with_capacity(14);
     for sensors in crate::SensorSet::table_4_1() {
         for root in [true, false] {
-            out.push(run_filter(
-                skeleton,
-                rec,
-                params.with_sensors(sensors),
-                root,
-                joints,
-            )?);
+            let p = params.with_sensors(sensors);
+            out.push(match board_noise_s {
+                Some(secs) => run_filter_board_noise(skeleton, rec, p, root, joints, secs)?,
+                None => run_filter(skeleton, rec, p, root, joints)?,
+            });
         }
     }
     Ok(out)
