@@ -586,7 +586,7 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     for f in &mut echoes.frames {
         for d in &mut f.distances {
             n += 1;
-            if n % 4 == 0 {
+            if n.is_multiple_of(4) {
                 d.distance_m += 0.3;
             }
         }
