@@ -13,7 +13,7 @@ use dynamic_shapes::core::studio::{
 use dynamic_shapes::inertial::simulate::{
     estimate_recording_board_noise, model_recording, prepare_motion, run_filter,
     run_filter_board_noise, table_4_1, FilterRun, SimulatedRecording, SimulationParams,
-    SuitSimulator,
+    SmoothMotion, SuitSimulator,
 };
 use dynamic_shapes::inertial::{
     refine_headings, BoardNoise, Context, DistanceMeasurement, Error, FilterParams,
@@ -37,6 +37,17 @@ fn joints(s: &Skeleton) -> Vec<usize> {
         .iter()
         .map(|n| s.joint_index(n).unwrap())
         .collect()
+}
+
+/// The human skeleton, default simulation parameters, the thesis's suit and `seconds` of the
+/// exercise motion prepared for simulation.
+fn thesis_suit_on_exercise(seconds: f64) -> (Skeleton, SimulationParams, Suit, SmoothMotion) {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    let params = SimulationParams::default();
+    let suit = Suit::vlasic(&s).unwrap();
+    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(seconds)).unwrap();
+    let smooth = prepare_motion(&s, &motion, &params).unwrap();
+    (s, params, suit, smooth)
 }
 
 fn recording(s: &Skeleton, seconds: f64, params: SimulationParams) -> (SimulatedRecording, f64) {
@@ -452,11 +463,7 @@ fn xio_recording_stays_finite_and_stable() {
 /// whole turn; bad input gives errors.
 #[test]
 fn heading_fit_recovers_turns_about_gravity() {
-    let s = human_skeleton(&HumanParams::default()).unwrap();
-    let params = SimulationParams::default();
-    let nominal = Suit::vlasic(&s).unwrap();
-    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(6.0)).unwrap();
-    let smooth = prepare_motion(&s, &motion, &params).unwrap();
+    let (s, params, nominal, smooth) = thesis_suit_on_exercise(6.0);
     // The rest pose is the first frame (the hold before the motion).
     let probe = model_recording(&s, &nominal, &smooth, params.rest_s).unwrap();
     let rest = probe.truth[0].theta.clone();
@@ -526,11 +533,7 @@ fn heading_fit_recovers_turns_about_gravity() {
 /// global σ, and the plain update without a gate.
 #[test]
 fn per_board_noise_and_robust_distances_beat_the_global_model() {
-    let s = human_skeleton(&HumanParams::default()).unwrap();
-    let params = SimulationParams::default();
-    let suit = Suit::vlasic(&s).unwrap();
-    let motion = exercise_motion(&s, &ExerciseParams::default().with_duration_s(6.0)).unwrap();
-    let smooth = prepare_motion(&s, &motion, &params).unwrap();
+    let (s, params, suit, smooth) = thesis_suit_on_exercise(6.0);
     let clean = model_recording(&s, &suit, &smooth, params.rest_s).unwrap();
     let j = joints(&s);
     let neck_board = suit.boards().iter().position(|b| b.name == "neck").unwrap();
