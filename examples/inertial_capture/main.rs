@@ -59,17 +59,22 @@ use dynamic_shapes::core::studio::{
     ExerciseParams, RangeOfMotionParams, RetargetParams,
 };
 use dynamic_shapes::inertial::simulate::{
-    model_recording, prepare_motion, refine_recording_headings, run_filter, table_4_1,
-    treadmill_motion, tune, FilterRun, SimulatedRecording, SimulationParams, SuitSimulator,
-    TuningPoint,
+    estimate_recording_board_noise, model_recording, prepare_motion, refine_recording_headings,
+    run_filter, table_4_1, treadmill_motion, tune, FilterRun, SimulatedRecording, SimulationParams,
+    SuitSimulator, TuningPoint,
 };
-use dynamic_shapes::inertial::{FilterParams, InnovationStats, SensorSet, INNOVATION_TYPES};
+use dynamic_shapes::inertial::{
+    FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+};
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
 
 const JOINTS: [&str; 3] = ["neck", "r_shoulder", "l_hip"];
 /// Seconds of motion the per-board heading fit (beyond §4.4.4) uses from the recording's start.
 const HEADING_FIT_S: f64 = 6.0;
+/// Seconds of motion the first pass that estimates the per-board noise (beyond §4.4.2; issue
+/// 15, sixth session) uses from the recording's start — the pipeline's default since then.
+const BOARD_NOISE_S: f64 = 6.0;
 
 /// A+G+D with the root supplied after the per-board heading step beyond §4.4.4
 /// (`refine_recording_headings` over the first `HEADING_FIT_S` of motion), and with the
@@ -87,6 +92,7 @@ fn variants(
     let stats = |r: &FilterRun| {
         json!({"neck": r.stats[0].mean_deg, "right_shoulder": r.stats[1].mean_deg,
                "left_hip": r.stats[2].mean_deg, "nees": r.nees_mean,
+               "swing_twist_deg": r.swing_twist_deg,
                "innovations": consistency(r)})
     };
     let heading = run_filter(skeleton, &refined, params, true, joints)?;
@@ -94,12 +100,56 @@ fn variants(
         params.with_measurement_sigmas(params.accelerometer_sigma, params.gyroscope_sigma, 0.012);
     let inflated = run_filter(skeleton, rec, wide, true, joints)?;
     let both = run_filter(skeleton, &refined, wide, true, joints)?;
+    // Issue 15, sixth session: per-board R from a first pass (same seconds as the heading
+    // fit), robust distance updates, and the neck board's readings left out.
+    let with_noise =
+        |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
+            let n = estimate_recording_board_noise(skeleton, r, params, true, HEADING_FIT_S)?;
+            let mut out = r.clone();
+            out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+            Ok(out)
+        };
+    let noisy = with_noise(rec)?;
+    let refined_noisy = with_noise(&refined)?;
+    let (huber, cauchy) = (
+        params.with_distance_robust(RobustLoss::Huber { k: 1.345 }),
+        params.with_distance_robust(RobustLoss::Cauchy { c: 2.385 }),
+    );
+    let mut no_neck = rec.clone();
+    if let Some(b) = rec
+        .nominal_suit
+        .boards()
+        .iter()
+        .position(|b| b.name == "neck")
+    {
+        for f in &mut no_neck.frames[rec.rest_frames..] {
+            f.inertial[b] = None;
+        }
+    }
+    let sigmas = |r: &SimulatedRecording| {
+        r.nominal_suit
+            .board_noise()
+            .iter()
+            .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
+            .collect::<Vec<_>>()
+    };
+    let baseline = run_filter(skeleton, rec, params, true, joints)?;
     Ok(json!({
         "heading_fit_s": HEADING_FIT_S,
         "headings_deg": h.headings_deg,
+        "baseline": stats(&baseline),
         "heading_refined": stats(&heading),
         "distance_sigma_12mm": stats(&inflated),
         "heading_refined_distance_sigma_12mm": stats(&both),
+        "board_sigmas": sigmas(&noisy),
+        "per_board_noise": stats(&run_filter(skeleton, &noisy, params, true, joints)?),
+        "huber": stats(&run_filter(skeleton, rec, huber, true, joints)?),
+        "cauchy": stats(&run_filter(skeleton, rec, cauchy, true, joints)?),
+        "per_board_noise_huber": stats(&run_filter(skeleton, &noisy, huber, true, joints)?),
+        "per_board_noise_cauchy": stats(&run_filter(skeleton, &noisy, cauchy, true, joints)?),
+        "heading_refined_per_board_noise": stats(&run_filter(skeleton, &refined_noisy, params, true, joints)?),
+        "heading_refined_per_board_noise_cauchy": stats(&run_filter(skeleton, &refined_noisy, cauchy, true, joints)?),
+        "neck_board_dropped": stats(&run_filter(skeleton, &no_neck, params, true, joints)?),
     }))
 }
 
@@ -160,6 +210,7 @@ fn run_json(r: &FilterRun) -> Value {
         "ekf_s": r.ekf_s,
         "ekf_cpu_s": r.ekf_cpu_s,
         "nees_mean": r.nees_mean,
+        "swing_twist_deg": r.swing_twist_deg,
         "innovations": consistency(r),
     })
 }
@@ -174,7 +225,8 @@ fn consistency(r: &FilterRun) -> Value {
         out.insert(
             (*t).to_string(),
             json!({"count": all.count, "mean_normalised": all.mean_normalised(),
-                   "mean_nis": all.mean_nis(), "r_upper_arm_mean_normalised": arm.mean_normalised(),
+                   "mean_nis": all.mean_nis(), "pass_rate": all.pass_rate(),
+                   "mean_nis_passed": all.mean_nis_passed(), "r_upper_arm_mean_normalised": arm.mean_normalised(),
                    "r_upper_arm_mean_nis": arm.mean_nis()}),
         );
     }
@@ -354,6 +406,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut main_table = Vec::new();
     let mut rigid_table = Vec::new();
     let mut euler_table = Vec::new();
+    let mut global_table = Vec::new();
     let mut skin_motion = Vec::new();
     let mut beyond = Value::Null;
     for (name, motion) in [
@@ -362,7 +415,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("cmu_walk", &walk),
     ] {
         let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets);
-        let table = table_4_1(&skeleton, &rec, params, &joints)?;
+        let table = table_4_1(&skeleton, &rec, params, &joints, Some(BOARD_NOISE_S))?;
         let seconds = (rec.frames.len() - 1) as f64 / 140.0;
         let agd = table
             .iter()
@@ -389,7 +442,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             main_table = table.clone();
             skin_motion = rec.skin_motion.clone();
             let rec_rigid = record(&rigid, &skeleton, motion, &sim_params, &cal.offsets);
-            rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints)?;
+            rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints, Some(BOARD_NOISE_S))?;
+            // Before issue 15's sixth session: the global σ for every board.
+            global_table = table_4_1(&skeleton, &rec, params, &joints, None)?;
             // The same recording with the 3-DOF joints in the other chart (Euler angles
             // throughout, or re-centred): before and after the local parameterisation.
             euler_table = table_4_1(
@@ -397,26 +452,47 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &rec,
                 params.with_recentre_rad(other_chart),
                 &joints,
+                Some(BOARD_NOISE_S),
             )?;
             let v_garment = variants(&skeleton, &rec, params, &joints)?;
             let v_rigid = variants(&skeleton, &rec_rigid, params, &joints)?;
             for (label, v) in [("garment", &v_garment), ("rigid", &v_rigid)] {
                 for key in [
+                    "baseline",
                     "heading_refined",
                     "distance_sigma_12mm",
                     "heading_refined_distance_sigma_12mm",
+                    "per_board_noise",
+                    "huber",
+                    "cauchy",
+                    "per_board_noise_huber",
+                    "per_board_noise_cauchy",
+                    "heading_refined_per_board_noise",
+                    "heading_refined_per_board_noise_cauchy",
+                    "neck_board_dropped",
                 ] {
+                    let f = |a: &Value| a.as_f64().unwrap_or(f64::NAN);
+                    let i = &v[key]["innovations"];
                     stage.println(format!(
-                        "exercise, {label}, {key}: A+G+D with root {:.2}/{:.2}/{:.2}°",
-                        v[key]["neck"].as_f64().unwrap_or(f64::NAN),
-                        v[key]["right_shoulder"].as_f64().unwrap_or(f64::NAN),
-                        v[key]["left_hip"].as_f64().unwrap_or(f64::NAN)
+                        "exercise, {label}, {key}: A+G+D with root {:.2}/{:.2}/{:.2}° | neck swing/twist {:.2}/{:.2}° | NIS gyro {:.2} accel {:.3} | distances ν/σ {:+.1} NIS {:.0} pass {:.3} NIS passed {:.2}",
+                        f(&v[key]["neck"]),
+                        f(&v[key]["right_shoulder"]),
+                        f(&v[key]["left_hip"]),
+                        f(&v[key]["swing_twist_deg"][0][0]),
+                        f(&v[key]["swing_twist_deg"][0][1]),
+                        f(&i["gyroscope"]["mean_nis"]),
+                        f(&i["accelerometer"]["mean_nis"]),
+                        f(&i["distance"]["mean_normalised"]),
+                        f(&i["distance"]["mean_nis"]),
+                        f(&i["distance"]["pass_rate"]),
+                        f(&i["distance"]["mean_nis_passed"]),
                     ));
                 }
             }
             beyond = json!({"garment": v_garment, "rigid": v_rigid});
             for (label, t) in [
                 ("suit rigid on the bones", &rigid_table),
+                ("global σ (before per-board noise)", &global_table),
                 ("other chart of the 3-DOF joints", &euler_table),
             ] {
                 let r = t
@@ -638,6 +714,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
         .unwrap();
+    let agd_global = global_table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .unwrap();
     let agd_euler = euler_table
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
@@ -765,6 +845,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "performer": "makehuman, pose-driven shapes, no flap",
         "quick": quick,
     });
+    // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
+    // before it.
+    if let Some(f) = figures.as_object_mut() {
+        f.insert(
+            "table_4_1_exercise_global_sigma".into(),
+            global_table.iter().map(run_json).collect(),
+        );
+        f.insert(
+            "agd_global_sigma_deg".into(),
+            json!({"neck": agd_global.stats[0].mean_deg,
+                "right_shoulder": agd_global.stats[1].mean_deg,
+                "left_hip": agd_global.stats[2].mean_deg}),
+        );
+        f.insert("board_noise_s".into(), json!(BOARD_NOISE_S));
+        f.insert(
+            "agd_board_sigmas".into(),
+            agd.board_noise
+                .iter()
+                .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
+                .collect(),
+        );
+    }
     if let (Some(f), Value::Object(r)) = (figures.as_object_mut(), real) {
         f.extend(r);
     }

@@ -10,11 +10,13 @@
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // a diagnostic, not library code
 
 use inertial_acoustic::simulate::{
-    model_recording, prepare_motion, run_filter, treadmill_motion, SimulatedRecording,
-    SimulationParams, SmoothMotion, SuitSimulator,
+    estimate_recording_board_noise, model_recording, prepare_motion, refine_recording_headings,
+    run_filter, treadmill_motion, SimulatedRecording, SimulationParams, SmoothMotion,
+    SuitSimulator,
 };
 use inertial_acoustic::{
-    initialise, FilterParams, InnovationStats, SensorSet, SkeletalEkf, Suit, INNOVATION_TYPES,
+    initialise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
+    INNOVATION_TYPES,
 };
 use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
@@ -55,6 +57,16 @@ fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, jo
     println!(
         "    NEES neck/shoulder/hip {:.1}/{:.1}/{:.1};{c}",
         r.nees_mean[0], r.nees_mean[1], r.nees_mean[2]
+    );
+    let d = InnovationStats::pooled(&r.innovations[2]);
+    println!(
+        "    neck swing / twist {:.2} / {:.2}°, shoulder {:.2} / {:.2}°; distances: gate pass rate {:.3}, NIS of the passed {:.2}",
+        r.swing_twist_deg[0][0],
+        r.swing_twist_deg[0][1],
+        r.swing_twist_deg[1][0],
+        r.swing_twist_deg[1][1],
+        d.pass_rate(),
+        d.mean_nis_passed()
     );
 }
 
@@ -376,6 +388,93 @@ fn main() {
                 }
             }
         }
+        return;
+    }
+    if args.get(3).is_some_and(|a| a == "robust") {
+        // (f) Issue 15, sixth session: per-board R from a first pass's innovations, robust
+        // distance updates, the neck board's gyroscope left out.
+        let pipeline = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        let (rec, set) = simulate(&s, SimulationParams { seed, ..base }, &smooth, sets[1]);
+        let p = pipeline.with_sensors(set);
+        let noisy = |r: &SimulatedRecording| {
+            let n = estimate_recording_board_noise(&s, r, p, true, 6.0).unwrap();
+            let g: Vec<String> = n
+                .iter()
+                .map(|b| format!("{:.3}", b.gyroscope_sigma))
+                .collect();
+            println!("    per-board σ_g: {}", g.join(" "));
+            let mut out = r.clone();
+            out.nominal_suit = out.nominal_suit.with_board_noise(n).unwrap();
+            out
+        };
+        let per_board = noisy(&rec);
+        let huber = RobustLoss::Huber { k: 1.345 };
+        let cauchy = RobustLoss::Cauchy { c: 2.385 };
+        line("everything, §4.4.4 only", &s, &rec, p, &joints);
+        line("+ per-board R", &s, &per_board, p, &joints);
+        line(
+            "+ Huber 1.345",
+            &s,
+            &rec,
+            p.with_distance_robust(huber),
+            &joints,
+        );
+        line(
+            "+ Cauchy 2.385",
+            &s,
+            &rec,
+            p.with_distance_robust(cauchy),
+            &joints,
+        );
+        line(
+            "+ Cauchy 2.385, no gate",
+            &s,
+            &rec,
+            p.with_distance_robust(cauchy).with_distance_gate_sigma(0.0),
+            &joints,
+        );
+        line(
+            "+ per-board R + Huber",
+            &s,
+            &per_board,
+            p.with_distance_robust(huber),
+            &joints,
+        );
+        line(
+            "+ per-board R + Cauchy",
+            &s,
+            &per_board,
+            p.with_distance_robust(cauchy),
+            &joints,
+        );
+        let mut headed = rec.clone();
+        headed.nominal_suit = refine_recording_headings(&s, &rec, p, true, 6.0)
+            .unwrap()
+            .suit;
+        line("+ heading fit", &s, &headed, p, &joints);
+        let headed_noise = noisy(&headed);
+        line("+ heading fit + per-board R", &s, &headed_noise, p, &joints);
+        line(
+            "+ heading fit + per-board R + Cauchy",
+            &s,
+            &headed_noise,
+            p.with_distance_robust(cauchy),
+            &joints,
+        );
+        let neck_board = 4;
+        let mut no_neck = rec.clone();
+        for f in &mut no_neck.frames[no_neck.rest_frames..] {
+            f.inertial[neck_board] = None;
+        }
+        line(
+            "neck board's readings dropped after the rest",
+            &s,
+            &no_neck,
+            p,
+            &joints,
+        );
         return;
     }
     if args.get(3).is_some_and(|a| a == "frontend") {

@@ -24,7 +24,7 @@ use crate::local_joints::{
     decompose, fold_rotation, orthogonal_triple, rate_matrix, subtree, to_recentred, transport,
     triple_rotation,
 };
-use crate::params::FilterParams;
+use crate::params::{FilterParams, RobustLoss};
 use crate::suit::Suit;
 use crate::{Context, Error, Result, ResultExt};
 use nalgebra::{DMatrix, DVector};
@@ -109,6 +109,13 @@ pub struct InnovationStats {
     pub sum_normalised: f64,
     /// Sum of the normalised innovations squared `ν² / s`.
     pub sum_nis: f64,
+    /// Scalar updates that passed the gate (distances; every inertial update passes).
+    #[serde(default)]
+    pub passed: usize,
+    /// Sum of `ν² / s` over the updates that passed the gate (`s` before any robust
+    /// down-weighting): the NIS of what the filter used.
+    #[serde(default)]
+    pub sum_nis_passed: f64,
 }
 
 impl InnovationStats {
@@ -122,6 +129,16 @@ impl InnovationStats {
         self.sum_nis / self.count.max(1) as f64
     }
 
+    /// Mean NIS over the updates that passed the gate.
+    pub fn mean_nis_passed(&self) -> f64 {
+        self.sum_nis_passed / self.passed.max(1) as f64
+    }
+
+    /// Share of the counted updates that passed the gate (1 without a gate).
+    pub fn pass_rate(&self) -> f64 {
+        self.passed as f64 / self.count.max(1) as f64
+    }
+
     /// The statistics of several channels pooled (e.g. every board of one sensor type).
     pub fn pooled<'a>(stats: impl IntoIterator<Item = &'a InnovationStats>) -> Self {
         stats
@@ -130,6 +147,8 @@ impl InnovationStats {
                 count: a.count + b.count,
                 sum_normalised: a.sum_normalised + b.sum_normalised,
                 sum_nis: a.sum_nis + b.sum_nis,
+                passed: a.passed + b.passed,
+                sum_nis_passed: a.sum_nis_passed + b.sum_nis_passed,
             })
     }
 }
@@ -221,6 +240,9 @@ pub struct SkeletalEkf {
     innovations: [Vec<InnovationStats>; 3],
     /// Where the current scalar update's innovation is counted: (type, board).
     counting: (usize, usize),
+    /// Per board: gyroscope and accelerometer noise variances (the suit's
+    /// [`Suit::board_noise`], else the global σ of [`FilterParams`]).
+    board_r: Vec<[f64; 2]>,
 }
 
 /// Scalar updates whose rank-1 downdates of P are applied together: P's lower triangle is
@@ -298,6 +320,15 @@ impl SkeletalEkf {
             .collect();
         let frames: Vec<AttachedFrame> = suit.boards().iter().map(|b| b.frame()).collect();
         let rows = 3 * points.len();
+        let board_r = (0..suit.boards().len())
+            .map(|b| match suit.board_noise().get(b) {
+                Some(n) => [n.gyroscope_sigma.powi(2), n.accelerometer_sigma.powi(2)],
+                None => [
+                    params.gyroscope_sigma.powi(2),
+                    params.accelerometer_sigma.powi(2),
+                ],
+            })
+            .collect();
         let local = (0..nj)
             .filter(|&j| skeleton.joints()[j].parent.is_some())
             .filter_map(|j| {
@@ -334,6 +365,7 @@ impl SkeletalEkf {
                 vec![InnovationStats::default(); suit.boards().len()]
             }),
             counting: (0, 0),
+            board_r,
             x,
             p: p0.clone(),
             p0,
@@ -694,8 +726,15 @@ impl SkeletalEkf {
         Ok(())
     }
 
-    /// One scalar update (Eq. 4.7–4.9): `z − h(x₀) − H (x − x₀)` as innovation.
-    fn scalar_update(&mut self, residual0: f64, r: f64, gate_sigma: f64) -> bool {
+    /// One scalar update (Eq. 4.7–4.9): `z − h(x₀) − H (x − x₀)` as innovation; past the
+    /// gate, `s` is inflated by `robust` ([`RobustLoss`]).
+    fn scalar_update(
+        &mut self,
+        residual0: f64,
+        r: f64,
+        gate_sigma: f64,
+        robust: RobustLoss,
+    ) -> bool {
         let n = 3 * self.nf;
         for (d, (x, x0)) in self.dx.iter_mut().zip(self.x.iter().zip(self.x0.iter())) {
             *d = x - x0;
@@ -736,6 +775,11 @@ impl SkeletalEkf {
         if gate_sigma > 0.0 && innov * innov > gate_sigma * gate_sigma * s {
             return false;
         }
+        if let Some(st) = self.innovations[kind].get_mut(board) {
+            st.passed += 1;
+            st.sum_nis_passed += innov * innov / s;
+        }
+        let s = s * robust.inflation(innov / s.sqrt());
         let k_scale = innov / s;
         for (x, p) in self.x.iter_mut().zip(&self.ph) {
             *x += p * k_scale;
@@ -845,8 +889,8 @@ impl SkeletalEkf {
             AngularFrame::Local,
             dw3,
         )?;
-        let r = self.params.gyroscope_sigma.powi(2);
         for b in 0..nb {
+            let r = self.board_r[b][0];
             let Some(reading) = self.inertial_reading(obs, b) else {
                 report.inertial_skipped += 1;
                 continue;
@@ -867,7 +911,7 @@ impl SkeletalEkf {
                         self.row.push(self.nf + s, jw3[(3 * b + axis, d)]);
                     }
                 }
-                if self.scalar_update(z[axis] - pred[axis], r, 0.0) {
+                if self.scalar_update(z[axis] - pred[axis], r, 0.0, RobustLoss::None) {
                     report.inertial_used += 1;
                 }
             }
@@ -909,7 +953,6 @@ impl SkeletalEkf {
             &mut self.bias[..nb],
         )?;
         let up = DVec3::new(0.0, self.params.gravity_m_s2, 0.0);
-        let r = self.params.accelerometer_sigma.powi(2);
         let axes = self.fk.dof_axes_world().to_vec();
         for b in 0..nb {
             let Some(reading) = self.inertial_reading(obs, b) else {
@@ -943,6 +986,7 @@ impl SkeletalEkf {
                 })
                 .collect();
             let z = reading.accel_m_s2;
+            let r = self.board_r[b][1];
             self.counting = (1, b);
             for axis in 0..3 {
                 self.row.clear();
@@ -951,7 +995,7 @@ impl SkeletalEkf {
                     self.row.push(self.nf + s, hd[axis]);
                     self.row.push(2 * self.nf + s, hdd[axis]);
                 }
-                if self.scalar_update(z[axis] - pred[axis], r, 0.0) {
+                if self.scalar_update(z[axis] - pred[axis], r, 0.0, RobustLoss::None) {
                     report.inertial_used += 1;
                 }
             }
@@ -1041,6 +1085,7 @@ impl SkeletalEkf {
                     m.distance_m - d,
                     sigma * sigma,
                     self.params.distance_gate_sigma,
+                    self.params.distance_robust,
                 ) {
                     report.distances_used += 1;
                 } else {
@@ -1154,7 +1199,7 @@ mod tests {
             let s = h.dot(&ph) + r;
             x += &ph * (innov / s);
             p -= &ph * ph.transpose() / s;
-            assert!(ekf.scalar_update(residual, r, 0.0));
+            assert!(ekf.scalar_update(residual, r, 0.0, RobustLoss::None));
         }
         ekf.symmetrise();
         assert_eq!(ekf.npend, 0);

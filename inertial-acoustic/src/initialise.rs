@@ -5,8 +5,9 @@
 //! the thesis's gradient descent), the second gives per-board gyroscope offsets (their mean
 //! reading). The rotation about gravity stays as specified: gravity does not see it.
 
-use crate::ekf::InertialReading;
-use crate::suit::Suit;
+use crate::ekf::{InertialReading, InnovationStats};
+use crate::params::FilterParams;
+use crate::suit::{BoardNoise, Suit};
 use crate::{Context, Error, Result, ResultExt};
 use serde::{Deserialize, Serialize};
 use skin_core::math::{DQuat, DVec3};
@@ -217,4 +218,76 @@ pub fn refine_headings(
         headings_deg: headings,
         frames_used: used,
     })
+}
+
+/// Per-board measurement noise from a first filter pass's innovation statistics — a step
+/// beyond §4.4.2, which gives one σ per sensor type (not in the thesis): each board's
+/// gyroscope and accelerometer σ is the global σ of `params` scaled so that the board's mean
+/// NIS in that pass would be 1, `σ_b = σ · √max(1, NIS_b)`, bounded below by the global σ
+/// (a board the pass found quieter than the sensor's rating keeps the rating). A board with
+/// no counted update of a type keeps the global σ for it.
+///
+/// What it captures: a board whose readings the filter's models cannot explain to the
+/// rated noise — a board over blended skin that turns against its bone (the garment's neck,
+/// sacrum, lower back), a misplaced board — is trusted less, so the others carry its bone.
+/// `s = H P Hᵀ + r` includes the state's spread, so the NIS after the change is not
+/// exactly 1 (a first-order rule, not a fixed point).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] unless the gyroscope and accelerometer statistics have one entry
+/// per board; as [`FilterParams::validate`].
+pub fn board_noise_from_innovations(
+    stats: &[Vec<InnovationStats>; 3],
+    boards: usize,
+    params: &FilterParams,
+) -> Result<Vec<BoardNoise>> {
+    params.validate()?;
+    skin_core::check::same_size("gyroscope statistics", boards, stats[0].len())?;
+    skin_core::check::same_size("accelerometer statistics", boards, stats[1].len())?;
+    let scale = |st: &InnovationStats| {
+        if st.count == 0 || !st.mean_nis().is_finite() {
+            1.0
+        } else {
+            st.mean_nis().max(1.0).sqrt()
+        }
+    };
+    Ok((0..boards)
+        .map(|b| BoardNoise {
+            gyroscope_sigma: params.gyroscope_sigma * scale(&stats[0][b]),
+            accelerometer_sigma: params.accelerometer_sigma * scale(&stats[1][b]),
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stats(count: usize, nis: f64) -> InnovationStats {
+        InnovationStats {
+            count,
+            sum_nis: nis * count as f64,
+            ..InnovationStats::default()
+        }
+    }
+
+    /// σ_b = σ √NIS_b above the rating, the rating below it and without updates.
+    #[test]
+    fn board_noise_scales_to_unit_nis_bounded_by_the_global_sigma() {
+        let p = FilterParams::default().with_measurement_sigmas(2.0, 0.01, 0.0025);
+        let all = [
+            vec![stats(30, 25.0), stats(30, 0.2), stats(0, 0.0)],
+            vec![stats(30, 0.05), stats(30, 4.0), stats(30, f64::NAN)],
+            vec![InnovationStats::default(); 3],
+        ];
+        let n = board_noise_from_innovations(&all, 3, &p).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(close(n[0].gyroscope_sigma, 0.05), "{n:?}");
+        assert!(close(n[1].gyroscope_sigma, 0.01) && close(n[2].gyroscope_sigma, 0.01));
+        assert!(close(n[0].accelerometer_sigma, 2.0) && close(n[1].accelerometer_sigma, 4.0));
+        assert!(close(n[2].accelerometer_sigma, 2.0));
+        assert!(board_noise_from_innovations(&all, 4, &p).is_err());
+        let bad = p.with_measurement_sigmas(-1.0, 0.01, 0.0025);
+        assert!(board_noise_from_innovations(&all, 3, &bad).is_err());
+    }
 }

@@ -94,20 +94,22 @@ pub use ekf::{
     SkeletalEkf, StepReport, INNOVATION_TYPES,
 };
 pub use error::{Context, Error, Result, ResultExt};
-pub use evaluate::{joint_orientation_errors_deg, ErrorStats};
+pub use evaluate::{joint_orientation_errors_deg, joint_swing_twist_errors_deg, ErrorStats};
 pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 pub use initialise::{
-    initialise, refine_headings, HeadingRefinement, Initialisation, MIN_HEADING_RATE_RAD_S,
+    board_noise_from_innovations, initialise, refine_headings, HeadingRefinement, Initialisation,
+    MIN_HEADING_RATE_RAD_S,
 };
 pub use orientation::{
     heading_inclination_rmse, HeadingInclinationRmse, OrientationEkf, OrientationStep,
     RestAlignment,
 };
 pub use params::{
-    FilterParams, SensorSet, UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2, INERTIAL_RATE_HZ,
-    MIC_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S, SAMPLES_PER_PULSE, SPEED_OF_SOUND_M_S,
+    FilterParams, RobustLoss, SensorSet, UltrasoundParams, CARRIER_HZ, GRAVITY_M_S2,
+    INERTIAL_RATE_HZ, MIC_RATE_HZ, PULSE_CYCLES, PULSE_INTERVAL_S, SAMPLES_PER_PULSE,
+    SPEED_OF_SOUND_M_S,
 };
-pub use suit::{SensorBoard, Suit, UltrasonicSource};
+pub use suit::{BoardNoise, SensorBoard, Suit, UltrasonicSource};
 pub use ultrasound::{
     calibrate_offsets, leave_one_out_errors_m, CalibrationShot, Detection, PulseDetector,
 };

@@ -142,6 +142,40 @@ impl SensorSet {
     }
 }
 
+/// Down-weighting of large normalised distance innovations `e = ν/√s` in the scalar update
+/// (M-estimation as an iteratively inflated R; not in the thesis): the update uses
+/// `s' = s · ρ(e)` instead of `s`, which bounds (Huber) or removes (Cauchy) the pull of a
+/// distance far from the prediction — a detection of a longer path (floor echo, the pulse
+/// around an occluding limb) the confidence missed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub enum RobustLoss {
+    /// Plain Kalman update (`s' = s`), as the thesis's filter.
+    #[default]
+    None,
+    /// Huber: `s' = s · |e| / k` where `|e| > k` — the correction is capped at `k`
+    /// standard deviations.
+    Huber {
+        /// Threshold in standard deviations (1.345 is the usual 95 %-efficiency value).
+        k: f64,
+    },
+    /// Cauchy: `s' = s · (1 + e² / c²)` — the correction falls off as `1/|e|` far out.
+    Cauchy {
+        /// Scale in standard deviations (2.385 is the usual 95 %-efficiency value).
+        c: f64,
+    },
+}
+
+impl RobustLoss {
+    /// The factor `s' / s` for a normalised innovation `e` (≥ 1).
+    pub fn inflation(&self, e: f64) -> f64 {
+        match *self {
+            RobustLoss::None => 1.0,
+            RobustLoss::Huber { k } => (e.abs() / k).max(1.0),
+            RobustLoss::Cauchy { c } => 1.0 + (e / c).powi(2),
+        }
+    }
+}
+
 /// The skeletal EKF (§4.4).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FilterParams {
@@ -189,6 +223,10 @@ pub struct FilterParams {
     /// 2 → 52° over 60 s, docs "The treadmill drift traced"). Default: false (exact).
     #[serde(default)]
     pub first_order_step: bool,
+    /// Down-weighting of large distance innovations (after the gate). Default:
+    /// [`RobustLoss::None`] (the thesis's update).
+    #[serde(default)]
+    pub distance_robust: RobustLoss,
 }
 
 impl Default for FilterParams {
@@ -207,6 +245,7 @@ impl Default for FilterParams {
             divergence_rate: 60.0,
             recentre_rad: 0.0,
             first_order_step: false,
+            distance_robust: RobustLoss::None,
         }
     }
 }
@@ -252,6 +291,14 @@ impl FilterParams {
         }
     }
 
+    /// With `distance_robust` replaced.
+    pub fn with_distance_robust(self, distance_robust: RobustLoss) -> Self {
+        FilterParams {
+            distance_robust,
+            ..self
+        }
+    }
+
     /// With `distance_gate_sigma` replaced.
     pub fn with_distance_gate_sigma(self, distance_gate_sigma: f64) -> Self {
         FilterParams {
@@ -287,6 +334,15 @@ impl FilterParams {
             self.recentre_rad,
             0.0..=std::f64::consts::PI,
         )?;
+        match self.distance_robust {
+            RobustLoss::None => {}
+            RobustLoss::Huber { k } => {
+                positive("distance_robust.k", k)?;
+            }
+            RobustLoss::Cauchy { c } => {
+                positive("distance_robust.c", c)?;
+            }
+        }
         let s = self.sensors;
         if !(s.accelerometers || s.gyroscopes || s.distances) {
             return Err(Error::InvalidParam {
@@ -295,5 +351,35 @@ impl FilterParams {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Huber caps the correction at k σ, Cauchy lets it fall off; neither touches a small
+    /// innovation.
+    #[test]
+    fn robust_inflation_bounds_the_pull_of_large_innovations() {
+        let huber = RobustLoss::Huber { k: 1.345 };
+        let cauchy = RobustLoss::Cauchy { c: 2.385 };
+        assert_eq!(RobustLoss::None.inflation(100.0), 1.0);
+        assert_eq!(huber.inflation(1.0), 1.0);
+        assert!((cauchy.inflation(0.1) - 1.0).abs() < 0.002);
+        // The correction in σ units is e / inflation(e).
+        for e in [5.0, 50.0, 500.0] {
+            assert!((e / huber.inflation(e) - 1.345).abs() < 1e-12);
+            assert!(e / cauchy.inflation(e) < 2.385 * 2.385 / e + 1e-12);
+        }
+        for bad in [
+            RobustLoss::Huber { k: 0.0 },
+            RobustLoss::Cauchy { c: f64::NAN },
+        ] {
+            assert!(FilterParams::default()
+                .with_distance_robust(bad)
+                .validate()
+                .is_err());
+        }
     }
 }

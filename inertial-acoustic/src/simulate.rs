@@ -1222,6 +1222,13 @@ pub struct FilterRun {
     /// chart and the figure is first-order.
     #[serde(default)]
     pub nees_mean: Vec<f64>,
+    /// Per evaluated joint: mean swing and mean twist (about the bone) of its orientation
+    /// error, degrees ([`crate::joint_swing_twist_errors_deg`]).
+    #[serde(default)]
+    pub swing_twist_deg: Vec<[f64; 2]>,
+    /// The per-board measurement noise the run used (the suit's; empty: the global σ).
+    #[serde(default)]
+    pub board_noise: Vec<crate::BoardNoise>,
 }
 
 /// CPU time of the calling thread, seconds (0 where the platform cannot tell).
@@ -1274,7 +1281,7 @@ pub fn run_filter(
     root_supplied: bool,
     joints: &[usize],
 ) -> Result<FilterRun> {
-    use crate::{joint_orientation_errors_deg, ErrorStats};
+    use crate::{joint_orientation_errors_deg, joint_swing_twist_errors_deg, ErrorStats};
     if rec.frames.len() <= rec.rest_frames + 1 {
         return Err(Error::Empty {
             what: "frames after the rest hold",
@@ -1311,11 +1318,17 @@ pub fn run_filter(
     let (ekf_s, ekf_cpu_s) = (t0.elapsed().as_secs_f64(), thread_cpu_s() - c0);
     let mut errors = vec![Vec::new(); joints.len()];
     let mut nees = vec![0.0; joints.len()];
+    let mut swing_twist = vec![[0.0; 2]; joints.len()];
     for (i, (est, cov)) in estimates.iter().zip(&covariances).enumerate() {
         let truth = &rec.truth[rec.rest_frames + i].theta;
         let e = joint_orientation_errors_deg(skeleton, est, truth, joints)?;
         for (acc, v) in errors.iter_mut().zip(e) {
             acc.push(v);
+        }
+        let st = joint_swing_twist_errors_deg(skeleton, est, truth, joints)?;
+        for (acc, v) in swing_twist.iter_mut().zip(st) {
+            acc[0] += v[0];
+            acc[1] += v[1];
         }
         for ((n, d), c) in nees.iter_mut().zip(&joint_dofs).zip(cov) {
             let m = d.len();
@@ -1336,6 +1349,11 @@ pub fn run_filter(
         .iter()
         .map(|n| n / estimates.len().max(1) as f64)
         .collect();
+    let frames = estimates.len().max(1) as f64;
+    let swing_twist_deg = swing_twist
+        .iter()
+        .map(|v| [v[0] / frames, v[1] / frames])
+        .collect();
     let stats = errors
         .iter()
         .map(|e| ErrorStats::of(e))
@@ -1351,7 +1369,44 @@ pub fn run_filter(
         distances_used: used,
         innovations: ekf.innovation_stats().clone(),
         nees_mean,
+        swing_twist_deg,
+        board_noise: rec.nominal_suit.board_noise().to_vec(),
     })
+}
+
+/// A first filter pass with `params` over the rest hold and the first `seconds` of motion:
+/// the filter at its end, the §4.4.4 initialisation, the estimated poses after the rest hold
+/// and the frame it stopped at.
+fn first_pass(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    seconds: f64,
+) -> Result<(
+    crate::SkeletalEkf,
+    crate::Initialisation,
+    Vec<Vec<f64>>,
+    usize,
+)> {
+    if rec.frames.len() <= rec.rest_frames + 2 {
+        return Err(Error::Empty {
+            what: "frames after the rest hold",
+        });
+    }
+    non_negative("seconds", seconds)?;
+    let (mut ekf, init) = start_filter(skeleton, rec, params, root_supplied)?;
+    let end =
+        (rec.rest_frames + (seconds * INERTIAL_RATE_HZ).round() as usize).min(rec.frames.len());
+    let mut poses = Vec::with_capacity(end - rec.rest_frames);
+    for (k, f) in rec.frames[..end].iter().enumerate() {
+        ekf.step(f, root_supplied.then(|| &rec.root[k]))
+            .at(Context::Frame(k))?;
+        if k >= rec.rest_frames {
+            poses.push(ekf.theta().to_vec());
+        }
+    }
+    Ok((ekf, init, poses, end))
 }
 
 /// The per-board heading step beyond §4.4.4 ([`crate::refine_headings`]) on a recording: a
@@ -1370,29 +1425,12 @@ pub fn refine_recording_headings(
     root_supplied: bool,
     seconds: f64,
 ) -> Result<crate::HeadingRefinement> {
-    use crate::refine_headings;
-    if rec.frames.len() <= rec.rest_frames + 2 {
-        return Err(Error::Empty {
-            what: "frames after the rest hold",
-        });
-    }
-    non_negative("seconds", seconds)?;
-    let (mut ekf, init) = start_filter(skeleton, rec, params, root_supplied)?;
-    let end =
-        (rec.rest_frames + (seconds * INERTIAL_RATE_HZ).round() as usize).min(rec.frames.len());
-    let mut poses = Vec::with_capacity(end - rec.rest_frames);
-    for (k, f) in rec.frames[..end].iter().enumerate() {
-        ekf.step(f, root_supplied.then(|| &rec.root[k]))
-            .at(Context::Frame(k))?;
-        if k >= rec.rest_frames {
-            poses.push(ekf.theta().to_vec());
-        }
-    }
+    let (_, init, poses, end) = first_pass(skeleton, rec, params, root_supplied, seconds)?;
     let readings: Vec<_> = rec.frames[rec.rest_frames..end]
         .iter()
         .map(|f| f.inertial.clone())
         .collect();
-    refine_headings(
+    crate::refine_headings(
         skeleton,
         &init.suit,
         &rec.truth[0].theta,
@@ -1403,27 +1441,87 @@ pub fn refine_recording_headings(
     )
 }
 
-/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
-/// and without the root transform supplied, on one recording, with `params` otherwise.
+/// Per-board measurement noise estimated from the data ([`crate::board_noise_from_innovations`],
+/// beyond §4.4.2): a first filter pass with `params`' global σ over the rest hold and the first `seconds` of motion, each board's σ
+/// set from its innovation statistics (a suit's own per-board σ are set aside for the pass).
+/// Put the result on `rec.nominal_suit`
+/// ([`crate::Suit::with_board_noise`]) for the real run; the truth is not read.
 ///
 /// # Errors
-/// As [`run_filter`].
+/// As [`refine_recording_headings`] and [`crate::board_noise_from_innovations`].
+pub fn estimate_recording_board_noise(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    seconds: f64,
+) -> Result<Vec<crate::BoardNoise>> {
+    let plain;
+    let rec = if rec.nominal_suit.board_noise().is_empty() {
+        rec
+    } else {
+        let mut r = rec.clone();
+        r.nominal_suit = r.nominal_suit.with_board_noise(Vec::new())?;
+        plain = r;
+        &plain
+    };
+    let (ekf, ..) = first_pass(skeleton, rec, params, root_supplied, seconds)?;
+    crate::board_noise_from_innovations(
+        ekf.innovation_stats(),
+        rec.nominal_suit.boards().len(),
+        &params,
+    )
+}
+
+/// [`run_filter`] after [`estimate_recording_board_noise`]: per-board measurement noise
+/// from a first pass (same `params`, `root_supplied`) over the rest hold and the first
+/// `seconds` of motion, then the whole recording with the suit so set. The run's
+/// [`FilterRun::board_noise`] holds the σ used; its `ekf_s` and `ekf_cpu_s` include the first
+/// pass.
+///
+/// # Errors
+/// As [`estimate_recording_board_noise`] and [`run_filter`].
+pub fn run_filter_board_noise(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    joints: &[usize],
+    seconds: f64,
+) -> Result<FilterRun> {
+    let (t0, c0) = (Instant::now(), thread_cpu_s());
+    let noise = estimate_recording_board_noise(skeleton, rec, params, root_supplied, seconds)?;
+    let (first_s, first_cpu_s) = (t0.elapsed().as_secs_f64(), thread_cpu_s() - c0);
+    let mut adapted = rec.clone();
+    adapted.nominal_suit = adapted.nominal_suit.with_board_noise(noise)?;
+    let mut run = run_filter(skeleton, &adapted, params, root_supplied, joints)?;
+    run.ekf_s += first_s;
+    run.ekf_cpu_s += first_cpu_s;
+    Ok(run)
+}
+
+/// The Table 4.1 protocol: every sensor combination of [`crate::SensorSet::table_4_1`], with
+/// and without the root transform supplied, on one recording, with `params` otherwise; with
+/// `board_noise_s`, each run estimates its per-board noise from its own first pass over that
+/// many seconds of motion ([`run_filter_board_noise`]), else uses the suit as it is.
+///
+/// # Errors
+/// As [`run_filter`] and [`run_filter_board_noise`].
 pub fn table_4_1(
     skeleton: &Skeleton,
     rec: &SimulatedRecording,
     params: crate::FilterParams,
     joints: &[usize],
+    board_noise_s: Option<f64>,
 ) -> Result<Vec<FilterRun>> {
     let mut out = Vec::with_capacity(14);
     for sensors in crate::SensorSet::table_4_1() {
         for root in [true, false] {
-            out.push(run_filter(
-                skeleton,
-                rec,
-                params.with_sensors(sensors),
-                root,
-                joints,
-            )?);
+            let p = params.with_sensors(sensors);
+            out.push(match board_noise_s {
+                Some(secs) => run_filter_board_noise(skeleton, rec, p, root, joints, secs)?,
+                None => run_filter(skeleton, rec, p, root, joints)?,
+            });
         }
     }
     Ok(out)

@@ -62,12 +62,25 @@ impl UltrasonicSource {
     }
 }
 
+/// One board's measurement noise (the filter's per-board R, beyond §4.4.2's one σ per sensor
+/// type): e.g. estimated from the data by [`crate::board_noise_from_innovations`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoardNoise {
+    /// Gyroscope noise, rad/s.
+    pub gyroscope_sigma: f64,
+    /// Accelerometer noise, m/s².
+    pub accelerometer_sigma: f64,
+}
+
 /// Sensor boards and sources of one suit, valid for the skeleton it was built for (joint
 /// indices in range, finite offsets, unit normals).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Suit {
     boards: Vec<SensorBoard>,
     sources: Vec<UltrasonicSource>,
+    /// Per-board measurement noise; empty: the filter's global σ for every board.
+    #[serde(default)]
+    board_noise: Vec<BoardNoise>,
 }
 
 /// One row of the placement table: bone, fraction along the bone towards its (first) child or
@@ -197,7 +210,11 @@ impl Suit {
                 ..b
             })
             .collect();
-        Ok(Suit { boards, sources })
+        Ok(Suit {
+            boards,
+            sources,
+            board_noise: Vec::new(),
+        })
     }
 
     /// The thesis's suit (§4.2.1, Figure 4-2) on `skeleton`, which must have the joints of
@@ -268,6 +285,33 @@ impl Suit {
             });
         }
         b.joint_from_sensor = joint_from_sensor.normalize();
+        Ok(self)
+    }
+
+    /// Per-board measurement noise, one per board in board order; empty if the suit uses the
+    /// filter's global σ ([`crate::FilterParams`]) for every board.
+    pub fn board_noise(&self) -> &[BoardNoise] {
+        &self.board_noise
+    }
+
+    /// The same suit with per-board measurement noise (one per board; empty: back to the
+    /// filter's global σ).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] unless empty or one per board; [`Error::InvalidParam`] (in
+    /// [`Error::At`] naming the board) for a non-positive or non-finite σ.
+    pub fn with_board_noise(mut self, noise: Vec<BoardNoise>) -> Result<Self> {
+        use crate::{Context, ResultExt};
+        if !noise.is_empty() {
+            skin_core::check::same_size("board noise", self.boards.len(), noise.len())?;
+        }
+        for (i, n) in noise.iter().enumerate() {
+            skin_core::check::positive("gyroscope_sigma", n.gyroscope_sigma)
+                .at(Context::Sensor(i))?;
+            skin_core::check::positive("accelerometer_sigma", n.accelerometer_sigma)
+                .at(Context::Sensor(i))?;
+        }
+        self.board_noise = noise;
         Ok(self)
     }
 }
