@@ -17,7 +17,7 @@ use std::time::Instant;
 use photometric_normals::truth::{skirt_subject, StudioScene};
 use photometric_normals::{
     integrate_normals, rendered_normals, Integrated, IntegrationParams, IntegrationSolver,
-    VisualHull, VisualHullParams,
+    MultigridParams, VisualHull, VisualHullParams,
 };
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::image::Mask;
@@ -82,6 +82,26 @@ fn main() {
         "{{\"setup_s\":{:.1},\"size\":{size}}}",
         t0.elapsed().as_secs_f64()
     );
+    // Multigrid knobs from the environment, for tuning (MG_SCALE, MG_SWEEPS, MG_CYCLE, MG_EPS,
+    // MG_OMEGA).
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let mut mg = MultigridParams::default();
+    if let Some(v) = env("MG_SCALE") {
+        mg.coarse_scale = v;
+    }
+    if let Some(v) = env("MG_SWEEPS") {
+        mg.smoothing_sweeps = v as usize;
+    }
+    if let Some(v) = env("MG_CYCLE") {
+        mg.cycle_index = v as usize;
+    }
+    if let Some(v) = env("MG_EPS") {
+        mg.strength_threshold = v;
+    }
+    if let Some(v) = env("MG_OMEGA") {
+        mg.prolongation_smoothing = v;
+    }
+    println!("{{\"multigrid\":\"{mg:?}\"}}");
     let (mut direct_cpu, mut mg_cpu, mut max_iter, mut max_diff) = (0.0, 0.0, 0, 0.0f64);
     for &v in &views {
         let proxy = hull.depth_map(v, &VisualHullParams::default()).unwrap();
@@ -96,7 +116,7 @@ fn main() {
                     .unwrap()
             };
             let (d, d_wall, d_cpu) = timed(|| run(IntegrationSolver::Direct));
-            let (m, m_wall, m_cpu) = timed(|| run(IntegrationSolver::multigrid()));
+            let (m, m_wall, m_cpu) = timed(|| run(IntegrationSolver::Multigrid(mg)));
             let diff: Vec<f64> = d
                 .depth
                 .depth_m
