@@ -19,37 +19,40 @@
 //! aggregation built on a near-null-space candidate (Vaněk, Mandel & Brezina 1996). Once
 //! the weak mode is the constant, plain geometric multigrid applies.
 //!
-//! **The hierarchy.** Each coarse unknown aggregates the (up to four) foreground pixels of a
-//! 2 × 2 block of the finer grid that lie in one connected region (a view splits into
-//! several regions at silhouettes and removed discontinuities: each has its own scale mode,
-//! lifted only by α, which a coarse unknown shared by two regions could not represent); the
-//! prolongation `P` is piecewise constant and the coarse
-//! operator is Galerkin's `Pᵀ N' P`. For a 5-point stencil this product is again a 5-point
-//! stencil on the half-size grid (blocks touch only through their 4-neighbours), so every
-//! level has the fine level's data layout and costs a quarter of it: O(n) memory and work per
-//! cycle. Galerkin operators respect the mask exactly (no rediscretisation of boundaries or
-//! of the varying weights `((n_i + n_j)ᵀ r)²`, which vanish at grazing angles). The coarsest
-//! level (≤ [`COARSEST_UNKNOWNS`] unknowns, at the latest a 1 × 1 grid with one unknown per
-//! region) is solved by dense Cholesky.
+//! **The hierarchy: smoothed aggregation.** Each coarse unknown aggregates the foreground
+//! pixels of a 3 × 3 block of the finer grid that are joined by strong couplings
+//! (`|a_ij| ≥ ε √(a_ii a_jj)`, [`MultigridParams::strength_threshold`]; a coupling never
+//! crosses a connected region — a view splits into several at silhouettes and removed
+//! discontinuities, each with its own scale mode, lifted only by α, which a coarse unknown
+//! shared by two regions could not represent). The piecewise-constant prolongator `P₀` of the
+//! aggregates is smoothed by one damped Jacobi step, `P = (I − ω/ρ D⁻¹ N') P₀`
+//! ([`MultigridParams::prolongation_smoothing`] `ω`, `ρ` Gershgorin's bound on the spectral
+//! radius of `D⁻¹ N'`; Vaněk, Mandel & Brezina 1996), so the coarse space holds smooth
+//! ramps instead of staircases, and the coarse operator is Galerkin's `Pᵀ N' P` (sparse
+//! rows; every level's operator is a 9-point stencil on the third-size grid, since a smoothed
+//! 3 × 3 aggregate's support, 5 × 5 cells, meets only its 8 neighbours'). Each level costs
+//! about a ninth of the finer one: O(n) memory and work per cycle. Galerkin operators respect
+//! the mask exactly (no rediscretisation of boundaries or of the varying weights
+//! `((n_i + n_j)ᵀ r)²`, which vanish at grazing angles). The coarsest level
+//! (≤ [`COARSEST_UNKNOWNS`] unknowns, at the latest a 1 × 1 grid) is solved by dense
+//! Cholesky. (Plain 2 × 2 aggregation, this module's first hierarchy, needed 83–98 CG
+//! iterations on the studio's 1024² views against 22–31 now; 2 × 2 blocks with a smoothed
+//! prolongator widen the stencil level by level.)
 //!
 //! **The cycle and the Krylov method.** One V-cycle with symmetric Gauss–Seidel smoothing
 //! (forward before the coarse correction, backward after) is a symmetric positive definite
 //! preconditioner, so conjugate gradients apply (Tatebe 1993, "The multigrid preconditioned
-//! conjugate gradient method"). Piecewise-constant aggregation alone under-corrects smooth
-//! errors (the coarse space approximates them by staircases; Braess 1995), and CG makes up
-//! for much of this weakness, the standard pairing in aggregation AMG (Notay's AGMG uses it
-//! with a Krylov-accelerated cycle). The coarse correction is scaled by
-//! [`MultigridParams::coarse_scale`] (over-correction, Braess 1995), which keeps a two-grid
-//! preconditioner SPD for values below 2 (the CG loop stops should a search direction lose
-//! positive curvature).
+//! conjugate gradient method"). The coarse correction is scaled by
+//! [`MultigridParams::coarse_scale`] (1 for smoothed aggregation; plain aggregation needed an
+//! over-correction of 1.8, Braess 1995); below 2 a two-grid preconditioner stays SPD (the CG
+//! loop stops should a search direction lose positive curvature).
 //!
-//! **Where it stops paying.** On compact foregrounds (a sphere view, 165 k–660 k pixels) CG
-//! needs 12–13 cycles at any size and takes about a third of the direct solve's CPU time; on
-//! the studio's ragged masks (thin limbs, the hull's discontinuity cuts, weights
-//! `((n_i + n_j)ᵀ r)²` vanishing at grazing silhouettes) it needs 25–93 cycles, growing with
-//! resolution, and is no faster than the direct solve at 20 k–90 k pixels — which is why
-//! [`crate::IntegrationSolver::Direct`] is the default. Strength-of-connection or smoothed
-//! aggregation would be the next step.
+//! **Where it stops paying.** On the studio's views at 1024² (75 k–87 k foreground pixels,
+//! ragged masks) CG needs 22–31 cycles (14–19 with a W(2,2)-cycle) and costs about as much CPU
+//! time as the direct solve (ratio 1.06, `benches/integrate_studio.rs`): at that size the
+//! sparse Cholesky of a 2-D 5-point system is cheap, and
+//! [`crate::IntegrationSolver::Direct`] stays the default. The multigrid wins on large
+//! compact foregrounds (the 1024² sphere view of `benches/integrate.rs`).
 //!
 //! **Stopping.** CG stops when the residual of the normal equations (in depth units, i.e. the
 //! scaled residual divided by `z₀`) falls to [`MultigridParams::tolerance`] times the warm
@@ -77,34 +80,39 @@ pub const COARSEST_UNKNOWNS: usize = 256;
 pub struct MultigridParams {
     /// CG stops when the residual norm of the normal equations falls to this fraction of the
     /// warm start's. Default 10⁻⁷ (ours: on the 512² and 1024² sphere views of the
-    /// benchmark the depths stay within a nanometre of the direct solve's; see
-    /// `docs/photometric-normals.md`).
+    /// benchmark the depths stay within a nanometre of the direct solve's, on the studio's
+    /// 1024² views within 1.6 µm; see `docs/photometric-normals.md`).
     pub tolerance: f64,
-    /// Most CG iterations (one V-cycle each). Default 200 (ours; the sphere views of the
-    /// tests and the benchmark need 8–15).
+    /// Most CG iterations (one V-cycle each). Default 200 (ours; the studio's 1024² views
+    /// need 22–31).
     pub max_iterations: usize,
     /// Gauss–Seidel sweeps before and after each coarse correction. Default 1 (ours: on the
-    /// 1024² sphere view of the benchmark, 2 sweeps save 2 of 13 iterations for 20 % more
-    /// CPU time).
+    /// studio's 1024² views 0 and 5, 2 sweeps take 22–27 iterations instead of 29–31, for
+    /// more CPU time).
     pub smoothing_sweeps: usize,
-    /// Scale of the coarse-grid correction (over-correction of piecewise-constant
-    /// aggregation; in `(0, 1.99]`, below 2 the preconditioner stays positive definite). Default
-    /// 1.8 (ours: on the 1024² sphere view, 1.0 needs 57 iterations, 1.6 19, 1.8 13, 1.9
-    /// 11; 1.8 keeps a margin from 2).
+    /// Scale of the coarse-grid correction (in `(0, 1.99]`, below 2 the preconditioner stays
+    /// positive definite). Default 1.0 (ours: with the smoothed prolongator, on the studio's
+    /// 1024² views 0 and 3, 1.0 needs 22–29 iterations, 1.4 21–28, and 1.8 was the worst
+    /// with smoothed 2 × 2 aggregates, 31–34 against 14–20 at 1.0; plain aggregation needed
+    /// the over-correction 1.8).
     pub coarse_scale: f64,
-    /// Coarse-grid visits per level: 1 is a V-cycle, 2 a W-cycle (still O(n) with 2 × 2
-    /// aggregation: each level costs a quarter of the finer one, visited twice as often).
-    /// Default 1 (ours).
+    /// Coarse-grid visits per level: 1 is a V-cycle, 2 a W-cycle (still O(n) with 3 × 3
+    /// aggregation: each level costs a ninth of the finer one, visited twice as often).
+    /// Default 1 (ours: on the studio's 1024² views 0 and 5 a W(1,1)-cycle takes 18–23
+    /// iterations and a W(2,2)-cycle 14–19, instead of 29–31, for about the same CPU time).
     pub cycle_index: usize,
-    /// Strength of connection `ε`: two unknowns of one 2 × 2 block share an aggregate only
+    /// Strength of connection `ε`: two unknowns of one 3 × 3 block share an aggregate only
     /// if their coupling `|a_ij| ≥ ε √(a_ii a_jj)` (weak links — grazing silhouettes, where
     /// `((n_i + n_j)ᵀ r)²` vanishes — are not aggregated across). In `[0, 1)`; 0 aggregates
-    /// every coupled pair of a block. Default 0 (tuned below).
+    /// every coupled pair of a block. Default 0 (ours: on the studio's 1024² views 0.1 needs
+    /// 30–31 iterations against 29, 0.25 33; a level that would not halve is aggregated
+    /// with 0).
     pub strength_threshold: f64,
     /// Damping `ω` of the prolongator smoothing `P = (I − ω/ρ D⁻¹ A) P₀` of smoothed
     /// aggregation (Vaněk, Mandel & Brezina 1996; `ρ` Gershgorin's bound on the spectral
     /// radius of `D⁻¹ A`), in `[0, 2)`; 0 keeps the piecewise-constant `P₀` (plain
-    /// aggregation). Default 4/3 (tuned below).
+    /// aggregation). Default 4/3 (the usual choice, `ω = 4/(3ρ)`; on the studio's 1024² views
+    /// 1.0 needs 33–34 iterations, 4/3 29, 1.6 27).
     pub prolongation_smoothing: f64,
 }
 
@@ -246,7 +254,7 @@ impl Level {
         CsrMatrix::from(&coo)
     }
 
-    /// Each unknown's aggregate on the half-size grid: the unknowns of one 2 × 2 block joined
+    /// Each unknown's aggregate on the third-size grid: the unknowns of one 3 × 3 block joined
     /// by strong couplings (`|a_kj| ≥ ε √(a_kk a_jj)`, `ε = strength`; a coupling is between
     /// unknowns of one connected region, so every region keeps unknowns of its own down to
     /// the coarsest level). Returns (aggregate of each unknown, cell of each aggregate).
@@ -328,7 +336,7 @@ impl Level {
         Prolongator { ptr, col, val }
     }
 
-    /// The Galerkin operator `Pᵀ A P` on the half-size grid.
+    /// The Galerkin operator `Pᵀ A P` on the third-size grid.
     fn coarsen(&self, p: &Prolongator, cells: Vec<usize>) -> Level {
         let (n, nc) = (self.len(), cells.len());
         let pm = CsrMatrix::try_from_csr_data(
