@@ -14,6 +14,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+mod common;
+use common::{cpu_seconds, max_rms_diff};
+
 use photometric_normals::truth::{skirt_subject, StudioScene};
 use photometric_normals::{
     integrate_normals, rendered_normals, Integrated, IntegrationParams, IntegrationSolver,
@@ -22,20 +25,6 @@ use photometric_normals::{
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::image::Mask;
 use skin_core::raster::{Rasterizer, RenderParams, RenderedView};
-
-/// This process's CPU time (user + system), s, from `/proc/self/stat` (Linux; `NaN`
-/// elsewhere).
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            let rest = s.rsplit_once(')')?.1.split_whitespace().collect::<Vec<_>>();
-            let utime: f64 = rest.get(11)?.parse().ok()?;
-            let stime: f64 = rest.get(12)?.parse().ok()?;
-            Some((utime + stime) / 100.0)
-        })
-        .unwrap_or(f64::NAN)
-}
 
 /// One solve: the result, wall and CPU seconds.
 fn timed(f: impl FnOnce() -> Integrated) -> (Integrated, f64, f64) {
@@ -117,16 +106,7 @@ fn main() {
             };
             let (d, d_wall, d_cpu) = timed(|| run(IntegrationSolver::Direct));
             let (m, m_wall, m_cpu) = timed(|| run(IntegrationSolver::Multigrid(mg)));
-            let diff: Vec<f64> = d
-                .depth
-                .depth_m
-                .iter()
-                .zip(&m.depth.depth_m)
-                .filter(|(a, b)| !a.is_nan() && !b.is_nan())
-                .map(|(a, b)| (a - b).abs())
-                .collect();
-            let max = diff.iter().copied().fold(0.0, f64::max);
-            let rms = (diff.iter().map(|x| x * x).sum::<f64>() / diff.len().max(1) as f64).sqrt();
+            let (max, rms) = max_rms_diff(&d.depth.depth_m, &m.depth.depth_m);
             direct_cpu += d_cpu;
             mg_cpu += m_cpu;
             max_iter = max_iter.max(m.report.iterations);

@@ -11,30 +11,23 @@
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::time::Instant;
 
+mod common;
+use common::cpu_seconds;
+
 use photometric_normals::{screened_poisson, OrientedSample, PoissonParams};
 use skin_core::math::DVec3;
 use skin_core::mesh::shapes::uv_sphere;
-
-/// This process's CPU time (user + system), s, from `/proc/self/stat` (Linux; `NaN`
-/// elsewhere).
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            let rest = s.rsplit_once(')')?.1.split_whitespace().collect::<Vec<_>>();
-            let utime: f64 = rest.get(11)?.parse().ok()?;
-            let stime: f64 = rest.get(12)?.parse().ok()?;
-            Some((utime + stime) / 100.0)
-        })
-        .unwrap_or(f64::NAN)
-}
 
 fn main() {
     let depths: Vec<u32> = std::env::args()
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();
-    let depths = if depths.is_empty() { vec![8, 9] } else { depths };
+    let depths = if depths.is_empty() {
+        vec![8, 9]
+    } else {
+        depths
+    };
     let mut sphere = uv_sphere(DVec3::ZERO, 0.9, 400, 1000).unwrap();
     for v in &mut sphere.vertices {
         *v *= 1.0 + 0.03 * (7.0 * v.x).sin() * (5.0 * v.y).cos() * (3.0 * v.z).sin();

@@ -313,12 +313,7 @@ pub(crate) fn march_cells_par<V: FnMut(Node) -> Option<f64>>(
                 }
             })
             .collect();
-        faces.extend(
-            chunk
-                .faces
-                .iter()
-                .map(|f| f.map(|i| map[i as usize])),
-        );
+        faces.extend(chunk.faces.iter().map(|f| f.map(|i| map[i as usize])));
     }
     Ok(TriMesh::new(vertices, faces)?)
 }
@@ -351,35 +346,33 @@ fn march_chunk(
         if loops.is_empty() {
             continue;
         }
-        let mut vertex = |e: usize,
-                          vertices: &mut Vec<DVec3>,
-                          keys: &mut Vec<Option<(Node, u8)>>|
-         -> u32 {
-            let (lo, axis) = (e / 3, e % 3);
-            let hi = lo | (1 << axis);
-            let key = (nodes[lo], axis as u8);
-            *edge_vertex.entry(key).or_insert_with(|| {
-                let (a, b) = (f[lo], f[hi]);
-                // a and b straddle zero (one is < 0, the other ≥ 0), so a ≠ b.
-                let linear = (a / (a - b)).clamp(0.0, 1.0);
-                let t = match fit {
-                    EdgeFit::Linear => linear,
-                    EdgeFit::Cubic => {
-                        let mut before = nodes[lo];
-                        before[axis] -= 1;
-                        let mut after = nodes[hi];
-                        after[axis] += 1;
-                        match (value(before), value(after)) {
-                            (Some(f0), Some(f3)) => cubic_edge_zero(f0 - iso, a, b, f3 - iso),
-                            _ => linear,
+        let mut vertex =
+            |e: usize, vertices: &mut Vec<DVec3>, keys: &mut Vec<Option<(Node, u8)>>| -> u32 {
+                let (lo, axis) = (e / 3, e % 3);
+                let hi = lo | (1 << axis);
+                let key = (nodes[lo], axis as u8);
+                *edge_vertex.entry(key).or_insert_with(|| {
+                    let (a, b) = (f[lo], f[hi]);
+                    // a and b straddle zero (one is < 0, the other ≥ 0), so a ≠ b.
+                    let linear = (a / (a - b)).clamp(0.0, 1.0);
+                    let t = match fit {
+                        EdgeFit::Linear => linear,
+                        EdgeFit::Cubic => {
+                            let mut before = nodes[lo];
+                            before[axis] -= 1;
+                            let mut after = nodes[hi];
+                            after[axis] += 1;
+                            match (value(before), value(after)) {
+                                (Some(f0), Some(f3)) => cubic_edge_zero(f0 - iso, a, b, f3 - iso),
+                                _ => linear,
+                            }
                         }
-                    }
-                };
-                vertices.push(position(nodes[lo]).lerp(position(nodes[hi]), t));
-                keys.push(Some(key));
-                (vertices.len() - 1) as u32
-            })
-        };
+                    };
+                    vertices.push(position(nodes[lo]).lerp(position(nodes[hi]), t));
+                    keys.push(Some(key));
+                    (vertices.len() - 1) as u32
+                })
+            };
         for poly in loops {
             let ids: Vec<u32> = poly
                 .iter()

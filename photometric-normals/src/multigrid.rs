@@ -66,12 +66,6 @@ use skin_core::check;
 
 use crate::{Error, Result};
 
-/// Side of the square blocks of cells aggregated into one coarse cell. 3 keeps every level's
-/// operator a 9-point stencil under prolongator smoothing (the support of a smoothed
-/// aggregate, 5 × 5 cells, meets those of its 8 neighbours' only), where 2 × 2 blocks widen
-/// the stencil level by level (25 points on the second level, over 100 on the fourth).
-const SIDE: usize = 3;
-
 /// Levels stop coarsening at this many unknowns; the coarsest is solved by dense Cholesky.
 pub const COARSEST_UNKNOWNS: usize = 256;
 
@@ -114,6 +108,13 @@ pub struct MultigridParams {
     /// aggregation). Default 4/3 (the usual choice, `ω = 4/(3ρ)`; on the studio's 1024² views
     /// 1.0 needs 33–34 iterations, 4/3 29, 1.6 27).
     pub prolongation_smoothing: f64,
+    /// Side of the square blocks of cells aggregated into one coarse cell, 2 or 3. Default 3
+    /// (ours: 3 keeps every level's operator a 9-point stencil under prolongator smoothing —
+    /// a smoothed aggregate's support, 5 × 5 cells, meets only its 8 neighbours' — where
+    /// smoothed 2 × 2 blocks widen the stencil level by level, 31 entries a row on the second
+    /// level, over 100 on the fourth; 2 with `prolongation_smoothing` 0 and `coarse_scale`
+    /// 1.8 is plain 2 × 2 aggregation, the faster choice on large compact foregrounds).
+    pub aggregate_side: usize,
 }
 
 impl Default for MultigridParams {
@@ -126,6 +127,7 @@ impl Default for MultigridParams {
             cycle_index: 1,
             strength_threshold: 0.0,
             prolongation_smoothing: 4.0 / 3.0,
+            aggregate_side: 3,
         }
     }
 }
@@ -142,6 +144,11 @@ impl MultigridParams {
             "multigrid strength_threshold",
             self.strength_threshold,
             0.0..=0.99,
+        )?;
+        check::in_range(
+            "multigrid aggregate_side",
+            self.aggregate_side as f64,
+            2.0..=3.0,
         )?;
         check::in_range(
             "multigrid prolongation_smoothing",
@@ -254,13 +261,13 @@ impl Level {
         CsrMatrix::from(&coo)
     }
 
-    /// Each unknown's aggregate on the third-size grid: the unknowns of one 3 × 3 block joined
+    /// Each unknown's aggregate on the coarser grid (blocks of `side` × `side` cells): the unknowns of one block joined
     /// by strong couplings (`|a_kj| ≥ ε √(a_kk a_jj)`, `ε = strength`; a coupling is between
     /// unknowns of one connected region, so every region keeps unknowns of its own down to
     /// the coarsest level). Returns (aggregate of each unknown, cell of each aggregate).
-    fn aggregate(&self, strength: f64) -> (Vec<u32>, Vec<usize>) {
-        let cw = self.width.div_ceil(SIDE);
-        let block = |cell: usize| (cell / self.width / SIDE) * cw + (cell % self.width) / SIDE;
+    fn aggregate(&self, side: usize, strength: f64) -> (Vec<u32>, Vec<usize>) {
+        let cw = self.width.div_ceil(side);
+        let block = |cell: usize| (cell / self.width / side) * cw + (cell % self.width) / side;
         let n = self.len();
         let mut parent: Vec<u32> = (0..n as u32).collect();
         for k in 0..n {
@@ -336,8 +343,8 @@ impl Level {
         Prolongator { ptr, col, val }
     }
 
-    /// The Galerkin operator `Pᵀ A P` on the third-size grid.
-    fn coarsen(&self, p: &Prolongator, cells: Vec<usize>) -> Level {
+    /// The Galerkin operator `Pᵀ A P` on the coarser grid.
+    fn coarsen(&self, side: usize, p: &Prolongator, cells: Vec<usize>) -> Level {
         let (n, nc) = (self.len(), cells.len());
         let pm = CsrMatrix::try_from_csr_data(
             n,
@@ -359,7 +366,7 @@ impl Level {
         });
         let ap = &self.csr() * &pm;
         let coarse = &pm.transpose() * &ap;
-        Level::from_csr(self.width.div_ceil(SIDE), cells, &coarse)
+        Level::from_csr(self.width.div_ceil(side), cells, &coarse)
     }
 
     fn dense(&self) -> DMatrix<f64> {
@@ -426,14 +433,15 @@ impl Hierarchy {
             if last.len() <= COARSEST_UNKNOWNS || (last.width <= 1 && h <= 1) {
                 break;
             }
-            let (mut agg, mut cells) = last.aggregate(params.strength_threshold);
+            let side = params.aggregate_side;
+            let (mut agg, mut cells) = last.aggregate(side, params.strength_threshold);
             if cells.len() * 2 > last.len() {
                 // Too many weak links to coarsen: aggregate this level's blocks whole.
-                (agg, cells) = last.aggregate(0.0);
+                (agg, cells) = last.aggregate(side, 0.0);
             }
             let p = last.prolongator(&agg, cells.len(), params.prolongation_smoothing);
-            let coarse = last.coarsen(&p, cells);
-            h = h.div_ceil(SIDE);
+            let coarse = last.coarsen(side, &p, cells);
+            h = h.div_ceil(side);
             prolong.push(p);
             levels.push(coarse);
         }
