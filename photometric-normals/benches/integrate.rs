@@ -11,9 +11,10 @@
 //! * `cargo bench -p photometric-normals --bench integrate`: first one line of JSON per size
 //!   (seconds, CG iterations, relative residual, max / RMS depth difference between the two
 //!   solvers), then criterion's timings.
-//! * `… --bench integrate -- --once {direct|multigrid|setup} SIZE [SWEEPS SCALE]`: one solve
-//!   (or only the view's set-up), for timing the whole process from outside; optionally with
-//!   other multigrid smoothing sweeps and coarse-correction scale.
+//! * `… --bench integrate -- --once {direct|multigrid|setup} SIZE [SWEEPS SCALE [SIDE OMEGA]]`:
+//!   one solve (or only the view's set-up), for timing the whole process from outside;
+//!   optionally with other multigrid smoothing sweeps, coarse-correction scale, aggregate side
+//!   and prolongator smoothing (`1 1.8 2 0` is plain 2 × 2 aggregation).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 // criterion_group!/criterion_main! generate undocumented public functions.
@@ -21,6 +22,9 @@
 
 use std::hint::black_box;
 use std::time::Instant;
+
+mod common;
+use common::max_rms_diff;
 
 use criterion::Criterion;
 use photometric_normals::{
@@ -100,16 +104,7 @@ fn summary(size: u32) {
     let t = Instant::now();
     let mg = solve(&view, false);
     let mg_s = t.elapsed().as_secs_f64();
-    let d: Vec<f64> = direct
-        .depth
-        .depth_m
-        .iter()
-        .zip(&mg.depth.depth_m)
-        .filter(|(a, b)| !a.is_nan() && !b.is_nan())
-        .map(|(a, b)| (a - b).abs())
-        .collect();
-    let max = d.iter().copied().fold(0.0, f64::max);
-    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt();
+    let (max, rms) = max_rms_diff(&direct.depth.depth_m, &mg.depth.depth_m);
     println!(
         "{{\"size\":{size},\"unknowns\":{},\"direct_s\":{direct_s:.3},\"multigrid_s\":{mg_s:.3},\
          \"speedup\":{:.2},\"iterations\":{},\"relative_residual\":{:.2e},\
@@ -128,14 +123,18 @@ fn main() {
         let size = args.get(k + 2).and_then(|s| s.parse().ok()).unwrap_or(1024);
         let view = sphere_view(size);
         let mut p = params(which == "direct");
-        // Optional tuning arguments: smoothing sweeps and coarse-correction scale.
-        if let (IntegrationSolver::Multigrid(mg), Some(sweeps), Some(scale)) = (
-            &mut p.solver,
-            args.get(k + 3).and_then(|s| s.parse().ok()),
-            args.get(k + 4).and_then(|s| s.parse().ok()),
-        ) {
-            mg.smoothing_sweeps = sweeps;
-            mg.coarse_scale = scale;
+        // Optional tuning arguments: smoothing sweeps, coarse-correction scale, aggregate
+        // side and prolongator smoothing.
+        let arg = |i: usize| args.get(k + i).and_then(|s| s.parse::<f64>().ok());
+        if let IntegrationSolver::Multigrid(mg) = &mut p.solver {
+            if let (Some(sweeps), Some(scale)) = (arg(3), arg(4)) {
+                mg.smoothing_sweeps = sweeps as usize;
+                mg.coarse_scale = scale;
+            }
+            if let (Some(side), Some(omega)) = (arg(5), arg(6)) {
+                mg.aggregate_side = side as usize;
+                mg.prolongation_smoothing = omega;
+            }
         }
         if which != "setup" {
             let t = Instant::now();

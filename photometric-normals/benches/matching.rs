@@ -9,6 +9,9 @@
 
 use std::time::Instant;
 
+mod common;
+use common::cpu_seconds;
+
 use photometric_normals::{
     depth_errors, match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, VisualHull,
 };
@@ -32,20 +35,6 @@ fn scene(size: u32) -> (Vec<Camera>, Vec<DepthMap>) {
         .map(|c| mesh_proxy_depth(c, &mesh).expect("render"))
         .collect();
     (cams, depths)
-}
-
-/// This process's CPU time (user + system), s, from `/proc/self/stat` (Linux; `NaN`
-/// elsewhere): wall time on a shared machine measures the other users too.
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            let rest = s.rsplit_once(')')?.1.split_whitespace().collect::<Vec<_>>();
-            let utime: f64 = rest.get(11)?.parse().ok()?;
-            let stime: f64 = rest.get(12)?.parse().ok()?;
-            Some((utime + stime) / 100.0)
-        })
-        .unwrap_or(f64::NAN)
 }
 
 fn main() {

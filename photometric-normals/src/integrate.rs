@@ -76,10 +76,9 @@ pub struct IntegrationParams {
     /// without strengthening α against the detail. Default true (ours; not in the thesis).
     pub refit_scale: bool,
     /// How the normal equations are solved. Default [`IntegrationSolver::Direct`] (ours:
-    /// the multigrid solver agrees with it to well under a micrometre, and takes about a
-    /// third of its CPU time on a 1024² sphere view with 660 k foreground pixels, but on the
-    /// studio's views — 20 k to 90 k foreground pixels at 512² to 1024², ragged masks — it
-    /// needs 25–93 iterations and is no faster; see `docs/photometric-normals.md`).
+    /// the multigrid solver agrees with it to under 2 µm; on the studio's 1024² views —
+    /// 75 k to 87 k foreground pixels, ragged masks — it needs 22–31 iterations and about the
+    /// same CPU time, so it does not win there; see `docs/photometric-normals.md`).
     pub solver: IntegrationSolver,
 }
 

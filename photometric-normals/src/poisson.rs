@@ -53,7 +53,7 @@ use skin_core::check;
 use skin_core::math::DVec3;
 use skin_core::mesh::{vertex_normals, NormalWeighting, TriMesh};
 
-use crate::marching_cubes::{march_cells_with, EdgeFit, Node, NodeMap, NodeSet};
+use crate::marching_cubes::{march_cells_par, EdgeFit, Node, NodeMap, NodeSet};
 use crate::{Error, Result};
 
 /// An oriented point sample with a confidence weight.
@@ -600,20 +600,34 @@ fn solve_level(
     let nn = level.nodes.len();
     let h = level.h();
     let n = level.n;
-    // Splat flux and screening mass.
+    // Splat flux and screening mass: each chunk of samples finds its nodes and weights in
+    // parallel, then the sums are taken serially in sample order (the same sums, bit for
+    // bit, as one serial loop).
+    let contributions: Vec<Vec<(u32, u32, f64)>> = samples
+        .par_chunks(SPLAT_CHUNK)
+        .enumerate()
+        .map(|(ci, chunk)| {
+            let mut out = Vec::with_capacity(chunk.len() * 8);
+            for (k, s) in chunk.iter().enumerate() {
+                let (c, t) = cell_of(s.q, n);
+                for o in 0..8 {
+                    let off = [(o & 1) as i64, ((o >> 1) & 1) as i64, ((o >> 2) & 1) as i64];
+                    if let Some(i) = level.index(add(c, off, 1)) {
+                        out.push((i as u32, (ci * SPLAT_CHUNK + k) as u32, trilinear(t, off)));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
     let mut v = vec![DVec3::ZERO; nn];
     let mut mass = vec![0.0; nn];
-    for s in samples {
-        let (c, t) = cell_of(s.q, n);
-        for o in 0..8 {
-            let off = [(o & 1) as i64, ((o >> 1) & 1) as i64, ((o >> 2) & 1) as i64];
-            let w = trilinear(t, off);
-            if let Some(i) = level.index(add(c, off, 1)) {
-                v[i] += s.flux * (w / (h * h * h));
-                mass[i] += s.mass * w;
-            }
-        }
+    for &(i, k, w) in contributions.iter().flatten() {
+        let s = &samples[k as usize];
+        v[i as usize] += s.flux * (w / (h * h * h));
+        mass[i as usize] += s.mass * w;
     }
+    drop(contributions);
     // Start values and Dirichlet values from the coarser levels.
     let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
         match coarser.len() {
@@ -730,6 +744,9 @@ fn solve_level(
         residual,
     }
 }
+
+/// Samples per parallel task of a level's splat.
+const SPLAT_CHUNK: usize = 65_536;
 
 /// Nodes per parallel task of a level's assembly (each task memoises its own coarser values).
 const ASSEMBLY_CHUNK: usize = 16_384;
@@ -952,6 +969,34 @@ fn collect_cells(comp: &mut Composite, li: usize, cell: Node, iso: f64, out: &mu
     }
 }
 
+/// The finest-level cells to polygonise ([`collect_cells`] from every cell of the complete
+/// level and one ring outside it), in parallel over the complete level's z-slices (each with a
+/// memo of its own: a cache, the values are the same), in the serial order.
+fn extraction_cells(levels: &[Level], iso: f64, outside: f64) -> Vec<Node> {
+    let n0 = levels[0].n;
+    (-1..=n0)
+        .into_par_iter()
+        .map(|k| {
+            let mut comp = Composite {
+                levels,
+                memo: NodeMap::default(),
+                outside,
+            };
+            let mut cells = Vec::new();
+            for j in -1..=n0 {
+                for i in -1..=n0 {
+                    collect_cells(&mut comp, 0, [i, j, k], iso, &mut cells);
+                }
+            }
+            cells
+        })
+        .collect::<Vec<_>>()
+        .concat()
+}
+
+/// Cells per parallel task of the extraction's marching cubes.
+const MARCH_CHUNK: usize = 32_768;
+
 /// Screened Poisson reconstruction of a closed surface from oriented, weighted samples (see
 /// the module docs for the discretisation and solver).
 ///
@@ -1025,21 +1070,20 @@ pub fn screened_poisson(
     }
     let iso = swx / sw;
     comp.outside = iso + 0.5;
-    comp.memo.clear();
-    let mut cells = Vec::new();
-    let n0 = levels[0].n;
-    // One ring of cells outside the domain closes a surface that reaches its faces.
-    for k in -1..=n0 {
-        for j in -1..=n0 {
-            for i in -1..=n0 {
-                collect_cells(&mut comp, 0, [i, j, k], iso, &mut cells);
-            }
-        }
-    }
+    let outside = comp.outside;
+    let cells = extraction_cells(&levels, iso, outside);
     let hf = levels[finest].h();
-    let mesh = march_cells_with(
-        cells,
-        |p| Some(comp.value(finest, p)),
+    let mesh = march_cells_par(
+        &cells,
+        MARCH_CHUNK,
+        || {
+            let mut comp = Composite {
+                levels: &levels,
+                memo: NodeMap::default(),
+                outside,
+            };
+            move |p| Some(comp.value(finest, p))
+        },
         iso,
         |p| origin + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * (hf * side),
         EdgeFit::Cubic,
