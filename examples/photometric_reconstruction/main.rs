@@ -65,11 +65,12 @@ use dynamic_shapes::photometric::truth::{
     STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
-    depth_errors, depth_map_mesh, displacement_survival, estimate_normals, hull_samples,
-    integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
-    rendered_normals, surface_distance, table_metrics, DepthMap, IntegrationParams, MatchMetric,
-    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, Reconstruction,
-    SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    coverage_budget, depth_errors, depth_map_mesh, displacement_survival, estimate_normals,
+    hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
+    rendered_normals, surface_distance, table_metrics, BudgetInputs, DepthMap, IntegrationParams,
+    MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams,
+    Reconstruction, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull,
+    VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -194,7 +195,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
-    let (table, distances) = score_passes(&cameras, &estimated, &silhouettes, &rec, &mesh)?;
+    let (table, distances) = score_passes(
+        &cameras,
+        &estimated,
+        &silhouettes,
+        &rec,
+        &mesh,
+        &truths,
+        &rparams,
+    )?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
     let hull_surface_median_mm = hull_surface_median_mm(&cameras, &proxies, &rparams, &mesh)?;
     stage.finish(format!(
@@ -651,6 +660,8 @@ fn subject_run(
         &obs.silhouettes,
         &rec,
         &obs.mesh,
+        &obs.truths,
+        rparams,
     )?;
     let zero = vec![0.0; obs.mesh.vertices.len()];
     let (merged_d, filled_d) = &distances[1];
@@ -844,18 +855,24 @@ type PassScores = (
     Vec<(SurfaceDistance, SurfaceDistance)>,
 );
 
-/// Table 3.1 of both passes (on the merged meshes, before hole filling) and the merged and
-/// filled meshes' distances to the true mesh `truth`.
+/// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
+/// budget against the true depth maps `truths`, and the merged and filled meshes' distances
+/// to the true mesh `truth`.
 fn score_passes(
     cameras: &[Camera],
     estimated: &[NormalMap],
     silhouettes: &[Mask],
     rec: &Reconstruction,
     truth: &TriMesh,
+    truths: &[DepthMap],
+    rparams: &ReconstructParams,
 ) -> Result<PassScores, Box<dyn std::error::Error>> {
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
-    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
+    for (name, pass, surface) in [
+        ("pass1", &rec.pass1, &rparams.pass1),
+        ("pass2", &rec.pass2, &rparams.pass2),
+    ] {
         let m = table_metrics(
             cameras,
             estimated,
@@ -866,6 +883,20 @@ fn score_passes(
         )?;
         let merged_d = surface_distance(&pass.merged.mesh, truth)?;
         let filled_d = surface_distance(&pass.filled.mesh, truth)?;
+        // Where the uncovered measured normals were lost (issue 14's coverage budget).
+        let budget = coverage_budget(
+            cameras,
+            estimated,
+            silhouettes,
+            &BudgetInputs {
+                proxies: &pass.proxies,
+                views: &pass.views,
+                integration: &surface.integration,
+                reference: truths,
+            },
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
         table.insert(
             name.into(),
             json!({
@@ -888,6 +919,10 @@ fn score_passes(
                 "per_view_s": pass.times.per_view_s,
                 "merge_s": pass.times.merge_s,
                 "poisson_s": pass.times.poisson_s,
+                "coverage_budget": budget,
+                "budget_no_surface_pct": budget.pct(budget.no_surface_px()),
+                "budget_gross_uncovered_pct": budget.pct(budget.gross_uncovered_px),
+                "budget_merge_lost_pct": budget.pct(budget.merge_lost_px()),
             }),
         );
         distances.push((merged_d, filled_d));

@@ -37,7 +37,10 @@ use skin_core::math::{DVec3, Ray};
 use skin_core::mesh::{one_sided_distance, vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use skin_core::raster::{Rasterizer, RenderParams};
 
-use crate::{rendered_normals, Context, DepthMap, Error, NormalMap, Result, ResultExt};
+use crate::{
+    depth_jumps, rendered_normals, Context, DepthMap, Error, IntegrationParams, NormalMap, Result,
+    ResultExt, ViewSurfaces,
+};
 
 /// Parameters of [`table_metrics`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -407,6 +410,191 @@ pub fn table_metrics(
             f64::NAN
         },
     })
+}
+
+/// Where the measured normals that a mesh does not cover were lost ([`coverage_budget`]):
+/// pixel counts over all cameras, each measured normal in exactly one class, in the order
+/// of the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct CoverageBudget {
+    /// Measured normals (as [`TableMetrics::measured_px`]).
+    pub measured_px: usize,
+    /// Covered by the mesh (as [`TableMetrics::covered_px`]).
+    pub covered_px: usize,
+    /// No per-view surface: removed from Eq. 3.3 as a pixel straddling a proxy depth jump.
+    pub cut_proxy_jump_px: usize,
+    /// No per-view surface: removed from Eq. 3.3 as a discontinuity found by matching.
+    pub cut_match_break_px: usize,
+    /// No per-view surface: in an integration region too small or without any proxy depth
+    /// (outside the proxy), or integrated to a depth behind the camera.
+    pub dropped_region_px: usize,
+    /// No per-view surface: integrated, but discarded by Eq. 3.4 (too far from any match, or
+    /// in a region without one).
+    pub discarded_offsets_px: usize,
+    /// A per-view surface farther than `near_m` from the reference along the ray (a gross
+    /// per-view error), not covered.
+    pub gross_uncovered_px: usize,
+    /// A gross per-view error that the mesh nevertheless covers (the mesh is as wrong).
+    pub gross_covered_px: usize,
+    /// A per-view surface within `near_m` of the reference, but the mesh's first hit along
+    /// the ray lies more than `near_m` in front of it (another view's surface occludes it).
+    pub merge_in_front_px: usize,
+    /// As `merge_in_front_px`, but the first hit lies more than `near_m` behind.
+    pub merge_behind_px: usize,
+    /// As `merge_in_front_px`, but the ray misses the mesh (a hole of the merge).
+    pub merge_hole_px: usize,
+}
+
+impl CoverageBudget {
+    fn add(self, o: Self) -> Self {
+        Self {
+            measured_px: self.measured_px + o.measured_px,
+            covered_px: self.covered_px + o.covered_px,
+            cut_proxy_jump_px: self.cut_proxy_jump_px + o.cut_proxy_jump_px,
+            cut_match_break_px: self.cut_match_break_px + o.cut_match_break_px,
+            dropped_region_px: self.dropped_region_px + o.dropped_region_px,
+            discarded_offsets_px: self.discarded_offsets_px + o.discarded_offsets_px,
+            gross_uncovered_px: self.gross_uncovered_px + o.gross_uncovered_px,
+            gross_covered_px: self.gross_covered_px + o.gross_covered_px,
+            merge_in_front_px: self.merge_in_front_px + o.merge_in_front_px,
+            merge_behind_px: self.merge_behind_px + o.merge_behind_px,
+            merge_hole_px: self.merge_hole_px + o.merge_hole_px,
+        }
+    }
+
+    /// `px` as a percentage of the measured normals.
+    pub fn pct(&self, px: usize) -> f64 {
+        100.0 * px as f64 / self.measured_px.max(1) as f64
+    }
+
+    /// Measured normals without a per-view surface (cut, dropped or discarded).
+    pub fn no_surface_px(&self) -> usize {
+        self.cut_proxy_jump_px
+            + self.cut_match_break_px
+            + self.dropped_region_px
+            + self.discarded_offsets_px
+    }
+
+    /// Measured normals with a correct per-view surface that the merged mesh loses.
+    pub fn merge_lost_px(&self) -> usize {
+        self.merge_in_front_px + self.merge_behind_px + self.merge_hole_px
+    }
+}
+
+/// The inputs of one pass that [`coverage_budget`] traces.
+#[derive(Debug, Clone, Copy)]
+pub struct BudgetInputs<'a> {
+    /// The pass's proxy depth per camera.
+    pub proxies: &'a [DepthMap],
+    /// The pass's per-view surfaces.
+    pub views: &'a ViewSurfaces,
+    /// The integration's parameters of the pass (its proxy-jump threshold).
+    pub integration: &'a IntegrationParams,
+    /// Reference depth maps (e.g. the studio's true depths, or a scan) that decide which
+    /// per-view surfaces are gross errors.
+    pub reference: &'a [DepthMap],
+}
+
+/// Coverage budget of `mesh` (issue 14): every measured normal that Table 3.1's coverage
+/// ([`table_metrics`]) does not count is assigned to the first stage that lost it — cut from
+/// Eq. 3.3 at a proxy jump or a matched discontinuity, dropped with its region, discarded by
+/// Eq. 3.4, a per-view surface more than `near_m` from the reference (gross error), or a
+/// correct per-view surface that the mesh misses (its first hit in front, behind, or none).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for counts or image sizes that differ; [`Error::InvalidParam`] for
+/// a non-positive `near_m`; errors of the rasteriser (named by camera).
+pub fn coverage_budget(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    inputs: &BudgetInputs<'_>,
+    mesh: &TriMesh,
+    params: &MetricParams,
+) -> Result<CoverageBudget> {
+    let n = cameras.len();
+    let views = inputs.views;
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("silhouettes per camera", n, silhouettes.len())?;
+    check::same_size("proxies per camera", n, inputs.proxies.len())?;
+    check::same_size("reference depth maps per camera", n, inputs.reference.len())?;
+    check::same_size("per-view surfaces per camera", n, views.surfaces.len())?;
+    check::same_size("integrated surfaces per camera", n, views.integrated.len())?;
+    check::same_size("matched breaks per camera", n, views.breaks.len())?;
+    check::positive("near_m", params.near_m)?;
+    let per_camera = (0..n)
+        .into_par_iter()
+        .map(|c| -> Result<CoverageBudget> {
+            let surface = &views.surfaces[c];
+            let (sums, covered, hit) = camera_sums(
+                &cameras[c],
+                &normals[c],
+                &silhouettes[c],
+                surface,
+                mesh,
+                params,
+            )?;
+            let n_px = surface.depth_m.len();
+            for (what, len) in [
+                ("proxy pixels", inputs.proxies[c].depth_m.len()),
+                ("reference pixels", inputs.reference[c].depth_m.len()),
+                ("integrated pixels", views.integrated[c].depth_m.len()),
+                ("matched break pixels", views.breaks[c].pixel_count()),
+            ] {
+                check::same_size(what, n_px, len)?;
+            }
+            let w = surface.width;
+            let jumps = depth_jumps(
+                &inputs.proxies[c],
+                IntegrationParams::jump_threshold_m(inputs.integration.proxy_jump_m, w),
+            )?;
+            let mut b = CoverageBudget {
+                measured_px: sums.measured,
+                covered_px: sums.covered,
+                ..CoverageBudget::default()
+            };
+            for i in 0..n_px {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                if !normals[c].valid[i] || !silhouettes[c].get(x, y) {
+                    continue;
+                }
+                let s = surface.depth_m[i];
+                let gross = !((s - inputs.reference[c].depth_m[i]).abs() <= params.near_m);
+                let class = if views.integrated[c].depth_m[i].is_nan() {
+                    if jumps.get(x, y) {
+                        &mut b.cut_proxy_jump_px
+                    } else if views.breaks[c].get(x, y) {
+                        &mut b.cut_match_break_px
+                    } else {
+                        &mut b.dropped_region_px
+                    }
+                } else if s.is_nan() {
+                    &mut b.discarded_offsets_px
+                } else if gross {
+                    if covered[i] {
+                        &mut b.gross_covered_px
+                    } else {
+                        &mut b.gross_uncovered_px
+                    }
+                } else if covered[i] {
+                    continue;
+                } else if hit.depth_m[i].is_nan() {
+                    &mut b.merge_hole_px
+                } else if hit.depth_m[i] < s {
+                    &mut b.merge_in_front_px
+                } else {
+                    &mut b.merge_behind_px
+                };
+                *class += 1;
+            }
+            Ok(b)
+        })
+        .enumerate()
+        .map(|(c, r)| r.at(Context::Camera(c)))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(per_camera
+        .into_iter()
+        .fold(CoverageBudget::default(), CoverageBudget::add))
 }
 
 /// Distances (mm) from a mesh's vertices to a true surface.
