@@ -10,16 +10,17 @@
 
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::Rig;
+use dynamic_shapes::core::camera::{Camera, Rig};
 use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::math::DVec2;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
-    coverage_budget, merge_views, mesh_proxy_depth, per_view_surfaces, reconstruct,
+    coverage_budget, depth_jumps, merge_views, mesh_proxy_depth, per_view_surfaces, reconstruct,
     rendered_normals, surface_distance, table_metrics, BudgetInputs, CoverageBudget, DepthMap,
-    MergeView, MetricParams, NormalMap, OffsetParams, Pass, PassTimes, ReconstructParams,
-    SurfaceParams, VisualHull,
+    IntegrationParams, MergeView, MetricParams, NormalMap, OffsetParams, Pass, PassTimes,
+    ReconstructParams, SurfaceParams, VisualHull,
 };
 
 const CAMERAS: usize = 8;
@@ -44,6 +45,52 @@ fn print_budget(label: &str, b: &CoverageBudget) {
         b.pct(b.merge_behind_px),
         b.pct(b.merge_hole_px),
     );
+}
+
+/// Where the gross per-view errors (> 1 cm from the truth along the ray) are: at grazing
+/// pixels (measured normal more than 70° from the line of sight), within 3 px of a true depth
+/// jump (> 1 cm per pixel at 1024², scaled), or elsewhere; percentages of the measured normals.
+fn gross_breakdown(
+    cams: &[Camera],
+    normals: &[NormalMap],
+    sil: &[Mask],
+    surfaces: &[DepthMap],
+    truths: &[DepthMap],
+) -> (f64, f64, f64) {
+    let (mut grazing, mut near_jump, mut other, mut measured) = (0usize, 0usize, 0usize, 0usize);
+    for c in 0..cams.len() {
+        let (w, h) = (truths[c].width as usize, truths[c].height as usize);
+        let jump = IntegrationParams::jump_threshold_m(0.01, truths[c].width);
+        let jumps = depth_jumps(&truths[c], jump).unwrap();
+        let rot = cams[c].camera_from_world();
+        for i in 0..w * h {
+            let (x, y) = (i % w, i / w);
+            if !normals[c].valid[i] || !sil[c].get(x as u32, y as u32) {
+                continue;
+            }
+            measured += 1;
+            let s = surfaces[c].depth_m[i];
+            if s.is_nan() || (s - truths[c].depth_m[i]).abs() <= 0.01 {
+                continue;
+            }
+            let ray = cams[c].ray(DVec2::new(x as f64, y as f64)).unwrap();
+            let r = rot.transform_vector3(ray.direction);
+            if normals[c].normals[i].dot(r).abs() < 70f64.to_radians().cos() {
+                grazing += 1;
+                continue;
+            }
+            let near = (y.saturating_sub(3)..(y + 4).min(h)).any(|v| {
+                (x.saturating_sub(3)..(x + 4).min(w)).any(|u| jumps.get(u as u32, v as u32))
+            });
+            if near {
+                near_jump += 1;
+            } else {
+                other += 1;
+            }
+        }
+    }
+    let pct = |k: usize| 100.0 * k as f64 / measured.max(1) as f64;
+    (pct(grazing), pct(near_jump), pct(other))
 }
 
 #[test]
@@ -114,6 +161,11 @@ fn coverage_budget_with_exact_normals() {
         let merged = &pass.merged.mesh;
         let b = coverage_budget(cams, &exact, &sil, &inputs, merged, &metric).unwrap();
         print_budget(label, &b);
+        let (g, j, o) = gross_breakdown(cams, &exact, &sil, &pass.views.surfaces, &truths);
+        println!(
+            "BUDGET {label} gross per-view errors: grazing (> 70°) {g:.1} %, within 3 px of a \
+             true jump {j:.1} %, elsewhere {o:.1} %"
+        );
         let truth_b = coverage_budget(cams, &exact, &sil, &inputs, &mesh, &metric).unwrap();
         print_budget(&format!("{label} true mesh"), &truth_b);
         let table =
@@ -159,18 +211,41 @@ fn coverage_budget_with_exact_normals() {
         };
         p
     };
+    let link_cut = |mut p: SurfaceParams| {
+        p.integration.cut_proxy_links = true;
+        p
+    };
+    let merge = params.merge;
+    // The merge's jump threshold per pixel, scaled with the width like the integration's.
+    let scaled_merge = merge.with_max_depth_jump_m(IntegrationParams::jump_threshold_m(
+        merge.max_depth_jump_m,
+        size,
+    ));
+    let pass2 = SurfaceParams::pass2();
     let all = [
-        ("anchor0.01", with_offsets(0.01, None)),
-        ("anchor0.001", with_offsets(0.001, None)),
-        ("gate1.5cm", with_offsets(0.0, Some(0.015))),
-        ("anchor0.01+gate1.5cm", with_offsets(0.01, Some(0.015))),
+        ("mergejump", pass2, scaled_merge),
+        ("linkcut", link_cut(pass2), merge),
+        ("linkcut+mergejump", link_cut(pass2), scaled_merge),
+        (
+            "linkcut+anchor0.01",
+            link_cut(with_offsets(0.01, None)),
+            merge,
+        ),
+        ("anchor0.01", with_offsets(0.01, None), merge),
+        ("anchor0.001", with_offsets(0.001, None), merge),
+        ("gate1.5cm", with_offsets(0.0, Some(0.015)), merge),
+        (
+            "anchor0.01+gate1.5cm",
+            with_offsets(0.01, Some(0.015)),
+            merge,
+        ),
     ];
     let chosen = std::env::var("BUDGET_VARIANTS").ok();
     let proxies: Vec<DepthMap> = cams
         .iter()
         .map(|c| mesh_proxy_depth(c, &rec.pass1.filled.mesh).unwrap())
         .collect();
-    for (name, surface) in all.into_iter().filter(|(name, _)| {
+    for (name, surface, merge) in all.into_iter().filter(|(name, _, _)| {
         chosen
             .as_deref()
             .is_none_or(|c| c.split(',').any(|v| v == *name))
@@ -183,7 +258,7 @@ fn coverage_budget_with_exact_normals() {
             .zip(&views.surfaces)
             .map(|(c, d)| MergeView::new(c, d))
             .collect();
-        let merged = merge_views(&inputs, &params.merge).unwrap();
+        let merged = merge_views(&inputs, &merge).unwrap();
         println!(
             "BUDGET {name}: pass 2 without filling {:.1} s",
             t.elapsed().as_secs_f64()
