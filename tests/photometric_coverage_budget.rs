@@ -202,8 +202,11 @@ fn coverage_budget_with_exact_normals() {
 
     // Pass-2 variants (issue 14) on the same pass-1 mesh, without hole filling; chosen by
     // `BUDGET_VARIANTS` (comma-separated names; default: all).
+    // Pass 2 as it was before issue 14's sixth session (proxy jumps 2 cm per pixel at 1024²).
+    let mut pass2 = SurfaceParams::pass2();
+    pass2.integration.proxy_jump_m = 0.02;
     let with_offsets = |gamma: f64, gate: Option<f64>| {
-        let mut p = SurfaceParams::pass2();
+        let mut p = pass2;
         p.offsets = OffsetParams {
             proxy_weight: gamma,
             proxy_gate_m: gate,
@@ -215,29 +218,33 @@ fn coverage_budget_with_exact_normals() {
         p.integration.cut_proxy_links = true;
         p
     };
-    let merge = params.merge;
-    // The merge's jump threshold per pixel, scaled with the width like the integration's.
-    let scaled_merge = merge.with_max_depth_jump_m(IntegrationParams::jump_threshold_m(
-        merge.max_depth_jump_m,
-        size,
-    ));
-    let pass2 = SurfaceParams::pass2();
+    // The merge with its jump threshold scaled with the width (`scale_merge_jump`), and as
+    // `reconstruct` runs it by default (1 cm per pixel at every width).
+    let merge = ReconstructParams {
+        scale_merge_jump: true,
+        ..params
+    }
+    .merge_at_width(&truths);
+    let unscaled_merge = params.merge;
+    let proxy_jump = |m: f64| {
+        let mut p = pass2;
+        p.integration.proxy_jump_m = m;
+        p
+    };
     let all = [
-        ("mergejump", pass2, scaled_merge),
-        ("linkcut", link_cut(pass2), merge),
-        ("linkcut+mergejump", link_cut(pass2), scaled_merge),
-        (
-            "linkcut+anchor0.01",
-            link_cut(with_offsets(0.01, None)),
-            merge,
-        ),
-        ("anchor0.01", with_offsets(0.01, None), merge),
-        ("anchor0.001", with_offsets(0.001, None), merge),
-        ("gate1.5cm", with_offsets(0.0, Some(0.015)), merge),
+        ("mergejump", pass2, merge),
+        ("pj1cm", proxy_jump(0.01), unscaled_merge),
+        ("pj0.5cm", proxy_jump(0.005), unscaled_merge),
+        ("pj1cm+mergejump", proxy_jump(0.01), merge),
+        ("pj1.5cm+mergejump", proxy_jump(0.015), merge),
+        ("linkcut", link_cut(pass2), unscaled_merge),
+        ("anchor0.01", with_offsets(0.01, None), unscaled_merge),
+        ("anchor0.001", with_offsets(0.001, None), unscaled_merge),
+        ("gate1.5cm", with_offsets(0.0, Some(0.015)), unscaled_merge),
         (
             "anchor0.01+gate1.5cm",
             with_offsets(0.01, Some(0.015)),
-            merge,
+            unscaled_merge,
         ),
     ];
     let chosen = std::env::var("BUDGET_VARIANTS").ok();

@@ -107,6 +107,13 @@ struct Args {
     /// Light bins of the wrinkled subject's cast shadows (0: exact; see `photometric_normals`).
     #[arg(long, default_value_t = 100)]
     wrinkle_light_bins: usize,
+    /// Scale the merge's depth-jump threshold with the image width
+    /// (`ReconstructParams::scale_merge_jump`; issue 14's coverage budget).
+    #[arg(long)]
+    scale_merge_jump: bool,
+    /// Pass 2's proxy-jump threshold, m per pixel at 1024 px (default 0.02).
+    #[arg(long)]
+    pass2_proxy_jump_m: Option<f64>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -172,7 +179,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
     let params = SurfaceParams::default();
     // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
-    let rparams = ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
+    let mut rparams =
+        ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
+    rparams.scale_merge_jump = args.scale_merge_jump;
+    if let Some(m) = args.pass2_proxy_jump_m {
+        rparams.pass2.integration.proxy_jump_m = m;
+    }
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
     let rec = reconstruct(&cameras, &estimated, &hull, &pairs, &rparams)?;
@@ -334,6 +346,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "two_pass_s": t_two_pass,
         // End to end from the normal maps: the visual-hull proxy, then both passes.
         "seconds_per_frame": t_hull + t_two_pass,
+        "scale_merge_jump": rparams.scale_merge_jump,
+        "pass2_proxy_jump_m": rparams.pass2.integration.proxy_jump_m,
+        "pass2_budget_no_surface_pct": table["pass2"]["budget_no_surface_pct"],
+        "pass2_budget_gross_uncovered_pct": table["pass2"]["budget_gross_uncovered_pct"],
+        "pass2_budget_merge_lost_pct": table["pass2"]["budget_merge_lost_pct"],
         "table_3_1": table,
         "pass1_coverage_pct": table["pass1"]["coverage_pct"],
         "pass1_normal_dev_deg": table["pass1"]["normal_dev_deg"],

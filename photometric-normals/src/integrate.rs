@@ -778,6 +778,27 @@ mod tests {
         let out =
             integrate_normals(&cam, &normals, &jumpy, None, &IntegrationParams::default()).unwrap();
         assert!(out.report.removed_proxy_jumps > 20, "{:?}", out.report);
+        // Cutting the links instead keeps the straddling pixels, the two halves integrated
+        // apart: each is placed by its own proxy (the right half 1 m farther).
+        let linked = IntegrationParams {
+            cut_proxy_links: true,
+            ..IntegrationParams::default()
+        };
+        let cut = integrate_normals(&cam, &normals, &jumpy, None, &linked).unwrap();
+        assert_eq!(cut.report.removed_proxy_jumps, 0, "{:?}", cut.report);
+        assert!(
+            cut.report.unknowns >= out.report.unknowns + out.report.removed_proxy_jumps,
+            "{:?} vs {:?}",
+            cut.report,
+            out.report
+        );
+        let (l, r) = (cut.depth.index(47, 48), cut.depth.index(48, 48));
+        assert!(
+            (cut.depth.depth_m[r] - cut.depth.depth_m[l] - 1.0).abs() < 0.05,
+            "{} {}",
+            cut.depth.depth_m[l],
+            cut.depth.depth_m[r]
+        );
         let breaks = Mask::from_fn(96, 96, |x, _| x == 30);
         let out = integrate_normals(
             &cam,

@@ -734,6 +734,7 @@ pub fn displacement_survival(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::SurfaceTimes;
     use skin_core::camera::{Intrinsics, Rig};
     use skin_core::mesh::shapes::uv_sphere;
 
@@ -774,6 +775,110 @@ mod tests {
         );
         let nan = MetricParams { near_m: f64::NAN };
         assert!(table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &nan).is_err());
+    }
+
+    #[test]
+    fn the_coverage_budget_puts_every_uncovered_normal_in_one_class() {
+        let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
+        let rig = Rig::ring(3, 2.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
+        let sphere = uv_sphere(DVec3::ZERO, 0.3, 48, 96).unwrap();
+        let (mut normals, mut masks, mut depths) = (Vec::new(), Vec::new(), Vec::new());
+        for cam in &rig.cameras {
+            let view = Rasterizer::new(cam)
+                .render(&sphere, &RenderParams::default())
+                .unwrap();
+            normals.push(rendered_normals(cam, &view).unwrap());
+            masks.push(view.silhouette());
+            depths.push(DepthMap::from_view(&view).unwrap());
+        }
+        let no_breaks: Vec<Mask> = (0..3).map(|_| Mask::new(96, 96)).collect();
+        let views =
+            |integrated: Vec<DepthMap>, surfaces: Vec<DepthMap>, breaks: Vec<Mask>| ViewSurfaces {
+                integrated,
+                breaks,
+                matched: vec![Vec::new(); 3],
+                surfaces,
+                match_stats: Vec::new(),
+                integration: Vec::new(),
+                offsets: Vec::new(),
+                times: SurfaceTimes::default(),
+            };
+        let integration = IntegrationParams::default();
+        let p = MetricParams::default();
+        let total = |b: &CoverageBudget| {
+            b.covered_px + b.no_surface_px() + b.gross_uncovered_px + b.merge_lost_px()
+        };
+        let run = |v: &ViewSurfaces, reference: &[DepthMap], mesh: &TriMesh| {
+            let inputs = BudgetInputs {
+                proxies: &depths,
+                views: v,
+                integration: &integration,
+                reference,
+            };
+            coverage_budget(&rig.cameras, &normals, &masks, &inputs, mesh, &p).unwrap()
+        };
+        // The sphere against its own views: all covered, nothing lost.
+        let own = views(depths.clone(), depths.clone(), no_breaks.clone());
+        let b = run(&own, &depths, &sphere);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(b.pct(b.covered_px) > 99.0, "{b:?}");
+        // Camera 0's left half discarded by Eq. 3.4, its top rows cut as matched breaks.
+        let (mut integrated, mut surfaces) = (depths.clone(), depths.clone());
+        let mut breaks = no_breaks.clone();
+        for y in 0..96u32 {
+            for x in 0..96u32 {
+                let i = depths[0].index(x, y);
+                if y < 30 {
+                    integrated[0].depth_m[i] = f64::NAN;
+                    surfaces[0].depth_m[i] = f64::NAN;
+                    breaks[0].set(x, y, true).unwrap();
+                } else if x < 48 {
+                    surfaces[0].depth_m[i] = f64::NAN;
+                }
+            }
+        }
+        let cut = views(integrated, surfaces, breaks);
+        let b = run(&cut, &depths, &sphere);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(
+            b.cut_match_break_px > 200 && b.discarded_offsets_px > 500,
+            "{b:?}"
+        );
+        assert_eq!(b.cut_proxy_jump_px + b.dropped_region_px, 0, "{b:?}");
+        // A reference 2 cm behind the views: every per-view surface is a gross error, covered
+        // anyway by the equally wrong mesh.
+        let behind: Vec<DepthMap> = depths
+            .iter()
+            .map(|d| DepthMap::new(96, 96, d.depth_m.iter().map(|z| z + 0.02).collect()).unwrap())
+            .collect();
+        let b = run(&own, &behind, &sphere);
+        assert_eq!(b.gross_covered_px, b.covered_px, "{b:?}");
+        // A mesh 3 cm larger is hit in front of every (correct) per-view surface.
+        let bigger = uv_sphere(DVec3::ZERO, 0.33, 48, 96).unwrap();
+        let b = run(&own, &depths, &bigger);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(b.pct(b.merge_in_front_px) > 95.0, "{b:?}");
+        // Bad input.
+        let inputs = BudgetInputs {
+            proxies: &depths[..2],
+            views: &own,
+            integration: &integration,
+            reference: &depths,
+        };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &p).is_err());
+        let inputs = BudgetInputs {
+            proxies: &depths,
+            ..inputs
+        };
+        let nan = MetricParams { near_m: f64::NAN };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &nan).is_err());
+        let small = vec![Mask::new(8, 8); 3];
+        let wrong = views(depths.clone(), depths.clone(), small);
+        let inputs = BudgetInputs {
+            views: &wrong,
+            ..inputs
+        };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &p).is_err());
     }
 
     #[test]

@@ -599,6 +599,82 @@ mod tests {
         .is_err());
     }
 
+    #[test]
+    fn a_proxy_keeps_far_pixels_and_gates_gross_matches() {
+        // A flat surface at 2 m; matches at its left edge ask for 2.01 m, one gross match
+        // asks for 2.5 m; the proxy says 2.02 m everywhere.
+        let (w, h) = (64u32, 8u32);
+        let surface = DepthMap::new(w, h, vec![2.0; (w * h) as usize]).unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| match i % w {
+                    0 | 1 => 2.01,
+                    30 => 2.5,
+                    _ => f64::NAN,
+                })
+                .collect(),
+        )
+        .unwrap();
+        let proxy = DepthMap::new(w, h, vec![2.02; (w * h) as usize]).unwrap();
+        let near = OffsetParams {
+            max_distance_px: 0.5,
+            ..OffsetParams::default()
+        };
+        // Without γ the proxy changes nothing: far pixels are discarded as before.
+        let plain = depth_offsets(&surface, &[&target], &near).unwrap();
+        let guided = depth_offsets_guided(&surface, &[&target], Some(&proxy), &near).unwrap();
+        assert_eq!(plain.report, guided.report);
+        let bits = |o: &OffsetSurface| {
+            o.depth
+                .depth_m
+                .iter()
+                .map(|d| d.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&plain), bits(&guided));
+        // With γ > 0 they are kept and relax to the proxy far from the matches.
+        let anchored = OffsetParams {
+            proxy_weight: 0.01,
+            ..near
+        };
+        let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &anchored).unwrap();
+        assert_eq!(out.report.discarded, 0, "{:?}", out.report);
+        let at = |x: u32, y: u32| out.depth.depth_m[out.depth.index(x, y)];
+        assert!((at(60, 4) - 2.02).abs() < 1e-3, "{}", at(60, 4));
+        assert!((at(0, 4) - 2.01).abs() < 3e-3, "{}", at(0, 4));
+        // The gross match pulls its neighbourhood toward 2.5 m unless the gate drops it.
+        assert!(at(30, 4) > 2.05, "{}", at(30, 4));
+        let gated = OffsetParams {
+            proxy_gate_m: Some(0.05),
+            ..anchored
+        };
+        let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &gated).unwrap();
+        let v = out.depth.depth_m[out.depth.index(30, 4)];
+        assert!((v - 2.02).abs() < 2e-3, "{v}");
+        assert_eq!(out.report.constrained, 2 * h as usize);
+        // Bad input.
+        let small = DepthMap::empty(4, 4).unwrap();
+        assert!(depth_offsets_guided(&surface, &[&target], Some(&small), &gated).is_err());
+        for bad in [
+            OffsetParams {
+                proxy_weight: -1.0,
+                ..gated
+            },
+            OffsetParams {
+                proxy_weight: f64::NAN,
+                ..gated
+            },
+            OffsetParams {
+                proxy_gate_m: Some(0.0),
+                ..gated
+            },
+        ] {
+            assert!(depth_offsets_guided(&surface, &[&target], Some(&proxy), &bad).is_err());
+        }
+    }
+
     /// Two views of a sphere from the ring's cameras `a` and `b` (of 8), exact normals, the
     /// true depths pushed 2 cm toward the camera as the proxy.
     fn sphere_views(a: usize, b: usize) -> (Vec<Camera>, Vec<NormalMap>, Vec<DepthMap>) {
