@@ -8,19 +8,20 @@
 //! photometric_coverage_budget -- --ignored --nocapture` (default size 512).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
+mod common;
+use common::exact_studio::{exact_studio, ExactStudio};
+
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Camera, Rig};
+use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec2;
 use dynamic_shapes::core::mesh::TriMesh;
-use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
     coverage_budget, depth_jumps, merge_views, mesh_proxy_depth, per_view_surfaces, reconstruct,
-    rendered_normals, surface_distance, table_metrics, BudgetInputs, CoverageBudget, DepthMap,
-    IntegrationParams, MergeView, MetricParams, NormalMap, OffsetParams, Pass, PassTimes,
-    ReconstructParams, SurfaceParams, VisualHull,
+    surface_distance, table_metrics, BudgetInputs, CoverageBudget, DepthMap, IntegrationParams,
+    MergeView, MetricParams, NormalMap, OffsetParams, Pass, PassTimes, ReconstructParams,
+    SurfaceParams,
 };
 
 const CAMERAS: usize = 8;
@@ -101,44 +102,16 @@ fn coverage_budget_with_exact_normals() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(512);
     let t0 = Instant::now();
-    let scene = StudioScene::new(
-        example_kit::data_path("makehuman").unwrap(),
-        &skirt_subject(),
-        CAMERAS,
-        size,
-    )
-    .unwrap();
-    let frame = scene
-        .capture(
-            scene
-                .capture_spec(Rig {
-                    cameras: scene.ring.cameras[..1].to_vec(),
-                })
-                .unwrap(),
-        )
-        .unwrap();
-    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let ExactStudio {
+        scene,
+        mesh,
+        sil,
+        truths,
+        exact,
+        hull,
+        pairs,
+    } = exact_studio(CAMERAS, size);
     let cams = &scene.ring.cameras;
-    let views: Vec<RenderedView> = cams
-        .iter()
-        .map(|c| {
-            Rasterizer::new(c)
-                .render(&mesh, &RenderParams::default().with_cull_back_faces(false))
-                .unwrap()
-        })
-        .collect();
-    let sil: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
-    let truths: Vec<DepthMap> = views
-        .iter()
-        .map(|v| DepthMap::from_view(v).unwrap())
-        .collect();
-    let exact: Vec<NormalMap> = cams
-        .iter()
-        .zip(&views)
-        .map(|(c, v)| rendered_normals(c, v).unwrap())
-        .collect();
-    let hull = VisualHull::new(cams, &sil).unwrap();
-    let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
     println!(
         "BUDGET setup {:.1} s at {size}²",
         t0.elapsed().as_secs_f64()

@@ -553,13 +553,14 @@ pub fn coverage_budget(
                 covered_px: sums.covered,
                 ..CoverageBudget::default()
             };
-            for i in 0..n_px {
+            for (i, &is_covered) in covered.iter().enumerate() {
                 let (x, y) = (i as u32 % w, i as u32 / w);
                 if !normals[c].valid[i] || !silhouettes[c].get(x, y) {
                     continue;
                 }
                 let s = surface.depth_m[i];
-                let gross = !((s - inputs.reference[c].depth_m[i]).abs() <= params.near_m);
+                let error = (s - inputs.reference[c].depth_m[i]).abs();
+                let gross = error.is_nan() || error > params.near_m;
                 let class = if views.integrated[c].depth_m[i].is_nan() {
                     if jumps.get(x, y) {
                         &mut b.cut_proxy_jump_px
@@ -571,12 +572,12 @@ pub fn coverage_budget(
                 } else if s.is_nan() {
                     &mut b.discarded_offsets_px
                 } else if gross {
-                    if covered[i] {
+                    if is_covered {
                         &mut b.gross_covered_px
                     } else {
                         &mut b.gross_uncovered_px
                     }
-                } else if covered[i] {
+                } else if is_covered {
                     continue;
                 } else if hit.depth_m[i].is_nan() {
                     &mut b.merge_hole_px
@@ -738,20 +739,27 @@ mod tests {
     use skin_core::camera::{Intrinsics, Rig};
     use skin_core::mesh::shapes::uv_sphere;
 
-    #[test]
-    fn a_mesh_scored_against_its_own_views_is_covered_and_a_moved_one_is_not() {
+    /// A 0.3 m sphere seen by a ring of 3 cameras at 96²: the rig, the sphere, and per
+    /// camera its exact normals, silhouette and depth map.
+    fn sphere_views() -> (Rig, TriMesh, Vec<NormalMap>, Vec<Mask>, Vec<DepthMap>) {
         let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
         let rig = Rig::ring(3, 2.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
         let sphere = uv_sphere(DVec3::ZERO, 0.3, 48, 96).unwrap();
-        let (mut normals, mut masks, mut surfaces) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut normals, mut masks, mut depths) = (Vec::new(), Vec::new(), Vec::new());
         for cam in &rig.cameras {
             let view = Rasterizer::new(cam)
                 .render(&sphere, &RenderParams::default())
                 .unwrap();
             normals.push(rendered_normals(cam, &view).unwrap());
             masks.push(view.silhouette());
-            surfaces.push(DepthMap::from_view(&view).unwrap());
+            depths.push(DepthMap::from_view(&view).unwrap());
         }
+        (rig, sphere, normals, masks, depths)
+    }
+
+    #[test]
+    fn a_mesh_scored_against_its_own_views_is_covered_and_a_moved_one_is_not() {
+        let (rig, sphere, normals, masks, surfaces) = sphere_views();
         let p = MetricParams::default();
         let m = table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &p).unwrap();
         assert!(m.coverage_pct > 99.0, "{m:?}");
@@ -779,18 +787,7 @@ mod tests {
 
     #[test]
     fn the_coverage_budget_puts_every_uncovered_normal_in_one_class() {
-        let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
-        let rig = Rig::ring(3, 2.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
-        let sphere = uv_sphere(DVec3::ZERO, 0.3, 48, 96).unwrap();
-        let (mut normals, mut masks, mut depths) = (Vec::new(), Vec::new(), Vec::new());
-        for cam in &rig.cameras {
-            let view = Rasterizer::new(cam)
-                .render(&sphere, &RenderParams::default())
-                .unwrap();
-            normals.push(rendered_normals(cam, &view).unwrap());
-            masks.push(view.silhouette());
-            depths.push(DepthMap::from_view(&view).unwrap());
-        }
+        let (rig, sphere, normals, masks, depths) = sphere_views();
         let no_breaks: Vec<Mask> = (0..3).map(|_| Mask::new(96, 96)).collect();
         let views =
             |integrated: Vec<DepthMap>, surfaces: Vec<DepthMap>, breaks: Vec<Mask>| ViewSurfaces {

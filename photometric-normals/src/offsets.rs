@@ -156,7 +156,7 @@ pub fn depth_offsets_guided(
             .iter()
             .map(|m| m.depth_m[i])
             .filter(|d| !d.is_nan())
-            .filter(|d| gate.is_none_or(|g| !((d - p).abs() > g)))
+            .filter(|d| gate.is_none_or(|g| p.is_nan() || (d - p).abs() <= g))
             .collect();
         if !asks.is_empty() {
             *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
