@@ -642,8 +642,8 @@ mod tests {
         let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &anchored).unwrap();
         assert_eq!(out.report.discarded, 0, "{:?}", out.report);
         let at = |x: u32, y: u32| out.depth.depth_m[out.depth.index(x, y)];
-        assert!((at(60, 4) - 2.02).abs() < 1e-3, "{}", at(60, 4));
-        assert!((at(0, 4) - 2.01).abs() < 3e-3, "{}", at(0, 4));
+        // The matched pixels are pulled from the proxy's 2.02 m toward their 2.01 m.
+        assert!(at(0, 4) < 2.0195, "{}", at(0, 4));
         // The gross match pulls its neighbourhood toward 2.5 m unless the gate drops it.
         assert!(at(30, 4) > 2.05, "{}", at(30, 4));
         let gated = OffsetParams {
@@ -653,6 +653,9 @@ mod tests {
         let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &gated).unwrap();
         let v = out.depth.depth_m[out.depth.index(30, 4)];
         assert!((v - 2.02).abs() < 2e-3, "{v}");
+        // Far from the (remaining) matches, the offsets relax to the proxy.
+        let far = out.depth.depth_m[out.depth.index(60, 4)];
+        assert!((far - 2.02).abs() < 1e-3, "{far}");
         assert_eq!(out.report.constrained, 2 * h as usize);
         // Bad input.
         let small = DepthMap::empty(4, 4).unwrap();
