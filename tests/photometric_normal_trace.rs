@@ -4,27 +4,23 @@
 //! --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
+mod common;
+use common::exact_studio::{exact_studio, ExactStudio};
+
 use std::time::Instant;
 
-use dynamic_shapes::core::camera::{Camera, Rig};
+use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
-use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
+use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams};
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
     surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
-    MetricParams, NormalMap, OffsetParams, SurfaceParams, VisualHull, VisualHullParams,
+    MetricParams, NormalMap, OffsetParams, SurfaceParams, VisualHullParams,
 };
 
 const CAMERAS: usize = 8;
-
-fn render(camera: &Camera, mesh: &TriMesh) -> RenderedView {
-    Rasterizer::new(camera)
-        .render(mesh, &RenderParams::default().with_cull_back_faces(false))
-        .unwrap()
-}
 
 /// Taubin λ|μ smoothing (no shrinkage), `iters` pairs of steps.
 fn taubin(mesh: &TriMesh, iters: usize) -> TriMesh {
@@ -129,38 +125,17 @@ fn trace_normal_deviation_through_the_stages() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(512);
     let t0 = Instant::now();
-    let scene = StudioScene::new(
-        example_kit::data_path("makehuman").unwrap(),
-        &skirt_subject(),
-        CAMERAS,
-        size,
-    )
-    .unwrap();
-    let frame = scene
-        .capture(
-            scene
-                .capture_spec(Rig {
-                    cameras: scene.ring.cameras[..1].to_vec(),
-                })
-                .unwrap(),
-        )
-        .unwrap();
-    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let ExactStudio {
+        scene,
+        mesh,
+        sil,
+        truths,
+        exact,
+        hull,
+        pairs,
+    } = exact_studio(CAMERAS, size);
     let cams = &scene.ring.cameras;
-    let views: Vec<RenderedView> = cams.iter().map(|c| render(c, &mesh)).collect();
-    let sil: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
-    let truths: Vec<DepthMap> = views
-        .iter()
-        .map(|v| DepthMap::from_view(v).unwrap())
-        .collect();
-    let exact: Vec<NormalMap> = cams
-        .iter()
-        .zip(&views)
-        .map(|(c, v)| rendered_normals(c, v).unwrap())
-        .collect();
-    let hull = VisualHull::new(cams, &sil).unwrap();
     let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
-    let pairs: Vec<(usize, usize)> = (0..CAMERAS).map(|c| (c, (c + 1) % CAMERAS)).collect();
     println!("TRACE setup {:.1} s at {size}²", t0.elapsed().as_secs_f64());
     let t = Instant::now();
     let out = per_view_surfaces(

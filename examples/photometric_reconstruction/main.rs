@@ -65,11 +65,12 @@ use dynamic_shapes::photometric::truth::{
     STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
-    depth_errors, depth_map_mesh, displacement_survival, estimate_normals, hull_samples,
-    integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
-    rendered_normals, surface_distance, table_metrics, DepthMap, IntegrationParams, MatchMetric,
-    MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams, Reconstruction,
-    SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    coverage_budget, depth_errors, depth_map_mesh, displacement_survival, estimate_normals,
+    hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
+    rendered_normals, surface_distance, table_metrics, BudgetInputs, DepthMap, IntegrationParams,
+    MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams,
+    Reconstruction, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull,
+    VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -106,6 +107,13 @@ struct Args {
     /// Light bins of the wrinkled subject's cast shadows (0: exact; see `photometric_normals`).
     #[arg(long, default_value_t = 100)]
     wrinkle_light_bins: usize,
+    /// Scale the merge's depth-jump threshold with the image width
+    /// (`ReconstructParams::scale_merge_jump`; issue 14's coverage budget).
+    #[arg(long)]
+    scale_merge_jump: bool,
+    /// Pass 2's proxy-jump threshold, m per pixel at 1024 px (default 0.02).
+    #[arg(long)]
+    pass2_proxy_jump_m: Option<f64>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -171,7 +179,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
     let params = SurfaceParams::default();
     // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
-    let rparams = ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
+    let mut rparams =
+        ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
+    rparams.scale_merge_jump = args.scale_merge_jump;
+    if let Some(m) = args.pass2_proxy_jump_m {
+        rparams.pass2.integration.proxy_jump_m = m;
+    }
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
     let rec = reconstruct(&cameras, &estimated, &hull, &pairs, &rparams)?;
@@ -194,7 +207,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
-    let (table, distances) = score_passes(&cameras, &estimated, &silhouettes, &rec, &mesh)?;
+    let (table, distances) = score_passes(
+        &cameras,
+        &estimated,
+        &silhouettes,
+        &rec,
+        &mesh,
+        &truths,
+        &rparams,
+    )?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
     let hull_surface_median_mm = hull_surface_median_mm(&cameras, &proxies, &rparams, &mesh)?;
     stage.finish(format!(
@@ -325,6 +346,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "two_pass_s": t_two_pass,
         // End to end from the normal maps: the visual-hull proxy, then both passes.
         "seconds_per_frame": t_hull + t_two_pass,
+        "scale_merge_jump": rparams.scale_merge_jump,
+        "pass2_proxy_jump_m": rparams.pass2.integration.proxy_jump_m,
+        "pass2_budget_no_surface_pct": table["pass2"]["budget_no_surface_pct"],
+        "pass2_budget_gross_uncovered_pct": table["pass2"]["budget_gross_uncovered_pct"],
+        "pass2_budget_merge_lost_pct": table["pass2"]["budget_merge_lost_pct"],
         "table_3_1": table,
         "pass1_coverage_pct": table["pass1"]["coverage_pct"],
         "pass1_normal_dev_deg": table["pass1"]["normal_dev_deg"],
@@ -651,6 +677,8 @@ fn subject_run(
         &obs.silhouettes,
         &rec,
         &obs.mesh,
+        &obs.truths,
+        rparams,
     )?;
     let zero = vec![0.0; obs.mesh.vertices.len()];
     let (merged_d, filled_d) = &distances[1];
@@ -844,18 +872,24 @@ type PassScores = (
     Vec<(SurfaceDistance, SurfaceDistance)>,
 );
 
-/// Table 3.1 of both passes (on the merged meshes, before hole filling) and the merged and
-/// filled meshes' distances to the true mesh `truth`.
+/// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
+/// budget against the true depth maps `truths`, and the merged and filled meshes' distances
+/// to the true mesh `truth`.
 fn score_passes(
     cameras: &[Camera],
     estimated: &[NormalMap],
     silhouettes: &[Mask],
     rec: &Reconstruction,
     truth: &TriMesh,
+    truths: &[DepthMap],
+    rparams: &ReconstructParams,
 ) -> Result<PassScores, Box<dyn std::error::Error>> {
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
-    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
+    for (name, pass, surface) in [
+        ("pass1", &rec.pass1, &rparams.pass1),
+        ("pass2", &rec.pass2, &rparams.pass2),
+    ] {
         let m = table_metrics(
             cameras,
             estimated,
@@ -866,6 +900,20 @@ fn score_passes(
         )?;
         let merged_d = surface_distance(&pass.merged.mesh, truth)?;
         let filled_d = surface_distance(&pass.filled.mesh, truth)?;
+        // Where the uncovered measured normals were lost (issue 14's coverage budget).
+        let budget = coverage_budget(
+            cameras,
+            estimated,
+            silhouettes,
+            &BudgetInputs {
+                proxies: &pass.proxies,
+                views: &pass.views,
+                integration: &surface.integration,
+                reference: truths,
+            },
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
         table.insert(
             name.into(),
             json!({
@@ -888,6 +936,10 @@ fn score_passes(
                 "per_view_s": pass.times.per_view_s,
                 "merge_s": pass.times.merge_s,
                 "poisson_s": pass.times.poisson_s,
+                "coverage_budget": budget,
+                "budget_no_surface_pct": budget.pct(budget.no_surface_px()),
+                "budget_gross_uncovered_pct": budget.pct(budget.gross_uncovered_px),
+                "budget_merge_lost_pct": budget.pct(budget.merge_lost_px()),
             }),
         );
         distances.push((merged_d, filled_d));

@@ -80,6 +80,13 @@ pub struct IntegrationParams {
     /// 75 k to 87 k foreground pixels, ragged masks — it needs 22–31 iterations and about the
     /// same CPU time, so it does not win there; see `docs/photometric-normals.md`).
     pub solver: IntegrationSolver,
+    /// At a proxy jump, cut the neighbour constraint across it instead of removing both
+    /// pixels that straddle it (regions are then connected only through the links kept).
+    /// Default false (the thesis: "pixels straddling depth discontinuities removed"). Ours
+    /// (issue 14): the straddling pixels are each on a surface of their own, and only the
+    /// link between them is wrong.
+    #[serde(default)]
+    pub cut_proxy_links: bool,
 }
 
 /// The solver of Eq. 3.3's normal equations `(AᵀA + α CᵀC) z = α Cᵀ z̄`.
@@ -111,6 +118,7 @@ impl Default for IntegrationParams {
             min_region_px: 20,
             refit_scale: true,
             solver: IntegrationSolver::default(),
+            cut_proxy_links: false,
         }
     }
 }
@@ -420,6 +428,47 @@ pub fn rendered_normals(camera: &Camera, view: &RenderedView) -> Result<NormalMa
 }
 
 /// Labels the 4-connected regions of `inside` (row-major); `usize::MAX` outside.
+/// Connected regions of `inside` through the 4-neighbour links that `linked(i, j)` keeps
+/// (right and lower neighbours), labelled as [`regions`] (`usize::MAX` outside).
+fn linked_regions(
+    width: u32,
+    inside: &[bool],
+    linked: impl Fn(usize, usize) -> bool,
+) -> (Vec<usize>, usize) {
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let w = width as usize;
+    let mut parent: Vec<usize> = (0..inside.len()).collect();
+    for i in (0..inside.len()).filter(|&i| inside[i]) {
+        let right = (i % w + 1 < w).then_some(i + 1);
+        let down = (i + w < inside.len()).then_some(i + w);
+        for j in [right, down].into_iter().flatten() {
+            if inside[j] && linked(i, j) {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut label = vec![usize::MAX; inside.len()];
+    let mut count = 0;
+    for i in 0..inside.len() {
+        if inside[i] {
+            let r = root(&mut parent, i);
+            if label[r] == usize::MAX {
+                label[r] = count;
+                count += 1;
+            }
+            label[i] = label[r];
+        }
+    }
+    (label, count)
+}
+
 pub(crate) fn regions(width: u32, height: u32, inside: &[bool]) -> Result<(Vec<usize>, usize)> {
     let c = label_components(
         &Mask::from_bools(width, height, inside)?,
@@ -471,17 +520,19 @@ pub fn integrate_normals(
     }
     let t0 = Instant::now();
     let mut report = IntegrationReport::default();
-    let proxy_jumps = depth_jumps(
-        proxy,
-        IntegrationParams::jump_threshold_m(params.proxy_jump_m, w),
-    )?;
+    let jump_m = IntegrationParams::jump_threshold_m(params.proxy_jump_m, w);
+    let proxy_jumps = depth_jumps(proxy, jump_m)?;
+    // With `cut_proxy_links` the pixels stay and only the links across a jump are cut.
+    let linked = |i: usize, j: usize| {
+        !(params.cut_proxy_links && (proxy.depth_m[i] - proxy.depth_m[j]).abs() > jump_m)
+    };
     let mut inside = normals.valid.clone();
     for (i, keep) in inside.iter_mut().enumerate() {
         if !*keep {
             continue;
         }
         let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
-        if proxy_jumps.get(x, y) {
+        if proxy_jumps.get(x, y) && !params.cut_proxy_links {
             report.removed_proxy_jumps += 1;
             *keep = false;
         } else if match_breaks.is_some_and(|m| m.get(x, y)) {
@@ -490,7 +541,11 @@ pub fn integrate_normals(
         }
     }
     // Regions without a proxy depth (scale undetermined) or too small are left out.
-    let (label, count) = regions(w, h, &inside)?;
+    let (label, count) = if params.cut_proxy_links {
+        linked_regions(w, &inside, linked)
+    } else {
+        regions(w, h, &inside)?
+    };
     let mut size = vec![0usize; count];
     let mut anchored = vec![false; count];
     for i in 0..n_px {
@@ -520,6 +575,7 @@ pub fn integrate_normals(
     let rays = camera_rays(camera)?;
     let n = pixels.len();
     let rows: Vec<(usize, f64, usize, f64)> = neighbour_pairs(w, &pixels, &unknown)
+        .filter(|&(i, j)| linked(i, j))
         .map(|(i, j)| {
             let m = normals.normals[i] + normals.normals[j];
             (unknown[i], m.dot(rays[i]), unknown[j], -m.dot(rays[j]))
@@ -721,6 +777,27 @@ mod tests {
         let out =
             integrate_normals(&cam, &normals, &jumpy, None, &IntegrationParams::default()).unwrap();
         assert!(out.report.removed_proxy_jumps > 20, "{:?}", out.report);
+        // Cutting the links instead keeps the straddling pixels, the two halves integrated
+        // apart: each is placed by its own proxy (the right half 1 m farther).
+        let linked = IntegrationParams {
+            cut_proxy_links: true,
+            ..IntegrationParams::default()
+        };
+        let cut = integrate_normals(&cam, &normals, &jumpy, None, &linked).unwrap();
+        assert_eq!(cut.report.removed_proxy_jumps, 0, "{:?}", cut.report);
+        assert!(
+            cut.report.unknowns >= out.report.unknowns + out.report.removed_proxy_jumps,
+            "{:?} vs {:?}",
+            cut.report,
+            out.report
+        );
+        let (l, r) = (cut.depth.index(47, 48), cut.depth.index(48, 48));
+        assert!(
+            (cut.depth.depth_m[r] - cut.depth.depth_m[l] - 1.0).abs() < 0.05,
+            "{} {}",
+            cut.depth.depth_m[l],
+            cut.depth.depth_m[r]
+        );
         let breaks = Mask::from_fn(96, 96, |x, _| x == 30);
         let out = integrate_normals(
             &cam,

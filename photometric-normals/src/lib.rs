@@ -133,15 +133,15 @@ pub use matching::{
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use metrics::{
-    displacement_survival, surface_distance, table_metrics, DisplacementSurvival, MetricParams,
-    SurfaceDistance, TableMetrics,
+    coverage_budget, displacement_survival, surface_distance, table_metrics, BudgetInputs,
+    CoverageBudget, DisplacementSurvival, MetricParams, SurfaceDistance, TableMetrics,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
-    depth_offsets, per_view_surfaces, OffsetParams, OffsetReport, OffsetSurface, SurfaceErrors,
-    SurfaceParams, SurfaceTimes, ViewSurfaces,
+    depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetParams, OffsetReport,
+    OffsetSurface, SurfaceErrors, SurfaceParams, SurfaceTimes, ViewSurfaces,
 };
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,

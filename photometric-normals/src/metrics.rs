@@ -37,7 +37,10 @@ use skin_core::math::{DVec3, Ray};
 use skin_core::mesh::{one_sided_distance, vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use skin_core::raster::{Rasterizer, RenderParams};
 
-use crate::{rendered_normals, Context, DepthMap, Error, NormalMap, Result, ResultExt};
+use crate::{
+    depth_jumps, rendered_normals, Context, DepthMap, Error, IntegrationParams, NormalMap, Result,
+    ResultExt, ViewSurfaces,
+};
 
 /// Parameters of [`table_metrics`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -409,6 +412,192 @@ pub fn table_metrics(
     })
 }
 
+/// Where the measured normals that a mesh does not cover were lost ([`coverage_budget`]):
+/// pixel counts over all cameras, each measured normal in exactly one class, in the order
+/// of the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct CoverageBudget {
+    /// Measured normals (as [`TableMetrics::measured_px`]).
+    pub measured_px: usize,
+    /// Covered by the mesh (as [`TableMetrics::covered_px`]).
+    pub covered_px: usize,
+    /// No per-view surface: removed from Eq. 3.3 as a pixel straddling a proxy depth jump.
+    pub cut_proxy_jump_px: usize,
+    /// No per-view surface: removed from Eq. 3.3 as a discontinuity found by matching.
+    pub cut_match_break_px: usize,
+    /// No per-view surface: in an integration region too small or without any proxy depth
+    /// (outside the proxy), or integrated to a depth behind the camera.
+    pub dropped_region_px: usize,
+    /// No per-view surface: integrated, but discarded by Eq. 3.4 (too far from any match, or
+    /// in a region without one).
+    pub discarded_offsets_px: usize,
+    /// A per-view surface farther than `near_m` from the reference along the ray (a gross
+    /// per-view error), not covered.
+    pub gross_uncovered_px: usize,
+    /// A gross per-view error that the mesh nevertheless covers (the mesh is as wrong).
+    pub gross_covered_px: usize,
+    /// A per-view surface within `near_m` of the reference, but the mesh's first hit along
+    /// the ray lies more than `near_m` in front of it (another view's surface occludes it).
+    pub merge_in_front_px: usize,
+    /// As `merge_in_front_px`, but the first hit lies more than `near_m` behind.
+    pub merge_behind_px: usize,
+    /// As `merge_in_front_px`, but the ray misses the mesh (a hole of the merge).
+    pub merge_hole_px: usize,
+}
+
+impl CoverageBudget {
+    fn add(self, o: Self) -> Self {
+        Self {
+            measured_px: self.measured_px + o.measured_px,
+            covered_px: self.covered_px + o.covered_px,
+            cut_proxy_jump_px: self.cut_proxy_jump_px + o.cut_proxy_jump_px,
+            cut_match_break_px: self.cut_match_break_px + o.cut_match_break_px,
+            dropped_region_px: self.dropped_region_px + o.dropped_region_px,
+            discarded_offsets_px: self.discarded_offsets_px + o.discarded_offsets_px,
+            gross_uncovered_px: self.gross_uncovered_px + o.gross_uncovered_px,
+            gross_covered_px: self.gross_covered_px + o.gross_covered_px,
+            merge_in_front_px: self.merge_in_front_px + o.merge_in_front_px,
+            merge_behind_px: self.merge_behind_px + o.merge_behind_px,
+            merge_hole_px: self.merge_hole_px + o.merge_hole_px,
+        }
+    }
+
+    /// `px` as a percentage of the measured normals.
+    pub fn pct(&self, px: usize) -> f64 {
+        100.0 * px as f64 / self.measured_px.max(1) as f64
+    }
+
+    /// Measured normals without a per-view surface (cut, dropped or discarded).
+    pub fn no_surface_px(&self) -> usize {
+        self.cut_proxy_jump_px
+            + self.cut_match_break_px
+            + self.dropped_region_px
+            + self.discarded_offsets_px
+    }
+
+    /// Measured normals with a correct per-view surface that the merged mesh loses.
+    pub fn merge_lost_px(&self) -> usize {
+        self.merge_in_front_px + self.merge_behind_px + self.merge_hole_px
+    }
+}
+
+/// The inputs of one pass that [`coverage_budget`] traces.
+#[derive(Debug, Clone, Copy)]
+pub struct BudgetInputs<'a> {
+    /// The pass's proxy depth per camera.
+    pub proxies: &'a [DepthMap],
+    /// The pass's per-view surfaces.
+    pub views: &'a ViewSurfaces,
+    /// The integration's parameters of the pass (its proxy-jump threshold).
+    pub integration: &'a IntegrationParams,
+    /// Reference depth maps (e.g. the studio's true depths, or a scan) that decide which
+    /// per-view surfaces are gross errors.
+    pub reference: &'a [DepthMap],
+}
+
+/// Coverage budget of `mesh` (issue 14): every measured normal that Table 3.1's coverage
+/// ([`table_metrics`]) does not count is assigned to the first stage that lost it — cut from
+/// Eq. 3.3 at a proxy jump or a matched discontinuity, dropped with its region, discarded by
+/// Eq. 3.4, a per-view surface more than `near_m` from the reference (gross error), or a
+/// correct per-view surface that the mesh misses (its first hit in front, behind, or none).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] for counts or image sizes that differ; [`Error::InvalidParam`] for
+/// a non-positive `near_m`; errors of the rasteriser (named by camera).
+pub fn coverage_budget(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    inputs: &BudgetInputs<'_>,
+    mesh: &TriMesh,
+    params: &MetricParams,
+) -> Result<CoverageBudget> {
+    let n = cameras.len();
+    let views = inputs.views;
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("silhouettes per camera", n, silhouettes.len())?;
+    check::same_size("proxies per camera", n, inputs.proxies.len())?;
+    check::same_size("reference depth maps per camera", n, inputs.reference.len())?;
+    check::same_size("per-view surfaces per camera", n, views.surfaces.len())?;
+    check::same_size("integrated surfaces per camera", n, views.integrated.len())?;
+    check::same_size("matched breaks per camera", n, views.breaks.len())?;
+    check::positive("near_m", params.near_m)?;
+    let per_camera = (0..n)
+        .into_par_iter()
+        .map(|c| -> Result<CoverageBudget> {
+            let surface = &views.surfaces[c];
+            let (sums, covered, hit) = camera_sums(
+                &cameras[c],
+                &normals[c],
+                &silhouettes[c],
+                surface,
+                mesh,
+                params,
+            )?;
+            let n_px = surface.depth_m.len();
+            for (what, len) in [
+                ("proxy pixels", inputs.proxies[c].depth_m.len()),
+                ("reference pixels", inputs.reference[c].depth_m.len()),
+                ("integrated pixels", views.integrated[c].depth_m.len()),
+                ("matched break pixels", views.breaks[c].pixel_count()),
+            ] {
+                check::same_size(what, n_px, len)?;
+            }
+            let w = surface.width;
+            let jumps = depth_jumps(
+                &inputs.proxies[c],
+                IntegrationParams::jump_threshold_m(inputs.integration.proxy_jump_m, w),
+            )?;
+            let mut b = CoverageBudget {
+                measured_px: sums.measured,
+                covered_px: sums.covered,
+                ..CoverageBudget::default()
+            };
+            for (i, &is_covered) in covered.iter().enumerate() {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                if !normals[c].valid[i] || !silhouettes[c].get(x, y) {
+                    continue;
+                }
+                let s = surface.depth_m[i];
+                let error = (s - inputs.reference[c].depth_m[i]).abs();
+                let gross = error.is_nan() || error > params.near_m;
+                let class = if views.integrated[c].depth_m[i].is_nan() {
+                    if jumps.get(x, y) {
+                        &mut b.cut_proxy_jump_px
+                    } else if views.breaks[c].get(x, y) {
+                        &mut b.cut_match_break_px
+                    } else {
+                        &mut b.dropped_region_px
+                    }
+                } else if s.is_nan() {
+                    &mut b.discarded_offsets_px
+                } else if gross {
+                    if is_covered {
+                        &mut b.gross_covered_px
+                    } else {
+                        &mut b.gross_uncovered_px
+                    }
+                } else if is_covered {
+                    continue;
+                } else if hit.depth_m[i].is_nan() {
+                    &mut b.merge_hole_px
+                } else if hit.depth_m[i] < s {
+                    &mut b.merge_in_front_px
+                } else {
+                    &mut b.merge_behind_px
+                };
+                *class += 1;
+            }
+            Ok(b)
+        })
+        .enumerate()
+        .map(|(c, r)| r.at(Context::Camera(c)))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(per_camera
+        .into_iter()
+        .fold(CoverageBudget::default(), CoverageBudget::add))
+}
+
 /// Distances (mm) from a mesh's vertices to a true surface.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceDistance {
@@ -546,23 +735,31 @@ pub fn displacement_survival(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::SurfaceTimes;
     use skin_core::camera::{Intrinsics, Rig};
     use skin_core::mesh::shapes::uv_sphere;
 
-    #[test]
-    fn a_mesh_scored_against_its_own_views_is_covered_and_a_moved_one_is_not() {
+    /// A 0.3 m sphere seen by a ring of 3 cameras at 96²: the rig, the sphere, and per
+    /// camera its exact normals, silhouette and depth map.
+    fn sphere_views() -> (Rig, TriMesh, Vec<NormalMap>, Vec<Mask>, Vec<DepthMap>) {
         let k = Intrinsics::from_horizontal_fov(0.5, 96, 96).unwrap();
         let rig = Rig::ring(3, 2.0, 0.0, DVec3::ZERO, DVec3::Y, k).unwrap();
         let sphere = uv_sphere(DVec3::ZERO, 0.3, 48, 96).unwrap();
-        let (mut normals, mut masks, mut surfaces) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut normals, mut masks, mut depths) = (Vec::new(), Vec::new(), Vec::new());
         for cam in &rig.cameras {
             let view = Rasterizer::new(cam)
                 .render(&sphere, &RenderParams::default())
                 .unwrap();
             normals.push(rendered_normals(cam, &view).unwrap());
             masks.push(view.silhouette());
-            surfaces.push(DepthMap::from_view(&view).unwrap());
+            depths.push(DepthMap::from_view(&view).unwrap());
         }
+        (rig, sphere, normals, masks, depths)
+    }
+
+    #[test]
+    fn a_mesh_scored_against_its_own_views_is_covered_and_a_moved_one_is_not() {
+        let (rig, sphere, normals, masks, surfaces) = sphere_views();
         let p = MetricParams::default();
         let m = table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &p).unwrap();
         assert!(m.coverage_pct > 99.0, "{m:?}");
@@ -586,6 +783,99 @@ mod tests {
         );
         let nan = MetricParams { near_m: f64::NAN };
         assert!(table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &nan).is_err());
+    }
+
+    #[test]
+    fn the_coverage_budget_puts_every_uncovered_normal_in_one_class() {
+        let (rig, sphere, normals, masks, depths) = sphere_views();
+        let no_breaks: Vec<Mask> = (0..3).map(|_| Mask::new(96, 96)).collect();
+        let views =
+            |integrated: Vec<DepthMap>, surfaces: Vec<DepthMap>, breaks: Vec<Mask>| ViewSurfaces {
+                integrated,
+                breaks,
+                matched: vec![Vec::new(); 3],
+                surfaces,
+                match_stats: Vec::new(),
+                integration: Vec::new(),
+                offsets: Vec::new(),
+                times: SurfaceTimes::default(),
+            };
+        let integration = IntegrationParams::default();
+        let p = MetricParams::default();
+        let total = |b: &CoverageBudget| {
+            b.covered_px + b.no_surface_px() + b.gross_uncovered_px + b.merge_lost_px()
+        };
+        let run = |v: &ViewSurfaces, reference: &[DepthMap], mesh: &TriMesh| {
+            let inputs = BudgetInputs {
+                proxies: &depths,
+                views: v,
+                integration: &integration,
+                reference,
+            };
+            coverage_budget(&rig.cameras, &normals, &masks, &inputs, mesh, &p).unwrap()
+        };
+        // The sphere against its own views: all covered, nothing lost.
+        let own = views(depths.clone(), depths.clone(), no_breaks.clone());
+        let b = run(&own, &depths, &sphere);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(b.pct(b.covered_px) > 99.0, "{b:?}");
+        // Camera 0's left half discarded by Eq. 3.4, its top rows cut as matched breaks.
+        let (mut integrated, mut surfaces) = (depths.clone(), depths.clone());
+        let mut breaks = no_breaks.clone();
+        for y in 0..96u32 {
+            for x in 0..96u32 {
+                let i = depths[0].index(x, y);
+                if y < 30 {
+                    integrated[0].depth_m[i] = f64::NAN;
+                    surfaces[0].depth_m[i] = f64::NAN;
+                    breaks[0].set(x, y, true).unwrap();
+                } else if x < 48 {
+                    surfaces[0].depth_m[i] = f64::NAN;
+                }
+            }
+        }
+        let cut = views(integrated, surfaces, breaks);
+        let b = run(&cut, &depths, &sphere);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(
+            b.cut_match_break_px > 200 && b.discarded_offsets_px > 500,
+            "{b:?}"
+        );
+        assert_eq!(b.cut_proxy_jump_px + b.dropped_region_px, 0, "{b:?}");
+        // A reference 2 cm behind the views: every per-view surface is a gross error, covered
+        // anyway by the equally wrong mesh.
+        let behind: Vec<DepthMap> = depths
+            .iter()
+            .map(|d| DepthMap::new(96, 96, d.depth_m.iter().map(|z| z + 0.02).collect()).unwrap())
+            .collect();
+        let b = run(&own, &behind, &sphere);
+        assert_eq!(b.gross_covered_px, b.covered_px, "{b:?}");
+        // A mesh 3 cm larger is hit in front of every (correct) per-view surface.
+        let bigger = uv_sphere(DVec3::ZERO, 0.33, 48, 96).unwrap();
+        let b = run(&own, &depths, &bigger);
+        assert_eq!(total(&b), b.measured_px, "{b:?}");
+        assert!(b.pct(b.merge_in_front_px) > 95.0, "{b:?}");
+        // Bad input.
+        let inputs = BudgetInputs {
+            proxies: &depths[..2],
+            views: &own,
+            integration: &integration,
+            reference: &depths,
+        };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &p).is_err());
+        let inputs = BudgetInputs {
+            proxies: &depths,
+            ..inputs
+        };
+        let nan = MetricParams { near_m: f64::NAN };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &nan).is_err());
+        let small = vec![Mask::new(8, 8); 3];
+        let wrong = views(depths.clone(), depths.clone(), small);
+        let inputs = BudgetInputs {
+            views: &wrong,
+            ..inputs
+        };
+        assert!(coverage_budget(&rig.cameras, &normals, &masks, &inputs, &sphere, &p).is_err());
     }
 
     #[test]

@@ -46,6 +46,18 @@ pub struct OffsetParams {
     /// thesis' 1024-px width and scaled like [`IntegrationParams::jump_threshold_m`]).
     /// Default 40 (ours).
     pub max_distance_px: f64,
+    /// γ, the weight of each pixel's pull toward its proxy depth, `γ Σ_i (d_i − (p_i − z_i))²`
+    /// (p the proxy's depth, z the integrated one), relative to one neighbour difference.
+    /// 0 (the default, the thesis's Eq. 3.4) leaves it out. With γ > 0 ([`depth_offsets_guided`]
+    /// with a proxy) a pixel with a proxy depth is never discarded: far from every match its
+    /// offset relaxes to the proxy instead (pass 2's proxy is the pass-1 mesh). Ours (issue 14).
+    #[serde(default)]
+    pub proxy_weight: f64,
+    /// Matches farther than this from the proxy depth along the ray (m) are dropped before
+    /// Eq. 3.4 ([`depth_offsets_guided`] with a proxy). `None` (default) keeps every match.
+    /// Ours (issue 14).
+    #[serde(default)]
+    pub proxy_gate_m: Option<f64>,
 }
 
 impl Default for OffsetParams {
@@ -53,6 +65,8 @@ impl Default for OffsetParams {
         Self {
             beta: 0.1,
             max_distance_px: 40.0,
+            proxy_weight: 0.0,
+            proxy_gate_m: None,
         }
     }
 }
@@ -90,24 +104,59 @@ pub fn depth_offsets(
     targets: &[&DepthMap],
     params: &OffsetParams,
 ) -> Result<OffsetSurface> {
+    depth_offsets_guided(surface, targets, None, params)
+}
+
+/// [`depth_offsets`] with the view's proxy depth map (ours, issue 14): matches farther than
+/// [`OffsetParams::proxy_gate_m`] from the proxy are dropped, and with
+/// [`OffsetParams::proxy_weight`] γ > 0 every pixel's offset is also pulled toward the proxy,
+/// `γ Σ_i (d_i − (p_i − z_i))²`, so that pixels far from every match follow the proxy instead
+/// of being discarded. With `proxy` `None` (or γ = 0 and no gate) this is Eq. 3.4 as written.
+///
+/// # Errors
+/// As [`depth_offsets`]; [`Error::SizeMismatch`] for a proxy of another size;
+/// [`Error::InvalidParam`] for a negative or non-finite γ or a non-positive gate.
+pub fn depth_offsets_guided(
+    surface: &DepthMap,
+    targets: &[&DepthMap],
+    proxy: Option<&DepthMap>,
+    params: &OffsetParams,
+) -> Result<OffsetSurface> {
     check::positive("beta", params.beta)?;
     check::positive("max_distance_px", params.max_distance_px)?;
+    check::non_negative("proxy_weight", params.proxy_weight)?;
+    if let Some(g) = params.proxy_gate_m {
+        check::positive("proxy_gate_m", g)?;
+    }
     let n_px = surface.depth_m.len();
     let (w, h) = (surface.width, surface.height);
     for t in targets {
         check::same_size("matched depth map pixels", n_px, t.depth_m.len())?;
     }
-    // d̄_i: the mean of the offsets asked by the views that matched pixel i.
+    if let Some(p) = proxy {
+        check::same_size("proxy depth map pixels", n_px, p.depth_m.len())?;
+    }
+    let proxy_at = |i: usize| proxy.map_or(f64::NAN, |p| p.depth_m[i]);
+    let gate = proxy.and(params.proxy_gate_m);
+    let anchor_weight = if proxy.is_some() {
+        params.proxy_weight
+    } else {
+        0.0
+    };
+    // d̄_i: the mean of the offsets asked by the views that matched pixel i (within the gate
+    // of the proxy, if one is given).
     let mut target = vec![f64::NAN; n_px];
     for (i, t) in target.iter_mut().enumerate() {
         let z = surface.depth_m[i];
         if z.is_nan() {
             continue;
         }
+        let p = proxy_at(i);
         let asks: Vec<f64> = targets
             .iter()
             .map(|m| m.depth_m[i])
             .filter(|d| !d.is_nan())
+            .filter(|d| gate.is_none_or(|g| p.is_nan() || (d - p).abs() <= g))
             .collect();
         if !asks.is_empty() {
             *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
@@ -125,8 +174,11 @@ pub fn depth_offsets(
     }
     let far = distance_to_foreground(&constrained)?;
     let limit = IntegrationParams::jump_threshold_m(params.max_distance_px, w);
+    let proxied = |i: usize| anchor_weight > 0.0 && !proxy_at(i).is_nan();
     let mut inside: Vec<bool> = (0..n_px)
-        .map(|i| !surface.depth_m[i].is_nan() && f64::from(far.as_raw()[i]) <= limit)
+        .map(|i| {
+            !surface.depth_m[i].is_nan() && (f64::from(far.as_raw()[i]) <= limit || proxied(i))
+        })
         .collect();
     let (label, count) = regions(w, h, &inside)?;
     let mut anchored = vec![false; count];
@@ -165,10 +217,29 @@ pub fn depth_offsets(
         c.push(r, col, 1.0);
     }
     let d = DMatrix::from_iterator(anchors.len(), 1, anchors.iter().map(|a| a.1));
-    let solver = LsqProblem::new(CscMatrix::from(&a))
-        .with_term(CscMatrix::from(&c), params.beta)
-        .factor(&LsqParams::default())?;
-    let off = solver.solve(&DMatrix::zeros(edges.len(), 1), &[d])?;
+    // The proxy's pull (γ > 0): toward the offset that puts the pixel on its proxy.
+    let pulls: Vec<(usize, f64)> = pixels
+        .iter()
+        .filter(|&&i| proxied(i))
+        .map(|&i| (unknown[i], proxy_at(i) - surface.depth_m[i]))
+        .collect();
+    let mut problem =
+        LsqProblem::new(CscMatrix::from(&a)).with_term(CscMatrix::from(&c), params.beta);
+    let mut rhs = vec![d];
+    if !pulls.is_empty() {
+        let mut g = CooMatrix::new(pulls.len(), n);
+        for (r, &(col, _)) in pulls.iter().enumerate() {
+            g.push(r, col, 1.0);
+        }
+        problem = problem.with_term(CscMatrix::from(&g), anchor_weight);
+        rhs.push(DMatrix::from_iterator(
+            pulls.len(),
+            1,
+            pulls.iter().map(|p| p.1),
+        ));
+    }
+    let solver = problem.factor(&LsqParams::default())?;
+    let off = solver.solve(&DMatrix::zeros(edges.len(), 1), &rhs)?;
     let mut depth = vec![f64::NAN; n_px];
     for (k, &i) in pixels.iter().enumerate() {
         let v = surface.depth_m[i] + off[k];
@@ -352,7 +423,8 @@ pub fn per_view_surfaces(
         .into_par_iter()
         .map(|c| {
             let refs: Vec<&DepthMap> = matched[c].iter().collect();
-            depth_offsets(&integrated[c], &refs, &params.offsets).at(Context::Camera(c))
+            depth_offsets_guided(&integrated[c], &refs, Some(&proxies[c]), &params.offsets)
+                .at(Context::Camera(c))
         })
         .collect::<Result<Vec<OffsetSurface>>>()?;
     times.offsets_s = t.elapsed().as_secs_f64();
@@ -525,6 +597,85 @@ mod tests {
             }
         )
         .is_err());
+    }
+
+    #[test]
+    fn a_proxy_keeps_far_pixels_and_gates_gross_matches() {
+        // A flat surface at 2 m; matches at its left edge ask for 2.01 m, one gross match
+        // asks for 2.5 m; the proxy says 2.02 m everywhere.
+        let (w, h) = (64u32, 8u32);
+        let surface = DepthMap::new(w, h, vec![2.0; (w * h) as usize]).unwrap();
+        let target = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| match i % w {
+                    0 | 1 => 2.01,
+                    30 => 2.5,
+                    _ => f64::NAN,
+                })
+                .collect(),
+        )
+        .unwrap();
+        let proxy = DepthMap::new(w, h, vec![2.02; (w * h) as usize]).unwrap();
+        let near = OffsetParams {
+            max_distance_px: 0.5,
+            ..OffsetParams::default()
+        };
+        // Without γ the proxy changes nothing: far pixels are discarded as before.
+        let plain = depth_offsets(&surface, &[&target], &near).unwrap();
+        let guided = depth_offsets_guided(&surface, &[&target], Some(&proxy), &near).unwrap();
+        assert_eq!(plain.report, guided.report);
+        let bits = |o: &OffsetSurface| {
+            o.depth
+                .depth_m
+                .iter()
+                .map(|d| d.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&plain), bits(&guided));
+        // With γ > 0 they are kept and relax to the proxy far from the matches.
+        let anchored = OffsetParams {
+            proxy_weight: 0.01,
+            ..near
+        };
+        let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &anchored).unwrap();
+        assert_eq!(out.report.discarded, 0, "{:?}", out.report);
+        let at = |x: u32, y: u32| out.depth.depth_m[out.depth.index(x, y)];
+        // The matched pixels are pulled from the proxy's 2.02 m toward their 2.01 m.
+        assert!(at(0, 4) < 2.0195, "{}", at(0, 4));
+        // The gross match pulls its neighbourhood toward 2.5 m unless the gate drops it.
+        assert!(at(30, 4) > 2.05, "{}", at(30, 4));
+        let gated = OffsetParams {
+            proxy_gate_m: Some(0.05),
+            ..anchored
+        };
+        let out = depth_offsets_guided(&surface, &[&target], Some(&proxy), &gated).unwrap();
+        let v = out.depth.depth_m[out.depth.index(30, 4)];
+        assert!((v - 2.02).abs() < 2e-3, "{v}");
+        // Far from the (remaining) matches, the offsets relax to the proxy.
+        let far = out.depth.depth_m[out.depth.index(60, 4)];
+        assert!((far - 2.02).abs() < 1e-3, "{far}");
+        assert_eq!(out.report.constrained, 2 * h as usize);
+        // Bad input.
+        let small = DepthMap::empty(4, 4).unwrap();
+        assert!(depth_offsets_guided(&surface, &[&target], Some(&small), &gated).is_err());
+        for bad in [
+            OffsetParams {
+                proxy_weight: -1.0,
+                ..gated
+            },
+            OffsetParams {
+                proxy_weight: f64::NAN,
+                ..gated
+            },
+            OffsetParams {
+                proxy_gate_m: Some(0.0),
+                ..gated
+            },
+        ] {
+            assert!(depth_offsets_guided(&surface, &[&target], Some(&proxy), &bad).is_err());
+        }
     }
 
     /// Two views of a sphere from the ring's cameras `a` and `b` (of 8), exact normals, the

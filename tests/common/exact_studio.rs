@@ -1,0 +1,79 @@
+//! The skirt performer at the studio frame seen by the ring of cameras with the rasteriser's
+//! exact normals: the shared set-up of the photometric diagnostics (the Table 3.1 trace and
+//! the coverage budget).
+
+use dynamic_shapes::core::camera::Rig;
+use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
+use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
+use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, VisualHull};
+
+/// The studio scene with exact normals.
+pub struct ExactStudio {
+    /// The scene (performer, ring of cameras).
+    pub scene: StudioScene,
+    /// The true mesh at the frame.
+    pub mesh: TriMesh,
+    /// Silhouettes per camera.
+    pub sil: Vec<Mask>,
+    /// True depth maps per camera.
+    pub truths: Vec<DepthMap>,
+    /// Exact (rendered) normals per camera.
+    pub exact: Vec<NormalMap>,
+    /// The visual hull of the silhouettes.
+    pub hull: VisualHull,
+    /// The ring's neighbouring pairs.
+    pub pairs: Vec<(usize, usize)>,
+}
+
+/// `cameras` ring cameras at `size`² (both faces rendered).
+pub fn exact_studio(cameras: usize, size: u32) -> ExactStudio {
+    let scene = StudioScene::new(
+        example_kit::data_path("makehuman").unwrap(),
+        &skirt_subject(),
+        cameras,
+        size,
+    )
+    .unwrap();
+    let frame = scene
+        .capture(
+            scene
+                .capture_spec(Rig {
+                    cameras: scene.ring.cameras[..1].to_vec(),
+                })
+                .unwrap(),
+        )
+        .unwrap();
+    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let cams = &scene.ring.cameras;
+    let views: Vec<RenderedView> = cams
+        .iter()
+        .map(|c| {
+            Rasterizer::new(c)
+                .render(&mesh, &RenderParams::default().with_cull_back_faces(false))
+                .unwrap()
+        })
+        .collect();
+    let sil: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
+    let truths = views
+        .iter()
+        .map(|v| DepthMap::from_view(v).unwrap())
+        .collect();
+    let exact = cams
+        .iter()
+        .zip(&views)
+        .map(|(c, v)| rendered_normals(c, v).unwrap())
+        .collect();
+    let hull = VisualHull::new(cams, &sil).unwrap();
+    let pairs = (0..cameras).map(|c| (c, (c + 1) % cameras)).collect();
+    ExactStudio {
+        scene,
+        mesh,
+        sil,
+        truths,
+        exact,
+        hull,
+        pairs,
+    }
+}

@@ -1,0 +1,2 @@
+//! Shared set-ups of the integration tests.
+pub mod exact_studio;
