@@ -108,7 +108,9 @@ pub struct MatchingParams {
     /// coarse pass costs about an eighth, and the narrow band cuts the full-resolution cells
     /// several times. Applied to images of at least 128 × 128 pixels. Default true (ours:
     /// on the studio at 512² the two passes' figures were the same or better, with 0.3 points
-    /// less Table 3.1 coverage; `docs/photometric-normals.md`, *Matching speed*).
+    /// less Table 3.1 coverage; at 1024² pass 2 was worse, and
+    /// [`ReconstructParams`](crate::ReconstructParams) turns it off there;
+    /// `docs/photometric-normals.md`, *Matching speed*).
     pub coarse_to_fine: bool,
     /// Half-width of the full-resolution band around the coarse path, in pixel footprints
     /// (depth / focal length) along each ray. Default 4 (ours: a coarse pixel is two, and
@@ -1581,14 +1583,19 @@ mod tests {
             / n
     }
 
-    #[test]
-    fn quaternion_kabsch_equals_the_svd_kabsch() {
-        let rng = skin_core::random::SplitMix64::new(7);
+    /// Uniform draws in [0, 1) from a seeded generator.
+    fn uniform_draws(seed: u64) -> impl FnMut() -> f64 {
+        let rng = skin_core::random::SplitMix64::new(seed);
         let mut draws = 0u64;
-        let mut uniform = || {
+        move || {
             draws += 1;
             rng.uniform_at(draws)
-        };
+        }
+    }
+
+    #[test]
+    fn quaternion_kabsch_equals_the_svd_kabsch() {
+        let mut uniform = uniform_draws(7);
         let mut worst: f64 = 0.0;
         for trial in 0..2000 {
             let n = 13 + trial % 13;
@@ -1846,12 +1853,7 @@ mod tests {
     fn band_only_programme_finds_the_paths_of_the_full_grid() {
         // Random bands of random costs (some holes), random penalties: the band-only form
         // returns the dense programme's path on every grid.
-        let rng = skin_core::random::SplitMix64::new(11);
-        let mut draws = 0u64;
-        let mut uniform = || {
-            draws += 1;
-            rng.uniform_at(draws)
-        };
+        let mut uniform = uniform_draws(11);
         let mut compared = 0;
         for trial in 0..400 {
             let na = 1 + (uniform() * 40.0) as usize;
