@@ -106,10 +106,10 @@ pub struct MatchingParams {
     /// pixels around it (samples without a coarse path depth keep the whole band). Criminisi's
     /// programme costs O(samples × band) per plane and the surface metric dominates it: the
     /// coarse pass costs about an eighth, and the narrow band cuts the full-resolution cells
-    /// several times. Applied to images of at least 128 × 128 pixels. Default true (ours:
-    /// on the studio at 512² the two passes' figures were the same or better, with 0.3 points
-    /// less Table 3.1 coverage; at 1024² pass 2 was worse, and
-    /// [`ReconstructParams`](crate::ReconstructParams) turns it off there;
+    /// several times. Applied to images of at least 128 × 128 pixels. Default false (ours:
+    /// on the studio at 512² the two passes' figures were the same or better, but at the
+    /// thesis's 1024² the pass-2 merged mesh's p95 grew from 34 to 40 mm and its median
+    /// from 1.99 to 2.02 mm, on in both passes or in pass 1 only;
     /// `docs/photometric-normals.md`, *Matching speed*).
     pub coarse_to_fine: bool,
     /// Half-width of the full-resolution band around the coarse path, in pixel footprints
@@ -128,7 +128,7 @@ impl Default for MatchingParams {
             discontinuity_penalty: 2.0,
             good_cost: 1.5,
             jump_m: IntegrationParams::default().match_jump_m,
-            coarse_to_fine: true,
+            coarse_to_fine: false,
             coarse_band_px: 4.0,
         }
     }

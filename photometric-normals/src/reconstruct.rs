@@ -31,8 +31,7 @@ pub struct ReconstructParams {
     /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻⁶).
     pub pass1: SurfaceParams,
     /// The per-view stage of pass 2. Default [`SurfaceParams::pass2`] (α = 10⁻⁵, band
-    /// guided by the proxy) without coarse-to-fine matching (its ±3 cm band is already
-    /// narrow; at 1024² coarse-to-fine there made the merged mesh's p95 worse).
+    /// guided by the proxy).
     pub pass2: SurfaceParams,
     /// Volumetric merging (thesis: 2 mm voxels, 6 cm ramps).
     pub merge: MergeParams,
@@ -46,19 +45,12 @@ pub struct ReconstructParams {
     pub hull_jump_m: f64,
 }
 
-/// Pass 2's per-view stage: [`SurfaceParams::pass2`] with coarse-to-fine matching off.
-fn pass2_surfaces() -> SurfaceParams {
-    let mut p = SurfaceParams::pass2();
-    p.matching.coarse_to_fine = false;
-    p
-}
-
 impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
             hull: VisualHullParams::default(),
             pass1: SurfaceParams::default(),
-            pass2: pass2_surfaces(),
+            pass2: SurfaceParams::pass2(),
             merge: MergeParams::default(),
             poisson: PoissonParams::default().with_depth(9),
             hull_weight: 0.01,
