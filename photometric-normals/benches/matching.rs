@@ -1,5 +1,6 @@
 //! Times pairwise matching (§3.3.2, `match_pair`) on two cameras 45° apart around a bumpy
-//! sphere, at several image sizes, without and with the visual hull of eight ring cameras, and
+//! sphere, at several image sizes, without and with the visual hull of eight ring cameras (and
+//! with the hull and coarse-to-fine matching, [`MatchingParams::coarse_to_fine`]), and
 //! prints one JSON line per case with the wall and CPU seconds per pair (best of the runs),
 //! the cells evaluated and the match errors against the true depths.
 //!
@@ -58,14 +59,17 @@ fn main() {
             })
             .collect();
         let hull = VisualHull::new(&cams, &masks).expect("hull");
-        for with_hull in [false, true] {
+        for (with_hull, coarse_to_fine) in [(false, false), (true, false), (true, true)] {
             let view = |c: usize| MatchView {
                 camera: &cams[c],
                 surface: &truth[c],
                 guide: None,
                 images: None,
             };
-            let params = MatchingParams::default();
+            let params = MatchingParams {
+                coarse_to_fine,
+                ..MatchingParams::default()
+            };
             let runs = if size >= 1024 { 1 } else { 3 };
             let mut best = f64::INFINITY;
             let mut best_cpu = f64::INFINITY;
@@ -81,7 +85,7 @@ fn main() {
             let m = result.expect("one run");
             let err = depth_errors(&m.left.target, &truth[0], None).expect("errors");
             println!(
-            "{{\"size_px\": {size}, \"hull\": {with_hull}, \"seconds_per_pair\": {best:.4}, \"cpu_seconds_per_pair\": {best_cpu:.2}, \"cells_evaluated\": {}, \"good_matches\": {}, \"discontinuities\": {}, \"match_median_mm\": {:.4}, \"match_p95_mm\": {:.4}}}",
+            "{{\"size_px\": {size}, \"hull\": {with_hull}, \"coarse_to_fine\": {coarse_to_fine}, \"seconds_per_pair\": {best:.4}, \"cpu_seconds_per_pair\": {best_cpu:.2}, \"cells_evaluated\": {}, \"good_matches\": {}, \"discontinuities\": {}, \"match_median_mm\": {:.4}, \"match_p95_mm\": {:.4}}}",
             m.stats.cells_evaluated,
             m.stats.good_matches,
             m.stats.discontinuities,
