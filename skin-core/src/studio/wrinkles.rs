@@ -606,9 +606,7 @@ impl WrinkleModel {
             .faces
             .iter()
             .enumerate()
-            .filter(|(f, face)| {
-                wrinkle_faces[*f] && !face.iter().all(|&v| in_garment(v as usize))
-            })
+            .filter(|(f, face)| wrinkle_faces[*f] && !face.iter().all(|&v| in_garment(v as usize)))
             .filter_map(|(f, face)| {
                 let [x0, x1, x2] = face.map(|v| template.vertices[v as usize]);
                 let (e1, e2) = (x1 - x0, x2 - x0);

@@ -312,7 +312,11 @@ fn refining_every_face_gives_a_smooth_surface_with_the_same_folds() {
         .iter()
         .filter(|k| **k == FaceRefinement::Refined)
         .count();
-    assert!(refined * 10 > kinds.len() * 9, "{refined} of {}", kinds.len());
+    assert!(
+        refined * 10 > kinds.len() * 9,
+        "{refined} of {}",
+        kinds.len()
+    );
     let f = s.apply(&t, &coarse).unwrap();
     assert!(f.wrinkle_displacement.iter().all(|d| *d == DVec3::ZERO));
     assert!(f.mesh.face_count() > 20 * performer().template.face_count());
