@@ -139,6 +139,27 @@ fn truth_surface() -> TrueSurface {
     }
 }
 
+/// The image size of the traces: `TRACE_SIZE`, default 512.
+fn trace_size() -> u32 {
+    std::env::var("TRACE_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(512)
+}
+
+/// The skirt's studio scene with the true surface `surface`, 8 cameras at [`trace_size`].
+fn studio_scene(surface: TrueSurface) -> StudioScene {
+    StudioScene::with_surface(
+        example_kit::data_path("makehuman").unwrap(),
+        &skirt_subject(),
+        STUDIO_FRAME,
+        CAMERAS,
+        trace_size(),
+        surface,
+    )
+    .unwrap()
+}
+
 /// Issue 14's studio truth: how far the rasterised (Phong) normals of the true surface are
 /// from the facets the cameras' depth and silhouettes see, per pixel over the 8 views of the
 /// skirt at frame 45 (`TRACE_SIZE`, default 512²), for the polygonal mesh and the smooth
@@ -147,25 +168,13 @@ fn truth_surface() -> TrueSurface {
 #[test]
 #[ignore = "diagnostic, minutes at 512²"]
 fn studio_truth_facet_gap() {
-    let size: u32 = std::env::var("TRACE_SIZE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(512);
     for surface in [
         TrueSurface::Polygonal,
         TrueSurface::Smooth { max_edge_m: 0.004 },
         TrueSurface::Smooth { max_edge_m: 0.0025 },
     ] {
         let t = Instant::now();
-        let scene = StudioScene::with_surface(
-            example_kit::data_path("makehuman").unwrap(),
-            &skirt_subject(),
-            STUDIO_FRAME,
-            CAMERAS,
-            size,
-            surface,
-        )
-        .unwrap();
+        let scene = studio_scene(surface);
         let t_scene = t.elapsed().as_secs_f64();
         let mut spec = scene.capture_spec(scene.ring.clone()).unwrap();
         if let Some(l) = &mut spec.lighting {
@@ -192,20 +201,9 @@ fn studio_truth_facet_gap() {
 #[test]
 #[ignore = "diagnostic trace, minutes at 512²"]
 fn trace_normal_deviation_through_the_stages() {
-    let size: u32 = std::env::var("TRACE_SIZE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(512);
+    let size = trace_size();
     let t0 = Instant::now();
-    let scene = StudioScene::with_surface(
-        example_kit::data_path("makehuman").unwrap(),
-        &skirt_subject(),
-        STUDIO_FRAME,
-        CAMERAS,
-        size,
-        truth_surface(),
-    )
-    .unwrap();
+    let scene = studio_scene(truth_surface());
     println!("TRACE true surface {:?}", scene.true_surface);
     // Only the true mesh is needed (the normals are the exact ones): no shading.
     let mut spec = scene
