@@ -245,7 +245,7 @@ impl WrinkleParams {
     }
 
     /// A smooth fine surface without wrinkles: every face refined to edges of at most
-    /// `max_edge_m` (posed), all amplitudes 0 — the performer's polygonal surface made
+    /// [`WRINKLE_EDGE_MARGIN`] · `max_edge_m` at rest, all amplitudes 0 — the performer's polygonal surface made
     /// smooth and consistent (facets close to the shading normals) at render time.
     pub fn smooth_surface(max_edge_m: f64) -> Self {
         Self::default()

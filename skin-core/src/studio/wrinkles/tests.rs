@@ -313,10 +313,24 @@ fn refining_every_face_gives_a_smooth_surface_with_the_same_folds() {
         .filter(|k| **k == FaceRefinement::Refined)
         .count();
     assert!(
-        refined * 10 > kinds.len() * 9,
+        refined * 4 > kinds.len() * 3,
         "{refined} of {}",
         kinds.len()
     );
+    // A kept face is one whose edges were already within the rest bound.
+    let tpl = &performer().template;
+    for (face, _) in tpl
+        .faces
+        .iter()
+        .zip(kinds)
+        .filter(|(_, k)| **k == FaceRefinement::Kept)
+    {
+        for e in 0..3 {
+            let (a, b) = (face[e] as usize, face[(e + 1) % 3] as usize);
+            let len = tpl.vertices[a].distance(tpl.vertices[b]);
+            assert!(len <= WRINKLE_EDGE_MARGIN * 0.006 + 1e-12, "{len}");
+        }
+    }
     let f = s.apply(&t, &coarse).unwrap();
     assert!(f.wrinkle_displacement.iter().all(|d| *d == DVec3::ZERO));
     assert!(f.mesh.face_count() > 20 * performer().template.face_count());
