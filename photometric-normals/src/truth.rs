@@ -181,9 +181,9 @@ pub enum TrueSurface {
     /// Every face of the posed true mesh (body and garment) refined by Phong tessellation
     /// (skin-core's `Refinement`, α = 0.75) to edges of at most 0.7 · `max_edge_m` at rest
     /// (as the wrinkles' refinement; posing stretches some edges past `max_edge_m` where
-    /// linear blend skinning stretches the skin, up to ≈ 1.5 × in skin-core's test). No wrinkles unless
-    /// the subject has them; with them, their refinement is extended to every face at the
-    /// smaller of the two edge bounds (the folds are unchanged).
+    /// linear blend skinning stretches the skin, up to ≈ 1.5 × in skin-core's test). No
+    /// wrinkles unless the subject has them; with them, their refinement is extended to every
+    /// face at the smaller of the two edge bounds (the folds are unchanged).
     Smooth {
         /// Longest posed edge, metres, finite and > 0.
         max_edge_m: f64,
