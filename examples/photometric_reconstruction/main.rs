@@ -44,8 +44,8 @@
 //! `cargo run --release --example photometric_reconstruction [-- --quick]` (`--quick`: 8
 //! cameras at 256²; the full run: 8 cameras at 512²; `--size` and `--cameras` change them).
 //! The true surface is smooth and consistent by default (`TrueSurface::Smooth`, every face
-//! Phong-tessellated to 4 mm edges, shadows in light bins); `--truth-edge-mm 0` renders the
-//! polygonal mesh as before issue 14's sixth session.
+//! Phong-tessellated to 4 mm edges, shadows in light bins; polygonal with `--quick`);
+//! `--truth-edge-mm 0` renders the polygonal mesh as before issue 14's sixth session.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![recursion_limit = "256"] // the figures' json! literal
 
@@ -112,9 +112,11 @@ struct Args {
     #[arg(long, default_value_t = 100)]
     wrinkle_light_bins: usize,
     /// Longest edge of the smooth, consistent true surface (`TrueSurface::Smooth`: every face
-    /// Phong-tessellated), mm; 0: the polygonal mesh (issue 14, sixth session).
-    #[arg(long, default_value_t = 4.0)]
-    truth_edge_mm: f64,
+    /// Phong-tessellated), mm; 0: the polygonal mesh (issue 14, sixth session). Default: 4,
+    /// 0 with `--quick` (at 256² a pixel is 10 mm, and the fine mesh's capture would take
+    /// most of the tour's time).
+    #[arg(long)]
+    truth_edge_mm: Option<f64>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -152,9 +154,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size = args.size.unwrap_or(if run.quick() { 256 } else { 512 });
     let n_cams = args.cameras.max(2);
 
-    let surface = if args.truth_edge_mm > 0.0 {
+    let truth_edge_mm = args
+        .truth_edge_mm
+        .unwrap_or(if run.quick() { 0.0 } else { 4.0 });
+    let surface = if truth_edge_mm > 0.0 {
         TrueSurface::Smooth {
-            max_edge_m: args.truth_edge_mm * 1e-3,
+            max_edge_m: truth_edge_mm * 1e-3,
         }
     } else {
         TrueSurface::Polygonal
@@ -375,7 +380,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // studio's wrinkles (how much of their amplitude survives).
     // The true surface (issue 14, sixth session): its edge bound, size, capture time and how far
     // its shading normals are from its facets.
-    figures["truth_edge_mm"] = json!(args.truth_edge_mm.max(0.0));
+    figures["truth_edge_mm"] = json!(truth_edge_mm.max(0.0));
     figures["truth_vertices"] = json!(mesh.vertex_count());
     figures["truth_capture_s"] = json!(t_capture);
     figures["truth_facet_gap_mean_deg"] = json!(truth_gap.mean_deg);
