@@ -110,7 +110,7 @@ fn coverage_budget_with_exact_normals() {
         exact,
         hull,
         pairs,
-    } = exact_studio(CAMERAS, size);
+    } = exact_studio(CAMERAS, size, TrueSurface::Polygonal);
     let cams = &scene.ring.cameras;
     println!(
         "BUDGET setup {:.1} s at {size}²",

@@ -42,6 +42,7 @@ use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, colour_scores, distant_light_normals, dome_power_fraction, pattern_images,
     silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
+    TrueSurface, STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
     estimate_normals, Exposure, NormalMap, NormalParams, Pattern, PatternImages, SilhouetteParams,
@@ -96,6 +97,10 @@ struct Args {
     /// Timed repetitions of `--flow-only` (after one warm-up).
     #[arg(long, default_value_t = 10)]
     flow_reps: usize,
+    /// Render a smooth, consistent true surface (`TrueSurface::Smooth`): every face, not only
+    /// the wrinkle regions, Phong-tessellated to the wrinkles' 3 mm edges (issue 14).
+    #[arg(long)]
+    smooth_truth: bool,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -121,11 +126,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     )?;
     let stage = run.stage("performer", None);
-    let scene = StudioScene::new(
+    let scene = StudioScene::with_surface(
         example_kit::data_path("makehuman")?,
         &skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
+        STUDIO_FRAME,
         n_cams,
         size,
+        if args.smooth_truth {
+            TrueSurface::Smooth {
+                max_edge_m: WrinkleParams::default().max_edge_m,
+            }
+        } else {
+            TrueSurface::Polygonal
+        },
     )?;
     let (performer, light_stage) = (&scene.performer, &scene.stage);
     let frame_index = scene.frame_index;

@@ -6,7 +6,7 @@ use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene};
+use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME};
 use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, VisualHull};
 
 /// The studio scene with exact normals.
@@ -27,24 +27,25 @@ pub struct ExactStudio {
     pub pairs: Vec<(usize, usize)>,
 }
 
-/// `cameras` ring cameras at `size`² (both faces rendered).
-pub fn exact_studio(cameras: usize, size: u32) -> ExactStudio {
-    let scene = StudioScene::new(
+/// `cameras` ring cameras at `size`² (both faces rendered), the true mesh as `surface`.
+pub fn exact_studio(cameras: usize, size: u32, surface: TrueSurface) -> ExactStudio {
+    let scene = StudioScene::with_surface(
         example_kit::data_path("makehuman").unwrap(),
         &skirt_subject(),
+        STUDIO_FRAME,
         cameras,
         size,
+        surface,
     )
     .unwrap();
-    let frame = scene
-        .capture(
-            scene
-                .capture_spec(Rig {
-                    cameras: scene.ring.cameras[..1].to_vec(),
-                })
-                .unwrap(),
-        )
+    // Only the true mesh is needed (the normals are the rasteriser's): no shading.
+    let mut spec = scene
+        .capture_spec(Rig {
+            cameras: scene.ring.cameras[..1].to_vec(),
+        })
         .unwrap();
+    spec.lighting = None;
+    let frame = scene.capture(spec).unwrap();
     let mesh = frame.truth.rendered_mesh(&scene.performer);
     let cams = &scene.ring.cameras;
     let views: Vec<RenderedView> = cams

@@ -155,6 +155,15 @@ pub struct WrinkleParams {
     pub creases: Vec<CreaseWrinkles>,
     /// Garment folds (used when [`WrinkleModel::new`] gets a non-empty garment range).
     pub garment: GarmentWrinkles,
+    /// Refine **every** face of the template to the edge bound, not only the wrinkle
+    /// regions. Default: `false`. With it (and the amplitudes at 0 for a smooth surface
+    /// without folds) the whole fine surface is the Phong-tessellated smooth surface, so its
+    /// facets and its interpolated vertex normals agree to within a small angle everywhere —
+    /// a truth whose geometry (depth, silhouettes) and shading normals are the same surface.
+    /// The wrinkles themselves do not change (the same folds on the same smooth surface; the
+    /// fine vertices are numbered differently).
+    #[serde(default)]
+    pub refine_all_faces: bool,
 }
 
 impl Default for WrinkleParams {
@@ -206,6 +215,7 @@ impl Default for WrinkleParams {
             phong_alpha: crate::mesh::DEFAULT_PHONG_ALPHA,
             creases,
             garment: GarmentWrinkles::default(),
+            refine_all_faces: false,
         }
     }
 }
@@ -225,6 +235,23 @@ impl WrinkleParams {
     pub fn with_max_edge_m(mut self, max_edge_m: f64) -> Self {
         self.max_edge_m = max_edge_m;
         self
+    }
+
+    /// These parameters refining every face (`true`) or only the wrinkle regions (`false`,
+    /// the default); see [`WrinkleParams::refine_all_faces`].
+    pub fn with_refine_all_faces(mut self, all: bool) -> Self {
+        self.refine_all_faces = all;
+        self
+    }
+
+    /// A smooth fine surface without wrinkles: every face refined to edges of at most
+    /// [`WRINKLE_EDGE_MARGIN`] · `max_edge_m` at rest, all amplitudes 0 — the performer's polygonal surface made
+    /// smooth and consistent (facets close to the shading normals) at render time.
+    pub fn smooth_surface(max_edge_m: f64) -> Self {
+        Self::default()
+            .with_amplitude_m(0.0)
+            .with_max_edge_m(max_edge_m)
+            .with_refine_all_faces(true)
     }
 }
 
@@ -440,8 +467,8 @@ impl WrinkleModel {
             check::positive("garment.full_compression", g.full_compression)?;
         }
 
-        // Refine every face touching a wrinkle region.
-        let selected: Vec<bool> = template
+        // Refine every face touching a wrinkle region (or every face).
+        let wrinkle_faces: Vec<bool> = template
             .faces
             .iter()
             .map(|f| {
@@ -453,7 +480,11 @@ impl WrinkleModel {
             .collect();
         let refine = RefineParams::new(params.max_edge_m * WRINKLE_EDGE_MARGIN)
             .with_phong_alpha(params.phong_alpha);
-        let refinement = Refinement::new(template, &selected, &refine)?;
+        let refinement = if params.refine_all_faces {
+            Refinement::new(template, &vec![true; template.face_count()], &refine)?
+        } else {
+            Refinement::new(template, &wrinkle_faces, &refine)?
+        };
         let rest_positions = refinement.evaluate(&template.vertices)?.vertices;
         let nf = refinement.fine_vertex_count();
         let mut moved = vec![false; nf];
@@ -575,7 +606,7 @@ impl WrinkleModel {
             .faces
             .iter()
             .enumerate()
-            .filter(|(f, face)| selected[*f] && !face.iter().all(|&v| in_garment(v as usize)))
+            .filter(|(f, face)| wrinkle_faces[*f] && !face.iter().all(|&v| in_garment(v as usize)))
             .filter_map(|(f, face)| {
                 let [x0, x1, x2] = face.map(|v| template.vertices[v as usize]);
                 let (e1, e2) = (x1 - x0, x2 - x0);

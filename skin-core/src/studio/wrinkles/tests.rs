@@ -300,6 +300,97 @@ fn zero_amplitude_gives_the_smooth_fine_surface() {
 }
 
 #[test]
+fn refining_every_face_gives_a_smooth_surface_with_the_same_folds() {
+    let t = set(&[("l_elbow.flexion", 90.0), ("r_knee.flexion", 100.0)]);
+    let coarse = posed(&t);
+    // Smooth, no folds: every coarse face refined (or kept where already short enough; no
+    // transition fans), no displacement, short posed edges.
+    let s = build(WrinkleParams::smooth_surface(0.006));
+    let kinds = s.refinement().coarse_face_kinds();
+    assert!(kinds.iter().all(|k| *k != FaceRefinement::Transition));
+    let refined = kinds
+        .iter()
+        .filter(|k| **k == FaceRefinement::Refined)
+        .count();
+    assert!(
+        refined * 4 > kinds.len() * 3,
+        "{refined} of {}",
+        kinds.len()
+    );
+    // A kept face is one whose edges were already within the rest bound.
+    let tpl = &performer().template;
+    for (face, _) in tpl
+        .faces
+        .iter()
+        .zip(kinds)
+        .filter(|(_, k)| **k == FaceRefinement::Kept)
+    {
+        for e in 0..3 {
+            let (a, b) = (face[e] as usize, face[(e + 1) % 3] as usize);
+            let len = tpl.vertices[a].distance(tpl.vertices[b]);
+            assert!(len <= WRINKLE_EDGE_MARGIN * 0.006 + 1e-12, "{len}");
+        }
+    }
+    let f = s.apply(&t, &coarse).unwrap();
+    assert!(f.wrinkle_displacement.iter().all(|d| *d == DVec3::ZERO));
+    assert!(f.mesh.face_count() > 20 * performer().template.face_count());
+    let longest = f
+        .mesh
+        .faces
+        .iter()
+        .flat_map(|fc| (0..3).map(move |e| (fc[e], fc[(e + 1) % 3])))
+        .map(|(a, b)| f.mesh.vertices[a as usize].distance(f.mesh.vertices[b as usize]))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "smooth 6 mm: {} fine vertices, longest posed edge {:.2} mm",
+        f.mesh.vertex_count(),
+        longest * 1e3
+    );
+    // The bound holds at rest (margin 0.7); posing stretches some edges (LBS) past it.
+    assert!(longest < 0.012, "{longest}");
+    // The coarse faces' vertex normals and the fine facets agree far better than the coarse
+    // facets do: mean angle between a face's geometric normal and its corners' normals.
+    let gap = |m: &TriMesh| {
+        let n = vertex_normals(m, NormalWeighting::Area).unwrap();
+        let (mut sum, mut k) = (0.0, 0usize);
+        for fc in &m.faces {
+            let [a, b, c] = fc.map(|v| m.vertices[v as usize]);
+            let Some(g) = (b - a).cross(c - a).try_normalize() else {
+                continue;
+            };
+            for v in fc {
+                sum += g.dot(n[*v as usize]).clamp(-1.0, 1.0).acos().to_degrees();
+                k += 1;
+            }
+        }
+        sum / k as f64
+    };
+    let (coarse_gap, fine_gap) = (gap(&performer().mesh(coarse.clone())), gap(&f.mesh));
+    eprintln!("facet vs vertex normal: coarse {coarse_gap:.2}°, fine {fine_gap:.2}°");
+    assert!(fine_gap < 0.5 * coarse_gap, "{fine_gap} vs {coarse_gap}");
+    // With the folds on: the same folds (same heights on the same smooth surface) as the
+    // default refinement of the wrinkle regions only.
+    let all = build(WrinkleParams::default().with_refine_all_faces(true));
+    assert!(all.fine_vertex_count() > model().fine_vertex_count());
+    let heights = |m: &WrinkleModel| {
+        let mut h: Vec<f64> = m
+            .apply(&t, &coarse)
+            .unwrap()
+            .wrinkle_displacement
+            .iter()
+            .map(|d| d.length())
+            .filter(|&h| h > 0.0)
+            .collect();
+        h.sort_by(f64::total_cmp);
+        h
+    };
+    let (a, b) = (heights(&all), heights(model()));
+    assert!(a.len() > 1000);
+    assert_eq!(a.len(), b.len());
+    assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-12));
+}
+
+#[test]
 fn wrinkles_show_in_the_normals() {
     let (m, o) = (model(), off());
     let t = set(&[("l_elbow.flexion", 90.0)]);
