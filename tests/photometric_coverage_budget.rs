@@ -17,6 +17,7 @@ use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec2;
 use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::photometric::truth::TrueSurface;
 use dynamic_shapes::photometric::{
     coverage_budget, depth_jumps, merge_views, mesh_proxy_depth, per_view_surfaces, reconstruct,
     surface_distance, table_metrics, BudgetInputs, CoverageBudget, DepthMap, IntegrationParams,

@@ -15,7 +15,7 @@ use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
-use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams, RenderedView};
+use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams};
 use dynamic_shapes::photometric::truth::{
     facet_shading_gap, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
 };

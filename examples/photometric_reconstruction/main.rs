@@ -163,9 +163,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size = args.size.unwrap_or(if run.quick() { 256 } else { 512 });
     let n_cams = args.cameras.max(2);
 
-    let truth_edge_mm = args
-        .truth_edge_mm
-        .unwrap_or(0.0);
+    let truth_edge_mm = args.truth_edge_mm.unwrap_or(0.0);
     let surface = if truth_edge_mm > 0.0 {
         TrueSurface::Smooth {
             max_edge_m: truth_edge_mm * 1e-3,
