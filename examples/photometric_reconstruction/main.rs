@@ -64,8 +64,8 @@ use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::studio::{FineSurface, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
-    facet_shading_gap, ghost_subject, pattern_images, skirt_subject, StudioScene, TrueSurface,
-    GHOST_FRAME, RING_RADIUS_M, STUDIO_FRAME,
+    facet_shading_gap, ghost_subject, pattern_images, render_both_faces, skirt_subject,
+    StudioScene, TrueSurface, GHOST_FRAME, RING_RADIUS_M, STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
     coverage_budget, depth_errors, depth_map_mesh, displacement_survival, estimate_normals,
@@ -629,12 +629,7 @@ fn observe(
     let frame = scene.capture(spec)?;
     let t_capture = t.elapsed().as_secs_f64();
     let mesh = frame.truth.rendered_mesh(&scene.performer);
-    let views: Vec<RenderedView> = cameras
-        .iter()
-        .map(|c| {
-            Rasterizer::new(c).render(&mesh, &RenderParams::default().with_cull_back_faces(false))
-        })
-        .collect::<Result<_, _>>()?;
+    let views = render_both_faces(&cameras, &mesh)?;
     let truths: Vec<DepthMap> = views
         .iter()
         .map(DepthMap::from_view)

@@ -17,14 +17,14 @@ use std::time::Instant;
 mod common;
 use common::{cpu_seconds, max_rms_diff};
 
-use photometric_normals::truth::{skirt_subject, StudioScene};
+use photometric_normals::truth::{render_both_faces, skirt_subject, StudioScene};
 use photometric_normals::{
     integrate_normals, rendered_normals, Integrated, IntegrationParams, IntegrationSolver,
     MultigridParams, VisualHull, VisualHullParams,
 };
-use skin_core::camera::{Camera, Intrinsics, Rig};
+use skin_core::camera::Camera;
 use skin_core::image::Mask;
-use skin_core::raster::{Rasterizer, RenderParams, RenderedView};
+use skin_core::raster::RenderedView;
 
 /// One solve: the result, wall and CPU seconds.
 fn timed(f: impl FnOnce() -> Integrated) -> (Integrated, f64, f64) {
@@ -48,23 +48,9 @@ fn main() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/makehuman");
     let t0 = Instant::now();
     let scene = StudioScene::new(&data, &skirt_subject(), cameras, size).unwrap();
-    // The posed mesh from a capture by one tiny camera (the capture's truth is all we need).
-    let tiny = Intrinsics::from_horizontal_fov(0.5, 8, 8).unwrap();
-    let mut cam = scene.ring.cameras[0].clone();
-    cam.intrinsics = tiny;
-    let frame = scene
-        .capture(scene.capture_spec(Rig { cameras: vec![cam] }).unwrap())
-        .unwrap();
-    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let mesh = scene.true_mesh().unwrap();
     let cams: &[Camera] = &scene.ring.cameras;
-    let rendered: Vec<RenderedView> = cams
-        .iter()
-        .map(|c| {
-            Rasterizer::new(c)
-                .render(&mesh, &RenderParams::default().with_cull_back_faces(false))
-                .unwrap()
-        })
-        .collect();
+    let rendered = render_both_faces(cams, &mesh).unwrap();
     let silhouettes: Vec<Mask> = rendered.iter().map(RenderedView::silhouette).collect();
     let hull = VisualHull::new(cams, &silhouettes).unwrap();
     println!(

@@ -458,6 +458,35 @@ impl StudioScene {
             })??;
         Ok(frame)
     }
+
+    /// The true (rendered) mesh at the scene's frame, from one unlit capture through the
+    /// first ring camera (the capture's truth is all that is used).
+    ///
+    /// # Errors
+    /// As [`StudioScene::capture`]; [`Error::Empty`] for a scene without cameras.
+    pub fn true_mesh(&self) -> Result<TriMesh> {
+        let first = self.ring.cameras.first().ok_or(Error::Empty {
+            what: "the scene's cameras",
+        })?;
+        let mut spec = self.capture_spec(Rig {
+            cameras: vec![first.clone()],
+        })?;
+        spec.lighting = None;
+        Ok(self.capture(spec)?.truth.rendered_mesh(&self.performer))
+    }
+}
+
+/// `mesh` rendered by each camera with both faces drawn (back faces not culled), as the
+/// reconstruction's scoring and the exact-normal control render the true mesh.
+///
+/// # Errors
+/// Rasteriser errors (e.g. an invalid mesh).
+pub fn render_both_faces(cameras: &[Camera], mesh: &TriMesh) -> Result<Vec<RenderedView>> {
+    let params = RenderParams::default().with_cull_back_faces(false);
+    cameras
+        .iter()
+        .map(|c| Ok(Rasterizer::new(c).render(mesh, &params)?))
+        .collect()
 }
 
 /// The seven images of `observation` (captured with [`PatternSchedule::AllEachFrame`]) as

@@ -2,11 +2,12 @@
 //! exact normals: the shared set-up of the photometric diagnostics (the Table 3.1 trace and
 //! the coverage budget).
 
-use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::TriMesh;
-use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
-use dynamic_shapes::photometric::truth::{skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME};
+use dynamic_shapes::core::raster::RenderedView;
+use dynamic_shapes::photometric::truth::{
+    render_both_faces, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
+};
 use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, VisualHull};
 
 /// The studio scene with exact normals.
@@ -38,24 +39,9 @@ pub fn exact_studio(cameras: usize, size: u32, surface: TrueSurface) -> ExactStu
         surface,
     )
     .unwrap();
-    // Only the true mesh is needed (the normals are the rasteriser's): no shading.
-    let mut spec = scene
-        .capture_spec(Rig {
-            cameras: scene.ring.cameras[..1].to_vec(),
-        })
-        .unwrap();
-    spec.lighting = None;
-    let frame = scene.capture(spec).unwrap();
-    let mesh = frame.truth.rendered_mesh(&scene.performer);
+    let mesh = scene.true_mesh().unwrap();
     let cams = &scene.ring.cameras;
-    let views: Vec<RenderedView> = cams
-        .iter()
-        .map(|c| {
-            Rasterizer::new(c)
-                .render(&mesh, &RenderParams::default().with_cull_back_faces(false))
-                .unwrap()
-        })
-        .collect();
+    let views = render_both_faces(cams, &mesh).unwrap();
     let sil: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
     let truths = views
         .iter()
