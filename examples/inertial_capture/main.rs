@@ -59,9 +59,9 @@ use dynamic_shapes::core::studio::{
     ExerciseParams, RangeOfMotionParams, RetargetParams,
 };
 use dynamic_shapes::inertial::simulate::{
-    estimate_recording_board_noise, model_recording, prepare_motion, refine_recording_headings,
-    run_filter, table_4_1, treadmill_motion, tune, FilterRun, SimulatedRecording, SimulationParams,
-    SuitSimulator, TuningPoint,
+    estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
+    prepare_motion, refine_recording_headings, run_filter, table_4_1, treadmill_motion, tune,
+    FilterRun, SimulatedRecording, SimulationParams, SuitSimulator, TuningPoint,
 };
 use dynamic_shapes::inertial::{
     FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
@@ -111,6 +111,16 @@ fn variants(
         };
     let noisy = with_noise(rec)?;
     let refined_noisy = with_noise(&refined)?;
+    // Issue 15, seventh session: one σ per board axis from the same first pass.
+    let with_axis_noise =
+        |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
+            let n = estimate_recording_board_axis_noise(skeleton, r, params, true, HEADING_FIT_S)?;
+            let mut out = r.clone();
+            out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+            Ok(out)
+        };
+    let axis_noisy = with_axis_noise(rec)?;
+    let refined_axis_noisy = with_axis_noise(&refined)?;
     let (huber, cauchy) = (
         params.with_distance_robust(RobustLoss::Huber { k: 1.345 }),
         params.with_distance_robust(RobustLoss::Cauchy { c: 2.385 }),
@@ -133,6 +143,13 @@ fn variants(
             .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
             .collect::<Vec<_>>()
     };
+    let axis_sigmas = |r: &SimulatedRecording| {
+        r.nominal_suit
+            .board_noise()
+            .iter()
+            .map(|n| json!([n.gyroscope_axes(), n.accelerometer_axes()]))
+            .collect::<Vec<_>>()
+    };
     let baseline = run_filter(skeleton, rec, params, true, joints)?;
     Ok(json!({
         "heading_fit_s": HEADING_FIT_S,
@@ -150,6 +167,11 @@ fn variants(
         "heading_refined_per_board_noise": stats(&run_filter(skeleton, &refined_noisy, params, true, joints)?),
         "heading_refined_per_board_noise_cauchy": stats(&run_filter(skeleton, &refined_noisy, cauchy, true, joints)?),
         "neck_board_dropped": stats(&run_filter(skeleton, &no_neck, params, true, joints)?),
+        "board_axis_sigmas": axis_sigmas(&axis_noisy),
+        "per_axis_noise": stats(&run_filter(skeleton, &axis_noisy, params, true, joints)?),
+        "per_axis_noise_cauchy": stats(&run_filter(skeleton, &axis_noisy, cauchy, true, joints)?),
+        "heading_refined_per_axis_noise": stats(&run_filter(skeleton, &refined_axis_noisy, params, true, joints)?),
+        "heading_refined_per_axis_noise_cauchy": stats(&run_filter(skeleton, &refined_axis_noisy, cauchy, true, joints)?),
     }))
 }
 
@@ -470,6 +492,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "heading_refined_per_board_noise",
                     "heading_refined_per_board_noise_cauchy",
                     "neck_board_dropped",
+                    "per_axis_noise",
+                    "per_axis_noise_cauchy",
+                    "heading_refined_per_axis_noise",
+                    "heading_refined_per_axis_noise_cauchy",
                 ] {
                     let f = |a: &Value| a.as_f64().unwrap_or(f64::NAN);
                     let i = &v[key]["innovations"];

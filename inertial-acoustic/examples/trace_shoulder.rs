@@ -6,17 +6,23 @@
 //! first-order step against the exact transition, the gate, q, the twist limit, half speed.
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
-//! [-- SECONDS [SEED] [walk | oracle | sigmas | budget | treadmill [sensors | causes | gate | q | twist | all]]]`
+//! [-- SECONDS [SEED] [walk | oracle | sigmas | budget | treadmill [sensors | causes | gate | q | twist | all]
+//! | axes [SEEDS]]]`
+//!
+//! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
+//! performer, exercise clips of SECONDS for SEEDS seeds from SEED (motion and sensor noise),
+//! A+G+D with the root supplied at the full run's tuned point: global σ, per-board σ, per-axis
+//! σ, each with and without the heading fit and Cauchy distances.
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // a diagnostic, not library code
 
 use inertial_acoustic::simulate::{
-    estimate_recording_board_noise, model_recording, prepare_motion, refine_recording_headings,
-    run_filter, treadmill_motion, SimulatedRecording, SimulationParams, SmoothMotion,
-    SuitSimulator,
+    estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
+    prepare_motion, refine_recording_headings, run_filter, treadmill_motion, SimulatedRecording,
+    SimulationParams, SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
-    initialise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
-    INNOVATION_TYPES,
+    initialise, BoardNoise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf,
+    Suit, INNOVATION_TYPES,
 };
 use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
@@ -97,6 +103,14 @@ fn main() {
         .iter()
         .map(|n| s.joint_index(n).unwrap())
         .collect();
+    if args.get(3).is_some_and(|a| a == "axes") {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
+        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
+        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let seeds: u64 = args.get(4).map_or(1, |a| a.parse().unwrap());
+        axes_trace(&performer, &deformation, seconds, seed, seeds);
+        return;
+    }
     if args.get(3).is_some_and(|a| a == "treadmill") {
         // The example's skeleton: the MakeHuman performer's (its drift run's figures).
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
@@ -1148,5 +1162,168 @@ fn treadmill_trace(
         }
         let w = walk(Some(10.0));
         treadmill_line("oracle, un-looped walk (8 s)", s, &oracle_of(&w), tuned);
+    }
+}
+
+/// Issue 15, seventh session: per-axis σ against per-board σ (and the heading fit, Cauchy
+/// distances) on the example's garment and rigid suits, several seeds; means at the end.
+fn axes_trace(
+    performer: &skin_core::studio::Performer,
+    deformation: &skin_core::studio::DeformationParams,
+    seconds: f64,
+    seed0: u64,
+    seeds: u64,
+) {
+    let s = &performer.skeleton;
+    let joints: Vec<usize> = ["neck", "r_shoulder", "l_hip"]
+        .iter()
+        .map(|n| s.joint_index(n).unwrap())
+        .collect();
+    // The full run's tuned point (sixth session): q 4, σ_a 2, σ_g 0.01, gate 4σ, local chart.
+    let p = FilterParams::default()
+        .with_process_sigma(4.0)
+        .with_measurement_sigmas(2.0, 0.01, 0.0025)
+        .with_distance_gate_sigma(4.0)
+        .with_recentre_rad(0.3);
+    let cauchy = p.with_distance_robust(RobustLoss::Cauchy { c: 2.385 });
+    let names = [
+        "global σ",
+        "per-board σ (headline)",
+        "per-axis σ",
+        "per-board σ + Cauchy",
+        "per-axis σ + Cauchy",
+        "heading fit",
+        "heading fit + per-board σ",
+        "heading fit + per-axis σ",
+        "heading fit + per-board σ + Cauchy",
+        "heading fit + per-axis σ + Cauchy",
+        "per-board σ from the worst axis",
+        "heading fit + worst-axis σ",
+    ];
+    // [suit][variant] → per seed (neck, shoulder, hip).
+    let mut all = vec![vec![Vec::<[f64; 3]>::new(); names.len()]; 2];
+    for seed in seed0..seed0 + seeds {
+        let base = SimulationParams {
+            seed,
+            ..SimulationParams::default()
+        };
+        let motion = exercise_motion(
+            s,
+            &ExerciseParams::default()
+                .with_duration_s(seconds)
+                .with_seed(seed),
+        )
+        .unwrap();
+        let smooth = prepare_motion(s, &motion, &base).unwrap();
+        let garment = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+        let rigid = garment.clone().with_rigid_attachment();
+        for (si, (suit_name, sim)) in [("garment", garment), ("rigid", rigid)]
+            .into_iter()
+            .enumerate()
+        {
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            let with = |r: &SimulatedRecording, per_axis: bool| {
+                let n = if per_axis {
+                    estimate_recording_board_axis_noise(s, r, p, true, 6.0).unwrap()
+                } else {
+                    estimate_recording_board_noise(s, r, p, true, 6.0).unwrap()
+                };
+                let mut out = r.clone();
+                out.nominal_suit = out.nominal_suit.with_board_noise(n).unwrap();
+                out
+            };
+            let mut headed = rec.clone();
+            headed.nominal_suit = refine_recording_headings(s, &rec, p, true, 6.0)
+                .unwrap()
+                .suit;
+            let (board, axis) = (with(&rec, false), with(&rec, true));
+            let (h_board, h_axis) = (with(&headed, false), with(&headed, true));
+            // Each board's σ from its worst axis (the largest per-axis σ on all three).
+            let worst = |r: &SimulatedRecording| {
+                let n: Vec<BoardNoise> = r
+                    .nominal_suit
+                    .board_noise()
+                    .iter()
+                    .map(|n| {
+                        let m = |v: [f64; 3]| v[0].max(v[1]).max(v[2]);
+                        BoardNoise::new(m(n.gyroscope_axes()), m(n.accelerometer_axes()))
+                    })
+                    .collect();
+                let mut out = r.clone();
+                out.nominal_suit = out.nominal_suit.with_board_noise(n).unwrap();
+                out
+            };
+            let (worst_axis, h_worst) = (worst(&axis), worst(&h_axis));
+            // Per-axis σ_g of the boards over blended skin.
+            let bn = axis.nominal_suit.board_noise();
+            let sig: Vec<String> = ["sacrum", "lower_back", "neck", "sternum", "upper_back"]
+                .iter()
+                .filter_map(|n| {
+                    let b = rec
+                        .nominal_suit
+                        .boards()
+                        .iter()
+                        .position(|b| b.name == *n)?;
+                    let g = bn.get(b)?.gyroscope_axes();
+                    let a = bn.get(b)?.accelerometer_axes();
+                    Some(format!(
+                        "{n} g {:.3}/{:.3}/{:.3} (board {:.3}) a {:.2}/{:.2}/{:.2}",
+                        g[0], g[1], g[2], bn[b].gyroscope_sigma, a[0], a[1], a[2]
+                    ))
+                })
+                .collect();
+            println!("seed {seed} {suit_name}: per-axis σ: {}", sig.join("; "));
+            let runs: [(&SimulatedRecording, FilterParams); 12] = [
+                (&rec, p),
+                (&board, p),
+                (&axis, p),
+                (&board, cauchy),
+                (&axis, cauchy),
+                (&headed, p),
+                (&h_board, p),
+                (&h_axis, p),
+                (&h_board, cauchy),
+                (&h_axis, cauchy),
+                (&worst_axis, p),
+                (&h_worst, p),
+            ];
+            for (vi, (r, fp)) in runs.into_iter().enumerate() {
+                let run = run_filter(s, r, fp, true, &joints).unwrap();
+                let e = [
+                    run.stats[0].mean_deg,
+                    run.stats[1].mean_deg,
+                    run.stats[2].mean_deg,
+                ];
+                let g = InnovationStats::pooled(&run.innovations[0]);
+                println!(
+                    "seed {seed} {suit_name:<8} {:<36} {:6.2} / {:6.2} / {:6.2} (mean {:5.2}) neck swing/twist {:.2}/{:.2} gyro NIS {:.2} div {}",
+                    names[vi],
+                    e[0],
+                    e[1],
+                    e[2],
+                    (e[0] + e[1] + e[2]) / 3.0,
+                    run.swing_twist_deg[0][0],
+                    run.swing_twist_deg[0][1],
+                    g.mean_nis(),
+                    run.diverged_frames
+                );
+                all[si][vi].push(e);
+            }
+        }
+    }
+    for (si, suit_name) in ["garment", "rigid"].iter().enumerate() {
+        println!("mean over {seeds} seeds, {suit_name}:");
+        for (vi, name) in names.iter().enumerate() {
+            let v = &all[si][vi];
+            let m = |k: usize| v.iter().map(|e| e[k]).sum::<f64>() / v.len() as f64;
+            println!(
+                "  {name:<36} {:6.2} / {:6.2} / {:6.2} (mean {:5.2})",
+                m(0),
+                m(1),
+                m(2),
+                (m(0) + m(1) + m(2)) / 3.0
+            );
+        }
     }
 }

@@ -238,11 +238,14 @@ pub struct SkeletalEkf {
     npend: usize,
     /// Per sensor type (gyroscope, accelerometer, distance) and board.
     innovations: [Vec<InnovationStats>; 3],
-    /// Where the current scalar update's innovation is counted: (type, board).
-    counting: (usize, usize),
-    /// Per board: gyroscope and accelerometer noise variances (the suit's
-    /// [`Suit::board_noise`], else the global σ of [`FilterParams`]).
-    board_r: Vec<[f64; 2]>,
+    /// Per board and sensor axis, gyroscope and accelerometer (issue 15, seventh session).
+    axis_innovations: [Vec<[InnovationStats; 3]>; 2],
+    /// Where the current scalar update's innovation is counted: (type, board, axis).
+    counting: (usize, usize, usize),
+    /// Per board: gyroscope and accelerometer noise variances per sensor axis (the suit's
+    /// [`Suit::board_noise`], per axis if it has them, else the global σ of
+    /// [`FilterParams`]).
+    board_r: Vec<[[f64; 3]; 2]>,
 }
 
 /// Scalar updates whose rank-1 downdates of P are applied together: P's lower triangle is
@@ -322,10 +325,13 @@ impl SkeletalEkf {
         let rows = 3 * points.len();
         let board_r = (0..suit.boards().len())
             .map(|b| match suit.board_noise().get(b) {
-                Some(n) => [n.gyroscope_sigma.powi(2), n.accelerometer_sigma.powi(2)],
+                Some(n) => [
+                    n.gyroscope_axes().map(|s| s * s),
+                    n.accelerometer_axes().map(|s| s * s),
+                ],
                 None => [
-                    params.gyroscope_sigma.powi(2),
-                    params.accelerometer_sigma.powi(2),
+                    [params.gyroscope_sigma.powi(2); 3],
+                    [params.accelerometer_sigma.powi(2); 3],
                 ],
             })
             .collect();
@@ -364,7 +370,10 @@ impl SkeletalEkf {
             innovations: std::array::from_fn(|_| {
                 vec![InnovationStats::default(); suit.boards().len()]
             }),
-            counting: (0, 0),
+            axis_innovations: std::array::from_fn(|_| {
+                vec![[InnovationStats::default(); 3]; suit.boards().len()]
+            }),
+            counting: (0, 0, 0),
             board_r,
             x,
             p: p0.clone(),
@@ -417,6 +426,13 @@ impl SkeletalEkf {
     /// counted at their microphone's board).
     pub fn innovation_stats(&self) -> &[Vec<InnovationStats>; 3] {
         &self.innovations
+    }
+
+    /// The gyroscope and accelerometer innovation statistics of [`SkeletalEkf::innovation_stats`]
+    /// split by the board's sensor axis: `[gyroscope, accelerometer][board][axis]` (for
+    /// per-axis noise, [`crate::board_axis_noise_from_innovations`]).
+    pub fn axis_innovation_stats(&self) -> &[Vec<[InnovationStats; 3]>; 2] {
+        &self.axis_innovations
     }
 
     /// The current covariance of the angles `dofs` (rad², in the filter's chart; zero rows
@@ -766,8 +782,17 @@ impl SkeletalEkf {
         if s.is_nan() || s <= 0.0 {
             return false;
         }
-        let (kind, board) = self.counting;
-        if let Some(st) = self.innovations[kind].get_mut(board) {
+        let (kind, board, axis) = self.counting;
+        let per_axis = self
+            .axis_innovations
+            .get_mut(kind)
+            .and_then(|t| t.get_mut(board))
+            .and_then(|a| a.get_mut(axis));
+        for st in self.innovations[kind]
+            .get_mut(board)
+            .into_iter()
+            .chain(per_axis)
+        {
             st.count += 1;
             st.sum_normalised += innov / s.sqrt();
             st.sum_nis += innov * innov / s;
@@ -775,7 +800,16 @@ impl SkeletalEkf {
         if gate_sigma > 0.0 && innov * innov > gate_sigma * gate_sigma * s {
             return false;
         }
-        if let Some(st) = self.innovations[kind].get_mut(board) {
+        let per_axis = self
+            .axis_innovations
+            .get_mut(kind)
+            .and_then(|t| t.get_mut(board))
+            .and_then(|a| a.get_mut(axis));
+        for st in self.innovations[kind]
+            .get_mut(board)
+            .into_iter()
+            .chain(per_axis)
+        {
             st.passed += 1;
             st.sum_nis_passed += innov * innov / s;
         }
@@ -902,8 +936,8 @@ impl SkeletalEkf {
                 AngularFrame::Local,
             )?;
             let chain = self.skeleton.chain_dofs(self.frames[b].joint).to_vec();
-            self.counting = (0, b);
             for axis in 0..3 {
+                self.counting = (0, b, axis);
                 self.row.clear();
                 for &d in &chain {
                     if let Some(s) = self.slot[d] {
@@ -911,7 +945,7 @@ impl SkeletalEkf {
                         self.row.push(self.nf + s, jw3[(3 * b + axis, d)]);
                     }
                 }
-                if self.scalar_update(z[axis] - pred[axis], r, 0.0, RobustLoss::None) {
+                if self.scalar_update(z[axis] - pred[axis], r[axis], 0.0, RobustLoss::None) {
                     report.inertial_used += 1;
                 }
             }
@@ -987,15 +1021,15 @@ impl SkeletalEkf {
                 .collect();
             let z = reading.accel_m_s2;
             let r = self.board_r[b][1];
-            self.counting = (1, b);
             for axis in 0..3 {
+                self.counting = (1, b, axis);
                 self.row.clear();
                 for &(s, ht, hd, hdd) in &cols {
                     self.row.push(s, ht[axis]);
                     self.row.push(self.nf + s, hd[axis]);
                     self.row.push(2 * self.nf + s, hdd[axis]);
                 }
-                if self.scalar_update(z[axis] - pred[axis], r, 0.0, RobustLoss::None) {
+                if self.scalar_update(z[axis] - pred[axis], r[axis], 0.0, RobustLoss::None) {
                     report.inertial_used += 1;
                 }
             }
@@ -1080,7 +1114,7 @@ impl SkeletalEkf {
                 }
                 let d = d - age * d_rate;
                 let sigma = self.params.distance_sigma_m / w;
-                self.counting = (2, m.sensor);
+                self.counting = (2, m.sensor, 0);
                 if self.scalar_update(
                     m.distance_m - d,
                     sigma * sigma,

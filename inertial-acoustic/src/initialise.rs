@@ -244,17 +244,59 @@ pub fn board_noise_from_innovations(
     params.validate()?;
     skin_core::check::same_size("gyroscope statistics", boards, stats[0].len())?;
     skin_core::check::same_size("accelerometer statistics", boards, stats[1].len())?;
-    let scale = |st: &InnovationStats| {
-        if st.count == 0 || !st.mean_nis().is_finite() {
-            1.0
-        } else {
-            st.mean_nis().max(1.0).sqrt()
-        }
-    };
     Ok((0..boards)
-        .map(|b| BoardNoise {
-            gyroscope_sigma: params.gyroscope_sigma * scale(&stats[0][b]),
-            accelerometer_sigma: params.accelerometer_sigma * scale(&stats[1][b]),
+        .map(|b| {
+            BoardNoise::new(
+                params.gyroscope_sigma * nis_scale(&stats[0][b]),
+                params.accelerometer_sigma * nis_scale(&stats[1][b]),
+            )
+        })
+        .collect())
+}
+
+/// `√max(1, NIS)` of one channel; 1 without a counted update.
+fn nis_scale(st: &InnovationStats) -> f64 {
+    if st.count == 0 || !st.mean_nis().is_finite() {
+        1.0
+    } else {
+        st.mean_nis().max(1.0).sqrt()
+    }
+}
+
+/// Per-board, per-axis measurement noise from a first pass's innovation statistics split by
+/// sensor axis ([`crate::SkeletalEkf::axis_innovation_stats`]; issue 15, seventh session, not in
+/// the thesis): the rule of [`board_noise_from_innovations`] applied to each of a board's
+/// three gyroscope and three accelerometer axes, `σ_{b,k} = σ · √max(1, NIS_{b,k})`. The
+/// board's own σ (`gyroscope_sigma`, `accelerometer_sigma`) is the per-board rule on the
+/// axes pooled, so the result equals [`board_noise_from_innovations`]'s when the axes agree.
+///
+/// Why per axis: a board over blended skin (the garment's neck, sacrum, lower back) turns
+/// against its bone mostly about some axes; one σ per board down-weights its well-modelled
+/// axes with the skin-twisted ones. Per axis, only the axes the model cannot explain are
+/// trusted less.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] unless both sensor types have one entry per board; as
+/// [`FilterParams::validate`].
+pub fn board_axis_noise_from_innovations(
+    stats: &[Vec<[InnovationStats; 3]>; 2],
+    boards: usize,
+    params: &FilterParams,
+) -> Result<Vec<BoardNoise>> {
+    params.validate()?;
+    skin_core::check::same_size("gyroscope axis statistics", boards, stats[0].len())?;
+    skin_core::check::same_size("accelerometer axis statistics", boards, stats[1].len())?;
+    Ok((0..boards)
+        .map(|b| {
+            let (g, a) = (&stats[0][b], &stats[1][b]);
+            BoardNoise::new(
+                params.gyroscope_sigma * nis_scale(&InnovationStats::pooled(g)),
+                params.accelerometer_sigma * nis_scale(&InnovationStats::pooled(a)),
+            )
+            .with_axes(
+                g.map(|st| params.gyroscope_sigma * nis_scale(&st)),
+                a.map(|st| params.accelerometer_sigma * nis_scale(&st)),
+            )
         })
         .collect())
 }
@@ -289,5 +331,50 @@ mod tests {
         assert!(board_noise_from_innovations(&all, 4, &p).is_err());
         let bad = p.with_measurement_sigmas(-1.0, 0.01, 0.0025);
         assert!(board_noise_from_innovations(&all, 3, &bad).is_err());
+    }
+
+    /// Per axis: each axis scaled by its own NIS, the board's σ by the pooled NIS; equal
+    /// axes give the per-board rule.
+    #[test]
+    fn axis_noise_scales_each_axis_by_its_own_nis() {
+        let p = FilterParams::default().with_measurement_sigmas(2.0, 0.01, 0.0025);
+        let all = [
+            vec![
+                [stats(30, 100.0), stats(30, 0.5), stats(30, 4.0)],
+                [stats(30, 9.0); 3],
+            ],
+            vec![
+                [stats(30, 0.05); 3],
+                [stats(0, 0.0), stats(30, 4.0), stats(30, f64::NAN)],
+            ],
+        ];
+        let n = board_axis_noise_from_innovations(&all, 2, &p).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        let g0 = n[0].gyroscope_axes();
+        assert!(
+            close(g0[0], 0.1) && close(g0[1], 0.01) && close(g0[2], 0.02),
+            "{n:?}"
+        );
+        // Pooled NIS (100 + 0.5 + 4) / 3 for the board's own σ.
+        assert!(close(n[0].gyroscope_sigma, 0.01 * (104.5f64 / 3.0).sqrt()));
+        assert!(n[0].accelerometer_axes().iter().all(|&s| close(s, 2.0)));
+        let flat = board_noise_from_innovations(
+            &[
+                vec![stats(30, 104.5 / 3.0), stats(90, 9.0)],
+                vec![stats(90, 0.05), stats(60, f64::NAN)],
+                vec![InnovationStats::default(); 2],
+            ],
+            2,
+            &p,
+        )
+        .unwrap();
+        assert!(close(n[1].gyroscope_sigma, flat[1].gyroscope_sigma));
+        assert!(n[1].gyroscope_axes().iter().all(|&s| close(s, 0.03)));
+        let a1 = n[1].accelerometer_axes();
+        assert!(
+            close(a1[0], 2.0) && close(a1[1], 4.0) && close(a1[2], 2.0),
+            "{n:?}"
+        );
+        assert!(board_axis_noise_from_innovations(&all, 3, &p).is_err());
     }
 }

@@ -97,8 +97,8 @@ pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, joint_swing_twist_errors_deg, ErrorStats};
 pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
 pub use initialise::{
-    board_noise_from_innovations, initialise, refine_headings, HeadingRefinement, Initialisation,
-    MIN_HEADING_RATE_RAD_S,
+    board_axis_noise_from_innovations, board_noise_from_innovations, initialise, refine_headings,
+    HeadingRefinement, Initialisation, MIN_HEADING_RATE_RAD_S,
 };
 pub use orientation::{
     heading_inclination_rmse, HeadingInclinationRmse, OrientationEkf, OrientationStep,

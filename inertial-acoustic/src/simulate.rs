@@ -1441,6 +1441,27 @@ pub fn refine_recording_headings(
     )
 }
 
+/// The first pass of the per-board noise estimates: `rec` with the global σ (a suit's own
+/// per-board σ set aside).
+fn global_sigma_first_pass(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    seconds: f64,
+) -> Result<crate::SkeletalEkf> {
+    let plain;
+    let rec = if rec.nominal_suit.board_noise().is_empty() {
+        rec
+    } else {
+        let mut r = rec.clone();
+        r.nominal_suit = r.nominal_suit.with_board_noise(Vec::new())?;
+        plain = r;
+        &plain
+    };
+    Ok(first_pass(skeleton, rec, params, root_supplied, seconds)?.0)
+}
+
 /// Per-board measurement noise estimated from the data ([`crate::board_noise_from_innovations`],
 /// beyond §4.4.2): a first filter pass with `params`' global σ over the rest hold and the first `seconds` of motion, each board's σ
 /// set from its innovation statistics (a suit's own per-board σ are set aside for the pass).
@@ -1456,18 +1477,30 @@ pub fn estimate_recording_board_noise(
     root_supplied: bool,
     seconds: f64,
 ) -> Result<Vec<crate::BoardNoise>> {
-    let plain;
-    let rec = if rec.nominal_suit.board_noise().is_empty() {
-        rec
-    } else {
-        let mut r = rec.clone();
-        r.nominal_suit = r.nominal_suit.with_board_noise(Vec::new())?;
-        plain = r;
-        &plain
-    };
-    let (ekf, ..) = first_pass(skeleton, rec, params, root_supplied, seconds)?;
+    let ekf = global_sigma_first_pass(skeleton, rec, params, root_supplied, seconds)?;
     crate::board_noise_from_innovations(
         ekf.innovation_stats(),
+        rec.nominal_suit.boards().len(),
+        &params,
+    )
+}
+
+/// [`estimate_recording_board_noise`] with one σ per board axis
+/// ([`crate::board_axis_noise_from_innovations`]; issue 15, seventh session): the same first
+/// pass, each board's gyroscope and accelerometer axes scaled by their own NIS.
+///
+/// # Errors
+/// As [`estimate_recording_board_noise`].
+pub fn estimate_recording_board_axis_noise(
+    skeleton: &Skeleton,
+    rec: &SimulatedRecording,
+    params: crate::FilterParams,
+    root_supplied: bool,
+    seconds: f64,
+) -> Result<Vec<crate::BoardNoise>> {
+    let ekf = global_sigma_first_pass(skeleton, rec, params, root_supplied, seconds)?;
+    crate::board_axis_noise_from_innovations(
+        ekf.axis_innovation_stats(),
         rec.nominal_suit.boards().len(),
         &params,
     )

@@ -63,13 +63,55 @@ impl UltrasonicSource {
 }
 
 /// One board's measurement noise (the filter's per-board R, beyond §4.4.2's one σ per sensor
-/// type): e.g. estimated from the data by [`crate::board_noise_from_innovations`].
+/// type): e.g. estimated from the data by [`crate::board_noise_from_innovations`]. Optionally
+/// one σ per sensor axis (issue 15, seventh session: a board over blended skin turns against
+/// its bone more about some axes than others; [`crate::board_axis_noise_from_innovations`]),
+/// which then replaces the board's σ on those rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BoardNoise {
     /// Gyroscope noise, rad/s.
     pub gyroscope_sigma: f64,
     /// Accelerometer noise, m/s².
     pub accelerometer_sigma: f64,
+    /// Gyroscope noise per board axis (x, y, z), rad/s; `None`: `gyroscope_sigma` on each.
+    #[serde(default)]
+    pub gyroscope_axis_sigma: Option<[f64; 3]>,
+    /// Accelerometer noise per board axis, m/s²; `None`: `accelerometer_sigma` on each.
+    #[serde(default)]
+    pub accelerometer_axis_sigma: Option<[f64; 3]>,
+}
+
+impl BoardNoise {
+    /// One σ per sensor type, the same on the three axes.
+    pub fn new(gyroscope_sigma: f64, accelerometer_sigma: f64) -> Self {
+        BoardNoise {
+            gyroscope_sigma,
+            accelerometer_sigma,
+            gyroscope_axis_sigma: None,
+            accelerometer_axis_sigma: None,
+        }
+    }
+
+    /// The same with one σ per board axis for each sensor type.
+    pub fn with_axes(self, gyroscope: [f64; 3], accelerometer: [f64; 3]) -> Self {
+        BoardNoise {
+            gyroscope_axis_sigma: Some(gyroscope),
+            accelerometer_axis_sigma: Some(accelerometer),
+            ..self
+        }
+    }
+
+    /// The gyroscope σ on the board's x, y, z axes (rad/s).
+    pub fn gyroscope_axes(&self) -> [f64; 3] {
+        self.gyroscope_axis_sigma
+            .unwrap_or([self.gyroscope_sigma; 3])
+    }
+
+    /// The accelerometer σ on the board's x, y, z axes (m/s²).
+    pub fn accelerometer_axes(&self) -> [f64; 3] {
+        self.accelerometer_axis_sigma
+            .unwrap_or([self.accelerometer_sigma; 3])
+    }
 }
 
 /// Sensor boards and sources of one suit, valid for the skeleton it was built for (joint
@@ -310,6 +352,12 @@ impl Suit {
                 .at(Context::Sensor(i))?;
             skin_core::check::positive("accelerometer_sigma", n.accelerometer_sigma)
                 .at(Context::Sensor(i))?;
+            for s in n.gyroscope_axes() {
+                skin_core::check::positive("gyroscope_axis_sigma", s).at(Context::Sensor(i))?;
+            }
+            for s in n.accelerometer_axes() {
+                skin_core::check::positive("accelerometer_axis_sigma", s).at(Context::Sensor(i))?;
+            }
         }
         self.board_noise = noise;
         Ok(self)
