@@ -64,7 +64,7 @@ use dynamic_shapes::inertial::simulate::{
     FilterRun, SimulatedRecording, SimulationParams, SuitSimulator, TuningPoint,
 };
 use dynamic_shapes::inertial::{
-    FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+    BoardNoise, FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
 };
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -121,6 +121,20 @@ fn variants(
         };
     let axis_noisy = with_axis_noise(rec)?;
     let refined_axis_noisy = with_axis_noise(&refined)?;
+    // Each board's σ from its worst axis (`BoardNoise::worst_axis`).
+    let worst = |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
+        let n = r
+            .nominal_suit
+            .board_noise()
+            .iter()
+            .map(BoardNoise::worst_axis)
+            .collect();
+        let mut out = r.clone();
+        out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+        Ok(out)
+    };
+    let worst_noisy = worst(&axis_noisy)?;
+    let refined_worst_noisy = worst(&refined_axis_noisy)?;
     let (huber, cauchy) = (
         params.with_distance_robust(RobustLoss::Huber { k: 1.345 }),
         params.with_distance_robust(RobustLoss::Cauchy { c: 2.385 }),
@@ -172,6 +186,8 @@ fn variants(
         "per_axis_noise_cauchy": stats(&run_filter(skeleton, &axis_noisy, cauchy, true, joints)?),
         "heading_refined_per_axis_noise": stats(&run_filter(skeleton, &refined_axis_noisy, params, true, joints)?),
         "heading_refined_per_axis_noise_cauchy": stats(&run_filter(skeleton, &refined_axis_noisy, cauchy, true, joints)?),
+        "worst_axis_noise": stats(&run_filter(skeleton, &worst_noisy, params, true, joints)?),
+        "heading_refined_worst_axis_noise": stats(&run_filter(skeleton, &refined_worst_noisy, params, true, joints)?),
     }))
 }
 
@@ -496,6 +512,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "per_axis_noise_cauchy",
                     "heading_refined_per_axis_noise",
                     "heading_refined_per_axis_noise_cauchy",
+                    "worst_axis_noise",
+                    "heading_refined_worst_axis_noise",
                 ] {
                     let f = |a: &Value| a.as_f64().unwrap_or(f64::NAN);
                     let i = &v[key]["innovations"];

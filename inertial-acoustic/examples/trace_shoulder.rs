@@ -1245,10 +1245,7 @@ fn axes_trace(
                     .nominal_suit
                     .board_noise()
                     .iter()
-                    .map(|n| {
-                        let m = |v: [f64; 3]| v[0].max(v[1]).max(v[2]);
-                        BoardNoise::new(m(n.gyroscope_axes()), m(n.accelerometer_axes()))
-                    })
+                    .map(BoardNoise::worst_axis)
                     .collect();
                 let mut out = r.clone();
                 out.nominal_suit = out.nominal_suit.with_board_noise(n).unwrap();

@@ -357,6 +357,10 @@ mod tests {
         );
         // Pooled NIS (100 + 0.5 + 4) / 3 for the board's own σ.
         assert!(close(n[0].gyroscope_sigma, 0.01 * (104.5f64 / 3.0).sqrt()));
+        // The worst axis on all three.
+        let w = n[0].worst_axis();
+        assert!(w.gyroscope_axes().iter().all(|&s| close(s, 0.1)) && close(w.gyroscope_sigma, 0.1));
+        assert!(close(n[1].worst_axis().accelerometer_sigma, 4.0));
         assert!(n[0].accelerometer_axes().iter().all(|&s| close(s, 2.0)));
         let flat = board_noise_from_innovations(
             &[
