@@ -94,11 +94,22 @@ pub struct IntegrationParams {
     /// to its layer's depth. Without evidence ([`integrate_normals_with_evidence`] given none,
     /// the first integration of a pass) every straddling pixel keeps its own proxy's layer;
     /// with evidence (the first matching's depths) a straddling pixel takes the layer nearest
-    /// its matched depth if that is within half the jump threshold, and is removed as in the
-    /// thesis otherwise (no match, or a match on neither layer). Default false (the thesis:
-    /// "pixels straddling depth discontinuities removed").
+    /// its matched depth if that is within [`IntegrationParams::layer_agreement`] of the jump
+    /// threshold, and is removed as in the thesis otherwise (no match, or a match on neither
+    /// layer). Default false (the thesis: "pixels straddling depth discontinuities removed";
+    /// measured at 1024² in `docs/photometric-normals.md`, *Layers at discontinuities*).
     #[serde(default)]
     pub layers: bool,
+    /// With [`IntegrationParams::layers`] and evidence, how near (as a fraction of the jump
+    /// threshold) the evidence must be to a layer's depth for a straddling pixel to be kept
+    /// on it. Default 0.5 (ours: the nearest layer is then unambiguous, as the layers differ
+    /// by more than the threshold).
+    #[serde(default = "default_layer_agreement")]
+    pub layer_agreement: f64,
+}
+
+fn default_layer_agreement() -> f64 {
+    0.5
 }
 
 /// The solver of Eq. 3.3's normal equations `(AᵀA + α CᵀC) z = α Cᵀ z̄`.
@@ -132,6 +143,7 @@ impl Default for IntegrationParams {
             solver: IntegrationSolver::default(),
             cut_proxy_links: false,
             layers: false,
+            layer_agreement: default_layer_agreement(),
         }
     }
 }
@@ -162,6 +174,7 @@ impl IntegrationParams {
         check::non_negative("alpha", self.alpha)?;
         check::positive("proxy_jump_m", self.proxy_jump_m)?;
         check::positive("match_jump_m", self.match_jump_m)?;
+        check::positive("layer_agreement", self.layer_agreement)?;
         if let IntegrationSolver::Multigrid(mg) = &self.solver {
             mg.validate()?;
         }
@@ -445,12 +458,13 @@ pub fn rendered_normals(camera: &Camera, view: &RenderedView) -> Result<NormalMa
 /// of the side it is assigned to) and whether a straddling pixel is removed. Without
 /// `evidence` every straddling pixel stays on its own proxy's layer; with it, it takes the
 /// candidate (its own proxy depth, or a 4-neighbour's across a jump) nearest its evidence
-/// depth if that is within half of `jump_m`, and is removed otherwise.
+/// depth if that is within `agreement` × `jump_m`, and is removed otherwise.
 fn layer_depths(
     proxy: &DepthMap,
     jumps: &Mask,
     evidence: Option<&DepthMap>,
     jump_m: f64,
+    agreement: f64,
 ) -> (Vec<f64>, Vec<bool>) {
     let (w, h) = (proxy.width as usize, proxy.height as usize);
     let p = &proxy.depth_m;
@@ -486,7 +500,7 @@ fn layer_depths(
             .filter(|d| !d.is_nan())
             .min_by(|a, b| (a - e).abs().total_cmp(&(b - e).abs()));
         match best {
-            Some(d) if (d - e).abs() <= 0.5 * jump_m => layer[i] = d,
+            Some(d) if (d - e).abs() <= agreement * jump_m => layer[i] = d,
             _ => removed[i] = true,
         }
     }
@@ -612,7 +626,13 @@ pub fn integrate_normals_with_evidence(
     // With `layers`, each straddling pixel's layer depth (`None`: removed); elsewhere the
     // layer depth is the proxy's.
     let layer_depth = if params.layers {
-        Some(layer_depths(proxy, &proxy_jumps, evidence, jump_m))
+        Some(layer_depths(
+            proxy,
+            &proxy_jumps,
+            evidence,
+            jump_m,
+            params.layer_agreement,
+        ))
     } else {
         None
     };
@@ -994,7 +1014,12 @@ mod tests {
             "{:?}",
             out.report
         );
-        // Evidence of another size is an error.
+        // Evidence of another size and a non-positive agreement are errors.
+        let bad = IntegrationParams {
+            layer_agreement: 0.0,
+            ..layered
+        };
+        assert!(integrate_normals(&cam, &normals, &jumpy, None, &bad).is_err());
         let small = DepthMap::empty(8, 8).unwrap();
         assert!(integrate_normals_with_evidence(
             &cam,
