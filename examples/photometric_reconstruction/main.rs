@@ -119,6 +119,14 @@ struct Args {
     /// Pass 2's proxy-jump threshold, m per pixel at 1024 px (default 0.02).
     #[arg(long)]
     pass2_proxy_jump_m: Option<f64>,
+    /// Pass 2 integrates the pixels straddling the proxy's jumps on the layer (side) their
+    /// first matching agrees with (`IntegrationParams::layers`; issue 14, seventh session).
+    #[arg(long)]
+    pass2_layers: bool,
+    /// With `--pass2-layers`: how near the matched depth must be to a layer, as a fraction of
+    /// the proxy-jump threshold (`IntegrationParams::layer_agreement`, default 0.5).
+    #[arg(long)]
+    pass2_layer_agreement: Option<f64>,
     /// Longest edge of the smooth, consistent true surface (`TrueSurface::Smooth`: every face
     /// Phong-tessellated), mm; 0: the polygonal mesh (issue 14, sixth session). Default 0: with part-1 normals
     /// Table 3.1 and the distances moved by ≤ 0.2° / 0.2 mm at 512² with a 4 mm smooth truth,
@@ -218,6 +226,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     rparams.scale_merge_jump = args.scale_merge_jump;
     if let Some(m) = args.pass2_proxy_jump_m {
         rparams.pass2.integration.proxy_jump_m = m;
+    }
+    rparams.pass2.integration.layers = args.pass2_layers;
+    if let Some(a) = args.pass2_layer_agreement {
+        rparams.pass2.integration.layer_agreement = a;
     }
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();

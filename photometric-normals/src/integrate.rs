@@ -87,6 +87,29 @@ pub struct IntegrationParams {
     /// link between them is wrong.
     #[serde(default)]
     pub cut_proxy_links: bool,
+    /// Layers at the proxy's jumps (ours, issue 14): the pixels straddling a proxy jump are
+    /// not removed but each assigned to one side of it — a *layer*, the proxy depth of the
+    /// pixel itself or of a 4-neighbour across the jump — and linked by Eq. 3.3 only to
+    /// neighbours on the same layer (layer depths within the jump threshold), anchored by α
+    /// to its layer's depth. Without evidence ([`integrate_normals_with_evidence`] given none,
+    /// the first integration of a pass) every straddling pixel keeps its own proxy's layer;
+    /// with evidence (the first matching's depths) a straddling pixel takes the layer nearest
+    /// its matched depth if that is within [`IntegrationParams::layer_agreement`] of the jump
+    /// threshold, and is removed as in the thesis otherwise (no match, or a match on neither
+    /// layer). Default false (the thesis: "pixels straddling depth discontinuities removed";
+    /// measured at 1024² in `docs/photometric-normals.md`, *Layers at discontinuities*).
+    #[serde(default)]
+    pub layers: bool,
+    /// With [`IntegrationParams::layers`] and evidence, how near (as a fraction of the jump
+    /// threshold) the evidence must be to a layer's depth for a straddling pixel to be kept
+    /// on it. Default 0.5 (ours: the nearest layer is then unambiguous, as the layers differ
+    /// by more than the threshold).
+    #[serde(default = "default_layer_agreement")]
+    pub layer_agreement: f64,
+}
+
+fn default_layer_agreement() -> f64 {
+    0.5
 }
 
 /// The solver of Eq. 3.3's normal equations `(AᵀA + α CᵀC) z = α Cᵀ z̄`.
@@ -119,6 +142,8 @@ impl Default for IntegrationParams {
             refit_scale: true,
             solver: IntegrationSolver::default(),
             cut_proxy_links: false,
+            layers: false,
+            layer_agreement: default_layer_agreement(),
         }
     }
 }
@@ -149,6 +174,7 @@ impl IntegrationParams {
         check::non_negative("alpha", self.alpha)?;
         check::positive("proxy_jump_m", self.proxy_jump_m)?;
         check::positive("match_jump_m", self.match_jump_m)?;
+        check::positive("layer_agreement", self.layer_agreement)?;
         if let IntegrationSolver::Multigrid(mg) = &self.solver {
             mg.validate()?;
         }
@@ -427,6 +453,60 @@ pub fn rendered_normals(camera: &Camera, view: &RenderedView) -> Result<NormalMa
     })
 }
 
+/// The layers at a proxy's jumps ([`IntegrationParams::layers`]): per pixel the depth of the
+/// layer it is integrated on (the proxy's, or for a pixel straddling a jump the proxy depth
+/// of the side it is assigned to) and whether a straddling pixel is removed. Without
+/// `evidence` every straddling pixel stays on its own proxy's layer; with it, it takes the
+/// candidate (its own proxy depth, or a 4-neighbour's across a jump) nearest its evidence
+/// depth if that is within `agreement` × `jump_m`, and is removed otherwise.
+fn layer_depths(
+    proxy: &DepthMap,
+    jumps: &Mask,
+    evidence: Option<&DepthMap>,
+    jump_m: f64,
+    agreement: f64,
+) -> (Vec<f64>, Vec<bool>) {
+    let (w, h) = (proxy.width as usize, proxy.height as usize);
+    let p = &proxy.depth_m;
+    let mut layer = p.clone();
+    let mut removed = vec![false; p.len()];
+    let Some(evidence) = evidence else {
+        return (layer, removed);
+    };
+    for i in 0..p.len() {
+        let (x, y) = (i % w, i / w);
+        if !jumps.get(x as u32, y as u32) {
+            continue;
+        }
+        let e = evidence.depth_m[i];
+        if e.is_nan() {
+            removed[i] = true;
+            continue;
+        }
+        let neighbours = [
+            (x > 0).then(|| i - 1),
+            (x + 1 < w).then(|| i + 1),
+            (y > 0).then(|| i - w),
+            (y + 1 < h).then(|| i + w),
+        ];
+        let best = std::iter::once(p[i])
+            .chain(
+                neighbours
+                    .into_iter()
+                    .flatten()
+                    .map(|j| p[j])
+                    .filter(|d| (d - p[i]).abs() > jump_m),
+            )
+            .filter(|d| !d.is_nan())
+            .min_by(|a, b| (a - e).abs().total_cmp(&(b - e).abs()));
+        match best {
+            Some(d) if (d - e).abs() <= agreement * jump_m => layer[i] = d,
+            _ => removed[i] = true,
+        }
+    }
+    (layer, removed)
+}
+
 /// Labels the 4-connected regions of `inside` (row-major); `usize::MAX` outside.
 /// Connected regions of `inside` through the 4-neighbour links that `linked(i, j)` keeps
 /// (right and lower neighbours), labelled as [`regions`] (`usize::MAX` outside).
@@ -497,6 +577,24 @@ pub fn integrate_normals(
     match_breaks: Option<&Mask>,
     params: &IntegrationParams,
 ) -> Result<Integrated> {
+    integrate_normals_with_evidence(camera, normals, proxy, match_breaks, None, params)
+}
+
+/// [`integrate_normals`] with `evidence`, depths along the rays (e.g. the mean matched depth
+/// of the pass's first matching, `NaN` where none) that decide, with
+/// [`IntegrationParams::layers`], on which side of a proxy jump each straddling pixel is
+/// integrated. Without `layers` the evidence is not used.
+///
+/// # Errors
+/// As [`integrate_normals`]; [`Error::SizeMismatch`] for evidence of another size.
+pub fn integrate_normals_with_evidence(
+    camera: &Camera,
+    normals: &NormalMap,
+    proxy: &DepthMap,
+    match_breaks: Option<&Mask>,
+    evidence: Option<&DepthMap>,
+    params: &IntegrationParams,
+) -> Result<Integrated> {
     params.validate()?;
     let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
     let n_px = w as usize * h as usize;
@@ -505,6 +603,9 @@ pub fn integrate_normals(
     check::same_size("normal map validity flags", n_px, normals.valid.len())?;
     if let Some(m) = match_breaks {
         check::same_size("matching discontinuity mask", n_px, m.pixel_count())?;
+    }
+    if let Some(e) = evidence {
+        check::same_size("evidence depth map pixels", n_px, e.depth_m.len())?;
     }
     for (n, _) in normals
         .normals
@@ -522,17 +623,33 @@ pub fn integrate_normals(
     let mut report = IntegrationReport::default();
     let jump_m = IntegrationParams::jump_threshold_m(params.proxy_jump_m, w);
     let proxy_jumps = depth_jumps(proxy, jump_m)?;
-    // With `cut_proxy_links` the pixels stay and only the links across a jump are cut.
-    let linked = |i: usize, j: usize| {
-        !(params.cut_proxy_links && (proxy.depth_m[i] - proxy.depth_m[j]).abs() > jump_m)
+    // With `layers`, each straddling pixel's layer depth (`None`: removed); elsewhere the
+    // layer depth is the proxy's.
+    let layer_depth = if params.layers {
+        Some(layer_depths(
+            proxy,
+            &proxy_jumps,
+            evidence,
+            jump_m,
+            params.layer_agreement,
+        ))
+    } else {
+        None
     };
+    let layer = layer_depth.as_ref().map_or(&proxy.depth_m, |(d, _)| d);
+    // With `cut_proxy_links` the pixels stay and only the links across a jump are cut; with
+    // `layers`, only the links between pixels on the same layer are kept.
+    let cut_links = params.cut_proxy_links || params.layers;
+    let linked = |i: usize, j: usize| !(cut_links && (layer[i] - layer[j]).abs() > jump_m);
     let mut inside = normals.valid.clone();
     for (i, keep) in inside.iter_mut().enumerate() {
         if !*keep {
             continue;
         }
         let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
-        if proxy_jumps.get(x, y) && !params.cut_proxy_links {
+        let kept_on_layer =
+            params.cut_proxy_links || layer_depth.as_ref().is_some_and(|(_, removed)| !removed[i]);
+        if proxy_jumps.get(x, y) && !kept_on_layer {
             report.removed_proxy_jumps += 1;
             *keep = false;
         } else if match_breaks.is_some_and(|m| m.get(x, y)) {
@@ -541,7 +658,7 @@ pub fn integrate_normals(
         }
     }
     // Regions without a proxy depth (scale undetermined) or too small are left out.
-    let (label, count) = if params.cut_proxy_links {
+    let (label, count) = if cut_links {
         linked_regions(w, &inside, linked)
     } else {
         regions(w, h, &inside)?
@@ -551,7 +668,7 @@ pub fn integrate_normals(
     for i in 0..n_px {
         if label[i] != usize::MAX {
             size[label[i]] += 1;
-            anchored[label[i]] |= !proxy.depth_m[i].is_nan();
+            anchored[label[i]] |= !layer[i].is_nan();
         }
     }
     for i in 0..n_px {
@@ -584,14 +701,14 @@ pub fn integrate_normals(
     report.normal_constraints = rows.len();
     let anchors: Vec<(usize, f64)> = pixels
         .iter()
-        .filter(|&&i| !proxy.depth_m[i].is_nan())
-        .map(|&i| (unknown[i], proxy.depth_m[i]))
+        .filter(|&&i| !layer[i].is_nan())
+        .map(|&i| (unknown[i], layer[i]))
         .collect();
     report.depth_constraints = anchors.len();
     let mut z = match &params.solver {
         IntegrationSolver::Direct => solve_direct(n, &rows, &anchors, params.alpha)?,
         IntegrationSolver::Multigrid(mg) => {
-            let z0 = warm_start(&pixels, &label, count, &proxy.depth_m);
+            let z0 = warm_start(&pixels, &label, count, layer);
             let system = GridSystem {
                 width: w,
                 height: h,
@@ -607,7 +724,7 @@ pub fn integrate_normals(
         }
     };
     if params.refit_scale {
-        refit_region_scales(&pixels, &label, count, &proxy.depth_m, &mut z);
+        refit_region_scales(&pixels, &label, count, layer, &mut z);
     }
     let mut depth = vec![f64::NAN; n_px];
     for (k, &i) in pixels.iter().enumerate() {
@@ -808,6 +925,111 @@ mod tests {
         )
         .unwrap();
         assert!(out.report.removed_match_jumps > 20, "{:?}", out.report);
+    }
+
+    #[test]
+    fn layers_put_straddling_pixels_on_the_side_their_evidence_agrees_with() {
+        let (cam, normals, truth, proxy) = sphere_view();
+        // The proxy's right half 1 m farther: a jump between columns 47 and 48 that the true
+        // (continuous) sphere does not have, so column 48 truly lies on the near layer.
+        let mut jumpy = proxy.clone();
+        for y in 0..96 {
+            for x in 48..96 {
+                let i = jumpy.index(x, y);
+                jumpy.depth_m[i] += 1.0;
+            }
+        }
+        let layered = IntegrationParams {
+            layers: true,
+            ..IntegrationParams::default()
+        };
+        // Without evidence every straddling pixel stays, on its own proxy's layer (as the
+        // link cut).
+        let own = integrate_normals(&cam, &normals, &jumpy, None, &layered).unwrap();
+        assert_eq!(own.report.removed_proxy_jumps, 0, "{:?}", own.report);
+        let cut = IntegrationParams {
+            cut_proxy_links: true,
+            ..IntegrationParams::default()
+        };
+        let linked = integrate_normals(&cam, &normals, &jumpy, None, &cut).unwrap();
+        let bits = |d: &DepthMap| d.depth_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&own.depth) == bits(&linked.depth));
+        // Evidence: the true depth from row 30 down, none above.
+        let evidence = DepthMap::new(
+            96,
+            96,
+            (0..96 * 96)
+                .map(|i| {
+                    if i / 96 >= 30 {
+                        truth.depth_m[i]
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let out = integrate_normals_with_evidence(
+            &cam,
+            &normals,
+            &jumpy,
+            None,
+            Some(&evidence),
+            &layered,
+        )
+        .unwrap();
+        // The step from column 47 to 48 along a row (the true sphere's is millimetres).
+        let step =
+            |d: &DepthMap, y: u32| (d.depth_m[d.index(48, y)] - d.depth_m[d.index(47, y)]).abs();
+        let mut checked = 0;
+        for y in 30..96 {
+            let (l, r) = (out.depth.index(47, y), out.depth.index(48, y));
+            if truth.depth_m[l].is_nan() || truth.depth_m[r].is_nan() {
+                continue;
+            }
+            // Column 48 is integrated on the near layer with its left neighbours, where its
+            // own proxy's layer puts it 1 m farther.
+            assert!(
+                step(&out.depth, y) < 0.01,
+                "row {y}: {}",
+                step(&out.depth, y)
+            );
+            assert!(
+                step(&own.depth, y) > 0.5,
+                "row {y}: {}",
+                step(&own.depth, y)
+            );
+            checked += 1;
+        }
+        assert!(checked > 20, "{checked}");
+        // Above row 30 the straddling pixels have no evidence and are removed, as the thesis.
+        let jumps = depth_jumps(&jumpy, IntegrationParams::jump_threshold_m(0.02, 96)).unwrap();
+        let straddling_above = (0..30u32)
+            .flat_map(|y| (0..96u32).map(move |x| (x, y)))
+            .filter(|&(x, y)| jumps.get(x, y) && normals.valid[jumpy.index(x, y)])
+            .count();
+        assert!(straddling_above > 5, "{straddling_above}");
+        assert_eq!(
+            out.report.removed_proxy_jumps, straddling_above,
+            "{:?}",
+            out.report
+        );
+        // Evidence of another size and a non-positive agreement are errors.
+        let bad = IntegrationParams {
+            layer_agreement: 0.0,
+            ..layered
+        };
+        assert!(integrate_normals(&cam, &normals, &jumpy, None, &bad).is_err());
+        let small = DepthMap::empty(8, 8).unwrap();
+        assert!(integrate_normals_with_evidence(
+            &cam,
+            &normals,
+            &jumpy,
+            None,
+            Some(&small),
+            &layered
+        )
+        .is_err());
     }
 
     #[test]

@@ -124,8 +124,9 @@ pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
-    depth_errors, depth_jumps, integrate_normals, rendered_normals, DepthErrors, Integrated,
-    IntegrationParams, IntegrationReport, IntegrationSolver, THESIS_WIDTH_PX,
+    depth_errors, depth_jumps, integrate_normals, integrate_normals_with_evidence,
+    rendered_normals, DepthErrors, Integrated, IntegrationParams, IntegrationReport,
+    IntegrationSolver, THESIS_WIDTH_PX,
 };
 pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,

@@ -28,9 +28,9 @@ use skin_core::camera::Camera;
 
 use crate::integrate::{neighbour_pairs, regions, IntegrationParams};
 use crate::{
-    depth_errors, integrate_normals, match_pair, Context, DepthErrors, DepthMap, Error, Integrated,
-    IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap, PairMatches, Result,
-    ResultExt, VisualHull,
+    depth_errors, integrate_normals_with_evidence, match_pair, Context, DepthErrors, DepthMap,
+    Error, Integrated, IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap,
+    PairMatches, Result, ResultExt, VisualHull,
 };
 
 /// Knobs of Eq. 3.4.
@@ -354,24 +354,26 @@ pub fn per_view_surfaces(
         });
     }
     let mut times = SurfaceTimes::default();
-    let integrate_all = |breaks: Option<&[Mask]>, times: &mut SurfaceTimes| {
-        let t = Instant::now();
-        let out = (0..n)
-            .into_par_iter()
-            .map(|c| {
-                integrate_normals(
-                    &cameras[c],
-                    &normals[c],
-                    &proxies[c],
-                    breaks.map(|b| &b[c]),
-                    &params.integration,
-                )
-                .at(Context::Camera(c))
-            })
-            .collect::<Result<Vec<Integrated>>>();
-        times.integration_s += t.elapsed().as_secs_f64();
-        out
-    };
+    let integrate_all =
+        |breaks: Option<&[Mask]>, ev: Option<&[DepthMap]>, times: &mut SurfaceTimes| {
+            let t = Instant::now();
+            let out = (0..n)
+                .into_par_iter()
+                .map(|c| {
+                    integrate_normals_with_evidence(
+                        &cameras[c],
+                        &normals[c],
+                        &proxies[c],
+                        breaks.map(|b| &b[c]),
+                        ev.map(|e| &e[c]),
+                        &params.integration,
+                    )
+                    .at(Context::Camera(c))
+                })
+                .collect::<Result<Vec<Integrated>>>();
+            times.integration_s += t.elapsed().as_secs_f64();
+            out
+        };
     let match_all = |surfaces: &[DepthMap], times: &mut SurfaceTimes| {
         let t = Instant::now();
         let out = pairs
@@ -389,7 +391,7 @@ pub fn per_view_surfaces(
         times.matching_s += t.elapsed().as_secs_f64();
         out
     };
-    let first = integrate_all(None, &mut times)?;
+    let first = integrate_all(None, None, &mut times)?;
     let first_surfaces: Vec<DepthMap> = first.into_iter().map(|i| i.depth).collect();
     let first_matches = match_all(&first_surfaces, &mut times)?;
     let mut breaks: Vec<Vec<bool>> = cameras
@@ -408,7 +410,25 @@ pub fn per_view_surfaces(
         .zip(&breaks)
         .map(|(c, f)| Mask::from_bools(c.intrinsics.width, c.intrinsics.height, f))
         .collect::<std::result::Result<_, _>>()?;
-    let second = integrate_all(Some(&breaks), &mut times)?;
+    // With layers at the proxy's jumps, the first matching's depths decide the side of each
+    // straddling pixel in the second integration.
+    let evidence = if params.integration.layers {
+        let mut per_view: Vec<Vec<&DepthMap>> = vec![Vec::new(); n];
+        for (m, &(a, b)) in first_matches.iter().zip(pairs) {
+            per_view[a].push(&m.left.target);
+            per_view[b].push(&m.right.target);
+        }
+        Some(
+            per_view
+                .iter()
+                .zip(&first_surfaces)
+                .map(|(maps, s)| mean_depth(s.width, s.height, maps))
+                .collect::<Result<Vec<DepthMap>>>()?,
+        )
+    } else {
+        None
+    };
+    let second = integrate_all(Some(&breaks), evidence.as_deref(), &mut times)?;
     let integration: Vec<IntegrationReport> = second.iter().map(|i| i.report).collect();
     let integrated: Vec<DepthMap> = second.into_iter().map(|i| i.depth).collect();
     let matches = match_all(&integrated, &mut times)?;
@@ -438,6 +458,29 @@ pub fn per_view_surfaces(
         integration,
         times,
     })
+}
+
+/// The mean of `maps` per pixel over those with a depth (`NaN` where none has one).
+fn mean_depth(width: u32, height: u32, maps: &[&DepthMap]) -> Result<DepthMap> {
+    let n_px = width as usize * height as usize;
+    for m in maps {
+        check::same_size("matched depth map pixels", n_px, m.depth_m.len())?;
+    }
+    let depth = (0..n_px)
+        .map(|i| {
+            let (sum, count) = maps
+                .iter()
+                .map(|m| m.depth_m[i])
+                .filter(|d| !d.is_nan())
+                .fold((0.0, 0usize), |(s, c), d| (s + d, c + 1));
+            if count > 0 {
+                sum / count as f64
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    DepthMap::new(width, height, depth)
 }
 
 /// Pooled accuracy of one pass's per-view surfaces against reference depth maps (e.g. the
