@@ -2,7 +2,7 @@
 //! control (issue 14): where are the degrees lost? Ignored by default (a diagnostic, not a
 //! check): `TRACE_SIZE=512 cargo test --release --test photometric_normal_trace -- --ignored
 //! --nocapture`; `TRACE_TRUTH_MM=4` traces the smooth, consistent true surface instead of the
-//! polygonal mesh, and `studio_truth_facet_gap` measures the gap between the two surfaces'
+//! polygonal mesh, `TRACE_SUBPIXEL=1` adds the per-view stage with sub-pixel matches, and `studio_truth_facet_gap` measures the gap between the two surfaces'
 //! facets and shading normals).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
@@ -22,7 +22,7 @@ use dynamic_shapes::photometric::truth::{
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
     surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
-    MetricParams, NormalMap, OffsetParams, SurfaceParams, VisualHullParams,
+    MetricParams, NormalMap, OffsetParams, SubPixel, SurfaceParams, VisualHullParams,
 };
 
 const CAMERAS: usize = 8;
@@ -265,6 +265,23 @@ fn trace_normal_deviation_through_the_stages() {
     ctx.per_view("per-view: offsets β=0.1 (default)", &out.surfaces);
     let mut variants = vec![("β=0.1".to_string(), out.surfaces.clone())];
     let quick = std::env::var("TRACE_QUICK").is_ok();
+    // `TRACE_SUBPIXEL=1`: the per-view stage again with each sub-pixel refinement (issue 14).
+    if std::env::var("TRACE_SUBPIXEL").is_ok() {
+        for (name, mode) in [
+            ("cost parabola", SubPixel::CostParabola),
+            ("path fit", SubPixel::PathFit),
+        ] {
+            let mut params = SurfaceParams::default();
+            params.matching.subpixel = mode;
+            let t = Instant::now();
+            let sub =
+                per_view_surfaces(cams, &exact, &proxies, &pairs, Some(&hull), &params).unwrap();
+            println!("TRACE per-view, {name} {:.1} s", t.elapsed().as_secs_f64());
+            ctx.per_view(&format!("per-view: integrated, {name}"), &sub.integrated);
+            ctx.per_view(&format!("per-view: offsets β=0.1, {name}"), &sub.surfaces);
+            variants.push((format!("β=0.1 {name}"), sub.surfaces));
+        }
+    }
     let betas: &[f64] = if quick { &[] } else { &[0.01, 0.001, 0.0001] };
     for &beta in betas {
         let s: Vec<DepthMap> = (0..CAMERAS)

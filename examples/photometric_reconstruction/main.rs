@@ -72,8 +72,8 @@ use dynamic_shapes::photometric::{
     hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
     rendered_normals, surface_distance, table_metrics, BudgetInputs, DepthMap, IntegrationParams,
     MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams,
-    Reconstruction, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull,
-    VisualHullParams,
+    Reconstruction, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces,
+    VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -134,6 +134,11 @@ struct Args {
     /// studio truth"); 4 is the measured setting for the exact-normal control.
     #[arg(long)]
     truth_edge_mm: Option<f64>,
+    /// Sub-pixel matches in both passes and the control (`MatchingParams::subpixel`: `off`,
+    /// `cost` for `SubPixel::CostParabola`, `path` for `SubPixel::PathFit`; issue 14, docs:
+    /// "Sub-pixel matches and normal deviation").
+    #[arg(long, default_value = "off")]
+    subpixel_matches: String,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -219,11 +224,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
 
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
-    let params = SurfaceParams::default();
+    let subpixel = match args.subpixel_matches.as_str() {
+        "off" => SubPixel::Off,
+        "cost" => SubPixel::CostParabola,
+        "path" => SubPixel::PathFit,
+        other => return Err(format!("--subpixel-matches: off, cost or path, not {other}").into()),
+    };
+    let mut params = SurfaceParams::default();
+    params.matching.subpixel = subpixel;
     // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
     let mut rparams =
         ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
     rparams.scale_merge_jump = args.scale_merge_jump;
+    rparams.pass1.matching.subpixel = subpixel;
+    rparams.pass2.matching.subpixel = subpixel;
     if let Some(m) = args.pass2_proxy_jump_m {
         rparams.pass2.integration.proxy_jump_m = m;
     }
@@ -393,6 +407,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // End to end from the normal maps: the visual-hull proxy, then both passes.
         "seconds_per_frame": t_hull + t_two_pass,
         "scale_merge_jump": rparams.scale_merge_jump,
+        "subpixel_matches": format!("{:?}", rparams.pass1.matching.subpixel),
         "pass2_proxy_jump_m": rparams.pass2.integration.proxy_jump_m,
         "pass2_budget_no_surface_pct": table["pass2"]["budget_no_surface_pct"],
         "pass2_budget_gross_uncovered_pct": table["pass2"]["budget_gross_uncovered_pct"],

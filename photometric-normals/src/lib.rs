@@ -130,7 +130,7 @@ pub use integrate::{
 };
 pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
-    MatchingParams, PairMatches, ViewMatches,
+    MatchingParams, PairMatches, SubPixel, ViewMatches,
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use metrics::{
