@@ -9,7 +9,11 @@
 //!    worlds are axis-aligned; this keeps a leaning rest spine from tilting the trajectory).
 //! 2. For each mapped joint, a rest correction `Cⱼ` rotates the performer's rest bone direction
 //!    (towards its first mapped child, else its end site) onto the source's (`G`-rotated) rest
-//!    bone direction by the shortest arc; this absorbs T-pose vs A-pose differences.
+//!    bone direction by the shortest arc; this absorbs T-pose vs A-pose differences. A source
+//!    leaf's bone runs to its end site, else to the first joint down its first-child chain
+//!    that lies away from it: zero-length joints such as CMU's `LeftWrist → lhand` are skipped
+//!    (without that the wrist had no correction, and on the A-pose MakeHuman performer its
+//!    flexion flipped across ±180°).
 //! 3. Each frame, the performer joint's desired world rotation is `G · R_src(t) · Gᵀ · Cⱼ`
 //!    (source joints' rest world rotations are the identity in BVH), its local rotation is
 //!    taken relative to the parent's *achieved* rotation (errors do not accumulate) and
