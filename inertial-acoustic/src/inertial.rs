@@ -294,7 +294,12 @@ mod tests {
     #[test]
     fn saturated_samples_are_flagged_and_others_not() {
         let (mut enc, mut dec) = (DeltaCodec::new(), DeltaCodec::new());
-        // Slow: a sine of ±200 counts at 1 Hz moves at most 9 counts per 140 Hz frame.
+        // Lock both ends onto the first counts (as the simulator does), then a slow sine of
+        // ±200 counts at 1 Hz moves at most 9 counts per 140 Hz frame.
+        for _ in 0..160 {
+            let bits = enc.encode(&[2048, 2048, 2048, 100, 3000, 2048]).unwrap();
+            let _ = dec.decode(&bits).unwrap();
+        }
         for k in 0..280 {
             let v = 2048 + (200.0 * (TAU_F * k as f64 / 140.0).sin()) as i32;
             let bits = enc.encode(&[v, v, 2048, 100, 3000, 2048]).unwrap();
