@@ -309,10 +309,7 @@ fn corrupted_link_and_bad_inputs() {
     let suit = Suit::vlasic(&s).unwrap();
     let nb = suit.boards().len();
     let mut ekf = SkeletalEkf::new(s.clone(), suit, &s.rest_pose(), tuned(), &[]).unwrap();
-    let nan = InertialReading {
-        gyro_rad_s: DVec3::NAN,
-        accel_m_s2: DVec3::ZERO,
-    };
+    let nan = InertialReading::new(DVec3::NAN, DVec3::ZERO);
     let obs = FrameObservations {
         inertial: vec![Some(nan); nb],
         distances: vec![],
@@ -350,10 +347,7 @@ fn corrupted_link_and_bad_inputs() {
     assert!(model_recording(&s, ekf.suit(), &smooth, 0.0).is_err());
 
     // A diverging filter (absurd readings) is reset and flagged, never a NaN pose.
-    let wild = InertialReading {
-        gyro_rad_s: DVec3::splat(1e6),
-        accel_m_s2: DVec3::splat(1e7),
-    };
+    let wild = InertialReading::new(DVec3::splat(1e6), DVec3::splat(1e7));
     let obs = FrameObservations {
         inertial: vec![Some(wild); nb],
         distances: vec![],

@@ -6,7 +6,7 @@
 //! first-order step against the exact transition, the gate, q, the twist limit, half speed.
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
-//! [-- SECONDS [SEED] [walk | oracle | sigmas | budget | treadmill [sensors | causes | gate | q | twist | all]
+//! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | all]
 //! | axes [SEEDS]]]`
 //!
 //! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
@@ -208,6 +208,37 @@ fn main() {
         }
     }
     if args.get(3).is_some_and(|a| a == "oracle") {
+        return;
+    }
+    if args.get(3).is_some_and(|a| a == "sat") {
+        // Issue 15, seventh session: the decoder's saturation flags on the exercise motion,
+        // the flagged rows used or skipped (default), every sensor set.
+        let sim = SuitSimulator::new(&s, SimulationParams { seed, ..base }).unwrap();
+        let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+        let rec = sim.record(&smooth, &offsets).unwrap();
+        let (mut flagged, mut rows) = (0usize, 0usize);
+        for r in rec.frames.iter().flat_map(|f| f.inertial.iter().flatten()) {
+            flagged += r.saturated.iter().filter(|&&x| x).count();
+            rows += 6;
+        }
+        println!(
+            "flagged inertial rows: {flagged} of {rows} ({:.2} %)",
+            100.0 * flagged as f64 / rows.max(1) as f64
+        );
+        let p = tuned
+            .with_measurement_sigmas(2.0, 0.01, 0.0025)
+            .with_recentre_rad(0.3);
+        for skip in [false, true] {
+            for set in sets {
+                line(
+                    &format!("simulated, skip_saturated {skip}"),
+                    &s,
+                    &rec,
+                    p.with_skip_saturated(skip).with_sensors(set),
+                    &joints,
+                );
+            }
+        }
         return;
     }
     if args.get(3).is_some_and(|a| a == "sigmas") {
@@ -1000,6 +1031,45 @@ fn treadmill_trace(
             ("bare skeleton", bare),
         ] {
             suit_lines(&format!("simulated, {name}"), s, &sim, &smooth, tuned);
+        }
+    }
+    if what == "sat" || what == "all" {
+        // Issue 15, seventh session: the decoder's saturation flags (clipped counts, deltas at
+        // the 6-bit code's extremes), the filter using flagged rows or skipping them (default).
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let garment = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+        let bare = SuitSimulator::new(s, base).unwrap();
+        for (name, sim) in [("garment", garment), ("bare skeleton", bare)] {
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let rec = sim.record(&smooth, &offsets).unwrap();
+            for board in ["l_upper_arm", "l_forearm", "l_hand", "r_hand"] {
+                let b = suit.boards().iter().position(|b| b.name == board).unwrap();
+                let (mut gyro, mut accel, mut n) = (0usize, 0usize, 0usize);
+                for r in rec.frames.iter().filter_map(|f| f.inertial[b]) {
+                    n += 1;
+                    gyro += r.saturated[..3].iter().filter(|&&x| x).count();
+                    accel += r.saturated[3..].iter().filter(|&&x| x).count();
+                }
+                println!(
+                    "{name} {board}: flagged gyro rows {:.1} %, accel rows {:.1} % of {n} frames",
+                    100.0 * gyro as f64 / (3 * n).max(1) as f64,
+                    100.0 * accel as f64 / (3 * n).max(1) as f64
+                );
+            }
+            let no_d = SensorSet {
+                distances: false,
+                ..SensorSet::ALL
+            };
+            for skip in [false, true] {
+                for set in [SensorSet::ALL, no_d] {
+                    treadmill_line(
+                        &format!("{name}, skip_saturated {skip}"),
+                        s,
+                        &rec,
+                        tuned.with_skip_saturated(skip).with_sensors(set),
+                    );
+                }
+            }
         }
     }
     if what == "slew" || what == "all" {

@@ -35,12 +35,29 @@ use skin_core::skeleton::{
 };
 
 /// One board's inertial reading in its own axes.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct InertialReading {
     /// Gyroscope, rad/s.
     pub gyro_rad_s: DVec3,
     /// Accelerometer (specific force: reads +g upwards at rest), m/s².
     pub accel_m_s2: DVec3,
+    /// Per channel (gyroscope x, y, z, accelerometer x, y, z): the value is a bound, not a
+    /// reading — clipped at full scale or slew-saturated by the delta code
+    /// ([`crate::Saturation`]). Beyond the thesis; the filter skips flagged rows if
+    /// [`FilterParams::skip_saturated`] is set. Default: none flagged.
+    #[serde(default)]
+    pub saturated: [bool; crate::inertial::CHANNELS],
+}
+
+impl InertialReading {
+    /// A reading with no channel flagged.
+    pub fn new(gyro_rad_s: DVec3, accel_m_s2: DVec3) -> Self {
+        InertialReading {
+            gyro_rad_s,
+            accel_m_s2,
+            saturated: [false; crate::inertial::CHANNELS],
+        }
+    }
 }
 
 /// A distance from one pulse (§4.3.1).
@@ -90,6 +107,10 @@ pub struct StepReport {
     pub inertial_used: usize,
     /// Inertial readings skipped (missing or non-finite).
     pub inertial_skipped: usize,
+    /// Scalar inertial rows skipped because their channel was flagged saturated
+    /// ([`InertialReading::saturated`]).
+    #[serde(default)]
+    pub inertial_saturated: usize,
     /// Distances used.
     pub distances_used: usize,
     /// Distances not used (low confidence, source facing away, gate).
@@ -937,6 +958,10 @@ impl SkeletalEkf {
             )?;
             let chain = self.skeleton.chain_dofs(self.frames[b].joint).to_vec();
             for axis in 0..3 {
+                if reading.saturated[axis] && self.params.skip_saturated {
+                    report.inertial_saturated += 1;
+                    continue;
+                }
                 self.counting = (0, b, axis);
                 self.row.clear();
                 for &d in &chain {
@@ -1022,6 +1047,10 @@ impl SkeletalEkf {
             let z = reading.accel_m_s2;
             let r = self.board_r[b][1];
             for axis in 0..3 {
+                if reading.saturated[3 + axis] && self.params.skip_saturated {
+                    report.inertial_saturated += 1;
+                    continue;
+                }
                 self.counting = (1, b, axis);
                 self.row.clear();
                 for &(s, ht, hd, hdd) in &cols {
@@ -1134,6 +1163,7 @@ impl SkeletalEkf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::GRAVITY_M_S2;
     use skin_core::skeleton::{human_skeleton, HumanParams};
 
     /// What the sensors see: world positions, orientations, velocities and angular
@@ -1287,5 +1317,61 @@ mod tests {
                 (&ekf.p - &p_ref).amax()
             );
         }
+    }
+
+    /// With `skip_saturated`, flagged (saturated) channels are skipped row by row and counted;
+    /// without it they are used like any reading; unflagged readings are used either way.
+    #[test]
+    fn saturated_rows_are_skipped_unless_asked_for() {
+        let skeleton = human_skeleton(&HumanParams::default()).unwrap();
+        let suit = Suit::vlasic(&skeleton).unwrap();
+        let rest = skeleton.rest_pose();
+        let fk = skeleton.forward_kinematics(&rest).unwrap();
+        let nb = suit.boards().len();
+        let still: Vec<InertialReading> = suit
+            .boards()
+            .iter()
+            .map(|b| {
+                let q = fk.frame_rotation(&b.frame()).unwrap();
+                InertialReading::new(DVec3::ZERO, q.inverse() * DVec3::Y * GRAVITY_M_S2)
+            })
+            .collect();
+        let run = |flag: &dyn Fn(usize) -> [bool; crate::inertial::CHANNELS], skip| {
+            let p = FilterParams::default().with_skip_saturated(skip);
+            let mut ekf = SkeletalEkf::new(skeleton.clone(), suit.clone(), &rest, p, &[]).unwrap();
+            let obs = FrameObservations {
+                inertial: (0..nb)
+                    .map(|b| {
+                        Some(InertialReading {
+                            saturated: flag(b),
+                            ..still[b]
+                        })
+                    })
+                    .collect(),
+                distances: vec![],
+            };
+            ekf.step(&obs, None).unwrap()
+        };
+        let none = |_| [false; crate::inertial::CHANNELS];
+        // Board 0's gyroscope y and board 1's accelerometer z flagged.
+        let some = |b: usize| {
+            let mut f = [false; crate::inertial::CHANNELS];
+            if b == 0 {
+                f[1] = true;
+            }
+            if b == 1 {
+                f[5] = true;
+            }
+            f
+        };
+        let clean = run(&none, true);
+        assert_eq!(clean.inertial_saturated, 0);
+        assert_eq!(clean.inertial_used, 6 * nb);
+        let skipped = run(&some, true);
+        assert_eq!(skipped.inertial_saturated, 2);
+        assert_eq!(skipped.inertial_used, 6 * nb - 2);
+        let used = run(&some, false);
+        assert_eq!(used.inertial_saturated, 0);
+        assert_eq!(used.inertial_used, 6 * nb);
     }
 }

@@ -21,6 +21,47 @@ pub const CHANNELS: usize = 6;
 pub const FRAME_BITS: usize = CHANNELS * 11;
 /// Largest 12-bit count.
 const MAX_COUNT: i32 = 4095;
+/// Largest delta of the 6-bit code (two's complement, −32..=31 counts per frame).
+pub const DELTA_MAX: i32 = 31;
+/// Smallest delta of the 6-bit code.
+pub const DELTA_MIN: i32 = -32;
+/// A decoded count at or above this is at full scale: 4092 = 4 × 1023 is the largest sum of
+/// four 10-bit samples (§4.2.3's accumulation), 4095 the largest 12-bit count.
+pub const FULL_SCALE_HIGH: i32 = 4 * 1023;
+/// A decoded count at or below this is at the bottom of the scale.
+pub const FULL_SCALE_LOW: i32 = 0;
+
+/// Why a decoded channel is a bound rather than a reading (beyond the thesis, which does not
+/// discuss either: what a decoder of a real suit has to know).
+///
+/// - **Clipped**: the decoded count is at the converter's full scale ([`FULL_SCALE_LOW`],
+///   [`FULL_SCALE_HIGH`]); the quantity may be anywhere beyond it.
+/// - **Slew-saturated**: the frame's delta is at the 6-bit code's extreme ([`DELTA_MIN`] or
+///   [`DELTA_MAX`]); the encoder clamps larger changes, so the true count may be further
+///   still and the reconstruction lags it. A delta inside the code's range means the
+///   decoder's count is the encoder's exactly, so only the extremes are flagged.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Saturation {
+    /// The count is at full scale.
+    pub clipped: bool,
+    /// The delta is at the code's extreme.
+    pub slew: bool,
+}
+
+impl Saturation {
+    /// Either flag.
+    pub fn any(&self) -> bool {
+        self.clipped || self.slew
+    }
+
+    /// The flags of a decoded `count` reached by `delta`.
+    pub fn of(count: i32, delta: i32) -> Self {
+        Saturation {
+            clipped: count <= FULL_SCALE_LOW || count >= FULL_SCALE_HIGH,
+            slew: delta <= DELTA_MIN || delta >= DELTA_MAX,
+        }
+    }
+}
 
 /// Linear calibration of one axis: `value = (count − zero) / slope` (§4.3.3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -149,7 +190,7 @@ impl DeltaCodec {
                     reason: format!("{} is not a 12-bit count", counts[c]),
                 });
             }
-            let delta = (counts[c] - self.recon[c]).clamp(-32, 31);
+            let delta = (counts[c] - self.recon[c]).clamp(DELTA_MIN, DELTA_MAX);
             self.recon[c] += delta;
             codes[c] = hamming_encode((delta & 0x3F) as u8);
         }
@@ -197,11 +238,18 @@ impl DeltaCodec {
         self.last_delta = deltas;
         Some((self.recon, corrected))
     }
+
+    /// The saturation flags of the last frame [`decode`](Self::decode) returned, per channel
+    /// (gyroscope x, y, z, accelerometer x, y, z).
+    pub fn saturation(&self) -> [Saturation; CHANNELS] {
+        std::array::from_fn(|c| Saturation::of(self.recon[c], self.last_delta[c]))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    const TAU_F: f64 = std::f64::consts::TAU;
 
     #[test]
     fn hamming_corrects_one_and_flags_two_errors() {
@@ -239,6 +287,58 @@ mod tests {
         }
         // Delta modulation carries round-off forward: the sums agree to a code step.
         assert!((sum_in - sum_out).abs() < 64);
+    }
+
+    /// A step larger than the code's slew is flagged on every frame the decoder lags it; a
+    /// count at full scale is flagged as clipped; a slowly moving count is flagged nowhere.
+    #[test]
+    fn saturated_samples_are_flagged_and_others_not() {
+        let (mut enc, mut dec) = (DeltaCodec::new(), DeltaCodec::new());
+        // Lock both ends onto the first counts (as the simulator does), then a slow sine of
+        // ±200 counts at 1 Hz moves at most 9 counts per 140 Hz frame.
+        for _ in 0..160 {
+            let bits = enc.encode(&[2048, 2048, 2048, 100, 3000, 2048]).unwrap();
+            let _ = dec.decode(&bits).unwrap();
+        }
+        for k in 0..280 {
+            let v = 2048 + (200.0 * (TAU_F * k as f64 / 140.0).sin()) as i32;
+            let bits = enc.encode(&[v, v, 2048, 100, 3000, 2048]).unwrap();
+            let (out, _) = dec.decode(&bits).unwrap();
+            assert_eq!(out[0], v);
+            assert!(dec.saturation().iter().all(|s| !s.any()), "frame {k}");
+        }
+        // A jump of 200 counts on channel 0: 31 per frame, so 6 frames saturated, then exact.
+        let target = [2248, 2048, 2048, 2048, 2048, 2048];
+        let (mut enc, mut dec) = (DeltaCodec::new(), DeltaCodec::new());
+        let mut slewed = 0;
+        for _ in 0..20 {
+            let bits = enc.encode(&target).unwrap();
+            let (out, _) = dec.decode(&bits).unwrap();
+            let s = dec.saturation();
+            assert!(s[1..].iter().all(|s| !s.any()));
+            assert!(!s[0].clipped);
+            if s[0].slew {
+                slewed += 1;
+                assert!(out[0] < target[0], "a saturated delta lags");
+            } else {
+                assert_eq!(out[0], target[0]);
+            }
+        }
+        assert_eq!(slewed, 200 / 31);
+        // Downwards the extreme is −32.
+        let (mut enc, mut dec) = (DeltaCodec::new(), DeltaCodec::new());
+        let bits = enc.encode(&[1948, 2048, 2048, 2048, 2048, 2048]).unwrap();
+        let _ = dec.decode(&bits).unwrap();
+        assert!(dec.saturation()[0].slew && !dec.saturation()[0].clipped);
+        // Full scale: once the decoder reaches 4092 or 0 the channel is clipped.
+        let (mut enc, mut dec) = (DeltaCodec::new(), DeltaCodec::new());
+        for _ in 0..100 {
+            let bits = enc.encode(&[4092, 0, 4091, 1, 2048, 2048]).unwrap();
+            let _ = dec.decode(&bits).unwrap();
+        }
+        let s = dec.saturation();
+        assert!(s[0].clipped && s[1].clipped && !s[0].slew && !s[1].slew);
+        assert!(!s[2].any() && !s[3].any() && !s[4].any());
     }
 
     #[test]

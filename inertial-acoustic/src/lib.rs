@@ -56,7 +56,7 @@
 //!     .iter()
 //!     .map(|b| {
 //!         let up = fk.frame_rotation(&b.frame()).map(|q| q.inverse() * DVec3::Y * 9.80665);
-//!         up.map(|a| Some(InertialReading { gyro_rad_s: DVec3::ZERO, accel_m_s2: a }))
+//!         up.map(|a| Some(InertialReading::new(DVec3::ZERO, a)))
 //!     })
 //!     .collect::<Result<_, _>>()?;
 //! let root = skeleton.joint_dofs(0).collect::<Vec<_>>();
@@ -95,7 +95,10 @@ pub use ekf::{
 };
 pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, joint_swing_twist_errors_deg, ErrorStats};
-pub use inertial::{AxisCalibration, DeltaCodec, CHANNELS, FRAME_BITS};
+pub use inertial::{
+    AxisCalibration, DeltaCodec, Saturation, CHANNELS, DELTA_MAX, DELTA_MIN, FRAME_BITS,
+    FULL_SCALE_HIGH, FULL_SCALE_LOW,
+};
 pub use initialise::{
     board_axis_noise_from_innovations, board_noise_from_innovations, initialise, refine_headings,
     HeadingRefinement, Initialisation, MIN_HEADING_RATE_RAD_S,

@@ -351,10 +351,7 @@ mod tests {
     use crate::params::SensorSet;
 
     fn still(q: DQuat) -> InertialReading {
-        InertialReading {
-            gyro_rad_s: DVec3::ZERO,
-            accel_m_s2: q.inverse() * DVec3::Z * 9.80665,
-        }
+        InertialReading::new(DVec3::ZERO, q.inverse() * DVec3::Z * 9.80665)
     }
 
     #[test]

@@ -126,10 +126,8 @@ pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
         skin_core::check::all_finite("BROAD time and inertial values", r[..7].iter())
             .at(Context::Frame(i))?;
         rec.time_s.push(r[0]);
-        rec.readings.push(InertialReading {
-            gyro_rad_s: vec3(r, 1),
-            accel_m_s2: vec3(r, 4),
-        });
+        rec.readings
+            .push(InertialReading::new(vec3(r, 1), vec3(r, 4)));
         let q = DQuat::from_xyzw(r[11], r[12], r[13], r[10]);
         rec.reference
             .push(if q.is_finite() { q.normalize() } else { q });
@@ -155,10 +153,10 @@ pub fn read_xio_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
         skin_core::check::all_finite("x-io time and inertial values", r[..7].iter())
             .at(Context::Frame(i))?;
         rec.time_s.push(r[0]);
-        rec.readings.push(InertialReading {
-            gyro_rad_s: vec3(r, 1) * std::f64::consts::PI / 180.0,
-            accel_m_s2: vec3(r, 4) * GRAVITY_M_S2,
-        });
+        rec.readings.push(InertialReading::new(
+            vec3(r, 1) * std::f64::consts::PI / 180.0,
+            vec3(r, 4) * GRAVITY_M_S2,
+        ));
     }
     Ok(rec)
 }

@@ -1018,6 +1018,7 @@ impl SuitSimulator {
                     InertialReading {
                         gyro_rad_s: DVec3::new(v(0), v(1), v(2)),
                         accel_m_s2: DVec3::new(v(3), v(4), v(5)),
+                        saturated: decoders[b].saturation().map(|s| s.any()),
                     }
                 });
                 inertial_s += t0.elapsed().as_secs_f64();
@@ -1789,14 +1790,14 @@ pub fn model_recording(
                         * acc[d];
                 }
                 let to_local = fk.frame_rotation(&frames[b])?.inverse();
-                inertial.push(Some(InertialReading {
-                    gyro_rad_s: rates.frame_angular_velocity(
+                inertial.push(Some(InertialReading::new(
+                    rates.frame_angular_velocity(
                         &fk,
                         &frames[b],
                         skin_core::skeleton::AngularFrame::Local,
                     )?,
-                    accel_m_s2: to_local * (a + up),
-                }));
+                    to_local * (a + up),
+                )));
             }
             let mut distances = Vec::new();
             if ns > 0 {

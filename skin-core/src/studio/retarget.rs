@@ -9,7 +9,11 @@
 //!    worlds are axis-aligned; this keeps a leaning rest spine from tilting the trajectory).
 //! 2. For each mapped joint, a rest correction `Cⱼ` rotates the performer's rest bone direction
 //!    (towards its first mapped child, else its end site) onto the source's (`G`-rotated) rest
-//!    bone direction by the shortest arc; this absorbs T-pose vs A-pose differences.
+//!    bone direction by the shortest arc; this absorbs T-pose vs A-pose differences. A source
+//!    leaf's bone runs to its end site, else to the first joint down its first-child chain
+//!    that lies away from it: zero-length joints such as CMU's `LeftWrist → lhand` are skipped
+//!    (without that the wrist had no correction, and on the A-pose MakeHuman performer its
+//!    flexion flipped across ±180°).
 //! 3. Each frame, the performer joint's desired world rotation is `G · R_src(t) · Gᵀ · Cⱼ`
 //!    (source joints' rest world rotations are the identity in BVH), its local rotation is
 //!    taken relative to the parent's *achieved* rotation (errors do not accumulate) and
@@ -243,6 +247,36 @@ fn arc(a: DVec3, b: DVec3) -> DMat3 {
     DMat3::from_quat(DQuat::from_rotation_arc(a, b))
 }
 
+/// Rest direction (world, unnormalised) of the bone that source joint `s` rotates when no
+/// mapped child gives it: its end site, else the first joint down its first-child chain that
+/// lies away from `s` (or that joint's end site). BVH rigs often put a zero-length joint at
+/// the wrist: CMU's cgspeed `LeftWrist` has `lhand` at offset 0 and the hand's length in
+/// `lhand → LFingers`. Taking the first child's offset there gave a zero direction, so the
+/// wrist got no rest correction at all; on the MakeHuman performer, whose A-pose hand points
+/// ≈ 45° off the source's hanging one, the retargeted wrist then sat near the Euler angles'
+/// singularity (deviation 55–89°) and its flexion flipped between ±180° (the hand spinning at
+/// up to 364 rad/s).
+fn leaf_bone_direction(source: &Skeleton, rest_positions: &[DVec3], s: usize) -> DVec3 {
+    const MIN_LENGTH: f64 = 1e-9;
+    let joints = source.joints();
+    if let Some(e) = joints[s].end_site.filter(|e| e.length() > MIN_LENGTH) {
+        return e;
+    }
+    let mut at = s;
+    while let Some(c) = source.children(at).next() {
+        let d = rest_positions[c] - rest_positions[s];
+        if d.length() > MIN_LENGTH {
+            return d;
+        }
+        if let Some(e) = joints[c].end_site.filter(|e| e.length() > MIN_LENGTH) {
+            // Rest rotations are the identity in BVH: a local end site is a world offset.
+            return rest_positions[c] - rest_positions[s] + e;
+        }
+        at = c;
+    }
+    DVec3::ZERO
+}
+
 /// Orthonormal frame (left, up, forward) from an up and a left direction.
 fn body_frame(up: DVec3, left: DVec3) -> Result<DMat3> {
     let u = up.normalize_or_zero();
@@ -465,11 +499,7 @@ pub fn retarget(
             Some(c) => (tp[c] - tp[j], sp[src_of[c].unwrap_or(s)] - sp[s]),
             None => {
                 let dt = target.joints()[j].end_site.unwrap_or(DVec3::ZERO);
-                let ds = source.joints()[s]
-                    .end_site
-                    .or_else(|| source.children(s).next().map(|c| source.joints()[c].offset))
-                    .unwrap_or(DVec3::ZERO);
-                (dt, ds)
+                (dt, leaf_bone_direction(source, &sp, s))
             }
         };
         correction[j] = arc(dt, g * ds);

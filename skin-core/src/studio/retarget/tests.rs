@@ -579,3 +579,177 @@ fn trace_dof_rates_of_the_limited_walk() {
         println!("{}: {r:.1} rad/s at frame {f}", target.dof(*d).name);
     }
 }
+
+/// World angular velocities (rad/s) of joint `j`'s frame between consecutive frames.
+fn world_rates(s: &Skeleton, m: &Motion, j: usize) -> Vec<DVec3> {
+    let rots: Vec<DQuat> = (0..m.frame_count())
+        .map(|f| {
+            let fk = s.forward_kinematics(m.frame(f)).unwrap();
+            DQuat::from_mat3(&fk.world_from_joint()[j].matrix3)
+        })
+        .collect();
+    rots.windows(2)
+        .map(|w| {
+            let d = w[1] * w[0].inverse();
+            // The shorter of the two quaternions of the step.
+            let d = if d.w < 0.0 { -d } else { d };
+            d.to_scaled_axis() / m.frame_time_s
+        })
+        .collect()
+}
+
+/// Issue 15: the CMU rig's wrist is a zero-length joint (`LeftWrist → lhand` at offset 0, the
+/// hand's length in `lhand → LFingers`), so the wrist's rest correction used to be the
+/// identity. On the MakeHuman performer (A-pose hand ≈ 45° off the source's hanging one) the
+/// retargeted wrist then sat at the Euler singularity: flexion flipping across ±176°, the hand
+/// spinning at 364 rad/s against the source's 19. With the correction from the hand's real
+/// bone, the 2-DOF wrist (its dropped third angle is the twist about the hand) reproduces the
+/// source hand's direction exactly and turns no faster than the source's hand.
+#[test]
+fn cmu_wrists_follow_the_source_hands_on_the_makehuman_performer() {
+    let bvh = cmu_walk();
+    let target = super::super::tests::makehuman().skeleton.clone();
+    let out = retarget_walk(&bvh, &target, None).unwrap();
+    let g = DMat3::from_quat(out.performer_from_source);
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    for (side, sw, sf) in [
+        ("l", "LeftWrist", "LFingers"),
+        ("r", "RightWrist", "RFingers"),
+    ] {
+        let tw = target.joint_index(&format!("{side}_wrist")).unwrap();
+        let tip = target.joints()[tw].end_site.unwrap();
+        let (sw, sf) = (
+            bvh.skeleton.joint_index(sw).unwrap(),
+            bvh.skeleton.joint_index(sf).unwrap(),
+        );
+        let mut worst: f64 = 0.0;
+        let mut flexion = (f64::MAX, f64::MIN);
+        let d = target.joint_dofs(tw).next().unwrap();
+        for f in 0..bvh.motion.frame_count() {
+            let sp = bvh
+                .skeleton
+                .forward_kinematics(bvh.motion.frame(f))
+                .unwrap()
+                .joint_positions();
+            let fk = target.forward_kinematics(out.motion.frame(f)).unwrap();
+            let hand = fk.world_from_joint()[tw].matrix3 * tip;
+            worst = worst.max(hand.angle_between(g * (sp[sf] - sp[sw])));
+            let a = out.motion.frames[(d, f)];
+            flexion = (flexion.0.min(a), flexion.1.max(a));
+        }
+        assert!(worst < 1e-6, "{side} hand direction off by {worst} rad");
+        // Away from the ±π flip: the source's hands bend at most 67° off the forearm.
+        assert!(
+            flexion.0 > -2.0 && flexion.1 < 2.0,
+            "{side} wrist flexion {flexion:?} rad"
+        );
+        let src = world_rates(&bvh.skeleton, &bvh.motion, sw);
+        let got = world_rates(&target, &out.motion, tw);
+        let speed = |v: &[DVec3]| max(&v.iter().map(|w| w.length()).collect::<Vec<_>>());
+        assert!(
+            speed(&got) <= 1.1 * speed(&src) + 1.0,
+            "{side} hand {} rad/s, source {}",
+            speed(&got),
+            speed(&src)
+        );
+    }
+}
+
+/// Trace (run with `--ignored --nocapture`): the retargeted CMU walk's wrists on the human
+/// and the MakeHuman skeletons — angle ranges, the hand's world angular rate and
+/// acceleration.
+#[test]
+#[ignore]
+fn trace_cmu_wrists() {
+    let bvh = cmu_walk();
+    for sn in ["LeftElbow", "LeftWrist", "RightWrist"] {
+        let w = world_rates(
+            &bvh.skeleton,
+            &bvh.motion,
+            bvh.skeleton.joint_index(sn).unwrap(),
+        );
+        let mut acc: Vec<f64> = w
+            .windows(2)
+            .map(|p| (p[1] - p[0]).length() / bvh.motion.frame_time_s)
+            .collect();
+        acc.sort_by(f64::total_cmp);
+        let peak = w.iter().map(|v| v.length()).fold(0.0, f64::max);
+        println!(
+            "source {sn}: peak world rate {peak:.1} rad/s, angular acceleration median {:.0}, 99th pct {:.0} rad/s²",
+            acc[acc.len() / 2],
+            acc[acc.len() * 99 / 100]
+        );
+    }
+    // The hand's bend off the forearm's line, source and performers.
+    let bend = |s: &Skeleton, m: &Motion, [a, b, c, tip]: [&str; 4]| {
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for f in 0..m.frame_count() {
+            let fk = s.forward_kinematics(m.frame(f)).unwrap();
+            let p = fk.joint_positions();
+            let [a, b, c] = [a, b, c].map(|n| p[s.joint_index(n).unwrap()]);
+            let t = if tip.is_empty() {
+                let w = fk.world_from_joint()[s.joint_index("l_wrist").unwrap()];
+                w.transform_point3(
+                    s.joints()[s.joint_index("l_wrist").unwrap()]
+                        .end_site
+                        .unwrap(),
+                )
+            } else {
+                p[s.joint_index(tip).unwrap()]
+            };
+            let ang = (b - a).angle_between(t - c).to_degrees();
+            lo = lo.min(ang);
+            hi = hi.max(ang);
+        }
+        (lo, hi)
+    };
+    println!(
+        "source left hand bend off the forearm: {:.1?} deg",
+        bend(
+            &bvh.skeleton,
+            &bvh.motion,
+            ["LeftElbow", "LeftWrist", "LeftWrist", "LFingers"]
+        )
+    );
+    for (name, target) in [
+        ("human", human_skeleton(&HumanParams::default()).unwrap()),
+        (
+            "makehuman",
+            super::super::tests::makehuman().skeleton.clone(),
+        ),
+    ] {
+        let out = retarget_walk(&bvh, &target, Some(10.0)).unwrap();
+        let m = &out.motion;
+        println!(
+            "{name} left hand bend off the forearm: {:.1?} deg",
+            bend(&target, m, ["l_elbow", "l_wrist", "l_wrist", ""])
+        );
+        for j in ["l_elbow", "l_wrist", "r_wrist"] {
+            let ji = target.joint_index(j).unwrap();
+            for d in target.joint_dofs(ji) {
+                let v: Vec<f64> = (0..m.frame_count()).map(|f| m.frames[(d, f)]).collect();
+                let (lo, hi) = v
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
+                println!(
+                    "{name} {}: {:.1}..{:.1} deg",
+                    target.dof(d).name,
+                    lo.to_degrees(),
+                    hi.to_degrees()
+                );
+            }
+            let w = world_rates(&target, m, ji);
+            let mut acc: Vec<f64> = w
+                .windows(2)
+                .map(|p| (p[1] - p[0]).length() / m.frame_time_s)
+                .collect();
+            acc.sort_by(f64::total_cmp);
+            let peak = w.iter().map(|v| v.length()).fold(0.0, f64::max);
+            println!(
+                "{name} {j}: peak world rate {peak:.1} rad/s, angular acceleration median {:.0}, 99th pct {:.0} rad/s²",
+                acc[acc.len() / 2],
+                acc[acc.len() * 99 / 100]
+            );
+        }
+    }
+}
