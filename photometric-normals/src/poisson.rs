@@ -512,12 +512,11 @@ fn kernel_areas(qs: &[DVec3], depth: u32) -> Option<Vec<f64>> {
 
 /// The kernel's weight sum `ρ` and squared radius `r²` of one sample from the squared
 /// distances `d2` to its candidate neighbours (itself included), of which every sample within
-/// `r` (`r2_max = r²`) must be one: the [`DENSITY_NEIGHBOURS`] nearest are moved to the front,
-/// `r²` is the farthest of them (at most `r2_max`; `r2_max` when fewer than that many lie
-/// within `r`, or when they all sit at distance 0), and `ρ` sums over them — as
-/// [`tree_kernel_areas`] does over the kd-tree's nearest.
-fn kernel_sum(d2: &mut [f64], r2_max: f64) -> f64 {
-    let k = DENSITY_NEIGHBOURS.min(d2.len());
+/// `r` (`r2_max = r²`) must be one: the `k` nearest ([`DENSITY_NEIGHBOURS`], or all samples
+/// when fewer) are moved to the front, `r²` is the farthest of them (at most `r2_max`;
+/// `r2_max` when fewer than `k` lie within `r`, or when they all sit at distance 0), and `ρ`
+/// sums over them — as [`tree_kernel_areas`] does over the kd-tree's nearest.
+fn kernel_sum(d2: &mut [f64], r2_max: f64, k: usize) -> f64 {
     let near = if d2.len() > k {
         d2.select_nth_unstable_by(k - 1, f64::total_cmp);
         &d2[..k]
@@ -618,7 +617,7 @@ fn grid_kernel_areas(qs: &[DVec3], depth: u32) -> Option<Vec<f64>> {
                 if d2.iter().filter(|&&d| d <= half2).count() < DENSITY_NEIGHBOURS {
                     gather(q, 2, d2);
                 }
-                kernel_sum(d2, r2_max)
+                kernel_sum(d2, r2_max, DENSITY_NEIGHBOURS)
             })
             .collect(),
     )
@@ -1301,7 +1300,8 @@ mod tests {
     #[test]
     fn grid_kernel_areas_are_the_kd_trees() {
         // Dense and sparse patches (both of the grid's searches), a duplicated point, a
-        // sample far from the others: the grid's neighbours give the kd-tree's areas.
+        // sample far from the others: the grid's neighbours give the kd-tree's areas, and both
+        // the brute-force search's (up to the order of the sums).
         let rng = skin_core::random::SplitMix64::new(14);
         let u = rng.uniform(3 * 6000);
         let mut qs: Vec<DVec3> = (0..6000)
@@ -1321,10 +1321,18 @@ mod tests {
         for depth in [6, 8, 9] {
             let grid = grid_kernel_areas(&qs, depth).unwrap();
             let tree = tree_kernel_areas(&qs, depth).unwrap();
-            for (g, t) in grid.iter().zip(&tree) {
+            let r = DENSITY_RADIUS_CELLS / (1u64 << depth) as f64;
+            for (i, (g, t)) in grid.iter().zip(&tree).enumerate() {
+                // The reference: every sample's squared distance (brute force).
+                let mut d2: Vec<f64> = qs.iter().map(|p| (*p - qs[i]).length_squared()).collect();
+                let b = kernel_sum(&mut d2, r * r, DENSITY_NEIGHBOURS);
                 assert!(
-                    (g - t).abs() <= 1e-12 * t.abs(),
-                    "depth {depth}: {g} vs {t}"
+                    (g - b).abs() <= 1e-12 * b,
+                    "depth {depth}, {i}: grid {g} vs {b}"
+                );
+                assert!(
+                    (t - b).abs() <= 1e-12 * b,
+                    "depth {depth}, {i}: tree {t} vs {b}"
                 );
             }
         }
