@@ -17,9 +17,10 @@ use dynamic_shapes::core::raster::{Rasterizer, RenderParams, RenderedView};
 use dynamic_shapes::photometric::truth::{pattern_images, skirt_subject, StudioScene};
 use dynamic_shapes::photometric::{
     coverage_budget, depth_errors, estimate_normals, hull_samples, match_pair, matching_images,
-    merge_views, per_view_surfaces, reconstruct, rendered_normals, surface_distance, table_metrics,
-    BudgetInputs, DepthMap, MatchMetric, MatchView, MatchingParams, MergeView, MetricParams,
-    NormalMap, ReconstructParams, SurfaceParams, VisualHull, VisualHullParams,
+    merge_views, per_view_surfaces, reconstruct, reconstruct_from_hull_depths, rendered_normals,
+    surface_distance, table_metrics, BudgetInputs, DepthMap, MatchMetric, MatchView,
+    MatchingParams, MergeView, MetricParams, NormalMap, ReconstructParams, SurfaceParams,
+    VisualHull, VisualHullParams,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -176,7 +177,18 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     let rparams = ReconstructParams::default()
         .with_voxel_m(0.004)
         .with_poisson_depth(7);
-    let rec = reconstruct(&ring.cameras, &exact, &hull, &pairs, &rparams).unwrap();
+    // The hull's depth maps rendered above are pass 1's proxies (`reconstruct` would render
+    // them again).
+    let rec = reconstruct_from_hull_depths(
+        &ring.cameras,
+        &exact,
+        &hull,
+        proxies.clone(),
+        0.0,
+        &pairs,
+        &rparams,
+    )
+    .unwrap();
     let t_two_pass = t.elapsed().as_secs_f64();
     let hull_points: Vec<DVec3> = hull_samples(&ring.cameras, &proxies, 0.04, 1.0)
         .unwrap()
@@ -297,6 +309,16 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     assert!(p2.0.vertex_samples > 10_000, "{:?}", p2.0);
     // Bad input is an error, not a panic.
     assert!(reconstruct(&ring.cameras, &exact[..2], &hull, &pairs, &rparams).is_err());
+    assert!(reconstruct_from_hull_depths(
+        &ring.cameras,
+        &exact,
+        &hull,
+        proxies[..2].to_vec(),
+        0.0,
+        &pairs,
+        &rparams,
+    )
+    .is_err());
     assert!(table_metrics(
         &ring.cameras,
         &exact,

@@ -10,7 +10,7 @@
 //! matching of the ring's neighbouring pairs with the surface metric (epipolar-plane grids,
 //! four-state dynamic programming), integration again without the discontinuities matching
 //! found, matching again and the Eq. 3.4 offsets. The same per-view stage runs with the
-//! rasteriser's exact normals as a control. Then the two passes of §3.3 ([`reconstruct`]):
+//! rasteriser's exact normals as a control. Then the two passes of §3.3 ([`reconstruct_from_hull_depths`]):
 //! the pass-1 surfaces merged (VRIP, §3.3.3) and hole-filled (screened Poisson, the merged
 //! mesh's samples at weight 1 and the visual hull's at 0.01), and pass 2 with that mesh as
 //! the proxy, merged and filled again. Each pass is scored by Table 3.1 (coverage, normal
@@ -69,11 +69,11 @@ use dynamic_shapes::photometric::truth::{
 };
 use dynamic_shapes::photometric::{
     coverage_budget, depth_errors, depth_map_mesh, displacement_survival, estimate_normals,
-    hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces, reconstruct,
-    rendered_normals, surface_distance, table_metrics, BudgetInputs, DepthMap, IntegrationParams,
-    MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap, ReconstructParams,
-    Reconstruction, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces,
-    VisualHull, VisualHullParams,
+    hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces,
+    reconstruct_from_hull_depths, rendered_normals, surface_distance, table_metrics, BudgetInputs,
+    DepthMap, IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
+    ReconstructParams, Reconstruction, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams,
+    ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -116,6 +116,10 @@ struct Args {
     /// (`ReconstructParams::scale_merge_jump`; issue 14's coverage budget).
     #[arg(long)]
     scale_merge_jump: bool,
+    /// Pass 1's hole-filling depth (`ReconstructParams::pass1_poisson_depth`; default: the
+    /// same as pass 2's).
+    #[arg(long)]
+    pass1_poisson_depth: Option<u32>,
     /// Pass 2's proxy-jump threshold, m per pixel at 1024 px (default 0.02).
     #[arg(long)]
     pass2_proxy_jump_m: Option<f64>,
@@ -238,6 +242,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     rparams.scale_merge_jump = args.scale_merge_jump;
     rparams.pass1.matching.subpixel = subpixel;
     rparams.pass2.matching.subpixel = subpixel;
+    if args.pass1_poisson_depth.is_some() {
+        rparams.pass1_poisson_depth = args.pass1_poisson_depth;
+    }
     if let Some(m) = args.pass2_proxy_jump_m {
         rparams.pass2.integration.proxy_jump_m = m;
     }
@@ -247,7 +254,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
-    let rec = reconstruct(&cameras, &estimated, &hull, &pairs, &rparams)?;
+    // The hull's depth maps rendered in `observe` (timed in `t_hull`) are pass 1's proxies.
+    let rec = reconstruct_from_hull_depths(
+        &cameras,
+        &estimated,
+        &hull,
+        proxies.clone(),
+        0.0,
+        &pairs,
+        &rparams,
+    )?;
     let t_two_pass = t.elapsed().as_secs_f64();
     let est = &rec.pass1.views;
     let est_err = est.errors_against(&truths, &proxies, &estimated)?;
@@ -733,7 +749,15 @@ fn subject_run(
     let obs = observe(run, scene, name, shadows)?;
     let stage = run.stage(&format!("{name}: two passes"), None);
     let t = Instant::now();
-    let rec = reconstruct(&obs.cameras, &obs.estimated, &obs.hull, pairs, rparams)?;
+    let rec = reconstruct_from_hull_depths(
+        &obs.cameras,
+        &obs.estimated,
+        &obs.hull,
+        obs.proxies.clone(),
+        0.0,
+        pairs,
+        rparams,
+    )?;
     let two_pass_s = t.elapsed().as_secs_f64();
     let per_view =
         rec.pass2

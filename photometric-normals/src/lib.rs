@@ -151,6 +151,7 @@ pub use patterns::{
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
 pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
 pub use reconstruct::{
-    hull_samples, reconstruct, Pass, PassTimes, ReconstructParams, Reconstruction,
+    hull_samples, reconstruct, reconstruct_from_hull_depths, Pass, PassTimes, ReconstructParams,
+    Reconstruction,
 };
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};
