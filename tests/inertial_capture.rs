@@ -523,7 +523,9 @@ fn heading_fit_recovers_turns_about_gravity() {
 /// treadmill (the looped CMU walk on the MakeHuman skeleton, as the example runs it), left
 /// shoulder. With the exact constant-acceleration time update the oracle holds its shoulder
 /// with distances and drifts without them; Eq. 4.1's first-order step (the baseline, the
-/// filter before the fix) drifts to tens of degrees even with distances.
+/// filter before the fix) drifts even with distances. (Seventh session: with the wrist
+/// retarget fixed the walk's hand is calmer and the first-order step ends at 7° instead of
+/// 52°; the bound on it was 20° and is 5° now, still ten times the exact step.)
 #[test]
 fn treadmill_oracle_distances_hold_the_left_shoulder() {
     use dynamic_shapes::core::skeleton::BvhParams;
@@ -576,7 +578,8 @@ fn treadmill_oracle_distances_hold_the_left_shoulder() {
         "treadmill oracle, left shoulder first → last 5 s: A+G+D {d_first:.2} → {d_last:.2}°, \
          A+G {a_first:.2} → {a_last:.2}°, A+G+D first-order step {old_first:.2} → {old_last:.2}°"
     );
-    // Measured: 0.6 → 0.6°, 6.0 → 9.4°, 2.1 → 52.1°.
+    // Measured: 0.70 → 0.55°, 6.32 → 11.16°, 1.61 → 7.04° (before the wrist retarget fix:
+    // 0.6 → 0.6°, 6.0 → 9.4°, 2.1 → 52.1°).
     assert!(
         d_last < 2.0 && d_last < d_first + 1.0,
         "A+G+D {d_first} → {d_last}"
@@ -584,7 +587,7 @@ fn treadmill_oracle_distances_hold_the_left_shoulder() {
     assert!(a_last > a_first + 1.0, "A+G {a_first} → {a_last}: no drift");
     assert!(a_last > 4.0 * d_last, "A+G {a_last} vs A+G+D {d_last}");
     assert!(
-        old_last > 20.0 && old_last > 10.0 * d_last,
+        old_last > 5.0 && old_last > 10.0 * d_last,
         "first-order step {old_last}"
     );
 }
