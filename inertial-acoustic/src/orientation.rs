@@ -439,10 +439,7 @@ mod tests {
         for k in 1..=n {
             // Mean of α t over ((k − 1) Δt, k Δt].
             let mean_rate = alpha * (k as f64 - 0.5) * dt;
-            let r = InertialReading {
-                gyro_rad_s: axis * mean_rate,
-                accel_m_s2: DVec3::Z * 9.80665,
-            };
+            let r = InertialReading::new(axis * mean_rate, DVec3::Z * 9.80665);
             assert!(!f.step(&r).unwrap().diverged);
         }
         let t = n as f64 * dt;
