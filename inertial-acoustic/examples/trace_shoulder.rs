@@ -6,7 +6,7 @@
 //! first-order step against the exact transition, the gate, q, the twist limit, half speed.
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
-//! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | all]
+//! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | shaped | all]
 //! | axes [SEEDS]]]`
 //!
 //! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
@@ -1069,6 +1069,33 @@ fn treadmill_trace(
                         tuned.with_skip_saturated(skip).with_sensors(set),
                     );
                 }
+            }
+        }
+    }
+    if what == "shaped" || what == "all" {
+        // Issue 15, seventh session: the noise-shaped delta code (§4.2.3's "compensate by
+        // overestimating in the next frame") with code units of 1–16 counts against the
+        // whole-count code, garment suit, flagged rows skipped (the default).
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let no_d = SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        };
+        for step in [None, Some(1), Some(4), Some(8), Some(16)] {
+            let sp = SimulationParams {
+                delta_step: step,
+                ..base
+            };
+            let garment = SuitSimulator::on_performer(performer, deformation, sp).unwrap();
+            let offsets = garment.calibrate_offsets(3).unwrap().offsets;
+            let rec = garment.record(&smooth, &offsets).unwrap();
+            for set in [SensorSet::ALL, no_d] {
+                treadmill_line(
+                    &format!("garment, delta step {step:?}"),
+                    s,
+                    &rec,
+                    tuned.with_sensors(set),
+                );
             }
         }
     }

@@ -154,10 +154,39 @@ fn scramble(bits: &mut [bool]) {
 }
 
 /// Delta-modulation encoder/decoder state of one board (six channels).
+///
+/// Two readings of §4.2.3's "6-bit values using delta modulation" (the thesis gives no
+/// step size or code layout):
+///
+/// - [`DeltaCodec::new`] (the default): each code is the change of the 12-bit count in whole
+///   counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
+///   per frame slews (42 rad/s² at ±20 rad/s), and the reconstruction lags until it catches up.
+/// - [`DeltaCodec::noise_shaped`] (beyond the default, issue 15, seventh session): each code
+///   counts `step` counts and the encoder feeds its round-off back, so a frame that
+///   under-reads is followed by one that over-reads — the thesis's own description ("if the
+///   6-bit round-off underestimates the acceleration in one frame, it will compensate by
+///   overestimating in the next frame; if we were to double-integrate … the resulting
+///   position would have more than 6 bits of precision"). Each frame is then accurate to
+///   ±`step`/2 counts, the running sum of the decoded counts to a bounded error, and the slew
+///   is `31 · step` counts per frame. With `step` 1 it equals the default until a change
+///   slews; the default keeps no feedback, so a slewed change is not made up later.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeltaCodec {
     recon: [i32; CHANNELS],
     last_delta: [i32; CHANNELS],
+    /// Counts per code unit (1 for the default codec).
+    #[serde(default = "unit_step")]
+    step: i32,
+    /// Whether the encoder feeds its round-off back (noise shaping).
+    #[serde(default)]
+    shaped: bool,
+    /// The encoder's accumulated error, Σ (count − reconstruction), per channel.
+    #[serde(default)]
+    error: [i32; CHANNELS],
+}
+
+fn unit_step() -> i32 {
+    1
 }
 
 impl Default for DeltaCodec {
@@ -165,14 +194,37 @@ impl Default for DeltaCodec {
         DeltaCodec {
             recon: [2048; CHANNELS],
             last_delta: [0; CHANNELS],
+            step: 1,
+            shaped: false,
+            error: [0; CHANNELS],
         }
     }
 }
 
 impl DeltaCodec {
-    /// A codec at mid-scale (both ends start from count 2048).
+    /// A codec at mid-scale (both ends start from count 2048): whole-count deltas, no
+    /// feedback.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A noise-shaped codec whose code unit is `step` counts (see the type's docs); both
+    /// ends of a link must use the same step.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] unless `step` is in 1..=128.
+    pub fn noise_shaped(step: i32) -> Result<Self> {
+        if !(1..=128).contains(&step) {
+            return Err(Error::InvalidParam {
+                name: "step",
+                reason: format!("{step} is not in 1..=128 counts"),
+            });
+        }
+        Ok(DeltaCodec {
+            step,
+            shaped: true,
+            ..Self::default()
+        })
     }
 
     /// Encodes one frame of six 12-bit counts into [`FRAME_BITS`] scrambled, interleaved,
@@ -190,8 +242,17 @@ impl DeltaCodec {
                     reason: format!("{} is not a 12-bit count", counts[c]),
                 });
             }
-            let delta = (counts[c] - self.recon[c]).clamp(DELTA_MIN, DELTA_MAX);
-            self.recon[c] += delta;
+            let delta = if self.shaped {
+                let want = counts[c] + self.error[c] - self.recon[c];
+                let units = (f64::from(want) / f64::from(self.step)).round() as i32;
+                units.clamp(DELTA_MIN, DELTA_MAX)
+            } else {
+                (counts[c] - self.recon[c]).clamp(DELTA_MIN, DELTA_MAX)
+            };
+            self.recon[c] += delta * self.step;
+            if self.shaped {
+                self.error[c] += counts[c] - self.recon[c];
+            }
             codes[c] = hamming_encode((delta & 0x3F) as u8);
         }
         let mut bits = [false; FRAME_BITS];
@@ -228,12 +289,13 @@ impl DeltaCodec {
         }
         if !ok {
             for c in 0..CHANNELS {
-                self.recon[c] = (self.recon[c] + self.last_delta[c]).clamp(0, MAX_COUNT);
+                self.recon[c] =
+                    (self.recon[c] + self.last_delta[c] * self.step).clamp(0, MAX_COUNT);
             }
             return None;
         }
         for (r, d) in self.recon.iter_mut().zip(&deltas) {
-            *r += d;
+            *r += d * self.step;
         }
         self.last_delta = deltas;
         Some((self.recon, corrected))
@@ -339,6 +401,51 @@ mod tests {
         let s = dec.saturation();
         assert!(s[0].clipped && s[1].clipped && !s[0].slew && !s[1].slew);
         assert!(!s[2].any() && !s[3].any() && !s[4].any());
+    }
+
+    /// The noise-shaped code (§4.2.3's "compensate by overestimating in the next frame"): on
+    /// a swing that slews the whole-count code (up to 150 counts per frame), each frame is
+    /// within half a step and the running sum of the decoded counts — what integrating a
+    /// gyroscope sees — stays within one step of the true sum, where the whole-count code's
+    /// lag adds up to thousands of counts.
+    #[test]
+    fn noise_shaped_deltas_keep_the_running_sum() {
+        let step = 8;
+        let signal: Vec<i32> = (0..400)
+            .map(|k| 2048 + (1500.0 * (TAU_F * k as f64 / 64.0).sin()).round() as i32)
+            .collect();
+        let run = |mut enc: DeltaCodec, mut dec: DeltaCodec| {
+            let (mut worst_frame, mut worst_sum, mut sum) = (0i32, 0i64, 0i64);
+            for &x in &signal {
+                let bits = enc.encode(&[x, 2048, 2048, 2048, 2048, 2048]).unwrap();
+                let (out, _) = dec.decode(&bits).unwrap();
+                sum += i64::from(out[0] - x);
+                worst_frame = worst_frame.max((out[0] - x).abs());
+                worst_sum = worst_sum.max(sum.abs());
+            }
+            (worst_frame, worst_sum)
+        };
+        let (frame, sum) = run(
+            DeltaCodec::noise_shaped(step).unwrap(),
+            DeltaCodec::noise_shaped(step).unwrap(),
+        );
+        assert!(frame <= step, "frame error {frame} counts");
+        assert!(sum <= i64::from(step), "running-sum error {sum} counts");
+        let (frame_whole, sum_whole) = run(DeltaCodec::new(), DeltaCodec::new());
+        assert!(
+            frame_whole > 100 && sum_whole > 1000,
+            "{frame_whole} {sum_whole}"
+        );
+        // Step 1 with feedback equals the whole-count code while nothing slews.
+        let slow: Vec<i32> = (0..200).map(|k| 2048 + (k % 20) - 10).collect();
+        let (mut a, mut b) = (DeltaCodec::new(), DeltaCodec::noise_shaped(1).unwrap());
+        for &x in &slow {
+            let c = [x, 2048, 2048, 2048, 2048, 2048];
+            assert_eq!(a.encode(&c).unwrap(), b.encode(&c).unwrap());
+        }
+        for bad in [0, -1, 129] {
+            assert!(DeltaCodec::noise_shaped(bad).is_err());
+        }
     }
 
     #[test]

@@ -88,6 +88,13 @@ pub struct SimulationParams {
     /// earlier front end (only the white noise `gyro_noise`/`accel_noise`, no dither).
     #[serde(default = "default_analog_noise_lsb")]
     pub analog_noise_lsb: f64,
+    /// The inertial link's delta code: `None` for whole-count deltas without feedback
+    /// ([`DeltaCodec::new`], the default), `Some(step)` for the noise-shaped code whose unit
+    /// is `step` counts ([`DeltaCodec::noise_shaped`]: the thesis's "compensate by
+    /// overestimating in the next frame", slew `31 · step` counts per frame; issue 15, seventh
+    /// session). Default: `None`.
+    #[serde(default)]
+    pub delta_step: Option<i32>,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
     pub bit_error_rate: f64,
     /// Garment placement error: position, metres (per axis). Default: 0.01.
@@ -134,6 +141,7 @@ impl Default for SimulationParams {
             gyro_range: 20.0,
             accumulate_10bit: true,
             analog_noise_lsb: 0.5,
+            delta_step: None,
             bit_error_rate: 2e-4,
             placement_sd_m: 0.01,
             placement_sd_deg: 3.0,
@@ -188,6 +196,9 @@ impl SimulationParams {
         positive("gyro_range", self.gyro_range)?;
         positive("source_amplitude", self.source_amplitude)?;
         positive("rest_s", self.rest_s)?;
+        if let Some(step) = self.delta_step {
+            DeltaCodec::noise_shaped(step)?;
+        }
         Ok(())
     }
 }
@@ -935,8 +946,12 @@ impl SuitSimulator {
             }
             calib.push(cal);
         }
-        let mut encoders = vec![DeltaCodec::new(); nb];
-        let mut decoders = vec![DeltaCodec::new(); nb];
+        let codec = match p.delta_step {
+            Some(step) => DeltaCodec::noise_shaped(step)?,
+            None => DeltaCodec::new(),
+        };
+        let mut encoders = vec![codec.clone(); nb];
+        let mut decoders = vec![codec; nb];
         // Prime the codecs at the first frame's values (the link runs before the recording).
         let mut gyro_bias = vec![DVec3::ZERO; nb];
         let (mut th, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
