@@ -763,6 +763,20 @@ impl SkeletalEkf {
         Ok(())
     }
 
+    /// The innovation statistics the current row counts into (`counting`'s sensor
+    /// type and board, and its axis for the inertial types).
+    fn counted_stats(&mut self) -> impl Iterator<Item = &mut InnovationStats> {
+        let (kind, board, axis) = self.counting;
+        let per_axis = self
+            .axis_innovations
+            .get_mut(kind)
+            .and_then(|t| t.get_mut(board))
+            .and_then(|a| a.get_mut(axis));
+        self.innovations[kind]
+            .get_mut(board)
+            .into_iter()
+            .chain(per_axis)
+    }
     /// One scalar update (Eq. 4.7–4.9): `z − h(x₀) − H (x − x₀)` as innovation; past the
     /// gate, `s` is inflated by `robust` ([`RobustLoss`]).
     fn scalar_update(
@@ -803,17 +817,7 @@ impl SkeletalEkf {
         if s.is_nan() || s <= 0.0 {
             return false;
         }
-        let (kind, board, axis) = self.counting;
-        let per_axis = self
-            .axis_innovations
-            .get_mut(kind)
-            .and_then(|t| t.get_mut(board))
-            .and_then(|a| a.get_mut(axis));
-        for st in self.innovations[kind]
-            .get_mut(board)
-            .into_iter()
-            .chain(per_axis)
-        {
+        for st in self.counted_stats() {
             st.count += 1;
             st.sum_normalised += innov / s.sqrt();
             st.sum_nis += innov * innov / s;
@@ -821,16 +825,7 @@ impl SkeletalEkf {
         if gate_sigma > 0.0 && innov * innov > gate_sigma * gate_sigma * s {
             return false;
         }
-        let per_axis = self
-            .axis_innovations
-            .get_mut(kind)
-            .and_then(|t| t.get_mut(board))
-            .and_then(|a| a.get_mut(axis));
-        for st in self.innovations[kind]
-            .get_mut(board)
-            .into_iter()
-            .chain(per_axis)
-        {
+        for st in self.counted_stats() {
             st.passed += 1;
             st.sum_nis_passed += innov * innov / s;
         }
