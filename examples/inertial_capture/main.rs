@@ -271,8 +271,18 @@ fn consistency(r: &FilterRun) -> Value {
     Value::Object(out)
 }
 
+#[derive(Parser, Debug)]
+struct Args {
+    #[command(flatten)]
+    common: example_kit::cli::Common,
+    /// The inertial link's code unit in counts for the noise-shaped delta code
+    /// (`SimulationParams::delta_step`); without it, the whole-count code (the default).
+    #[arg(long)]
+    delta_step: Option<i32>,
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args = example_kit::cli::Args::parse();
+    let args = Args::parse();
     let quick = args.common.quick;
     let (exercise_s, rom_s, treadmill_s) = if quick {
         (10.0, 10.0, 20.0)
@@ -313,7 +323,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|n| skeleton.joint_index(n).unwrap())
         .collect();
-    let sim_params = SimulationParams::default();
+    let sim_params = SimulationParams {
+        delta_step: args.delta_step,
+        ..SimulationParams::default()
+    };
     let sim = SuitSimulator::on_performer(&performer, &deformation, sim_params)?;
     let rigid = sim.clone().with_rigid_attachment();
 
@@ -888,6 +901,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "agd_beyond_4_4_4": beyond,
         "performer": "makehuman, pose-driven shapes, no flap",
         "quick": quick,
+        "delta_step": args.delta_step,
     });
     // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
     // before it.
