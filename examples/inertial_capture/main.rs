@@ -64,7 +64,7 @@ use dynamic_shapes::inertial::simulate::{
     FilterRun, SimulatedRecording, SimulationParams, SuitSimulator, TuningPoint,
 };
 use dynamic_shapes::inertial::{
-    BoardNoise, FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+    FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
 };
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -123,14 +123,8 @@ fn variants(
     let refined_axis_noisy = with_axis_noise(&refined)?;
     // Each board's σ from its worst axis (`BoardNoise::worst_axis`).
     let worst = |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
-        let n = r
-            .nominal_suit
-            .board_noise()
-            .iter()
-            .map(BoardNoise::worst_axis)
-            .collect();
         let mut out = r.clone();
-        out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+        out.nominal_suit = out.nominal_suit.with_worst_axis_noise()?;
         Ok(out)
     };
     let worst_noisy = worst(&axis_noisy)?;

@@ -21,8 +21,8 @@ use inertial_acoustic::simulate::{
     SimulationParams, SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
-    initialise, BoardNoise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf,
-    Suit, INNOVATION_TYPES,
+    initialise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
+    INNOVATION_TYPES,
 };
 use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
@@ -1338,14 +1338,8 @@ fn axes_trace(
             let (h_board, h_axis) = (with(&headed, false), with(&headed, true));
             // Each board's σ from its worst axis (the largest per-axis σ on all three).
             let worst = |r: &SimulatedRecording| {
-                let n: Vec<BoardNoise> = r
-                    .nominal_suit
-                    .board_noise()
-                    .iter()
-                    .map(BoardNoise::worst_axis)
-                    .collect();
                 let mut out = r.clone();
-                out.nominal_suit = out.nominal_suit.with_board_noise(n).unwrap();
+                out.nominal_suit = out.nominal_suit.with_worst_axis_noise().unwrap();
                 out
             };
             let (worst_axis, h_worst) = (worst(&axis), worst(&h_axis));

@@ -347,6 +347,19 @@ impl Suit {
         &self.board_noise
     }
 
+    /// This suit with each board's σ taken from its worst axis ([`BoardNoise::worst_axis`]).
+    ///
+    /// # Errors
+    /// As [`Suit::with_board_noise`].
+    pub fn with_worst_axis_noise(self) -> Result<Self> {
+        let noise = self
+            .board_noise
+            .iter()
+            .map(BoardNoise::worst_axis)
+            .collect();
+        self.with_board_noise(noise)
+    }
+
     /// The same suit with per-board measurement noise (one per board; empty: back to the
     /// filter's global σ).
     ///
