@@ -508,8 +508,8 @@ pub fn mesh_proxy_depth(camera: &Camera, mesh: &TriMesh) -> Result<DepthMap> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skin_core::image::sample_bilinear;
     use skin_core::camera::{Intrinsics, Rig};
+    use skin_core::image::sample_bilinear;
     use skin_core::mesh::shapes::uv_sphere;
 
     fn sphere_rig(n: usize) -> (Vec<Camera>, TriMesh) {
@@ -634,7 +634,7 @@ mod tests {
             let from = if i % 3 == 0 {
                 cams[i as usize % cams.len()].centre()
             } else {
-                centre + DVec3::new(f(0.318_309), f(0.207_107), f(0.577_215)).normalize() * 2.5
+                centre + DVec3::new(f(0.318_7), f(0.207_107), f(0.577_215)).normalize() * 2.5
             };
             let aim = centre + DVec3::new(f(0.618_034), f(0.414_214), f(0.732_051)) * 0.9;
             let dir = (aim - from).normalize();
