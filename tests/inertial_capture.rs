@@ -670,9 +670,9 @@ fn treadmill_oracle_distances_hold_the_left_shoulder() {
 /// 60 s treadmill, simulated down to raw signals, with the noise-shaped delta code of 16-count
 /// units (`SimulationParams::delta_step`; §4.2.3's "compensate by overestimating in the next
 /// frame"). With distances the left shoulder holds; without them it drifts. The baseline
-/// that could win is A+G on the same recording. (With the default whole-count code the walk's
-/// arm outruns the code's slew and both runs are lost: docs, "The treadmill on the simulated
-/// suit".)
+/// that could win is A+G on the same recording. (With the whole-count code, the default
+/// before the eighth session, the walk's arm outruns the code's slew and both runs are lost:
+/// docs, "The treadmill on the simulated suit".)
 #[test]
 fn treadmill_simulated_suit_distances_hold_the_left_shoulder() {
     let (performer, deformation, smooth) = treadmill_on_makehuman();

@@ -158,10 +158,12 @@ fn scramble(bits: &mut [bool]) {
 /// Two readings of §4.2.3's "6-bit values using delta modulation" (the thesis gives no
 /// step size or code layout):
 ///
-/// - [`DeltaCodec::new`] (the default): each code is the change of the 12-bit count in whole
+/// - [`DeltaCodec::new`] (the type's `Default`; the simulator's front end until issue 15's
+///   eighth session): each code is the change of the 12-bit count in whole
 ///   counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
 ///   per frame slews (42 rad/s² at ±20 rad/s), and the reconstruction lags until it catches up.
-/// - [`DeltaCodec::noise_shaped`] (beyond the default, issue 15, seventh session): each code
+/// - [`DeltaCodec::noise_shaped`] (issue 15, seventh session; with 16-count units the
+///   simulator's default since the eighth, `SimulationParams::delta_step`): each code
 ///   counts `step` counts and the encoder feeds its round-off back, so a frame that
 ///   under-reads is followed by one that over-reads — the thesis's own description ("if the
 ///   6-bit round-off underestimates the acceleration in one frame, it will compensate by
