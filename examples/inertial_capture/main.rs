@@ -43,7 +43,9 @@
 //!   `bench/inertial_vs_peers.sh`).
 //!
 //! `cargo run --release --example inertial_capture [-- --quick]` (`--quick`: 10 s exercise,
-//! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid).
+//! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid;
+//! `--delta-step N`: the noise-shaped delta code's unit, default 16, 0 for the whole-count
+//! code; `--no-code-noise`: the filter is not told the code's per-frame error).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod peer_ekf;
@@ -270,9 +272,15 @@ struct Args {
     #[command(flatten)]
     common: example_kit::cli::Common,
     /// The inertial link's code unit in counts for the noise-shaped delta code
-    /// (`SimulationParams::delta_step`); without it, the whole-count code (the default).
+    /// (`SimulationParams::delta_step`; default `DEFAULT_DELTA_STEP`, 16); 0 for the
+    /// whole-count code (the default until issue 15's eighth session).
     #[arg(long)]
     delta_step: Option<i32>,
+    /// Do not add the delta code's per-frame error to the filter's σ_g and σ_a
+    /// (`SimulationParams::with_code_noise`, the default); the per-board σ estimate then
+    /// has to find it (the comparison of issue 15's eighth session).
+    #[arg(long)]
+    no_code_noise: bool,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -318,9 +326,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|n| skeleton.joint_index(n).unwrap())
         .collect();
     let sim_params = SimulationParams {
-        delta_step: args.delta_step,
+        delta_step: match args.delta_step {
+            None => SimulationParams::default().delta_step,
+            Some(0) => None,
+            Some(step) => Some(step),
+        },
         ..SimulationParams::default()
     };
+    // Issue 15, eighth session: the filter's σ_g and σ_a are the sensor's noise (the grid's
+    // values) and the delta code's per-frame error in quadrature.
+    let (code_gyro, code_accel) = if args.no_code_noise {
+        (0.0, 0.0)
+    } else {
+        sim_params.code_noise()?
+    };
+    let with_code = |sensor: f64, code: f64| sensor.hypot(code);
     let sim = SuitSimulator::on_performer(&performer, &deformation, sim_params)?;
     let rigid = sim.clone().with_rigid_attachment();
 
@@ -341,6 +361,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         (&[0.04, 4.0, 20.0, 100.0], &[0.02, 0.3, 2.0], &[0.0, 4.0])
     };
+    let sas: Vec<f64> = sas.iter().map(|&sa| with_code(sa, code_accel)).collect();
     let tune_seeds: &[u64] = if quick { &[29] } else { &[29, 31] };
     let mut grid: Vec<(TuningPoint, f64)> = Vec::new();
     for &seed in tune_seeds {
@@ -358,11 +379,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // a tuning choice. The gyroscope σ is: the thesis's 0.002 rad/s, or 0.01 rad/s,
         // the RMS of the simulated counts' 10-bit steps (four 10-bit samples without
         // dither), which the consistency check found (gyroscope NIS 20–150 at 0.002).
-        for gyro_sigma in [0.002, 0.01] {
+        for gyro_sigma in [0.002, 0.01].map(|sg| with_code(sg, code_gyro)) {
             let base = FilterParams::default()
                 .with_recentre_rad(0.3)
                 .with_measurement_sigmas(0.02, gyro_sigma, 0.0025);
-            for g in tune(&skeleton, &tune_rec, base, &joints, qs, sas, gates)? {
+            for g in tune(&skeleton, &tune_rec, base, &joints, qs, &sas, gates)? {
                 let share = g.score_deg / tune_seeds.len() as f64;
                 let key = (
                     g.process_sigma,
@@ -395,9 +416,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .find(|(g, s)| {
             g.process_sigma == 0.04
-                && g.accelerometer_sigma == 0.02
+                && g.accelerometer_sigma == with_code(0.02, code_accel)
                 && g.distance_gate_sigma == 0.0
-                && *s == 0.002
+                && *s == with_code(0.002, code_gyro)
         })
         .map(|g| g.0);
     let params = FilterParams {
@@ -895,7 +916,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "agd_beyond_4_4_4": beyond,
         "performer": "makehuman, pose-driven shapes, no flap",
         "quick": quick,
-        "delta_step": args.delta_step,
+        "delta_step": sim_params.delta_step,
     });
     // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
     // before it.
@@ -911,6 +932,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "left_hip": agd_global.stats[2].mean_deg}),
         );
         f.insert("board_noise_s".into(), json!(BOARD_NOISE_S));
+        f.insert(
+            "code_noise".into(),
+            json!({"gyroscope_sigma": code_gyro, "accelerometer_sigma": code_accel}),
+        );
         f.insert(
             "agd_board_sigmas".into(),
             agd.board_noise

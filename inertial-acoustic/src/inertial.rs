@@ -158,18 +158,41 @@ fn scramble(bits: &mut [bool]) {
 /// Two readings of §4.2.3's "6-bit values using delta modulation" (the thesis gives no
 /// step size or code layout):
 ///
-/// - [`DeltaCodec::new`] (the default): each code is the change of the 12-bit count in whole
+/// - [`DeltaCodec::new`] (the type's `Default`; the simulator's front end until issue 15's
+///   eighth session): each code is the change of the 12-bit count in whole
 ///   counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
 ///   per frame slews (42 rad/s² at ±20 rad/s), and the reconstruction lags until it catches up.
-/// - [`DeltaCodec::noise_shaped`] (beyond the default, issue 15, seventh session): each code
+/// - [`DeltaCodec::noise_shaped`] (issue 15, seventh session; with 16-count units the
+///   simulator's default since the eighth, `SimulationParams::delta_step`): each code
 ///   counts `step` counts and the encoder feeds its round-off back, so a frame that
 ///   under-reads is followed by one that over-reads — the thesis's own description ("if the
 ///   6-bit round-off underestimates the acceleration in one frame, it will compensate by
 ///   overestimating in the next frame; if we were to double-integrate … the resulting
 ///   position would have more than 6 bits of precision"). Each frame is then accurate to
-///   ±`step`/2 counts, the running sum of the decoded counts to a bounded error, and the slew
-///   is `31 · step` counts per frame. With `step` 1 it equals the default until a change
-///   slews; the default keeps no feedback, so a slewed change is not made up later.
+///   within `step` counts (σ step/√6, below), the running sum of the decoded counts to a bounded error, and the slew
+///   is `31 · step` counts per frame. With `step` 1 it equals the whole-count code until a
+///   change slews; the whole-count code keeps no feedback, so a slewed change is not made up
+///   later.
+///
+/// **The noise-shaped code's per-frame error** (issue 15, eighth session; what the filter
+/// must be told, [`DeltaCodec::frame_error_sigma_counts`]). Write `c_k` for the count the
+/// encoder is given in frame k, `r_k` for the reconstruction both ends hold after it, and
+/// `E_k = Σ_{i≤k} (c_i − r_i)` for the encoder's accumulated error. The encoder sends
+/// `u_k = round((c_k + E_{k−1} − r_{k−1}) / step)` units, so `r_k = r_{k−1} + step · u_k`
+/// and `E_k = (c_k + E_{k−1} − r_{k−1}) − step · u_k`, the round-off of that division:
+/// `|E_k| ≤ step/2` while nothing slews. Hence the decoded count is
+/// `r_k = c_k + E_{k−1} − E_k` — the *difference of two successive round-offs*:
+///
+/// - per frame, `|r_k − c_k| ≤ step` (not `step/2`: the two round-offs may have opposite
+///   signs);
+/// - if the round-offs are uniform on ±step/2 and independent from frame to frame (the
+///   signal moves by several units between frames, or carries at least a count of noise), the
+///   per-frame error has mean 0 and variance `2 · step²/12`, i.e. **σ = step/√6** counts;
+/// - it is negatively correlated at lag 1: `cov(E_{k−1} − E_k, E_k − E_{k+1}) = −step²/12`,
+///   correlation −½, and zero beyond. The sum over n frames telescopes to `E_0 − E_n`, so its
+///   σ stays step/√6 for any n (white noise of the same σ would grow as √n): a filter that
+///   treats the error as white is conservative about the integrated reading, and the mean of
+///   two successive frames has σ = step/(2√6), half a frame's, not 1/√2 of it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeltaCodec {
     recon: [i32; CHANNELS],
@@ -225,6 +248,42 @@ impl DeltaCodec {
             shaped: true,
             ..Self::default()
         })
+    }
+
+    /// Counts per code unit: 1 for the whole-count code, `step` for
+    /// [`noise_shaped`](Self::noise_shaped).
+    pub fn step(&self) -> i32 {
+        self.step
+    }
+
+    /// Whether the encoder feeds its round-off back (the noise-shaped code).
+    pub fn is_noise_shaped(&self) -> bool {
+        self.shaped
+    }
+
+    /// σ of one decoded frame's error against the encoder's count, in counts, while the code
+    /// does not slew: `step/√6` for the noise-shaped code (the difference of two successive
+    /// round-offs, each uniform on ±step/2; derivation in the type's docs), 0 for the
+    /// whole-count code (a delta inside its range is exact). Its lag-1 correlation is −½
+    /// (type docs); the per-frame error itself is bounded by
+    /// [`frame_error_bound_counts`](Self::frame_error_bound_counts).
+    pub fn frame_error_sigma_counts(&self) -> f64 {
+        if self.shaped {
+            f64::from(self.step) / 6f64.sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    /// The largest per-frame error of a decoded count against the encoder's, in counts, while
+    /// nothing slews and no frame is lost: `step` for the noise-shaped code (two round-offs of
+    /// at most step/2 each), 0 for the whole-count code.
+    pub fn frame_error_bound_counts(&self) -> i32 {
+        if self.shaped {
+            self.step
+        } else {
+            0
+        }
     }
 
     /// Encodes one frame of six 12-bit counts into [`FRAME_BITS`] scrambled, interleaved,
@@ -405,7 +464,7 @@ mod tests {
 
     /// The noise-shaped code (§4.2.3's "compensate by overestimating in the next frame"): on
     /// a swing that slews the whole-count code (up to 150 counts per frame), each frame is
-    /// within half a step and the running sum of the decoded counts — what integrating a
+    /// within a step and the running sum of the decoded counts — what integrating a
     /// gyroscope sees — stays within one step of the true sum, where the whole-count code's
     /// lag adds up to thousands of counts.
     #[test]
@@ -446,6 +505,71 @@ mod tests {
         for bad in [0, -1, 129] {
             assert!(DeltaCodec::noise_shaped(bad).is_err());
         }
+    }
+
+    /// The noise-shaped code's per-frame error is what its docs derive and what the filter is
+    /// told (`frame_error_sigma_counts`): on a slow swing plus a per-frame jitter of ±3 steps
+    /// (so successive round-offs are independent, and nothing slews), the decoded counts'
+    /// error has σ = step/√6, mean ≈ 0, lag-1 correlation −½, lag 2 ≈ 0, every frame within
+    /// `frame_error_bound_counts`, and the mean of two successive frames σ ≈ step/(2√6) —
+    /// all to 6 % (integer counts make the round-off discrete: at step 8, σ is 4 % above
+    /// step/√6 and ρ₁ −0.54). Plain rounding without feedback would give step/√12 and no
+    /// correlation; the whole-count code gives 0 and says so.
+    #[test]
+    fn noise_shaped_frame_error_has_the_documented_sigma_and_correlation() {
+        use rand::{RngExt, SeedableRng};
+        for step in [8, 16, 32] {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+            let (mut enc, mut dec) = (
+                DeltaCodec::noise_shaped(step).unwrap(),
+                DeltaCodec::noise_shaped(step).unwrap(),
+            );
+            let mut err = Vec::new();
+            for k in 0..20_000 {
+                let x = 2048.0
+                    + 800.0 * (TAU_F * f64::from(k) / 500.0).sin()
+                    + (6.0 * rng.random::<f64>() - 3.0) * f64::from(step);
+                let c = x.round() as i32;
+                let bits = enc.encode(&[c, 2048, 2048, 2048, 2048, 2048]).unwrap();
+                let (out, _) = dec.decode(&bits).unwrap();
+                assert!((out[0] - c).abs() <= enc.frame_error_bound_counts());
+                err.push(f64::from(out[0] - c));
+            }
+            let n = err.len() as f64;
+            let mean = err.iter().sum::<f64>() / n;
+            let var = err.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n;
+            let lag = |l: usize| {
+                err.windows(l + 1)
+                    .map(|w| (w[0] - mean) * (w[l] - mean))
+                    .sum::<f64>()
+                    / (n - l as f64)
+                    / var
+            };
+            let sigma = enc.frame_error_sigma_counts();
+            assert!((sigma - f64::from(step) / 6f64.sqrt()).abs() < 1e-12);
+            assert!(
+                (var.sqrt() / sigma - 1.0).abs() < 0.06,
+                "step {step}: σ {} vs {sigma}",
+                var.sqrt()
+            );
+            assert!(mean.abs() < 0.05 * sigma, "step {step}: mean {mean}");
+            assert!((lag(1) + 0.5).abs() < 0.06, "step {step}: ρ1 {}", lag(1));
+            assert!(lag(2).abs() < 0.06, "step {step}: ρ2 {}", lag(2));
+            let pair = err
+                .windows(2)
+                .map(|w| (0.5 * (w[0] + w[1])).powi(2))
+                .sum::<f64>()
+                / (n - 1.0);
+            assert!(
+                (pair.sqrt() / (sigma / 2.0) - 1.0).abs() < 0.06,
+                "step {step}: two-frame mean σ {}",
+                pair.sqrt()
+            );
+        }
+        let whole = DeltaCodec::new();
+        assert_eq!(whole.frame_error_sigma_counts(), 0.0);
+        assert_eq!(whole.frame_error_bound_counts(), 0);
+        assert!(!whole.is_noise_shaped() && whole.step() == 1);
     }
 
     #[test]
