@@ -149,11 +149,17 @@ fn cell_loops(f: &[f64; 8]) -> Vec<Vec<usize>> {
     // next[e] = the crossing that follows crossing e along its loop.
     let mut next = [usize::MAX; 24];
     for face in FACES {
-        let crossings: Vec<usize> = (0..4)
-            .filter(|&k| inside[face[k]] != inside[face[(k + 1) % 4]])
-            .collect();
+        // The face's crossings (at most 4), without an allocation per face.
+        let mut crossings = [0usize; 4];
+        let mut count = 0;
+        for k in 0..4 {
+            if inside[face[k]] != inside[face[(k + 1) % 4]] {
+                crossings[count] = k;
+                count += 1;
+            }
+        }
         let edge = |k: usize| edge_id(face[k % 4], face[(k + 1) % 4]);
-        match crossings.len() {
+        match count {
             2 => {
                 // A segment runs from the out→in crossing to the in→out crossing.
                 let (a, b) = (crossings[0], crossings[1]);

@@ -762,74 +762,67 @@ fn solve_level(
     };
     // Per node, independently (in parallel; each chunk of nodes memoises the coarser
     // levels' values in its own `Composite`, a cache that does not change any value): the
-    // start value, the diagonal and the right-hand side.
-    let assembled: Vec<(f64, f64, f64)> = level
+    // start value, the diagonal, the right-hand side and the neighbour table (`NONE` =
+    // outside the domain or the band), written in place.
+    let mut x = vec![0.0; nn];
+    let mut diag = vec![0.0; nn];
+    let mut b = vec![0.0; nn];
+    let mut nbr = vec![[NONE; 6]; nn];
+    level
         .nodes
         .par_chunks(ASSEMBLY_CHUNK)
+        .zip(x.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(diag.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(b.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(nbr.par_chunks_mut(ASSEMBLY_CHUNK))
         .enumerate()
-        .flat_map_iter(|(ci, chunk)| {
+        .for_each(|(ci, ((((chunk, xc), dc), bc), nc))| {
             let mut comp = Composite {
                 levels: coarser,
                 memo: NodeMap::default(),
                 outside: 0.0,
             };
-            chunk
-                .iter()
-                .enumerate()
-                .map(|(k, &p)| {
-                    let i = ci * ASSEMBLY_CHUNK + k;
-                    let x = start_and_boundary(p, &mut comp);
-                    let mut d = params.screening / h * mass[i];
-                    let mut rhs = 0.0;
-                    for axis in AXES {
-                        for s in [-1i64, 1] {
-                            let m = add(p, axis, s);
-                            if !level.in_domain(m) {
-                                continue;
+            for (k, &p) in chunk.iter().enumerate() {
+                let i = ci * ASSEMBLY_CHUNK + k;
+                xc[k] = start_and_boundary(p, &mut comp);
+                let mut d = params.screening / h * mass[i];
+                let mut rhs = 0.0;
+                for (ai, axis) in AXES.iter().enumerate() {
+                    for (si, s) in [-1i64, 1].into_iter().enumerate() {
+                        let m = add(p, *axis, s);
+                        if !level.in_domain(m) {
+                            continue;
+                        }
+                        d += 1.0;
+                        let a = axis.iter().position(|&c| c == 1).unwrap_or(0);
+                        let (vm, known) = match level.index(m) {
+                            Some(j) => {
+                                nc[k][2 * ai + si] = j as u32;
+                                (v[j][a], None)
                             }
-                            d += 1.0;
-                            let a = axis.iter().position(|&c| c == 1).unwrap_or(0);
-                            let (vm, known) = match level.index(m) {
-                                Some(j) => (v[j][a], None),
-                                None => (0.0, Some(start_and_boundary(m, &mut comp))),
-                            };
-                            let ve = 0.5 * (v[i][a] + vm);
-                            // Edge below (s = −1) adds +h·V_e, edge above subtracts it.
-                            rhs -= s as f64 * h * ve;
-                            if let Some(val) = known {
-                                rhs += val;
-                            }
+                            None => (0.0, Some(start_and_boundary(m, &mut comp))),
+                        };
+                        let ve = 0.5 * (v[i][a] + vm);
+                        // Edge below (s = −1) adds +h·V_e, edge above subtracts it.
+                        rhs -= s as f64 * h * ve;
+                        if let Some(val) = known {
+                            rhs += val;
                         }
                     }
-                    (x, d, rhs)
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    let mut x: Vec<f64> = assembled.iter().map(|a| a.0).collect();
-    let diag: Vec<f64> = assembled.iter().map(|a| a.1).collect();
-    let b: Vec<f64> = assembled.iter().map(|a| a.2).collect();
-    drop(assembled);
-    // Neighbour table (NONE = outside the domain or the band).
-    let nbr: Vec<[u32; 6]> = level
-        .nodes
-        .par_iter()
-        .map(|&p| {
-            let mut out = [NONE; 6];
-            for (k, (axis, s)) in AXES.iter().flat_map(|a| [(a, -1i64), (a, 1)]).enumerate() {
-                let m = add(p, *axis, s);
-                if level.in_domain(m) {
-                    if let Some(j) = level.index(m) {
-                        out[k] = j as u32;
-                    }
                 }
+                dc[k] = d;
+                bc[k] = rhs;
             }
-            out
-        })
-        .collect();
+        });
+    drop(v);
+    drop(mass);
     level.diag = diag;
     level.nbr = nbr;
-    if let Some(coarse) = coarser.last() {
+    // The coarse parents are needed only where this level takes part in a V-cycle: a
+    // complete level, or a band level when the bands are multigrid-preconditioned (ours,
+    // issue 14: at depth 9 the table is 32 bytes per band node, unused by Jacobi).
+    let in_v_cycle = level.complete || params.multigrid_bands;
+    if let Some(coarse) = coarser.last().filter(|_| in_v_cycle) {
         level.up = level
             .nodes
             .par_iter()
@@ -847,19 +840,10 @@ fn solve_level(
             .collect();
     }
     let (iterations, residual) = {
-        let top: &Level = level;
-        let apply = |x: &[f64], y: &mut [f64]| top.apply(x, y);
         // Complete levels: a V-cycle. Band levels: Jacobi unless asked (see
         // `PoissonParams::multigrid_bands`).
-        let multigrid = top.complete || params.multigrid_bands;
-        let precondition = |r: &[f64]| {
-            if multigrid {
-                v_cycle(top, coarser, r)
-            } else {
-                r.iter().zip(&top.diag).map(|(ri, di)| ri / di).collect()
-            }
-        };
-        pcg(&apply, &precondition, &b, &mut x, params)
+        let multigrid = level.complete || params.multigrid_bands;
+        pcg(level, coarser, multigrid, &b, &mut x, params)
     };
     level.x = x;
     PoissonLevel {
@@ -997,50 +981,136 @@ fn v_cycle(top: &Level, coarser: &[Level], r: &[f64]) -> Vec<f64> {
     e
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_iter().zip(b).map(|(x, y)| x * y).sum()
+/// Elements per task of the conjugate gradients' vector loops. Every sum over a vector is
+/// taken serially within such a chunk and the chunks' sums are added in chunk order, so the
+/// iterates do not depend on how the work is split among threads (ours, issue 14: rayon's
+/// `sum` adds in an order that depends on work stealing, which made the mesh differ in its
+/// last bits from run to run).
+const CG_CHUNK: usize = 8192;
+
+/// The chunks' partial sums added in chunk order.
+fn ordered_sum(partial: Vec<f64>) -> f64 {
+    partial.iter().sum()
 }
 
-/// Preconditioned conjugate gradients; returns iterations and relative residual.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    ordered_sum(
+        a.par_chunks(CG_CHUNK)
+            .zip(b.par_chunks(CG_CHUNK))
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+            .collect(),
+    )
+}
+
+impl Level {
+    /// `q = A p` ([`Level::apply`]) and `p · q` in the same pass.
+    fn apply_dot(&self, p: &[f64], q: &mut [f64]) -> f64 {
+        ordered_sum(
+            q.par_chunks_mut(CG_CHUNK)
+                .enumerate()
+                .map(|(ci, qc)| {
+                    let base = ci * CG_CHUNK;
+                    let mut pq = 0.0;
+                    for (k, qi) in qc.iter_mut().enumerate() {
+                        let i = base + k;
+                        let mut s = self.diag[i] * p[i];
+                        for &j in &self.nbr[i] {
+                            if j != NONE {
+                                s -= p[j as usize];
+                            }
+                        }
+                        *qi = s;
+                        pq += p[i] * s;
+                    }
+                    pq
+                })
+                .collect(),
+        )
+    }
+}
+
+/// Preconditioned conjugate gradients on `level`'s operator, preconditioned by a multigrid
+/// V-cycle over `coarser` ([`v_cycle`]) or by the diagonal (Jacobi); returns iterations and
+/// relative residual.
+///
+/// The Jacobi iteration runs in three fused passes over the vectors (`q = A p` with `p · q`;
+/// `x`, `r` updated with `r · z` and `r · r`, `z = r / diag` not stored; `p = z + β p`), with
+/// no allocation per iteration: the same arithmetic per element as the textbook loop (ours,
+/// issue 14: the separate loops, and a fresh preconditioned vector each iteration — fresh
+/// pages from the kernel at the band levels' millions of nodes — were most of the hole
+/// filling's time).
 fn pcg(
-    apply: &(dyn Fn(&[f64], &mut [f64]) + Sync),
-    precondition: &dyn Fn(&[f64]) -> Vec<f64>,
+    level: &Level,
+    coarser: &[Level],
+    multigrid: bool,
     b: &[f64],
     x: &mut [f64],
     params: &PoissonParams,
 ) -> (usize, f64) {
     let n = b.len();
+    let diag = &level.diag;
     let bnorm = dot(b, b).sqrt().max(1e-300);
     let mut r = vec![0.0; n];
-    apply(x, &mut r);
+    level.apply(x, &mut r);
     r.par_iter_mut().zip(b).for_each(|(ri, bi)| *ri = bi - *ri);
-    let mut z = precondition(&r);
-    let mut p = z.clone();
-    let mut q = vec![0.0; n];
+    let mut z = if multigrid {
+        v_cycle(level, coarser, &r)
+    } else {
+        r.par_iter().zip(diag).map(|(ri, di)| ri / di).collect()
+    };
     let mut rz = dot(&r, &z);
+    let mut p = z.clone();
+    if !multigrid {
+        // Jacobi recomputes `z = r / diag` where it is needed.
+        z = Vec::new();
+    }
+    let mut q = vec![0.0; n];
     let mut res = dot(&r, &r).sqrt() / bnorm;
     let mut it = 0;
     while it < params.max_iterations && res > params.tolerance {
-        apply(&p, &mut q);
-        let pq = dot(&p, &q);
+        let pq = level.apply_dot(&p, &mut q);
         if pq <= 0.0 {
             break;
         }
         let alpha = rz / pq;
-        x.par_iter_mut()
-            .zip(&p)
-            .for_each(|(xi, pi)| *xi += alpha * pi);
-        r.par_iter_mut()
-            .zip(&q)
-            .for_each(|(ri, qi)| *ri -= alpha * qi);
-        z = precondition(&r);
-        let rz_new = dot(&r, &z);
+        // x += α p, r −= α q, with r · z and r · r.
+        let sums: Vec<(f64, f64)> = x
+            .par_chunks_mut(CG_CHUNK)
+            .zip(r.par_chunks_mut(CG_CHUNK))
+            .zip(p.par_chunks(CG_CHUNK))
+            .zip(q.par_chunks(CG_CHUNK))
+            .zip(diag.par_chunks(CG_CHUNK))
+            .map(|((((xc, rc), pc), qc), dc)| {
+                let (mut rz, mut rr) = (0.0, 0.0);
+                for ((((xi, ri), pi), qi), di) in xc.iter_mut().zip(rc).zip(pc).zip(qc).zip(dc) {
+                    *xi += alpha * pi;
+                    *ri -= alpha * qi;
+                    rz += *ri * (*ri / di);
+                    rr += *ri * *ri;
+                }
+                (rz, rr)
+            })
+            .collect();
+        let rr = ordered_sum(sums.iter().map(|s| s.1).collect());
+        let rz_new = if multigrid {
+            z = v_cycle(level, coarser, &r);
+            dot(&r, &z)
+        } else {
+            ordered_sum(sums.iter().map(|s| s.0).collect())
+        };
         let beta = rz_new / rz;
         rz = rz_new;
-        p.par_iter_mut()
-            .zip(&z)
-            .for_each(|(pi, zi)| *pi = zi + beta * *pi);
-        res = dot(&r, &r).sqrt() / bnorm;
+        if multigrid {
+            p.par_iter_mut()
+                .zip(&z)
+                .for_each(|(pi, zi)| *pi = zi + beta * *pi);
+        } else {
+            p.par_iter_mut()
+                .zip(&r)
+                .zip(diag)
+                .for_each(|((pi, ri), di)| *pi = ri / di + beta * *pi);
+        }
+        res = rr.sqrt() / bnorm;
         it += 1;
     }
     (it, res)
@@ -1295,6 +1365,125 @@ mod tests {
         assert!(jacobi.levels[..4].iter().all(|l| l.iterations < 20));
         assert!((jacobi.iso_value - mg.iso_value).abs() < 1e-3);
         assert_eq!(jacobi.mesh.vertex_count(), mg.mesh.vertex_count());
+    }
+
+    /// The hierarchy of `screened_poisson` on `samples`, every level solved.
+    fn solved_levels(samples: &[OrientedSample], params: &PoissonParams) -> Vec<Level> {
+        let (unit, _, _) = unit_samples(samples, params.scale, params.depth);
+        let mut levels: Vec<Level> = Vec::new();
+        for depth in COARSEST_DEPTH..=params.depth {
+            let nb = (1i64 << depth) / B + 1;
+            let active = if depth <= params.dense_depth {
+                vec![true; (nb * nb * nb) as usize]
+            } else {
+                band_blocks(&unit, depth, i64::from(params.band_blocks))
+            };
+            let mut level = Level::new(depth, &active);
+            solve_level(&mut level, &levels, &unit, params);
+            levels.push(level);
+        }
+        levels
+    }
+
+    #[test]
+    fn fused_jacobi_cg_follows_the_textbook_iteration() {
+        // The fused Jacobi-preconditioned CG (three passes, `z` recomputed) against the
+        // textbook loop written out serially, on a band level's operator, iteration for
+        // iteration: the iterates agree up to the order of the sums.
+        let samples = holed_sphere(8_000);
+        let params = PoissonParams::default().with_depth(7);
+        let levels = solved_levels(&samples, &params);
+        let (top, coarser) = levels.split_last().unwrap();
+        assert!(!top.complete);
+        let n = top.nodes.len();
+        let b: Vec<f64> = (0..n)
+            .map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0)
+            .collect();
+        let apply = |x: &[f64]| -> Vec<f64> {
+            (0..n)
+                .map(|i| {
+                    let mut s = top.diag[i] * x[i];
+                    for &j in &top.nbr[i] {
+                        if j != NONE {
+                            s -= x[j as usize];
+                        }
+                    }
+                    s
+                })
+                .collect()
+        };
+        let sdot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        for steps in [1usize, 5, 25] {
+            let p = PoissonParams {
+                max_iterations: steps,
+                tolerance: 1e-30,
+                ..params
+            };
+            let mut x = vec![0.0; n];
+            let (it, res) = pcg(top, coarser, false, &b, &mut x, &p);
+            assert_eq!(it, steps);
+            // Textbook PCG from the same start.
+            let mut xr = vec![0.0; n];
+            let mut r = b.clone();
+            let mut z: Vec<f64> = r.iter().zip(&top.diag).map(|(r, d)| r / d).collect();
+            let mut pv = z.clone();
+            let mut rz = sdot(&r, &z);
+            for _ in 0..steps {
+                let q = apply(&pv);
+                let alpha = rz / sdot(&pv, &q);
+                for i in 0..n {
+                    xr[i] += alpha * pv[i];
+                    r[i] -= alpha * q[i];
+                }
+                z = r.iter().zip(&top.diag).map(|(r, d)| r / d).collect();
+                let rz_new = sdot(&r, &z);
+                let beta = rz_new / rz;
+                rz = rz_new;
+                for i in 0..n {
+                    pv[i] = z[i] + beta * pv[i];
+                }
+            }
+            let res_ref = sdot(&r, &r).sqrt() / sdot(&b, &b).sqrt();
+            assert!(
+                (res - res_ref).abs() <= 1e-9 * res_ref,
+                "{res} vs {res_ref}"
+            );
+            let scale = xr.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let diff = x
+                .iter()
+                .zip(&xr)
+                .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()));
+            assert!(diff <= 1e-9 * scale, "steps {steps}: {diff} of {scale}");
+        }
+    }
+
+    #[test]
+    fn the_surface_does_not_depend_on_the_thread_count() {
+        // The CG's sums are taken in a fixed order, so 1, 2 and 3 threads give the same mesh
+        // bit for bit (rayon's `sum`, used before, added in an order that depends on how the
+        // work was split).
+        let samples = holed_sphere(20_000);
+        let params = PoissonParams::default().with_depth(7);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| screened_poisson(&samples, &params).unwrap())
+        };
+        let one = run(1);
+        for threads in [2, 3] {
+            let other = run(threads);
+            assert_eq!(one.levels, other.levels, "{threads} threads");
+            assert_eq!(one.iso_value.to_bits(), other.iso_value.to_bits());
+            assert_eq!(one.mesh.faces, other.mesh.faces);
+            assert!(one
+                .mesh
+                .vertices
+                .iter()
+                .zip(&other.mesh.vertices)
+                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)));
+        }
     }
 
     #[test]
