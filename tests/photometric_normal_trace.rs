@@ -23,8 +23,8 @@ use dynamic_shapes::photometric::truth::{
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
     surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
-    MetricParams, NormalMap, OffsetOutliers, OffsetParams, RobustWeights, SubPixel,
-    SurfaceParams, VisualHullParams,
+    MetricParams, NormalMap, OffsetOutliers, OffsetParams, RobustWeights, SubPixel, SurfaceParams,
+    VisualHullParams,
 };
 
 const CAMERAS: usize = 8;
@@ -314,26 +314,48 @@ fn trace_normal_deviation_through_the_stages() {
         let r = RobustWeights::default();
         let plain = OffsetParams::default();
         for (name, params) in [
-            ("outliers r8 k3 5mm", OffsetParams { outliers: Some(o), ..plain }),
+            (
+                "outliers r8 k3 5mm",
+                OffsetParams {
+                    outliers: Some(o),
+                    ..plain
+                },
+            ),
             (
                 "outliers r8 k2 2mm",
                 OffsetParams {
-                    outliers: Some(OffsetOutliers { k: 2.0, floor_m: 0.002, ..o }),
+                    outliers: Some(OffsetOutliers {
+                        k: 2.0,
+                        floor_m: 0.002,
+                        ..o
+                    }),
                     ..plain
                 },
             ),
             (
                 "outliers r16 k3 5mm",
                 OffsetParams {
-                    outliers: Some(OffsetOutliers { radius_px: 16.0, ..o }),
+                    outliers: Some(OffsetOutliers {
+                        radius_px: 16.0,
+                        ..o
+                    }),
                     ..plain
                 },
             ),
-            ("cauchy 3x 5mm", OffsetParams { robust: Some(r), ..plain }),
+            (
+                "cauchy 3x 5mm",
+                OffsetParams {
+                    robust: Some(r),
+                    ..plain
+                },
+            ),
             (
                 "cauchy 3x 2mm",
                 OffsetParams {
-                    robust: Some(RobustWeights { scale_m: 0.002, ..r }),
+                    robust: Some(RobustWeights {
+                        scale_m: 0.002,
+                        ..r
+                    }),
                     ..plain
                 },
             ),

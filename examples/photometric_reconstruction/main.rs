@@ -72,8 +72,8 @@ use dynamic_shapes::photometric::{
     hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces,
     reconstruct_from_hull_depths, rendered_normals, surface_distance, table_metrics, BudgetInputs,
     DepthMap, IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    OffsetOutliers, ReconstructParams, Reconstruction, RobustWeights, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams,
-    ViewSurfaces, VisualHull, VisualHullParams,
+    OffsetOutliers, ReconstructParams, Reconstruction, RobustWeights, SubPixel, SurfaceDistance,
+    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,

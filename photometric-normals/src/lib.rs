@@ -142,7 +142,8 @@ pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
     depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetOutliers, OffsetParams,
-    OffsetReport, OffsetSurface, RobustWeights, SurfaceErrors, SurfaceParams, SurfaceTimes, ViewSurfaces,
+    OffsetReport, OffsetSurface, RobustWeights, SurfaceErrors, SurfaceParams, SurfaceTimes,
+    ViewSurfaces,
 };
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
