@@ -2,7 +2,8 @@
 //! control (issue 14): where are the degrees lost? Ignored by default (a diagnostic, not a
 //! check): `TRACE_SIZE=512 cargo test --release --test photometric_normal_trace -- --ignored
 //! --nocapture`; `TRACE_TRUTH_MM=4` traces the smooth, consistent true surface instead of the
-//! polygonal mesh, `TRACE_SUBPIXEL=1` adds the per-view stage with sub-pixel matches, and `studio_truth_facet_gap` measures the gap between the two surfaces'
+//! polygonal mesh, `TRACE_SUBPIXEL=1` adds the per-view stage with sub-pixel matches, `TRACE_ROBUST=1` Eq. 3.4
+//! with unreliable matches rejected or down-weighted (same matches), and `studio_truth_facet_gap` measures the gap between the two surfaces'
 //! facets and shading normals).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
@@ -22,7 +23,8 @@ use dynamic_shapes::photometric::truth::{
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
     surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
-    MetricParams, NormalMap, OffsetParams, SubPixel, SurfaceParams, VisualHullParams,
+    MetricParams, NormalMap, OffsetOutliers, OffsetParams, RobustWeights, SubPixel, SurfaceParams,
+    VisualHullParams,
 };
 
 const CAMERAS: usize = 8;
@@ -303,6 +305,91 @@ fn trace_normal_deviation_through_the_stages() {
         ctx.per_view(&format!("per-view: offsets {name}"), &s);
         variants.push((name, s));
     }
+    // `TRACE_ROBUST=1`: Eq. 3.4 on the same matches with unreliable ones rejected
+    // (`OffsetOutliers`) or down-weighted (`RobustWeights`) (issue 14, eighth session); merged
+    // once each (2 mm, thesis weights).
+    let mut robust = Vec::new();
+    if std::env::var("TRACE_ROBUST").is_ok() {
+        let o = OffsetOutliers::default();
+        let r = RobustWeights::default();
+        let plain = OffsetParams::default();
+        for (name, params) in [
+            (
+                "outliers r8 k3 5mm",
+                OffsetParams {
+                    outliers: Some(o),
+                    ..plain
+                },
+            ),
+            (
+                "outliers r8 k2 2mm",
+                OffsetParams {
+                    outliers: Some(OffsetOutliers {
+                        k: 2.0,
+                        floor_m: 0.002,
+                        ..o
+                    }),
+                    ..plain
+                },
+            ),
+            (
+                "outliers r16 k3 5mm",
+                OffsetParams {
+                    outliers: Some(OffsetOutliers {
+                        radius_px: 16.0,
+                        ..o
+                    }),
+                    ..plain
+                },
+            ),
+            (
+                "cauchy 3x 5mm",
+                OffsetParams {
+                    robust: Some(r),
+                    ..plain
+                },
+            ),
+            (
+                "cauchy 3x 2mm",
+                OffsetParams {
+                    robust: Some(RobustWeights {
+                        scale_m: 0.002,
+                        ..r
+                    }),
+                    ..plain
+                },
+            ),
+            (
+                "outliers r8 k3 5mm + cauchy 5mm",
+                OffsetParams {
+                    outliers: Some(o),
+                    robust: Some(r),
+                    ..plain
+                },
+            ),
+        ] {
+            let t = Instant::now();
+            let (mut rejected, mut asks, mut down, mut constrained) = (0, 0, 0, 0);
+            let s: Vec<DepthMap> = (0..CAMERAS)
+                .map(|c| {
+                    let refs: Vec<&DepthMap> = out.matched[c].iter().collect();
+                    asks += refs.iter().map(|m| m.valid_count()).sum::<usize>();
+                    let o = depth_offsets(&out.integrated[c], &refs, &params).unwrap();
+                    rejected += o.report.rejected;
+                    down += o.report.down_weighted;
+                    constrained += o.report.constrained;
+                    o.depth
+                })
+                .collect();
+            println!(
+                "TRACE robust {name}: {rejected} of {asks} matches rejected, {down} of \
+                 {constrained} constrained px down-weighted (< β/2), {:.1} s",
+                t.elapsed().as_secs_f64()
+            );
+            ctx.per_view(&format!("per-view: offsets {name}"), &s);
+            robust.push((name, s));
+        }
+    }
     let merge = |surfaces: &[DepthMap], params: &MergeParams| {
         let inputs: Vec<MergeView> = cams
             .iter()
@@ -319,6 +406,10 @@ fn trace_normal_deviation_through_the_stages() {
     if !quick {
         let m_truth1 = merge(&truths, &MergeParams::default().with_voxel_m(0.001));
         ctx.merged("merged true depths, 1 mm", &truths, &m_truth1);
+    }
+    for (label, s) in &robust {
+        let m = merge(s, &MergeParams::default());
+        ctx.merged(&format!("merged offsets {label}"), s, &m);
     }
     for (label, s) in &variants {
         let m = merge(s, &MergeParams::default());

@@ -72,8 +72,8 @@ use dynamic_shapes::photometric::{
     hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces,
     reconstruct_from_hull_depths, rendered_normals, surface_distance, table_metrics, BudgetInputs,
     DepthMap, IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    ReconstructParams, Reconstruction, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams,
-    ViewSurfaces, VisualHull, VisualHullParams,
+    OffsetOutliers, ReconstructParams, Reconstruction, RobustWeights, SubPixel, SurfaceDistance,
+    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -143,6 +143,24 @@ struct Args {
     /// "Sub-pixel matches and normal deviation").
     #[arg(long, default_value = "off")]
     subpixel_matches: String,
+    /// Rejects the matches whose Eq. 3.4 offset is an outlier of their neighbourhood's in
+    /// both passes and the control (`OffsetParams::outliers`, `OffsetOutliers::default()`
+    /// unless the three knobs below are given; issue 14, docs: "Reliable matches in Eq. 3.4").
+    #[arg(long)]
+    offset_outliers: bool,
+    /// With `--offset-outliers`: multiple of 1.4826 · MAD allowed (default 3).
+    #[arg(long)]
+    outlier_k: Option<f64>,
+    /// With `--offset-outliers`: window radius, px at 1024 (default 8).
+    #[arg(long)]
+    outlier_radius_px: Option<f64>,
+    /// With `--offset-outliers`: smallest allowed deviation, mm (default 5).
+    #[arg(long)]
+    outlier_floor_mm: Option<f64>,
+    /// Cauchy-reweighted Eq. 3.4 (`OffsetParams::robust`, 3 reweighted solves) with this
+    /// scale, mm, in both passes and the control.
+    #[arg(long)]
+    robust_offsets_mm: Option<f64>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -234,14 +252,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "path" => SubPixel::PathFit,
         other => return Err(format!("--subpixel-matches: off, cost or path, not {other}").into()),
     };
+    let outliers = args.offset_outliers.then(|| {
+        let d = OffsetOutliers::default();
+        OffsetOutliers {
+            k: args.outlier_k.unwrap_or(d.k),
+            radius_px: args.outlier_radius_px.unwrap_or(d.radius_px),
+            floor_m: args.outlier_floor_mm.map_or(d.floor_m, |f| f * 1e-3),
+            ..d
+        }
+    });
+    let robust = args.robust_offsets_mm.map(|mm| RobustWeights {
+        scale_m: mm * 1e-3,
+        ..RobustWeights::default()
+    });
     let mut params = SurfaceParams::default();
     params.matching.subpixel = subpixel;
+    params.offsets.outliers = outliers;
+    params.offsets.robust = robust;
     // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
     let mut rparams =
         ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
     rparams.scale_merge_jump = args.scale_merge_jump;
     rparams.pass1.matching.subpixel = subpixel;
     rparams.pass2.matching.subpixel = subpixel;
+    for pass in [&mut rparams.pass1, &mut rparams.pass2] {
+        pass.offsets.outliers = outliers;
+        pass.offsets.robust = robust;
+    }
     if args.pass1_poisson_depth.is_some() {
         rparams.pass1_poisson_depth = args.pass1_poisson_depth;
     }
@@ -424,6 +461,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "seconds_per_frame": t_hull + t_two_pass,
         "scale_merge_jump": rparams.scale_merge_jump,
         "subpixel_matches": format!("{:?}", rparams.pass1.matching.subpixel),
+        "offset_outliers": rparams.pass1.offsets.outliers,
+        "robust_offsets": rparams.pass1.offsets.robust,
+        "offsets_rejected": est.offsets.iter().map(|o| o.rejected).sum::<usize>(),
+        "offsets_down_weighted": est.offsets.iter().map(|o| o.down_weighted).sum::<usize>(),
+        "pass2_offsets_rejected": pass2.offsets.iter().map(|o| o.rejected).sum::<usize>(),
+        "pass2_offsets_down_weighted": pass2.offsets.iter().map(|o| o.down_weighted).sum::<usize>(),
         "pass2_proxy_jump_m": rparams.pass2.integration.proxy_jump_m,
         "pass2_budget_no_surface_pct": table["pass2"]["budget_no_surface_pct"],
         "pass2_budget_gross_uncovered_pct": table["pass2"]["budget_gross_uncovered_pct"],

@@ -141,8 +141,9 @@ pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
 pub use normals::{estimate_normals, NormalMap, NormalParams};
 pub use offsets::{
-    depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetParams, OffsetReport,
-    OffsetSurface, SurfaceErrors, SurfaceParams, SurfaceTimes, ViewSurfaces,
+    depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetOutliers, OffsetParams,
+    OffsetReport, OffsetSurface, RobustWeights, SurfaceErrors, SurfaceParams, SurfaceTimes,
+    ViewSurfaces,
 };
 pub use patterns::{
     grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,

@@ -58,6 +58,66 @@ pub struct OffsetParams {
     /// Ours (issue 14).
     #[serde(default)]
     pub proxy_gate_m: Option<f64>,
+    /// Rejects matches whose asked offset is an outlier of the offsets asked around it
+    /// ([`OffsetOutliers`]). `None` (default, the thesis's Eq. 3.4) keeps every match. Ours
+    /// (issue 14, eighth session).
+    #[serde(default)]
+    pub outliers: Option<OffsetOutliers>,
+    /// Down-weights, rather than rejects, the matches the membrane cannot follow
+    /// ([`RobustWeights`], iteratively reweighted solves). `None` (default, the thesis's
+    /// Eq. 3.4) weights every match by β. Ours (issue 14, eighth session).
+    #[serde(default)]
+    pub robust: Option<RobustWeights>,
+}
+
+/// Rejection of unreliable matches before Eq. 3.4 (ours, issue 14): the offset field
+/// `d̄` must be smooth (it corrects the integrated surface's low-frequency error), so a match
+/// whose asked offset differs from the median of the offsets asked by the matches within
+/// [`OffsetOutliers::radius_px`] (on the same connected part of the surface, every
+/// neighbouring view's matches pooled) by more than `max(k · 1.4826 · MAD, floor_m)` is a
+/// wrong correspondence of the surface metric and is dropped. Each view's match is tested
+/// on its own, so one view's gross match does not take the other view's good one with it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OffsetOutliers {
+    /// Window radius, px at the thesis's 1024-px width (scaled with the image width).
+    pub radius_px: f64,
+    /// Multiple of the robust standard deviation (1.4826 · MAD) allowed.
+    pub k: f64,
+    /// Smallest allowed deviation, m (the good matches' own scatter: ≈ a pixel's footprint).
+    pub floor_m: f64,
+    /// Fewest other matches in the window for the test to apply (below it, the match is kept).
+    pub min_neighbours: usize,
+}
+
+impl Default for OffsetOutliers {
+    fn default() -> Self {
+        Self {
+            radius_px: 8.0,
+            k: 3.0,
+            floor_m: 0.005,
+            min_neighbours: 8,
+        }
+    }
+}
+
+/// Iteratively reweighted least squares on Eq. 3.4's data term (ours, issue 14): after each
+/// solve, a match whose residual `r = d_i − d̄_i` is large is weighted by the Cauchy weight
+/// `β / (1 + (r / scale_m)²)` in the next solve (same sparsity, numeric refactorisation only).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RobustWeights {
+    /// Reweighted solves after the first one.
+    pub iterations: usize,
+    /// Cauchy scale, m.
+    pub scale_m: f64,
+}
+
+impl Default for RobustWeights {
+    fn default() -> Self {
+        Self {
+            iterations: 3,
+            scale_m: 0.005,
+        }
+    }
 }
 
 impl Default for OffsetParams {
@@ -67,6 +127,8 @@ impl Default for OffsetParams {
             max_distance_px: 40.0,
             proxy_weight: 0.0,
             proxy_gate_m: None,
+            outliers: None,
+            robust: None,
         }
     }
 }
@@ -82,6 +144,12 @@ pub struct OffsetReport {
     pub discarded: usize,
     /// Median |d̄| over the constrained pixels, mm.
     pub median_target_offset_mm: f64,
+    /// Matches (per neighbouring view and pixel) dropped as outliers ([`OffsetOutliers`]).
+    #[serde(default)]
+    pub rejected: usize,
+    /// Constrained pixels whose final robust weight is below half of β ([`RobustWeights`]).
+    #[serde(default)]
+    pub down_weighted: usize,
 }
 
 /// An offset surface.
@@ -128,6 +196,14 @@ pub fn depth_offsets_guided(
     if let Some(g) = params.proxy_gate_m {
         check::positive("proxy_gate_m", g)?;
     }
+    if let Some(o) = &params.outliers {
+        check::positive("outliers.radius_px", o.radius_px)?;
+        check::positive("outliers.k", o.k)?;
+        check::non_negative("outliers.floor_m", o.floor_m)?;
+    }
+    if let Some(r) = &params.robust {
+        check::positive("robust.scale_m", r.scale_m)?;
+    }
     let n_px = surface.depth_m.len();
     let (w, h) = (surface.width, surface.height);
     for t in targets {
@@ -145,18 +221,31 @@ pub fn depth_offsets_guided(
     };
     // d̄_i: the mean of the offsets asked by the views that matched pixel i (within the gate
     // of the proxy, if one is given).
+    let admitted = |i: usize, d: f64| {
+        let p = proxy_at(i);
+        !d.is_nan() && gate.is_none_or(|g| p.is_nan() || (d - p).abs() <= g)
+    };
+    // With `outliers`, each view's match is kept only if its offset agrees with its
+    // neighbourhood's (ours, issue 14).
+    let (keep, rejected) = match &params.outliers {
+        Some(o) => {
+            let (keep, rejected) = outlier_matches(surface, targets, &admitted, o)?;
+            (Some(keep), rejected)
+        }
+        None => (None, 0),
+    };
     let mut target = vec![f64::NAN; n_px];
     for (i, t) in target.iter_mut().enumerate() {
         let z = surface.depth_m[i];
         if z.is_nan() {
             continue;
         }
-        let p = proxy_at(i);
         let asks: Vec<f64> = targets
             .iter()
-            .map(|m| m.depth_m[i])
-            .filter(|d| !d.is_nan())
-            .filter(|d| gate.is_none_or(|g| p.is_nan() || (d - p).abs() <= g))
+            .enumerate()
+            .filter(|(k, _)| keep.as_ref().is_none_or(|kp| kp[*k][i]))
+            .map(|(_, m)| m.depth_m[i])
+            .filter(|&d| admitted(i, d))
             .collect();
         if !asks.is_empty() {
             *t = asks.iter().sum::<f64>() / asks.len() as f64 - z;
@@ -223,23 +312,59 @@ pub fn depth_offsets_guided(
         .filter(|&&i| proxied(i))
         .map(|&i| (unknown[i], proxy_at(i) - surface.depth_m[i]))
         .collect();
-    let mut problem =
-        LsqProblem::new(CscMatrix::from(&a)).with_term(CscMatrix::from(&c), params.beta);
+    let a = CscMatrix::from(&a);
+    let mut problem = LsqProblem::new(a.clone()).with_term(CscMatrix::from(&c), params.beta);
     let mut rhs = vec![d];
+    let mut g_csc = None;
     if !pulls.is_empty() {
         let mut g = CooMatrix::new(pulls.len(), n);
         for (r, &(col, _)) in pulls.iter().enumerate() {
             g.push(r, col, 1.0);
         }
-        problem = problem.with_term(CscMatrix::from(&g), anchor_weight);
+        let g = CscMatrix::from(&g);
+        problem = problem.with_term(g.clone(), anchor_weight);
+        g_csc = Some(g);
         rhs.push(DMatrix::from_iterator(
             pulls.len(),
             1,
             pulls.iter().map(|p| p.1),
         ));
     }
-    let solver = problem.factor(&LsqParams::default())?;
-    let off = solver.solve(&DMatrix::zeros(edges.len(), 1), &rhs)?;
+    let mut solver = problem.factor(&LsqParams::default())?;
+    let zeros = DMatrix::zeros(edges.len(), 1);
+    let mut off = solver.solve(&zeros, &rhs)?;
+    // IRLS (ours, issue 14): each match's row scaled by the square root of its Cauchy
+    // weight, the same sparsity refactorised numerically.
+    let mut down_weighted = 0;
+    if let Some(rw) = &params.robust {
+        let mut weight = vec![1.0; anchors.len()];
+        for _ in 0..rw.iterations {
+            for (wt, &(col, t)) in weight.iter_mut().zip(&anchors) {
+                let r = (off[col] - t) / rw.scale_m;
+                *wt = 1.0 / (1.0 + r * r);
+            }
+            let mut cw = CooMatrix::new(anchors.len(), n);
+            for (r, (&(col, _), wt)) in anchors.iter().zip(&weight).enumerate() {
+                cw.push(r, col, wt.sqrt());
+            }
+            let cw = CscMatrix::from(&cw);
+            let mut terms = vec![&cw];
+            if let Some(g) = &g_csc {
+                terms.push(g);
+            }
+            solver.set_values(&a, &terms)?;
+            rhs[0] = DMatrix::from_iterator(
+                anchors.len(),
+                1,
+                anchors
+                    .iter()
+                    .zip(&weight)
+                    .map(|(&(_, t), wt)| t * wt.sqrt()),
+            );
+            off = solver.solve(&zeros, &rhs)?;
+        }
+        down_weighted = weight.iter().filter(|&&wt| wt < 0.5).count();
+    }
     let mut depth = vec![f64::NAN; n_px];
     for (k, &i) in pixels.iter().enumerate() {
         let v = surface.depth_m[i] + off[k];
@@ -256,9 +381,94 @@ pub fn depth_offsets_guided(
             kept,
             discarded: surface.valid_count().saturating_sub(kept),
             median_target_offset_mm: skin_core::stats::median(&abs),
+            rejected,
+            down_weighted,
         },
         depth,
     })
+}
+
+/// The matches [`OffsetOutliers`] keeps, per target map and pixel, and how many it dropped.
+/// `admitted(i, d)` says whether a matched depth `d` at pixel `i` enters Eq. 3.4 at all.
+fn outlier_matches(
+    surface: &DepthMap,
+    targets: &[&DepthMap],
+    admitted: &dyn Fn(usize, f64) -> bool,
+    o: &OffsetOutliers,
+) -> Result<(Vec<Vec<bool>>, usize)> {
+    let (w, h) = (surface.width as usize, surface.height as usize);
+    let n_px = w * h;
+    let valid: Vec<bool> = surface.depth_m.iter().map(|z| !z.is_nan()).collect();
+    let (label, _) = regions(surface.width, surface.height, &valid)?;
+    // Each view's asked offset (NaN: no admitted match).
+    let asked: Vec<Vec<f64>> = targets
+        .iter()
+        .map(|m| {
+            (0..n_px)
+                .map(|i| {
+                    let d = m.depth_m[i];
+                    if valid[i] && admitted(i, d) {
+                        d - surface.depth_m[i]
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let radius = (o.radius_px * w as f64 / 1024.0).round().max(1.0) as usize;
+    let mut keep: Vec<Vec<bool>> = asked
+        .iter()
+        .map(|a| a.iter().map(|v| !v.is_nan()).collect())
+        .collect();
+    let mut rejected = 0;
+    let mut window = Vec::new();
+    let mut spread = Vec::new();
+    for i in 0..n_px {
+        if !asked.iter().any(|a| !a[i].is_nan()) {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        window.clear();
+        for v in y.saturating_sub(radius)..(y + radius + 1).min(h) {
+            for u in x.saturating_sub(radius)..(x + radius + 1).min(w) {
+                let j = v * w + u;
+                if label[j] == label[i] {
+                    window.extend(asked.iter().map(|a| a[j]).filter(|d| !d.is_nan()));
+                }
+            }
+        }
+        // The pixel's own asks are in the window; the test needs `min_neighbours` others.
+        let own = asked.iter().filter(|a| !a[i].is_nan()).count();
+        if window.len() < own + o.min_neighbours {
+            continue;
+        }
+        let med = median_in_place(&mut window);
+        spread.clear();
+        spread.extend(window.iter().map(|v| (v - med).abs()));
+        let mad = median_in_place(&mut spread);
+        let allowed = (o.k * 1.4826 * mad).max(o.floor_m);
+        for (k, a) in asked.iter().enumerate() {
+            if !a[i].is_nan() && (a[i] - med).abs() > allowed {
+                keep[k][i] = false;
+                rejected += 1;
+            }
+        }
+    }
+    Ok((keep, rejected))
+}
+
+/// The median of a non-empty slice of finite values (reorders it).
+fn median_in_place(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    let (_, m, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let upper = *m;
+    if n % 2 == 1 {
+        upper
+    } else {
+        let lower = v[..n / 2].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        0.5 * (lower + upper)
+    }
 }
 
 /// Knobs of the per-view stage of §3.3 ([`per_view_surfaces`]).
@@ -718,6 +928,108 @@ mod tests {
             },
         ] {
             assert!(depth_offsets_guided(&surface, &[&target], Some(&proxy), &bad).is_err());
+        }
+    }
+
+    #[test]
+    fn gross_matches_are_rejected_or_down_weighted_and_the_thesis_form_follows_them() {
+        // A flat surface at 2 m that its matches ask to move to 2.01 m (± 1 mm of noise);
+        // view A's matches are dense, with a 3 × 3 blob of gross matches asking 2.06 m;
+        // view B matched every fourth pixel, correctly, also inside the blob.
+        let (w, h) = (48u32, 48u32);
+        let noise = |i: u32| 0.001 * (f64::from(i) * 12.9898).sin();
+        let blob = |x: u32, y: u32| (20..23).contains(&x) && (20..23).contains(&y);
+        let surface = DepthMap::new(w, h, vec![2.0; (w * h) as usize]).unwrap();
+        let a = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| {
+                    if blob(i % w, i / w) {
+                        2.06
+                    } else {
+                        2.01 + noise(i)
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let b = DepthMap::new(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| {
+                    if i % w % 4 == 1 && i / w % 4 == 1 {
+                        2.01 + noise(i + 7)
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let plain = OffsetParams::default();
+        let at = |o: &OffsetSurface| o.depth.depth_m[o.depth.index(21, 21)];
+        // The thesis's Eq. 3.4 follows the gross matches (the baseline that must lose).
+        let thesis = depth_offsets(&surface, &[&a, &b], &plain).unwrap();
+        assert!(at(&thesis) > 2.015, "{}", at(&thesis));
+        assert_eq!(thesis.report.rejected, 0);
+        // Rejection (a 5-px window at this 48-px width: 100 px at 1024) drops exactly the
+        // blob's nine gross matches (B's good match inside the blob stays), and the surface
+        // stays at 2.01 m.
+        let rejecting = OffsetParams {
+            outliers: Some(OffsetOutliers {
+                radius_px: 100.0,
+                ..OffsetOutliers::default()
+            }),
+            ..plain
+        };
+        let out = depth_offsets(&surface, &[&a, &b], &rejecting).unwrap();
+        assert_eq!(out.report.rejected, 9, "{:?}", out.report);
+        assert_eq!(out.report.constrained, thesis.report.constrained - 8);
+        assert!((at(&out) - 2.01).abs() < 2e-3, "{}", at(&out));
+        // Down-weighting (Cauchy IRLS) also stays near 2.01 m.
+        let weighting = OffsetParams {
+            robust: Some(RobustWeights::default()),
+            ..plain
+        };
+        let out = depth_offsets(&surface, &[&a, &b], &weighting).unwrap();
+        assert!((at(&out) - 2.01).abs() < 5e-3, "{}", at(&out));
+        assert!(out.report.down_weighted >= 9, "{:?}", out.report);
+        // Without gross matches, rejection drops nothing and the result is the thesis's,
+        // bit for bit.
+        let clean = DepthMap::new(w, h, (0..w * h).map(|i| 2.01 + noise(i)).collect()).unwrap();
+        let thesis = depth_offsets(&surface, &[&clean, &b], &plain).unwrap();
+        let out = depth_offsets(&surface, &[&clean, &b], &rejecting).unwrap();
+        assert_eq!(out.report.rejected, 0);
+        assert_eq!(thesis.depth, out.depth);
+        // Bad input is an error.
+        let o = OffsetOutliers::default();
+        for bad in [
+            OffsetParams {
+                outliers: Some(OffsetOutliers {
+                    radius_px: 0.0,
+                    ..o
+                }),
+                ..plain
+            },
+            OffsetParams {
+                outliers: Some(OffsetOutliers { k: f64::NAN, ..o }),
+                ..plain
+            },
+            OffsetParams {
+                outliers: Some(OffsetOutliers { floor_m: -1.0, ..o }),
+                ..plain
+            },
+            OffsetParams {
+                robust: Some(RobustWeights {
+                    scale_m: 0.0,
+                    ..RobustWeights::default()
+                }),
+                ..plain
+            },
+        ] {
+            assert!(depth_offsets(&surface, &[&a, &b], &bad).is_err());
         }
     }
 
