@@ -7,7 +7,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod common;
-use common::exact_studio::{exact_studio_of, ExactStudio};
+use common::exact_studio::{exact_studio, exact_studio_of, ExactStudio};
 
 use std::time::Instant;
 
@@ -138,12 +138,13 @@ fn truth_surface() -> TrueSurface {
     }
 }
 
-/// The subject of the trace and its frame: `TRACE_SUBJECT=ghost` for the Ghost (the figure
-/// under the sheet, `GHOST_FRAME`); unset or `skirt`, the performer in the skirt.
-fn trace_subject() -> (DeformationParams, usize) {
+/// The subject of the trace other than the skirt, and its frame: `TRACE_SUBJECT=ghost` for the
+/// Ghost (the figure under the sheet, `GHOST_FRAME`); unset or `skirt`, `None` (the performer
+/// in the skirt).
+fn trace_subject() -> Option<(DeformationParams, usize)> {
     match std::env::var("TRACE_SUBJECT").as_deref() {
-        Ok("ghost") => (ghost_subject(), GHOST_FRAME),
-        Ok("skirt") | Err(_) => (skirt_subject(), STUDIO_FRAME),
+        Ok("ghost") => Some((ghost_subject(), GHOST_FRAME)),
+        Ok("skirt") | Err(_) => None,
         Ok(other) => panic!("TRACE_SUBJECT: ghost or skirt, not {other}"),
     }
 }
@@ -220,9 +221,9 @@ fn trace_normal_deviation_through_the_stages() {
         exact,
         hull,
         pairs,
-    } = {
-        let (subject, frame) = trace_subject();
-        exact_studio_of(&subject, frame, CAMERAS, size, truth_surface())
+    } = match trace_subject() {
+        Some((subject, frame)) => exact_studio_of(&subject, frame, CAMERAS, size, truth_surface()),
+        None => exact_studio(CAMERAS, size, truth_surface()),
     };
     println!(
         "TRACE true surface {:?}, subject {}",

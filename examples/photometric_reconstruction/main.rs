@@ -45,7 +45,9 @@
 //! cameras at 256²; the full run: 8 cameras at 512²; `--size` and `--cameras` change them).
 //! The true surface is the studio's polygonal mesh by default; `--truth-edge-mm 4` renders
 //! the smooth, consistent one (`TrueSurface::Smooth`, every face Phong-tessellated to 4 mm
-//! edges, shadows in light bins; docs: "A consistent studio truth").
+//! edges, shadows in light bins; docs: "A consistent studio truth"). `--subject ghost` (or
+//! `wrinkled`) runs only that subject, with each pass's per-view stages traced against the
+//! truth and the exact-normal control (docs: "The Ghost and the wrinkle amplitude").
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![recursion_limit = "256"] // the figures' json! literal
 
@@ -1209,6 +1211,9 @@ fn stage_trace(
     }))
 }
 
+/// A named region of the fine surface: a flag per fine vertex.
+type Region = (&'static str, Vec<bool>);
+
 /// The wrinkle regions of `fine` (the studio's `WrinkleParams::default()`: the skirt's garment
 /// folds and the elbow and knee creases) as per-fine-vertex flags: `skirt` for the vertices
 /// of the garment's fine faces, and every other vertex given to `elbows` or `knees` by its
@@ -1216,7 +1221,7 @@ fn stage_trace(
 fn wrinkle_regions(
     scene: &StudioScene,
     fine: &FineSurface,
-) -> Result<Vec<(&'static str, Vec<bool>)>, Box<dyn std::error::Error>> {
+) -> Result<Vec<Region>, Box<dyn std::error::Error>> {
     let performer = &scene.performer;
     let n = fine.mesh.vertices.len();
     let wrinkles = performer
