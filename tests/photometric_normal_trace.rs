@@ -1,14 +1,14 @@
 //! Trace of Table 3.1's normal deviation through the stages of §3.3 with the exact-normal
 //! control (issue 14): where are the degrees lost? Ignored by default (a diagnostic, not a
 //! check): `TRACE_SIZE=512 cargo test --release --test photometric_normal_trace -- --ignored
-//! --nocapture`; `TRACE_TRUTH_MM=4` traces the smooth, consistent true surface instead of the
+//! --nocapture`; `TRACE_SUBJECT=ghost` traces the Ghost instead of the skirt; `TRACE_TRUTH_MM=4` traces the smooth, consistent true surface instead of the
 //! polygonal mesh, `TRACE_SUBPIXEL=1` adds the per-view stage with sub-pixel matches, `TRACE_ROBUST=1` Eq. 3.4
 //! with unreliable matches rejected or down-weighted (same matches), and `studio_truth_facet_gap` measures the gap between the two surfaces'
 //! facets and shading normals).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod common;
-use common::exact_studio::{exact_studio, ExactStudio};
+use common::exact_studio::{exact_studio, exact_studio_of, ExactStudio};
 
 use std::time::Instant;
 
@@ -17,8 +17,10 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams};
+use dynamic_shapes::core::studio::DeformationParams;
 use dynamic_shapes::photometric::truth::{
-    facet_shading_gap, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
+    facet_shading_gap, ghost_subject, skirt_subject, StudioScene, TrueSurface, GHOST_FRAME,
+    STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
@@ -138,6 +140,17 @@ fn truth_surface() -> TrueSurface {
     }
 }
 
+/// The subject of the trace other than the skirt, and its frame: `TRACE_SUBJECT=ghost` for the
+/// Ghost (the figure under the sheet, `GHOST_FRAME`); unset or `skirt`, `None` (the performer
+/// in the skirt).
+fn trace_subject() -> Option<(DeformationParams, usize)> {
+    match std::env::var("TRACE_SUBJECT").as_deref() {
+        Ok("ghost") => Some((ghost_subject(), GHOST_FRAME)),
+        Ok("skirt") | Err(_) => None,
+        Ok(other) => panic!("TRACE_SUBJECT: ghost or skirt, not {other}"),
+    }
+}
+
 /// The image size of the traces: `TRACE_SIZE`, default 512.
 fn trace_size() -> u32 {
     std::env::var("TRACE_SIZE")
@@ -210,8 +223,15 @@ fn trace_normal_deviation_through_the_stages() {
         exact,
         hull,
         pairs,
-    } = exact_studio(CAMERAS, size, truth_surface());
-    println!("TRACE true surface {:?}", scene.true_surface);
+    } = match trace_subject() {
+        Some((subject, frame)) => exact_studio_of(&subject, frame, CAMERAS, size, truth_surface()),
+        None => exact_studio(CAMERAS, size, truth_surface()),
+    };
+    println!(
+        "TRACE true surface {:?}, subject {}",
+        scene.true_surface,
+        std::env::var("TRACE_SUBJECT").unwrap_or_else(|_| "skirt".into())
+    );
     let cams = &scene.ring.cameras;
     let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
     println!("TRACE setup {:.1} s at {size}²", t0.elapsed().as_secs_f64());

@@ -45,7 +45,9 @@
 //! cameras at 256²; the full run: 8 cameras at 512²; `--size` and `--cameras` change them).
 //! The true surface is the studio's polygonal mesh by default; `--truth-edge-mm 4` renders
 //! the smooth, consistent one (`TrueSurface::Smooth`, every face Phong-tessellated to 4 mm
-//! edges, shadows in light bins; docs: "A consistent studio truth").
+//! edges, shadows in light bins; docs: "A consistent studio truth"). `--subject ghost` (or
+//! `wrinkled`) runs only that subject, with each pass's per-view stages traced against the
+//! truth and the exact-normal control (docs: "The Ghost and the wrinkle amplitude").
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![recursion_limit = "256"] // the figures' json! literal
 
@@ -161,6 +163,13 @@ struct Args {
     /// scale, mm, in both passes and the control.
     #[arg(long)]
     robust_offsets_mm: Option<f64>,
+    /// Only this other subject (`ghost` or `wrinkled`), not the skirt before it: its capture,
+    /// both passes, Table 3.1, distances and wrinkle survival as in the full run, plus each
+    /// pass's per-view stages against the truth (how many pixels are off by more than 1, 3
+    /// and 10 cm) and the exact-normal control (issue 14, eighth session: the Ghost and the
+    /// wrinkles at 1024² without the skirt's run before them).
+    #[arg(long)]
+    subject: Option<String>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -216,6 +225,76 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         TrueSurface::Polygonal => Shadowing::Exact,
         TrueSurface::Smooth { .. } => bins,
     };
+    if let Some(name) = args.subject.as_deref() {
+        let (subject, frame, shadows) = match name {
+            "ghost" => (ghost_subject(), GHOST_FRAME, smooth_shadows),
+            "wrinkled" => (
+                skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
+                STUDIO_FRAME,
+                bins,
+            ),
+            other => return Err(format!("--subject: ghost or wrinkled, not {other}").into()),
+        };
+        let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
+        let (params, rparams) = reconstruction_params(&args, run.quick())?;
+        let t = Instant::now();
+        let scene = StudioScene::with_surface(
+            example_kit::data_path("makehuman")?,
+            &subject,
+            frame,
+            n_cams,
+            size,
+            surface,
+        )?;
+        let mut f = subject_run(
+            &mut run,
+            name,
+            &scene,
+            &pairs,
+            &rparams,
+            shadows,
+            Some(&params),
+        )?;
+        f["wall_s"] = json!(t.elapsed().as_secs_f64());
+        f["frame"] = json!(frame);
+        let mut figures = json!({
+            "subject": name,
+            "cameras": n_cams,
+            "size_px": size,
+            "truth_edge_mm": truth_edge_mm.max(0.0),
+        });
+        for (key, value) in f.as_object().into_iter().flatten() {
+            figures[format!("{name}_{key}")] = value.clone();
+        }
+        figures[name] = f;
+        for h in table_goal_headlines(
+            [
+                &format!("{name}_coverage_pct"),
+                &format!("{name}_normal_dev_deg"),
+                &format!("{name}_local_normal_dev_deg"),
+                &format!("{name}_surface_median_mm"),
+            ],
+            &format!("{name}: "),
+            &format!("{name}_hull_surface_median_mm"),
+        ) {
+            run.headline(h);
+        }
+        run.headline(
+            Headline::new(
+                &format!("{name}_seconds_per_frame"),
+                &format!("{name}: one frame from normal maps: proxy and both passes"),
+                "s",
+            )
+            .goal(Goal::AtMost(30.0)),
+        );
+        run.headline(
+            Headline::new("peak_rss_mb", "peak memory of the whole run", "MB")
+                .goal(Goal::AtMost(4000.0)),
+        );
+        figures["peak_rss_mb"] = json!(example_kit::peak_rss_mb());
+        run.finish(figures)?;
+        return Ok(());
+    }
     let scene = StudioScene::with_surface(
         example_kit::data_path("makehuman")?,
         &skirt_subject(),
@@ -246,49 +325,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
 
     let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
-    let subpixel = match args.subpixel_matches.as_str() {
-        "off" => SubPixel::Off,
-        "cost" => SubPixel::CostParabola,
-        "path" => SubPixel::PathFit,
-        other => return Err(format!("--subpixel-matches: off, cost or path, not {other}").into()),
-    };
-    let outliers = args.offset_outliers.then(|| {
-        let d = OffsetOutliers::default();
-        OffsetOutliers {
-            k: args.outlier_k.unwrap_or(d.k),
-            radius_px: args.outlier_radius_px.unwrap_or(d.radius_px),
-            floor_m: args.outlier_floor_mm.map_or(d.floor_m, |f| f * 1e-3),
-            ..d
-        }
-    });
-    let robust = args.robust_offsets_mm.map(|mm| RobustWeights {
-        scale_m: mm * 1e-3,
-        ..RobustWeights::default()
-    });
-    let mut params = SurfaceParams::default();
-    params.matching.subpixel = subpixel;
-    params.offsets.outliers = outliers;
-    params.offsets.robust = robust;
-    // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
-    let mut rparams =
-        ReconstructParams::default().with_poisson_depth(if run.quick() { 8 } else { 9 });
-    rparams.scale_merge_jump = args.scale_merge_jump;
-    rparams.pass1.matching.subpixel = subpixel;
-    rparams.pass2.matching.subpixel = subpixel;
-    for pass in [&mut rparams.pass1, &mut rparams.pass2] {
-        pass.offsets.outliers = outliers;
-        pass.offsets.robust = robust;
-    }
-    if args.pass1_poisson_depth.is_some() {
-        rparams.pass1_poisson_depth = args.pass1_poisson_depth;
-    }
-    if let Some(m) = args.pass2_proxy_jump_m {
-        rparams.pass2.integration.proxy_jump_m = m;
-    }
-    rparams.pass2.integration.layers = args.pass2_layers;
-    if let Some(a) = args.pass2_layer_agreement {
-        rparams.pass2.integration.layer_agreement = a;
-    }
+    let (params, rparams) = reconstruction_params(&args, run.quick())?;
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
     // The hull's depth maps rendered in `observe` (timed in `t_hull`) are pass 1's proxies.
@@ -513,7 +550,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 size,
                 surface,
             )?;
-            let mut f = subject_run(&mut run, name, &scene, &pairs, &rparams, shadows)?;
+            let mut f = subject_run(&mut run, name, &scene, &pairs, &rparams, shadows, None)?;
             f["wall_s"] = json!(t.elapsed().as_secs_f64());
             f["frame"] = json!(frame);
             figures[name] = f;
@@ -663,6 +700,58 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// The per-view stage's parameters (the exact-normal control's) and the two passes' from the
+/// command line: sub-pixel matches, Poisson depth 9 (≈ 4 mm cells; 8 with `--quick`), and the
+/// options that are off by default.
+fn reconstruction_params(
+    args: &Args,
+    quick: bool,
+) -> Result<(SurfaceParams, ReconstructParams), Box<dyn std::error::Error>> {
+    let subpixel = match args.subpixel_matches.as_str() {
+        "off" => SubPixel::Off,
+        "cost" => SubPixel::CostParabola,
+        "path" => SubPixel::PathFit,
+        other => return Err(format!("--subpixel-matches: off, cost or path, not {other}").into()),
+    };
+    let outliers = args.offset_outliers.then(|| {
+        let d = OffsetOutliers::default();
+        OffsetOutliers {
+            k: args.outlier_k.unwrap_or(d.k),
+            radius_px: args.outlier_radius_px.unwrap_or(d.radius_px),
+            floor_m: args.outlier_floor_mm.map_or(d.floor_m, |f| f * 1e-3),
+            ..d
+        }
+    });
+    let robust = args.robust_offsets_mm.map(|mm| RobustWeights {
+        scale_m: mm * 1e-3,
+        ..RobustWeights::default()
+    });
+    let mut params = SurfaceParams::default();
+    params.matching.subpixel = subpixel;
+    params.offsets.outliers = outliers;
+    params.offsets.robust = robust;
+    // The two passes of §3.3 (Poisson depth 9 ≈ 4 mm cells; 8 with --quick).
+    let mut rparams = ReconstructParams::default().with_poisson_depth(if quick { 8 } else { 9 });
+    rparams.scale_merge_jump = args.scale_merge_jump;
+    rparams.pass1.matching.subpixel = subpixel;
+    rparams.pass2.matching.subpixel = subpixel;
+    for pass in [&mut rparams.pass1, &mut rparams.pass2] {
+        pass.offsets.outliers = outliers;
+        pass.offsets.robust = robust;
+    }
+    if args.pass1_poisson_depth.is_some() {
+        rparams.pass1_poisson_depth = args.pass1_poisson_depth;
+    }
+    if let Some(m) = args.pass2_proxy_jump_m {
+        rparams.pass2.integration.proxy_jump_m = m;
+    }
+    rparams.pass2.integration.layers = args.pass2_layers;
+    if let Some(a) = args.pass2_layer_agreement {
+        rparams.pass2.integration.layer_agreement = a;
+    }
+    Ok((params, rparams))
+}
+
 /// One subject on the studio ring: the true mesh and views, part 1's normal maps from the
 /// light stage's images, the silhouettes and the visual hull rendered per camera.
 struct Observed {
@@ -780,7 +869,10 @@ const SCATTER_POINTS: usize = 4000;
 /// Another subject through the same two passes (pass `rparams` and ring `pairs`): Table 3.1,
 /// distances to the true mesh beside the visual hull's, and — for a subject with wrinkles —
 /// how much of the wrinkle displacement the meshes keep ([`displacement_survival`]), with a
-/// scatter plot `wrinkles.png`.
+/// scatter plot `wrinkles.png`, in all and per wrinkle region (skirt, elbows, knees).
+/// With `control` (`--subject`), also the per-view stages of both passes against the true
+/// depth maps ([`stage_trace`]) and the per-view stage with the rasteriser's exact normals
+/// under those parameters: where the subject's error comes from.
 fn subject_run(
     run: &mut Run,
     name: &str,
@@ -788,6 +880,7 @@ fn subject_run(
     pairs: &[(usize, usize)],
     rparams: &ReconstructParams,
     shadows: Shadowing,
+    control: Option<&SurfaceParams>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
     let obs = observe(run, scene, name, shadows)?;
     let stage = run.stage(&format!("{name}: two passes"), None);
@@ -864,6 +957,58 @@ fn subject_run(
         "hull_s": obs.t_hull,
         "two_pass_s": two_pass_s,
     });
+    if let (Some(params), Some(o)) = (control, out.as_object_mut()) {
+        let stage = run.stage(
+            &format!("{name}: per-view trace and exact-normal control"),
+            None,
+        );
+        let pass1 = rec
+            .pass1
+            .views
+            .errors_against(&obs.truths, &obs.proxies, &obs.estimated)?;
+        let exact: Vec<NormalMap> = obs
+            .cameras
+            .iter()
+            .zip(&obs.views)
+            .map(|(c, v)| rendered_normals(c, v))
+            .collect::<Result<_, _>>()?;
+        let ctl = per_view_surfaces(
+            &obs.cameras,
+            &exact,
+            &obs.proxies,
+            pairs,
+            Some(&obs.hull),
+            params,
+        )?;
+        let ctl_err = ctl.errors_against(&obs.truths, &obs.proxies, &exact)?;
+        let trace = json!({
+            "hull": stage_trace(&obs.proxies, &obs.truths, &obs.proxies)?,
+            "pass1_integrated": stage_trace(&rec.pass1.views.integrated, &obs.truths, &obs.proxies)?,
+            "pass1_offsets": stage_trace(&rec.pass1.views.surfaces, &obs.truths, &obs.proxies)?,
+            "pass2_proxy": stage_trace(&rec.pass2.proxies, &obs.truths, &obs.proxies)?,
+            "pass2_integrated": stage_trace(&rec.pass2.views.integrated, &obs.truths, &obs.proxies)?,
+            "pass2_offsets": stage_trace(&rec.pass2.views.surfaces, &obs.truths, &obs.proxies)?,
+            "exact_integrated": stage_trace(&ctl.integrated, &obs.truths, &obs.proxies)?,
+            "exact_offsets": stage_trace(&ctl.surfaces, &obs.truths, &obs.proxies)?,
+        });
+        stage.finish(format!(
+            "pass 1: {}; exact normals: {}",
+            summary(&pass1),
+            summary(&ctl_err)
+        ));
+        o.insert("stage_trace".into(), trace);
+        o.insert(
+            "errors".into(),
+            json!({ "pass1": pass1, "pass2": per_view, "exact": ctl_err }),
+        );
+        o.insert("offset_median_mm".into(), json!(pass1.offset.median_mm));
+        o.insert(
+            "exact_offset_median_mm".into(),
+            json!(ctl_err.offset.median_mm),
+        );
+        o.insert("exact_coverage_pct".into(), json!(ctl_err.coverage_pct));
+        o.insert("seconds_per_frame".into(), json!(obs.t_hull + two_pass_s));
+    }
     for (mesh, file) in [
         (&rec.pass2.merged.mesh, "merged"),
         (&rec.pass2.filled.mesh, "filled"),
@@ -877,6 +1022,11 @@ fn subject_run(
     let Some(fine) = &obs.fine else {
         return Ok(out);
     };
+    // A smooth truth without wrinkles (`--truth-edge-mm`) has a fine surface that nothing
+    // displaces: no wrinkle region to measure.
+    if fine.max_wrinkle_m() <= WRINKLE_MIN_M {
+        return Ok(out);
+    }
 
     // How much of the studio's wrinkle amplitude survives.
     let stage = run.stage(&format!("{name}: wrinkle amplitude"), None);
@@ -923,6 +1073,38 @@ fn subject_run(
         )?;
         survival.insert(key.into(), serde_json::to_value(&s)?);
         scatter.push((label, s));
+    }
+    // By region: the garment (the skirt's folds) and the creases, each fine vertex off the
+    // garment given to the nearest of the crease joints at rest (elbows, knees).
+    let mut by_region = serde_json::Map::new();
+    let regions = match wrinkle_regions(scene, fine) {
+        Ok(r) => r,
+        Err(e) => {
+            by_region.insert("error".into(), json!(e.to_string()));
+            Vec::new()
+        }
+    };
+    for (label, flags) in &regions {
+        let mut one = serde_json::Map::new();
+        let inside: Vec<bool> = region.iter().zip(flags).map(|(a, b)| *a && *b).collect();
+        for (key, mesh) in [
+            ("pass2_merged", &rec.pass2.merged.mesh),
+            ("pass2_filled", &rec.pass2.filled.mesh),
+            ("pass1_merged", &rec.pass1.merged.mesh),
+            ("hull", &hull_mesh),
+        ] {
+            // A region the cameras do not reach (no vertex within reach) is left out.
+            if let Ok(s) = displacement_survival(
+                &smooth,
+                &fine.wrinkle_displacement,
+                &inside,
+                mesh,
+                WRINKLE_REACH_M,
+            ) {
+                one.insert(key.into(), serde_json::to_value(&s)?);
+            }
+        }
+        by_region.insert((*label).into(), one.into());
     }
     let size = obs.truths[0].width;
     let fx = obs.cameras[0].intrinsics.fx;
@@ -980,6 +1162,7 @@ fn subject_run(
     )?;
     if let Some(o) = out.as_object_mut() {
         o.insert("wrinkle_survival".into(), survival.into());
+        o.insert("wrinkle_survival_by_region".into(), by_region.into());
         o.insert("wrinkle_amplitude_ratio".into(), json!(main.slope));
         o.insert(
             "wrinkle_filled_amplitude_ratio".into(),
@@ -999,6 +1182,135 @@ fn subject_run(
         o.insert("pixel_footprint_mm".into(), json!(pixel_mm));
     }
     Ok(out)
+}
+
+/// Where a per-view stage's depth is wrong, over the pixels where both it and the true depth
+/// map have a surface, all views pooled: the pixel count, the median |error| and the share
+/// (%) off by more than 1 cm (Table 3.1's `near_m`), 3 cm (pass 2's band about its proxy)
+/// and 10 cm (pass 1's matching band about the integrated surface): gross errors that the
+/// next stage's band cannot bring back, against small ones it can. The same split by how far
+/// the visual hull is from the truth at the pixel (`hull`: ≤ 3 cm, 3–10 cm, > 10 cm — the
+/// concavities, such as a sheet's folds, that the silhouettes cannot see): each class's share
+/// of the pixels and the stage's median error there.
+fn stage_trace(
+    stage: &[DepthMap],
+    truths: &[DepthMap],
+    hull: &[DepthMap],
+) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
+    if stage.len() != truths.len() || hull.len() != truths.len() {
+        return Err(format!(
+            "{} stage maps and {} hull maps for {} truths",
+            stage.len(),
+            hull.len(),
+            truths.len()
+        )
+        .into());
+    }
+    // (|stage − truth|, |hull − truth|; NaN where the hull has no surface).
+    let mut err: Vec<(f64, f64)> = Vec::new();
+    for ((s, t), h) in stage.iter().zip(truths).zip(hull) {
+        if s.depth_m.len() != t.depth_m.len() || h.depth_m.len() != t.depth_m.len() {
+            return Err("a stage map, its truth and its hull differ in size".into());
+        }
+        err.extend(
+            s.depth_m
+                .iter()
+                .zip(&t.depth_m)
+                .zip(&h.depth_m)
+                .filter(|((a, b), _)| a.is_finite() && b.is_finite())
+                .map(|((a, b), c)| ((a - b).abs(), (c - b).abs())),
+        );
+    }
+    let median_mm = |e: &mut Vec<f64>| {
+        e.sort_by(f64::total_cmp);
+        e.get(e.len() / 2).map_or(f64::NAN, |m| m * 1e3)
+    };
+    let n = err.len().max(1) as f64;
+    let over = |m: f64| 100.0 * err.iter().filter(|e| e.0 > m).count() as f64 / n;
+    let mut by_hull = serde_json::Map::new();
+    for (label, lo, hi) in [
+        ("hull_within_3cm", 0.0, 0.03),
+        ("hull_3_to_10cm", 0.03, 0.10),
+        ("hull_over_10cm", 0.10, f64::INFINITY),
+    ] {
+        let mut e: Vec<f64> = err
+            .iter()
+            .filter(|e| e.1 >= lo && e.1 < hi)
+            .map(|e| e.0)
+            .collect();
+        by_hull.insert(
+            label.into(),
+            json!({ "share_pct": 100.0 * e.len() as f64 / n, "median_mm": median_mm(&mut e) }),
+        );
+    }
+    let mut all: Vec<f64> = err.iter().map(|e| e.0).collect();
+    Ok(json!({
+        "pixels": err.len(),
+        "median_mm": median_mm(&mut all),
+        "over_1cm_pct": over(0.01),
+        "over_3cm_pct": over(0.03),
+        "over_10cm_pct": over(0.10),
+        "by_hull_error": by_hull,
+    }))
+}
+
+/// A named region of the fine surface: a flag per fine vertex.
+type Region = (&'static str, Vec<bool>);
+
+/// The wrinkle regions of `fine` (the studio's `WrinkleParams::default()`: the skirt's garment
+/// folds and the elbow and knee creases) as per-fine-vertex flags: `skirt` for the vertices
+/// of the garment's fine faces, and every other vertex given to `elbows` or `knees` by its
+/// nearest crease joint at rest (rest positions against the skeleton at its rest pose).
+fn wrinkle_regions(
+    scene: &StudioScene,
+    fine: &FineSurface,
+) -> Result<Vec<Region>, Box<dyn std::error::Error>> {
+    let performer = &scene.performer;
+    let n = fine.mesh.vertices.len();
+    let wrinkles = performer
+        .wrinkles()
+        .ok_or("wrinkle regions: the performer has no wrinkle model")?;
+    let garment_faces = wrinkles.garment_faces();
+    if garment_faces.len() != fine.mesh.faces.len() || fine.rest_positions.len() != n {
+        return Err("wrinkle regions: the fine surface is not the wrinkle model's".into());
+    }
+    let mut skirt = vec![false; n];
+    for (f, g) in fine.mesh.faces.iter().zip(garment_faces) {
+        if *g {
+            for &v in f {
+                skirt[v as usize] = true;
+            }
+        }
+    }
+    let skeleton = &performer.skeleton;
+    let joints = skeleton
+        .forward_kinematics(&skeleton.rest_pose())?
+        .joint_positions();
+    let mut creases = Vec::new();
+    for (joint, elbow) in [
+        ("l_elbow", true),
+        ("r_elbow", true),
+        ("l_knee", false),
+        ("r_knee", false),
+    ] {
+        let j = skeleton
+            .joint_index(joint)
+            .ok_or_else(|| format!("wrinkle regions: no joint {joint}"))?;
+        creases.push((joints[j], elbow));
+    }
+    let nearest_is_elbow: Vec<bool> = fine
+        .rest_positions
+        .iter()
+        .map(|p| {
+            creases
+                .iter()
+                .min_by(|a, b| a.0.distance(*p).total_cmp(&b.0.distance(*p)))
+                .is_some_and(|c| c.1)
+        })
+        .collect();
+    let elbows = (0..n).map(|i| !skirt[i] && nearest_is_elbow[i]).collect();
+    let knees = (0..n).map(|i| !skirt[i] && !nearest_is_elbow[i]).collect();
+    Ok(vec![("skirt", skirt), ("elbows", elbows), ("knees", knees)])
 }
 
 /// Table 3.1 of each pass (by name) and its merged and filled meshes' distances to the truth.

@@ -881,9 +881,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn proxy_jumps_and_match_breaks_remove_pixels() {
-        let (cam, normals, _, proxy) = sphere_view();
+    /// `proxy` with its right half (columns 48 on of the 96² view) 1 m farther: a stepped
+    /// proxy with a jump between columns 47 and 48.
+    fn with_jump(proxy: &DepthMap) -> DepthMap {
         let mut jumpy = proxy.clone();
         for y in 0..96 {
             for x in 48..96 {
@@ -891,6 +891,13 @@ mod tests {
                 jumpy.depth_m[i] += 1.0;
             }
         }
+        jumpy
+    }
+
+    #[test]
+    fn proxy_jumps_and_match_breaks_remove_pixels() {
+        let (cam, normals, _, proxy) = sphere_view();
+        let jumpy = with_jump(&proxy);
         let out =
             integrate_normals(&cam, &normals, &jumpy, None, &IntegrationParams::default()).unwrap();
         assert!(out.report.removed_proxy_jumps > 20, "{:?}", out.report);
@@ -930,15 +937,9 @@ mod tests {
     #[test]
     fn layers_put_straddling_pixels_on_the_side_their_evidence_agrees_with() {
         let (cam, normals, truth, proxy) = sphere_view();
-        // The proxy's right half 1 m farther: a jump between columns 47 and 48 that the true
-        // (continuous) sphere does not have, so column 48 truly lies on the near layer.
-        let mut jumpy = proxy.clone();
-        for y in 0..96 {
-            for x in 48..96 {
-                let i = jumpy.index(x, y);
-                jumpy.depth_m[i] += 1.0;
-            }
-        }
+        // A jump between columns 47 and 48 that the true (continuous) sphere does not have,
+        // so column 48 truly lies on the near layer.
+        let jumpy = with_jump(&proxy);
         let layered = IntegrationParams {
             layers: true,
             ..IntegrationParams::default()

@@ -5,6 +5,7 @@
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::RenderedView;
+use dynamic_shapes::core::studio::DeformationParams;
 use dynamic_shapes::photometric::truth::{
     render_both_faces, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
 };
@@ -30,10 +31,21 @@ pub struct ExactStudio {
 
 /// `cameras` ring cameras at `size`² (both faces rendered), the true mesh as `surface`.
 pub fn exact_studio(cameras: usize, size: u32, surface: TrueSurface) -> ExactStudio {
+    exact_studio_of(&skirt_subject(), STUDIO_FRAME, cameras, size, surface)
+}
+
+/// As [`exact_studio`] for any `subject` (e.g. `ghost_subject()`) at `frame`.
+pub fn exact_studio_of(
+    subject: &DeformationParams,
+    frame: usize,
+    cameras: usize,
+    size: u32,
+    surface: TrueSurface,
+) -> ExactStudio {
     let scene = StudioScene::with_surface(
         example_kit::data_path("makehuman").unwrap(),
-        &skirt_subject(),
-        STUDIO_FRAME,
+        subject,
+        frame,
         cameras,
         size,
         surface,
