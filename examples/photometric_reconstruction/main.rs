@@ -145,18 +145,19 @@ struct Args {
     /// "Sub-pixel matches and normal deviation").
     #[arg(long, default_value = "off")]
     subpixel_matches: String,
-    /// Rejects the matches whose Eq. 3.4 offset is an outlier of their neighbourhood's in
-    /// both passes and the control (`OffsetParams::outliers`, `OffsetOutliers::default()`
-    /// unless the three knobs below are given; issue 14, docs: "Reliable matches in Eq. 3.4").
+    /// Eq. 3.4 as the thesis writes it, every match kept, in both passes and the control
+    /// (`OffsetParams::outliers = None`; the default rejects the matches whose offset is an
+    /// outlier of their neighbourhood's, `OffsetOutliers::default()` unless the three knobs
+    /// below are given; issue 14, docs: "Reliable matches in Eq. 3.4").
     #[arg(long)]
-    offset_outliers: bool,
-    /// With `--offset-outliers`: multiple of 1.4826 · MAD allowed (default 3).
+    thesis_offsets: bool,
+    /// Outlier rejection: multiple of 1.4826 · MAD allowed (default 2).
     #[arg(long)]
     outlier_k: Option<f64>,
-    /// With `--offset-outliers`: window radius, px at 1024 (default 8).
+    /// Outlier rejection: window radius, px at 1024 (default 8).
     #[arg(long)]
     outlier_radius_px: Option<f64>,
-    /// With `--offset-outliers`: smallest allowed deviation, mm (default 5).
+    /// Outlier rejection: smallest allowed deviation, mm (default 2).
     #[arg(long)]
     outlier_floor_mm: Option<f64>,
     /// Cauchy-reweighted Eq. 3.4 (`OffsetParams::robust`, 3 reweighted solves) with this
@@ -713,7 +714,7 @@ fn reconstruction_params(
         "path" => SubPixel::PathFit,
         other => return Err(format!("--subpixel-matches: off, cost or path, not {other}").into()),
     };
-    let outliers = args.offset_outliers.then(|| {
+    let outliers = (!args.thesis_offsets).then(|| {
         let d = OffsetOutliers::default();
         OffsetOutliers {
             k: args.outlier_k.unwrap_or(d.k),
