@@ -714,6 +714,25 @@ fn add(p: Node, d: [i64; 3], s: i64) -> Node {
     [p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]]
 }
 
+/// Every level from the coarsest (dense down to `params.dense_depth`, then the band around
+/// the samples) to `params.depth`, each solved from the coarser ones, with its figures.
+fn solve_hierarchy(unit: &[UnitSample], params: &PoissonParams) -> (Vec<Level>, Vec<PoissonLevel>) {
+    let mut levels: Vec<Level> = Vec::new();
+    let mut figures = Vec::new();
+    for depth in COARSEST_DEPTH.min(params.dense_depth)..=params.depth {
+        let nb = (1i64 << depth) / B + 1;
+        let active = if depth <= params.dense_depth {
+            vec![true; (nb * nb * nb) as usize]
+        } else {
+            band_blocks(unit, depth, i64::from(params.band_blocks))
+        };
+        let mut level = Level::new(depth, &active);
+        figures.push(solve_level(&mut level, &levels, unit, params));
+        levels.push(level);
+    }
+    (levels, figures)
+}
+
 /// Builds and solves one level's system; `prev` (the coarser levels) gives the start and the
 /// Dirichlet values where the band ends.
 fn solve_level(
@@ -1239,19 +1258,7 @@ pub fn screened_poisson(
         check::positive("weight", s.weight)?;
     }
     let (unit, origin, side) = unit_samples(samples, params.scale, params.depth);
-    let mut levels: Vec<Level> = Vec::new();
-    let mut figures = Vec::new();
-    for depth in COARSEST_DEPTH.min(params.dense_depth)..=params.depth {
-        let nb = (1i64 << depth) / B + 1;
-        let active = if depth <= params.dense_depth {
-            vec![true; (nb * nb * nb) as usize]
-        } else {
-            band_blocks(&unit, depth, i64::from(params.band_blocks))
-        };
-        let mut level = Level::new(depth, &active);
-        figures.push(solve_level(&mut level, &levels, &unit, params));
-        levels.push(level);
-    }
+    let (levels, figures) = solve_hierarchy(&unit, params);
     let mut comp = Composite {
         levels: &levels,
         memo: NodeMap::default(),
@@ -1370,19 +1377,7 @@ mod tests {
     /// The hierarchy of `screened_poisson` on `samples`, every level solved.
     fn solved_levels(samples: &[OrientedSample], params: &PoissonParams) -> Vec<Level> {
         let (unit, _, _) = unit_samples(samples, params.scale, params.depth);
-        let mut levels: Vec<Level> = Vec::new();
-        for depth in COARSEST_DEPTH..=params.depth {
-            let nb = (1i64 << depth) / B + 1;
-            let active = if depth <= params.dense_depth {
-                vec![true; (nb * nb * nb) as usize]
-            } else {
-                band_blocks(&unit, depth, i64::from(params.band_blocks))
-            };
-            let mut level = Level::new(depth, &active);
-            solve_level(&mut level, &levels, &unit, params);
-            levels.push(level);
-        }
-        levels
+        solve_hierarchy(&unit, params).0
     }
 
     #[test]

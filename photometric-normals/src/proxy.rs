@@ -19,7 +19,7 @@
 use serde::{Deserialize, Serialize};
 use skin_core::camera::{Camera, MIN_DEPTH_M};
 use skin_core::check;
-use skin_core::image::{signed_distance, GrayF32Image, Mask};
+use skin_core::image::{sample_bilinear, signed_distance, GrayF32Image, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
@@ -219,8 +219,7 @@ impl VisualHull {
     /// the matching grids through [`VisualHull::contains`]): the camera point is transformed
     /// once and projected term for term as [`Camera::project`] does (the same values bit for
     /// bit, without the second transform and the `Result`), then looked up by
-    /// `bilinear` (`sample_bilinear` term for term, without its `floor` calls), which reads the
-    /// samples from the raw buffer.
+    /// [`sample_bilinear`], which reads the samples from the raw buffer.
     #[inline]
     fn camera_distance(&self, c: usize, p: DVec3) -> Option<(f64, f64)> {
         self.camera_distance_n2(c, p).map(|(sd, z, _)| (sd, z))
@@ -241,7 +240,7 @@ impl VisualHull {
         let px = cam.distortion.distort(k, k.pixel_from_normalized(n))?;
         let (w, h) = (f64::from(k.width - 1), f64::from(k.height - 1));
         let clamped = DVec2::new(px.x.clamp(0.0, w), px.y.clamp(0.0, h));
-        let sd = bilinear(&self.signed[c], clamped)?;
+        let sd = sample_bilinear(&self.signed[c], clamped)?;
         Some((sd + (px - clamped).length(), z, n.length_squared()))
     }
 
@@ -449,41 +448,6 @@ fn certificate(p: DVec3, sd: f64, z: f64, n2: f64, gain: f64) -> Certificate {
     }
 }
 
-/// [`sample_bilinear`](skin_core::image::sample_bilinear) of a point already clamped to the image (or `NaN`), the same values bit
-/// for bit: `corners` term for term, with the cell corner found by truncation, which equals
-/// the floor for the non-negative coordinates that pass the bounds test (without the
-/// `floor` library call of the baseline x86-64 target).
-#[inline]
-fn bilinear(image: &GrayF32Image, p: DVec2) -> Option<f64> {
-    let (w, h) = image.dimensions();
-    if w == 0 || h == 0 || !p.is_finite() {
-        return None;
-    }
-    let (max_x, max_y) = (f64::from(w - 1), f64::from(h - 1));
-    if p.x < 0.0 || p.y < 0.0 || p.x > max_x || p.y > max_y {
-        return None;
-    }
-    let x0 = (p.x as u32).min(w.saturating_sub(2));
-    let y0 = (p.y as u32).min(h.saturating_sub(2));
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (fx, fy) = (p.x - f64::from(x0), p.y - f64::from(y0));
-    let data: &[f32] = image.as_raw();
-    let at = |x: u32, y: u32| {
-        data.get(y as usize * w as usize + x as usize)
-            .map_or(f64::NAN, |v| f64::from(*v))
-    };
-    let (v00, v10, v01, v11) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
-    if !(v00.is_finite() && v10.is_finite() && v01.is_finite() && v11.is_finite()) {
-        return None;
-    }
-    Some(
-        v00 * (1.0 - fx) * (1.0 - fy)
-            + v10 * fx * (1.0 - fy)
-            + v01 * (1.0 - fx) * fy
-            + v11 * fx * fy,
-    )
-}
-
 /// A mesh proxy (pass 2 of §3.3: the hole-filled mesh of pass 1) rendered as `camera`'s
 /// depth map through the rasteriser (both faces of each triangle, so an open mesh works too).
 ///
@@ -509,7 +473,6 @@ pub fn mesh_proxy_depth(camera: &Camera, mesh: &TriMesh) -> Result<DepthMap> {
 mod tests {
     use super::*;
     use skin_core::camera::{Intrinsics, Rig};
-    use skin_core::image::sample_bilinear;
     use skin_core::mesh::shapes::uv_sphere;
 
     fn sphere_rig(n: usize) -> (Vec<Camera>, TriMesh) {
