@@ -6,7 +6,7 @@
 //! first-order step against the exact transition, the gate, q, the twist limit, half speed.
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
-//! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | shaped | all]
+//! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | shaped | codeq | all]
 //! | axes [SEEDS]]]`
 //!
 //! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
@@ -1095,6 +1095,40 @@ fn treadmill_trace(
                     s,
                     &rec,
                     tuned.with_sensors(set),
+                );
+            }
+        }
+    }
+    if what == "codeq" || what == "all" {
+        // Issue 15, eighth session: why the full run's treadmill shows no drift without
+        // distances at its tuned point (q 20, σ_a 0.354, σ_g 0.0638 — the code's σ included)
+        // while the test's point (q 4, σ_a 2, σ_g 0.01) drifts: the default 16-count code's
+        // recording, each knob moved alone.
+        let smooth = prepare_motion(s, &tread, &base).unwrap();
+        let garment = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+        let offsets = garment.calibrate_offsets(3).unwrap().offsets;
+        let rec = garment.record(&smooth, &offsets).unwrap();
+        let no_d = SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        };
+        for (q, sa, sg) in [
+            (4.0, 2.0, 0.01),
+            (20.0, 2.0, 0.01),
+            (4.0, 0.354, 0.0638),
+            (4.0, 2.0, 0.0638),
+            (4.0, 0.354, 0.01),
+            (20.0, 0.354, 0.0638),
+        ] {
+            for set in [SensorSet::ALL, no_d] {
+                treadmill_line(
+                    &format!("garment, q {q} σa {sa} σg {sg}"),
+                    s,
+                    &rec,
+                    tuned
+                        .with_process_sigma(q)
+                        .with_measurement_sigmas(sa, sg, 0.0025)
+                        .with_sensors(set),
                 );
             }
         }
