@@ -64,7 +64,7 @@ use dynamic_shapes::core::math::{DAffine3, DVec3};
 use dynamic_shapes::core::mesh::{points_to_surface, write_ply, MeshQuery, PlyEncoding, TriMesh};
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
-use dynamic_shapes::core::studio::{FineSurface, WrinkleParams};
+use dynamic_shapes::core::studio::{DeformationParams, FineSurface, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
     facet_shading_gap, ghost_subject, pattern_images, render_both_faces, skirt_subject,
     StudioScene, TrueSurface, GHOST_FRAME, RING_RADIUS_M, STUDIO_FRAME,
@@ -226,38 +226,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         TrueSurface::Polygonal => Shadowing::Exact,
         TrueSurface::Smooth { .. } => bins,
     };
-    if let Some(name) = args.subject.as_deref() {
-        let (subject, frame, shadows) = match name {
-            "ghost" => (ghost_subject(), GHOST_FRAME, smooth_shadows),
-            "wrinkled" => (
-                skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
-                STUDIO_FRAME,
-                bins,
-            ),
-            other => return Err(format!("--subject: ghost or wrinkled, not {other}").into()),
+    let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
+    let (params, rparams) = reconstruction_params(&args, run.quick())?;
+    // The subjects after the skirt: the Ghost (the sheet-covered figure, §3.4) at the skirt's
+    // frame of the exercise motion (`GHOST_FRAME`) and the skirt with the studio's wrinkles
+    // (how much of their amplitude survives); each captured, reconstructed and measured alone.
+    let others = [
+        ("ghost", ghost_subject(), GHOST_FRAME, smooth_shadows),
+        (
+            "wrinkled",
+            skirt_subject().with_wrinkles(Some(WrinkleParams::default())),
+            STUDIO_FRAME,
+            bins,
+        ),
+    ];
+    let other_run =
+        |run: &mut Run,
+         (name, subject, frame, shadows): &(&str, DeformationParams, usize, Shadowing),
+         control: Option<&SurfaceParams>|
+         -> Result<serde_json::Value, Box<dyn std::error::Error>> {
+            let t = Instant::now();
+            let scene = StudioScene::with_surface(
+                example_kit::data_path("makehuman")?,
+                subject,
+                *frame,
+                n_cams,
+                size,
+                surface,
+            )?;
+            let mut f = subject_run(run, name, &scene, &pairs, &rparams, *shadows, control)?;
+            f["wall_s"] = json!(t.elapsed().as_secs_f64());
+            f["frame"] = json!(frame);
+            Ok(f)
         };
-        let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
-        let (params, rparams) = reconstruction_params(&args, run.quick())?;
-        let t = Instant::now();
-        let scene = StudioScene::with_surface(
-            example_kit::data_path("makehuman")?,
-            &subject,
-            frame,
-            n_cams,
-            size,
-            surface,
-        )?;
-        let mut f = subject_run(
-            &mut run,
-            name,
-            &scene,
-            &pairs,
-            &rparams,
-            shadows,
-            Some(&params),
-        )?;
-        f["wall_s"] = json!(t.elapsed().as_secs_f64());
-        f["frame"] = json!(frame);
+    if let Some(name) = args.subject.as_deref() {
+        let other = others
+            .iter()
+            .find(|o| o.0 == name)
+            .ok_or_else(|| format!("--subject: ghost or wrinkled, not {name}"))?;
+        let f = other_run(&mut run, other, Some(&params))?;
         let mut figures = json!({
             "subject": name,
             "cameras": n_cams,
@@ -325,8 +332,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(c, v)| rendered_normals(c, v))
         .collect::<Result<_, _>>()?;
 
-    let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
-    let (params, rparams) = reconstruction_params(&args, run.quick())?;
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
     // The hull's depth maps rendered in `observe` (timed in `t_hull`) are pass 1's proxies.
@@ -525,8 +530,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "filled_surface_p95_mm": table["pass2"]["filled_surface_p95_mm"],
         "hull_surface_median_mm": hull_surface_median_mm,
     });
-    // The other subjects: the Ghost (the sheet-covered figure, §3.4) and the skirt with the
-    // studio's wrinkles (how much of their amplitude survives).
     // The true surface (issue 14, sixth session): its edge bound, size, capture time and how far
     // its shading normals are from its facets.
     figures["truth_edge_mm"] = json!(truth_edge_mm.max(0.0));
@@ -536,25 +539,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     figures["truth_facet_gap_median_deg"] = json!(truth_gap.median_deg);
     let mut headlines = Vec::new();
     if !args.skirt_only {
-        let wrinkled = skirt_subject().with_wrinkles(Some(WrinkleParams::default()));
-        // The Ghost at the skirt's frame of the exercise motion (`GHOST_FRAME`).
-        for (name, subject, frame, shadows) in [
-            ("ghost", ghost_subject(), GHOST_FRAME, smooth_shadows),
-            ("wrinkled", wrinkled, STUDIO_FRAME, bins),
-        ] {
-            let t = Instant::now();
-            let scene = StudioScene::with_surface(
-                example_kit::data_path("makehuman")?,
-                &subject,
-                frame,
-                n_cams,
-                size,
-                surface,
-            )?;
-            let mut f = subject_run(&mut run, name, &scene, &pairs, &rparams, shadows, None)?;
-            f["wall_s"] = json!(t.elapsed().as_secs_f64());
-            f["frame"] = json!(frame);
-            figures[name] = f;
+        for other in &others {
+            figures[other.0] = other_run(&mut run, other, None)?;
         }
         for key in [
             "coverage_pct",
