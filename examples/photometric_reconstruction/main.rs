@@ -64,6 +64,7 @@ use dynamic_shapes::core::math::{DAffine3, DVec3};
 use dynamic_shapes::core::mesh::{points_to_surface, write_ply, MeshQuery, PlyEncoding, TriMesh};
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
+use dynamic_shapes::core::studio::shading::DomeParams;
 use dynamic_shapes::core::studio::{DeformationParams, FineSurface, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
     facet_shading_gap, ghost_subject, pattern_images, render_both_faces, skirt_subject,
@@ -71,11 +72,12 @@ use dynamic_shapes::photometric::truth::{
 };
 use dynamic_shapes::photometric::{
     coverage_budget, depth_errors, depth_map_mesh, displacement_survival, estimate_normals,
-    hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces,
-    reconstruct_from_hull_depths, rendered_normals, surface_distance, table_metrics, BudgetInputs,
-    DepthMap, IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    OffsetOutliers, ReconstructParams, Reconstruction, RobustWeights, SubPixel, SurfaceDistance,
-    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    estimate_normals_on_proxy, hull_samples, integrate_normals, match_pair, matching_images,
+    per_view_surfaces, reconstruct_from_hull_depths, rendered_normals, surface_distance,
+    table_metrics, BudgetInputs, DepthMap, IntegrationParams, MatchMetric, MatchView,
+    MatchingParams, MetricParams, NormalMap, OffsetOutliers, ReconstructParams, Reconstruction,
+    RobustWeights, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces,
+    VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -171,7 +173,18 @@ struct Args {
     /// wrinkles at 1024² without the skirt's run before them).
     #[arg(long)]
     subject: Option<String>,
+    /// Add the thesis's optional ninth camera (§3.2.1: it "looks down onto the performer from
+    /// the top of the dome"), the ring's lens at the dome's top; it is matched with every
+    /// other ring camera (`TOP_PAIRS_EVERY`) and its part-1 normals take their heights from
+    /// the visual hull (`estimate_normals_on_proxy`).
+    #[arg(long)]
+    top_camera: bool,
 }
+
+/// The top camera is paired with every this many ring cameras (the thesis matches
+/// "neighbouring views"; every ring camera is as near the top one, and each pair costs a
+/// ring pair's matching).
+const TOP_PAIRS_EVERY: usize = 2;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
@@ -226,7 +239,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         TrueSurface::Polygonal => Shadowing::Exact,
         TrueSurface::Smooth { .. } => bins,
     };
-    let pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
+    let mut pairs: Vec<(usize, usize)> = (0..n_cams).map(|c| (c, (c + 1) % n_cams)).collect();
+    if args.top_camera {
+        pairs.extend((0..n_cams).step_by(TOP_PAIRS_EVERY).map(|c| (n_cams, c)));
+    }
+    let top = args.top_camera;
     let (params, rparams) = reconstruction_params(&args, run.quick())?;
     // The subjects after the skirt: the Ghost (the sheet-covered figure, §3.4) at the skirt's
     // frame of the exercise motion (`GHOST_FRAME`) and the skirt with the studio's wrinkles
@@ -246,15 +263,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          control: Option<&SurfaceParams>|
          -> Result<serde_json::Value, Box<dyn std::error::Error>> {
             let t = Instant::now();
-            let scene = StudioScene::with_surface(
-                example_kit::data_path("makehuman")?,
-                subject,
-                *frame,
-                n_cams,
-                size,
-                surface,
+            let scene = studio_scene(subject, *frame, n_cams, size, surface, top)?;
+            let mut f = subject_run(
+                run, name, &scene, n_cams, &pairs, &rparams, *shadows, control,
             )?;
-            let mut f = subject_run(run, name, &scene, &pairs, &rparams, *shadows, control)?;
             f["wall_s"] = json!(t.elapsed().as_secs_f64());
             f["frame"] = json!(frame);
             Ok(f)
@@ -268,6 +280,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut figures = json!({
             "subject": name,
             "cameras": n_cams,
+            "top_camera": top,
             "size_px": size,
             "truth_edge_mm": truth_edge_mm.max(0.0),
         });
@@ -303,14 +316,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         run.finish(figures)?;
         return Ok(());
     }
-    let scene = StudioScene::with_surface(
-        example_kit::data_path("makehuman")?,
-        &skirt_subject(),
-        STUDIO_FRAME,
-        n_cams,
-        size,
-        surface,
-    )?;
+    let scene = studio_scene(&skirt_subject(), STUDIO_FRAME, n_cams, size, surface, top)?;
     let Observed {
         cameras,
         mesh,
@@ -324,7 +330,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         t_hull,
         t_capture,
         ..
-    } = observe(&run, &scene, "skirt", smooth_shadows)?;
+    } = observe(&run, &scene, "skirt", smooth_shadows, n_cams)?;
     let truth_gap = facet_shading_gap(&cameras, &mesh)?;
     let exact: Vec<NormalMap> = cameras
         .iter()
@@ -365,6 +371,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
     let (table, distances) = score_passes(
         &cameras,
+        n_cams,
         &estimated,
         &silhouettes,
         &rec,
@@ -466,6 +473,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let mut figures = json!({
         "cameras": n_cams,
+        "top_camera": top,
         "size_px": size,
         "hull_median_mm": est_err.proxy.median_mm,
         "hull_p95_mm": est_err.proxy.p95_mm,
@@ -739,6 +747,40 @@ fn reconstruction_params(
     Ok((params, rparams))
 }
 
+/// The studio scene of `subject` at `frame` on a ring of `n_cams` cameras of `size` px, with
+/// the dome's top camera after them if `top` (`--top-camera`).
+fn studio_scene(
+    subject: &DeformationParams,
+    frame: usize,
+    n_cams: usize,
+    size: u32,
+    surface: TrueSurface,
+    top: bool,
+) -> Result<StudioScene, Box<dyn std::error::Error>> {
+    let mut scene = StudioScene::with_surface(
+        example_kit::data_path("makehuman")?,
+        subject,
+        frame,
+        n_cams,
+        size,
+        surface,
+    )?;
+    if top {
+        let lens = scene
+            .ring
+            .cameras
+            .first()
+            .ok_or("the ring has no camera")?
+            .intrinsics;
+        let height = scene.stage.centre.y + DomeParams::default().radius_m;
+        scene.ring = scene
+            .ring
+            .clone()
+            .with_top_camera(height, scene.root, DVec3::Y, lens)?;
+    }
+    Ok(scene)
+}
+
 /// One subject on the studio ring: the true mesh and views, part 1's normal maps from the
 /// light stage's images, the silhouettes and the visual hull rendered per camera.
 struct Observed {
@@ -767,12 +809,15 @@ enum Shadowing {
     Binned(usize),
 }
 
-/// Captures `scene` on its whole ring (cast shadows as `shadows`), renders the truth, estimates part 1's normal maps and the visual hull proxies.
+/// Captures `scene` on its whole ring (cast shadows as `shadows`), renders the truth, renders
+/// the visual hull proxies and estimates part 1's normal maps: the first `ring` cameras'
+/// pixel heights on the plane through the root, the others' (the top camera's) on the hull.
 fn observe(
     run: &Run,
     scene: &StudioScene,
     name: &str,
     shadows: Shadowing,
+    ring: usize,
 ) -> Result<Observed, Box<dyn std::error::Error>> {
     let cameras = scene.ring.cameras.clone();
     let (n_cams, size) = (
@@ -801,6 +846,12 @@ fn observe(
         mesh.vertex_count()
     ));
 
+    let stage = run.stage(&format!("{name}: visual hull proxy"), None);
+    let silhouettes: Vec<Mask> = frame.observations.iter().map(|o| o.mask.clone()).collect();
+    let hull = VisualHull::new(&cameras, &silhouettes)?;
+    let proxies = hull.depth_maps(&VisualHullParams::default())?;
+    let t_hull = stage.finish(format!("{} views", proxies.len()));
+
     let stage = run.stage(
         &format!("{name}: normal maps (part 1)"),
         Some(n_cams as u64),
@@ -812,23 +863,23 @@ fn observe(
         let cal = scene.calibrate(cam, &cal_params)?;
         let obs = &frame.observations[c];
         let images = pattern_images(obs)?;
-        estimated.push(estimate_normals(
-            cam,
-            &cal,
-            &images,
-            Some(&obs.mask),
-            &normal_params,
-        )?);
+        estimated.push(if c < ring {
+            estimate_normals(cam, &cal, &images, Some(&obs.mask), &normal_params)?
+        } else {
+            estimate_normals_on_proxy(
+                cam,
+                &cal,
+                &images,
+                Some(&obs.mask),
+                &proxies[c],
+                &normal_params,
+            )?
+        });
         stacks.push(matching_images(&images));
         stage.inc(1);
     }
     stage.finish("done");
 
-    let stage = run.stage(&format!("{name}: visual hull proxy"), None);
-    let silhouettes: Vec<Mask> = frame.observations.iter().map(|o| o.mask.clone()).collect();
-    let hull = VisualHull::new(&cameras, &silhouettes)?;
-    let proxies = hull.depth_maps(&VisualHullParams::default())?;
-    let t_hull = stage.finish(format!("{} views", proxies.len()));
     Ok(Observed {
         cameras,
         fine: frame.truth.fine.clone(),
@@ -860,16 +911,18 @@ const SCATTER_POINTS: usize = 4000;
 /// With `control` (`--subject`), also the per-view stages of both passes against the true
 /// depth maps ([`stage_trace`]) and the per-view stage with the rasteriser's exact normals
 /// under those parameters: where the subject's error comes from.
+#[allow(clippy::too_many_arguments)]
 fn subject_run(
     run: &mut Run,
     name: &str,
     scene: &StudioScene,
+    ring: usize,
     pairs: &[(usize, usize)],
     rparams: &ReconstructParams,
     shadows: Shadowing,
     control: Option<&SurfaceParams>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
-    let obs = observe(run, scene, name, shadows)?;
+    let obs = observe(run, scene, name, shadows, ring)?;
     let stage = run.stage(&format!("{name}: two passes"), None);
     let t = Instant::now();
     let rec = reconstruct_from_hull_depths(
@@ -888,6 +941,7 @@ fn subject_run(
             .errors_against(&obs.truths, &rec.pass2.proxies, &obs.estimated)?;
     let (table, distances) = score_passes(
         &obs.cameras,
+        ring,
         &obs.estimated,
         &obs.silhouettes,
         &rec,
@@ -1309,8 +1363,11 @@ type PassScores = (
 /// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
 /// budget against the true depth maps `truths`, and the merged and filled meshes' distances
 /// to the true mesh `truth`.
+/// With `ring` fewer than the cameras (`--top-camera`), each pass also gets Table 3.1 over the
+/// ring's measured normals alone (`ring_*` keys), comparable with a run without the top camera.
 fn score_passes(
     cameras: &[Camera],
+    ring: usize,
     estimated: &[NormalMap],
     silhouettes: &[Mask],
     rec: &Reconstruction,
@@ -1332,6 +1389,23 @@ fn score_passes(
             &pass.merged.mesh,
             &MetricParams::default(),
         )?;
+        let ring_table = if ring < cameras.len() {
+            let r = table_metrics(
+                &cameras[..ring],
+                &estimated[..ring],
+                &silhouettes[..ring],
+                &pass.views.surfaces[..ring],
+                &pass.merged.mesh,
+                &MetricParams::default(),
+            )?;
+            json!({
+                "ring_coverage_pct": r.coverage_pct,
+                "ring_normal_dev_deg": r.normal_dev_deg,
+                "ring_local_normal_dev_deg": r.local_normal_dev_deg,
+            })
+        } else {
+            json!({})
+        };
         let merged_d = surface_distance(&pass.merged.mesh, truth)?;
         let filled_d = surface_distance(&pass.filled.mesh, truth)?;
         // Where the uncovered measured normals were lost (issue 14's coverage budget).
@@ -1376,6 +1450,12 @@ fn score_passes(
                 "budget_merge_lost_pct": budget.pct(budget.merge_lost_px()),
             }),
         );
+        if let (Some(entry), Some(ring_keys)) = (
+            table.get_mut(name).and_then(|e| e.as_object_mut()),
+            ring_table.as_object(),
+        ) {
+            entry.extend(ring_keys.clone());
+        }
         distances.push((merged_d, filled_d));
     }
     Ok((table, distances))

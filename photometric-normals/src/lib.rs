@@ -20,7 +20,7 @@
 //! | `calibration.rs` | grey-sphere lookup tables in a kd-tree, N-best blending, heights | [`LookupTable`], [`HeightCalibration`], [`CalibrationSphere`] | §3.2.2 Eq. 3.2, §3.2.3 |
 //! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
 //! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
-//! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
+//! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`estimate_normals_on_proxy`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
 //! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
 //! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
@@ -139,7 +139,7 @@ pub use metrics::{
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
-pub use normals::{estimate_normals, NormalMap, NormalParams};
+pub use normals::{estimate_normals, estimate_normals_on_proxy, NormalMap, NormalParams};
 pub use offsets::{
     depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetOutliers, OffsetParams,
     OffsetReport, OffsetSurface, RobustWeights, SurfaceErrors, SurfaceParams, SurfaceTimes,

@@ -13,7 +13,7 @@ use skin_core::math::{DVec2, DVec3};
 
 use crate::calibration::HeightCalibration;
 use crate::patterns::{key, Exposure, PatternImages};
-use crate::{Error, Result};
+use crate::{DepthMap, Error, Result};
 
 /// Options of [`estimate_normals`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -148,7 +148,10 @@ fn pixel_height(camera: &Camera, px: DVec2, p: &NormalParams) -> Option<f64> {
 }
 
 /// §3.2.2: the normal map of one camera from its images under the patterns and its
-/// calibration, for the pixels of `mask` (all pixels when `None`).
+/// calibration, for the pixels of `mask` (all pixels when `None`). A pixel's height is taken
+/// on the vertical plane of [`NormalParams::performance_centre`]; a camera looking straight
+/// down at that centre has no such plane and gets no normals — use
+/// [`estimate_normals_on_proxy`] for it.
 ///
 /// # Errors
 /// [`Error::SizeMismatch`] if the images, the mask and the camera differ in size;
@@ -159,6 +162,54 @@ pub fn estimate_normals(
     images: &PatternImages,
     mask: Option<&Mask>,
     params: &NormalParams,
+) -> Result<NormalMap> {
+    estimate_at_heights(camera, calibration, images, mask, params, |_, px, p| {
+        pixel_height(camera, px, p)
+    })
+}
+
+/// [`estimate_normals`] with each pixel's height (§3.2.3's choice of calibration spheres)
+/// taken where its ray meets `proxy` (e.g. the visual hull rendered for `camera`), and on
+/// the vertical plane of [`NormalParams::performance_centre`] where the proxy has no depth.
+///
+/// Ours (issue 14: the thesis's optional ninth camera "looks down onto the performer from
+/// the top of the dome", §3.2.1): the thesis does not say how a pixel's height is found. The
+/// plane through the performance centre facing the camera serves the ring, whose cameras are
+/// almost level, but a camera above the centre has no such plane, and the surfaces it sees
+/// span the performer's whole height (head, shoulders, skirt, feet). The visual hull is known
+/// before the normals (it needs only the silhouettes) and is within centimetres of the
+/// surface where the subject is convex.
+///
+/// # Errors
+/// As [`estimate_normals`]; [`Error::InvalidParam`] if `proxy` is not of the camera's size.
+pub fn estimate_normals_on_proxy(
+    camera: &Camera,
+    calibration: &HeightCalibration,
+    images: &PatternImages,
+    mask: Option<&Mask>,
+    proxy: &DepthMap,
+    params: &NormalParams,
+) -> Result<NormalMap> {
+    proxy.check_camera(camera)?;
+    estimate_at_heights(camera, calibration, images, mask, params, |i, px, p| {
+        let d = proxy.depth_m[i];
+        if d.is_nan() {
+            return pixel_height(camera, px, p);
+        }
+        let ray = camera.ray(px).ok()?;
+        Some((ray.origin + ray.direction * d).dot(p.up))
+    })
+}
+
+/// The body of [`estimate_normals`] with the pixel heights of `height(index, pixel, params)`
+/// (`params.up` normalised).
+fn estimate_at_heights(
+    camera: &Camera,
+    calibration: &HeightCalibration,
+    images: &PatternImages,
+    mask: Option<&Mask>,
+    params: &NormalParams,
+    height: impl Fn(usize, DVec2, &NormalParams) -> Option<f64> + Sync,
 ) -> Result<NormalMap> {
     params.exposure.validate()?;
     let n_best = NonZero::new(params.n_best).ok_or(Error::InvalidParam {
@@ -209,7 +260,7 @@ pub fn estimate_normals(
             }
             let kn = key(&inten).try_normalize()?;
             let px = DVec2::new((i % w as usize) as f64, (i / w as usize) as f64);
-            let height = pixel_height(camera, px, &params)?;
+            let height = height(i, px, &params)?;
             calibration.lookup(kn, height, n_best)
         })
         .collect();
@@ -219,4 +270,106 @@ pub fn estimate_normals(
         valid: normals.iter().map(Option::is_some).collect(),
         normals: normals.into_iter().map(Option::unwrap_or_default).collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{
+        grey, patterns_weights, CalibrationParams, CalibrationSphere, LookupTable, PATTERNS,
+    };
+    use skin_core::camera::Intrinsics;
+    use skin_core::mesh::shapes::uv_sphere;
+    use skin_core::raster::{Buffers, Rasterizer, RenderParams};
+    use skin_core::studio::shading::{
+        dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows,
+    };
+
+    /// A camera 5 m above the dome's floor centre looking straight down, calibrated with grey
+    /// spheres at two heights under the axis, and a probe sphere at `probe_y`: its pattern
+    /// images and rendered depth along the pixel rays.
+    fn top_camera_probe(probe_y: f64) -> (Camera, HeightCalibration, PatternImages, DepthMap) {
+        let dome = DomeParams {
+            sphere_lights: 300,
+            floor_lights: 100,
+            ..Default::default()
+        };
+        let lights = dome_lights(&dome).unwrap();
+        let centre = DVec3::new(0.0, 4.0 / 3.0, 0.0);
+        let positions: Vec<DVec3> = lights.iter().map(Light::position).collect();
+        let weights = patterns_weights(&positions, centre, &PATTERNS).unwrap();
+        let k = Intrinsics::from_horizontal_fov(0.15, 64, 64).unwrap();
+        let cam = Camera::look_at(k, DVec3::new(0.0, 5.0, 0.0), DVec3::ZERO, DVec3::Z).unwrap();
+        let render = |s: &CalibrationSphere| {
+            let mesh = uv_sphere(s.centre, s.radius_m, 48, 96).unwrap();
+            let params = RenderParams::default().with_buffers(Buffers {
+                triangle: true,
+                depth: true,
+                ..Buffers::MASK_ONLY
+            });
+            let view = Rasterizer::new(&cam).render(&mesh, &params).unwrap();
+            let shaded = shade_patterns(
+                &view,
+                &mesh,
+                &lights,
+                &weights,
+                &Albedo::Uniform([0.5; 3]),
+                &Shadows::None,
+            )
+            .unwrap();
+            let images = PATTERNS
+                .iter()
+                .zip(&shaded)
+                .map(|(&p, s)| (p, grey(&s.to_image().unwrap())));
+            (
+                PatternImages::new(images.collect()).unwrap(),
+                DepthMap::from_view(&view).unwrap(),
+            )
+        };
+        let tables = [0.6, 1.4]
+            .iter()
+            .map(|&y| {
+                let sphere = CalibrationSphere {
+                    centre: DVec3::new(0.0, y, 0.0),
+                    radius_m: 0.2,
+                };
+                let (images, _) = render(&sphere);
+                LookupTable::from_sphere(
+                    &cam,
+                    &sphere,
+                    &images,
+                    DVec3::Y,
+                    &CalibrationParams::default(),
+                )
+                .unwrap()
+            })
+            .collect();
+        let calibration = HeightCalibration::new(tables).unwrap();
+        let (images, depth) = render(&CalibrationSphere {
+            centre: DVec3::new(0.0, probe_y, 0.0),
+            radius_m: 0.15,
+        });
+        (cam, calibration, images, depth)
+    }
+
+    #[test]
+    fn a_camera_above_the_centre_gets_normals_only_on_a_proxy() {
+        let (cam, calibration, images, depth) = top_camera_probe(1.4);
+        let params = NormalParams::default().with_performance_centre(DVec3::new(0.0, 1.0, 0.0));
+        let plane = estimate_normals(&cam, &calibration, &images, None, &params).unwrap();
+        let on_proxy =
+            estimate_normals_on_proxy(&cam, &calibration, &images, None, &depth, &params).unwrap();
+        let count = |m: &NormalMap| m.valid.iter().filter(|&&v| v).count();
+        // The plane through the centre facing a camera above it does not exist.
+        assert_eq!(count(&plane), 0);
+        // The probe covers a disc of about 18 px radius; its top faces the camera (−z).
+        assert!(count(&on_proxy) > 500, "{}", count(&on_proxy));
+        let centre_normal = on_proxy.normals[32 * 64 + 32];
+        assert!(centre_normal.z < -0.99, "{centre_normal}");
+        let bad = DepthMap::empty(32, 32).unwrap();
+        assert!(matches!(
+            estimate_normals_on_proxy(&cam, &calibration, &images, None, &bad, &params),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
 }
