@@ -48,6 +48,8 @@
 //! edges, shadows in light bins; docs: "A consistent studio truth"). `--subject ghost` (or
 //! `wrinkled`) runs only that subject, with each pass's per-view stages traced against the
 //! truth and the exact-normal control (docs: "The Ghost and the wrinkle amplitude").
+//! `--top-camera` adds the thesis's optional ninth camera above the performer (docs: "The
+//! optional top camera").
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![recursion_limit = "256"] // the figures' json! literal
 
