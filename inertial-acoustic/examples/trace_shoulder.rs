@@ -7,12 +7,14 @@
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
 //! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | shaped | codeq | all]
-//! | axes [SEEDS] | rom [base | causes | attrib | legs | knobs | cmp | all]]]`
+//! | axes [SEEDS] | rom [base | causes | attrib | legs | knobs | cmp | restbias
+//! | all]]]`
 //!
 //! `rom` (issue 15, ninth session): the full run's range-of-motion clip (SECONDS 0 for the
 //! whole clip) on the example's garment suit at the full run's tuned point — the left hip's
 //! error per second and per frame, which distances turn the still hip, one cause switched at
-//! a time (see `rom_trace`).
+//! a time, and a candidate correction of each pair's distance bias from the rest hold (see
+//! `rom_trace`).
 //!
 //! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
 //! performer, exercise clips of SECONDS for SEEDS seeds from SEED (motion and sensor noise),
@@ -1471,7 +1473,10 @@ fn axes_trace(
 /// from a 6 s first pass — `inertial_capture`'s figure. `base`: lost frames and flagged rows
 /// per board, per second the exercised DOF, the hip's true and estimated angles, its error and
 /// the left thigh board's innovations (per frame in /tmp/romhip-rom.csv); `causes`: one thing
-/// switched at a time.
+/// switched at a time; `attrib`: the oracle, exact placements and which microphones'
+/// distances turn the still hip (first 16 s); `legs`: the leg microphones' distances dropped;
+/// `knobs`: σ_d, Cauchy, q, the placement split, other seeds; `cmp`: the whole-count code's
+/// tuned point on both codes; `restbias`: the rest hold's per-pair distance bias removed.
 fn rom_trace(
     performer: &skin_core::studio::Performer,
     deformation: &skin_core::studio::DeformationParams,
@@ -1664,6 +1669,48 @@ fn rom_trace(
             "NEES neck / shoulder / hip {:.1} / {:.1} / {:.1} (consistent: 2 / 3 / 3)",
             run.nees_mean[0], run.nees_mean[1], run.nees_mean[2]
         );
+    }
+    if what == "restbias" || what == "all" {
+        // A candidate, not in the library: each microphone–source pair's distance bias
+        // measured on the rest hold (median of measured − nominal suit at the known rest
+        // pose, confidence ≥ 0.5) and subtracted from all its distances — the placement's
+        // projection on the rest line of sight. The ROM and the full run's 30 s exercise.
+        let exercise =
+            exercise_motion(s, &ExerciseParams::default().with_duration_s(30.0)).unwrap();
+        let ex_rec = {
+            let sim = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let smooth = prepare_motion(s, &exercise, &base).unwrap();
+            sim.record(&smooth, &offsets).unwrap()
+        };
+        for (name, r) in [("ROM", &rec), ("exercise 30 s", &ex_rec)] {
+            line(&format!("{name}, default"), r, tuned, true);
+            for limit in [f64::INFINITY, 0.04, 0.02] {
+                let corrected = rest_bias_corrected(s, r, limit);
+                line(
+                    &format!("{name}, rest-hold pair bias ≤ {} mm removed", 1e3 * limit),
+                    &corrected,
+                    tuned,
+                    true,
+                );
+            }
+        }
+        for seed in [2u64, 3] {
+            let r = record(base.with_seed(seed), false);
+            line(&format!("ROM seed {seed}, default"), &r, tuned, true);
+            for limit in [0.04, 0.02] {
+                let corrected = rest_bias_corrected(s, &r, limit);
+                line(
+                    &format!(
+                        "ROM seed {seed}, rest-hold pair bias ≤ {} mm removed",
+                        1e3 * limit
+                    ),
+                    &corrected,
+                    tuned,
+                    true,
+                );
+            }
+        }
     }
     if what == "cmp" || what == "all" {
         // The whole-count code's full-run point against the default's: the code or σ_a.
@@ -2089,4 +2136,53 @@ fn rom_attrib(
             println!("    {:<12} {:+.2}°", boards[m], v.to_degrees());
         }
     }
+}
+
+/// `rec` with each microphone–source pair's median distance residual on the rest hold
+/// (measured against the nominal suit at the known rest pose, confidence ≥ 0.5, at least 3
+/// pulses) subtracted from every distance of that pair if it is at most `limit` metres (a
+/// larger one is taken for a longer path heard at rest, not the placement).
+fn rest_bias_corrected(s: &Skeleton, rec: &SimulatedRecording, limit: f64) -> SimulatedRecording {
+    let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
+    let suit = &rec.nominal_suit;
+    let ns = suit.sources().len();
+    let mut residuals = vec![Vec::new(); suit.boards().len() * ns];
+    for f in &rec.frames[..rec.rest_frames] {
+        for d in f.distances.iter().filter(|d| d.confidence >= 0.5) {
+            let pm = fk.point(&suit.boards()[d.sensor].point()).unwrap();
+            let ps = fk.point(&suit.sources()[d.source].point()).unwrap();
+            residuals[d.sensor * ns + d.source].push(d.distance_m - pm.distance(ps));
+        }
+    }
+    let bias: Vec<f64> = residuals
+        .iter_mut()
+        .map(|v| {
+            if v.len() < 3 {
+                return 0.0;
+            }
+            v.sort_by(f64::total_cmp);
+            let m = v[v.len() / 2];
+            if m.abs() <= limit {
+                m
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let used: Vec<f64> = bias.iter().copied().filter(|b| *b != 0.0).collect();
+    let rms = (used.iter().map(|b| b * b).sum::<f64>() / used.len().max(1) as f64).sqrt();
+    println!(
+        "    rest-hold pair bias: {} of {} pairs, RMS {:.1} mm, largest {:.1} mm",
+        used.len(),
+        bias.len(),
+        1e3 * rms,
+        1e3 * used.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+    );
+    let mut out = rec.clone();
+    for f in &mut out.frames {
+        for d in &mut f.distances {
+            d.distance_m -= bias[d.sensor * ns + d.source];
+        }
+    }
+    out
 }
