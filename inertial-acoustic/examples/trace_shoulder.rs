@@ -1664,6 +1664,20 @@ fn rom_trace(
                 true,
             );
         }
+        // The feet hear the hat brim at rest 0.106 m long (`restbias`): those pairs dropped.
+        let hat = rec
+            .nominal_suit
+            .sources()
+            .iter()
+            .position(|x| x.name == "hat_brim")
+            .unwrap();
+        let feet = [board("l_foot"), board("r_foot")];
+        let mut r = rec.clone();
+        for f in &mut r.frames {
+            f.distances
+                .retain(|d| !(d.source == hat && feet.contains(&d.sensor)));
+        }
+        line("no feet – hat_brim distances", &r, tuned, true);
         let run = run_filter_board_noise(s, &rec, tuned, true, &joints, 6.0).unwrap();
         println!(
             "NEES neck / shoulder / hip {:.1} / {:.1} / {:.1} (consistent: 2 / 3 / 3)",
@@ -2169,6 +2183,21 @@ fn rest_bias_corrected(s: &Skeleton, rec: &SimulatedRecording, limit: f64) -> Si
             }
         })
         .collect();
+    if limit.is_infinite() {
+        for (i, v) in residuals.iter().enumerate() {
+            if v.len() >= 3 && v[v.len() / 2].abs() > 0.02 {
+                println!(
+                    "    pair {} – {}: median {:.1} mm over {} pulses (range {:.1} … {:.1})",
+                    suit.boards()[i / ns].name,
+                    suit.sources()[i % ns].name,
+                    1e3 * v[v.len() / 2],
+                    v.len(),
+                    1e3 * v[0],
+                    1e3 * v[v.len() - 1]
+                );
+            }
+        }
+    }
     let used: Vec<f64> = bias.iter().copied().filter(|b| *b != 0.0).collect();
     let rms = (used.iter().map(|b| b * b).sum::<f64>() / used.len().max(1) as f64).sqrt();
     println!(
