@@ -7,7 +7,14 @@
 //!
 //! `cargo run --release -p inertial-acoustic --features validation --example trace_shoulder
 //! [-- SECONDS [SEED] [walk | oracle | sigmas | sat | budget | treadmill [sensors | causes | gate | q | twist | sat | shaped | codeq | all]
-//! | axes [SEEDS]]]`
+//! | axes [SEEDS] | rom [base | causes | attrib | legs | knobs | cmp | restbias
+//! | all]]]`
+//!
+//! `rom` (issue 15, ninth session): the full run's range-of-motion clip (SECONDS 0 for the
+//! whole clip) on the example's garment suit at the full run's tuned point — the left hip's
+//! error per second and per frame, which distances turn the still hip, one cause switched at
+//! a time, and a candidate correction of each pair's distance bias from the rest hold (see
+//! `rom_trace`).
 //!
 //! `axes` (issue 15, seventh session): the example's garment and rigid suits on the MakeHuman
 //! performer, exercise clips of SECONDS for SEEDS seeds from SEED (motion and sensor noise),
@@ -17,8 +24,8 @@
 
 use inertial_acoustic::simulate::{
     estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
-    prepare_motion, refine_recording_headings, run_filter, treadmill_motion, SimulatedRecording,
-    SimulationParams, SmoothMotion, SuitSimulator,
+    prepare_motion, refine_recording_headings, run_filter, run_filter_board_noise,
+    treadmill_motion, SimulatedRecording, SimulationParams, SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
     initialise, FilterParams, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
@@ -109,6 +116,15 @@ fn main() {
         let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
         let seeds: u64 = args.get(4).map_or(1, |a| a.parse().unwrap());
         axes_trace(&performer, &deformation, seconds, seed, seeds);
+        return;
+    }
+    if args.get(3).is_some_and(|a| a == "rom") {
+        // Issue 15, ninth session: the full run's range-of-motion clip and suit.
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
+        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
+        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let what = args.get(4).map_or("base", String::as_str);
+        rom_trace(&performer, &deformation, seconds, what);
         return;
     }
     if args.get(3).is_some_and(|a| a == "treadmill") {
@@ -1448,4 +1464,754 @@ fn axes_trace(
             );
         }
     }
+}
+
+/// Issue 15, ninth session: the range-of-motion hip. The full run's clip (`range_of_motion`,
+/// 74.5 s; SECONDS > 0 cuts it), garment suit on the MakeHuman performer, default front end
+/// (16-count noise-shaped code), A+G+D with the root supplied at the full run's tuned point
+/// (q 20, σ_a 0.3 ⊕ code, σ_g 0.002 ⊕ code, gate 4σ, local chart 0.3 rad) and per-board σ
+/// from a 6 s first pass — `inertial_capture`'s figure. `base`: lost frames and flagged rows
+/// per board, per second the exercised DOF, the hip's true and estimated angles, its error and
+/// the left thigh board's innovations (per frame in /tmp/romhip-rom.csv); `causes`: one thing
+/// switched at a time; `attrib`: the oracle, exact placements and which microphones'
+/// distances turn the still hip (first 16 s); `legs`: the leg microphones' distances dropped;
+/// `knobs`: σ_d, Cauchy, q, the placement split, other seeds; `cmp`: the whole-count code's
+/// tuned point on both codes; `restbias`: the rest hold's per-pair distance bias removed.
+fn rom_trace(
+    performer: &skin_core::studio::Performer,
+    deformation: &skin_core::studio::DeformationParams,
+    seconds: f64,
+    what: &str,
+) {
+    use skin_core::studio::{range_of_motion, RangeOfMotionParams};
+    let s = &performer.skeleton;
+    let full = range_of_motion(s, &RangeOfMotionParams::default()).unwrap();
+    let rom = if seconds > 0.0 {
+        let n = ((seconds / full.frame_time_s) as usize + 1).min(full.frame_count());
+        Motion::new(full.frame_time_s, full.frames.columns(0, n).into_owned()).unwrap()
+    } else {
+        full
+    };
+    let joints: Vec<usize> = ["neck", "r_shoulder", "l_hip"]
+        .iter()
+        .map(|n| s.joint_index(n).unwrap())
+        .collect();
+    let base = SimulationParams::default();
+    let (cg, ca) = base.code_noise().unwrap();
+    let tuned = FilterParams {
+        process_sigma: 20.0,
+        accelerometer_sigma: 0.3f64.hypot(ca),
+        gyroscope_sigma: 0.002f64.hypot(cg),
+        distance_gate_sigma: 4.0,
+        recentre_rad: 0.3,
+        ..FilterParams::default()
+    };
+    println!(
+        "ROM {:.1} s; tuned q {} σa {:.4} σg {:.4} gate {} chart {}",
+        (rom.frame_count() - 1) as f64 * rom.frame_time_s,
+        tuned.process_sigma,
+        tuned.accelerometer_sigma,
+        tuned.gyroscope_sigma,
+        tuned.distance_gate_sigma,
+        tuned.recentre_rad
+    );
+    let record = |sp: SimulationParams, rigid: bool| -> SimulatedRecording {
+        let sim = SuitSimulator::on_performer(performer, deformation, sp).unwrap();
+        let sim = if rigid {
+            sim.with_rigid_attachment()
+        } else {
+            sim
+        };
+        let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+        let smooth = prepare_motion(s, &rom, &sp).unwrap();
+        sim.record(&smooth, &offsets).unwrap()
+    };
+    let t0 = std::time::Instant::now();
+    let rec = record(base, false);
+    println!(
+        "recorded in {:.1} s: {} inertial frames lost (uncorrectable), {} bits corrected",
+        t0.elapsed().as_secs_f64(),
+        rec.inertial_frames_flagged,
+        rec.bits_corrected
+    );
+    let names: Vec<String> = rec
+        .nominal_suit
+        .boards()
+        .iter()
+        .map(|b| b.name.clone())
+        .collect();
+    let thigh = names.iter().position(|n| n == "l_thigh").unwrap();
+    let hip_dofs: Vec<usize> = s.joint_dofs(joints[2]).collect();
+    let dof_names: Vec<String> = s.dofs().map(|d| d.name.clone()).collect();
+    let root_dofs: Vec<usize> = s.joint_dofs(0).collect();
+    let dt = 1.0 / 140.0;
+    let t_of = |k: usize| (k as f64 - rec.rest_frames as f64) * dt;
+    if what == "base" || what == "all" {
+        for (b, name) in names.iter().enumerate() {
+            let lost: Vec<String> = rec
+                .frames
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| f.inertial[b].is_none())
+                .map(|(k, _)| format!("{:.2}", t_of(k)))
+                .collect();
+            let (mut gyro, mut accel, mut n) = (0usize, 0usize, 0usize);
+            for r in rec.frames.iter().filter_map(|f| f.inertial[b]) {
+                n += 1;
+                gyro += r.saturated[..3].iter().filter(|&&x| x).count();
+                accel += r.saturated[3..].iter().filter(|&&x| x).count();
+            }
+            println!(
+                "{name:<12} lost frames {} at t = [{}] s; flagged gyro rows {gyro}, accel rows {accel} of {n} frames",
+                lost.len(),
+                lost.join(" ")
+            );
+        }
+        // The full run's figure, then the same stepped by hand for the per-frame trace.
+        let r = run_filter_board_noise(s, &rec, tuned, true, &joints, 6.0).unwrap();
+        println!(
+            "run_filter_board_noise A+G+D root: neck {:.2} shoulder {:.2} hip {:.2} div {}",
+            r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg, r.diverged_frames
+        );
+        let noise = estimate_recording_board_noise(s, &rec, tuned, true, 6.0).unwrap();
+        println!(
+            "per-board σ (gyro, accel): l_thigh {:.4} {:.3}, sacrum {:.4} {:.3}",
+            noise[thigh].gyroscope_sigma,
+            noise[thigh].accelerometer_sigma,
+            noise[0].gyroscope_sigma,
+            noise[0].accelerometer_sigma
+        );
+        let mut adapted = rec.clone();
+        adapted.nominal_suit = adapted.nominal_suit.with_board_noise(noise).unwrap();
+        rom_stepped(
+            s, &adapted, tuned, &joints, thigh, &hip_dofs, &dof_names, &root_dofs,
+        );
+    }
+    let line = |label: &str, rec: &SimulatedRecording, p: FilterParams, per_board: bool| {
+        let r = if per_board {
+            run_filter_board_noise(s, rec, p, true, &joints, 6.0).unwrap()
+        } else {
+            run_filter(s, rec, p, true, &joints).unwrap()
+        };
+        let w: Vec<String> = r.errors_deg[2]
+            .chunks(700)
+            .map(|c| format!("{:.0}", c.iter().sum::<f64>() / c.len() as f64))
+            .collect();
+        println!(
+            "{label:<44} {:<6} neck {:5.2} shoulder {:5.2} hip {:5.2} div {} | hip per 5 s: {}",
+            r.sensors,
+            r.stats[0].mean_deg,
+            r.stats[1].mean_deg,
+            r.stats[2].mean_deg,
+            r.diverged_frames,
+            w.join(" ")
+        );
+    };
+    if what == "attrib" || what == "all" {
+        // The filter's own models along the true motion (no sensing error at all), and the
+        // suit without placement errors, garment and rigid.
+        let smooth = prepare_motion(s, &rom, &base).unwrap();
+        let oracle = model_recording(s, &rec.nominal_suit, &smooth, base.rest_s).unwrap();
+        line("oracle (the filter's own models)", &oracle, tuned, false);
+        line("default (the full run's figure)", &rec, tuned, true);
+        let no_d = SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        };
+        line(
+            "oracle (the filter's own models)",
+            &oracle,
+            tuned.with_sensors(no_d),
+            false,
+        );
+        let exact = SimulationParams {
+            placement_sd_m: 0.0,
+            placement_sd_deg: 0.0,
+            ..base
+        };
+        line("no placement error", &record(exact, false), tuned, true);
+        line(
+            "no placement error, rigid",
+            &record(exact, true),
+            tuned,
+            true,
+        );
+        line(
+            "every error off, rigid",
+            &record(errors_off(base), true),
+            tuned,
+            true,
+        );
+        rom_attrib(s, &rec, tuned, thigh, hip_dofs[2], 16.0);
+    }
+    if what == "legs" || what == "all" {
+        // The leg microphones' distances dropped (after the rest hold), and the hip's NEES.
+        let board = |n: &str| names.iter().position(|b| b == n).unwrap();
+        for drop in [
+            vec!["l_thigh"],
+            vec!["l_thigh", "l_shin", "l_foot"],
+            vec!["l_thigh", "l_shin", "l_foot", "r_thigh", "r_shin", "r_foot"],
+        ] {
+            let ids: Vec<usize> = drop.iter().map(|n| board(n)).collect();
+            let mut r = rec.clone();
+            for f in &mut r.frames[rec.rest_frames..] {
+                f.distances.retain(|d| !ids.contains(&d.sensor));
+            }
+            line(
+                &format!("no distances at {}", drop.join(", ")),
+                &r,
+                tuned,
+                true,
+            );
+        }
+        // The feet hear the hat brim at rest 0.106 m long (`restbias`): those pairs dropped.
+        let hat = rec
+            .nominal_suit
+            .sources()
+            .iter()
+            .position(|x| x.name == "hat_brim")
+            .unwrap();
+        let feet = [board("l_foot"), board("r_foot")];
+        let mut r = rec.clone();
+        for f in &mut r.frames {
+            f.distances
+                .retain(|d| !(d.source == hat && feet.contains(&d.sensor)));
+        }
+        line("no feet – hat_brim distances", &r, tuned, true);
+        let run = run_filter_board_noise(s, &rec, tuned, true, &joints, 6.0).unwrap();
+        println!(
+            "NEES neck / shoulder / hip {:.1} / {:.1} / {:.1} (consistent: 2 / 3 / 3)",
+            run.nees_mean[0], run.nees_mean[1], run.nees_mean[2]
+        );
+    }
+    if what == "restbias" || what == "all" {
+        // A candidate, not in the library: each microphone–source pair's distance bias
+        // measured on the rest hold (median of measured − nominal suit at the known rest
+        // pose, confidence ≥ 0.5) and subtracted from all its distances — the placement's
+        // projection on the rest line of sight. The ROM and the full run's 30 s exercise.
+        let exercise =
+            exercise_motion(s, &ExerciseParams::default().with_duration_s(30.0)).unwrap();
+        let ex_rec = {
+            let sim = SuitSimulator::on_performer(performer, deformation, base).unwrap();
+            let offsets = sim.calibrate_offsets(3).unwrap().offsets;
+            let smooth = prepare_motion(s, &exercise, &base).unwrap();
+            sim.record(&smooth, &offsets).unwrap()
+        };
+        for (name, r) in [("ROM", &rec), ("exercise 30 s", &ex_rec)] {
+            line(&format!("{name}, default"), r, tuned, true);
+            for limit in [f64::INFINITY, 0.04, 0.02] {
+                let corrected = rest_bias_corrected(s, r, limit);
+                line(
+                    &format!("{name}, rest-hold pair bias ≤ {} mm removed", 1e3 * limit),
+                    &corrected,
+                    tuned,
+                    true,
+                );
+            }
+        }
+        for seed in [2u64, 3] {
+            let r = record(base.with_seed(seed), false);
+            line(&format!("ROM seed {seed}, default"), &r, tuned, true);
+            for limit in [0.04, 0.02] {
+                let corrected = rest_bias_corrected(s, &r, limit);
+                line(
+                    &format!(
+                        "ROM seed {seed}, rest-hold pair bias ≤ {} mm removed",
+                        1e3 * limit
+                    ),
+                    &corrected,
+                    tuned,
+                    true,
+                );
+            }
+        }
+    }
+    if what == "cmp" || what == "all" {
+        // The whole-count code's full-run point against the default's: the code or σ_a.
+        let whole = record(
+            SimulationParams {
+                delta_step: None,
+                ..base
+            },
+            false,
+        );
+        for (label, r) in [("whole-count code", &whole), ("16-count code", &rec)] {
+            for sa in [0.02, 0.02f64.hypot(ca), 2.0] {
+                line(
+                    &format!("{label}, q 0.04, σa {sa:.3}, σg 0.002"),
+                    r,
+                    tuned
+                        .with_process_sigma(0.04)
+                        .with_measurement_sigmas(sa, 0.002, 0.0025),
+                    true,
+                );
+            }
+        }
+    }
+    if what == "knobs" || what == "all" {
+        // What would hold the still leg's rotation: the distances' σ (the placement error the
+        // filter is not told), a robust loss, the process noise; the placement error split.
+        line("default (the full run's figure)", &rec, tuned, true);
+        for sd in [0.006, 0.012] {
+            line(
+                &format!("σ_d {} mm", 1e3 * sd),
+                &rec,
+                tuned.with_measurement_sigmas(tuned.accelerometer_sigma, tuned.gyroscope_sigma, sd),
+                true,
+            );
+        }
+        line(
+            "Cauchy distances",
+            &rec,
+            tuned.with_distance_robust(RobustLoss::Cauchy { c: 2.385 }),
+            true,
+        );
+        line("q 0.04", &rec, tuned.with_process_sigma(0.04), true);
+        line("q 0.4", &rec, tuned.with_process_sigma(0.4), true);
+        let whole = record(
+            SimulationParams {
+                delta_step: None,
+                ..base
+            },
+            false,
+        );
+        let whole_point = tuned
+            .with_process_sigma(0.04)
+            .with_measurement_sigmas(0.02, 0.002, 0.0025);
+        line(
+            "whole-count code at its full-run point (q 0.04, σa 0.02, σg 0.002)",
+            &whole,
+            whole_point,
+            true,
+        );
+        line(
+            "16-count code at q 0.04, σa 0.02 ⊕ code, σg 0.002 ⊕ code",
+            &rec,
+            tuned.with_process_sigma(0.04).with_measurement_sigmas(
+                0.02f64.hypot(ca),
+                tuned.gyroscope_sigma,
+                0.0025,
+            ),
+            true,
+        );
+        // The gyroscope trusted beyond the code's white σ (its error telescopes when
+        // integrated): the sensor's σ alone, at both process noises.
+        for q in [0.04, 20.0] {
+            line(
+                &format!("16-count code at q {q}, σa 0.02 ⊕ code, σg 0.002 (code σ not told)"),
+                &rec,
+                tuned.with_process_sigma(q).with_measurement_sigmas(
+                    0.02f64.hypot(ca),
+                    0.002,
+                    0.0025,
+                ),
+                true,
+            );
+        }
+        for (label, m, d) in [
+            (
+                "placement: position error only (1 cm)",
+                base.placement_sd_m,
+                0.0,
+            ),
+            (
+                "placement: angle error only (3°)",
+                0.0,
+                base.placement_sd_deg,
+            ),
+        ] {
+            let sp = SimulationParams {
+                placement_sd_m: m,
+                placement_sd_deg: d,
+                ..base
+            };
+            line(label, &record(sp, false), tuned, true);
+        }
+        for seed in [2u64, 3] {
+            line(
+                &format!("simulation seed {seed}"),
+                &record(base.with_seed(seed), false),
+                tuned,
+                true,
+            );
+        }
+    }
+    if what == "causes" || what == "all" {
+        let no_d = SensorSet {
+            distances: false,
+            ..SensorSet::ALL
+        };
+        let g = SensorSet {
+            accelerometers: false,
+            ..no_d
+        };
+        line("default (the full run's figure)", &rec, tuned, true);
+        line("global σ (no first pass)", &rec, tuned, false);
+        for set in [g, no_d] {
+            line("sensor set", &rec, tuned.with_sensors(set), true);
+        }
+        line("Euler chart", &rec, tuned.with_recentre_rad(0.0), true);
+        line(
+            "skip_saturated off",
+            &rec,
+            tuned.with_skip_saturated(false),
+            true,
+        );
+        line(
+            "code σ not told (σa 0.3, σg 0.002)",
+            &rec,
+            tuned.with_measurement_sigmas(0.3, 0.002, tuned.distance_sigma_m),
+            true,
+        );
+        for q in [4.0, 100.0] {
+            line(&format!("q {q}"), &rec, tuned.with_process_sigma(q), true);
+        }
+        line(
+            "σa 2.01 (2 ⊕ code)",
+            &rec,
+            tuned.with_measurement_sigmas(2f64.hypot(ca), tuned.gyroscope_sigma, 0.0025),
+            true,
+        );
+        line(
+            "σg 0.0646 (0.01 ⊕ code)",
+            &rec,
+            tuned.with_measurement_sigmas(tuned.accelerometer_sigma, 0.01f64.hypot(cg), 0.0025),
+            true,
+        );
+        // Bit errors off with the same random stream: `random_bool` draws one number per
+        // bit whatever its probability, so only the flips go.
+        let quiet = record(
+            SimulationParams {
+                bit_error_rate: 1e-12,
+                ..base
+            },
+            false,
+        );
+        println!(
+            "bit errors off: {} frames lost",
+            quiet.inertial_frames_flagged
+        );
+        line("no bit errors (same noise)", &quiet, tuned, true);
+        let whole = record(
+            SimulationParams {
+                delta_step: None,
+                ..base
+            },
+            false,
+        );
+        println!(
+            "whole-count code: {} frames lost",
+            whole.inertial_frames_flagged
+        );
+        line(
+            "whole-count code, filter told its σ (0)",
+            &whole,
+            tuned,
+            true,
+        );
+        line(
+            "whole-count code, σa 0.3 σg 0.002",
+            &whole,
+            tuned.with_measurement_sigmas(0.3, 0.002, 0.0025),
+            true,
+        );
+        let rigid = record(base, true);
+        line("rigid suit", &rigid, tuned, true);
+    }
+}
+
+/// The filter stepped by hand over `rec` (its suit's per-board σ as given), A+G+D with the
+/// root supplied: per second the exercised DOF, the hip's true and estimated angles, its
+/// error, board `thigh`'s innovations, flagged rows skipped and distances used / rejected;
+/// per frame in /tmp/romhip-rom.csv.
+#[allow(clippy::too_many_arguments)]
+fn rom_stepped(
+    s: &Skeleton,
+    rec: &SimulatedRecording,
+    p: FilterParams,
+    joints: &[usize],
+    thigh: usize,
+    hip_dofs: &[usize],
+    dof_names: &[String],
+    root_dofs: &[usize],
+) {
+    use inertial_acoustic::joint_orientation_errors_deg;
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
+    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, root_dofs)
+        .unwrap()
+        .with_gyro_offsets(init.gyro_offsets.clone())
+        .unwrap();
+    let mut csv = String::from("t_s,neck_deg,shoulder_deg,hip_deg");
+    for &d in hip_dofs {
+        csv += &format!(",{0}_true_deg,{0}_est_deg", dof_names[d]);
+    }
+    csv += ",lost_any,thigh_lost\n";
+    let per = 140usize;
+    let mut sums = [0.0; 3];
+    let mut total = [0.0; 3];
+    let mut n_total = 0usize;
+    let mut prev = ekf.innovation_stats().clone();
+    let (mut sat, mut used, mut rejected, mut lost, mut div) = (0, 0, 0, 0, 0);
+    let mut n = 0usize;
+    println!(
+        "t (s) | exercised DOF (|θ| max) | hip true [{}] deg | est | err neck/shoulder/hip | l_thigh NIS gyro / accel / dist (n) | sat rows, dist used/rejected, lost frames, div",
+        hip_dofs.iter().map(|&d| dof_names[d].as_str()).collect::<Vec<_>>().join(" ")
+    );
+    let mut biggest = (0usize, 0.0f64);
+    for (k, f) in rec.frames.iter().enumerate() {
+        let r = ekf.step(f, Some(&rec.root[k])).unwrap();
+        if k < rec.rest_frames {
+            prev = ekf.innovation_stats().clone();
+            continue;
+        }
+        let truth = &rec.truth[k].theta;
+        let est = ekf.theta();
+        let e = joint_orientation_errors_deg(s, est, truth, joints).unwrap();
+        let t = (k - rec.rest_frames) as f64 / 140.0;
+        csv += &format!("{t:.4},{:.3},{:.3},{:.3}", e[0], e[1], e[2]);
+        for &d in hip_dofs {
+            csv += &format!(",{:.3},{:.3}", truth[d].to_degrees(), est[d].to_degrees());
+        }
+        let lost_any = f.inertial.iter().filter(|x| x.is_none()).count();
+        csv += &format!(",{lost_any},{}\n", u8::from(f.inertial[thigh].is_none()));
+        for i in 0..3 {
+            sums[i] += e[i];
+            total[i] += e[i];
+        }
+        n_total += 1;
+        sat += r.inertial_saturated;
+        used += r.distances_used;
+        rejected += r.distances_rejected;
+        lost += lost_any;
+        div += usize::from(r.diverged);
+        for (d, &v) in truth.iter().enumerate() {
+            if !root_dofs.contains(&d) && v.abs() > biggest.1 {
+                biggest = (d, v.abs());
+            }
+        }
+        n += 1;
+        if n == per || k + 1 == rec.frames.len() {
+            let now = ekf.innovation_stats().clone();
+            let nis = |t: usize| {
+                let (a, b) = (now[t][thigh], prev[t][thigh]);
+                let c = a.count - b.count;
+                format!("{:.2} ({c})", (a.sum_nis - b.sum_nis) / c.max(1) as f64)
+            };
+            let deg = |v: &[f64]| {
+                hip_dofs
+                    .iter()
+                    .map(|&d| format!("{:+5.0}", v[d].to_degrees()))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            println!(
+                "{:5.1} | {:<18} {:4.0}° | {} | {} | {:5.1} {:5.1} {:5.1} | {} / {} / {} | {sat} {used}/{rejected} {lost} {div}",
+                t,
+                dof_names[biggest.0],
+                biggest.1.to_degrees(),
+                deg(truth),
+                deg(est),
+                sums[0] / n as f64,
+                sums[1] / n as f64,
+                sums[2] / n as f64,
+                nis(0),
+                nis(1),
+                nis(2)
+            );
+            prev = now;
+            sums = [0.0; 3];
+            (sat, used, rejected, lost, div, n) = (0, 0, 0, 0, 0, 0);
+            biggest = (0, 0.0);
+        }
+    }
+    println!(
+        "stepped by hand: neck {:.2} shoulder {:.2} hip {:.2}",
+        total[0] / n_total as f64,
+        total[1] / n_total as f64,
+        total[2] / n_total as f64
+    );
+    std::fs::write("/tmp/romhip-rom.csv", csv).unwrap();
+}
+
+/// Which distances move the hip's rotation: the filter (per-board σ from the 6 s first pass,
+/// as the full run) stepped over the first `seconds` of `rec`; on every frame whose step
+/// turns the hip DOF `rot` by more than 0.2°, the same step repeated without each
+/// microphone's distances in turn, and the distances of the microphones whose removal changes
+/// the turn by more than 0.1° listed with their true (rigid, true suit) lengths.
+fn rom_attrib(
+    s: &Skeleton,
+    rec: &SimulatedRecording,
+    p: FilterParams,
+    thigh: usize,
+    rot: usize,
+    seconds: f64,
+) {
+    let noise = estimate_recording_board_noise(s, rec, p, true, 6.0).unwrap();
+    let mut rec = rec.clone();
+    rec.nominal_suit = rec.nominal_suit.with_board_noise(noise).unwrap();
+    let rest_pose = &rec.truth[0].theta;
+    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
+        .iter()
+        .map(|f| f.inertial.clone())
+        .collect();
+    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
+    let root: Vec<usize> = s.joint_dofs(0).collect();
+    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, &root)
+        .unwrap()
+        .with_gyro_offsets(init.gyro_offsets.clone())
+        .unwrap();
+    let boards: Vec<String> = rec
+        .nominal_suit
+        .boards()
+        .iter()
+        .map(|b| b.name.clone())
+        .collect();
+    let sources: Vec<String> = rec
+        .nominal_suit
+        .sources()
+        .iter()
+        .map(|b| b.name.clone())
+        .collect();
+    let end = (rec.rest_frames + (seconds * 140.0) as usize).min(rec.frames.len());
+    let mut by_mic = vec![0.0f64; boards.len()];
+    let mut total = 0.0;
+    for k in 0..end {
+        let f = &rec.frames[k];
+        let before = ekf.theta()[rot];
+        let mut trial = Vec::new();
+        if k >= rec.rest_frames && !f.distances.is_empty() {
+            let mut mics: Vec<usize> = f.distances.iter().map(|m| m.sensor).collect();
+            mics.sort_unstable();
+            mics.dedup();
+            for m in mics {
+                let mut e = ekf.clone();
+                let mut g = f.clone();
+                g.distances.retain(|d| d.sensor != m);
+                e.step(&g, Some(&rec.root[k])).unwrap();
+                trial.push((m, e.theta()[rot] - before));
+            }
+        }
+        ekf.step(f, Some(&rec.root[k])).unwrap();
+        let turn = ekf.theta()[rot] - before;
+        if k < rec.rest_frames {
+            continue;
+        }
+        total += turn;
+        for &(m, without) in &trial {
+            by_mic[m] += turn - without;
+        }
+        if turn.abs().to_degrees() > 0.2 {
+            let t = (k - rec.rest_frames) as f64 / 140.0;
+            println!("t {t:.3} s: hip rotation turns {:+.2}°", turn.to_degrees());
+            let fk = s.forward_kinematics(&rec.truth[k].theta).unwrap();
+            for &(m, without) in &trial {
+                let share = (turn - without).to_degrees();
+                if share.abs() > 0.1 {
+                    let pm = fk.point(&rec.true_suit.boards()[m].point()).unwrap();
+                    let ds: Vec<String> = f
+                        .distances
+                        .iter()
+                        .filter(|d| d.sensor == m)
+                        .map(|d| {
+                            let ps = fk
+                                .point(&rec.true_suit.sources()[d.source].point())
+                                .unwrap();
+                            format!(
+                                "{} {:.1} mm (true {:.1}, conf {:.2}, age {:.1} ms)",
+                                sources[d.source],
+                                1e3 * d.distance_m,
+                                1e3 * pm.distance(ps),
+                                d.confidence,
+                                1e3 * d.age_s
+                            )
+                        })
+                        .collect();
+                    println!(
+                        "    {:<12} share {share:+.2}°: {}{}",
+                        boards[m],
+                        ds.join("; "),
+                        if m == thigh { " [the thigh]" } else { "" }
+                    );
+                }
+            }
+        }
+    }
+    println!(
+        "first {seconds} s: hip rotation turned {:+.2}° in all; per microphone (its distances' share, > 0.2°):",
+        total.to_degrees()
+    );
+    for (m, v) in by_mic.iter().enumerate() {
+        if v.abs().to_degrees() > 0.2 {
+            println!("    {:<12} {:+.2}°", boards[m], v.to_degrees());
+        }
+    }
+}
+
+/// `rec` with each microphone–source pair's median distance residual on the rest hold
+/// (measured against the nominal suit at the known rest pose, confidence ≥ 0.5, at least 3
+/// pulses) subtracted from every distance of that pair if it is at most `limit` metres (a
+/// larger one is taken for a longer path heard at rest, not the placement).
+fn rest_bias_corrected(s: &Skeleton, rec: &SimulatedRecording, limit: f64) -> SimulatedRecording {
+    let fk = s.forward_kinematics(&rec.truth[0].theta).unwrap();
+    let suit = &rec.nominal_suit;
+    let ns = suit.sources().len();
+    let mut residuals = vec![Vec::new(); suit.boards().len() * ns];
+    for f in &rec.frames[..rec.rest_frames] {
+        for d in f.distances.iter().filter(|d| d.confidence >= 0.5) {
+            let pm = fk.point(&suit.boards()[d.sensor].point()).unwrap();
+            let ps = fk.point(&suit.sources()[d.source].point()).unwrap();
+            residuals[d.sensor * ns + d.source].push(d.distance_m - pm.distance(ps));
+        }
+    }
+    let bias: Vec<f64> = residuals
+        .iter_mut()
+        .map(|v| {
+            if v.len() < 3 {
+                return 0.0;
+            }
+            v.sort_by(f64::total_cmp);
+            let m = v[v.len() / 2];
+            if m.abs() <= limit {
+                m
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    if limit.is_infinite() {
+        for (i, v) in residuals.iter().enumerate() {
+            if v.len() >= 3 && v[v.len() / 2].abs() > 0.02 {
+                println!(
+                    "    pair {} – {}: median {:.1} mm over {} pulses (range {:.1} … {:.1})",
+                    suit.boards()[i / ns].name,
+                    suit.sources()[i % ns].name,
+                    1e3 * v[v.len() / 2],
+                    v.len(),
+                    1e3 * v[0],
+                    1e3 * v[v.len() - 1]
+                );
+            }
+        }
+    }
+    let used: Vec<f64> = bias.iter().copied().filter(|b| *b != 0.0).collect();
+    let rms = (used.iter().map(|b| b * b).sum::<f64>() / used.len().max(1) as f64).sqrt();
+    println!(
+        "    rest-hold pair bias: {} of {} pairs, RMS {:.1} mm, largest {:.1} mm",
+        used.len(),
+        bias.len(),
+        1e3 * rms,
+        1e3 * used.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+    );
+    let mut out = rec.clone();
+    for f in &mut out.frames {
+        for d in &mut f.distances {
+            d.distance_m -= bias[d.sensor * ns + d.source];
+        }
+    }
+    out
 }
