@@ -96,6 +96,13 @@ pub struct SimulationParams {
     /// filter must be told the code's per-frame error: [`SimulationParams::with_code_noise`].
     #[serde(default = "default_delta_step")]
     pub delta_step: Option<i32>,
+    /// Frames between a channel's key frames on the inertial link (its absolute count in two
+    /// 6-bit halves, [`DeltaCodec::with_key_interval`]; issue 15, ninth session, beyond the
+    /// thesis): after a lost frame the decoder flags the channel unsynced (the filter skips
+    /// it, [`crate::FilterParams::skip_saturated`]) until its next key frame restores it.
+    /// 0: no key frames (the thesis's code). Default: [`DEFAULT_KEY_INTERVAL`].
+    #[serde(default = "default_key_interval")]
+    pub key_interval: u32,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
     pub bit_error_rate: f64,
     /// Garment placement error: position, metres (per axis). Default: 0.01.
@@ -143,6 +150,7 @@ impl Default for SimulationParams {
             accumulate_10bit: true,
             analog_noise_lsb: 0.5,
             delta_step: default_delta_step(),
+            key_interval: default_key_interval(),
             bit_error_rate: 2e-4,
             placement_sd_m: 0.01,
             placement_sd_deg: 3.0,
@@ -188,10 +196,7 @@ impl SimulationParams {
     /// # Errors
     /// As [`DeltaCodec::noise_shaped`] for a bad step.
     pub fn code_noise(&self) -> Result<(f64, f64)> {
-        let codec = match self.delta_step {
-            Some(step) => DeltaCodec::noise_shaped(step)?,
-            None => DeltaCodec::new(),
-        };
+        let codec = self.codec()?;
         let counts = codec.frame_error_sigma_counts();
         Ok((
             counts * 2.0 * self.gyro_range / 4096.0,
@@ -213,6 +218,19 @@ impl SimulationParams {
             accelerometer_sigma: params.accelerometer_sigma.hypot(accel),
             ..params
         })
+    }
+
+    /// The inertial link's codec as these parameters set it ([`delta_step`](Self::delta_step),
+    /// [`key_interval`](Self::key_interval)), both ends at mid-scale.
+    ///
+    /// # Errors
+    /// As [`DeltaCodec::noise_shaped`] and [`DeltaCodec::with_key_interval`].
+    pub fn codec(&self) -> Result<DeltaCodec> {
+        match self.delta_step {
+            Some(step) => DeltaCodec::noise_shaped(step)?,
+            None => DeltaCodec::new(),
+        }
+        .with_key_interval(self.key_interval)
     }
 
     fn validate(&self) -> Result<()> {
@@ -240,9 +258,7 @@ impl SimulationParams {
         positive("gyro_range", self.gyro_range)?;
         positive("source_amplitude", self.source_amplitude)?;
         positive("rest_s", self.rest_s)?;
-        if let Some(step) = self.delta_step {
-            DeltaCodec::noise_shaped(step)?;
-        }
+        self.codec()?;
         Ok(())
     }
 }
@@ -254,6 +270,14 @@ impl SimulationParams {
 /// 8-count units still slew, and its per-frame error (σ 16/√6 = 6.5 counts: 0.064 rad/s,
 /// 0.19 m/s²) is half of 32-count units'.
 pub const DEFAULT_DELTA_STEP: i32 = 16;
+
+/// The inertial link's default key interval, frames (issue 15, ninth session; see
+/// [`SimulationParams::key_interval`] and the docs, "A resynchronising code").
+pub const DEFAULT_KEY_INTERVAL: u32 = 70;
+
+fn default_key_interval() -> u32 {
+    DEFAULT_KEY_INTERVAL
+}
 
 fn default_delta_step() -> Option<i32> {
     Some(DEFAULT_DELTA_STEP)
@@ -567,6 +591,11 @@ pub struct SimulatedRecording {
     pub inertial_frames_flagged: usize,
     /// Bit errors corrected by the code.
     pub bits_corrected: usize,
+    /// Channel readings of the decoded frames flagged unsynced (key frames, and lost codes
+    /// until their channel's next key frame; [`crate::Saturation::unsynced`]).
+    pub inertial_channels_unsynced: usize,
+    /// Channel readings of the decoded frames (six per board and decoded frame).
+    pub inertial_channels_decoded: usize,
     /// Per board: how far it moved relative to its bone (the skin motion) after the rest hold.
     pub skin_motion: Vec<SkinMotion>,
 }
@@ -709,6 +738,21 @@ impl SuitSimulator {
         self.garment = None;
         self.params.skin_slide_m_per_rad = 0.0;
         self
+    }
+
+    /// The same suit (same placements and seed) on another inertial link: its bit error rate
+    /// and key interval ([`SimulationParams::bit_error_rate`],
+    /// [`SimulationParams::key_interval`]) — the bit-error sweep of issue 15's ninth session.
+    ///
+    /// # Errors
+    /// [`Error::Core`] (invalid parameter) for a negative or non-finite rate; as
+    /// [`DeltaCodec::with_key_interval`] for a bad interval.
+    pub fn with_link(mut self, bit_error_rate: f64, key_interval: u32) -> Result<Self> {
+        non_negative("bit_error_rate", bit_error_rate)?;
+        self.params.bit_error_rate = bit_error_rate;
+        self.params.key_interval = key_interval;
+        self.params.codec()?;
+        Ok(self)
     }
 
     /// Whether the boards and sources ride on a performer's deforming surface.
@@ -1002,10 +1046,7 @@ impl SuitSimulator {
             }
             calib.push(cal);
         }
-        let codec = match p.delta_step {
-            Some(step) => DeltaCodec::noise_shaped(step)?,
-            None => DeltaCodec::new(),
-        };
+        let codec = p.codec()?;
         let mut encoders = vec![codec.clone(); nb];
         let mut decoders = vec![codec; nb];
         // Prime the codecs at the first frame's values (the link runs before the recording).
@@ -1022,6 +1063,7 @@ impl SuitSimulator {
         let mut geometry = Vec::with_capacity(n_frames);
         let mut inertial_s = 0.0;
         let (mut flagged, mut corrected) = (0usize, 0usize);
+        let (mut unsynced, mut decoded_channels) = (0usize, 0usize);
         let frames_true: Vec<_> = self.true_suit.boards().iter().map(|b| b.frame()).collect();
         let mut skin = vec![SkinAccumulator::default(); nb];
         let rest_frames = (p.rest_s / dt).floor() as usize;
@@ -1086,10 +1128,13 @@ impl SuitSimulator {
                 let reading = decoded.map(|(cnt, fixed)| {
                     corrected += fixed;
                     let v = |c: usize| calib[b][c].value(f64::from(cnt[c]));
+                    let flags = decoders[b].saturation();
+                    unsynced += flags.iter().filter(|s| s.unsynced).count();
+                    decoded_channels += CHANNELS;
                     InertialReading {
                         gyro_rad_s: DVec3::new(v(0), v(1), v(2)),
                         accel_m_s2: DVec3::new(v(3), v(4), v(5)),
-                        saturated: decoders[b].saturation().map(|s| s.any()),
+                        saturated: flags.map(|s| s.any()),
                     }
                 });
                 inertial_s += t0.elapsed().as_secs_f64();
@@ -1139,6 +1184,8 @@ impl SuitSimulator {
             pulses_total: 0,
             inertial_frames_flagged: flagged,
             bits_corrected: corrected,
+            inertial_channels_unsynced: unsynced,
+            inertial_channels_decoded: decoded_channels,
             skin_motion: self
                 .true_suit
                 .boards()
@@ -1917,6 +1964,8 @@ pub fn model_recording(
         pulses_total: 0,
         inertial_frames_flagged: 0,
         bits_corrected: 0,
+        inertial_channels_unsynced: 0,
+        inertial_channels_decoded: 0,
         skin_motion: Vec::new(),
     })
 }
