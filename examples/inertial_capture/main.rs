@@ -295,8 +295,9 @@ struct Args {
     /// Only the bit-error sweep of issue 15's ninth session: the exercise clip (10 s with
     /// `--quick`, else 30 s), A+G+D with the root supplied at the full run's frozen point
     /// (q 20, σ_a 0.3, σ_g 0.002 m/s² / rad/s with the code's σ, gate 4σ, re-centring 0.3),
-    /// at bit error rates 10⁻³, 3·10⁻³, 10⁻² for the key intervals given (comma-separated,
-    /// 0 for none); one JSON line per setting, then exit.
+    /// at the default bit error rate (and the CMU walk there) and at 10⁻³, 3·10⁻³, 10⁻², for
+    /// the key intervals given (comma-separated, 0 for none); one JSON line per setting,
+    /// then exit.
     #[arg(long, value_delimiter = ',')]
     ber_sweep: Option<Vec<u32>>,
 }
@@ -395,10 +396,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &skeleton,
             &ExerciseParams::default().with_duration_s(exercise_s),
         )?;
-        for ber in [1e-3, 3e-3, 1e-2] {
+        let walk = play_bvh(
+            example_kit::data_path("mocap-cmu/131_01.bvh")?,
+            &BvhParams::default(),
+            &skeleton,
+            1.0 / 120.0,
+            &RetargetParams::default(),
+        )?
+        .motion;
+        let default_ber = SimulationParams::default().bit_error_rate;
+        for (motion_name, motion, ber) in [
+            ("cmu_walk", &walk, default_ber),
+            ("exercise", &exercise, default_ber),
+            ("exercise", &exercise, 1e-3),
+            ("exercise", &exercise, 3e-3),
+            ("exercise", &exercise, 1e-2),
+        ] {
             for &key in keys {
                 let sim_b = sim.clone().with_link(ber, key)?;
-                let rec = record(&sim_b, &skeleton, &exercise, &sim_params, &cal.offsets);
+                let rec = record(&sim_b, &skeleton, motion, &sim_params, &cal.offsets);
                 let r = dynamic_shapes::inertial::simulate::run_filter_board_noise(
                     &skeleton,
                     &rec,
@@ -408,8 +424,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     BOARD_NOISE_S,
                 )?;
                 let line = json!({
-                    "ber": ber, "key_interval": key, "delta_step": sim_params.delta_step,
-                    "exercise_s": exercise_s,
+                    "motion": motion_name, "ber": ber, "key_interval": key,
+                    "delta_step": sim_params.delta_step, "exercise_s": exercise_s,
                     "agd_deg": [r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg],
                     "diverged_frames": r.diverged_frames,
                     "inertial_frames_flagged": rec.inertial_frames_flagged,

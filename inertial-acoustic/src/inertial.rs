@@ -9,7 +9,10 @@
 //! × 11 bits = 66 bits per board and frame (9.2 kbit/s at 140 Hz, within the 13 kbit/s link).
 //! A frame with an uncorrectable code is flagged (`None`); the decoder then assumes each lost
 //! delta equals the channel's previous delta (the signals are smooth at 140 Hz), so one lost
-//! frame costs a second difference, not a permanent offset.
+//! frame costs a second difference of the deltas — for the noise-shaped code a permanent
+//! offset of about 0.7 step, which the optional key frames (issue 15, ninth session, beyond
+//! the thesis: [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
+//! count in place of two of its deltas every K frames.
 
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -224,8 +227,11 @@ fn scramble(bits: &mut [bool]) {
 /// frames the decoder advances every channel by its previous delta when any code is lost;
 /// with them each channel whose code arrived takes its own delta, so a lost code unsyncs
 /// only its channel. Costs: two of every K readings per channel (flagged, skipped by the
-/// filter), and a second half mis-corrected by three bit errors sets a wrong count unflagged
-/// (as a mis-corrected delta always did) until the next key. The per-frame error of the
+/// filter). Not caught: three bit errors in one code pass the extended Hamming code as one
+/// (a mis-correction); a mis-corrected delta leaves a wrong count unflagged until the next
+/// key (without keys: for good), a mis-corrected high half a count off by a multiple of 64
+/// for up to K frames (the key sends a fresh count, so the decoder has nothing to check it
+/// against). The per-frame error of the
 /// unflagged frames is unchanged: the first delta frame after a key has `r = c − E` with the
 /// carried error reset (`|r − c| ≤ step/2`), every later one `c + E_{k−1} − E_k` as derived
 /// above, so [`frame_error_sigma_counts`](Self::frame_error_sigma_counts) (step/√6) and
@@ -536,8 +542,8 @@ impl DeltaCodec {
                         self.last_delta[c] = delta;
                     }
                     None => {
-                        self.recon[c] = (self.recon[c] + self.last_delta[c] * self.step)
-                            .clamp(0, MAX_COUNT);
+                        self.recon[c] =
+                            (self.recon[c] + self.last_delta[c] * self.step).clamp(0, MAX_COUNT);
                         self.unsynced[c] = true;
                     }
                 },
@@ -856,7 +862,10 @@ mod tests {
                 }
             }
         }
-        assert!(resyncs > 100 && flagged_lost > 1000, "{resyncs} {flagged_lost}");
+        assert!(
+            resyncs > 100 && flagged_lost > 1000,
+            "{resyncs} {flagged_lost}"
+        );
         assert!(checked > 25_000, "{checked}");
         // The baseline: without key frames the lost channels stay off for good.
         let off = (0..CHANNELS)
@@ -917,7 +926,10 @@ mod tests {
                 let bits = enc.encode(x).unwrap();
                 let (out, _) = dec.decode(&bits).unwrap();
                 let flags = dec.saturation();
-                assert!(flags.iter().filter(|s| s.unsynced).count() <= 1, "frame {k}");
+                assert!(
+                    flags.iter().filter(|s| s.unsynced).count() <= 1,
+                    "frame {k}"
+                );
                 for c in 0..CHANNELS {
                     assert_eq!(dec.recon[c], enc.recon[c]);
                     if flags[c].unsynced {

@@ -273,7 +273,7 @@ pub const DEFAULT_DELTA_STEP: i32 = 16;
 
 /// The inertial link's default key interval, frames (issue 15, ninth session; see
 /// [`SimulationParams::key_interval`] and the docs, "A resynchronising code").
-pub const DEFAULT_KEY_INTERVAL: u32 = 70;
+pub const DEFAULT_KEY_INTERVAL: u32 = 28;
 
 fn default_key_interval() -> u32 {
     DEFAULT_KEY_INTERVAL
