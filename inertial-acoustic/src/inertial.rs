@@ -264,6 +264,13 @@ pub struct DeltaCodec {
     /// Decoder: a code of the channel was lost since its last key frame.
     #[serde(default)]
     unsynced: [bool; CHANNELS],
+    /// Decoder: its count at the channel's last first-half key frame (what the encoder sends
+    /// if both are in step).
+    #[serde(default)]
+    key_check: [i32; CHANNELS],
+    /// Decoder: the channel's last delta was received (so it equals the encoder's).
+    #[serde(default)]
+    delta_known: [bool; CHANNELS],
     /// Decoder: the last frame's count is not a current reading in step with the encoder
     /// (unsynced, or one of the channel's key frames).
     #[serde(default)]
@@ -286,6 +293,8 @@ impl Default for DeltaCodec {
             frame: 0,
             key: [None; CHANNELS],
             unsynced: [false; CHANNELS],
+            key_check: [0; CHANNELS],
+            delta_known: [true; CHANNELS],
             stale: [false; CHANNELS],
         }
     }
@@ -414,18 +423,21 @@ impl DeltaCodec {
             }
             match self.key_phase(c) {
                 Some(0) => {
-                    // Key frame, first half: the absolute count's high six bits; the
-                    // reconstruction holds.
-                    self.key[c] = Some(counts[c]);
-                    codes[c] = hamming_encode((counts[c] >> 6 & 0x3F) as u8);
+                    // Key frame, first half: the high six bits of the count both ends hold
+                    // (brought into the 12-bit range on both); the reconstruction then
+                    // extrapolates by the last delta through both key frames.
+                    self.recon[c] = self.recon[c].clamp(0, MAX_COUNT);
+                    self.key[c] = Some(self.recon[c]);
+                    codes[c] = hamming_encode((self.recon[c] >> 6 & 0x3F) as u8);
+                    self.recon[c] += self.last_delta[c] * self.step;
                     continue;
                 }
                 Some(_) => {
-                    // Second half: the low six bits; both ends then hold that count exactly
-                    // and the encoder starts afresh (no round-off carried over the key).
+                    // Second half: the low six bits; the encoder starts afresh (no round-off
+                    // carried over the key: the first delta after it is exact to step/2).
                     let x = self.key[c].unwrap_or(self.recon[c]);
                     codes[c] = hamming_encode((x & 0x3F) as u8);
-                    self.recon[c] = x;
+                    self.recon[c] += self.last_delta[c] * self.step;
                     self.error[c] = 0;
                     continue;
                 }
@@ -439,6 +451,7 @@ impl DeltaCodec {
                 (counts[c] - self.recon[c]).clamp(DELTA_MIN, DELTA_MAX)
             };
             self.recon[c] += delta * self.step;
+            self.last_delta[c] = delta;
             if self.shaped {
                 self.error[c] += counts[c] - self.recon[c];
             }
@@ -519,20 +532,31 @@ impl DeltaCodec {
         ok: bool,
     ) -> Option<([i32; CHANNELS], usize)> {
         for (c, d) in data.iter().enumerate() {
+            let step = self.last_delta[c] * self.step;
             match self.key_phase(c) {
                 Some(0) => {
+                    self.recon[c] = self.recon[c].clamp(0, MAX_COUNT);
+                    self.key_check[c] = self.recon[c];
                     self.key[c] = d.map(|d| i32::from(d) << 6);
-                    self.last_delta[c] = 0;
+                    self.recon[c] += step;
                 }
                 Some(_) => {
+                    self.recon[c] += step;
                     match (self.key[c], d) {
-                        (Some(high), Some(low)) => {
-                            self.recon[c] = high | i32::from(*low);
-                            self.unsynced[c] = false;
+                        (Some(high), Some(low)) if self.delta_known[c] => {
+                            let x = high | i32::from(*low);
+                            // In step, the decoder held the key's count already; if it did
+                            // not, a code was mis-corrected (three bit errors pass the
+                            // extended Hamming code as one) since the last key — more likely
+                            // one of the K deltas than one of the two halves, so the key is
+                            // taken, but flagged until the next key confirms it.
+                            self.unsynced[c] = !self.unsynced[c] && self.key_check[c] != x;
+                            self.recon[c] = x + 2 * step;
                         }
-                        _ => self.unsynced[c] = true,
+                        // A lost half leaves a channel in step as it was (the key carries
+                        // nothing new to it), an unsynced one unsynced.
+                        _ => self.unsynced[c] |= !self.delta_known[c],
                     }
-                    self.last_delta[c] = 0;
                 }
                 None => match d {
                     Some(d) => {
@@ -540,11 +564,12 @@ impl DeltaCodec {
                         // As the encoder: unclamped, so both ends stay equal.
                         self.recon[c] += delta * self.step;
                         self.last_delta[c] = delta;
+                        self.delta_known[c] = true;
                     }
                     None => {
-                        self.recon[c] =
-                            (self.recon[c] + self.last_delta[c] * self.step).clamp(0, MAX_COUNT);
+                        self.recon[c] += step;
                         self.unsynced[c] = true;
+                        self.delta_known[c] = false;
                     }
                 },
             }
@@ -816,8 +841,10 @@ mod tests {
             DeltaCodec::noise_shaped(step).unwrap(),
             DeltaCodec::noise_shaped(step).unwrap(),
         );
-        // Frames since the channel's code was last lost (None: not lost yet).
+        // The frame of the delta whose loss unsynced the channel (None: in step), and
+        // whether the current key's first half was lost.
         let mut lost_at: [Option<usize>; CHANNELS] = [None; CHANNELS];
+        let mut half_lost = [false; CHANNELS];
         let (mut resyncs, mut flagged_lost, mut checked) = (0, 0, 0);
         for (k, (x, lost)) in counts.iter().zip(&losses).enumerate() {
             let phases: [Option<u8>; CHANNELS] = std::array::from_fn(|c| enc.key_phase(c));
@@ -826,16 +853,23 @@ mod tests {
             for &c in lost {
                 lose(&mut bits, c);
                 lose(&mut bits0, c);
-                lost_at[c] = Some(k);
+                match phases[c] {
+                    None => lost_at[c] = Some(k),
+                    Some(0) => half_lost[c] = true,
+                    Some(_) => {}
+                }
             }
             let _ = dec0.decode(&bits0);
             let out = dec.decode(&bits);
             assert_eq!(out.is_none(), !lost.is_empty(), "frame {k}");
             let flags = dec.saturation();
             for c in 0..CHANNELS {
-                if phases[c] == Some(1) && !lost.contains(&c) {
-                    // A second half arrived: resynchronised unless the first half was lost.
-                    if lost_at[c].is_some_and(|l| l + 1 == k) {
+                if phases[c] == Some(1) {
+                    // An unsynced channel resynchronises if both halves and the delta before
+                    // them (the extrapolation through the key) arrived; a channel in step
+                    // stays in step whatever the key's halves.
+                    let halves = !half_lost[c] && !lost.contains(&c);
+                    if lost_at[c].is_some_and(|l| !halves || l + 2 == k) {
                         assert!(flags[c].unsynced);
                     } else {
                         if lost_at[c].is_some() {
@@ -844,6 +878,7 @@ mod tests {
                         lost_at[c] = None;
                         assert_eq!(dec.recon[c], enc.recon[c], "frame {k} channel {c}");
                     }
+                    half_lost[c] = false;
                 }
                 if phases[c].is_some() {
                     assert!(flags[c].unsynced, "key frame {k} channel {c} is flagged");
@@ -872,37 +907,98 @@ mod tests {
             .filter(|&c| dec0.recon[c] != enc0.recon[c])
             .count();
         assert!(off >= 5, "{off} channels off without key frames");
-        // A lost first half (the channel in step before it): the channel is flagged from
-        // there through the next key frame, and in step again after it.
+        // A lost key half: a channel in step stays in step (the key's count is the one both
+        // ends hold), flagged only on its key frames.
         let keyed = DeltaCodec::noise_shaped(step)
             .unwrap()
             .with_key_interval(key)
             .unwrap();
         let (mut enc, mut dec) = (keyed.clone(), keyed);
-        let mut lost_key: Option<usize> = None;
-        for (k, x) in counts.iter().take(4 * key as usize).enumerate() {
+        let mut lost_key = 0;
+        for (k, x) in counts.iter().take(6 * key as usize).enumerate() {
             let phase = enc.key_phase(2);
             let mut bits = enc.encode(x).unwrap();
-            if k > key as usize && phase == Some(0) && lost_key.is_none() {
+            if k > key as usize && phase.is_some() && k % 3 == 0 {
                 lose(&mut bits, 2);
-                lost_key = Some(k);
+                lost_key += 1;
                 assert!(dec.decode(&bits).is_none());
-                continue;
+            } else {
+                let _ = dec.decode(&bits).unwrap();
             }
-            let _ = dec.decode(&bits).unwrap();
-            let flagged = dec.saturation()[2].unsynced;
-            match lost_key {
-                Some(l) if k <= l + key as usize + 1 => assert!(flagged, "frame {k}"),
-                _ => {
+            assert_eq!(dec.saturation()[2].unsynced, phase.is_some(), "frame {k}");
+            assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+        }
+        assert!(lost_key >= 2);
+    }
+
+    /// Three bit errors in one code pass the extended Hamming code as a single error (a
+    /// mis-correction, undetectable in itself): in a key's high half or in a delta, the
+    /// decoder's count would be off unflagged. A key checks a channel in step (its count is
+    /// the one the decoder holds): the channel is flagged from the first key after the
+    /// error until the next key confirms it; a wrong key is not taken for good.
+    #[test]
+    fn a_key_checks_a_channel_in_step_against_mis_corrected_codes() {
+        let key = 28usize;
+        let counts = random_counts(10 * key, 5);
+        // Code bits 3, 5, 6 (data bits 0, 1, 2) of channel 2: syndrome 0, odd parity.
+        let miscorrect = |bits: &mut [bool; FRAME_BITS]| {
+            for i in [3, 5, 6] {
+                bits[i * CHANNELS + 2] ^= true;
+            }
+        };
+        for in_key in [true, false] {
+            let keyed = DeltaCodec::noise_shaped(16)
+                .unwrap()
+                .with_key_interval(key as u32)
+                .unwrap();
+            let (mut enc, mut dec) = (keyed.clone(), keyed);
+            let mut hit: Option<usize> = None;
+            let mut key_ends = Vec::new();
+            for (k, x) in counts.iter().enumerate() {
+                let phase = enc.key_phase(2);
+                let mut bits = enc.encode(x).unwrap();
+                let target = if in_key { Some(0) } else { None };
+                if hit.is_none() && k > 2 * key && phase == target {
+                    miscorrect(&mut bits);
+                    hit = Some(k);
+                }
+                let (_, fixed) = dec.decode(&bits).unwrap();
+                if hit == Some(k) {
+                    assert_eq!(fixed, 1, "passes as one corrected error");
+                }
+                if phase == Some(1) {
+                    key_ends.push(k);
+                }
+                let flagged = dec.saturation()[2].unsynced;
+                let Some(h) = hit else {
                     assert_eq!(flagged, phase.is_some(), "frame {k}");
                     assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                    continue;
+                };
+                // The first key end after the hit exposes it, the second confirms.
+                match key_ends.iter().filter(|&&e| e >= h).count() {
+                    0 if in_key => {
+                        // The wrong high half is held until the second half.
+                        assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                        assert!(flagged, "frame {k}");
+                    }
+                    0 => {
+                        // A wrong delta: off, unflagged (not detectable yet).
+                        assert_ne!(dec.recon[2], enc.recon[2], "frame {k}");
+                        assert_eq!(flagged, phase.is_some(), "frame {k}");
+                    }
+                    1 => {
+                        assert!(flagged, "frame {k}: flagged until confirmed");
+                        assert_eq!(dec.recon[2] != enc.recon[2], in_key, "frame {k}");
+                    }
+                    _ => {
+                        assert_eq!(flagged, phase.is_some(), "frame {k}");
+                        assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                    }
                 }
             }
-            if lost_key.is_some_and(|l| k == l + 1) {
-                assert_ne!(dec.recon[2], enc.recon[2], "the key was not received");
-            }
+            assert!(hit.is_some());
         }
-        assert!(lost_key.is_some());
     }
 
     /// With no bit errors the keyed code decodes as before: every unflagged frame within one
