@@ -10,8 +10,8 @@
 //! A frame with an uncorrectable code is flagged (`None`); the decoder then assumes each lost
 //! delta equals the channel's previous delta (the signals are smooth at 140 Hz), so one lost
 //! frame costs a second difference of the deltas — for the noise-shaped code a permanent
-//! offset of about 0.7 step, which the optional key frames (issue 15, ninth session, beyond
-//! the thesis: [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
+//! offset of about 0.7 step, which the key frames (issue 15, ninth session, beyond the
+//! thesis: [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
 //! count in place of two of its deltas every K frames.
 
 use crate::{Error, Result};
@@ -215,29 +215,36 @@ fn scramble(bits: &mut [bool]) {
 /// the previous delta, and successive noise-shaped deltas differ by the round-offs' second
 /// difference (σ ≈ 0.7 step) — at a bit error rate of 10⁻² the 16-count code lost the pose.
 /// Within the thesis's frame (6 bits per channel per frame, 66 bits with the ECC, nothing
-/// widened) every `K` frames each channel sends its absolute 12-bit count `x = c_k` in two
-/// halves instead of two deltas: frame k the high six bits, frame k+1 the low six bits;
-/// after the second, both ends set the reconstruction to `x` and the encoder's accumulated
-/// error to 0, and delta frames resume from `x` (the first delta spans two frames of motion,
-/// so it may slew — flagged as ever). The channels' keys are staggered (`⌊c·K/6⌋` frames
-/// apart) so a frame never loses more than one channel's delta. The decoder flags a channel
-/// [`Saturation::unsynced`] on its two key frames (no current reading: the count held is
-/// `c_{k−1}`, then `c_k` one frame late) and from a lost code of the channel until a key
-/// frame whose two halves both arrive — then it equals the encoder exactly. Without key
-/// frames the decoder advances every channel by its previous delta when any code is lost;
-/// with them each channel whose code arrived takes its own delta, so a lost code unsyncs
-/// only its channel. Costs: two of every K readings per channel (flagged, skipped by the
-/// filter). Not caught: three bit errors in one code pass the extended Hamming code as one
-/// (a mis-correction); a mis-corrected delta leaves a wrong count unflagged until the next
-/// key (without keys: for good), a mis-corrected high half a count off by a multiple of 64
-/// for up to K frames (the key sends a fresh count, so the decoder has nothing to check it
-/// against). The per-frame error of the
+/// widened), every `K` frames each channel sends, in place of two deltas, the 12-bit count
+/// `x = r_{k−1}` both ends hold before the key (brought into 0..=4095 on both): frame k its
+/// high six bits, frame k+1 its low six bits. Through the two key frames both ends
+/// extrapolate by the channel's last delta (`r = x + 2·δ·step` after them); after the second
+/// half the encoder drops its carried round-off (`E = 0`), so the first delta after a key
+/// spans one frame of motion plus the extrapolation's miss, not two or three frames (fewer
+/// slews on the walk's arm). A decoder off the encoder (a code of the channel lost since
+/// its last key) takes `x` and the same extrapolation, and is then in step exactly — if both
+/// halves and the delta before them (the extrapolation's δ) arrived; otherwise it waits for
+/// the next key. For a decoder in step the key is redundant: a lost half costs it nothing,
+/// and the key checks it — if its own count differs from `x`, a code was mis-corrected
+/// (three bit errors in one code pass the extended Hamming code as one) since the last
+/// key, more likely one of the K deltas than one of the two halves, so `x` is taken but the
+/// channel stays flagged until the next key confirms it (a wrong high half would be off by
+/// a multiple of 64 counts). The channels' keys are staggered (`⌊c·K/6⌋` frames apart) so a
+/// frame never loses more than one channel's delta. The decoder flags a channel
+/// [`Saturation::unsynced`] on its two key frames (extrapolated, no reading) and while it is
+/// off the encoder. Without key frames the decoder advances every channel by its previous
+/// delta when any code is lost; with them each channel whose code arrived takes its own
+/// delta, so a lost code unsyncs only its channel. Costs: two of every K readings per
+/// channel (flagged, skipped by the filter); a mis-corrected delta still leaves a wrong count
+/// unflagged until the next key (without keys: for good). The per-frame error of the
 /// unflagged frames is unchanged: the first delta frame after a key has `r = c − E` with the
 /// carried error reset (`|r − c| ≤ step/2`), every later one `c + E_{k−1} − E_k` as derived
 /// above, so [`frame_error_sigma_counts`](Self::frame_error_sigma_counts) (step/√6) and
 /// [`frame_error_bound_counts`](Self::frame_error_bound_counts) (step) still hold — the
 /// σ slightly over-states the first frame after a key, the safe side; the telescoping of
-/// the running sum restarts at each key.
+/// the running sum restarts at each key. K = 28 (0.2 s at 140 Hz) is the simulator's
+/// default (`SimulationParams::key_interval`, chosen from data: docs, "A resynchronising
+/// code").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeltaCodec {
     recon: [i32; CHANNELS],

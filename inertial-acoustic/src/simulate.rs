@@ -272,7 +272,12 @@ impl SimulationParams {
 pub const DEFAULT_DELTA_STEP: i32 = 16;
 
 /// The inertial link's default key interval, frames (issue 15, ninth session; see
-/// [`SimulationParams::key_interval`] and the docs, "A resynchronising code").
+/// [`SimulationParams::key_interval`] and the docs, "A resynchronising code"): 0.2 s at
+/// 140 Hz. Chosen from data: per channel it costs 2/K of the readings (7 %) and leaves a
+/// lost code flagged for K/2 frames on average; at a bit error rate of 10⁻² (a code lost
+/// every ≈ 190 frames per channel) 28 held the 30 s exercise within 8° on every joint where
+/// 70 let the shoulder go to 33°, and at the default rate the exercise and the walk were no
+/// worse than without keys.
 pub const DEFAULT_KEY_INTERVAL: u32 = 28;
 
 fn default_key_interval() -> u32 {
