@@ -318,26 +318,46 @@ fn garment_suit_moves_with_the_skin() {
 fn corrupted_link_and_bad_inputs() {
     let s = human_skeleton(&HumanParams::default()).unwrap();
     // A noisy link: the code corrects single errors and flags the rest; the filter runs on.
-    // The default noise-shaped code at 5× the default bit error rate (10⁻³). A lost frame
-    // leaves the decoder's reconstruction off the encoder's for good — the decoder repeats
-    // the previous delta, and a noise-shaped delta differs from the next by the round-offs'
-    // second difference, σ ≈ 0.7 step (11 counts, 0.11 rad/s at 16 counts), where a
-    // whole-count delta differs only by the signal's — so this code tolerates fewer lost
-    // frames: measured (3 s, A+G) 10⁻³ passes, 3·10⁻³ 12 / 22 / 7°, 10⁻² 89 / 78 / 72°
-    // (docs, "The noise-shaped code as the default"). The whole-count code at 10⁻² below.
+    // The default noise-shaped code with its key frames at 50× the default bit error rate
+    // (10⁻², as the whole-count code below). Without key frames a lost frame leaves the
+    // decoder's reconstruction off the encoder's for good (the decoder repeats the previous
+    // delta, and a noise-shaped delta differs from the next by the round-offs' second
+    // difference, σ ≈ 0.7 step): the same link then loses the pose (3 s, A+G: 89 / 78 / 72°;
+    // 3·10⁻³ 12 / 22 / 7°, 10⁻³ passes) — checked below as the baseline. With key frames a
+    // lost channel is flagged (skipped) until its next key frame restores it (docs, "A
+    // resynchronising code").
     let params = SimulationParams {
-        bit_error_rate: 0.001,
+        bit_error_rate: 0.01,
         ..SimulationParams::default()
     }
     .with_ultrasound(false);
+    assert!(params.key_interval > 0);
     let (rec, _) = recording(&s, 3.0, params);
     assert!(rec.inertial_frames_flagged > 0 && rec.bits_corrected > 0);
+    assert!(rec.inertial_channels_unsynced > 0);
     let gyro_accel = tuned().with_sensors(SensorSet {
         distances: false,
         ..SensorSet::ALL
     });
     let r = run_filter(&s, &rec, gyro_accel, true, &joints(&s)).unwrap();
+    let mean = |r: &FilterRun| r.stats.iter().map(|st| st.mean_deg).collect::<Vec<_>>();
+    eprintln!(
+        "10⁻², key frames every {}: A+G {:.1?}°, {} of {} channel readings unsynced",
+        params.key_interval,
+        mean(&r),
+        rec.inertial_channels_unsynced,
+        rec.inertial_channels_decoded
+    );
     assert!(r.stats.iter().all(|st| st.mean_deg < 20.0), "{:?}", r.stats);
+    let unkeyed = SimulationParams {
+        key_interval: 0,
+        ..params
+    };
+    let (rec, _) = recording(&s, 3.0, unkeyed);
+    assert_eq!(rec.inertial_channels_unsynced, 0);
+    let r = run_filter(&s, &rec, gyro_accel, true, &joints(&s)).unwrap();
+    eprintln!("10⁻², no key frames: A+G {:.1?}°", mean(&r));
+    assert!(r.stats.iter().any(|st| st.mean_deg > 20.0), "{:?}", r.stats);
     // The whole-count code (the default before issue 15's eighth session, an option since)
     // on a link ten times noisier, with the sensor σ alone (its per-frame error is zero
     // between slews).

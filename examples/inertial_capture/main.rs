@@ -45,7 +45,9 @@
 //! `cargo run --release --example inertial_capture [-- --quick]` (`--quick`: 10 s exercise,
 //! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid;
 //! `--delta-step N`: the noise-shaped delta code's unit, default 16, 0 for the whole-count
-//! code; `--no-code-noise`: the filter is not told the code's per-frame error).
+//! code; `--no-code-noise`: the filter is not told the code's per-frame error; `--ber R`: the
+//! link's bit error rate; `--key-interval K`: key frames every K frames, 0 for none;
+//! `--ber-sweep K1,K2,…`: only the bit-error sweep of issue 15's ninth session).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod peer_ekf;
@@ -281,6 +283,23 @@ struct Args {
     /// has to find it (the comparison of issue 15's eighth session).
     #[arg(long)]
     no_code_noise: bool,
+    /// Bit error rate of the inertial link (`SimulationParams::bit_error_rate`; default
+    /// 2·10⁻⁴).
+    #[arg(long)]
+    ber: Option<f64>,
+    /// Frames between a channel's key frames on the inertial link
+    /// (`SimulationParams::key_interval`, default `DEFAULT_KEY_INTERVAL`); 0 for none (the
+    /// thesis's code, the default until issue 15's ninth session).
+    #[arg(long)]
+    key_interval: Option<u32>,
+    /// Only the bit-error sweep of issue 15's ninth session: the exercise clip (10 s with
+    /// `--quick`, else 30 s), A+G+D with the root supplied at the full run's frozen point
+    /// (q 20, σ_a 0.3, σ_g 0.002 m/s² / rad/s with the code's σ, gate 4σ, re-centring 0.3),
+    /// at the default bit error rate (and the CMU walk there) and at 10⁻³, 3·10⁻³, 10⁻², for
+    /// the key intervals given (comma-separated, 0 for none); one JSON line per setting,
+    /// then exit.
+    #[arg(long, value_delimiter = ',')]
+    ber_sweep: Option<Vec<u32>>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -331,6 +350,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Some(0) => None,
             Some(step) => Some(step),
         },
+        bit_error_rate: args
+            .ber
+            .unwrap_or(SimulationParams::default().bit_error_rate),
+        key_interval: args
+            .key_interval
+            .unwrap_or(SimulationParams::default().key_interval),
         ..SimulationParams::default()
     };
     // Issue 15, eighth session: the filter's σ_g and σ_a are the sensor's noise (the grid's
@@ -352,6 +377,66 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dist_sd =
         (loo_mm.iter().map(|e| (e - dist_mean).powi(2)).sum::<f64>() / loo_mm.len() as f64).sqrt();
     stage.finish(format!("{dist_mean:.2} ± {dist_sd:.2} mm"));
+
+    if let Some(keys) = &args.ber_sweep {
+        // Issue 15, ninth session: the lost-frame weakness of the noise-shaped code and the
+        // key frames that resynchronise it, at the full run's frozen filter point.
+        let params = FilterParams {
+            process_sigma: 20.0,
+            distance_gate_sigma: 4.0,
+            ..FilterParams::default()
+                .with_recentre_rad(0.3)
+                .with_measurement_sigmas(
+                    with_code(0.3, code_accel),
+                    with_code(0.002, code_gyro),
+                    0.0025,
+                )
+        };
+        let exercise = exercise_motion(
+            &skeleton,
+            &ExerciseParams::default().with_duration_s(exercise_s),
+        )?;
+        let walk = play_bvh(
+            example_kit::data_path("mocap-cmu/131_01.bvh")?,
+            &BvhParams::default(),
+            &skeleton,
+            1.0 / 120.0,
+            &RetargetParams::default(),
+        )?
+        .motion;
+        let default_ber = SimulationParams::default().bit_error_rate;
+        for (motion_name, motion, ber) in [
+            ("cmu_walk", &walk, default_ber),
+            ("exercise", &exercise, default_ber),
+            ("exercise", &exercise, 1e-3),
+            ("exercise", &exercise, 3e-3),
+            ("exercise", &exercise, 1e-2),
+        ] {
+            for &key in keys {
+                let sim_b = sim.clone().with_link(ber, key)?;
+                let rec = record(&sim_b, &skeleton, motion, &sim_params, &cal.offsets);
+                let r = dynamic_shapes::inertial::simulate::run_filter_board_noise(
+                    &skeleton,
+                    &rec,
+                    params,
+                    true,
+                    &joints,
+                    BOARD_NOISE_S,
+                )?;
+                let line = json!({
+                    "motion": motion_name, "ber": ber, "key_interval": key,
+                    "delta_step": sim_params.delta_step, "exercise_s": exercise_s,
+                    "agd_deg": [r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg],
+                    "diverged_frames": r.diverged_frames,
+                    "inertial_frames_flagged": rec.inertial_frames_flagged,
+                    "inertial_channels_unsynced": rec.inertial_channels_unsynced,
+                    "inertial_channels_decoded": rec.inertial_channels_decoded,
+                });
+                println!("{line}");
+            }
+        }
+        return Ok(());
+    }
 
     // Tuning on separate clips (other exercise seeds): §4.4.1 hand-tunes "by tracking several
     // motions"; one 10 s clip proved too noisy to choose between the joints' charts.
@@ -583,6 +668,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "pulses_heard": rec.pulses_heard,
             "pulses_total": rec.pulses_total,
             "inertial_frames_flagged": rec.inertial_frames_flagged,
+            "inertial_channels_unsynced": rec.inertial_channels_unsynced,
             "bits_corrected": rec.bits_corrected,
             "runs": table.iter().map(run_json).collect::<Vec<_>>(),
         }));
@@ -917,6 +1003,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "performer": "makehuman, pose-driven shapes, no flap",
         "quick": quick,
         "delta_step": sim_params.delta_step,
+        "key_interval": sim_params.key_interval,
+        "bit_error_rate": sim_params.bit_error_rate,
     });
     // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
     // before it.

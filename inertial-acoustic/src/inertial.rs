@@ -9,7 +9,10 @@
 //! × 11 bits = 66 bits per board and frame (9.2 kbit/s at 140 Hz, within the 13 kbit/s link).
 //! A frame with an uncorrectable code is flagged (`None`); the decoder then assumes each lost
 //! delta equals the channel's previous delta (the signals are smooth at 140 Hz), so one lost
-//! frame costs a second difference, not a permanent offset.
+//! frame costs a second difference of the deltas — for the noise-shaped code a permanent
+//! offset of about 0.7 step, which the key frames (issue 15, ninth session, beyond the
+//! thesis: [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
+//! count in place of two of its deltas every K frames.
 
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -25,6 +28,8 @@ const MAX_COUNT: i32 = 4095;
 pub const DELTA_MAX: i32 = 31;
 /// Smallest delta of the 6-bit code.
 pub const DELTA_MIN: i32 = -32;
+/// The shortest key interval ([`DeltaCodec::with_key_interval`]): two key frames per channel.
+pub const MIN_KEY_INTERVAL: u32 = 2 * CHANNELS as u32;
 /// A decoded count at or above this is at full scale: 4092 = 4 × 1023 is the largest sum of
 /// four 10-bit samples (§4.2.3's accumulation), 4095 the largest 12-bit count.
 pub const FULL_SCALE_HIGH: i32 = 4 * 1023;
@@ -40,25 +45,35 @@ pub const FULL_SCALE_LOW: i32 = 0;
 ///   [`DELTA_MAX`]); the encoder clamps larger changes, so the true count may be further
 ///   still and the reconstruction lags it. A delta inside the code's range means the
 ///   decoder's count is the encoder's exactly, so only the extremes are flagged.
+/// - **Unsynced** (issue 15, ninth session; only with key frames,
+///   [`DeltaCodec::with_key_interval`]): the decoder's count may be off the encoder's — a
+///   code of the channel was lost (uncorrectable) since the channel's last key frame, or the
+///   frame is one of the channel's two key frames (which carry its absolute count, not a
+///   delta, so the frame has no current reading of it). Cleared by the next key frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Saturation {
     /// The count is at full scale.
     pub clipped: bool,
     /// The delta is at the code's extreme.
     pub slew: bool,
+    /// The count is not a current reading in step with the encoder's (lost code since the
+    /// last key frame, or a key frame).
+    #[serde(default)]
+    pub unsynced: bool,
 }
 
 impl Saturation {
-    /// Either flag.
+    /// Any flag.
     pub fn any(&self) -> bool {
-        self.clipped || self.slew
+        self.clipped || self.slew || self.unsynced
     }
 
-    /// The flags of a decoded `count` reached by `delta`.
+    /// The flags of a decoded `count` reached by `delta` (in step with the encoder).
     pub fn of(count: i32, delta: i32) -> Self {
         Saturation {
             clipped: count <= FULL_SCALE_LOW || count >= FULL_SCALE_HIGH,
             slew: delta <= DELTA_MIN || delta >= DELTA_MAX,
+            unsynced: false,
         }
     }
 }
@@ -193,6 +208,43 @@ fn scramble(bits: &mut [bool]) {
 ///   σ stays step/√6 for any n (white noise of the same σ would grow as √n): a filter that
 ///   treats the error as white is conservative about the integrated reading, and the mean of
 ///   two successive frames has σ = step/(2√6), half a frame's, not 1/√2 of it.
+///
+/// **Key frames** (issue 15, ninth session; beyond the thesis, which describes no
+/// resynchronisation — [`DeltaCodec::with_key_interval`]). A lost frame (an uncorrectable
+/// code) leaves the decoder's reconstruction off the encoder's for good: it can only repeat
+/// the previous delta, and successive noise-shaped deltas differ by the round-offs' second
+/// difference (σ ≈ 0.7 step) — at a bit error rate of 10⁻² the 16-count code lost the pose.
+/// Within the thesis's frame (6 bits per channel per frame, 66 bits with the ECC, nothing
+/// widened), every `K` frames each channel sends, in place of two deltas, the 12-bit count
+/// `x = r_{k−1}` both ends hold before the key (brought into 0..=4095 on both): frame k its
+/// high six bits, frame k+1 its low six bits. Through the two key frames both ends
+/// extrapolate by the channel's last delta (`r = x + 2·δ·step` after them); after the second
+/// half the encoder drops its carried round-off (`E = 0`), so the first delta after a key
+/// spans one frame of motion plus the extrapolation's miss, not two or three frames (fewer
+/// slews on the walk's arm). A decoder off the encoder (a code of the channel lost since
+/// its last key) takes `x` and the same extrapolation, and is then in step exactly — if both
+/// halves and the delta before them (the extrapolation's δ) arrived; otherwise it waits for
+/// the next key. For a decoder in step the key is redundant: a lost half costs it nothing,
+/// and the key checks it — if its own count differs from `x`, a code was mis-corrected
+/// (three bit errors in one code pass the extended Hamming code as one) since the last
+/// key, more likely one of the K deltas than one of the two halves, so `x` is taken but the
+/// channel stays flagged until the next key confirms it (a wrong high half would be off by
+/// a multiple of 64 counts). The channels' keys are staggered (`⌊c·K/6⌋` frames apart) so a
+/// frame never loses more than one channel's delta. The decoder flags a channel
+/// [`Saturation::unsynced`] on its two key frames (extrapolated, no reading) and while it is
+/// off the encoder. Without key frames the decoder advances every channel by its previous
+/// delta when any code is lost; with them each channel whose code arrived takes its own
+/// delta, so a lost code unsyncs only its channel. Costs: two of every K readings per
+/// channel (flagged, skipped by the filter); a mis-corrected delta still leaves a wrong count
+/// unflagged until the next key (without keys: for good). The per-frame error of the
+/// unflagged frames is unchanged: the first delta frame after a key has `r = c − E` with the
+/// carried error reset (`|r − c| ≤ step/2`), every later one `c + E_{k−1} − E_k` as derived
+/// above, so [`frame_error_sigma_counts`](Self::frame_error_sigma_counts) (step/√6) and
+/// [`frame_error_bound_counts`](Self::frame_error_bound_counts) (step) still hold — the
+/// σ slightly over-states the first frame after a key, the safe side; the telescoping of
+/// the running sum restarts at each key. K = 28 (0.2 s at 140 Hz) is the simulator's
+/// default (`SimulationParams::key_interval`, chosen from data: docs, "A resynchronising
+/// code").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeltaCodec {
     recon: [i32; CHANNELS],
@@ -206,6 +258,30 @@ pub struct DeltaCodec {
     /// The encoder's accumulated error, Σ (count − reconstruction), per channel.
     #[serde(default)]
     error: [i32; CHANNELS],
+    /// Frames between a channel's key frames (0: no key frames, the thesis's code).
+    #[serde(default)]
+    key_interval: u32,
+    /// Frames encoded (or decoded) so far: both ends of a link count alike, lost frames too.
+    #[serde(default)]
+    frame: u64,
+    /// The key value in flight per channel: the encoder's absolute count sent in halves, or
+    /// the decoder's received high half (`None` if that code was lost).
+    #[serde(default)]
+    key: [Option<i32>; CHANNELS],
+    /// Decoder: a code of the channel was lost since its last key frame.
+    #[serde(default)]
+    unsynced: [bool; CHANNELS],
+    /// Decoder: its count at the channel's last first-half key frame (what the encoder sends
+    /// if both are in step).
+    #[serde(default)]
+    key_check: [i32; CHANNELS],
+    /// Decoder: the channel's last delta was received (so it equals the encoder's).
+    #[serde(default)]
+    delta_known: [bool; CHANNELS],
+    /// Decoder: the last frame's count is not a current reading in step with the encoder
+    /// (unsynced, or one of the channel's key frames).
+    #[serde(default)]
+    stale: [bool; CHANNELS],
 }
 
 fn unit_step() -> i32 {
@@ -220,6 +296,13 @@ impl Default for DeltaCodec {
             step: 1,
             shaped: false,
             error: [0; CHANNELS],
+            key_interval: 0,
+            frame: 0,
+            key: [None; CHANNELS],
+            unsynced: [false; CHANNELS],
+            key_check: [0; CHANNELS],
+            delta_known: [true; CHANNELS],
+            stale: [false; CHANNELS],
         }
     }
 }
@@ -259,6 +342,50 @@ impl DeltaCodec {
     /// Whether the encoder feeds its round-off back (the noise-shaped code).
     pub fn is_noise_shaped(&self) -> bool {
         self.shaped
+    }
+
+    /// This codec with a key frame every `frames` frames per channel (issue 15, ninth session;
+    /// beyond the thesis, which describes no resynchronisation — see the type's docs, "Key
+    /// frames"); 0 turns them off. Both ends of a link must use the same interval and start
+    /// together (they count frames alike, lost ones too).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] unless `frames` is 0 or in 12..=1,000,000 (two key frames
+    /// for each of the six channels, so that no two channels key in the same frame).
+    pub fn with_key_interval(self, frames: u32) -> Result<Self> {
+        if frames != 0 && !(MIN_KEY_INTERVAL..=1_000_000).contains(&frames) {
+            return Err(Error::InvalidParam {
+                name: "key_interval",
+                reason: format!("{frames} is neither 0 (off) nor in 12..=1000000 frames"),
+            });
+        }
+        Ok(DeltaCodec {
+            key_interval: frames,
+            ..self
+        })
+    }
+
+    /// Frames between a channel's key frames; 0 if the code has none.
+    pub fn key_interval(&self) -> u32 {
+        self.key_interval
+    }
+
+    /// Channel `c`'s place in its key cycle in the current frame: `Some(0)` for the frame
+    /// carrying the high six bits of its absolute count, `Some(1)` for the low six bits,
+    /// `None` for a delta frame. Channel c's keys are offset by `⌊c · K / 6⌋` frames, so the
+    /// six channels' keys are spread over the interval, and with K ≥ 12 no two overlap (nor
+    /// does any second half fall on frame 0, before its first half was sent).
+    fn key_phase(&self, c: usize) -> Option<u8> {
+        if self.key_interval == 0 {
+            return None;
+        }
+        let k = u64::from(self.key_interval);
+        let offset = c as u64 * k / CHANNELS as u64;
+        match (self.frame + k - offset) % k {
+            0 => Some(0),
+            1 => Some(1),
+            _ => None,
+        }
     }
 
     /// σ of one decoded frame's error against the encoder's count, in counts, while the code
@@ -301,6 +428,28 @@ impl DeltaCodec {
                     reason: format!("{} is not a 12-bit count", counts[c]),
                 });
             }
+            match self.key_phase(c) {
+                Some(0) => {
+                    // Key frame, first half: the high six bits of the count both ends hold
+                    // (brought into the 12-bit range on both); the reconstruction then
+                    // extrapolates by the last delta through both key frames.
+                    self.recon[c] = self.recon[c].clamp(0, MAX_COUNT);
+                    self.key[c] = Some(self.recon[c]);
+                    codes[c] = hamming_encode((self.recon[c] >> 6 & 0x3F) as u8);
+                    self.recon[c] += self.last_delta[c] * self.step;
+                    continue;
+                }
+                Some(_) => {
+                    // Second half: the low six bits; the encoder starts afresh (no round-off
+                    // carried over the key: the first delta after it is exact to step/2).
+                    let x = self.key[c].unwrap_or(self.recon[c]);
+                    codes[c] = hamming_encode((x & 0x3F) as u8);
+                    self.recon[c] += self.last_delta[c] * self.step;
+                    self.error[c] = 0;
+                    continue;
+                }
+                None => {}
+            }
             let delta = if self.shaped {
                 let want = counts[c] + self.error[c] - self.recon[c];
                 let units = (f64::from(want) / f64::from(self.step)).round() as i32;
@@ -309,11 +458,13 @@ impl DeltaCodec {
                 (counts[c] - self.recon[c]).clamp(DELTA_MIN, DELTA_MAX)
             };
             self.recon[c] += delta * self.step;
+            self.last_delta[c] = delta;
             if self.shaped {
                 self.error[c] += counts[c] - self.recon[c];
             }
             codes[c] = hamming_encode((delta & 0x3F) as u8);
         }
+        self.frame += 1;
         let mut bits = [false; FRAME_BITS];
         for (c, code) in codes.iter().enumerate() {
             for i in 0..11 {
@@ -325,12 +476,17 @@ impl DeltaCodec {
     }
 
     /// Decodes one frame; `None` (a flagged frame) if a code has an uncorrectable error, in
-    /// which case every channel advances by its previous delta. The number of corrected bit
-    /// errors is returned with the counts.
+    /// which case every channel advances by its previous delta — without key frames; with
+    /// them ([`with_key_interval`](Self::with_key_interval)) the channels whose codes are
+    /// intact take their own delta or key half, and only the lost channels advance by their
+    /// previous delta and are flagged unsynced until their next key frame
+    /// ([`saturation`](Self::saturation)). The number of corrected bit errors is returned
+    /// with the counts.
     pub fn decode(&mut self, bits: &[bool; FRAME_BITS]) -> Option<([i32; CHANNELS], usize)> {
         let mut b = *bits;
         scramble(&mut b);
         let mut deltas = [0i32; CHANNELS];
+        let mut data = [None; CHANNELS];
         let mut corrected = 0;
         let mut ok = true;
         for (c, delta) in deltas.iter_mut().enumerate() {
@@ -340,12 +496,17 @@ impl DeltaCodec {
                     if hamming_encode(d) != w {
                         corrected += 1;
                     }
+                    data[c] = Some(d);
                     // Sign-extend the 6-bit two's complement delta.
                     *delta = i32::from(((d << 2) as i8) >> 2);
                 }
                 None => ok = false,
             }
         }
+        if self.key_interval > 0 {
+            return self.decode_keyed(&data, corrected, ok);
+        }
+        self.frame += 1;
         if !ok {
             for c in 0..CHANNELS {
                 self.recon[c] =
@@ -363,7 +524,66 @@ impl DeltaCodec {
     /// The saturation flags of the last frame [`decode`](Self::decode) returned, per channel
     /// (gyroscope x, y, z, accelerometer x, y, z).
     pub fn saturation(&self) -> [Saturation; CHANNELS] {
-        std::array::from_fn(|c| Saturation::of(self.recon[c], self.last_delta[c]))
+        std::array::from_fn(|c| Saturation {
+            unsynced: self.stale[c],
+            ..Saturation::of(self.recon[c], self.last_delta[c])
+        })
+    }
+
+    /// [`decode`](Self::decode) with key frames: `data` holds each channel's decoded 6-bit
+    /// code (`None`: uncorrectable).
+    fn decode_keyed(
+        &mut self,
+        data: &[Option<u8>; CHANNELS],
+        corrected: usize,
+        ok: bool,
+    ) -> Option<([i32; CHANNELS], usize)> {
+        for (c, d) in data.iter().enumerate() {
+            let step = self.last_delta[c] * self.step;
+            match self.key_phase(c) {
+                Some(0) => {
+                    self.recon[c] = self.recon[c].clamp(0, MAX_COUNT);
+                    self.key_check[c] = self.recon[c];
+                    self.key[c] = d.map(|d| i32::from(d) << 6);
+                    self.recon[c] += step;
+                }
+                Some(_) => {
+                    self.recon[c] += step;
+                    match (self.key[c], d) {
+                        (Some(high), Some(low)) if self.delta_known[c] => {
+                            let x = high | i32::from(*low);
+                            // In step, the decoder held the key's count already; if it did
+                            // not, a code was mis-corrected (three bit errors pass the
+                            // extended Hamming code as one) since the last key — more likely
+                            // one of the K deltas than one of the two halves, so the key is
+                            // taken, but flagged until the next key confirms it.
+                            self.unsynced[c] = !self.unsynced[c] && self.key_check[c] != x;
+                            self.recon[c] = x + 2 * step;
+                        }
+                        // A lost half leaves a channel in step as it was (the key carries
+                        // nothing new to it), an unsynced one unsynced.
+                        _ => self.unsynced[c] |= !self.delta_known[c],
+                    }
+                }
+                None => match d {
+                    Some(d) => {
+                        let delta = i32::from(((d << 2) as i8) >> 2);
+                        // As the encoder: unclamped, so both ends stay equal.
+                        self.recon[c] += delta * self.step;
+                        self.last_delta[c] = delta;
+                        self.delta_known[c] = true;
+                    }
+                    None => {
+                        self.recon[c] += step;
+                        self.unsynced[c] = true;
+                        self.delta_known[c] = false;
+                    }
+                },
+            }
+            self.stale[c] = self.unsynced[c] || self.key_phase(c).is_some();
+        }
+        self.frame += 1;
+        ok.then_some((self.recon, corrected))
     }
 }
 
@@ -570,6 +790,276 @@ mod tests {
         assert_eq!(whole.frame_error_sigma_counts(), 0.0);
         assert_eq!(whole.frame_error_bound_counts(), 0);
         assert!(!whole.is_noise_shaped() && whole.step() == 1);
+    }
+
+    /// A random walk of counts with per-frame jitter, six channels.
+    fn random_counts(n: usize, seed: u64) -> Vec<[i32; CHANNELS]> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut x = [2048.0f64; CHANNELS];
+        let mut v = [0.0f64; CHANNELS];
+        (0..n)
+            .map(|_| {
+                std::array::from_fn(|c| {
+                    v[c] = 0.97 * v[c] + 12.0 * (rng.random::<f64>() - 0.5);
+                    x[c] = (x[c] + v[c]).clamp(300.0, 3800.0);
+                    (x[c] + 40.0 * (rng.random::<f64>() - 0.5)).round() as i32
+                })
+            })
+            .collect()
+    }
+
+    /// Flips two bits of channel `c`'s code: uncorrectable.
+    fn lose(bits: &mut [bool; FRAME_BITS], c: usize) {
+        bits[c] ^= true;
+        bits[CHANNELS + c] ^= true;
+    }
+
+    /// Key frames (issue 15, ninth session): random counts through the 16-count code with
+    /// codes lost at random (single channels and whole frames). A lost channel is flagged
+    /// unsynced on every frame until its next key frame whose halves both arrive; from then
+    /// on the decoder equals the encoder exactly; every unflagged reading is the encoder's
+    /// count and within the code's bound of the true count. The same link without key
+    /// frames (the baseline) ends off the encoder on the lost channels.
+    #[test]
+    fn key_frames_resynchronise_the_decoder_after_lost_codes() {
+        use rand::{RngExt, SeedableRng};
+        let step = 16;
+        let key = 28u32;
+        let counts = random_counts(6000, 11);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let losses: Vec<Vec<usize>> = (0..counts.len())
+            .map(|k| {
+                if k < 50 || !rng.random_bool(0.03) {
+                    Vec::new()
+                } else if rng.random_bool(0.2) {
+                    (0..CHANNELS).collect()
+                } else {
+                    vec![rng.random_range(0..CHANNELS)]
+                }
+            })
+            .collect();
+        let keyed = DeltaCodec::noise_shaped(step)
+            .unwrap()
+            .with_key_interval(key)
+            .unwrap();
+        let (mut enc, mut dec) = (keyed.clone(), keyed);
+        let (mut enc0, mut dec0) = (
+            DeltaCodec::noise_shaped(step).unwrap(),
+            DeltaCodec::noise_shaped(step).unwrap(),
+        );
+        // The frame of the delta whose loss unsynced the channel (None: in step), and
+        // whether the current key's first half was lost.
+        let mut lost_at: [Option<usize>; CHANNELS] = [None; CHANNELS];
+        let mut half_lost = [false; CHANNELS];
+        let (mut resyncs, mut flagged_lost, mut checked) = (0, 0, 0);
+        for (k, (x, lost)) in counts.iter().zip(&losses).enumerate() {
+            let phases: [Option<u8>; CHANNELS] = std::array::from_fn(|c| enc.key_phase(c));
+            let mut bits = enc.encode(x).unwrap();
+            let mut bits0 = enc0.encode(x).unwrap();
+            for &c in lost {
+                lose(&mut bits, c);
+                lose(&mut bits0, c);
+                match phases[c] {
+                    None => lost_at[c] = Some(k),
+                    Some(0) => half_lost[c] = true,
+                    Some(_) => {}
+                }
+            }
+            let _ = dec0.decode(&bits0);
+            let out = dec.decode(&bits);
+            assert_eq!(out.is_none(), !lost.is_empty(), "frame {k}");
+            let flags = dec.saturation();
+            for c in 0..CHANNELS {
+                if phases[c] == Some(1) {
+                    // An unsynced channel resynchronises if both halves and the delta before
+                    // them (the extrapolation through the key) arrived; a channel in step
+                    // stays in step whatever the key's halves.
+                    let halves = !half_lost[c] && !lost.contains(&c);
+                    if lost_at[c].is_some_and(|l| !halves || l + 2 == k) {
+                        assert!(flags[c].unsynced);
+                    } else {
+                        if lost_at[c].is_some() {
+                            resyncs += 1;
+                        }
+                        lost_at[c] = None;
+                        assert_eq!(dec.recon[c], enc.recon[c], "frame {k} channel {c}");
+                    }
+                    half_lost[c] = false;
+                }
+                if phases[c].is_some() {
+                    assert!(flags[c].unsynced, "key frame {k} channel {c} is flagged");
+                } else if lost_at[c].is_some() {
+                    flagged_lost += 1;
+                    assert!(flags[c].unsynced, "frame {k}: lost channel {c} flagged");
+                } else {
+                    assert!(!flags[c].unsynced, "frame {k} channel {c}");
+                    assert_eq!(dec.recon[c], enc.recon[c], "frame {k} channel {c}");
+                    if let Some((o, _)) = out {
+                        if !flags[c].slew {
+                            assert!((o[c] - x[c]).abs() <= step, "frame {k} channel {c}");
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            resyncs > 100 && flagged_lost > 1000,
+            "{resyncs} {flagged_lost}"
+        );
+        assert!(checked > 25_000, "{checked}");
+        // The baseline: without key frames the lost channels stay off for good.
+        let off = (0..CHANNELS)
+            .filter(|&c| dec0.recon[c] != enc0.recon[c])
+            .count();
+        assert!(off >= 5, "{off} channels off without key frames");
+        // A lost key half: a channel in step stays in step (the key's count is the one both
+        // ends hold), flagged only on its key frames.
+        let keyed = DeltaCodec::noise_shaped(step)
+            .unwrap()
+            .with_key_interval(key)
+            .unwrap();
+        let (mut enc, mut dec) = (keyed.clone(), keyed);
+        let mut lost_key = 0;
+        for (k, x) in counts.iter().take(6 * key as usize).enumerate() {
+            let phase = enc.key_phase(2);
+            let mut bits = enc.encode(x).unwrap();
+            if k > key as usize && phase.is_some() && k % 3 == 0 {
+                lose(&mut bits, 2);
+                lost_key += 1;
+                assert!(dec.decode(&bits).is_none());
+            } else {
+                let _ = dec.decode(&bits).unwrap();
+            }
+            assert_eq!(dec.saturation()[2].unsynced, phase.is_some(), "frame {k}");
+            assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+        }
+        assert!(lost_key >= 2);
+    }
+
+    /// Three bit errors in one code pass the extended Hamming code as a single error (a
+    /// mis-correction, undetectable in itself): in a key's high half or in a delta, the
+    /// decoder's count would be off unflagged. A key checks a channel in step (its count is
+    /// the one the decoder holds): the channel is flagged from the first key after the
+    /// error until the next key confirms it; a wrong key is not taken for good.
+    #[test]
+    fn a_key_checks_a_channel_in_step_against_mis_corrected_codes() {
+        let key = 28usize;
+        let counts = random_counts(10 * key, 5);
+        // Code bits 3, 5, 6 (data bits 0, 1, 2) of channel 2: syndrome 0, odd parity.
+        let miscorrect = |bits: &mut [bool; FRAME_BITS]| {
+            for i in [3, 5, 6] {
+                bits[i * CHANNELS + 2] ^= true;
+            }
+        };
+        for in_key in [true, false] {
+            let keyed = DeltaCodec::noise_shaped(16)
+                .unwrap()
+                .with_key_interval(key as u32)
+                .unwrap();
+            let (mut enc, mut dec) = (keyed.clone(), keyed);
+            let mut hit: Option<usize> = None;
+            let mut key_ends = Vec::new();
+            for (k, x) in counts.iter().enumerate() {
+                let phase = enc.key_phase(2);
+                let mut bits = enc.encode(x).unwrap();
+                let target = if in_key { Some(0) } else { None };
+                if hit.is_none() && k > 2 * key && phase == target {
+                    miscorrect(&mut bits);
+                    hit = Some(k);
+                }
+                let (_, fixed) = dec.decode(&bits).unwrap();
+                if hit == Some(k) {
+                    assert_eq!(fixed, 1, "passes as one corrected error");
+                }
+                if phase == Some(1) {
+                    key_ends.push(k);
+                }
+                let flagged = dec.saturation()[2].unsynced;
+                let Some(h) = hit else {
+                    assert_eq!(flagged, phase.is_some(), "frame {k}");
+                    assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                    continue;
+                };
+                // The first key end after the hit exposes it, the second confirms.
+                match key_ends.iter().filter(|&&e| e >= h).count() {
+                    0 if in_key => {
+                        // The wrong high half is held until the second half.
+                        assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                        assert!(flagged, "frame {k}");
+                    }
+                    0 => {
+                        // A wrong delta: off, unflagged (not detectable yet).
+                        assert_ne!(dec.recon[2], enc.recon[2], "frame {k}");
+                        assert_eq!(flagged, phase.is_some(), "frame {k}");
+                    }
+                    1 => {
+                        assert!(flagged, "frame {k}: flagged until confirmed");
+                        assert_eq!(dec.recon[2] != enc.recon[2], in_key, "frame {k}");
+                    }
+                    _ => {
+                        assert_eq!(flagged, phase.is_some(), "frame {k}");
+                        assert_eq!(dec.recon[2], enc.recon[2], "frame {k}");
+                    }
+                }
+            }
+            assert!(hit.is_some());
+        }
+    }
+
+    /// With no bit errors the keyed code decodes as before: every unflagged frame within one
+    /// step of the count (σ step/√6 to 6 %, as the type's docs derive), exactly two of
+    /// every K readings per channel flagged (its key frames), never two channels' keys in
+    /// one frame; bad intervals are errors.
+    #[test]
+    fn key_frames_cost_two_readings_per_interval_and_keep_the_frame_error() {
+        let step = 16;
+        for key in [12u32, 70, 140] {
+            let counts = random_counts(14_000, 7);
+            let keyed = DeltaCodec::noise_shaped(step)
+                .unwrap()
+                .with_key_interval(key)
+                .unwrap();
+            assert_eq!(keyed.key_interval(), key);
+            let (mut enc, mut dec) = (keyed.clone(), keyed);
+            let mut flagged = [0usize; CHANNELS];
+            let mut err = Vec::new();
+            for (k, x) in counts.iter().enumerate() {
+                let bits = enc.encode(x).unwrap();
+                let (out, _) = dec.decode(&bits).unwrap();
+                let flags = dec.saturation();
+                assert!(
+                    flags.iter().filter(|s| s.unsynced).count() <= 1,
+                    "frame {k}"
+                );
+                for c in 0..CHANNELS {
+                    assert_eq!(dec.recon[c], enc.recon[c]);
+                    if flags[c].unsynced {
+                        flagged[c] += 1;
+                    } else if !flags[c].slew {
+                        assert!((out[c] - x[c]).abs() <= enc.frame_error_bound_counts());
+                        err.push(f64::from(out[c] - x[c]));
+                    }
+                }
+            }
+            for f in flagged {
+                let expected = 2 * counts.len() / key as usize;
+                assert!(f.abs_diff(expected) <= 2, "K {key}: {f} vs {expected}");
+            }
+            let n = err.len() as f64;
+            let sigma = (err.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+            let documented = enc.frame_error_sigma_counts();
+            assert!(
+                (sigma / documented - 1.0).abs() < 0.06,
+                "K {key}: σ {sigma} vs {documented}"
+            );
+        }
+        let base = DeltaCodec::noise_shaped(step).unwrap();
+        for bad in [1, 4, 11, 1_000_001] {
+            assert!(base.clone().with_key_interval(bad).is_err(), "{bad}");
+        }
+        assert_eq!(base.clone().with_key_interval(0).unwrap(), base);
     }
 
     #[test]
