@@ -246,6 +246,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         pairs.extend((0..n_cams).step_by(TOP_PAIRS_EVERY).map(|c| (n_cams, c)));
     }
     let top = args.top_camera;
+    let layout = Layout { ring: n_cams, pairs };
     let (params, rparams) = reconstruction_params(&args, run.quick())?;
     // The subjects after the skirt: the Ghost (the sheet-covered figure, §3.4) at the skirt's
     // frame of the exercise motion (`GHOST_FRAME`) and the skirt with the studio's wrinkles
@@ -266,9 +267,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          -> Result<serde_json::Value, Box<dyn std::error::Error>> {
             let t = Instant::now();
             let scene = studio_scene(subject, *frame, n_cams, size, surface, top)?;
-            let mut f = subject_run(
-                run, name, &scene, n_cams, &pairs, &rparams, *shadows, control,
-            )?;
+            let mut f = subject_run(run, name, &scene, &layout, &rparams, *shadows, control)?;
             f["wall_s"] = json!(t.elapsed().as_secs_f64());
             f["frame"] = json!(frame);
             Ok(f)
@@ -319,6 +318,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     let scene = studio_scene(&skirt_subject(), STUDIO_FRAME, n_cams, size, surface, top)?;
+    let obs = observe(&run, &scene, "skirt", smooth_shadows, n_cams)?;
+    let (t_hull, t_capture) = (obs.t_hull, obs.t_capture);
     let Observed {
         cameras,
         mesh,
@@ -326,17 +327,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         truths,
         estimated,
         stacks,
-        silhouettes,
         hull,
         proxies,
-        t_hull,
-        t_capture,
         ..
-    } = observe(&run, &scene, "skirt", smooth_shadows, n_cams)?;
+    } = &obs;
     let truth_gap = facet_shading_gap(&cameras, &mesh)?;
     let exact: Vec<NormalMap> = cameras
         .iter()
-        .zip(&views)
+        .zip(views)
         .map(|(c, v)| rendered_normals(c, v))
         .collect::<Result<_, _>>()?;
 
@@ -349,7 +347,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &hull,
         proxies.clone(),
         0.0,
-        &pairs,
+        &layout.pairs,
         &rparams,
     )?;
     let t_two_pass = t.elapsed().as_secs_f64();
@@ -365,22 +363,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t_est = rec.pass1.times.per_view_s;
     let t_pass2 = rec.pass2.times.per_view_s;
     let stage = run.stage("per-view surfaces, exact normals (control)", None);
-    let ctl = per_view_surfaces(&cameras, &exact, &proxies, &pairs, Some(&hull), &params)?;
+    let ctl = per_view_surfaces(
+        cameras,
+        &exact,
+        proxies,
+        &layout.pairs,
+        Some(hull),
+        &params,
+    )?;
     let ctl_err = ctl.errors_against(&truths, &proxies, &exact)?;
     stage.finish(summary(&ctl_err));
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
-    let (table, distances) = score_passes(
-        &cameras,
-        n_cams,
-        &estimated,
-        &silhouettes,
-        &rec,
-        &mesh,
-        &truths,
-        &rparams,
-    )?;
+    let (table, distances) = score_passes(&obs, &rec, &rparams)?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
     let hull_surface_median_mm = hull_surface_median_mm(&cameras, &proxies, &rparams, &mesh)?;
     stage.finish(format!(
@@ -749,6 +745,13 @@ fn reconstruction_params(
     Ok((params, rparams))
 }
 
+/// The cameras of a run: the ring's count (the top camera, if any, after them) and the pairs
+/// that are matched.
+struct Layout {
+    ring: usize,
+    pairs: Vec<(usize, usize)>,
+}
+
 /// The studio scene of `subject` at `frame` on a ring of `n_cams` cameras of `size` px, with
 /// the dome's top camera after them if `top` (`--top-camera`).
 fn studio_scene(
@@ -800,6 +803,8 @@ struct Observed {
     t_hull: f64,
     /// Wall time of the capture (posing, rendering, shading), s.
     t_capture: f64,
+    /// The ring's cameras come first, this many; the top camera (if any) after them.
+    ring: usize,
 }
 
 /// How a capture casts shadows.
@@ -895,6 +900,7 @@ fn observe(
         proxies,
         t_hull,
         t_capture,
+        ring,
     })
 }
 
@@ -913,18 +919,17 @@ const SCATTER_POINTS: usize = 4000;
 /// With `control` (`--subject`), also the per-view stages of both passes against the true
 /// depth maps ([`stage_trace`]) and the per-view stage with the rasteriser's exact normals
 /// under those parameters: where the subject's error comes from.
-#[allow(clippy::too_many_arguments)]
 fn subject_run(
     run: &mut Run,
     name: &str,
     scene: &StudioScene,
-    ring: usize,
-    pairs: &[(usize, usize)],
+    layout: &Layout,
     rparams: &ReconstructParams,
     shadows: Shadowing,
     control: Option<&SurfaceParams>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
-    let obs = observe(run, scene, name, shadows, ring)?;
+    let obs = observe(run, scene, name, shadows, layout.ring)?;
+    let pairs = &layout.pairs;
     let stage = run.stage(&format!("{name}: two passes"), None);
     let t = Instant::now();
     let rec = reconstruct_from_hull_depths(
@@ -941,16 +946,7 @@ fn subject_run(
         rec.pass2
             .views
             .errors_against(&obs.truths, &rec.pass2.proxies, &obs.estimated)?;
-    let (table, distances) = score_passes(
-        &obs.cameras,
-        ring,
-        &obs.estimated,
-        &obs.silhouettes,
-        &rec,
-        &obs.mesh,
-        &obs.truths,
-        rparams,
-    )?;
+    let (table, distances) = score_passes(&obs, &rec, rparams)?;
     let zero = vec![0.0; obs.mesh.vertices.len()];
     let (merged_d, filled_d) = &distances[1];
     stages_picture(
@@ -1363,20 +1359,25 @@ type PassScores = (
 );
 
 /// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
-/// budget against the true depth maps `truths`, and the merged and filled meshes' distances
-/// to the true mesh `truth`.
-/// With `ring` fewer than the cameras (`--top-camera`), each pass also gets Table 3.1 over the
-/// ring's measured normals alone (`ring_*` keys), comparable with a run without the top camera.
+/// budget against the true depth maps, and the merged and filled meshes' distances to the
+/// true mesh, all of the subject `obs`. With fewer ring cameras than cameras (`--top-camera`), each pass also gets Table 3.1 over
+/// the ring's measured normals alone (`ring_*` keys), comparable with a run without the top
+/// camera.
 fn score_passes(
-    cameras: &[Camera],
-    ring: usize,
-    estimated: &[NormalMap],
-    silhouettes: &[Mask],
+    obs: &Observed,
     rec: &Reconstruction,
-    truth: &TriMesh,
-    truths: &[DepthMap],
     rparams: &ReconstructParams,
 ) -> Result<PassScores, Box<dyn std::error::Error>> {
+    let Observed {
+        cameras,
+        estimated,
+        silhouettes,
+        mesh: truth,
+        truths,
+        ring,
+        ..
+    } = obs;
+    let ring = *ring;
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
     for (name, pass, surface) in [
