@@ -246,7 +246,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         pairs.extend((0..n_cams).step_by(TOP_PAIRS_EVERY).map(|c| (n_cams, c)));
     }
     let top = args.top_camera;
-    let layout = Layout { ring: n_cams, pairs };
+    let layout = Layout {
+        ring: n_cams,
+        pairs,
+    };
     let (params, rparams) = reconstruction_params(&args, run.quick())?;
     // The subjects after the skirt: the Ghost (the sheet-covered figure, §3.4) at the skirt's
     // frame of the exercise motion (`GHOST_FRAME`) and the skirt with the studio's wrinkles
@@ -331,7 +334,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         proxies,
         ..
     } = &obs;
-    let truth_gap = facet_shading_gap(&cameras, &mesh)?;
+    let truth_gap = facet_shading_gap(cameras, mesh)?;
     let exact: Vec<NormalMap> = cameras
         .iter()
         .zip(views)
@@ -342,9 +345,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     // The hull's depth maps rendered in `observe` (timed in `t_hull`) are pass 1's proxies.
     let rec = reconstruct_from_hull_depths(
-        &cameras,
-        &estimated,
-        &hull,
+        cameras,
+        estimated,
+        hull,
         proxies.clone(),
         0.0,
         &layout.pairs,
@@ -352,9 +355,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let t_two_pass = t.elapsed().as_secs_f64();
     let est = &rec.pass1.views;
-    let est_err = est.errors_against(&truths, &proxies, &estimated)?;
+    let est_err = est.errors_against(truths, proxies, estimated)?;
     let pass2 = &rec.pass2.views;
-    let pass2_err = pass2.errors_against(&truths, &rec.pass2.proxies, &estimated)?;
+    let pass2_err = pass2.errors_against(truths, &rec.pass2.proxies, estimated)?;
     stage.finish(format!(
         "pass 1: {}; pass 2: {}",
         summary(&est_err),
@@ -363,22 +366,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t_est = rec.pass1.times.per_view_s;
     let t_pass2 = rec.pass2.times.per_view_s;
     let stage = run.stage("per-view surfaces, exact normals (control)", None);
-    let ctl = per_view_surfaces(
-        cameras,
-        &exact,
-        proxies,
-        &layout.pairs,
-        Some(hull),
-        &params,
-    )?;
-    let ctl_err = ctl.errors_against(&truths, &proxies, &exact)?;
+    let ctl = per_view_surfaces(cameras, &exact, proxies, &layout.pairs, Some(hull), &params)?;
+    let ctl_err = ctl.errors_against(truths, proxies, &exact)?;
     stage.finish(summary(&ctl_err));
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
     let (table, distances) = score_passes(&obs, &rec, &rparams)?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
-    let hull_surface_median_mm = hull_surface_median_mm(&cameras, &proxies, &rparams, &mesh)?;
+    let hull_surface_median_mm = hull_surface_median_mm(cameras, proxies, &rparams, mesh)?;
     stage.finish(format!(
         "{table:?}; hull median {hull_surface_median_mm:.1} mm"
     ));
@@ -398,7 +394,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..MatchingParams::default()
         };
         let t = Instant::now();
-        let m = match_pair(&view(0), &view(1), Some(&hull), &params)?;
+        let m = match_pair(&view(0), &view(1), Some(hull), &params)?;
         let seconds = t.elapsed().as_secs_f64();
         let (l, r) = (
             depth_errors(&m.left.target, &truths[0], None)?,
@@ -439,7 +435,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         write_ply(run.path(&format!("{name}.ply")), m, PlyEncoding::default())?;
     }
     let view0 = depth_map_mesh(&cameras[0], &est.surfaces[0], jump)?;
-    let view0_d = surface_distance(&view0, &mesh)?;
+    let view0_d = surface_distance(&view0, mesh)?;
     let mut inputs = vec![(
         &view0,
         &view0_d.per_vertex_mm,
