@@ -181,6 +181,11 @@ struct Args {
     /// the visual hull (`estimate_normals_on_proxy`).
     #[arg(long)]
     top_camera: bool,
+    /// Pass 1's matching band about each view's integrated surface, m, also the exact-normal
+    /// control's (`MatchingParams::band_m`, default 0.1; issue 14, docs: "Ninth session: the
+    /// pass-1 band").
+    #[arg(long)]
+    pass1_band_m: Option<f64>,
 }
 
 /// The top camera is paired with every this many ring cameras (the thesis matches
@@ -727,6 +732,10 @@ fn reconstruction_params(
     for pass in [&mut rparams.pass1, &mut rparams.pass2] {
         pass.offsets.outliers = outliers;
         pass.offsets.robust = robust;
+    }
+    if let Some(m) = args.pass1_band_m {
+        params.matching.band_m = m;
+        rparams.pass1.matching.band_m = m;
     }
     if args.pass1_poisson_depth.is_some() {
         rparams.pass1_poisson_depth = args.pass1_poisson_depth;
