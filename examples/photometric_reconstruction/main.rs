@@ -74,8 +74,9 @@ use dynamic_shapes::photometric::{
     hull_samples, integrate_normals, match_pair, matching_images, per_view_surfaces,
     reconstruct_from_hull_depths, rendered_normals, surface_distance, table_metrics, BudgetInputs,
     DepthMap, IntegrationParams, MatchMetric, MatchView, MatchingParams, MetricParams, NormalMap,
-    OffsetOutliers, ReconstructParams, Reconstruction, RobustWeights, SubPixel, SurfaceDistance,
-    SurfaceErrors, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    OffsetOutliers, ReconstructParams, Reconstruction, RefineParams, RobustWeights, SubPixel,
+    SurfaceDistance, SurfaceErrors, SurfaceParams, TargetNormals, ViewSurfaces, VisualHull,
+    VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -171,6 +172,32 @@ struct Args {
     /// wrinkles at 1024² without the skirt's run before them).
     #[arg(long)]
     subject: Option<String>,
+    /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
+    /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
+    /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
+    /// normals").
+    #[arg(long)]
+    refine: bool,
+    /// With `--refine`: the position weight λ in (0, 1] (default 0.1).
+    #[arg(long)]
+    refine_lambda: Option<f64>,
+    /// With `--refine`: the target normals, `frontal` (the most frontal camera's, as Table
+    /// 3.1's vertex figure) or `cos2` (all cameras', weighted by the squared cosine of the
+    /// view angle) [default: frontal].
+    #[arg(long, default_value = "frontal")]
+    refine_targets: String,
+    /// With `--refine`: also refine pass 1's merged mesh (pass 2's proxy is then built from
+    /// it) (`ReconstructParams::refine_pass1`).
+    #[arg(long)]
+    refine_pass1: bool,
+    /// With `--refine`: drop a target normal farther than this from the vertex's own normal,
+    /// degrees (`RefineParams::max_angle_deg`; default: none dropped).
+    #[arg(long)]
+    refine_max_angle_deg: Option<f64>,
+    /// With `--refine`: rounds of neighbour averaging of the target normals
+    /// (`RefineParams::smoothing`; default 0).
+    #[arg(long)]
+    refine_smoothing: Option<usize>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -370,6 +397,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &rec,
         &mesh,
         &truths,
+        &exact,
         &rparams,
     )?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
@@ -528,6 +556,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "surface_p95_mm": table["pass2"]["surface_p95_mm"],
         "filled_surface_median_mm": table["pass2"]["filled_surface_median_mm"],
         "filled_surface_p95_mm": table["pass2"]["filled_surface_p95_mm"],
+        "true_normal_dev_deg": table["pass2"]["true_normal_dev_deg"],
+        "true_local_normal_dev_deg": table["pass2"]["true_local_normal_dev_deg"],
+        "pass1_true_normal_dev_deg": table["pass1"]["true_normal_dev_deg"],
+        "pass2_refine_s": table["pass2"]["refine_s"],
+        "refine": rparams.refine.map(|r| json!({
+            "lambda": r.lambda,
+            "targets": format!("{:?}", r.targets),
+            "pass1": rparams.refine_pass1,
+            "max_angle_deg": r.max_angle_deg,
+            "smoothing": r.smoothing,
+        })),
         "hull_surface_median_mm": hull_surface_median_mm,
     });
     // The true surface (issue 14, sixth session): its edge bound, size, capture time and how far
@@ -733,6 +772,22 @@ fn reconstruction_params(
         rparams.pass2.integration.proxy_jump_m = m;
     }
     rparams.pass2.integration.layers = args.pass2_layers;
+    let targets = match args.refine_targets.as_str() {
+        "frontal" => TargetNormals::MostFrontal,
+        "cos2" => TargetNormals::CosineSquared,
+        other => return Err(format!("--refine-targets: frontal or cos2, not {other}").into()),
+    };
+    if args.refine {
+        let d = RefineParams::default();
+        rparams.refine = Some(RefineParams {
+            lambda: args.refine_lambda.unwrap_or(d.lambda),
+            targets,
+            max_angle_deg: args.refine_max_angle_deg.or(d.max_angle_deg),
+            smoothing: args.refine_smoothing.unwrap_or(d.smoothing),
+            ..d
+        });
+        rparams.refine_pass1 = args.refine_pass1;
+    }
     if let Some(a) = args.pass2_layer_agreement {
         rparams.pass2.integration.layer_agreement = a;
     }
@@ -886,6 +941,12 @@ fn subject_run(
         rec.pass2
             .views
             .errors_against(&obs.truths, &rec.pass2.proxies, &obs.estimated)?;
+    let exact: Vec<NormalMap> = obs
+        .cameras
+        .iter()
+        .zip(&obs.views)
+        .map(|(c, v)| rendered_normals(c, v))
+        .collect::<Result<_, _>>()?;
     let (table, distances) = score_passes(
         &obs.cameras,
         &obs.estimated,
@@ -893,6 +954,7 @@ fn subject_run(
         &rec,
         &obs.mesh,
         &obs.truths,
+        &exact,
         rparams,
     )?;
     let zero = vec![0.0; obs.mesh.vertices.len()];
@@ -937,6 +999,8 @@ fn subject_run(
         "surface_p95_mm": p2["surface_p95_mm"],
         "filled_surface_median_mm": p2["filled_surface_median_mm"],
         "filled_surface_p95_mm": p2["filled_surface_p95_mm"],
+        "true_normal_dev_deg": p2["true_normal_dev_deg"],
+        "true_local_normal_dev_deg": p2["true_local_normal_dev_deg"],
         "hull_surface_median_mm": hull_median,
         "pass2_offset_median_mm": per_view.offset.median_mm,
         "pass2_coverage_pct": per_view.coverage_pct,
@@ -953,12 +1017,6 @@ fn subject_run(
             .pass1
             .views
             .errors_against(&obs.truths, &obs.proxies, &obs.estimated)?;
-        let exact: Vec<NormalMap> = obs
-            .cameras
-            .iter()
-            .zip(&obs.views)
-            .map(|(c, v)| rendered_normals(c, v))
-            .collect::<Result<_, _>>()?;
         let ctl = per_view_surfaces(
             &obs.cameras,
             &exact,
@@ -1316,6 +1374,7 @@ fn score_passes(
     rec: &Reconstruction,
     truth: &TriMesh,
     truths: &[DepthMap],
+    exact: &[NormalMap],
     rparams: &ReconstructParams,
 ) -> Result<PassScores, Box<dyn std::error::Error>> {
     let mut table = serde_json::Map::new();
@@ -1327,6 +1386,16 @@ fn score_passes(
         let m = table_metrics(
             cameras,
             estimated,
+            silhouettes,
+            &pass.views.surfaces,
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
+        // The merged mesh's normals against the true (rendered) normals: the control for a
+        // stage that fits the measured normals (`--refine`), which must not just fit their noise.
+        let t = table_metrics(
+            cameras,
+            exact,
             silhouettes,
             &pass.views.surfaces,
             &pass.merged.mesh,
@@ -1370,6 +1439,17 @@ fn score_passes(
                 "per_view_s": pass.times.per_view_s,
                 "merge_s": pass.times.merge_s,
                 "poisson_s": pass.times.poisson_s,
+                "refine_s": pass.times.refine_s,
+                "refine": pass.refined.map(|r| json!({
+                    "targeted": r.targeted,
+                    "faces": r.faces,
+                    "mean_move_mm": r.mean_move_mm,
+                    "max_move_mm": r.max_move_mm,
+                    "targets_s": r.targets_s,
+                    "solve_s": r.solve_s,
+                })),
+                "true_normal_dev_deg": t.normal_dev_deg,
+                "true_local_normal_dev_deg": t.local_normal_dev_deg,
                 "coverage_budget": budget,
                 "budget_no_surface_pct": budget.pct(budget.no_surface_px()),
                 "budget_gross_uncovered_pct": budget.pct(budget.gross_uncovered_px),

@@ -74,6 +74,15 @@ pub struct RefineParams {
     /// Which samples count as measured (coverage `near_m`, visibility `near_m / 2`): the
     /// metric's. Default [`MetricParams::default`].
     pub sampling: MetricParams,
+    /// A target farther than this from the vertex's own normal, degrees, is dropped (the
+    /// vertex keeps its position): a guard against a wrong view's normal. `None`: every
+    /// target is kept. Default `None`.
+    pub max_angle_deg: Option<f64>,
+    /// Rounds of averaging each vertex's target with its neighbours' (over the mesh's edges,
+    /// renormalised) before the solve: the merged mesh's vertices (2 mm voxels) are denser
+    /// than the normal maps' pixels, so the targets carry the pixels' noise at the vertex
+    /// scale. Default 0.
+    pub smoothing: usize,
 }
 
 impl Default for RefineParams {
@@ -82,6 +91,8 @@ impl Default for RefineParams {
             lambda: 0.1,
             targets: TargetNormals::MostFrontal,
             sampling: MetricParams::default(),
+            max_angle_deg: None,
+            smoothing: 0,
         }
     }
 }
@@ -152,10 +163,54 @@ pub fn target_normals(
             TargetNormals::CosineSquared => sum[v] += s.cosine * s.cosine * s.measured,
         },
     )?;
-    Ok(match params.targets {
+    let mut targets: Vec<Option<DVec3>> = match params.targets {
         TargetNormals::MostFrontal => best.into_iter().map(|b| b.map(|(_, m)| m)).collect(),
         TargetNormals::CosineSquared => sum.into_iter().map(DVec3::try_normalize).collect(),
-    })
+    };
+    if let Some(max_deg) = params.max_angle_deg {
+        check::positive("max_angle_deg", max_deg)?;
+        let cos_max = max_deg.to_radians().cos();
+        let own = vertex_normals(mesh, NormalWeighting::Area)?;
+        for (t, n) in targets.iter_mut().zip(own) {
+            // The vertex normal's orientation is the mesh's; compare without its sign.
+            let keep = match (*t, n.try_normalize()) {
+                (Some(t), Some(n)) => t.dot(n).abs() >= cos_max,
+                _ => false,
+            };
+            if !keep {
+                *t = None;
+            }
+        }
+    }
+    if params.smoothing > 0 {
+        let mut edges: Vec<(usize, usize)> = mesh
+            .faces
+            .iter()
+            .flat_map(|f| {
+                (0..3).map(move |k| {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    (a.min(b), a.max(b))
+                })
+            })
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        for _ in 0..params.smoothing {
+            let mut acc: Vec<DVec3> = targets.iter().map(|t| t.unwrap_or(DVec3::ZERO)).collect();
+            for &(a, b) in &edges {
+                if let (Some(ta), Some(tb)) = (targets[a], targets[b]) {
+                    acc[a] += tb;
+                    acc[b] += ta;
+                }
+            }
+            for (t, a) in targets.iter_mut().zip(acc) {
+                if t.is_some() {
+                    *t = a.try_normalize();
+                }
+            }
+        }
+    }
+    Ok(targets)
 }
 
 /// Moves the vertices of `mesh` along their vertex normals so that the faces agree with the
@@ -178,7 +233,11 @@ pub fn refine_with_normals(
             what: "mesh to refine",
         });
     }
-    check::same_size("target normals per vertex", mesh.vertices.len(), targets.len())?;
+    check::same_size(
+        "target normals per vertex",
+        mesh.vertices.len(),
+        targets.len(),
+    )?;
     if !(lambda > 0.0 && lambda <= 1.0) {
         return Err(Error::InvalidParam {
             name: "lambda",
@@ -290,17 +349,11 @@ pub fn refine_with_normals(
         }
     }
     col_offsets.push(rows.len());
-    let matrix = CscMatrix::try_from_csc_data(
-        n_unknowns,
-        n_unknowns,
-        col_offsets,
-        rows,
-        values,
-    )
-    .map_err(|e| Error::InvalidParam {
-        name: "refinement system",
-        reason: e.to_string(),
-    })?;
+    let matrix = CscMatrix::try_from_csc_data(n_unknowns, n_unknowns, col_offsets, rows, values)
+        .map_err(|e| Error::InvalidParam {
+            name: "refinement system",
+            reason: e.to_string(),
+        })?;
     let chol = SparseCholesky::new(&matrix, &CholeskyParams::default())?;
     let d = chol.solve(&DMatrix::from_column_slice(n_unknowns, 1, &rhs))?;
     let mut vertices = mesh.vertices.clone();
@@ -425,7 +478,10 @@ mod tests {
         let refined = refine_with_normals(&input, &targets, 0.1).unwrap();
         let after = rms_to_truth_mm(&refined.mesh);
         println!("ripple: input {before:.3} mm, refined {after:.3} mm RMS");
-        assert!(before > 1.4, "the input must be off the truth ({before:.3} mm)");
+        assert!(
+            before > 1.4,
+            "the input must be off the truth ({before:.3} mm)"
+        );
         // The baseline (the input) could win: the refinement must bring the vertices at
         // least 4× closer to the true surface.
         assert!(
