@@ -183,9 +183,9 @@ struct Args {
     refine_lambda: Option<f64>,
     /// With `--refine`: the target normals, `frontal` (the most frontal camera's, as Table
     /// 3.1's vertex figure) or `cos2` (all cameras', weighted by the squared cosine of the
-    /// view angle) [default: frontal].
-    #[arg(long, default_value = "frontal")]
-    refine_targets: String,
+    /// view angle) (default: `RefineParams::default()`'s, cos2).
+    #[arg(long)]
+    refine_targets: Option<String>,
     /// With `--refine`: also refine pass 1's merged mesh (pass 2's proxy is then built from
     /// it) (`ReconstructParams::refine_pass1`).
     #[arg(long)]
@@ -195,7 +195,7 @@ struct Args {
     #[arg(long)]
     refine_max_angle_deg: Option<f64>,
     /// With `--refine`: rounds of neighbour averaging of the target normals
-    /// (`RefineParams::smoothing`; default 0).
+    /// (`RefineParams::smoothing`; default 2).
     #[arg(long)]
     refine_smoothing: Option<usize>,
 }
@@ -772,10 +772,11 @@ fn reconstruction_params(
         rparams.pass2.integration.proxy_jump_m = m;
     }
     rparams.pass2.integration.layers = args.pass2_layers;
-    let targets = match args.refine_targets.as_str() {
-        "frontal" => TargetNormals::MostFrontal,
-        "cos2" => TargetNormals::CosineSquared,
-        other => return Err(format!("--refine-targets: frontal or cos2, not {other}").into()),
+    let targets = match args.refine_targets.as_deref() {
+        None => RefineParams::default().targets,
+        Some("frontal") => TargetNormals::MostFrontal,
+        Some("cos2") => TargetNormals::CosineSquared,
+        Some(other) => return Err(format!("--refine-targets: frontal or cos2, not {other}").into()),
     };
     if args.refine {
         let d = RefineParams::default();

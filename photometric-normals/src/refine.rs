@@ -56,9 +56,11 @@ use crate::{vertex_normal_samples, DepthMap, Error, MetricParams, NormalMap, Res
 pub enum TargetNormals {
     /// The sample of the camera that sees the vertex most frontally, as Table 3.1's vertex
     /// normal deviation takes it.
-    #[default]
     MostFrontal,
-    /// Every sample, weighted by the squared cosine of its view angle, then normalised.
+    /// Every sample, weighted by the squared cosine of its view angle, then normalised (the
+    /// default: at 512² its true-normal deviation and true local deviation were both lower
+    /// than the most frontal sample's, 11.20° / 3.31° against 11.42° / 3.59°).
+    #[default]
     CosineSquared,
 }
 
@@ -66,22 +68,26 @@ pub enum TargetNormals {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefineParams {
     /// Weight λ ∈ (0, 1] of the position term; `1 − λ` weighs the normal term. λ = 1 leaves
-    /// the mesh as it is. Default 0.1. Nehab 2005 used λ around 0.1, and it was also the best
-    /// of the λ measured here (docs: "Fusing the merged mesh with the normals").
+    /// the mesh as it is. Default 0.1, as Nehab 2005. The balance is per vertex and edge, so
+    /// with 2 mm edges the normals rule below a wavelength of about `e·√((1 − λ)/λ)` ≈ 6 mm.
+    /// Measured at 512²: λ 0.01 lowered the normal deviation further (9.80°) but moved the
+    /// merged median 3.29 → 3.55 mm, λ 0.001 drifted (moves up to 26 cm) (docs: "Fusing the
+    /// merged mesh with the normals").
     pub lambda: f64,
-    /// Which target normal each vertex gets. Default [`TargetNormals::MostFrontal`].
+    /// Which target normal each vertex gets. Default [`TargetNormals::CosineSquared`].
     pub targets: TargetNormals,
     /// Which samples count as measured (coverage `near_m`, visibility `near_m / 2`): the
     /// metric's. Default [`MetricParams::default`].
     pub sampling: MetricParams,
     /// A target farther than this from the vertex's own normal, degrees, is dropped (the
     /// vertex keeps its position): a guard against a wrong view's normal. `None`: every
-    /// target is kept. Default `None`.
+    /// target is kept. Default `None` (20° at 512² left holes in the targets whose fixed
+    /// vertices made the local deviation worse: 3.83° against 3.51°).
     pub max_angle_deg: Option<f64>,
     /// Rounds of averaging each vertex's target with its neighbours' (over the mesh's edges,
     /// renormalised) before the solve: the merged mesh's vertices (2 mm voxels) are denser
     /// than the normal maps' pixels, so the targets carry the pixels' noise at the vertex
-    /// scale. Default 0.
+    /// scale. Default 2 (at 512², 0 → 2 rounds: true local deviation 3.31 → 3.17°).
     pub smoothing: usize,
 }
 
@@ -89,10 +95,10 @@ impl Default for RefineParams {
     fn default() -> Self {
         Self {
             lambda: 0.1,
-            targets: TargetNormals::MostFrontal,
+            targets: TargetNormals::CosineSquared,
             sampling: MetricParams::default(),
             max_angle_deg: None,
-            smoothing: 0,
+            smoothing: 2,
         }
     }
 }
