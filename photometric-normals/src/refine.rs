@@ -136,7 +136,6 @@ pub struct RefinedMesh {
 ///
 /// # Errors
 /// [`Error::Empty`] without cameras; errors of [`vertex_normal_samples`].
-#[allow(clippy::too_many_arguments)]
 pub fn target_normals(
     cameras: &[Camera],
     normals: &[NormalMap],
