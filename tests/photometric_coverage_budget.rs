@@ -375,6 +375,7 @@ fn coverage_budget_with_exact_normals() {
             proxies: proxies.clone(),
             views,
             merged,
+            refined: None,
             filled: pass1_filled.clone(),
             samples: 0,
             times: PassTimes::default(),

@@ -78,8 +78,8 @@ use dynamic_shapes::photometric::{
     per_view_surfaces, reconstruct_from_hull_depths, rendered_normals, surface_distance,
     table_metrics, BudgetInputs, DepthMap, IntegrationParams, MatchMetric, MatchView,
     MatchingParams, MetricParams, NormalMap, OffsetOutliers, ReconstructParams, Reconstruction,
-    RobustWeights, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams, ViewSurfaces,
-    VisualHull, VisualHullParams,
+    RefineParams, RobustWeights, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams,
+    TargetNormals, ViewSurfaces, VisualHull, VisualHullParams,
 };
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
@@ -186,6 +186,32 @@ struct Args {
     /// pass-1 band").
     #[arg(long)]
     pass1_band_m: Option<f64>,
+    /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
+    /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
+    /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
+    /// normals").
+    #[arg(long)]
+    refine: bool,
+    /// With `--refine`: the position weight λ in (0, 1] (default 0.1).
+    #[arg(long)]
+    refine_lambda: Option<f64>,
+    /// With `--refine`: the target normals, `frontal` (the most frontal camera's, as Table
+    /// 3.1's vertex figure) or `cos2` (all cameras', weighted by the squared cosine of the
+    /// view angle) (default: `RefineParams::default()`'s, cos2).
+    #[arg(long)]
+    refine_targets: Option<String>,
+    /// With `--refine`: also refine pass 1's merged mesh (pass 2's proxy is then built from
+    /// it) (`ReconstructParams::refine_pass1`).
+    #[arg(long)]
+    refine_pass1: bool,
+    /// With `--refine`: drop a target normal farther than this from the vertex's own normal,
+    /// degrees (`RefineParams::max_angle_deg`; default: none dropped).
+    #[arg(long)]
+    refine_max_angle_deg: Option<f64>,
+    /// With `--refine`: rounds of neighbour averaging of the target normals
+    /// (`RefineParams::smoothing`; default 2).
+    #[arg(long)]
+    refine_smoothing: Option<usize>,
 }
 
 /// The top camera is paired with every this many ring cameras (the thesis matches
@@ -331,7 +357,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let Observed {
         cameras,
         mesh,
-        views,
         truths,
         estimated,
         stacks,
@@ -340,11 +365,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..
     } = &obs;
     let truth_gap = facet_shading_gap(cameras, mesh)?;
-    let exact: Vec<NormalMap> = cameras
-        .iter()
-        .zip(views)
-        .map(|(c, v)| rendered_normals(c, v))
-        .collect::<Result<_, _>>()?;
+    let exact = exact_normals(&obs)?;
 
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
     let t = Instant::now();
@@ -535,6 +556,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "surface_p95_mm": table["pass2"]["surface_p95_mm"],
         "filled_surface_median_mm": table["pass2"]["filled_surface_median_mm"],
         "filled_surface_p95_mm": table["pass2"]["filled_surface_p95_mm"],
+        "true_normal_dev_deg": table["pass2"]["true_normal_dev_deg"],
+        "true_local_normal_dev_deg": table["pass2"]["true_local_normal_dev_deg"],
+        "pass1_true_normal_dev_deg": table["pass1"]["true_normal_dev_deg"],
+        "pass2_refine_s": table["pass2"]["refine_s"],
+        "refine": rparams.refine.map(|r| json!({
+            "lambda": r.lambda,
+            "targets": format!("{:?}", r.targets),
+            "pass1": rparams.refine_pass1,
+            "max_angle_deg": r.max_angle_deg,
+            "smoothing": r.smoothing,
+        })),
         "hull_surface_median_mm": hull_surface_median_mm,
     });
     // The true surface (issue 14, sixth session): its edge bound, size, capture time and how far
@@ -744,6 +776,23 @@ fn reconstruction_params(
         rparams.pass2.integration.proxy_jump_m = m;
     }
     rparams.pass2.integration.layers = args.pass2_layers;
+    let targets = match args.refine_targets.as_deref() {
+        None => RefineParams::default().targets,
+        Some("frontal") => TargetNormals::MostFrontal,
+        Some("cos2") => TargetNormals::CosineSquared,
+        Some(other) => return Err(format!("--refine-targets: frontal or cos2, not {other}").into()),
+    };
+    if args.refine {
+        let d = RefineParams::default();
+        rparams.refine = Some(RefineParams {
+            lambda: args.refine_lambda.unwrap_or(d.lambda),
+            targets,
+            max_angle_deg: args.refine_max_angle_deg.or(d.max_angle_deg),
+            smoothing: args.refine_smoothing.unwrap_or(d.smoothing),
+            ..d
+        });
+        rparams.refine_pass1 = args.refine_pass1;
+    }
     if let Some(a) = args.pass2_layer_agreement {
         rparams.pass2.integration.layer_agreement = a;
     }
@@ -994,6 +1043,8 @@ fn subject_run(
         "surface_p95_mm": p2["surface_p95_mm"],
         "filled_surface_median_mm": p2["filled_surface_median_mm"],
         "filled_surface_p95_mm": p2["filled_surface_p95_mm"],
+        "true_normal_dev_deg": p2["true_normal_dev_deg"],
+        "true_local_normal_dev_deg": p2["true_local_normal_dev_deg"],
         "hull_surface_median_mm": hull_median,
         "pass2_offset_median_mm": per_view.offset.median_mm,
         "pass2_coverage_pct": per_view.coverage_pct,
@@ -1010,12 +1061,7 @@ fn subject_run(
             .pass1
             .views
             .errors_against(&obs.truths, &obs.proxies, &obs.estimated)?;
-        let exact: Vec<NormalMap> = obs
-            .cameras
-            .iter()
-            .zip(&obs.views)
-            .map(|(c, v)| rendered_normals(c, v))
-            .collect::<Result<_, _>>()?;
+        let exact = exact_normals(&obs)?;
         let ctl = per_view_surfaces(
             &obs.cameras,
             &exact,
@@ -1357,6 +1403,16 @@ fn wrinkle_regions(
     Ok(vec![("skirt", skirt), ("elbows", elbows), ("knees", knees)])
 }
 
+/// The rasteriser's exact normals of `obs`'s views (the control's normal maps).
+fn exact_normals(obs: &Observed) -> Result<Vec<NormalMap>, Box<dyn std::error::Error>> {
+    Ok(obs
+        .cameras
+        .iter()
+        .zip(&obs.views)
+        .map(|(c, v)| rendered_normals(c, v))
+        .collect::<Result<_, _>>()?)
+}
+
 /// Table 3.1 of each pass (by name) and its merged and filled meshes' distances to the truth.
 type PassScores = (
     serde_json::Map<String, serde_json::Value>,
@@ -1364,10 +1420,11 @@ type PassScores = (
 );
 
 /// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
-/// budget against the true depth maps, and the merged and filled meshes' distances to the
-/// true mesh, all of the subject `obs`. With fewer ring cameras than cameras (`--top-camera`), each pass also gets Table 3.1 over
-/// the ring's measured normals alone (`ring_*` keys), comparable with a run without the top
-/// camera.
+/// budget against the true depth maps, the merged and filled meshes' distances to the true
+/// mesh, and each merged mesh's Table 3.1 vertex figures against the exact normals (the
+/// true-normal control), all of the subject `obs`. With fewer ring cameras than cameras
+/// (`--top-camera`), each pass also gets Table 3.1 over the ring's measured normals alone
+/// (`ring_*` keys), comparable with a run without the top camera.
 fn score_passes(
     obs: &Observed,
     rec: &Reconstruction,
@@ -1383,6 +1440,7 @@ fn score_passes(
         ..
     } = obs;
     let ring = *ring;
+    let exact = exact_normals(obs)?;
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
     for (name, pass, surface) in [
@@ -1414,6 +1472,16 @@ fn score_passes(
         } else {
             json!({})
         };
+        // The merged mesh's normals against the true (rendered) normals: the control for a
+        // stage that fits the measured normals (`--refine`), which must not just fit their noise.
+        let t = table_metrics(
+            cameras,
+            &exact,
+            silhouettes,
+            &pass.views.surfaces,
+            &pass.merged.mesh,
+            &MetricParams::default(),
+        )?;
         let merged_d = surface_distance(&pass.merged.mesh, truth)?;
         let filled_d = surface_distance(&pass.filled.mesh, truth)?;
         // Where the uncovered measured normals were lost (issue 14's coverage budget).
@@ -1452,6 +1520,17 @@ fn score_passes(
                 "per_view_s": pass.times.per_view_s,
                 "merge_s": pass.times.merge_s,
                 "poisson_s": pass.times.poisson_s,
+                "refine_s": pass.times.refine_s,
+                "refine": pass.refined.map(|r| json!({
+                    "targeted": r.targeted,
+                    "faces": r.faces,
+                    "mean_move_mm": r.mean_move_mm,
+                    "max_move_mm": r.max_move_mm,
+                    "targets_s": r.targets_s,
+                    "solve_s": r.solve_s,
+                })),
+                "true_normal_dev_deg": t.normal_dev_deg,
+                "true_local_normal_dev_deg": t.local_normal_dev_deg,
                 "coverage_budget": budget,
                 "budget_no_surface_pct": budget.pct(budget.no_surface_px()),
                 "budget_gross_uncovered_pct": budget.pct(budget.gross_uncovered_px),

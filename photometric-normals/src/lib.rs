@@ -33,6 +33,7 @@
 //! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
 //! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
 //! | `reconstruct.rs` | the two passes: per-view surfaces against the hull, merge, Poisson with hull samples at 0.01; again with the hole-filled mesh as proxy | [`reconstruct`], [`ReconstructParams`], [`Reconstruction`], [`Pass`] | §3.3, §3.3.3 |
+//! | `refine.rs` | the merged mesh moved along its normals to agree with the measured normals (Nehab et al. 2005's positions-and-normals energy, one sparse solve; beyond the thesis) | [`refine_mesh`], [`RefineParams`], [`target_normals`] | beyond (§3.1 ref. \[104\]) |
 //! | `metrics.rs` | Table 3.1: coverage, normal deviation, local normal deviation from the data alone; distance to a true mesh | [`table_metrics`], [`TableMetrics`], [`surface_distance`] | §3.4 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
 //!
@@ -114,6 +115,7 @@ pub mod peer_workloads;
 mod poisson;
 mod proxy;
 mod reconstruct;
+mod refine;
 mod silhouette;
 #[cfg(feature = "validation")]
 pub mod truth;
@@ -134,8 +136,9 @@ pub use matching::{
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use metrics::{
-    coverage_budget, displacement_survival, surface_distance, table_metrics, BudgetInputs,
-    CoverageBudget, DisplacementSurvival, MetricParams, SurfaceDistance, TableMetrics,
+    coverage_budget, displacement_survival, surface_distance, table_metrics, vertex_normal_samples,
+    BudgetInputs, CoverageBudget, DisplacementSurvival, MetricParams, SurfaceDistance,
+    TableMetrics, VertexNormalSample,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
@@ -154,5 +157,9 @@ pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
 pub use reconstruct::{
     hull_samples, reconstruct, reconstruct_from_hull_depths, Pass, PassTimes, ReconstructParams,
     Reconstruction,
+};
+pub use refine::{
+    refine_mesh, refine_with_normals, target_normals, RefineParams, RefineReport, RefinedMesh,
+    TargetNormals,
 };
 pub use silhouette::{extract_silhouette, Backdrop, Silhouette, SilhouetteParams};

@@ -242,16 +242,19 @@ fn vertex_sums(
     (count, dev, local, pairs)
 }
 
-fn camera_sums(
+/// One camera's rendering of `mesh` for the metrics: the rendered view, its hit depth and
+/// the covered pixels (a valid normal inside the silhouette whose mesh hit lies within
+/// `near_m` of the view's per-view surface).
+fn covered_render(
     camera: &Camera,
     normals: &NormalMap,
     silhouette: &Mask,
     surface: &DepthMap,
     mesh: &TriMesh,
     params: &MetricParams,
-) -> Result<(Sums, Vec<bool>, DepthMap)> {
+) -> Result<(skin_core::raster::RenderedView, Vec<bool>, DepthMap)> {
     surface.check_camera(camera)?;
-    let (w, h) = (surface.width, surface.height);
+    let w = surface.width;
     check::same_size(
         "normal-map pixels",
         surface.depth_m.len(),
@@ -274,7 +277,6 @@ fn camera_sums(
             .with_allow_empty(true),
     )?;
     let hit = DepthMap::from_view(&view)?;
-    let rec = rendered_normals(camera, &view)?;
     let covered: Vec<bool> = (0..surface.depth_m.len())
         .map(|i| {
             let (x, y) = (i as u32 % w, i as u32 / w);
@@ -283,6 +285,20 @@ fn camera_sums(
                 && (hit.depth_m[i] - surface.depth_m[i]).abs() < params.near_m
         })
         .collect();
+    Ok((view, covered, hit))
+}
+
+fn camera_sums(
+    camera: &Camera,
+    normals: &NormalMap,
+    silhouette: &Mask,
+    surface: &DepthMap,
+    mesh: &TriMesh,
+    params: &MetricParams,
+) -> Result<(Sums, Vec<bool>, DepthMap)> {
+    let (view, covered, hit) = covered_render(camera, normals, silhouette, surface, mesh, params)?;
+    let (w, h) = (surface.width, surface.height);
+    let rec = rendered_normals(camera, &view)?;
     let measured = (0..surface.depth_m.len())
         .filter(|&i| normals.valid[i] && silhouette.get(i as u32 % w, i as u32 / w))
         .count();
@@ -410,6 +426,89 @@ pub fn table_metrics(
             f64::NAN
         },
     })
+}
+
+/// One camera's measured normal at a mesh vertex, as the vertex form of Table 3.1's normal
+/// deviation takes it ([`table_metrics`], module docs): the normal map interpolated
+/// bilinearly over the covered pixels around the vertex's projection, for a vertex that is
+/// the surface the camera sees there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexNormalSample {
+    /// The camera.
+    pub camera: usize,
+    /// The measured normal, world frame, unit length.
+    pub measured: DVec3,
+    /// Cosine between the vertex's (area-weighted) normal, turned toward the camera, and the
+    /// line of sight: 1 for a vertex seen head-on.
+    pub cosine: f64,
+}
+
+/// Every camera's measured normal at every vertex of `mesh` that the camera samples, exactly
+/// as [`table_metrics`] samples them for its vertex normal deviation (covered pixels, the
+/// visibility tolerance `near_m / 2`), handed to `visit(vertex, sample)` camera by camera.
+/// [`table_metrics`] keeps each vertex's most frontal sample; the refinement
+/// ([`crate::refine_mesh`]) fuses them.
+///
+/// # Errors
+/// As [`table_metrics`], except that no sampled vertex is not an error.
+pub fn vertex_normal_samples(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    surfaces: &[DepthMap],
+    mesh: &TriMesh,
+    params: &MetricParams,
+    mut visit: impl FnMut(usize, VertexNormalSample),
+) -> Result<()> {
+    let n = cameras.len();
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("silhouettes per camera", n, silhouettes.len())?;
+    check::same_size("surfaces per camera", n, surfaces.len())?;
+    check::positive("near_m", params.near_m)?;
+    let data = VertexData::new(mesh)?;
+    let per_camera = (0..n)
+        .into_par_iter()
+        .map(|c| {
+            covered_render(
+                &cameras[c],
+                &normals[c],
+                &silhouettes[c],
+                &surfaces[c],
+                mesh,
+                params,
+            )
+            .map(|(_, covered, hit)| (covered, hit))
+            .at(Context::Camera(c))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let tol = 0.5 * params.near_m;
+    for (c, (covered, hit)) in per_camera.into_iter().enumerate() {
+        let to_world = cameras[c].world_from_camera();
+        let samples = vertex_samples(
+            c,
+            &cameras[c],
+            &normals[c],
+            &covered,
+            &hit,
+            mesh,
+            &data,
+            tol,
+        );
+        for (v, s) in samples.into_iter().enumerate() {
+            let Some(s) = s else { continue };
+            if let Some(measured) = to_world.transform_vector3(s.measured).try_normalize() {
+                visit(
+                    v,
+                    VertexNormalSample {
+                        camera: c,
+                        measured,
+                        cosine: s.cosine,
+                    },
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Where the measured normals that a mesh does not cover were lost ([`coverage_budget`]):

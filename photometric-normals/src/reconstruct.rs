@@ -17,10 +17,10 @@ use skin_core::check;
 use skin_core::mesh::TriMesh;
 
 use crate::{
-    depth_map_mesh, merge_views, mesh_proxy_depth, per_view_surfaces, screened_poisson, Context,
-    DepthMap, Error, IntegrationParams, MergeParams, MergeView, MergedSurface, NormalMap,
-    OrientedSample, PoissonParams, PoissonSurface, Result, ResultExt, SurfaceParams, ViewSurfaces,
-    VisualHull, VisualHullParams,
+    depth_map_mesh, merge_views, mesh_proxy_depth, per_view_surfaces, refine_mesh,
+    screened_poisson, Context, DepthMap, Error, IntegrationParams, MergeParams, MergeView,
+    MergedSurface, NormalMap, OrientedSample, PoissonParams, PoissonSurface, RefineParams,
+    RefineReport, Result, ResultExt, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
 };
 
 /// Parameters of the two-pass pipeline ([`reconstruct`]).
@@ -58,6 +58,14 @@ pub struct ReconstructParams {
     /// Largest depth step (m, at [`crate::THESIS_WIDTH_PX`]; scaled to the image width) that
     /// the hull's per-view meshes bridge when they are turned into samples. Default 4 cm.
     pub hull_jump_m: f64,
+    /// Refine pass 2's merged mesh with the measured normals before the metrics and the
+    /// hole filling ([`refine_mesh`]; ours, beyond the thesis: Nehab et al. 2005, the
+    /// thesis's ref. \[104\]). Default `None` (the thesis's pipeline; docs: "Fusing the
+    /// merged mesh with the normals").
+    pub refine: Option<RefineParams>,
+    /// Also refine pass 1's merged mesh (with [`ReconstructParams::refine`]'s parameters),
+    /// so pass 2's proxy comes from a refined mesh. Default false.
+    pub refine_pass1: bool,
 }
 
 impl Default for ReconstructParams {
@@ -72,6 +80,8 @@ impl Default for ReconstructParams {
             hull_jump_m: 0.04,
             scale_merge_jump: false,
             pass1_poisson_depth: None,
+            refine: None,
+            refine_pass1: false,
         }
     }
 }
@@ -114,6 +124,8 @@ pub struct PassTimes {
     pub per_view_s: f64,
     /// Volumetric merging.
     pub merge_s: f64,
+    /// Refining the merged mesh with the normals (0 when off).
+    pub refine_s: f64,
     /// Hole filling.
     pub poisson_s: f64,
 }
@@ -125,8 +137,11 @@ pub struct Pass {
     pub proxies: Vec<DepthMap>,
     /// The per-view surfaces.
     pub views: ViewSurfaces,
-    /// Their volumetric merge, before hole filling (what Table 3.1 scores).
+    /// Their volumetric merge, before hole filling (what Table 3.1 scores); refined with the
+    /// normals when [`ReconstructParams::refine`] applies to the pass.
     pub merged: MergedSurface,
+    /// What the refinement did, when it ran.
+    pub refined: Option<RefineReport>,
     /// The hole-filled, closed mesh.
     pub filled: PoissonSurface,
     /// Oriented samples given to the hole filling (merged + hull).
@@ -201,6 +216,7 @@ fn run_pass(
     hull_samples: &[OrientedSample],
     surface: &SurfaceParams,
     poisson: &PoissonParams,
+    refine: Option<&RefineParams>,
     params: &ReconstructParams,
 ) -> Result<Pass> {
     let t = Instant::now();
@@ -212,8 +228,25 @@ fn run_pass(
         .zip(&views.surfaces)
         .map(|(c, d)| MergeView::new(c, d))
         .collect();
-    let merged = merge_views(&inputs, &params.merge_at_width(&views.surfaces))?;
+    let mut merged = merge_views(&inputs, &params.merge_at_width(&views.surfaces))?;
     let merge_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let refined = match refine {
+        Some(rp) => {
+            let r = refine_mesh(
+                cameras,
+                normals,
+                hull.silhouettes(),
+                &views.surfaces,
+                &merged.mesh,
+                rp,
+            )?;
+            merged.mesh = r.mesh;
+            Some(r.report)
+        }
+        None => None,
+    };
+    let refine_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let mut samples = OrientedSample::from_mesh(&merged.mesh, 1.0)?;
     samples.extend_from_slice(hull_samples);
@@ -223,12 +256,14 @@ fn run_pass(
         proxies,
         views,
         merged,
+        refined,
         filled,
         samples: samples.len(),
         times: PassTimes {
             proxy_s,
             per_view_s,
             merge_s,
+            refine_s,
             poisson_s,
         },
     })
@@ -302,6 +337,7 @@ pub fn reconstruct_from_hull_depths(
         &params
             .pass1_poisson_depth
             .map_or(params.poisson, |d| params.poisson.with_depth(d)),
+        params.refine.as_ref().filter(|_| params.refine_pass1),
         params,
     )?;
     let pass2 = second_pass(
@@ -342,6 +378,7 @@ fn second_pass(
         hull_points,
         &params.pass2,
         &params.poisson,
+        params.refine.as_ref(),
         params,
     )
 }
