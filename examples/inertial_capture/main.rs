@@ -302,6 +302,18 @@ struct Args {
     ber_sweep: Option<Vec<u32>>,
 }
 
+/// The shipped CMU walk (131_01) retargeted onto `skeleton` at 120 Hz.
+fn cmu_walk(skeleton: &Skeleton) -> Result<Motion, Box<dyn std::error::Error>> {
+    Ok(play_bvh(
+        example_kit::data_path("mocap-cmu/131_01.bvh")?,
+        &BvhParams::default(),
+        skeleton,
+        1.0 / 120.0,
+        &RetargetParams::default(),
+    )?
+    .motion)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let quick = args.common.quick;
@@ -396,14 +408,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &skeleton,
             &ExerciseParams::default().with_duration_s(exercise_s),
         )?;
-        let walk = play_bvh(
-            example_kit::data_path("mocap-cmu/131_01.bvh")?,
-            &BvhParams::default(),
-            &skeleton,
-            1.0 / 120.0,
-            &RetargetParams::default(),
-        )?
-        .motion;
+        let walk = cmu_walk(&skeleton)?;
         let default_ber = SimulationParams::default().bit_error_rate;
         for (motion_name, motion, ber) in [
             ("cmu_walk", &walk, default_ber),
@@ -542,14 +547,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         rom_full
     };
-    let walk = play_bvh(
-        example_kit::data_path("mocap-cmu/131_01.bvh")?,
-        &BvhParams::default(),
-        &skeleton,
-        1.0 / 120.0,
-        &RetargetParams::default(),
-    )?
-    .motion;
+    let walk = cmu_walk(&skeleton)?;
     let mut tables = Vec::new();
     let (mut us_s, mut in_s, mut ekf_s, mut motion_s) = (0.0, 0.0, 0.0, 0.0);
     let (mut us_cpu_s, mut ekf_cpu_s) = (0.0, 0.0);

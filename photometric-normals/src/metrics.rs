@@ -332,6 +332,23 @@ fn camera_sums(
     Ok((sums, covered, hit))
 }
 
+/// Checks one normal map, silhouette and surface per camera and a positive `near_m`; the
+/// number of cameras.
+fn check_views(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    surfaces: &[DepthMap],
+    params: &MetricParams,
+) -> Result<usize> {
+    let n = cameras.len();
+    check::same_size("normal maps per camera", n, normals.len())?;
+    check::same_size("silhouettes per camera", n, silhouettes.len())?;
+    check::same_size("surfaces per camera", n, surfaces.len())?;
+    check::positive("near_m", params.near_m)?;
+    Ok(n)
+}
+
 /// Table 3.1's coverage, normal deviation and local normal deviation of `mesh` against the
 /// measured `normals` of `cameras` (see the module docs), with each view's per-view
 /// `surfaces` deciding which hits belong to the view.
@@ -348,11 +365,7 @@ pub fn table_metrics(
     mesh: &TriMesh,
     params: &MetricParams,
 ) -> Result<TableMetrics> {
-    let n = cameras.len();
-    check::same_size("normal maps per camera", n, normals.len())?;
-    check::same_size("silhouettes per camera", n, silhouettes.len())?;
-    check::same_size("surfaces per camera", n, surfaces.len())?;
-    check::positive("near_m", params.near_m)?;
+    let n = check_views(cameras, normals, silhouettes, surfaces, params)?;
     let data = VertexData::new(mesh)?;
     let per_camera = (0..n)
         .into_par_iter()
@@ -460,11 +473,7 @@ pub fn vertex_normal_samples(
     params: &MetricParams,
     mut visit: impl FnMut(usize, VertexNormalSample),
 ) -> Result<()> {
-    let n = cameras.len();
-    check::same_size("normal maps per camera", n, normals.len())?;
-    check::same_size("silhouettes per camera", n, silhouettes.len())?;
-    check::same_size("surfaces per camera", n, surfaces.len())?;
-    check::positive("near_m", params.near_m)?;
+    let n = check_views(cameras, normals, silhouettes, surfaces, params)?;
     let data = VertexData::new(mesh)?;
     let per_camera = (0..n)
         .into_par_iter()

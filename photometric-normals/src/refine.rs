@@ -47,7 +47,7 @@ use skin_core::check;
 use skin_core::image::Mask;
 use skin_core::lsq::{CholeskyParams, SparseCholesky};
 use skin_core::math::DVec3;
-use skin_core::mesh::{vertex_normals, NormalWeighting, TriMesh};
+use skin_core::mesh::{unique_edges, vertex_normals, NormalWeighting, TriMesh};
 
 use crate::{vertex_normal_samples, DepthMap, Error, MetricParams, NormalMap, Result};
 
@@ -188,21 +188,11 @@ pub fn target_normals(
         }
     }
     if params.smoothing > 0 {
-        let mut edges: Vec<(usize, usize)> = mesh
-            .faces
-            .iter()
-            .flat_map(|f| {
-                (0..3).map(move |k| {
-                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                    (a.min(b), a.max(b))
-                })
-            })
-            .collect();
-        edges.sort_unstable();
-        edges.dedup();
+        let edges = unique_edges(mesh)?;
         for _ in 0..params.smoothing {
             let mut acc: Vec<DVec3> = targets.iter().map(|t| t.unwrap_or(DVec3::ZERO)).collect();
-            for &(a, b) in &edges {
+            for &[a, b] in &edges {
+                let (a, b) = (a as usize, b as usize);
                 if let (Some(ta), Some(tb)) = (targets[a], targets[b]) {
                     acc[a] += tb;
                     acc[b] += ta;
