@@ -290,16 +290,39 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     );
     let (m1, m2) = ((p1.1.median_mm, p1.1.p95_mm), (p2.1.median_mm, p2.1.p95_mm));
     // At 256² a pixel covers ≈ 1 cm, and the merged meshes are only slightly closer to the
-    // truth than the hull's surface in median (measured 6.6 and 6.1 mm against 6.8 mm); pass 2
-    // improves on pass 1 (the p95 most: 51 → 35 mm).
+    // truth than the hull's surface in median. Pass 1's ±20 cm matching band (issue 14, ninth
+    // session; the thesis evaluates the whole grid in pass 1) reaches the surface where the
+    // hull is far off, which with ±10 cm only pass 2 reached: the old band is the baseline
+    // that could win on pass 1's p95.
+    let mut narrow = rparams;
+    narrow.pass1.matching.band_m = 0.1;
+    let base = reconstruct_from_hull_depths(
+        &ring.cameras,
+        &exact,
+        &hull,
+        proxies.clone(),
+        0.0,
+        &pairs,
+        &narrow,
+    )
+    .unwrap();
+    let base1 = surface_distance(&base.pass1.merged.mesh, &mesh).unwrap();
+    println!(
+        "pass 1 with a ±10 cm band: merged median {:.1} p95 {:.1} mm",
+        base1.median_mm, base1.p95_mm
+    );
+    assert!(m1.1 < 0.6 * base1.p95_mm, "{m1:?} vs ±10 cm {base1:?}");
+    // Pass 2 improves on pass 1 in median, coverage and normal deviation; its p95, which
+    // pass 1 now reaches alone, stays within a millimetre of pass 1's.
     assert!(m2.0 < hull_median_mm, "{m2:?} vs hull {hull_median_mm}");
-    assert!(m2.0 <= m1.0 && m2.1 < m1.1, "{m2:?} vs pass 1 {m1:?}");
+    assert!(m2.0 <= m1.0 && m2.1 < m1.1 + 1.0, "{m2:?} vs pass 1 {m1:?}");
     assert!(
         p2.0.coverage_pct > 50.0 && p2.0.coverage_pct >= p1.0.coverage_pct,
         "{:?} vs {:?}",
         p2.0,
         p1.0
     );
+    assert!(p2.0.normal_dev_deg < p1.0.normal_dev_deg, "{:?} vs {:?}", p2.0, p1.0);
     // Table 3.1's deviations per vertex (the thesis's form; measured 12.1° and 3.1°) and on
     // the pixel grid (10.6°, 4.0°). With exact normals the floor is the studio's: its
     // normals are the Phong normals of a polygonal mesh, 7° from its facets on average.

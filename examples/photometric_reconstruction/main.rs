@@ -182,7 +182,7 @@ struct Args {
     #[arg(long)]
     top_camera: bool,
     /// Pass 1's matching band about each view's integrated surface, m, also the exact-normal
-    /// control's (`MatchingParams::band_m`, default 0.1; issue 14, docs: "Ninth session: the
+    /// control's (`MatchingParams::band_m`, default 0.2; issue 14, docs: "Ninth session: the
     /// pass-1 band").
     #[arg(long)]
     pass1_band_m: Option<f64>,
