@@ -322,7 +322,12 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         p2.0,
         p1.0
     );
-    assert!(p2.0.normal_dev_deg < p1.0.normal_dev_deg, "{:?} vs {:?}", p2.0, p1.0);
+    assert!(
+        p2.0.normal_dev_deg < p1.0.normal_dev_deg,
+        "{:?} vs {:?}",
+        p2.0,
+        p1.0
+    );
     // Table 3.1's deviations per vertex (the thesis's form; measured 12.1° and 3.1°) and on
     // the pixel grid (10.6°, 4.0°). With exact normals the floor is the studio's: its
     // normals are the Phong normals of a polygonal mesh, 7° from its facets on average.
