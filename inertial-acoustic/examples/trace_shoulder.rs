@@ -24,7 +24,7 @@
 
 use inertial_acoustic::simulate::{
     estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
-    prepare_motion, refine_recording_headings, run_filter, run_filter_board_noise,
+    prepare_motion, refine_recording_headings, run_filter, run_filter_board_noise, start_filter,
     treadmill_motion, SimulatedRecording, SimulationParams, SmoothMotion, SuitSimulator,
 };
 use inertial_acoustic::{
@@ -841,17 +841,7 @@ fn traced_run(
 ) -> (Traced, SkeletalEkf) {
     let j = s.joint_index("l_shoulder").unwrap();
     let elbow = s.joint_index("l_elbow").unwrap();
-    let rest_pose = &rec.truth[0].theta;
-    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
-    let known: Vec<usize> = s.joint_dofs(0).collect();
-    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, &known)
-        .unwrap()
-        .with_gyro_offsets(init.gyro_offsets.clone())
-        .unwrap();
+    let (mut ekf, _) = start_filter(s, rec, p, true).unwrap();
     let chest = s.joint_index("chest").unwrap();
     // (parent → l_shoulder, world l_shoulder, world chest)
     let rots = |th: &[f64]| {
@@ -1936,16 +1926,7 @@ fn rom_stepped(
     root_dofs: &[usize],
 ) {
     use inertial_acoustic::joint_orientation_errors_deg;
-    let rest_pose = &rec.truth[0].theta;
-    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
-    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, root_dofs)
-        .unwrap()
-        .with_gyro_offsets(init.gyro_offsets.clone())
-        .unwrap();
+    let (mut ekf, _) = start_filter(s, rec, p, true).unwrap();
     let mut csv = String::from("t_s,neck_deg,shoulder_deg,hip_deg");
     for &d in hip_dofs {
         csv += &format!(",{0}_true_deg,{0}_est_deg", dof_names[d]);
@@ -2054,17 +2035,7 @@ fn rom_attrib(
     let noise = estimate_recording_board_noise(s, rec, p, true, 6.0).unwrap();
     let mut rec = rec.clone();
     rec.nominal_suit = rec.nominal_suit.with_board_noise(noise).unwrap();
-    let rest_pose = &rec.truth[0].theta;
-    let rest: Vec<_> = rec.frames[..rec.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(s, &rec.nominal_suit, rest_pose, &rest).unwrap();
-    let root: Vec<usize> = s.joint_dofs(0).collect();
-    let mut ekf = SkeletalEkf::new(s.clone(), init.suit.clone(), rest_pose, p, &root)
-        .unwrap()
-        .with_gyro_offsets(init.gyro_offsets.clone())
-        .unwrap();
+    let (mut ekf, _) = start_filter(s, &rec, p, true).unwrap();
     let boards: Vec<String> = rec
         .nominal_suit
         .boards()

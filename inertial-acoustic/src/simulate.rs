@@ -1362,7 +1362,10 @@ fn thread_cpu_s() -> f64 {
 
 /// The §4.4.4 start of a filter run on `rec`: the truth's first pose as the rest pose, the
 /// initialisation from the rest hold's readings, the root's DOFs known when supplied.
-fn start_filter(
+///
+/// # Errors
+/// Errors of [`crate::initialise`] and of the filter's construction.
+pub fn start_filter(
     skeleton: &Skeleton,
     rec: &SimulatedRecording,
     params: crate::FilterParams,
