@@ -398,7 +398,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Table 3.1 on the merged meshes (before hole filling), distances to the true mesh.
     let stage = run.stage("Table 3.1 metrics and distances to the true mesh", None);
-    let (table, distances) = score_passes(&obs, &rec, &rparams)?;
+    let (table, distances) = score_passes(&obs, &exact, &rec, &rparams)?;
     // The baseline that could win: the visual hull's surface (its per-view meshes' vertices).
     let hull_surface_median_mm = hull_surface_median_mm(cameras, proxies, &rparams, mesh)?;
     stage.finish(format!(
@@ -1000,7 +1000,8 @@ fn subject_run(
         rec.pass2
             .views
             .errors_against(&obs.truths, &rec.pass2.proxies, &obs.estimated)?;
-    let (table, distances) = score_passes(&obs, &rec, rparams)?;
+    let exact = exact_normals(&obs)?;
+    let (table, distances) = score_passes(&obs, &exact, &rec, rparams)?;
     let zero = vec![0.0; obs.mesh.vertices.len()];
     let (merged_d, filled_d) = &distances[1];
     stages_picture(
@@ -1061,7 +1062,6 @@ fn subject_run(
             .pass1
             .views
             .errors_against(&obs.truths, &obs.proxies, &obs.estimated)?;
-        let exact = exact_normals(&obs)?;
         let ctl = per_view_surfaces(
             &obs.cameras,
             &exact,
@@ -1421,12 +1421,13 @@ type PassScores = (
 
 /// Table 3.1 of both passes (on the merged meshes, before hole filling), each pass's coverage
 /// budget against the true depth maps, the merged and filled meshes' distances to the true
-/// mesh, and each merged mesh's Table 3.1 vertex figures against the exact normals (the
-/// true-normal control), all of the subject `obs`. With fewer ring cameras than cameras
+/// mesh, and each merged mesh's Table 3.1 vertex figures against the exact normals `exact`
+/// (the true-normal control), all of the subject `obs`. With fewer ring cameras than cameras
 /// (`--top-camera`), each pass also gets Table 3.1 over the ring's measured normals alone
 /// (`ring_*` keys), comparable with a run without the top camera.
 fn score_passes(
     obs: &Observed,
+    exact: &[NormalMap],
     rec: &Reconstruction,
     rparams: &ReconstructParams,
 ) -> Result<PassScores, Box<dyn std::error::Error>> {
@@ -1440,7 +1441,6 @@ fn score_passes(
         ..
     } = obs;
     let ring = *ring;
-    let exact = exact_normals(obs)?;
     let mut table = serde_json::Map::new();
     let mut distances = Vec::new();
     for (name, pass, surface) in [
@@ -1476,7 +1476,7 @@ fn score_passes(
         // stage that fits the measured normals (`--refine`), which must not just fit their noise.
         let t = table_metrics(
             cameras,
-            &exact,
+            exact,
             silhouettes,
             &pass.views.surfaces,
             &pass.merged.mesh,
