@@ -136,9 +136,9 @@ pub use matching::{
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
 pub use metrics::{
-    coverage_budget, displacement_survival, surface_distance, table_metrics, vertex_normal_samples,
-    BudgetInputs, CoverageBudget, DisplacementSurvival, MetricParams, SurfaceDistance,
-    TableMetrics, VertexNormalSample,
+    coverage_budget, covered_pixels, displacement_survival, surface_distance, table_metrics,
+    vertex_normal_samples, BudgetInputs, CoverageBudget, DisplacementSurvival, MetricParams,
+    SurfaceDistance, TableMetrics, VertexNormalSample,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
 pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};

@@ -349,6 +349,43 @@ fn check_views(
     Ok(n)
 }
 
+/// The pixels Table 3.1 counts as covered in each camera: a measured normal (valid, inside
+/// the silhouette) whose pixel ray hits `mesh` within [`MetricParams::near_m`] of the view's
+/// own per-view surface — the pixels [`table_metrics`]'s coverage counts and its normal
+/// figures are taken over. One mask per camera, row-major.
+///
+/// With it a second mesh can be scored over the same pixels as a first one (normal maps whose
+/// `valid` is restricted to the first mesh's covered pixels), e.g. a perfect geometry against
+/// a reconstruction, whose coverage differs.
+///
+/// # Errors
+/// As [`table_metrics`] (it does not fail when nothing is covered).
+pub fn covered_pixels(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    surfaces: &[DepthMap],
+    mesh: &TriMesh,
+    params: &MetricParams,
+) -> Result<Vec<Vec<bool>>> {
+    let n = check_views(cameras, normals, silhouettes, surfaces, params)?;
+    (0..n)
+        .into_par_iter()
+        .map(|c| {
+            covered_render(
+                &cameras[c],
+                &normals[c],
+                &silhouettes[c],
+                &surfaces[c],
+                mesh,
+                params,
+            )
+            .map(|(_, covered, _)| covered)
+            .at(Context::Camera(c))
+        })
+        .collect()
+}
+
 /// Table 3.1's coverage, normal deviation and local normal deviation of `mesh` against the
 /// measured `normals` of `cameras` (see the module docs), with each view's per-view
 /// `surfaces` deciding which hits belong to the view.
@@ -891,6 +928,41 @@ mod tests {
         );
         let nan = MetricParams { near_m: f64::NAN };
         assert!(table_metrics(&rig.cameras, &normals, &masks, &surfaces, &sphere, &nan).is_err());
+    }
+
+    #[test]
+    fn covered_pixels_are_the_pixels_table_3_1_counts() {
+        let (rig, sphere, normals, masks, surfaces) = sphere_views();
+        let p = MetricParams::default();
+        let near = uv_sphere(DVec3::ZERO, 0.305, 48, 96).unwrap();
+        let m = table_metrics(&rig.cameras, &normals, &masks, &surfaces, &near, &p).unwrap();
+        let covered = covered_pixels(&rig.cameras, &normals, &masks, &surfaces, &near, &p).unwrap();
+        assert_eq!(covered.len(), 3);
+        let count: usize = covered.iter().flatten().filter(|&&c| c).count();
+        assert_eq!(count, m.covered_px);
+        // The sphere itself scored over the 5 mm larger one's covered pixels: every pixel of
+        // those is covered again (its rim, which the larger one missed, is left out).
+        let restricted: Vec<NormalMap> = normals
+            .iter()
+            .zip(&covered)
+            .map(|(n, c)| {
+                let mut n = n.clone();
+                for (v, &c) in n.valid.iter_mut().zip(c) {
+                    *v &= c;
+                }
+                n
+            })
+            .collect();
+        let own = table_metrics(&rig.cameras, &restricted, &masks, &surfaces, &sphere, &p).unwrap();
+        assert_eq!(own.measured_px, m.covered_px);
+        assert_eq!(own.covered_px, own.measured_px);
+        // Nothing covered is an empty mask, not an error; bad counts are errors.
+        let far = uv_sphere(DVec3::ZERO, 0.33, 48, 96).unwrap();
+        let none = covered_pixels(&rig.cameras, &normals, &masks, &surfaces, &far, &p).unwrap();
+        assert!(none.iter().flatten().all(|&c| !c));
+        assert!(
+            covered_pixels(&rig.cameras, &normals[..2], &masks, &surfaces, &sphere, &p).is_err()
+        );
     }
 
     #[test]
