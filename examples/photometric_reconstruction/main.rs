@@ -1557,7 +1557,8 @@ fn score_passes(
 /// normals that score the passes (`measured_*`) and against the exact normals (`exact_*`);
 /// and, because the perfect geometry covers more (and harder, grazing) pixels than a
 /// reconstruction, scored again against the part-1 normals over only the pixels pass 2's
-/// merged mesh covers (`measured_on_pass2_px_*`). This is the floor the measured normals put
+/// merged mesh covers (`measured_on_pass2_px_*`), with the mean angle between the part-1 and
+/// the exact normals on those pixels (`part1_vs_exact_on_pass2_px_deg`). This is the floor the measured normals put
 /// under Table 3.1: a reconstruction that scores below it against the part-1 normals fits
 /// their errors, not the surface.
 fn perfect_geometry(
@@ -1605,6 +1606,17 @@ fn perfect_geometry(
         })
         .collect();
     let same_px = score(&on_pass2)?;
+    // Part 1's own error on those pixels: the angle between the part-1 and the exact normals.
+    let (mut part1_sum, mut part1_n) = (0.0, 0usize);
+    for ((est, ex), covered) in obs.estimated.iter().zip(exact).zip(&pass2_covered) {
+        for (i, _) in covered.iter().enumerate().filter(|(_, &c)| c) {
+            if ex.valid[i] {
+                let cos = est.normals[i].dot(ex.normals[i]).clamp(-1.0, 1.0);
+                part1_sum += cos.acos().to_degrees();
+                part1_n += 1;
+            }
+        }
+    }
     let d = surface_distance(&merged.mesh, &obs.mesh)?;
     Ok(json!({
         "measured_coverage_pct": measured.coverage_pct,
@@ -1613,6 +1625,7 @@ fn perfect_geometry(
         "measured_on_pass2_px_coverage_pct": same_px.coverage_pct,
         "measured_on_pass2_px_normal_dev_deg": same_px.normal_dev_deg,
         "measured_on_pass2_px_local_normal_dev_deg": same_px.local_normal_dev_deg,
+        "part1_vs_exact_on_pass2_px_deg": part1_sum / part1_n.max(1) as f64,
         "exact_coverage_pct": true_normals.coverage_pct,
         "exact_normal_dev_deg": true_normals.normal_dev_deg,
         "exact_local_normal_dev_deg": true_normals.local_normal_dev_deg,
