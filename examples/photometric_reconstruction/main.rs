@@ -1915,13 +1915,15 @@ fn table_goal_headlines(keys: [&str; 4], subject: &str, baseline_key: &str) -> V
             &format!("{subject}Table 3.1 normal deviation, pass-2 merged mesh"),
             "deg",
         )
-        .goal(Goal::AtMost(8.0)),
+        .goal(Goal::AtMost(8.0))
+        .note("floor: a perfect geometry on the same pixels (perfect_geometry)"),
         Headline::new(
             local,
             &format!("{subject}Table 3.1 local normal deviation, pass-2 merged mesh"),
             "deg",
         )
-        .goal(Goal::AtMost(1.5)),
+        .goal(Goal::AtMost(1.5))
+        .note("floor: a perfect geometry on the same pixels (perfect_geometry)"),
         Headline::new(
             median,
             &format!("{subject}pass-2 merged mesh to the true mesh (median)"),
