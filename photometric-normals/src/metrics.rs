@@ -368,6 +368,23 @@ pub fn covered_pixels(
     mesh: &TriMesh,
     params: &MetricParams,
 ) -> Result<Vec<Vec<bool>>> {
+    Ok(
+        covered_renders(cameras, normals, silhouettes, surfaces, mesh, params)?
+            .into_iter()
+            .map(|(covered, _)| covered)
+            .collect(),
+    )
+}
+
+/// Per camera, [`covered_render`]'s covered pixels and hit depth (errors named by camera).
+fn covered_renders(
+    cameras: &[Camera],
+    normals: &[NormalMap],
+    silhouettes: &[Mask],
+    surfaces: &[DepthMap],
+    mesh: &TriMesh,
+    params: &MetricParams,
+) -> Result<Vec<(Vec<bool>, DepthMap)>> {
     let n = check_views(cameras, normals, silhouettes, surfaces, params)?;
     (0..n)
         .into_par_iter()
@@ -380,7 +397,7 @@ pub fn covered_pixels(
                 mesh,
                 params,
             )
-            .map(|(_, covered, _)| covered)
+            .map(|(_, covered, hit)| (covered, hit))
             .at(Context::Camera(c))
         })
         .collect()
@@ -510,23 +527,8 @@ pub fn vertex_normal_samples(
     params: &MetricParams,
     mut visit: impl FnMut(usize, VertexNormalSample),
 ) -> Result<()> {
-    let n = check_views(cameras, normals, silhouettes, surfaces, params)?;
+    let per_camera = covered_renders(cameras, normals, silhouettes, surfaces, mesh, params)?;
     let data = VertexData::new(mesh)?;
-    let per_camera = (0..n)
-        .into_par_iter()
-        .map(|c| {
-            covered_render(
-                &cameras[c],
-                &normals[c],
-                &silhouettes[c],
-                &surfaces[c],
-                mesh,
-                params,
-            )
-            .map(|(_, covered, hit)| (covered, hit))
-            .at(Context::Camera(c))
-        })
-        .collect::<Result<Vec<_>>>()?;
     let tol = 0.5 * params.near_m;
     for (c, (covered, hit)) in per_camera.into_iter().enumerate() {
         let to_world = cameras[c].world_from_camera();
