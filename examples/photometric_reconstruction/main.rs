@@ -186,6 +186,14 @@ struct Args {
     /// pass-1 band").
     #[arg(long)]
     pass1_band_m: Option<f64>,
+    /// Contour-aware surface windows in both passes and the control
+    /// (`MatchingParams::contour_jump_m`, 0.01 m per pixel at 1024 unless `--contour-jump-m`
+    /// gives it; issue 14, docs: "Windows at occluding contours").
+    #[arg(long)]
+    contour_windows: bool,
+    /// With `--contour-windows`: the depth jump per pixel, m at 1024 (default 0.01).
+    #[arg(long)]
+    contour_jump_m: Option<f64>,
     /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
     /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
     /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
@@ -533,6 +541,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "seconds_per_frame": t_hull + t_two_pass,
         "scale_merge_jump": rparams.scale_merge_jump,
         "subpixel_matches": format!("{:?}", rparams.pass1.matching.subpixel),
+        "contour_jump_m": rparams.pass1.matching.contour_jump_m,
         "offset_outliers": rparams.pass1.offsets.outliers,
         "robust_offsets": rparams.pass1.offsets.robust,
         "offsets_rejected": est.offsets.iter().map(|o| o.rejected).sum::<usize>(),
@@ -766,6 +775,12 @@ fn reconstruction_params(
     for pass in [&mut rparams.pass1, &mut rparams.pass2] {
         pass.offsets.outliers = outliers;
         pass.offsets.robust = robust;
+    }
+    if args.contour_windows {
+        let j = Some(args.contour_jump_m.unwrap_or(0.01));
+        params.matching.contour_jump_m = j;
+        rparams.pass1.matching.contour_jump_m = j;
+        rparams.pass2.matching.contour_jump_m = j;
     }
     if let Some(m) = args.pass1_band_m {
         params.matching.band_m = m;
