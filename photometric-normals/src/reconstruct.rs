@@ -28,7 +28,8 @@ use crate::{
 pub struct ReconstructParams {
     /// The visual hull's rendering as the pass-1 proxy.
     pub hull: VisualHullParams,
-    /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻⁶).
+    /// The per-view stage of pass 1. Default [`SurfaceParams::pass1`] (α = 10⁻⁶, ±20 cm
+    /// band, coarse-to-fine matching).
     pub pass1: SurfaceParams,
     /// The per-view stage of pass 2. Default [`SurfaceParams::pass2`] (α = 10⁻⁵, band
     /// guided by the proxy).
@@ -72,7 +73,7 @@ impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
             hull: VisualHullParams::default(),
-            pass1: SurfaceParams::default(),
+            pass1: SurfaceParams::pass1(),
             pass2: SurfaceParams::pass2(),
             merge: MergeParams::default(),
             poisson: PoissonParams::default().with_depth(9),
