@@ -194,6 +194,19 @@ struct Args {
     /// With `--contour-windows`: the depth jump per pixel, m at 1024 (default 0.01).
     #[arg(long)]
     contour_jump_m: Option<f64>,
+    /// Coarse-to-fine matching in pass 1, `true` or `false` (`MatchingParams::coarse_to_fine`
+    /// of `ReconstructParams::pass1`; default: `ReconstructParams::default()`'s; issue 14,
+    /// docs: "Tenth session: pass-1 speed").
+    #[arg(long)]
+    pass1_coarse_to_fine: Option<bool>,
+    /// Coarse-to-fine matching in pass 2, `true` or `false` (default:
+    /// `ReconstructParams::default()`'s).
+    #[arg(long)]
+    pass2_coarse_to_fine: Option<bool>,
+    /// Half-width of the full-resolution band about the coarse path, pixel footprints, in
+    /// both passes (`MatchingParams::coarse_band_px`, default 4).
+    #[arg(long)]
+    coarse_band_px: Option<f64>,
     /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
     /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
     /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
@@ -785,6 +798,16 @@ fn reconstruction_params(
     if let Some(m) = args.pass1_band_m {
         params.matching.band_m = m;
         rparams.pass1.matching.band_m = m;
+    }
+    if let Some(on) = args.pass1_coarse_to_fine {
+        rparams.pass1.matching.coarse_to_fine = on;
+    }
+    if let Some(on) = args.pass2_coarse_to_fine {
+        rparams.pass2.matching.coarse_to_fine = on;
+    }
+    if let Some(px) = args.coarse_band_px {
+        rparams.pass1.matching.coarse_band_px = px;
+        rparams.pass2.matching.coarse_band_px = px;
     }
     if args.pass1_poisson_depth.is_some() {
         rparams.pass1_poisson_depth = args.pass1_poisson_depth;

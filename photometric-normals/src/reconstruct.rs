@@ -28,7 +28,8 @@ use crate::{
 pub struct ReconstructParams {
     /// The visual hull's rendering as the pass-1 proxy.
     pub hull: VisualHullParams,
-    /// The per-view stage of pass 1. Default [`SurfaceParams::default`] (α = 10⁻⁶).
+    /// The per-view stage of pass 1. Default [`SurfaceParams::pass1`] (α = 10⁻⁶, ±20 cm
+    /// band, coarse-to-fine matching).
     pub pass1: SurfaceParams,
     /// The per-view stage of pass 2. Default [`SurfaceParams::pass2`] (α = 10⁻⁵, band
     /// guided by the proxy).
@@ -50,7 +51,10 @@ pub struct ReconstructParams {
     /// matching band; a coarser octree costs a fraction of the time). Default `None` (the
     /// same depth in both passes, as the thesis repeats "all three stages"): measured at
     /// 1024² (skirt, part-1 normals), depth 8 in pass 1 saved ≈ 10 CPU s of the frame but
-    /// moved pass 2's merged median 1.994 → 2.026 mm, past the 2 mm.
+    /// moved pass 2's merged median 1.994 → 2.026 mm, past the 2 mm; with the ±20 cm
+    /// band and coarse-to-fine pass 1 (tenth session) it kept pass 2 within the margins
+    /// (merged median 1.702 mm) but its CPU saving did not separate under load, and an
+    /// absolute depth would exceed pass 2's where [`ReconstructParams::poisson`] is lowered.
     pub pass1_poisson_depth: Option<u32>,
     /// Weight of the visual hull's samples in the hole filling. Thesis: 0.01 (the merged
     /// mesh's samples weigh 1).
@@ -72,7 +76,7 @@ impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
             hull: VisualHullParams::default(),
-            pass1: SurfaceParams::default(),
+            pass1: SurfaceParams::pass1(),
             pass2: SurfaceParams::pass2(),
             merge: MergeParams::default(),
             poisson: PoissonParams::default().with_depth(9),
