@@ -110,11 +110,13 @@ pub struct MatchingParams {
     /// pixels around it (samples without a coarse path depth keep the whole band). Criminisi's
     /// programme costs O(samples × band) per plane and the surface metric dominates it: the
     /// coarse pass costs about an eighth, and the narrow band cuts the full-resolution cells
-    /// several times. Applied to images of at least 128 × 128 pixels. Default false (ours:
-    /// on the studio at 512² the two passes' figures were the same or better, but at the
-    /// thesis's 1024² the pass-2 merged mesh's p95 grew from 34 to 40 mm and its median
-    /// from 1.99 to 2.02 mm, on in both passes or in pass 1 only;
-    /// `docs/photometric-normals.md`, *Matching speed*).
+    /// several times. Applied to images of at least 128 × 128 pixels. Default false here
+    /// (the thesis's matching); pass 1 of the two-pass pipeline turns it on
+    /// ([`SurfaceParams::pass1`](crate::SurfaceParams::pass1), issue 14, tenth session: with
+    /// the ±20 cm band, at 1024² pass 2's figures stayed within 0.26 point / 0.02° and the
+    /// example's CPU fell 12 %; with the ±10 cm band of the sixth session it had cost the
+    /// 1024² merged median its goal; `docs/photometric-normals.md`, *Tenth session: pass-1
+    /// speed*).
     pub coarse_to_fine: bool,
     /// Half-width of the full-resolution band around the coarse path, in pixel footprints
     /// (depth / focal length) along each ray. Default 4 (ours: a coarse pixel is two, and
