@@ -212,6 +212,11 @@ struct Args {
     /// (`RefineParams::smoothing`; default 2).
     #[arg(long)]
     refine_smoothing: Option<usize>,
+    /// With `--refine`: Nehab 2005's first step, rounds of 1-ring averaging that define the
+    /// low frequencies the targets take from the positions (`RefineParams::correction_rounds`;
+    /// default 0, off).
+    #[arg(long)]
+    refine_correct_rounds: Option<usize>,
 }
 
 /// The top camera is paired with every this many ring cameras (the thesis matches
@@ -566,6 +571,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "pass1": rparams.refine_pass1,
             "max_angle_deg": r.max_angle_deg,
             "smoothing": r.smoothing,
+            "correction_rounds": r.correction_rounds,
         })),
         "hull_surface_median_mm": hull_surface_median_mm,
     });
@@ -789,6 +795,7 @@ fn reconstruction_params(
             targets,
             max_angle_deg: args.refine_max_angle_deg.or(d.max_angle_deg),
             smoothing: args.refine_smoothing.unwrap_or(d.smoothing),
+            correction_rounds: args.refine_correct_rounds.unwrap_or(d.correction_rounds),
             ..d
         });
         rparams.refine_pass1 = args.refine_pass1;
