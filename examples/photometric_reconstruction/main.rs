@@ -199,26 +199,26 @@ struct Args {
     /// Refinement (unless `--no-refine`): the position weight λ in (0, 1] (default 0.1).
     #[arg(long)]
     refine_lambda: Option<f64>,
-    /// Refinement (unless `--no-refine`): the target normals, `frontal` (the most frontal camera's, as Table
-    /// 3.1's vertex figure) or `cos2` (all cameras', weighted by the squared cosine of the
-    /// view angle) (default: `RefineParams::default()`'s, cos2).
+    /// Refinement (unless `--no-refine`): the target normals, `frontal` (the most frontal
+    /// camera's, as Table 3.1's vertex figure) or `cos2` (all cameras', weighted by the
+    /// squared cosine of the view angle) (default: `RefineParams::default()`'s, cos2).
     #[arg(long)]
     refine_targets: Option<String>,
-    /// Refinement (unless `--no-refine`): also refine pass 1's merged mesh (pass 2's proxy is then built from
-    /// it) (`ReconstructParams::refine_pass1`).
+    /// Refinement (unless `--no-refine`): also refine pass 1's merged mesh (pass 2's proxy
+    /// is then built from it) (`ReconstructParams::refine_pass1`).
     #[arg(long)]
     refine_pass1: bool,
-    /// Refinement (unless `--no-refine`): drop a target normal farther than this from the vertex's own normal,
-    /// degrees (`RefineParams::max_angle_deg`; default: none dropped).
+    /// Refinement (unless `--no-refine`): drop a target normal farther than this from the
+    /// vertex's own normal, degrees (`RefineParams::max_angle_deg`; default: none dropped).
     #[arg(long)]
     refine_max_angle_deg: Option<f64>,
     /// Refinement (unless `--no-refine`): rounds of neighbour averaging of the target normals
     /// (`RefineParams::smoothing`; default 2).
     #[arg(long)]
     refine_smoothing: Option<usize>,
-    /// Refinement (unless `--no-refine`): Nehab 2005's first step, rounds of 1-ring averaging that define the
-    /// low frequencies the targets take from the positions (`RefineParams::correction_rounds`;
-    /// default 8; 0: the ninth session's refinement).
+    /// Refinement (unless `--no-refine`): Nehab 2005's first step, rounds of 1-ring
+    /// averaging that define the low frequencies the targets take from the positions
+    /// (`RefineParams::correction_rounds`; default 8; 0: the ninth session's refinement).
     #[arg(long)]
     refine_correct_rounds: Option<usize>,
 }

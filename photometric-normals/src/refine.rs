@@ -96,15 +96,16 @@ pub struct RefineParams {
     /// than the normal maps' pixels, so the targets carry the pixels' noise at the vertex
     /// scale. Default 2 (at 512², 0 → 2 rounds: true local deviation 3.31 → 3.17°).
     pub smoothing: usize,
-    /// Nehab 2005's first step (§3, "correcting the bias in the normals"): rounds of 1-ring
-    /// averaging that define the low frequencies. Both the mesh's own vertex normals and the
-    /// targets are averaged this many rounds, and each target is rotated by the rotation that
-    /// takes its averaged value onto the averaged mesh normal: the targets keep their high
-    /// frequencies and take the positions' low ones. 0: no correction (the ninth session's
-    /// refinement). Default 8 (tenth session, 512²: normal / local deviation 10.64° / 3.35°
-    /// without it, 11.24° / 2.42° with it, against 12.28° / 3.19° unrefined; the exact-normal
-    /// control 10.02° / 2.94° → 10.37° / 1.59°; docs "Tenth session: the local deviation
-    /// traced"). 8 rounds reach about 5 edges (≈ 1 cm) on the merge's 2 mm voxels.
+    /// Nehab 2005's first step, which corrects the measured normals' low-frequency bias
+    /// against the positions: rounds of 1-ring averaging that define the low frequencies.
+    /// Both the mesh's own vertex normals and the targets are averaged this many rounds, and
+    /// each target is rotated by the rotation that takes its averaged value onto the averaged
+    /// mesh normal: the targets keep their high frequencies and take the positions' low ones.
+    /// 0: no correction (the ninth session's refinement). Default 8: about 5 edges (≈ 1 cm)
+    /// on the merge's 2 mm voxels. Tenth session, 1024² skirt, pass 2: normal / local
+    /// deviation 13.28° / 4.12° unrefined → 12.24° / 3.76° (exact-normal control 11.35° /
+    /// 2.87° → 10.11° / 1.89°), where the refinement without it had raised the local figure
+    /// (docs "Tenth session: the local deviation traced").
     ///
     /// Why it matters on our meshes: a target field that no surface has (part 1's per-camera
     /// biases blended, a rotation of the normals) cannot be met; the least-squares residual
