@@ -210,29 +210,38 @@ struct Args {
     /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
     /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
     /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
-    /// normals").
-    #[arg(long)]
+    /// normals"). The default since the tenth session; the flag is kept for old commands.
+    #[arg(long, conflicts_with = "no_refine")]
     refine: bool,
-    /// With `--refine`: the position weight λ in (0, 1] (default 0.1).
+    /// Do not refine (`ReconstructParams::refine = None`: the thesis's pipeline; the default
+    /// before the tenth session).
+    #[arg(long)]
+    no_refine: bool,
+    /// Refinement (unless `--no-refine`): the position weight λ in (0, 1] (default 0.1).
     #[arg(long)]
     refine_lambda: Option<f64>,
-    /// With `--refine`: the target normals, `frontal` (the most frontal camera's, as Table
-    /// 3.1's vertex figure) or `cos2` (all cameras', weighted by the squared cosine of the
-    /// view angle) (default: `RefineParams::default()`'s, cos2).
+    /// Refinement (unless `--no-refine`): the target normals, `frontal` (the most frontal
+    /// camera's, as Table 3.1's vertex figure) or `cos2` (all cameras', weighted by the
+    /// squared cosine of the view angle) (default: `RefineParams::default()`'s, cos2).
     #[arg(long)]
     refine_targets: Option<String>,
-    /// With `--refine`: also refine pass 1's merged mesh (pass 2's proxy is then built from
-    /// it) (`ReconstructParams::refine_pass1`).
+    /// Refinement (unless `--no-refine`): also refine pass 1's merged mesh (pass 2's proxy
+    /// is then built from it) (`ReconstructParams::refine_pass1`).
     #[arg(long)]
     refine_pass1: bool,
-    /// With `--refine`: drop a target normal farther than this from the vertex's own normal,
-    /// degrees (`RefineParams::max_angle_deg`; default: none dropped).
+    /// Refinement (unless `--no-refine`): drop a target normal farther than this from the
+    /// vertex's own normal, degrees (`RefineParams::max_angle_deg`; default: none dropped).
     #[arg(long)]
     refine_max_angle_deg: Option<f64>,
-    /// With `--refine`: rounds of neighbour averaging of the target normals
+    /// Refinement (unless `--no-refine`): rounds of neighbour averaging of the target normals
     /// (`RefineParams::smoothing`; default 2).
     #[arg(long)]
     refine_smoothing: Option<usize>,
+    /// Refinement (unless `--no-refine`): Nehab 2005's first step, rounds of 1-ring
+    /// averaging that define the low frequencies the targets take from the positions
+    /// (`RefineParams::correction_rounds`; default 8; 0: the ninth session's refinement).
+    #[arg(long)]
+    refine_correct_rounds: Option<usize>,
 }
 
 /// The top camera is paired with every this many ring cameras (the thesis matches
@@ -590,6 +599,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "pass1": rparams.refine_pass1,
             "max_angle_deg": r.max_angle_deg,
             "smoothing": r.smoothing,
+            "correction_rounds": r.correction_rounds,
         })),
         "hull_surface_median_mm": hull_surface_median_mm,
     });
@@ -822,13 +832,16 @@ fn reconstruction_params(
         Some("cos2") => TargetNormals::CosineSquared,
         Some(other) => return Err(format!("--refine-targets: frontal or cos2, not {other}").into()),
     };
-    if args.refine {
+    if args.no_refine {
+        rparams.refine = None;
+    } else {
         let d = RefineParams::default();
         rparams.refine = Some(RefineParams {
             lambda: args.refine_lambda.unwrap_or(d.lambda),
             targets,
             max_angle_deg: args.refine_max_angle_deg.or(d.max_angle_deg),
             smoothing: args.refine_smoothing.unwrap_or(d.smoothing),
+            correction_rounds: args.refine_correct_rounds.unwrap_or(d.correction_rounds),
             ..d
         });
         rparams.refine_pass1 = args.refine_pass1;
