@@ -1609,7 +1609,8 @@ fn score_passes(
 /// and, because the perfect geometry covers more (and harder, grazing) pixels than a
 /// reconstruction, scored again against the part-1 normals over only the pixels pass 2's
 /// merged mesh covers (`measured_on_pass2_px_*`), with the mean angle between the part-1 and
-/// the exact normals on those pixels (`part1_vs_exact_on_pass2_px_deg`). This is the floor the measured normals put
+/// the exact normals on those pixels (`part1_vs_exact_on_pass2_px_deg`, and the local figure's
+/// pixel form between the two, `part1_vs_exact_local_on_pass2_px_deg`). This is the floor the measured normals put
 /// under Table 3.1: a reconstruction that scores below it against the part-1 normals fits
 /// their errors, not the surface.
 fn perfect_geometry(
@@ -1657,14 +1658,27 @@ fn perfect_geometry(
         })
         .collect();
     let same_px = score(&on_pass2)?;
-    // Part 1's own error on those pixels: the angle between the part-1 and the exact normals.
-    let (mut part1_sum, mut part1_n) = (0.0, 0usize);
+    // Part 1's own error on those pixels: the angle between the part-1 and the exact normals,
+    // and the local figure's pixel form between them (each covered pixel and its right and
+    // lower covered neighbours: |∠(exact) − ∠(part 1)|), what a surface with the rendering's
+    // normals would score.
+    let angle = |a: DVec3, b: DVec3| a.dot(b).clamp(-1.0, 1.0).acos().to_degrees();
+    let (mut part1_sum, mut part1_n, mut local_sum, mut local_n) = (0.0, 0usize, 0.0, 0usize);
     for ((est, ex), covered) in obs.estimated.iter().zip(exact).zip(&pass2_covered) {
-        for (i, _) in covered.iter().enumerate().filter(|(_, &c)| c) {
-            if ex.valid[i] {
-                let cos = est.normals[i].dot(ex.normals[i]).clamp(-1.0, 1.0);
-                part1_sum += cos.acos().to_degrees();
-                part1_n += 1;
+        let w = est.width as usize;
+        let ok = |i: usize| covered[i] && ex.valid[i];
+        for i in (0..covered.len()).filter(|&i| ok(i)) {
+            part1_sum += angle(est.normals[i], ex.normals[i]);
+            part1_n += 1;
+            let right = (i % w + 1 < w).then_some(i + 1);
+            let down = (i + w < covered.len()).then_some(i + w);
+            for j in [right, down].into_iter().flatten().filter(|&j| ok(j)) {
+                let (e, m) = (
+                    angle(ex.normals[i], ex.normals[j]),
+                    angle(est.normals[i], est.normals[j]),
+                );
+                local_sum += (e - m).abs();
+                local_n += 1;
             }
         }
     }
@@ -1677,6 +1691,7 @@ fn perfect_geometry(
         "measured_on_pass2_px_normal_dev_deg": same_px.normal_dev_deg,
         "measured_on_pass2_px_local_normal_dev_deg": same_px.local_normal_dev_deg,
         "part1_vs_exact_on_pass2_px_deg": part1_sum / part1_n.max(1) as f64,
+        "part1_vs_exact_local_on_pass2_px_deg": local_sum / local_n.max(1) as f64,
         "exact_coverage_pct": true_normals.coverage_pct,
         "exact_normal_dev_deg": true_normals.normal_dev_deg,
         "exact_local_normal_dev_deg": true_normals.local_normal_dev_deg,
