@@ -1609,10 +1609,11 @@ fn score_passes(
 /// and, because the perfect geometry covers more (and harder, grazing) pixels than a
 /// reconstruction, scored again against the part-1 normals over only the pixels pass 2's
 /// merged mesh covers (`measured_on_pass2_px_*`), with the mean angle between the part-1 and
-/// the exact normals on those pixels (`part1_vs_exact_on_pass2_px_deg`, and the local figure's
-/// pixel form between the two, `part1_vs_exact_local_on_pass2_px_deg`). This is the floor the measured normals put
-/// under Table 3.1: a reconstruction that scores below it against the part-1 normals fits
-/// their errors, not the surface.
+/// the exact normals on those pixels (`part1_vs_exact_on_pass2_px_deg`, and the local
+/// figure's pixel form between the two, `part1_vs_exact_local_on_pass2_px_deg`). These are
+/// the floors the measured normals put under Table 3.1: a reconstruction that scores below
+/// them against the part-1 normals fits their errors, not the surface (docs: "The floor of
+/// the part-1 normals").
 fn perfect_geometry(
     obs: &Observed,
     exact: &[NormalMap],
