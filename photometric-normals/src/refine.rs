@@ -520,6 +520,14 @@ mod tests {
         TriMesh::new(vertices, faces).unwrap()
     }
 
+    /// The true surface's normal at each vertex of `mesh` (every vertex targeted).
+    fn exact_targets(mesh: &TriMesh) -> Vec<Option<DVec3>> {
+        mesh.vertices
+            .iter()
+            .map(|p| Some(truth_normal(p.x, p.y)))
+            .collect()
+    }
+
     /// RMS vertical distance of the mesh's vertices to the true surface, mm.
     fn rms_to_truth_mm(mesh: &TriMesh) -> f64 {
         let s: f64 = mesh
@@ -535,11 +543,7 @@ mod tests {
         // Input: the positions without the ripple (the smooth low frequencies), 1.5 mm RMS
         // off the truth; the exact normals of the true surface at each input vertex.
         let input = grid(bump);
-        let targets: Vec<Option<DVec3>> = input
-            .vertices
-            .iter()
-            .map(|p| Some(truth_normal(p.x, p.y)))
-            .collect();
+        let targets = exact_targets(&input);
         let before = rms_to_truth_mm(&input);
         let refined = refine_with_normals(&input, &targets, 0.1).unwrap();
         let after = rms_to_truth_mm(&refined.mesh);
@@ -593,11 +597,7 @@ mod tests {
     #[test]
     fn lambda_one_leaves_the_mesh_unchanged() {
         let input = grid(bump);
-        let targets: Vec<Option<DVec3>> = input
-            .vertices
-            .iter()
-            .map(|p| Some(truth_normal(p.x, p.y)))
-            .collect();
+        let targets = exact_targets(&input);
         let refined = refine_with_normals(&input, &targets, 1.0).unwrap();
         assert_eq!(refined.mesh.vertices, input.vertices);
         assert_eq!(refined.mesh.faces, input.faces);
