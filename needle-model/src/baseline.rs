@@ -22,7 +22,7 @@
 use glam::DVec3;
 use skin_core::math::DAffine3;
 use skin_core::mesh::{
-    bone_heat_weights, skin, HeatWeightsParams, MeshQuery, SkinWeights, TriMesh,
+    bone_heat_weights, rest_bones, skin, HeatWeightsParams, MeshQuery, SkinWeights, TriMesh,
 };
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::Performer;
@@ -47,7 +47,7 @@ impl SkinnedShape {
     /// vertices; the errors of [`bone_heat_weights`] (degenerate mesh).
     pub fn heat(skeleton: &Skeleton, rest: TriMesh) -> Result<Self> {
         check_rest(&rest)?;
-        let bones = crate::pose_space::rest_bone_segments(skeleton)?;
+        let bones = rest_bones(skeleton)?;
         let weights = bone_heat_weights(&rest, &bones, &HeatWeightsParams::default())?;
         Ok(Self { rest, weights })
     }

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use skin_core::mesh::{bone_heat_weights, skin, BoneSegment, HeatWeightsParams, MeshQuery};
+use skin_core::mesh::{bone_heat_weights, rest_bones, skin, HeatWeightsParams, MeshQuery};
 use skin_core::mesh::{SkinBinding, SkinWeights, TriMesh};
 use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
@@ -39,35 +39,6 @@ pub struct SkinnedNeedles {
     binding: SkinBinding,
 }
 
-/// Bone segments of `skeleton` at rest for bone-heat weights: joint `j`'s bone runs from its
-/// rest position to its end site, or else to the centroid of its children, or is a point for
-/// a leaf without end site.
-///
-/// # Errors
-/// Errors of forward kinematics.
-pub(crate) fn rest_bone_segments(skeleton: &Skeleton) -> Result<Vec<BoneSegment>> {
-    let fk = skeleton.forward_kinematics(&skeleton.rest_pose())?;
-    let frames = fk.world_from_joint();
-    let joints = skeleton.joints();
-    Ok((0..joints.len())
-        .map(|j| {
-            let start = frames[j].translation;
-            let children: Vec<DVec3> = (0..joints.len())
-                .filter(|&c| joints[c].parent == Some(j))
-                .map(|c| frames[c].translation)
-                .collect();
-            let end = match joints[j].end_site {
-                Some(e) => frames[j].transform_point3(e),
-                None if !children.is_empty() => {
-                    children.iter().sum::<DVec3>() / children.len() as f64
-                }
-                None => start,
-            };
-            BoneSegment { start, end }
-        })
-        .collect())
-}
-
 impl SkinnedNeedles {
     /// Skins the needle endpoints of `rest_model` at the rest pose (θ = 0) by bone-heat
     /// weights (Baran and Popović 2007) computed on its watertight union surface
@@ -85,7 +56,7 @@ impl SkinnedNeedles {
     ) -> Result<Self> {
         let rest = animate(body, rest_model, skeleton, &skeleton.rest_pose())?;
         let mesh = union_mesh(&rest, surface)?;
-        let bones = rest_bone_segments(skeleton)?;
+        let bones = rest_bones(skeleton)?;
         let vertex_weights = bone_heat_weights(&mesh, &bones, &HeatWeightsParams::default())?;
         let endpoints: Vec<DVec3> = rest
             .primitives

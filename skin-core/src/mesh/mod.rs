@@ -25,14 +25,16 @@ mod surface_point;
 mod topology;
 mod trimesh;
 mod uv;
+mod winding_number;
 
 #[cfg(feature = "decimate")]
 pub use decimate::{decimate, Decimation};
 #[cfg(feature = "gltf")]
 pub use gltf::{save_gltf_animation, write_gltf_animation, MeshSequence};
 pub use heat_weights::{
-    bone_heat_weights, bone_heat_weights_dense, BoneSegment, HeatWeightsParams,
-    DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
+    bone_heat_weights, bone_heat_weights_dense, rest_bones, Bone, BoneSegment, HeatWeightsParams,
+    VisibilityParams, DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
+    DEFAULT_VISIBILITY_CONE_COS, DEFAULT_VISIBILITY_STEP_REL, DEFAULT_VISIBILITY_TOLERANCE_REL,
 };
 pub use laplacian::{
     cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
@@ -66,3 +68,4 @@ pub use topology::{
 };
 pub use trimesh::{BoundingBox, TriMesh};
 pub use uv::{UvLayout, UvSplit};
+pub use winding_number::{WindingNumber, DEFAULT_ACCURACY_BETA, LEAF_TRIANGLES};
