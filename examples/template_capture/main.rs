@@ -12,11 +12,17 @@
 //! from the default by up to 10 % (`Performer::with_bone_scales`), the tracker is given the
 //! default proportions and sizes them itself from its first frames: `auto_size_*` figures
 //! for the tracker with default, sized and true proportions); then
-//! Algorithm 1 (§2.4.2). Scored against the performer's true posed mesh, against linear
-//! blend skinning driven by the same estimated poses (`lbs_*`) and by the true poses
-//! (`lbs_true_pose_*`). The legs inside the skirt are part of the template and of the truth
-//! and are scored with the body (the silhouettes cannot see them: only the pose and the
-//! Laplacian prior place them).
+//! Algorithm 1 (§2.4.2). The template is rigged as a user's would be (the thesis attached
+//! its templates with Pinocchio, §2.5.1): bone-heat weights with Pinocchio's visibility test
+//! computed by the library from the template mesh and the skeleton
+//! (`heat_weights_mean_abs_diff` from the performer's own). Scored against the performer's
+//! true posed mesh, against linear blend skinning with those weights driven by the same
+//! estimated poses (`lbs_*`, the baseline) and by the true poses (`lbs_true_pose_*`), and
+//! against the oracle the studio's truth is built from — the performer's own weights at the
+//! true poses (`lbs_oracle_pose_*`: the truth minus its muscles and cloth); the weights
+//! without the visibility test at the true poses (`lbs_no_visibility_true_pose_*`). The legs
+//! inside the skirt are part of the template and of the truth and are scored with the body
+//! (the silhouettes cannot see them: only the pose and the Laplacian prior place them).
 //!
 //! Writes under `out/template_capture/`:
 //! * `figure_2_7.png`: one frame of the first run, like the thesis' Figure 2-7 — template,
@@ -43,8 +49,8 @@ use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DVec3, Ray};
 use dynamic_shapes::core::mesh::{
-    decimate, evaluate_surface_points, save_gltf_animation, MeshQuery, MeshSequence, SkinWeights,
-    SurfacePoint, TriMesh, UvLayout,
+    bone_heat_weights, decimate, evaluate_surface_points, rest_bones, save_gltf_animation,
+    HeatWeightsParams, MeshQuery, MeshSequence, SkinWeights, SurfacePoint, TriMesh, UvLayout,
 };
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
@@ -69,6 +75,15 @@ const VERTEX_ERROR_MAX_MM: f64 = 50.0;
 /// A vertex is pose-deforming when the studio's pose-driven displacement (muscles, joint
 /// shapes) moves it at least this far in some frame of the run, m.
 const DEFORMING_MIN_M: f64 = 0.003;
+
+/// Mean over vertices of `Σ_bones |a − b|` (0: equal, 2: disjoint).
+fn mean_abs_diff(a: &SkinWeights, b: &SkinWeights) -> f64 {
+    let (a, b) = (a.to_dense(), b.to_dense());
+    let per_vertex: Vec<f64> = (0..a.nrows())
+        .map(|v| (a.row(v) - b.row(v)).abs().sum())
+        .collect();
+    mean(&per_vertex)
+}
 
 /// RMS distance between corresponding vertices (all, or those in `subset`), mm.
 fn rms_mm(a: &[DVec3], b: &[DVec3], subset: Option<&[usize]>) -> f64 {
@@ -135,7 +150,19 @@ struct Cli {
 /// The template the tracker is given and where its vertices sit in the performer's rest mesh.
 #[derive(Clone)]
 struct TemplateEmbedding {
+    /// The template rigged as a user's would be: skin weights computed by the library
+    /// (bone heat with Pinocchio's visibility test, `skin_core::mesh::bone_heat_weights`)
+    /// from the template mesh and the skeleton.
     template: Template,
+    /// The same mesh with the performer's own weights, which generated the truth: an oracle.
+    oracle_template: Template,
+    /// The same mesh with bone-heat weights without the visibility test.
+    no_visibility_template: Template,
+    /// Mean over the template's vertices of `Σ_bones |w − w_performer|` (0: the performer's
+    /// weights, 2: disjoint), for the library's weights and those without visibility.
+    weights_mean_abs_diff: (f64, f64),
+    /// Seconds to compute the library's weights.
+    heat_weights_s: f64,
     /// Per template vertex, its fixed barycentric position in the performer's rest mesh (one
     /// corner at weight one for a decimated template, whose vertices are a subset).
     points: Vec<SurfacePoint>,
@@ -146,8 +173,9 @@ struct TemplateEmbedding {
 }
 
 impl TemplateEmbedding {
-    /// The performer's rest mesh decimated to `vertices` (0: kept whole), skin weights and
-    /// texture coordinates carried over.
+    /// The performer's rest mesh decimated to `vertices` (0: kept whole), texture
+    /// coordinates carried over, rigged by the library's bone-heat weights (the performer's
+    /// own weights carried over for the oracle).
     fn new(
         performer: &Performer,
         vertices: usize,
@@ -165,7 +193,20 @@ impl TemplateEmbedding {
             .iter()
             .map(|&o| performer.weights.influences(o).collect())
             .collect();
-        let weights = SkinWeights::from_lists(&lists, performer.weights.bone_count())?;
+        let oracle_weights = SkinWeights::from_lists(&lists, performer.weights.bone_count())?;
+        let bones = rest_bones(&performer.skeleton)?;
+        let t0 = Instant::now();
+        let weights = bone_heat_weights(&mesh, &bones, &HeatWeightsParams::default())?;
+        let heat_weights_s = t0.elapsed().as_secs_f64();
+        let no_visibility_weights = bone_heat_weights(
+            &mesh,
+            &bones,
+            &HeatWeightsParams::default().without_visibility(),
+        )?;
+        let weights_mean_abs_diff = (
+            mean_abs_diff(&weights, &oracle_weights),
+            mean_abs_diff(&no_visibility_weights, &oracle_weights),
+        );
         let points = MeshQuery::new(full)?
             .closest_points(&mesh.vertices)?
             .into_iter()
@@ -177,6 +218,13 @@ impl TemplateEmbedding {
             .as_ref()
             .map(|l| l.for_vertex_subset(full, &mesh, &original_u32))
             .transpose()?;
+        let oracle_template =
+            Template::new(mesh.clone(), performer.skeleton.clone(), oracle_weights)?;
+        let no_visibility_template = Template::new(
+            mesh.clone(),
+            performer.skeleton.clone(),
+            no_visibility_weights,
+        )?;
         let mut template = Template::new(mesh, performer.skeleton.clone(), weights)?;
         let garment = performer.garment_vertices();
         if loose_skirt && !garment.is_empty() {
@@ -193,6 +241,10 @@ impl TemplateEmbedding {
         }
         Ok(Self {
             template,
+            oracle_template,
+            no_visibility_template,
+            weights_mean_abs_diff,
+            heat_weights_s,
             points,
             original,
             uvs,
@@ -429,7 +481,8 @@ fn capture_run(
         let key = |k: &str| format!("{name}_auto_size_{k}");
         let scored = SizeScoring {
             model: &size_model,
-            reference: &reference_sizes(&size_model, &true_template, 0.05)?,
+            // Scored against the truth: the performer's own rig.
+            reference: &reference_sizes(&size_model, &embedding.oracle_template, 0.05)?,
         };
         // Diagnostic: the sizing from the true poses (the fit's own error, without the
         // tracked poses').
@@ -538,14 +591,16 @@ fn capture_run(
         })
         .collect();
     let (mut joint, mut sil, mut sil_lbs, mut edge) = (vec![], vec![], vec![], vec![]);
-    // Per vertex subset (all, skirt, body, pose-deforming): result, LBS same poses, LBS true.
+    // Per vertex subset (all, skirt, body, pose-deforming): the result, then skinning with
+    // the same poses, the true poses, the true poses and the generator's weights (oracle),
+    // the true poses and weights without visibility, and the result on the true poses.
     let subsets: [(&str, Option<&[usize]>); 4] = [
         ("", None),
         ("skirt_", Some(&skirt)),
         ("body_", Some(&body)),
         ("deforming_", Some(&deforming)),
     ];
-    let mut scores = vec![[vec![], vec![], vec![], vec![]]; subsets.len()];
+    let mut scores = vec![[vec![], vec![], vec![], vec![], vec![], vec![]]; subsets.len()];
     for (t, truth) in truths.iter().enumerate() {
         let true_v = &embedding.truth(&truth.true_mesh(&performer))?;
         joint.push(joint_error_mm(
@@ -556,6 +611,8 @@ fn capture_run(
         )?);
         let lbs = template.skin(&result.poses.poses[t])?;
         let lbs_true = template.skin(&truth.theta)?;
+        let lbs_oracle = embedding.oracle_template.skin(&truth.theta)?;
+        let lbs_no_visibility = embedding.no_visibility_template.skin(&truth.theta)?;
         for (s, (_, subset)) in subsets.iter().enumerate() {
             if subset.is_some_and(|v| v.is_empty()) {
                 continue;
@@ -563,8 +620,10 @@ fn capture_run(
             scores[s][0].push(rms_mm(&result.shapes.frames[t], true_v, *subset));
             scores[s][1].push(rms_mm(&lbs, true_v, *subset));
             scores[s][2].push(rms_mm(&lbs_true, true_v, *subset));
+            scores[s][3].push(rms_mm(&lbs_oracle, true_v, *subset));
+            scores[s][4].push(rms_mm(&lbs_no_visibility, true_v, *subset));
             if let Some(shapes) = &true_shapes {
-                scores[s][3].push(rms_mm(&shapes.frames[t], true_v, *subset));
+                scores[s][5].push(rms_mm(&shapes.frames[t], true_v, *subset));
             }
         }
         let molded = template.mesh_with(result.shapes.frames[t].clone());
@@ -602,13 +661,30 @@ fn capture_run(
             &format!("lbs_true_pose_{prefix}vertex_rms_mm"),
             json!(mean(&scores[s][2])),
         );
-        if !scores[s][3].is_empty() {
+        put(
+            &format!("lbs_oracle_pose_{prefix}vertex_rms_mm"),
+            json!(mean(&scores[s][3])),
+        );
+        put(
+            &format!("lbs_no_visibility_true_pose_{prefix}vertex_rms_mm"),
+            json!(mean(&scores[s][4])),
+        );
+        if !scores[s][5].is_empty() {
             put(
                 &format!("molded_true_pose_{prefix}vertex_rms_mm"),
-                json!(mean(&scores[s][3])),
+                json!(mean(&scores[s][5])),
             );
         }
     }
+    put(
+        "heat_weights_mean_abs_diff",
+        json!(embedding.weights_mean_abs_diff.0),
+    );
+    put(
+        "heat_weights_no_visibility_mean_abs_diff",
+        json!(embedding.weights_mean_abs_diff.1),
+    );
+    put("heat_weights_s", json!(embedding.heat_weights_s));
     put("deforming_vertices", json!(deforming.len()));
     put("silhouette_error_pct", json!(mean(&sil)));
     put("lbs_silhouette_error_pct", json!(mean(&sil_lbs)));

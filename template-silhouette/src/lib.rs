@@ -43,6 +43,7 @@
 //!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
 //!     ProceduralBodyParams,
 //! };
+//! use skin_core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 //! use template_silhouette::{
 //!     capture_sequence, FrameObservation, PoseParams, ShapeParams, SilhouetteParams, Template,
 //!     VisualHullParams,
@@ -66,11 +67,14 @@
 //!     )?);
 //!     first_pose.get_or_insert(frame.truth.theta);
 //! }
-//! let template = Template::new(
-//!     performer.template.clone(),
-//!     performer.skeleton.clone(),
-//!     performer.weights.clone(),
+//! // §2.5.1: the template rigged by bone heat (Pinocchio), as a user's scan would be; the
+//! // performer's own weights generated the studio's truth and are not used.
+//! let weights = bone_heat_weights(
+//!     &performer.template,
+//!     &rest_bones(&performer.skeleton)?,
+//!     &HeatWeightsParams::default(),
 //! )?;
+//! let template = Template::new(performer.template.clone(), performer.skeleton.clone(), weights)?;
 //! let first_guess = first_pose.unwrap_or_default();
 //!
 //! // §2.3 then §2.4: forward and reverse passes with the refinement term, then Algorithm 1.
