@@ -149,7 +149,7 @@ pub use params::{
     DEFAULT_MIN_NEAR, DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_RADIUS_FACTOR, DEFAULT_SEED,
 };
 pub use pose_space::{PoseSpaceModel, PoseSpaceReconstruction, SkinnedNeedles};
-pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec, MAX_NEEDLES_PER_PRIMITIVE};
+pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
 pub use prototype_shapes::{
     grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes, POOL_POSE_CELL_DEG,
@@ -164,6 +164,7 @@ pub use silhouette_error::{
 };
 pub use store::{
     NeedleObservations, Observation, ObservationStore, PackedObservation, PrimitiveShape,
+    MAX_NEEDLES_PER_PRIMITIVE,
 };
 pub use surface::{
     merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,

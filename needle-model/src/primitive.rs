@@ -10,7 +10,7 @@ use skin_core::skeleton::{ForwardKinematics, Skeleton};
 
 use crate::config::{resolve_marker, ConfigSpace};
 use crate::error::{Context, Error, Result, ResultExt};
-use crate::store::PrimitiveShape;
+use crate::store::{PrimitiveShape, MAX_NEEDLES_PER_PRIMITIVE};
 
 /// Description of one deformable primitive by joint names (resolved against a skeleton by
 /// [`NeedleBody::new`]).
@@ -243,10 +243,6 @@ impl Primitive {
         )
     }
 }
-
-/// Most needles a primitive can have (radial × axial): the observation store packs a needle
-/// index in 12 bits ([`crate::PackedObservation`]); Table 3.1's largest primitive has 900.
-pub const MAX_NEEDLES_PER_PRIMITIVE: usize = 4096;
 
 /// All primitives of a body, resolved against one skeleton.
 ///

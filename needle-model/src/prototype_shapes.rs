@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 use crate::config::{check_samples, config_scale, dist2};
 use crate::error::{Context, ResultExt};
 use crate::params::{Neighbourhood, ReconstructionParams};
-use crate::primitive::MAX_NEEDLES_PER_PRIMITIVE;
 use crate::store::NeedleObservations;
+use crate::store::MAX_NEEDLES_PER_PRIMITIVE;
 use crate::{Error, Result};
 
 /// Ring/axial grid adjacency of a primitive's needles in ring-major order

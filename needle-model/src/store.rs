@@ -6,12 +6,15 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Context, Error, Result, ResultExt};
-use crate::primitive::MAX_NEEDLES_PER_PRIMITIVE;
 
 /// Bits of the needle index in a [`PackedObservation`] (enough for
 /// [`MAX_NEEDLES_PER_PRIMITIVE`]); the other 12 of its 24 bits hold the quantised length.
 const NEEDLE_BITS: u32 = 12;
-const _: () = assert!(1 << NEEDLE_BITS == MAX_NEEDLES_PER_PRIMITIVE);
+
+/// Most needles a primitive can have (radial × axial): the store packs a needle index in
+/// [`NEEDLE_BITS`] = 12 bits of a [`PackedObservation`], a fact of the storage format;
+/// Table 3.1's largest primitive has 900.
+pub const MAX_NEEDLES_PER_PRIMITIVE: usize = 1 << NEEDLE_BITS;
 
 /// Number of quantisation steps of a needle length (12 bits): a step of 0.07 mm on a 30 cm
 /// needle, some fifty times finer than a pixel of the cameras the method uses.

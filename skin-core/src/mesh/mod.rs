@@ -46,8 +46,7 @@ pub use metrics::{
     OneSidedDistance,
 };
 pub use normals::{
-    face_areas, face_normals, triangle_area, triangle_normal, vertex_normals, NormalWeighting,
-    DEGENERATE_REL_TOL,
+    face_areas, face_normals, triangle_normal, vertex_normals, NormalWeighting, DEGENERATE_REL_TOL,
 };
 pub use obj::{
     read_obj, read_obj_from_reader, read_obj_from_str, read_obj_group, read_obj_group_with_map,
@@ -66,6 +65,6 @@ pub use topology::{
     boundary_edges, is_closed, unique_edges, vertex_faces, vertex_neighbors, Adjacency,
     EdgeTopology,
 };
-pub use trimesh::{BoundingBox, TriMesh};
+pub use trimesh::{triangle_area, BoundingBox, TriMesh};
 pub use uv::{UvLayout, UvSplit};
 pub use winding_number::{WindingNumber, DEFAULT_ACCURACY_BETA, LEAF_TRIANGLES};

@@ -12,7 +12,7 @@
 //! what many tools use; it is offered for comparison.
 
 use crate::math::DVec3;
-use crate::mesh::TriMesh;
+use crate::mesh::{triangle_area, TriMesh};
 use crate::Result;
 use serde::{Deserialize, Serialize};
 
@@ -49,12 +49,6 @@ pub fn triangle_normal(tri: [DVec3; 3]) -> Option<DVec3> {
         return None;
     }
     Some(n / len)
-}
-
-/// The area of triangle `[a, b, c]` (zero for degenerate triangles).
-pub fn triangle_area(tri: [DVec3; 3]) -> f64 {
-    let [a, b, c] = tri;
-    0.5 * (b - a).cross(c - a).length()
 }
 
 /// Unit normal of every face, in face order. Degenerate faces get `DVec3::ZERO`, so callers

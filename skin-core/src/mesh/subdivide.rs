@@ -36,7 +36,8 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::normals::{triangle_area, triangle_normal};
+use super::normals::triangle_normal;
+use super::trimesh::triangle_area;
 use super::TriMesh;
 use crate::check;
 use crate::math::DVec3;

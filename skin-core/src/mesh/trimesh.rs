@@ -30,6 +30,12 @@ impl BoundingBox {
     }
 }
 
+/// The area of triangle `[a, b, c]` (zero for degenerate triangles).
+pub fn triangle_area(tri: [DVec3; 3]) -> f64 {
+    let [a, b, c] = tri;
+    0.5 * (b - a).cross(c - a).length()
+}
+
 /// An indexed triangle mesh.
 ///
 /// Invariants (checked by [`TriMesh::new`]): every coordinate is finite and every face index
@@ -117,7 +123,7 @@ impl TriMesh {
     pub fn surface_area(&self) -> Result<f64> {
         self.validate()?;
         Ok((0..self.face_count())
-            .map(|f| super::normals::triangle_area(self.triangle(f)))
+            .map(|f| triangle_area(self.triangle(f)))
             .sum())
     }
 
