@@ -284,6 +284,18 @@ impl EllipsoidParams {
         self
     }
 
+    /// The plain (unweighted) least squares with the same Levenberg–Marquardt budget: one
+    /// round of `irls_rounds × lm_iterations` iterations (24 with the defaults) instead of
+    /// `irls_rounds` rounds of `lm_iterations` — the baseline IRLS (§5.2) is measured
+    /// against. Measured on the `ellipsoid_fit` scenario: the unweighted fit given 24
+    /// iterations or run to convergence (500) ends no better than after 4 (its minimum is
+    /// the fit swollen around the outliers, docs/template-silhouette.md).
+    pub fn without_irls(mut self) -> Self {
+        self.lm_iterations = self.irls_rounds.saturating_mul(self.lm_iterations);
+        self.irls_rounds = 1;
+        self
+    }
+
     fn validate(&self) -> Result<()> {
         check::positive("sigma_point_m", self.sigma_point_m)?;
         check::positive("sigma_marker_m", self.sigma_marker_m)?;

@@ -211,7 +211,7 @@ fn recovers_lengths_widths_and_pose_with_outliers_only_with_irls() {
         ..EllipsoidParams::default()
     };
     let robust = fit_ellipsoids(&m, &start, &obs, &params).unwrap();
-    let plain = fit_ellipsoids(&m, &start, &obs, &params.clone().with_irls_rounds(1));
+    let plain = fit_ellipsoids(&m, &start, &obs, &params.clone().without_irls());
     let (dl, dw) = err(&robust);
     assert!(
         dl < 0.005 && dw < 0.003,
@@ -226,6 +226,17 @@ fn recovers_lengths_widths_and_pose_with_outliers_only_with_irls() {
         );
     }
     assert!(robust.rejected_points >= n_in * 3 / 7 / 2);
+}
+
+#[test]
+fn the_baseline_without_irls_gets_the_same_lm_budget() {
+    let p = EllipsoidParams::default();
+    let plain = p.clone().without_irls();
+    assert_eq!(plain.irls_rounds, 1);
+    assert_eq!(plain.lm_iterations, p.irls_rounds * p.lm_iterations);
+    assert_eq!(plain.lm_iterations, 24);
+    // The old baseline (`with_irls_rounds(1)`) kept 4 iterations: a sixth of the budget.
+    assert_eq!(p.with_irls_rounds(1).lm_iterations, 4);
 }
 
 #[test]
