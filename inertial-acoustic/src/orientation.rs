@@ -287,6 +287,15 @@ pub struct HeadingInclinationRmse {
     pub samples: usize,
 }
 
+impl HeadingInclinationRmse {
+    /// `√(inclination² + heading²)`, degrees: the RMS of the (inclination, heading) error
+    /// pair over the scored samples — one figure for both parts, as used to tune a filter's
+    /// gain on a recording.
+    pub fn combined_deg(&self) -> f64 {
+        self.inclination_deg.hypot(self.heading_deg)
+    }
+}
+
 /// Heading and inclination RMSE of `estimate` against `reference` over the samples where
 /// `use_sample` is true and the reference is finite (optical references lose markers).
 ///
@@ -490,6 +499,8 @@ mod tests {
             "{e:?}"
         );
         assert!(e.heading_deg < 0.1, "{e:?}");
+        // The pair's RMS: the 2° tilt with next to no heading error left.
+        assert!((e.combined_deg() - 2.0).abs() < 0.01, "{e:?}");
         assert!(heading_inclination_rmse(&est, &refs, &mask[1..], DVec3::Z).is_err());
         assert!(heading_inclination_rmse(&est, &refs, &[false; 50], DVec3::Z).is_err());
     }

@@ -1,10 +1,11 @@
 //! Real IMU recordings shipped with the repository (`data/imu-broad/`, `data/imu-xio/`; see
 //! their SOURCE.md) as [`InertialReading`]s, and the orientation filter run over them.
 //!
-//! * BROAD trial 07, first 60 s (Laidig, Caruso, Cereatti, Seel, *BROAD — A Benchmark for
-//!   Robust Inertial Orientation Estimation*, Data 6(7):72, 2021; CC BY 4.0): 285.7 Hz
-//!   gyroscope (rad/s) and accelerometer (m/s²) with an optical reference orientation
-//!   (board-to-ENU, NaN where markers were lost) and the benchmark's `movement` flags.
+//! * BROAD trials 07 and 09, first 60 s of each (Laidig, Caruso, Cereatti, Seel, *BROAD — A
+//!   Benchmark for Robust Inertial Orientation Estimation*, Data 6(7):72, 2021; CC BY 4.0):
+//!   285.7 Hz gyroscope (rad/s) and accelerometer (m/s²) with an optical reference
+//!   orientation (board-to-ENU, NaN where markers were lost) and the benchmark's `movement`
+//!   flags.
 //! * x-io Fusion's example log (MIT): 135 s at about 100 Hz, gyroscope in deg/s and
 //!   accelerometer in g, no reference.
 
@@ -107,9 +108,9 @@ fn vec3(r: &[f64], at: usize) -> DVec3 {
     DVec3::new(r[at], r[at + 1], r[at + 2])
 }
 
-/// Reads the BROAD CSV (`data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv`: time,
-/// gyroscope rad/s, accelerometer m/s², magnetometer µT (unused), reference quaternion
-/// w, x, y, z, position (unused), movement flag).
+/// Reads a BROAD CSV excerpt (`data/imu-broad/*_first60s.csv`, written by its
+/// `hdf5_to_csv.py`: time, gyroscope rad/s, accelerometer m/s², magnetometer µT (unused),
+/// reference quaternion w, x, y, z, position (unused), movement flag).
 ///
 /// # Errors
 /// [`Error::Core`] I/O or parse error (with the line); [`Error::Empty`] without rows;
