@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # inertial-acoustic against its peers, in one run on this machine (not part of CI):
-#  * BROAD trial 07 orientation: the one-board filter vs x-io Fusion (imufusion, 6-axis), both
-#    gains tuned on the same grid, scored with one metric (examples/inertial_capture/fusion_broad.py);
+#  * BROAD orientation: the one-board filter vs x-io Fusion (imufusion, 6-axis), each gain tuned
+#    on trial 09, both scored on trial 07 with one metric (examples/inertial_capture/fusion_broad.py);
 #  * the FilterPy EKF workload (../shared/bench/peers/ekf.py) vs its Rust regeneration
 #    (examples/inertial_capture/peer_ekf.rs): per-step time ratio.
 # Needs a Python venv with numpy, imufusion and filterpy: PY=/path/to/venv/bin/python
@@ -11,8 +11,9 @@ cd "$(dirname "$0")/.."
 peers=$(cd ../shared/bench/peers && pwd)
 py=${PY:-$peers/.venv/bin/python}
 cargo build --release --example inertial_capture >/dev/null
-rust=$(target/release/examples/inertial_capture --quick 2>/dev/null | tail -1)
+rust=$(target/release/examples/inertial_capture --real-only 2>/dev/null | tail -1)
 fusion=$($py examples/inertial_capture/fusion_broad.py \
+    --tuning-csv data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv \
     --csv data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv \
     --ours out/inertial_capture/broad_ours.csv | tail -1)
 # One core for both (our figures are single-threaded; OpenBLAS threads on this shared 2-core
@@ -23,15 +24,18 @@ import json, sys
 rust, fusion, filterpy = (json.loads(a) for a in sys.argv[1:])
 ekf = rust["ekf_peer_workload"]
 out = {
-    "broad_ours_rmse_deg": fusion.get("ours_rmse_deg"),
-    "broad_ours_heldout_rmse_deg": fusion.get("ours_heldout_rmse_deg"),
+    "broad_ours_test_rmse_deg": fusion.get("ours_test_rmse_deg"),
+    "broad_ours_test_rmse_deg_rust": rust["broad_rmse_deg"],
+    "broad_ours_gyro_only_test_rmse_deg": rust["broad_gyro_only_rmse_deg"],
     "broad_ours_accelerometer_sigma": rust["broad_accelerometer_sigma"],
-    "broad_fusion_rmse_deg": fusion["fusion_rmse_deg"],
-    "broad_fusion_heldout_rmse_deg": fusion["fusion_heldout_rmse_deg"],
+    "broad_ours_tuning_interior": rust["broad_tuning_interior"],
+    "broad_fusion_test_rmse_deg": fusion["fusion_test_rmse_deg"],
     "broad_fusion_gain": fusion["fusion_gain"],
-    "broad_fusion_offset_removed_rmse_deg": fusion["fusion_offset_removed_rmse_deg"],
-    "broad_fusion_offset_removed_heldout_rmse_deg": fusion["fusion_offset_removed_heldout_rmse_deg"],
+    "broad_fusion_tuning_interior": fusion["fusion_tuning_interior"],
+    "broad_fusion_offset_removed_test_rmse_deg": fusion["fusion_offset_removed_test_rmse_deg"],
     "broad_fusion_offset_removed_gain": fusion["fusion_offset_removed_gain"],
+    "broad_fusion_offset_removed_tuning_interior": fusion["fusion_offset_removed_tuning_interior"],
+    "broad_fusion_offset_removed_gyro_only_test_rmse_deg": fusion["fusion_offset_removed_gyro_only_test_rmse_deg"],
     "ekf_rust_s_per_step": ekf["seconds"],
     "ekf_filterpy_s_per_step": filterpy["seconds"],
     "ekf_speedup_vs_filterpy": filterpy["seconds"] / ekf["seconds"],

@@ -441,13 +441,22 @@ fn corrupted_link_and_bad_inputs() {
     ));
 }
 
-/// The accelerometer σ the example's BROAD grid selects on the first half of the movement
-/// samples (q stays the suit's tuned 4 rad/s², σ_g the thesis's 0.002 rad/s).
-fn broad_params() -> FilterParams {
+/// The one-board filter on real data: q the suit's tuned 4 rad/s², σ_g the thesis's 0.002
+/// rad/s, accelerometer σ `accel_sigma` (m/s²).
+fn broad_params(accel_sigma: f64) -> FilterParams {
     FilterParams::default()
         .with_process_sigma(4.0)
-        .with_measurement_sigmas(2.0, 0.002, 0.0025)
+        .with_measurement_sigmas(accel_sigma, 0.002, 0.0025)
 }
+
+/// The accelerometer σ grid of the example (`real_imu.rs`, `GAIN_GRID`), m/s².
+const BROAD_GAIN_GRID: [f64; 14] = [
+    0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0,
+];
+
+/// The accelerometer σ the BROAD tuning trial (09) selects on that grid (the example's
+/// `broad_accelerometer_sigma`; the BROAD test below tunes it afresh).
+const BROAD_TUNED_SIGMA: f64 = 5.0;
 
 const GYRO_ONLY: SensorSet = SensorSet {
     accelerometers: false,
@@ -455,40 +464,68 @@ const GYRO_ONLY: SensorSet = SensorSet {
     distances: false,
 };
 
-/// Real data: BROAD trial 07 (fast rotations up to 24 rad/s, optical reference). The fused
-/// gyro + accelerometer orientation beats gyro-only integration with the same initialisation
-/// (the baseline that could have won: the accelerometer sees 15–25° of centripetal
-/// disturbance during the movement).
+/// Real data, tuned on one trial and tested on another: the accelerometer σ is chosen on BROAD
+/// trial 09 (fast rotations with breaks; first 60 s) over the example's grid by the combined
+/// RMSE √(incl² + head²), and the choice is inside the grid (both ends score worse: its top,
+/// σ 1000 m/s², is gyro-only to 0.001°). On trial 07 (fast rotations up to 24 rad/s; first 60
+/// s) the fused filter with that σ beats the same filter with the gyroscope rows only by more
+/// than 0.05° combined and in inclination — gyro-only, and gyro-only with the thesis's q = 0.04,
+/// fail both bounds (the accelerometer sees 15–25° of centripetal disturbance, so it is worth
+/// only about 0.1°). In heading gyro-only is the better one (by 0.001°: the accelerometer does
+/// not observe heading); the tuned σ keeps ours within 0.02° of it, which the grid's σ 0.5 (0.4°
+/// worse) fails.
 #[test]
-fn broad_recording_orientation_beats_gyro_integration() {
-    use dynamic_shapes::inertial::heading_inclination_rmse;
-    use dynamic_shapes::inertial::recordings::{read_broad_csv, run_orientation};
-    let rec = read_broad_csv(
-        example_kit::data_path("imu-broad/07_undisturbed_fast_rotation_B_first60s.csv").unwrap(),
-    )
-    .unwrap();
-    assert_eq!(rec.len(), 17_142);
-    let score = |p: FilterParams| {
-        let run = run_orientation(&rec, p, 20.0).unwrap();
+fn broad_gain_tuned_on_trial_09_beats_gyro_integration_on_trial_07() {
+    use dynamic_shapes::inertial::recordings::{read_broad_csv, run_orientation, ImuRecording};
+    use dynamic_shapes::inertial::{heading_inclination_rmse, HeadingInclinationRmse};
+    let read = |f: &str| read_broad_csv(example_kit::data_path(f).unwrap()).unwrap();
+    let tuning = read("imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv");
+    let test = read("imu-broad/07_undisturbed_fast_rotation_B_first60s.csv");
+    assert_eq!((tuning.len(), test.len()), (17_142, 17_142));
+    let score = |rec: &ImuRecording, p: FilterParams| -> HeadingInclinationRmse {
+        let run = run_orientation(rec, p, 20.0).unwrap();
         assert_eq!(run.diverged, 0);
         heading_inclination_rmse(&run.orientation, &rec.reference, &rec.movement, DVec3::Z).unwrap()
     };
-    let ours = score(broad_params());
-    // Gyro-only through the same filter (same q), and with the thesis's q = 0.04 (a stiffer
-    // rate model: closer to plain integration of the readings).
-    let gyro = score(broad_params().with_sensors(GYRO_ONLY));
+    // Tuning: trial 09 only.
+    let tuned: Vec<f64> = BROAD_GAIN_GRID
+        .iter()
+        .map(|&g| score(&tuning, broad_params(g)).combined_deg())
+        .collect();
+    let best = (0..tuned.len())
+        .min_by(|&a, &b| tuned[a].total_cmp(&tuned[b]))
+        .unwrap();
+    let gain = BROAD_GAIN_GRID[best];
+    // Measured on trial 09: 1.1563° at σ 5, ends 63.78° (σ 0.05) and 1.1665° (σ 1000;
+    // gyro-only 1.1665°).
+    assert!(
+        tuned[best] < tuned[0] - 0.005 && tuned[best] < tuned[tuned.len() - 1] - 0.005,
+        "σ {gain}: {tuned:?}"
+    );
+
+    // Test: trial 07.
+    let ours = score(&test, broad_params(gain));
+    let gyro = score(&test, broad_params(gain).with_sensors(GYRO_ONLY));
     let naive = score(
-        broad_params()
+        &test,
+        broad_params(gain)
             .with_sensors(GYRO_ONLY)
             .with_process_sigma(0.04),
     );
     assert!(ours.samples > 9000);
-    // Measured: ours 1.57° / 0.80°, gyro-only 1.69° / 0.79°, q = 0.04 gyro-only 2.20° / 1.50°
-    // (inclination / heading).
-    assert!(ours.inclination_deg < 1.63, "{ours:?}");
-    assert!(gyro.inclination_deg > 1.63, "{gyro:?}");
-    assert!(naive.inclination_deg > 1.63, "{naive:?}");
-    assert!(ours.heading_deg < 1.0, "{ours:?}");
+    // Measured (σ 5): ours 1.767° = 1.581° / 0.790°, gyro-only 1.862° = 1.687° / 0.789°,
+    // q = 0.04 gyro-only 2.667° = 2.203° / 1.504° (combined = inclination / heading).
+    let beats = |e: &HeadingInclinationRmse| {
+        e.combined_deg() < gyro.combined_deg() - 0.05
+            && e.inclination_deg < gyro.inclination_deg - 0.05
+    };
+    assert!(beats(&ours), "{ours:?} vs {gyro:?}");
+    assert!(!beats(&gyro), "{gyro:?}");
+    assert!(!beats(&naive), "{naive:?}");
+    let heading_kept = |e: &HeadingInclinationRmse| e.heading_deg < gyro.heading_deg + 0.02;
+    assert!(heading_kept(&ours), "{ours:?} vs {gyro:?}");
+    let low = score(&test, broad_params(0.5));
+    assert!(!heading_kept(&low), "{low:?}");
 }
 
 /// Real data: the x-io log (135 s, no reference) stays finite and stable: no divergence, unit
@@ -499,7 +536,7 @@ fn xio_recording_stays_finite_and_stable() {
     use dynamic_shapes::inertial::recordings::{read_xio_csv, run_orientation};
     let rec = read_xio_csv(example_kit::data_path("imu-xio/sensor_data.csv").unwrap()).unwrap();
     assert!(rec.time_s.last().unwrap() - rec.time_s[0] > 135.0);
-    let run = run_orientation(&rec, broad_params(), 1.0).unwrap();
+    let run = run_orientation(&rec, broad_params(BROAD_TUNED_SIGMA), 1.0).unwrap();
     assert_eq!(run.diverged, 0);
     assert!(run
         .orientation
@@ -520,7 +557,7 @@ fn xio_recording_stays_finite_and_stable() {
     }
     for (sum, n) in per_third {
         assert!(n > 100, "{per_third:?}");
-        // Measured: 0.77°, 2.29°, 1.16°.
+        // Measured (σ_a 5): 0.78°, 2.45°, 1.39° (σ_a 2: 0.77°, 2.29°, 1.16°).
         assert!(sum / (n as f64) < 3.0, "{per_third:?}");
     }
 }

@@ -1,26 +1,30 @@
 #!/usr/bin/env python3
-"""BROAD trial 07: x-io Fusion AHRS (imufusion, 6-axis: no magnetometer) side by side with the
-one-board orientation filter of inertial-acoustic, scored with one metric in one run.
+"""BROAD: x-io Fusion AHRS (imufusion, 6-axis: no magnetometer) side by side with the one-board
+orientation filter of inertial-acoustic, tuned on one trial and scored on another with one
+metric in one run.
 
 Not part of CI. Needs a venv with numpy and imufusion; run through bench/inertial_vs_peers.sh,
-or by hand after `cargo run --release --example inertial_capture -- --quick`:
+or by hand after `cargo run --release --example inertial_capture -- --real-only`:
 
     python3 examples/inertial_capture/fusion_broad.py \
+        --tuning-csv data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv \
         --csv data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv \
         --ours out/inertial_capture/broad_ours.csv
 
 Protocol (the same as the Rust example's, `real_imu.rs`):
 * error rotation q_ref * q_est^-1 (ENU); heading = its twist about z, inclination = the swing;
   the constant heading offset (circular mean) is removed; movement samples with a finite
-  reference only (BROAD's `movement` flag);
-* the gain is chosen on the grid GAIN_GRID (ours: accelerometer sigma in m/s^2; Fusion: its
-  gain) by sqrt(incl^2 + head^2) RMSE on the first half of the movement samples; the figures
-  are over all movement samples and over the held-out second half.
+  reference only (BROAD's `movement` flag); combined = sqrt(incl^2 + head^2);
+* Fusion's gain is chosen on GAIN_GRID by the combined RMSE over the tuning trial's (09)
+  movement samples; the figures are over the test trial's (07) movement samples. The grid runs
+  from gain 0 (gyroscope integration only) to 10 and its choice is reported as interior or
+  not (`*_tuning_interior`). Ours is tuned by the example on its own grid, on trial 09 too,
+  and read from its output (`broad_ours.csv`, the test trial's estimate).
 * Fusion runs twice: on the readings as they are, and with the gyroscope offset ours removes
-  (mean over the first 20 s of rest) subtracted beforehand.
+  (each trial's mean reading over its first 20 s of rest) subtracted beforehand.
 * Fusion settings: ENU convention, 286 Hz, gyroscope range 2000 deg/s, acceleration rejection
-  at its default; Fusion runs from the first sample (its 3 s start-up ramp falls in BROAD's
-  26 s rest). Ours is read from the example's output (`broad_ours.csv`).
+  at its default; Fusion runs from the first sample (its 3 s start-up ramp falls in the
+  trials' rest: movement starts at 30.1 s in 09 and at 26.5 s in 07).
 
 Prints one JSON line.
 """
@@ -31,7 +35,8 @@ from importlib.metadata import version
 
 import numpy as np
 
-GAIN_GRID = [0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0]
+GAIN_GRID = [0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0]
+REST_S = 20.0
 
 
 def qmul(a, b):
@@ -50,8 +55,9 @@ def score(est, ref, mask):
     incl = 2 * np.arccos(np.minimum(1.0, np.hypot(e[:, 0], e[:, 3])))
     off = np.arctan2(np.sin(head).mean(), np.cos(head).mean())
     he = np.angle(np.exp(1j * (head - off)))
-    return {"inclination_deg": float(np.degrees(np.sqrt(np.mean(incl ** 2)))),
-            "heading_deg": float(np.degrees(np.sqrt(np.mean(he ** 2)))),
+    i = float(np.degrees(np.sqrt(np.mean(incl ** 2))))
+    h = float(np.degrees(np.sqrt(np.mean(he ** 2))))
+    return {"inclination_deg": i, "heading_deg": h, "combined_deg": float(np.hypot(i, h)),
             "samples": int(m.sum())}
 
 
@@ -72,48 +78,60 @@ def fusion(gyr_dps, acc_g, gain):
     return est, time.perf_counter() - t0
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--csv", default="data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv")
-    ap.add_argument("--ours", default="out/inertial_capture/broad_ours.csv")
-    args = ap.parse_args()
-    d = np.genfromtxt(args.csv, delimiter=",", names=True)
+def load(path):
+    """A BROAD CSV excerpt: times, gyroscope deg/s, accelerometer g, reference, movement."""
+    d = np.genfromtxt(path, delimiter=",", names=True)
     t = d["t_s"]
     gyr = np.degrees(np.stack([d["gyr_x_rad_s"], d["gyr_y_rad_s"], d["gyr_z_rad_s"]], 1))
     acc = np.stack([d["acc_x_m_s2"], d["acc_y_m_s2"], d["acc_z_m_s2"]], 1) / 9.80665
     ref = np.stack([d["opt_qw"], d["opt_qx"], d["opt_qy"], d["opt_qz"]], 1)
-    mv = d["movement"] > 0
-    split_t = t[mv][len(t[mv]) // 2]
-    tune, held = mv & (t < split_t), mv & (t >= split_t)
+    return {"t": t, "gyr": gyr, "acc": acc, "ref": ref, "mv": d["movement"] > 0,
+            "rest": t - t[0] < REST_S}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--tuning-csv",
+                    default="data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv")
+    ap.add_argument("--csv", default="data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv")
+    ap.add_argument("--ours", default="out/inertial_capture/broad_ours.csv")
+    args = ap.parse_args()
+    tune, test = load(args.tuning_csv), load(args.csv)
 
     out = {
-        "workload": "broad_07_orientation",
+        "workload": "broad_orientation_tune_09_test_07",
         "peer": f"imufusion-{version('imufusion')}:Ahrs.update_no_magnetometer",
-        "split_t_s": float(split_t),
+        "tuning_csv": args.tuning_csv,
+        "test_csv": args.csv,
     }
     # Fusion as it is, and fed the gyroscope with the same rest offset ours removes (the mean
-    # reading over the first 20 s, the thesis's initialisation).
-    rest = t - t[0] < 20.0
-    for name, g_in in (("fusion", gyr), ("fusion_offset_removed", gyr - gyr[rest].mean(0))):
+    # reading over each trial's first 20 s, the thesis's initialisation).
+    for name, offset in (("fusion", False), ("fusion_offset_removed", True)):
+        def gyro(d):
+            return d["gyr"] - d["gyr"][d["rest"]].mean(0) if offset else d["gyr"]
         grid = []
         for g in GAIN_GRID:
-            est, secs = fusion(g_in, acc, g)
-            s = score(est, ref, tune)
-            grid.append({"gain": g, "tuning_score_deg": float(np.hypot(s["inclination_deg"], s["heading_deg"])),
-                         "all_movement": score(est, ref, mv), "seconds": secs, "est": est})
-        best = min(grid, key=lambda r: r["tuning_score_deg"])
-        out[f"{name}_gain"] = best["gain"]
-        out[f"{name}_rmse_deg"] = score(best["est"], ref, mv)
-        out[f"{name}_heldout_rmse_deg"] = score(best["est"], ref, held)
-        out[f"{name}_seconds"] = best["seconds"]
-        out[f"{name}_grid"] = [{k: v for k, v in r.items() if k != "est"} for r in grid]
+            est, _ = fusion(gyro(tune), tune["acc"], g)
+            grid.append({"gain": g, "tuning": score(est, tune["ref"], tune["mv"])})
+        best = min(range(len(grid)), key=lambda k: grid[k]["tuning"]["combined_deg"])
+        gain = GAIN_GRID[best]
+        for r in grid:
+            est, secs = fusion(gyro(test), test["acc"], r["gain"])
+            r["test"] = score(est, test["ref"], test["mv"])
+            r["seconds"] = secs
+        out[f"{name}_gain"] = gain
+        out[f"{name}_tuning_interior"] = 0 < best < len(GAIN_GRID) - 1
+        out[f"{name}_tuning_rmse_deg"] = grid[best]["tuning"]
+        out[f"{name}_test_rmse_deg"] = grid[best]["test"]
+        out[f"{name}_gyro_only_test_rmse_deg"] = grid[GAIN_GRID.index(0.0)]["test"]
+        out[f"{name}_seconds"] = grid[best]["seconds"]
+        out[f"{name}_grid"] = grid
     try:
         o = np.genfromtxt(args.ours, delimiter=",", names=True)
         ours = np.stack([o["qw"], o["qx"], o["qy"], o["qz"]], 1)
-        if len(ours) != len(t):
-            raise ValueError(f"{args.ours}: {len(ours)} rows, BROAD has {len(t)}")
-        out["ours_rmse_deg"] = score(ours, ref, mv)
-        out["ours_heldout_rmse_deg"] = score(ours, ref, held)
+        if len(ours) != len(test["t"]):
+            raise ValueError(f"{args.ours}: {len(ours)} rows, the test trial has {len(test['t'])}")
+        out["ours_test_rmse_deg"] = score(ours, test["ref"], test["mv"])
     except OSError as e:
         out["ours_error"] = str(e)
     print(json.dumps(out))

@@ -30,13 +30,14 @@
 //! * Speed: `realtime_factor` = seconds of motion per second of compute for ultrasonic
 //!   processing + inertial decoding + EKF (A+G+D, root supplied), one core, per stage too.
 //!
-//! * Real recordings (`real_imu.rs`): the orientation part of the filter on BROAD trial 07
-//!   (`broad_rmse_deg`, inclination and heading, against the optical reference; estimate in
-//!   `broad_ours.csv`) and on the 135 s x-io log (stability). The x-io Fusion AHRS comparison
-//!   runs outside CI: `bench/inertial_vs_peers.sh` (needs a Python venv with `imufusion`
-//!   and `filterpy`; see the script) runs this example, then
-//!   `examples/inertial_capture/fusion_broad.py`, which tunes Fusion's gain on the same grid
-//!   and scores both estimates with the same metric, in one run.
+//! * Real recordings (`real_imu.rs`): the orientation part of the filter on BROAD, its gain
+//!   tuned on trial 09 and tested on trial 07 (`broad_test_rmse_deg`, inclination and
+//!   heading, against the optical reference, beside `broad_gyro_only_test_rmse_deg`;
+//!   estimate in `broad_ours.csv`) and on the 135 s x-io log (stability). The x-io Fusion
+//!   AHRS comparison runs outside CI: `bench/inertial_vs_peers.sh` (needs a Python venv with
+//!   `imufusion` and `filterpy`; see the script) runs this example with `--real-only`, then
+//!   `examples/inertial_capture/fusion_broad.py`, which tunes Fusion's gain on trial 09 the
+//!   same way and scores both estimates on trial 07 with the same metric, in one run.
 //!
 //! * The FilterPy peer workload (`peer_ekf.rs`: `../shared/bench/peers/ekf.py` regenerated,
 //!   per-step time and RMS error as the peer line; the ratio comes from
@@ -47,7 +48,8 @@
 //! `--delta-step N`: the noise-shaped delta code's unit, default 16, 0 for the whole-count
 //! code; `--no-code-noise`: the filter is not told the code's per-frame error; `--ber R`: the
 //! link's bit error rate; `--key-interval K`: key frames every K frames, 0 for none;
-//! `--ber-sweep K1,K2,…`: only the bit-error sweep of issue 15's ninth session).
+//! `--ber-sweep K1,K2,…`: only the bit-error sweep of issue 15's ninth session;
+//! `--real-only`: only the real recordings and the FilterPy workload, seconds).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod peer_ekf;
@@ -300,6 +302,10 @@ struct Args {
     /// then exit.
     #[arg(long, value_delimiter = ',')]
     ber_sweep: Option<Vec<u32>>,
+    /// Only the real recordings (BROAD tuning and test trials, the x-io log) and the FilterPy
+    /// peer workload, a few seconds: their figures as the JSON line, then exit.
+    #[arg(long)]
+    real_only: bool,
 }
 
 /// The shipped CMU walk (131_01) retargeted onto `skeleton` at 120 Hz.
@@ -344,6 +350,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ));
     if let Some(r) = real.as_object_mut() {
         r.insert("ekf_peer_workload".into(), peer);
+    }
+    if args.real_only {
+        for h in real_imu::headlines() {
+            run.headline(h);
+        }
+        run.finish(real)?;
+        return Ok(());
     }
 
     // The studio's MakeHuman performer with its pose-driven shapes (no flap: a tight suit);
@@ -890,6 +903,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // the wall clock only (per board and frame, microseconds; a CPU-clock read would cost
     // more than the decoding).
     let compute_cpu_s = us_cpu_s + in_s + ekf_cpu_s;
+    let [broad_test, broad_gyro_only, broad_inclination, broad_heading] = real_imu::headlines();
     for h in [
         Headline::new(
             "distance_error_mean_mm",
@@ -921,16 +935,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "treadmill left shoulder, without D",
             "deg",
         ),
-        Headline::new(
-            "broad_inclination_rmse_deg",
-            "BROAD inclination RMSE (one board, gyro + accel)",
-            "deg",
-        ),
-        Headline::new(
-            "broad_heading_rmse_deg",
-            "BROAD heading RMSE (offset removed)",
-            "deg",
-        ),
+        broad_test,
+        broad_gyro_only,
+        broad_inclination,
+        broad_heading,
         Headline::new(
             "realtime_factor_cpu",
             "motion seconds per CPU second (thread CPU time, one core)",
