@@ -376,6 +376,7 @@ fn coverage_budget_with_exact_normals() {
             views,
             merged,
             refined: None,
+            unrefined: None,
             filled: pass1_filled.clone(),
             samples: 0,
             times: PassTimes::default(),

@@ -148,6 +148,10 @@ pub struct Pass {
     pub merged: MergedSurface,
     /// What the refinement did, when it ran.
     pub refined: Option<RefineReport>,
+    /// The merged mesh before the refinement, when the refinement ran (`None` otherwise:
+    /// [`Pass::merged`] is then unrefined). The refinement fits the mesh to the measured
+    /// normals that Table 3.1 then scores it against, so the table is reported on both.
+    pub unrefined: Option<TriMesh>,
     /// The hole-filled, closed mesh.
     pub filled: PoissonSurface,
     /// Oriented samples given to the hole filling (merged + hull).
@@ -237,7 +241,7 @@ fn run_pass(
     let mut merged = merge_views(&inputs, &params.merge_at_width(&views.surfaces))?;
     let merge_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let refined = match refine {
+    let (refined, unrefined) = match refine {
         Some(rp) => {
             let r = refine_mesh(
                 cameras,
@@ -247,10 +251,10 @@ fn run_pass(
                 &merged.mesh,
                 rp,
             )?;
-            merged.mesh = r.mesh;
-            Some(r.report)
+            let before = std::mem::replace(&mut merged.mesh, r.mesh);
+            (Some(r.report), Some(before))
         }
-        None => None,
+        None => (None, None),
     };
     let refine_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
@@ -263,6 +267,7 @@ fn run_pass(
         views,
         merged,
         refined,
+        unrefined,
         filled,
         samples: samples.len(),
         times: PassTimes {
