@@ -25,15 +25,6 @@ use dynamic_shapes::template::{
     EllipsoidScenario, EllipsoidScenarioParams, EllipsoidScores,
 };
 
-/// The fit's parameters for stereo-like points with gross outliers: the defaults, the IRLS
-/// scale from the observations each round kept (`EllipsoidParams::scale_from_kept`).
-fn robust() -> EllipsoidParams {
-    EllipsoidParams {
-        scale_from_kept: true,
-        ..EllipsoidParams::default()
-    }
-}
-
 fn worse_by(plain: &EllipsoidScores, robust: &EllipsoidScores) -> f64 {
     (plain.bone_length_error_mm / robust.bone_length_error_mm)
         .max(plain.width_error_mm / robust.width_error_mm)
@@ -65,7 +56,7 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
             &scenario.model,
             &frame.start,
             &frame.observations,
-            &robust(),
+            &EllipsoidParams::default(),
         )
         .unwrap();
         let ms = t.elapsed().as_secs_f64() * 1e3;
@@ -83,7 +74,7 @@ fn ellipsoid_fit_irls_rejects_outliers_and_beats_plain_least_squares() {
             &scenario.model,
             &frame.start,
             &frame.observations,
-            &robust().without_irls(),
+            &EllipsoidParams::default().without_irls(),
         ) {
             Ok(f) => {
                 let p = score_ellipsoids(&scenario.model, &f.state, &frame.truth).unwrap();
@@ -103,10 +94,16 @@ fn ellipsoid_multi_frame_fit_meets_length_width_and_direction_goals() {
     let scenario = scenario(&frames);
     let (starts, obs) = scenario.starts_and_observations();
     let t = Instant::now();
-    let fit = fit_ellipsoids_multi(&scenario.model, &starts, &obs, &robust()).unwrap();
+    let fit =
+        fit_ellipsoids_multi(&scenario.model, &starts, &obs, &EllipsoidParams::default()).unwrap();
     let ms = t.elapsed().as_secs_f64() * 1e3 / frames.len() as f64;
     println!("{}-frame fit: {ms:.0} ms per frame", frames.len());
-    let plain = fit_ellipsoids_multi(&scenario.model, &starts, &obs, &robust().without_irls());
+    let plain = fit_ellipsoids_multi(
+        &scenario.model,
+        &starts,
+        &obs,
+        &EllipsoidParams::default().without_irls(),
+    );
     let m = &scenario.model;
     let fl = m.bone_lengths(&fit.states[0]);
     let tl = m.bone_lengths(&scenario.frames[0].truth);
@@ -147,6 +144,45 @@ fn ellipsoid_multi_frame_fit_meets_length_width_and_direction_goals() {
     }
     assert!(mean_angle <= 3.0, "mean direction error {mean_angle:.2}°");
     assert!(mean_length <= 10.0, "mean length error {mean_length:.1} mm");
+    // The points' robust scale: from the kept observations once a round rejects ≥ 20 % of
+    // them (every round after the first here: the 30 % gross outliers), against the baseline
+    // that could have won, the scale over all of them in every round (the MAD of Beaton and
+    // Tukey, inflated by the outliers).
+    println!(
+        "points rejected per round {:?}, scale from the kept {:?}",
+        fit.irls_rejected.iter().map(|r| r[0]).collect::<Vec<_>>(),
+        fit.irls_scale_from_kept
+            .iter()
+            .map(|k| k[0])
+            .collect::<Vec<_>>()
+    );
+    assert!(fit.irls_scale_from_kept[1..].iter().all(|k| k[0]));
+    let all = fit_ellipsoids_multi(
+        &scenario.model,
+        &starts,
+        &obs,
+        &EllipsoidParams {
+            kept_scale_min_rejected: None,
+            ..EllipsoidParams::default()
+        },
+    )
+    .unwrap();
+    let all_length = frames
+        .iter()
+        .zip(&scenario.frames)
+        .zip(&all.states)
+        .map(|((_, f), st)| {
+            score_ellipsoids(&scenario.model, st, &f.truth)
+                .unwrap()
+                .bone_length_error_mm
+        })
+        .sum::<f64>()
+        / frames.len() as f64;
+    println!("scale over all observations: mean length error {all_length:.1} mm");
+    assert!(
+        mean_length < all_length,
+        "lengths {mean_length:.1} mm, with the scale over all {all_length:.1} mm"
+    );
 }
 
 /// The chain-end bones (forearms, shins) with data beyond them: the 8-frame fit with the
@@ -165,7 +201,7 @@ fn ellipsoid_multi_frame_fit_with_end_sites_improves_lengths() {
         .unwrap();
         let (starts, obs) = scenario.starts_and_observations();
         let m = &scenario.model;
-        let fit = fit_ellipsoids_multi(m, &starts, &obs, &robust()).unwrap();
+        let fit = fit_ellipsoids_multi(m, &starts, &obs, &EllipsoidParams::default()).unwrap();
         let s: Vec<EllipsoidScores> = scenario
             .frames
             .iter()

@@ -5,17 +5,21 @@
 //! gross outliers, and 20 skin markers rendered, detected, triangulated and tracked by the
 //! studio's marker chain. The model: the limbs and the end sites (hands, feet, head; the
 //! scenario's default; `limbs_only_*`: the limb model, for comparison). The fit starts from
-//! the default proportions and a noisy pose (5° per rotation);
-//! it is run with IRLS (Tukey, the robust scale from the observations each round kept:
-//! `EllipsoidParams::scale_from_kept`) and without (the plain least squares the paper starts from,
-//! given the same Levenberg–Marquardt budget: `EllipsoidParams::without_irls`, one round of
-//! 6 × 4 = 24 iterations; the `no_irls_*` figures), on frames 0, 5, …, 35 of the fast motion together (shared lengths and widths, a pose
-//! per frame: the headline figures, per frame `frameK_*`, and their mean) and on each frame
-//! alone (`single_*`, `frameK_single_*`).
+//! the default proportions and a noisy pose (5° per rotation). It is run with IRLS (Tukey;
+//! the defaults: a type's robust scale from the observations the previous round kept once
+//! that round rejected ≥ 20 % of them, `EllipsoidParams::kept_scale_min_rejected`; per round
+//! the points' rejected fraction and choice in `irls_points_*`; `scale_all_*`: the scale over
+//! all observations in every round) and without (the plain least squares the paper starts
+//! from, given the same Levenberg–Marquardt budget: `EllipsoidParams::without_irls`, one
+//! round of 6 × 4 = 24 iterations; the `no_irls_*` figures), on frames 0, 5, …, 35 of the
+//! fast motion together (shared lengths and widths, a pose per frame: the headline figures,
+//! per frame `frameK_*`, and their mean) and on each frame alone (`single_*`,
+//! `frameK_single_*`).
 //!
 //! Also measured (`tracker_inputs_*`): the same fit from what the template tracker has —
 //! eight cameras' silhouettes and the visual hull's surface samples as attractors, no
-//! markers, no stereo points.
+//! markers, no stereo points (`tracker_inputs_irls_points_*`: the same choice of scale there;
+//! `tracker_inputs_scale_kept_*`: the scale from the kept observations in every round).
 //!
 //! Writes under `out/ellipsoid_fit/`: `ellipsoids.png` (the fitted ellipsoids over each
 //! camera's silhouette), `bones.png` (per bone: length error, and the inlier and outlier
@@ -38,8 +42,9 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::template::{
     ellipsoid_scenario, fit_ellipsoids, fit_ellipsoids_multi, score_ellipsoids, Ellipsoid,
-    EllipsoidObservations, EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores,
-    EllipsoidState, VisualHull, VisualHullParams,
+    EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations, EllipsoidParams,
+    EllipsoidScenarioParams, EllipsoidScores, EllipsoidState, ScenarioFrame, VisualHull,
+    VisualHullParams,
 };
 use example_kit::plot::{side_by_side, titled, Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -102,13 +107,35 @@ fn put(figures: &mut Map<String, Value>, prefix: &str, s: &EllipsoidScores) {
     );
 }
 
-/// The fit's parameters for stereo-like points with gross outliers: the defaults, the IRLS
-/// scale from the observations each round kept (`EllipsoidParams::scale_from_kept`).
-fn robust() -> EllipsoidParams {
-    EllipsoidParams {
-        scale_from_kept: true,
-        ..EllipsoidParams::default()
-    }
+/// The points' IRLS record (`EllipsoidParams::kept_scale_min_rejected`): per round the
+/// fraction the previous round rejected and whether the scale came from the kept ones.
+fn irls_figures(figures: &mut Map<String, Value>, prefix: &str, fit: &EllipsoidMultiFit) {
+    figures.insert(
+        format!("{prefix}irls_points_rejected_fraction"),
+        json!(fit.irls_rejected.iter().map(|r| r[0]).collect::<Vec<_>>()),
+    );
+    figures.insert(
+        format!("{prefix}irls_points_scale_from_kept"),
+        json!(fit
+            .irls_scale_from_kept
+            .iter()
+            .map(|k| k[0])
+            .collect::<Vec<_>>()),
+    );
+}
+
+/// Mean scores of fitted states against their frames' truth.
+fn scores_of(
+    model: &EllipsoidModel,
+    states: &[EllipsoidState],
+    frames: &[ScenarioFrame],
+) -> Result<EllipsoidScores, Box<dyn std::error::Error>> {
+    let s: Vec<EllipsoidScores> = states
+        .iter()
+        .zip(frames)
+        .map(|(s, f)| score_ellipsoids(model, s, &f.truth))
+        .collect::<Result<_, _>>()?;
+    Ok(mean_scores(&s))
 }
 
 fn mean_scores(s: &[EllipsoidScores]) -> EllipsoidScores {
@@ -158,13 +185,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (k, frame) in params.frames.iter().zip(&scenario.frames) {
         let stage = run.stage(&format!("frame {k} alone"), None);
         let t = Instant::now();
-        let fit = fit_ellipsoids(model, &frame.start, &frame.observations, &robust())?;
+        let fit = fit_ellipsoids(
+            model,
+            &frame.start,
+            &frame.observations,
+            &EllipsoidParams::default(),
+        )?;
         let fit_ms = t.elapsed().as_secs_f64() * 1e3;
         let plain = fit_ellipsoids(
             model,
             &frame.start,
             &frame.observations,
-            &robust().without_irls(),
+            &EllipsoidParams::default().without_irls(),
         )?;
         stage.finish(format!("{fit_ms:.0} ms"));
         let single = score_ellipsoids(model, &fit.state, &frame.truth)?;
@@ -188,10 +220,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let stage = run.stage("all frames together", None);
     let t = Instant::now();
     let cpu = cpu_time::ProcessTime::now();
-    let multi = fit_ellipsoids_multi(model, &starts, &obs, &robust())?;
+    let multi = fit_ellipsoids_multi(model, &starts, &obs, &EllipsoidParams::default())?;
     let multi_ms = t.elapsed().as_secs_f64() * 1e3;
     let multi_cpu_ms = cpu.elapsed().as_secs_f64() * 1e3;
-    let multi_plain = fit_ellipsoids_multi(model, &starts, &obs, &robust().without_irls())?;
+    let multi_plain = fit_ellipsoids_multi(
+        model,
+        &starts,
+        &obs,
+        &EllipsoidParams::default().without_irls(),
+    )?;
     stage.finish(format!("{multi_ms:.0} ms"));
     let (mut robust_all, mut plain_all) = (Vec::new(), Vec::new());
     for (i, (k, frame)) in params.frames.iter().zip(&scenario.frames).enumerate() {
@@ -208,6 +245,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     put(&mut figures, "", &mean_scores(&robust_all));
     put(&mut figures, "no_irls_", &mean_scores(&plain_all));
+    irls_figures(&mut figures, "", &multi);
+    // The robust scale over all observations in every round (the choice's alternative).
+    let scale_all = fit_ellipsoids_multi(
+        model,
+        &starts,
+        &obs,
+        &EllipsoidParams {
+            kept_scale_min_rejected: None,
+            ..EllipsoidParams::default()
+        },
+    )?;
+    put(
+        &mut figures,
+        "scale_all_",
+        &scores_of(model, &scale_all.states, &scenario.frames)?,
+    );
     put(&mut figures, "single_", &mean_scores(&single_all));
     put(
         &mut figures,
@@ -331,7 +384,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..params.clone()
     })?;
     let (limb_starts, limb_obs) = limbs.starts_and_observations();
-    let limb_fit = fit_ellipsoids_multi(&limbs.model, &limb_starts, &limb_obs, &robust())?;
+    let limb_fit = fit_ellipsoids_multi(
+        &limbs.model,
+        &limb_starts,
+        &limb_obs,
+        &EllipsoidParams::default(),
+    )?;
     let limb_scores: Vec<EllipsoidScores> = limb_fit
         .states
         .iter()
@@ -400,6 +458,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(s, f)| score_ellipsoids(hull_model, s, &f.truth))
         .collect::<Result<_, _>>()?;
     put(&mut figures, "tracker_inputs_", &mean_scores(&hull_scores));
+    irls_figures(&mut figures, "tracker_inputs_", &hull_fit);
+    // The scale from the kept observations in every round (the choice's alternative).
+    let hull_kept = fit_ellipsoids_multi(
+        hull_model,
+        &hull_starts,
+        &hull_obs,
+        &EllipsoidParams {
+            kept_scale_min_rejected: Some(0.0),
+            ..hull_params.clone()
+        },
+    )?;
+    put(
+        &mut figures,
+        "tracker_inputs_scale_kept_",
+        &scores_of(hull_model, &hull_kept.states, &hull_scenario.frames)?,
+    );
     figures.insert(
         "tracker_inputs_fit_ms_per_frame".into(),
         json!(hull_ms / params.frames.len() as f64),

@@ -48,8 +48,9 @@
 //! markers stay on their bone with the high weight of their small σ. IRLS: the first round
 //! weighs every observation equally (within its type); each later round gives
 //! Tukey's biweight `(1 − (r/c)²)²` (0 beyond `c`) of the residual normalised by a robust
-//! scale per type (`1.4826·median|e|`, with [`EllipsoidParams::scale_from_kept`] over the
-//! observations of that type the previous round kept, not below the type's σ), `c = 4.685` —
+//! scale per type (`1.4826·median|e|`, not below the type's σ; over every observation of
+//! the type, or over those the previous round kept when that round rejected a large
+//! fraction of them: [`EllipsoidParams::kept_scale_min_rejected`]), `c = 4.685` —
 //! the paper "weighs them inversely proportionally to their residuals"; Tukey's redescending weight
 //! is the variant we chose because it gives gross outliers exactly zero weight.
 //!
@@ -239,15 +240,29 @@ pub struct EllipsoidParams {
     pub scale_range: (f64, f64),
     /// Fewest observations (points, rays, markers) a bone must keep after the fit. Default 5.
     pub min_observations_per_bone: usize,
-    /// The robust scale of each IRLS round (§5.2) from the observations the previous round
-    /// kept (non-zero weight) instead of all of them. With 30 % gross outliers the median of
-    /// all `|e|` is the inliers' 71st percentile, 1.6× their scale, and the Tukey cut lets
-    /// ellipsoids hold points well outside them (measured on the studio, 8-frame fit with end
-    /// sites: mean length error 7.5 mm with, 14.4 mm without; the right hand's half-width
-    /// 29 vs 66 mm). Default false: on visual-hull samples, whose error is one-sided (the
-    /// hull's excess), the tighter scale drops the true surface's far side (measured,
-    /// `size_from_poses` on the tracked poses: widths 12.4 vs 8.9 mm).
-    pub scale_from_kept: bool,
+    /// When an IRLS round (§5.2) takes its robust scale from the observations the previous
+    /// round kept (non-zero weight) instead of from all of them, per observation type: when
+    /// the previous round rejected at least this fraction of the type's observations (`None`:
+    /// never; `Some(0.0)`: always). Default `Some(0.2)`.
+    ///
+    /// `1.4826·median|e|` over all residuals (the MAD scale of Beaton and Tukey 1974, cited by
+    /// §5.2) is inflated by the gross outliers: with a fraction ε of them beyond the inliers'
+    /// median and Gaussian inliers, by `Φ⁻¹(½ + ¼/(1 − ε)) / Φ⁻¹(¾)` — 1.06 at ε = 5 %, 1.13
+    /// at 10 %, 1.31 at 20 %, 1.58 at 30 % — and Tukey's cut then lets ellipsoids hold points
+    /// well outside the inliers. Over the kept observations the scale is the inliers' again;
+    /// without gross outliers the two agree (the cut at 4.685 scales rejects almost nothing of
+    /// a Gaussian). The rejected fraction measures ε. The threshold lies between the kinds
+    /// of data measured: stereo-like points with 30 % gross outliers (the `ellipsoid_fit`
+    /// scenario) lose 23–30 % per round after the first, visual-hull samples (a one-sided
+    /// error, the hull's excess; sizing, the tracker inputs) 0.5–9 %, silhouette rays and
+    /// markers 2–12 %. Measured on the `ellipsoid_fit` scenario (`--quick`, 8 frames): mean
+    /// length error 6.6 mm with this default, 11.7 with the scale over all observations in
+    /// every round. The kept scale on every type and round (`Some(0.0)`) fits the hull
+    /// samples no worse, but through the automatic initialisation it moves the template
+    /// tracker's poses, and the sizing from them then fails its width claim (13.9 mm against
+    /// the default proportions' 15.8; 9.0 with this default). Details in
+    /// docs/template-silhouette.md ("The IRLS scale").
+    pub kept_scale_min_rejected: Option<f64>,
 }
 
 impl Default for EllipsoidParams {
@@ -272,7 +287,7 @@ impl Default for EllipsoidParams {
             min_half_width_m: 0.005,
             scale_range: (0.8, 1.2),
             min_observations_per_bone: 5,
-            scale_from_kept: false,
+            kept_scale_min_rejected: Some(0.2),
         }
     }
 }
@@ -316,6 +331,9 @@ impl EllipsoidParams {
         check::positive("tukey_c", self.tukey_c)?;
         check::nonzero("lm_iterations", self.lm_iterations)?;
         check::positive("lm_tolerance", self.lm_tolerance)?;
+        if let Some(f) = self.kept_scale_min_rejected {
+            check::in_range("kept_scale_min_rejected", f, 0.0..=1.0)?;
+        }
         check::positive("min_half_width_m", self.min_half_width_m)?;
         check::positive("scale_range.0", self.scale_range.0)?;
         check::in_range(
@@ -338,6 +356,13 @@ pub struct EllipsoidFit {
     pub observations_per_bone: Vec<usize>,
     /// Points given zero weight by the last IRLS round.
     pub rejected_points: usize,
+    /// Per IRLS round that reweighted, for points, rays and markers: the fraction of the
+    /// type's observations the previous round rejected (0 in the first round; NaN for a
+    /// type without observations).
+    pub irls_rejected: Vec<[f64; 3]>,
+    /// Per IRLS round that reweighted, for points, rays and markers: whether the robust scale
+    /// came from the kept observations ([`EllipsoidParams::kept_scale_min_rejected`]).
+    pub irls_scale_from_kept: Vec<[bool; 3]>,
 }
 
 /// Evaluation of one attractor against one ellipsoid.
@@ -1130,6 +1155,10 @@ pub struct EllipsoidMultiFit {
     pub rejected_points: Vec<usize>,
     /// Per frame, per attractor point: the bone holding it at the end (`None`: zero weight).
     pub point_bones: Vec<Vec<Option<usize>>>,
+    /// As [`EllipsoidFit::irls_rejected`] (pooled over the frames).
+    pub irls_rejected: Vec<[f64; 3]>,
+    /// As [`EllipsoidFit::irls_scale_from_kept`].
+    pub irls_scale_from_kept: Vec<[bool; 3]>,
 }
 
 fn check_observations(
@@ -1189,6 +1218,8 @@ pub fn fit_ellipsoids(
         round_costs: multi.round_costs,
         observations_per_bone: multi.observations_per_bone,
         rejected_points: multi.rejected_points.iter().sum(),
+        irls_rejected: multi.irls_rejected,
+        irls_scale_from_kept: multi.irls_scale_from_kept,
     })
 }
 
@@ -1262,10 +1293,13 @@ pub fn fit_ellipsoids_multi(
         })
         .collect();
     let mut round_costs = Vec::new();
+    let (mut irls_rejected, mut irls_scale_from_kept) = (Vec::new(), Vec::new());
     for round in 0..params.irls_rounds {
         let residuals = problem.assign(&states)?;
         if params.irls_rounds > 1 {
-            reweight(&mut problem, &residuals);
+            let (rejected, from_kept) = reweight(&mut problem, &residuals);
+            irls_rejected.push(rejected);
+            irls_scale_from_kept.push(from_kept);
         }
         let pose_only =
             params.pose_only || (round < params.pose_only_rounds && round + 1 < params.irls_rounds);
@@ -1318,13 +1352,22 @@ pub fn fit_ellipsoids_multi(
         observations_per_bone,
         rejected_points,
         point_bones,
+        irls_rejected,
+        irls_scale_from_kept,
     })
 }
 
 /// IRLS weights (§5.2): Tukey's biweight of each residual over a robust scale of its type
-/// (pooled over the frames).
-fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
-    for kind in [Kind::Point, Kind::Ray, Kind::Marker] {
+/// (pooled over the frames). Returns, for points, rays and markers, the fraction of the
+/// type's observations the previous weights rejected (NaN without observations) and whether
+/// the scale came from the kept ones ([`EllipsoidParams::kept_scale_min_rejected`]).
+fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) -> ([f64; 3], [bool; 3]) {
+    let mut rejected = [f64::NAN; 3];
+    let mut from_kept = [false; 3];
+    for (t, kind) in [Kind::Point, Kind::Ray, Kind::Marker]
+        .into_iter()
+        .enumerate()
+    {
         let abs_of = |kept_only: bool| -> Vec<f64> {
             problem
                 .frames
@@ -1339,16 +1382,21 @@ fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
                 })
                 .collect()
         };
-        // With `scale_from_kept`, the scale of the observations the previous round kept (all
-        // of them in the first round): the median of all |e| with 30 % gross outliers is the
-        // 71st percentile of the inliers', 1.6× their scale.
-        let mut abs = abs_of(problem.params.scale_from_kept);
-        if abs.is_empty() {
-            abs = abs_of(false);
-        }
-        if abs.is_empty() {
+        let all = abs_of(false);
+        if all.is_empty() {
             continue;
         }
+        let kept = abs_of(true);
+        let fraction = 1.0 - kept.len() as f64 / all.len() as f64;
+        rejected[t] = fraction;
+        // The kept observations' scale once the previous round rejected a large fraction
+        // (gross outliers inflate the median of all |e|; see the parameter's docs).
+        from_kept[t] = !kept.is_empty()
+            && problem
+                .params
+                .kept_scale_min_rejected
+                .is_some_and(|min| fraction >= min);
+        let mut abs = if from_kept[t] { kept } else { all };
         abs.sort_by(f64::total_cmp);
         let median = abs[abs.len() / 2];
         let scale = (1.4826 * median).max(problem.sigma(kind));
@@ -1367,6 +1415,7 @@ fn reweight(problem: &mut Problem<'_>, residuals: &[Vec<(f64, usize)>]) {
             }
         }
     }
+    (rejected, from_kept)
 }
 
 /// The half-width of Eq. 3 that best fits `points` around bone `b` of `state` (its length

@@ -226,6 +226,54 @@ fn recovers_lengths_widths_and_pose_with_outliers_only_with_irls() {
         );
     }
     assert!(robust.rejected_points >= n_in * 3 / 7 / 2);
+    // 30 % gross outliers: after the first round the points' scale comes from the kept ones.
+    let points_kept: Vec<bool> = robust.irls_scale_from_kept.iter().map(|k| k[0]).collect();
+    assert_eq!(points_kept.len(), EllipsoidParams::default().irls_rounds);
+    assert!(
+        !points_kept[0] && points_kept[1..].iter().all(|k| *k),
+        "{points_kept:?}"
+    );
+}
+
+/// A one-sided error without gross outliers (every point pushed off its ellipsoid, away from
+/// the bone, by a half-normal distance, as visual-hull samples lie outside the body): the
+/// rounds reject far less than the threshold, so the scale stays over all points.
+#[test]
+fn a_one_sided_error_keeps_the_scale_over_all_points() {
+    let m = model();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let truth = posed(&m, &mut rng);
+    let ells = m.ellipsoids(&truth).unwrap();
+    let per = 150;
+    let mut pts = surface(&m, &truth, per, &mut rng);
+    for (i, p) in pts.iter_mut().enumerate() {
+        let e = &ells[i / per];
+        let radial = (*p - e.centre) - e.axis * (*p - e.centre).dot(e.axis);
+        // |N(0, 1 cm)| by Box–Muller.
+        let (u1, u2) = (
+            rng.random_range(1e-12f64..1.0),
+            rng.random_range(0.0..std::f64::consts::TAU),
+        );
+        let off = 0.01 * ((-2.0 * u1.ln()).sqrt() * u2.cos()).abs();
+        *p += radial.normalize_or_zero() * off;
+    }
+    let start = m.initial_state(&truth.theta, 0.05).unwrap();
+    let obs = EllipsoidObservations {
+        points: pts,
+        ..Default::default()
+    };
+    let fit = fit_ellipsoids(&m, &start, &obs, &EllipsoidParams::default()).unwrap();
+    let rejected: Vec<f64> = fit.irls_rejected.iter().map(|r| r[0]).collect();
+    let min = EllipsoidParams::default()
+        .kept_scale_min_rejected
+        .unwrap_or(1.0);
+    assert!(rejected.iter().all(|f| *f < min), "{rejected:?}");
+    assert!(fit.irls_scale_from_kept.iter().all(|k| !k[0]));
+    // Rays and markers absent: no record for them.
+    assert!(fit
+        .irls_rejected
+        .iter()
+        .all(|r| r[1].is_nan() && r[2].is_nan()));
 }
 
 #[test]
@@ -272,6 +320,17 @@ fn bad_input_is_reported() {
     for bad in [f64::NAN, 0.0, -1.0] {
         let q = EllipsoidParams {
             sigma_translation_prior_m: Some(bad),
+            ..EllipsoidParams::default()
+        };
+        let r = fit_ellipsoids(&m, &truth, &empty, &q);
+        assert!(
+            r.is_err() && !matches!(r, Err(Error::Empty { .. })),
+            "{r:?}"
+        );
+    }
+    for bad in [f64::NAN, -0.1, 1.5] {
+        let q = EllipsoidParams {
+            kept_scale_min_rejected: Some(bad),
             ..EllipsoidParams::default()
         };
         // The parameter is refused before the (empty) observations are looked at.
