@@ -1,6 +1,7 @@
 //! multilinear-face (Vlasic 2010 Ch. 5) end to end on data sets generated from the real ICT
-//! face basis: decomposition, Eq. 5.5, dial tuning, imputation against the averaging baseline,
-//! correspondence against Procrustes alone, and bad input.
+//! face basis: decomposition, Eq. 5.5, dial tuning, imputation against the averaging baseline
+//! (the thesis's PPCA, and the default that chooses its model by cross-validation),
+//! correspondence against Procrustes alone, and bad input (including the face-data reader).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use dynamic_shapes::core::math::DVec3;
@@ -11,8 +12,9 @@ use dynamic_shapes::face::validation::{
     FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
-    fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
-    Dials, Error, FaceTensor, ImputeParams, KnownFaces, ModelParams, MultilinearModel, TrackParams,
+    fit_template, impute, impute_by_averaging, impute_ppca, mean_weights, track_points,
+    CorrespondenceParams, Dials, Error, FaceTensor, ImputeModel, ImputeParams, KnownFaces,
+    ModelParams, MultilinearModel, PpcaParams, TrackParams,
 };
 use nalgebra::DVector;
 
@@ -66,11 +68,12 @@ fn face_decomposition_and_dials() {
 
 #[test]
 fn face_imputation_beats_averaging() {
+    // The thesis's PPCA (§5.3.4) as written.
     let basis = basis();
     let tri = trilinear_face_set(&basis, &FaceSetParams::default().with_identities(16)).unwrap();
     for (fraction, goal) in [(0.15, Some(0.05)), (0.5, None)] {
         let known = hold_out(tri.faces.attribute_sizes(), fraction, 7).unwrap();
-        let ours = impute(&tri.faces, &known, &ImputeParams::default()).unwrap();
+        let ours = impute_ppca(&tri.faces, &known, &PpcaParams::default()).unwrap();
         let avg = impute_by_averaging(&tri.faces, &known).unwrap();
         let (e_ours, e_avg) = (
             impute_rel_error(&tri.faces, &ours.faces, &known).unwrap(),
@@ -90,7 +93,7 @@ fn face_imputation_beats_averaging() {
     // Bilinear set, 15 %: under the goal and far below the baseline.
     let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
     let known = hold_out(bi.faces.attribute_sizes(), 0.15, 7).unwrap();
-    let ours = impute(&bi.faces, &known, &ImputeParams::default()).unwrap();
+    let ours = impute_ppca(&bi.faces, &known, &PpcaParams::default()).unwrap();
     let avg = impute_by_averaging(&bi.faces, &known).unwrap();
     let e_ours = impute_rel_error(&bi.faces, &ours.faces, &known).unwrap();
     let e_avg = impute_rel_error(&bi.faces, &avg, &known).unwrap();
@@ -103,6 +106,95 @@ fn face_imputation_beats_averaging() {
     let known = hold_out(ict.faces.attribute_sizes(), 0.15, 7).unwrap();
     let avg = impute_by_averaging(&ict.faces, &known).unwrap();
     assert!(impute_rel_error(&ict.faces, &avg, &known).unwrap() < 1e-9);
+}
+
+/// The imputation error of a fill and of the averaging baseline on the held-out faces.
+fn errors(faces: &FaceTensor, known: &KnownFaces, filled: &FaceTensor) -> (f64, f64) {
+    let avg = impute_by_averaging(faces, known).unwrap();
+    (
+        impute_rel_error(faces, filled, known).unwrap(),
+        impute_rel_error(faces, &avg, known).unwrap(),
+    )
+}
+
+#[test]
+fn face_imputation_chooses_its_model() {
+    // The ICT shapes add (expression + identity): averaging fills them exactly, the thesis's
+    // PPCA does not (both modes are full rank), and the default, choosing by
+    // cross-validation on the known faces, fills them as averaging does.
+    let basis = basis();
+    let ict = ict_face_set(&basis).unwrap();
+    let known = hold_out(ict.faces.attribute_sizes(), 0.15, 7).unwrap();
+    let thesis = impute_ppca(&ict.faces, &known, &PpcaParams::default()).unwrap();
+    let (e_thesis, e_avg) = errors(&ict.faces, &known, &thesis.faces);
+    assert!(
+        e_avg < 1e-9 && e_thesis > 0.05,
+        "thesis {e_thesis} vs averaging {e_avg}"
+    );
+    let chosen = impute(&ict.faces, &known, &ImputeParams::default()).unwrap();
+    let (e_chosen, _) = errors(&ict.faces, &known, &chosen.faces);
+    assert_eq!(chosen.model, ImputeModel::Averaging, "{chosen:?}");
+    assert!(e_chosen < 1e-9, "default {e_chosen}");
+    assert!(chosen.validated_faces > 0 && chosen.validation_errors[0] < 1e-6);
+
+    // The trilinear set has an identity-dependent interaction of low identity rank: the
+    // multilinear model wins clearly, and the default takes it (averaging alone fails this).
+    let tri = trilinear_face_set(&basis, &FaceSetParams::default().with_identities(16)).unwrap();
+    let known = hold_out(tri.faces.attribute_sizes(), 0.15, 7).unwrap();
+    let chosen = impute(&tri.faces, &known, &ImputeParams::default()).unwrap();
+    let (e_chosen, e_avg) = errors(&tri.faces, &known, &chosen.faces);
+    assert!(
+        e_chosen <= 0.05 && e_chosen < 0.2 * e_avg,
+        "default {e_chosen} vs averaging {e_avg}"
+    );
+    assert!(matches!(chosen.model, ImputeModel::Ppca(_)), "{chosen:?}");
+    let f = known.known()[0];
+    assert_eq!(chosen.faces.face(f).unwrap(), tri.faces.face(f).unwrap());
+}
+
+#[test]
+fn face_imputation_rank_argument() {
+    // Half the faces held out of the bilinear set (10 expressions, 500 farthest-point
+    // vertices). PPCA constrains a missing value only while a mode's rank is below the known
+    // values of its mode vectors: the generator's identity rank is 11, so 16 people (≈ 8
+    // known per vector) leave the missing faces nearly free and 32 (≈ 16) pin them down;
+    // with as many identity modes as people (full rank) nothing does, and the thesis's PPCA
+    // falls behind averaging while the default does not.
+    let basis = basis();
+    let sub = feature_vertices(basis.neutral(), 500).unwrap();
+    let run = |people: usize, modes: usize| {
+        let params = FaceSetParams::default()
+            .with_identities(people)
+            .with_identity_modes(modes);
+        let faces = bilinear_face_set(&basis, &params)
+            .unwrap()
+            .faces
+            .vertex_subset(&sub)
+            .unwrap();
+        let known = hold_out(faces.attribute_sizes(), 0.5, 7).unwrap();
+        let thesis = impute_ppca(&faces, &known, &PpcaParams::default()).unwrap();
+        let chosen = impute(&faces, &known, &ImputeParams::default()).unwrap();
+        let (e_thesis, e_avg) = errors(&faces, &known, &thesis.faces);
+        let (e_chosen, _) = errors(&faces, &known, &chosen.faces);
+        (faces, e_thesis, e_chosen, e_avg)
+    };
+    let (_, e16, _, _) = run(16, 10);
+    let (_, e32, c32, a32) = run(32, 10);
+    assert!(
+        e32 < 0.25 * e16 && e32 < 0.2 * a32 && c32 < 0.2 * a32,
+        "rank 11: 16 people {e16}, 32 people {e32} (default {c32}, averaging {a32})"
+    );
+    let (full, e_full, c_full, a_full) = run(32, 31);
+    assert!(
+        e_full > a_full && c_full <= a_full * (1.0 + 1e-9),
+        "full rank: thesis {e_full}, default {c_full}, averaging {a_full}"
+    );
+    // The generator's identity rank: full with 31 modes for 32 people, 11 with the basis's 10.
+    let fit = |f: &FaceTensor, r: usize| {
+        let p = ModelParams::new(&[10, r]).with_refine(None);
+        MultilinearModel::fit(f, &p).unwrap().1.hosvd_rel_error
+    };
+    assert!(fit(&full, 31) > 1e-4 && fit(&full, 32) < 1e-9);
 }
 
 #[test]
@@ -121,10 +213,10 @@ fn face_correspondence_to_a_remeshed_scan() {
     )
     .unwrap();
     assert!(scan.vertices.len() > 3 * truth.len());
-    let features = feature_vertices(&basis.neutral, 42).unwrap();
+    let features = feature_vertices(basis.neutral(), 42).unwrap();
     let marked: Vec<DVec3> = features.iter().map(|&f| truth[f]).collect();
     let fit = fit_template(
-        &basis.neutral,
+        basis.neutral(),
         &features,
         &scan,
         &marked,
@@ -149,7 +241,7 @@ fn face_correspondence_to_a_remeshed_scan() {
     let mut bad = features.clone();
     bad[0] = 1_000_000;
     assert!(fit_template(
-        &basis.neutral,
+        basis.neutral(),
         &bad,
         &scan,
         &marked,
@@ -184,14 +276,167 @@ fn face_bad_input() {
     let (m, _) = MultilinearModel::fit(&t, &ModelParams::new(&[2, 3])).unwrap();
     let nan = vec![DVector::from_element(2, f64::NAN), DVector::zeros(3)];
     assert!(m.face(&nan).is_err());
-    // Imputation: a mask of another shape, PPCA ranks above a mode.
+    // Imputation: a mask of another shape, PPCA ranks above a mode (alone or as a candidate),
+    // no candidate, a fold fraction of 1.
     let known = KnownFaces::new(&[3, 2], vec![true; 6]).unwrap();
     assert!(impute(&t, &known, &ImputeParams::default()).is_err());
+    assert!(impute_ppca(&t, &known, &PpcaParams::default()).is_err());
     let known = KnownFaces::new(&[2, 3], vec![true, true, true, false, true, true]).unwrap();
-    assert!(impute(&t, &known, &ImputeParams::default().with_ranks(&[3, 1])).is_err());
+    let bad_ranks = PpcaParams::default().with_ranks(&[3, 1]);
+    assert!(impute_ppca(&t, &known, &bad_ranks).is_err());
+    let p = ImputeParams::default().with_candidates(vec![ImputeModel::Ppca(bad_ranks)]);
+    assert!(matches!(
+        impute(&t, &known, &p).unwrap_err(),
+        Error::InvalidParam { .. }
+    ));
+    let p = ImputeParams::default().with_candidates(Vec::new());
+    assert!(matches!(
+        impute(&t, &known, &p).unwrap_err(),
+        Error::Empty { .. }
+    ));
+    let p = ImputeParams {
+        fold_fraction: 1.0,
+        ..ImputeParams::default()
+    };
+    assert!(impute(&t, &known, &p).is_err());
     // Generator and data errors.
     assert!(hold_out(&[2, 3], 1.0, 0).is_err());
-    assert!(IctBasis::read("/nonexistent/ict-face").is_err());
+}
+
+/// A scratch copy of part of the ICT folder: the neutral face, the named identities and
+/// blendshapes (removed when dropped).
+struct ScratchIct(std::path::PathBuf);
+
+impl ScratchIct {
+    fn new(tag: &str, identities: &[&str], blendshapes: &[&str]) -> Self {
+        let src = example_kit::data_path("ict-face").unwrap();
+        let dir = std::env::temp_dir().join(format!("ict-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        for sub in ["identity", "expression"] {
+            std::fs::create_dir_all(dir.join(sub)).unwrap();
+        }
+        std::fs::copy(src.join("neutral_face.obj"), dir.join("neutral_face.obj")).unwrap();
+        for (sub, names) in [("identity", identities), ("expression", blendshapes)] {
+            for n in names {
+                let name = format!("{n}.obj");
+                std::fs::copy(src.join(sub).join(&name), dir.join(sub).join(&name)).unwrap();
+            }
+        }
+        ScratchIct(dir)
+    }
+
+    fn write(&self, sub: &str, name: &str, text: &str) {
+        std::fs::write(self.0.join(sub).join(format!("{name}.obj")), text).unwrap();
+    }
+}
+
+impl Drop for ScratchIct {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+#[test]
+fn face_data_reader_bad_input() {
+    use dynamic_shapes::face::validation::ICT_BLENDSHAPES;
+    use dynamic_shapes::face::Context;
+    // The shipped folder: every shape it holds, blendshapes in file-name order.
+    let full = basis();
+    assert_eq!(full.identity_modes().len(), 10);
+    assert_eq!(full.blendshape_names(), ICT_BLENDSHAPES);
+    // A folder with 3 identities and 12 blendshapes (no smile, no jaw): read as it is; the
+    // ICT set takes its counts from it (13 × 4, no panic); the generated sets need the
+    // blendshapes their recipes name and say which one is missing.
+    let ids = ["identity000", "identity003", "identity007"];
+    let exs: Vec<&str> = ICT_BLENDSHAPES
+        .iter()
+        .copied()
+        .filter(|n| !["mouthSmile_L", "mouthSmile_R", "jawLeft", "jawOpen"].contains(n))
+        .collect();
+    let dir = ScratchIct::new("twelve", &ids, &exs);
+    let part = IctBasis::read(&dir.0).unwrap();
+    assert_eq!(part.identity_names(), ids);
+    assert_eq!(part.blendshapes().len(), 12);
+    let ict = ict_face_set(&part).unwrap();
+    assert_eq!(ict.faces.attribute_sizes(), &[13, 4]);
+    assert_eq!(ict.labels[0].shape(), (13, 12));
+    assert_eq!(ict.value_names[1][2], "identity003");
+    for set in [
+        bilinear_face_set(&part, &FaceSetParams::default()),
+        trilinear_face_set(&part, &FaceSetParams::default()),
+    ] {
+        let e = set.unwrap_err();
+        assert!(
+            matches!(&e, Error::UnknownName { name, .. } if name.starts_with("mouthSmile") || name.starts_with("jaw")),
+            "{e}"
+        );
+    }
+    // Names from the caller: in the caller's order; a missing file says which.
+    let named =
+        IctBasis::read_named(&dir.0, &["identity007"], &["eyeBlink_R", "browDown_L"]).unwrap();
+    assert_eq!(named.blendshape_names(), ["eyeBlink_R", "browDown_L"]);
+    let e = IctBasis::read_named(&dir.0, &["identity007"], &["browDown_L", "jawOpen"]).unwrap_err();
+    assert!(
+        matches!(
+            e.root(),
+            Error::Core(dynamic_shapes::core::Error::Io { .. })
+        ),
+        "{e}"
+    );
+    assert_eq!(e.contexts(), vec![Context::Frame(2)]);
+    let e =
+        IctBasis::read_named(&dir.0, &["identity007", "identity007"], &["browDown_L"]).unwrap_err();
+    assert!(matches!(e.root(), Error::InvalidParam { .. }), "{e}");
+    // No identity, or no blendshape.
+    let e = IctBasis::read_named(&dir.0, &[] as &[&str], &["browDown_L"]).unwrap_err();
+    assert!(matches!(e, Error::Empty { .. }), "{e}");
+    let empty = ScratchIct::new("empty", &ids, &[]);
+    assert!(matches!(
+        IctBasis::read(&empty.0).unwrap_err(),
+        Error::Empty { .. }
+    ));
+    // A shape with another vertex count, a malformed OBJ, a NaN coordinate: typed, located.
+    let bad = ScratchIct::new("bad", &ids, &exs[..2]);
+    bad.write(
+        "expression",
+        "zz_short",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    let e = IctBasis::read(&bad.0).unwrap_err();
+    assert!(matches!(e.root(), Error::SizeMismatch { .. }), "{e}");
+    assert_eq!(e.contexts(), vec![Context::Frame(5)]);
+    bad.write("expression", "zz_short", "v 0 0 zero\n");
+    let e = IctBasis::read(&bad.0).unwrap_err();
+    assert!(
+        matches!(
+            e.root(),
+            Error::Core(dynamic_shapes::core::Error::Parse { .. })
+        ),
+        "{e}"
+    );
+    bad.write("identity", "identity003", "v nan 0 0\n");
+    let e = IctBasis::read(&bad.0).unwrap_err();
+    assert!(
+        matches!(
+            e.root(),
+            Error::Core(dynamic_shapes::core::Error::Parse { .. })
+        ),
+        "{e}"
+    );
+    assert_eq!(e.contexts(), vec![Context::Frame(1)]);
+    // No folder at all, no neutral face.
+    assert!(matches!(
+        IctBasis::read("/nonexistent/ict-face").unwrap_err(),
+        Error::Core(_)
+    ));
+    std::fs::remove_file(bad.0.join("neutral_face.obj")).unwrap();
+    assert!(matches!(
+        IctBasis::read(&bad.0).unwrap_err(),
+        Error::Core(_)
+    ));
+    // Zero identity modes for the generator.
+    let p = FaceSetParams::default().with_identity_modes(0);
+    assert!(bilinear_face_set(&full, &p).is_err());
 }
 
 /// The tracking set-up: the ICT basis, the bilinear set and its 6 × 9 model, a person the
@@ -205,7 +450,7 @@ fn tracking_setup() -> (IctBasis, FaceSet, MultilinearModel, FaceSet, Vec<usize>
         &FaceSetParams::default().with_identities(1).with_seed(99),
     )
     .unwrap();
-    let tracked = feature_vertices(&basis.neutral, 1000).unwrap();
+    let tracked = feature_vertices(basis.neutral(), 1000).unwrap();
     (basis, bi, model, novel, tracked)
 }
 
@@ -275,14 +520,14 @@ fn face_tracking_from_video() {
     // A person the model never saw, 20 rendered 640 × 480 frames (neutral → smile → surprise
     // → neutral with head motion), 1,000 tracked vertices, 12 feature points (1 px noise).
     let (basis, bi, model, novel, tracked) = tracking_setup();
-    let features = feature_vertices(&basis.neutral, 12).unwrap();
+    let features = feature_vertices(basis.neutral(), 12).unwrap();
     let n = 20;
     let video = render_face_video(
         &novel.faces,
         &[0, 1, 3, 0],
         n,
         &bi.triangles,
-        &basis.neutral.vertices,
+        &basis.neutral().vertices,
         &features,
         &FaceVideoParams::default(),
     )

@@ -6,9 +6,15 @@
 //!   16 people) at 4 × 4 × 16, HOSVD then HOOI; the ICT shapes themselves (17 expressions ×
 //!   11 identities) as a bilinear model, where the additivity of the ICT basis shows.
 //! * Dial tuning (§5.4) and faces from attribute weights (Eq. 5.5): `model_faces.png`.
-//! * Missing data (§5.3.4): 15 % and 50 % of the faces held out, PPCA imputation against the
-//!   averaging baseline (`impute_rel_error_15`, `_50`); the tensors and masks are written as
-//!   `.npy` under `tensorly/` for `masked_tucker_face.py` (TensorLy, run by hand).
+//! * Missing data (§5.3.4): 15 % and 50 % of the faces held out (full run: 10–50 %), the
+//!   default imputation (model chosen by cross-validation on the known faces) against the
+//!   thesis's PPCA alone and the averaging baseline (`impute_rel_error_15`, `_50`,
+//!   `thesis_…`, `averaging_…`); the ICT shapes (additive); 50 % held out of trilinear sets
+//!   with 16 people and identity rank 11 and full (full run: 16, 32, 64 people, rank 6, 11,
+//!   full, three hold-out seeds: `impute_rel_error_50_by_identities`,
+//!   `imputation_by_identities.png`); the tensors, masks and the averaging fills (our start)
+//!   are written as `.npy` under `tensorly/` for `masked_tucker_face.py` (TensorLy, run by
+//!   hand). See `imputation.rs`.
 //! * Correspondence (§5.3.2): the generic ICT face fitted to a re-meshed noisy copy of a known
 //!   face (`correspondence_rms_mm`).
 //!
@@ -17,7 +23,7 @@
 //!   geometry-only transfer of the tracked expression onto two training people.
 //!
 //! Writes under `out/face_transfer/`: `decomposition.png`, `imputation.png`,
-//! `imputed_faces.png`, `model_faces.png`, `correspondence.png`, `tracking.png`,
+//! `imputation_by_identities.png`, `imputed_faces.png`, `model_faces.png`, `correspondence.png`, `tracking.png`,
 //! `transfer.png`, `figures.json`,
 //! `manifest.json`; the last stdout line is one JSON object.
 //!
@@ -26,8 +32,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![recursion_limit = "256"]
 
-use std::io::Write;
-use std::path::Path;
 use std::time::Instant;
 
 use clap::Parser;
@@ -43,43 +47,19 @@ use dynamic_shapes::face::validation::{
     FaceSetParams, IctBasis,
 };
 use dynamic_shapes::face::{
-    fit_template, impute, impute_by_averaging, mean_weights, track_points, CorrespondenceParams,
-    Dials, FaceTensor, ImputeParams, KnownFaces, ModelParams, MultilinearModel, TrackParams,
+    fit_template, impute, impute_ppca, mean_weights, track_points, CorrespondenceParams, Dials,
+    FaceTensor, ImputeParams, ModelParams, MultilinearModel, PpcaParams, TrackParams,
 };
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
 
+mod imputation;
 mod video;
 
 /// Data units (ICT: ≈ cm) to mm.
 pub(crate) const MM: f64 = 10.0;
-/// Top of the imputation error colour scale, mm.
-const IMPUTE_MAX_MM: f64 = 3.0;
 /// Top of the correspondence error colour scale, mm.
 const CORR_MAX_MM: f64 = 5.0;
-
-/// Writes a float64 C-order `.npy` file.
-fn write_npy(path: &Path, shape: &[usize], data: &[f64]) -> std::io::Result<()> {
-    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let tuple = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {tuple}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    f.write_all(b"\x93NUMPY\x01\x00")?;
-    f.write_all(&(header.len() as u16).to_le_bytes())?;
-    f.write_all(header.as_bytes())?;
-    for x in data {
-        f.write_all(&x.to_le_bytes())?;
-    }
-    f.flush()
-}
 
 fn mesh(set: &FaceSet, v: Vec<DVec3>) -> TriMesh {
     TriMesh::new(v, set.triangles.clone()).unwrap()
@@ -129,38 +109,6 @@ fn interaction_energy(t: &FaceTensor) -> f64 {
     (num / den).sqrt()
 }
 
-struct ImputeRow {
-    fraction: f64,
-    ours: f64,
-    averaging: f64,
-    iterations: usize,
-    ms: f64,
-}
-
-fn impute_run(
-    set: &FaceSet,
-    fraction: f64,
-    seed: u64,
-) -> (ImputeRow, KnownFaces, FaceTensor, FaceTensor) {
-    let known = hold_out(set.faces.attribute_sizes(), fraction, seed).unwrap();
-    let t0 = Instant::now();
-    let ours = impute(&set.faces, &known, &ImputeParams::default()).unwrap();
-    let ms = 1e3 * t0.elapsed().as_secs_f64();
-    let avg = impute_by_averaging(&set.faces, &known).unwrap();
-    (
-        ImputeRow {
-            fraction,
-            ours: impute_rel_error(&set.faces, &ours.faces, &known).unwrap(),
-            averaging: impute_rel_error(&set.faces, &avg, &known).unwrap(),
-            iterations: ours.iterations,
-            ms,
-        },
-        known,
-        ours.faces,
-        avg,
-    )
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = example_kit::cli::Args::parse();
     let quick = args.common.quick;
@@ -180,7 +128,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ict = ict_face_set(&basis)?;
     stage.finish(format!(
         "{} vertices; interaction {:.3} (bilinear), {:.3} (trilinear)",
-        basis.neutral.vertices.len(),
+        basis.neutral().vertices.len(),
         bi.interaction_fraction,
         tri.interaction_fraction
     ));
@@ -275,7 +223,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut fine_figures = json!(null);
     if !quick {
         let mean_edge = {
-            let m = &basis.neutral;
+            let m = basis.neutral();
             let (mut sum, mut n) = (0.0, 0usize);
             for f in &m.faces {
                 for k in 0..3 {
@@ -286,8 +234,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sum / n as f64
         };
         let refinement = Refinement::new(
-            &basis.neutral,
-            &vec![true; basis.neutral.faces.len()],
+            basis.neutral(),
+            &vec![true; basis.neutral().faces.len()],
             &RefineParams::new(mean_edge),
         )?;
         let fine_run = |set: &FaceTensor,
@@ -304,12 +252,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let fine_imp = impute(&fine, &fine_known, &ImputeParams::default())?;
             let fine_impute_ms = 1e3 * t0.elapsed().as_secs_f64();
             let fine_impute_err = impute_rel_error(&fine, &fine_imp.faces, &fine_known)?;
+            let t0 = Instant::now();
+            let thesis = impute_ppca(&fine, &fine_known, &PpcaParams::default())?;
+            let thesis_ms = 1e3 * t0.elapsed().as_secs_f64();
             Ok(json!({
                 "vertices": fine.vertex_count(),
                 "tucker_ms": fine_fit.time_ms,
                 "hooi_rel_error": fine_fit.hooi_rel_error,
                 "impute_ms_15": fine_impute_ms,
                 "impute_rel_error_15": fine_impute_err,
+                "thesis_impute_ms_15": thesis_ms,
+                "thesis_impute_rel_error_15": impute_rel_error(&fine, &thesis.faces, &fine_known)?,
             }))
         };
         fine_figures = json!({
@@ -330,8 +283,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ("browDown_L", 0.4),
         ],
     );
-    let w_disgust = dials.weights(&IctBasis::weights(&disgust_recipe)?)?;
-    let w_smile_half = dials.weights(&IctBasis::weights(&(
+    let w_disgust = dials.weights(&basis.weights(&disgust_recipe)?)?;
+    let w_smile_half = dials.weights(&basis.weights(&(
         "half smile",
         &[("mouthSmile_L", 0.5), ("mouthSmile_R", 0.5)],
     ))?)?;
@@ -373,212 +326,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     stage.finish(format!("dial fit residual {:.2e}", dials.residual()));
 
     // --- Missing data.
-    let stage = run.stage("imputation", None);
-    let fractions: Vec<f64> = if quick {
-        vec![0.15, 0.5]
-    } else {
-        vec![0.1, 0.15, 0.2, 0.3, 0.4, 0.5]
-    };
-    let tensorly_dir = run.path("tensorly");
-    std::fs::create_dir_all(&tensorly_dir)?;
-    write_npy(
-        &tensorly_dir.join("trilinear.npy"),
-        tri.faces.tensor().shape(),
-        tri.faces.tensor().data(),
-    )?;
-    write_npy(
-        &tensorly_dir.join("bilinear.npy"),
-        bi.faces.tensor().shape(),
-        bi.faces.tensor().data(),
-    )?;
-    let mut tri_rows = Vec::new();
-    let mut shown = None;
-    for &p in &fractions {
-        let (row, known, ours, avg) = impute_run(&tri, p, 7);
-        let flags: Vec<f64> = (0..tri.faces.face_count())
-            .map(|f| if known.is_known(f) { 1.0 } else { 0.0 })
-            .collect();
-        write_npy(
-            &tensorly_dir.join(format!("trilinear_known_{:02}.npy", (100.0 * p).round())),
-            tri.faces.attribute_sizes(),
-            &flags,
-        )?;
-        if (p - 0.15).abs() < 1e-9 {
-            shown = Some((known, ours, avg));
-        }
-        tri_rows.push(row);
-    }
-    let mut bi_rows = Vec::new();
-    for &p in &[0.15, 0.5] {
-        let (row, known, _, _) = impute_run(&bi, p, 7);
-        let flags: Vec<f64> = (0..bi.faces.face_count())
-            .map(|f| if known.is_known(f) { 1.0 } else { 0.0 })
-            .collect();
-        write_npy(
-            &tensorly_dir.join(format!("bilinear_known_{:02}.npy", (100.0 * p).round())),
-            bi.faces.attribute_sizes(),
-            &flags,
-        )?;
-        bi_rows.push(row);
-    }
-    // A 500-vertex subsample of the trilinear set (farthest-point vertices) for TensorLy,
-    // whose masked Tucker takes ≈ 35 s per sweep on the full tensor here; ours and the
-    // baseline on the same subsample.
-    let sub_vertices = feature_vertices(&basis.neutral, 500)?;
-    let sub_faces: Vec<Vec<DVec3>> = (0..tri.faces.face_count())
-        .map(|f| {
-            let face = tri.faces.face(f).unwrap();
-            sub_vertices.iter().map(|&v| face[v]).collect()
-        })
-        .collect();
-    let sub = FaceSet {
-        faces: FaceTensor::from_faces(tri.faces.attribute_sizes(), &sub_faces)?,
-        ..tri.clone()
-    };
-    write_npy(
-        &tensorly_dir.join("trilinear_sub500.npy"),
-        sub.faces.tensor().shape(),
-        sub.faces.tensor().data(),
-    )?;
-    let mut sub_rows = Vec::new();
-    for &p in &[0.15, 0.5] {
-        let (row, known, _, _) = impute_run(&sub, p, 7);
-        let flags: Vec<f64> = (0..sub.faces.face_count())
-            .map(|f| if known.is_known(f) { 1.0 } else { 0.0 })
-            .collect();
-        write_npy(
-            &tensorly_dir.join(format!(
-                "trilinear_sub500_known_{:02}.npy",
-                (100.0 * p).round()
-            )),
-            sub.faces.attribute_sizes(),
-            &flags,
-        )?;
-        sub_rows.push(row);
-    }
-    // The ICT shapes: additive, so the averaging baseline is exact there.
-    let (ict_row, _, _, _) = impute_run(&ict, 0.15, 7);
-    let pct = |rows: &[ImputeRow], f: fn(&ImputeRow) -> f64| -> Vec<(f64, f64)> {
-        rows.iter()
-            .map(|r| (100.0 * r.fraction, 100.0 * f(r)))
-            .collect()
-    };
-    let chart = Chart::new(
-        "Imputation of held-out faces (trilinear set, 5 × 5 × 16)",
-        "faces held out (%)",
-        "‖error‖ / ‖held-out faces − mean face‖ (%)",
-    )
-    .with(Series::new(
-        "PPCA, all modes jointly (ours)",
-        [40, 90, 200],
-        Style::LineMarkers,
-        pct(&tri_rows, |r| r.ours),
-    ))
-    .with(Series::new(
-        "averaging baseline",
-        [220, 120, 40],
-        Style::LineMarkers,
-        pct(&tri_rows, |r| r.averaging),
-    ))
-    .with(Series::new(
-        "ours, bilinear set",
-        [40, 90, 200],
-        Style::Dashed,
-        pct(&bi_rows, |r| r.ours),
-    ))
-    .with(Series::new(
-        "averaging, bilinear set",
-        [220, 120, 40],
-        Style::Dashed,
-        pct(&bi_rows, |r| r.averaging),
-    ))
-    .with(Series::new(
-        "goals (15 %: 5 %, 50 %: 9 %)",
-        [230, 30, 30],
-        Style::Markers,
-        vec![(15.0, 5.0), (50.0, 9.0)],
-    ));
-    run.save_picture(
-        "imputation.png",
-        &chart.draw()?,
-        "Relative error of the imputed faces vs the fraction held out: our PPCA imputation and \
-         the averaging baseline, trilinear (solid) and bilinear (dashed) sets; red: the goals",
-    )?;
-    // Figure 5-6: a few held-out faces, ours / truth / averaging, coloured by error.
-    if let Some((known, ours, avg)) = &shown {
-        let picks: Vec<usize> = known.missing().into_iter().step_by(12).take(4).collect();
-        let mut rows = Vec::new();
-        for which in 0..3 {
-            let mut ms = Vec::new();
-            let mut cs = Vec::new();
-            for &f in &picks {
-                let truth = tri.faces.face(f)?;
-                let est = match which {
-                    0 => ours.face(f)?,
-                    1 => truth.clone(),
-                    _ => avg.face(f)?,
-                };
-                cs.push(colours(&est, &truth, IMPUTE_MAX_MM));
-                ms.push(mesh(&tri, est));
-            }
-            let panels: Vec<PreviewPanel> = ms
-                .iter()
-                .zip(&cs)
-                .map(|(m, c)| PreviewPanel {
-                    mesh: m,
-                    paint: if which == 1 {
-                        Paint::Flat([200, 200, 200])
-                    } else {
-                        Paint::PerVertex(c)
-                    },
-                })
-                .collect();
-            rows.push(preview(&panels, 260)?);
-        }
-        let img = example_kit::plot::label_rows(
-            &example_kit::plot::stacked(&rows)?,
-            &["ours (PPCA)", "truth", "averaging"],
-            130,
-        )?;
-        let ramp = |x: f64| error_colour(Some(x * IMPUTE_MAX_MM), IMPUTE_MAX_MM);
-        let img = example_kit::plot::with_colour_bar(
-            &img,
-            &ColourBar {
-                label: "distance to the true vertex (mm)",
-                min: 0.0,
-                max: IMPUTE_MAX_MM,
-                ramp: &ramp,
-                note: Some("top: ≥ 3 mm"),
-            },
-        )?;
-        let names: Vec<String> = picks
-            .iter()
-            .map(|&f| {
-                let a = [f / 80, (f / 16) % 5, f % 16];
-                format!(
-                    "{} / {} / p{}",
-                    tri.value_names[0][a[0]], tri.value_names[1][a[1]], a[2]
-                )
-            })
-            .collect();
-        let img = example_kit::plot::titled(
-            &img,
-            "Held-out faces, 15 % missing (like Vlasic 2010 Figure 5-6)",
-            Some(&format!("columns: {}", names.join("; "))),
-        )?;
-        run.save_picture(
-            "imputed_faces.png",
-            &img,
-            "Four held-out faces of the trilinear set (15 % missing): our imputation, the truth, \
-             the averaging baseline, coloured by the distance to the true vertex (mm)",
-        )?;
-    }
-    let row15 = tri_rows.iter().find(|r| (r.fraction - 0.15).abs() < 1e-9);
-    stage.finish(format!(
-        "trilinear 15 %: ours {:.4} averaging {:.4}",
-        row15.map_or(f64::NAN, |r| r.ours),
-        row15.map_or(f64::NAN, |r| r.averaging)
-    ));
+    let impute_figures = imputation::imputation(&mut run, &basis, [&tri, &bi, &ict], quick)?;
 
     // --- Correspondence.
     let stage = run.stage("correspondence", None);
@@ -586,7 +334,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let truth = bi.faces.face(f_truth)?;
     let truth_mesh = mesh(&bi, truth.clone());
     let scan = remeshed_scan(&truth_mesh, 0.1, 0.01, 3)?;
-    let features = feature_vertices(&basis.neutral, 42)?;
+    let features = feature_vertices(basis.neutral(), 42)?;
     // The marked points: true positions with 0.5 mm marking noise (deterministic jitter).
     let marked: Vec<DVec3> = features
         .iter()
@@ -598,7 +346,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let t0 = Instant::now();
     let fit = fit_template(
-        &basis.neutral,
+        basis.neutral(),
         &features,
         &scan,
         &marked,
@@ -668,7 +416,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &basis,
         &FaceSetParams::default().with_identities(1).with_seed(99),
     )?;
-    let tracked = feature_vertices(&basis.neutral, 1000)?;
+    let tracked = feature_vertices(basis.neutral(), 1000)?;
     let order = [0, 1, 3, 5, 2, 7, 4, 9, 6, 8, 0];
     let frame_count = if quick { 60 } else { 120 };
     let seq = point_track_sequence(&novel.faces, &order, &tracked, frame_count, 0.5, 5)?;
@@ -789,14 +537,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ] {
         run.headline(h);
     }
-    let at = |rows: &[ImputeRow], p: f64, f: fn(&ImputeRow) -> f64| {
-        rows.iter()
-            .find(|r| (r.fraction - p).abs() < 1e-9)
-            .map(f)
-            .unwrap_or(f64::NAN)
-    };
     let mut figures = json!({
-        "vertices": basis.neutral.vertices.len(),
+        "vertices": basis.neutral().vertices.len(),
         "interaction_fraction": bi.interaction_fraction,
         "interaction_fraction_trilinear": tri.interaction_fraction,
         "interaction_energy_bilinear": bi_interaction,
@@ -813,27 +555,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "ict_full_rank_rel_error": ict_full.hooi_rel_error,
         "dial_fit_residual": dials.residual(),
         "subdivided": fine_figures,
-        "impute_rel_error_15": at(&tri_rows, 0.15, |r| r.ours),
-        "impute_rel_error_50": at(&tri_rows, 0.5, |r| r.ours),
-        "averaging_impute_rel_error_15": at(&tri_rows, 0.15, |r| r.averaging),
-        "averaging_impute_rel_error_50": at(&tri_rows, 0.5, |r| r.averaging),
-        "impute_iterations_15": at(&tri_rows, 0.15, |r| r.iterations as f64),
-        "impute_iterations_50": at(&tri_rows, 0.5, |r| r.iterations as f64),
-        "impute_ms_15": at(&tri_rows, 0.15, |r| r.ms),
-        "impute_ms_50": at(&tri_rows, 0.5, |r| r.ms),
-        "bilinear_impute_rel_error_15": bi_rows[0].ours,
-        "bilinear_impute_rel_error_50": bi_rows[1].ours,
-        "bilinear_averaging_impute_rel_error_15": bi_rows[0].averaging,
-        "bilinear_averaging_impute_rel_error_50": bi_rows[1].averaging,
-        "ict_impute_rel_error_15": ict_row.ours,
-        "sub500_impute_rel_error_15": sub_rows[0].ours,
-        "sub500_impute_rel_error_50": sub_rows[1].ours,
-        "sub500_averaging_impute_rel_error_15": sub_rows[0].averaging,
-        "sub500_averaging_impute_rel_error_50": sub_rows[1].averaging,
-        "ict_averaging_impute_rel_error_15": ict_row.averaging,
-        "imputation_sweep": tri_rows.iter().map(|r| json!({
-            "fraction": r.fraction, "ours": r.ours, "averaging": r.averaging,
-            "iterations": r.iterations, "ms": r.ms})).collect::<Vec<_>>(),
         "decomposition_sweep": sweep,
         "correspondence_rms_mm": corr_rms,
         "correspondence_procrustes_rms_mm": procrustes_rms,
@@ -850,10 +571,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "points_track_points": tracked.len(),
         "points_track_reprojection_rms_px": avg(&track.reprojection_rms_px),
     });
-    // The video figures at the top level (the issue's names).
-    if let (Some(f), Some(v)) = (figures.as_object_mut(), video_figures.as_object()) {
-        for (k, x) in v {
-            f.insert(k.clone(), x.clone());
+    // The imputation and video figures at the top level (the issues' names).
+    for extra in [&impute_figures, &video_figures] {
+        if let (Some(f), Some(v)) = (figures.as_object_mut(), extra.as_object()) {
+            for (k, x) in v {
+                f.insert(k.clone(), x.clone());
+            }
         }
     }
     run.finish(figures)?;

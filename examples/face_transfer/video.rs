@@ -135,14 +135,14 @@ pub(crate) fn trilinear_video(
         .iter()
         .map(|&(v, e)| person.faces.face_index(&[v, e, 0]))
         .collect::<Result<_, _>>()?;
-    let tracked = feature_vertices(&basis.neutral, 1000)?;
-    let features = feature_vertices(&basis.neutral, 12)?;
+    let tracked = feature_vertices(basis.neutral(), 1000)?;
+    let features = feature_vertices(basis.neutral(), 12)?;
     let video = render_face_video(
         &person.faces,
         &order,
         frame_count,
         triangles,
-        &basis.neutral.vertices,
+        &basis.neutral().vertices,
         &features,
         &FaceVideoParams::default(),
     )?;
@@ -195,8 +195,8 @@ pub(crate) fn video_tracking(
     quick: bool,
 ) -> Res<Value> {
     let frame_count = if quick { 24 } else { 60 };
-    let tracked = feature_vertices(&basis.neutral, 1000)?;
-    let features = feature_vertices(&basis.neutral, 12)?;
+    let tracked = feature_vertices(basis.neutral(), 1000)?;
+    let features = feature_vertices(basis.neutral(), 12)?;
     let person = |seed| {
         bilinear_face_set(
             basis,
@@ -211,7 +211,7 @@ pub(crate) fn video_tracking(
             order,
             frame_count,
             &bi.triangles,
-            &basis.neutral.vertices,
+            &basis.neutral().vertices,
             &features,
             fp,
         )

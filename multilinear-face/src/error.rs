@@ -14,4 +14,15 @@ skin_core::method_error!("multilinear-face", Context, {
         /// The threshold ([`crate::VideoTrackParams::min_tracked_fraction`]).
         min: f64,
     },
+    /// A name the data does not hold: a blendshape that an attribute recipe uses and the
+    /// face basis lacks.
+    #[error("{what} {name:?} (used by {used_by:?}) is not in the basis")]
+    UnknownName {
+        /// What kind of name (e.g. "blendshape").
+        what: &'static str,
+        /// The name looked for.
+        name: String,
+        /// What needed it (e.g. the recipe's name).
+        used_by: &'static str,
+    },
 });

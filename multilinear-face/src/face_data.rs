@@ -151,6 +151,33 @@ impl FaceTensor {
             .collect())
     }
 
+    /// The same faces restricted to the given vertices (in that order), e.g. a farthest-point
+    /// subsample for a cheaper experiment.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for no vertex; [`Error::IndexOutOfRange`] for a vertex past
+    /// [`FaceTensor::vertex_count`].
+    pub fn vertex_subset(&self, vertices: &[usize]) -> Result<FaceTensor> {
+        if vertices.is_empty() {
+            return Err(Error::Empty {
+                what: "vertex subset",
+            });
+        }
+        let k = self.face_count();
+        let d = self.tensor.data();
+        let mut data = Vec::with_capacity(3 * vertices.len() * k);
+        for &v in vertices {
+            skin_core::check::index("vertex", v, self.vertex_count)?;
+            data.extend_from_slice(&d[3 * v * k..3 * (v + 1) * k]);
+        }
+        let mut shape = vec![3 * vertices.len()];
+        shape.extend_from_slice(self.attribute_sizes());
+        Ok(FaceTensor {
+            vertex_count: vertices.len(),
+            tensor: Tensor::new(shape, data)?,
+        })
+    }
+
     /// The mean of the given faces (flat indices), as a `3V` vector.
     pub(crate) fn mean_of(&self, faces: &[usize]) -> Vec<f64> {
         let k = self.face_count();
@@ -267,6 +294,19 @@ mod tests {
             assert_eq!(&t.face(f).unwrap(), want);
         }
         assert_eq!(unflatten(&[2, 3], 5), vec![1, 2]);
+    }
+
+    #[test]
+    fn a_vertex_subset_keeps_those_vertices() {
+        let faces: Vec<_> = (0..6).map(|f| face(4, f as f64)).collect();
+        let t = FaceTensor::from_faces(&[2, 3], &faces).unwrap();
+        let sub = t.vertex_subset(&[3, 1]).unwrap();
+        assert_eq!(sub.tensor().shape(), &[6, 2, 3]);
+        for (f, want) in faces.iter().enumerate() {
+            assert_eq!(sub.face(f).unwrap(), vec![want[3], want[1]]);
+        }
+        assert!(matches!(t.vertex_subset(&[]), Err(Error::Empty { .. })));
+        assert!(t.vertex_subset(&[4]).is_err());
     }
 
     #[test]

@@ -16,7 +16,7 @@
 //! | --- | --- | --- | --- |
 //! | `correspondence.rs` | Procrustes from feature points, then the minimal deformation (smoothness, features, closest points; features weighted first) | [`fit_template`], [`CorrespondenceParams`] (the alignment: `skin_core::math::fit_similarity`) | §5.3.2 |
 //! | `face_data.rs` | the data tensor (vertices × attributes) and which faces are known | [`FaceTensor`], [`KnownFaces`] | Figure 5-3, §5.3.4 |
-//! | `impute.rs` | per-mode PPCA, constraints of all modes solved jointly, iterated (EM); the averaging baseline | [`impute`], [`impute_by_averaging`], [`ImputeParams`] | §5.3.4 |
+//! | `impute/` | the thesis's per-mode PPCA, constraints of all modes solved jointly, iterated (EM) (`ppca.rs`); the averaging baseline (`averaging.rs`); the default that chooses between them by cross-validation on the known faces (`model_choice.rs`, ours); fills as affine maps of the known faces, scored from their moments (`moments.rs`); block SPD inverse (`spd.rs`) | [`impute`], [`ImputeParams`], [`impute_ppca`], [`PpcaParams`], [`impute_by_averaging`] | §5.3.4 |
 //! | `model.rs` | the multilinear model, faces from weights, the linear basis of one attribute, dial tuning | [`MultilinearModel`], [`ModelParams`], [`Dials`] | §5.3.3, Eq. 5.4, 5.5, 5.9, §5.4 |
 //! | `klt.rs` (private) | symmetric pyramidal KLT per point: `Z d = e` with both images' mean gradient, forward–backward check | used by [`track_video`] | §5.4.1, Eq. 5.6 |
 //! | `tracking.rs` | weak-perspective camera, coordinate descent over attributes through 2D point tracks, constant attributes accumulated over all frames, passes | [`track_points`], [`WeakPerspective`], [`TrackParams`] | §5.4.1, Eq. 5.7–5.9 |
@@ -79,7 +79,10 @@ mod video;
 pub use correspondence::{fit_template, CorrespondenceParams, TemplateFit};
 pub use error::{Context, Error, Result, ResultExt};
 pub use face_data::{FaceTensor, KnownFaces};
-pub use impute::{impute, impute_by_averaging, Imputation, ImputeParams};
+pub use impute::{
+    impute, impute_by_averaging, impute_ppca, Imputation, ImputeModel, ImputeParams,
+    PpcaImputation, PpcaParams,
+};
 pub use model::{Dials, ModelFit, ModelParams, MultilinearModel};
 pub use tracking::{mean_weights, track_points, PointTrack, TrackParams, WeakPerspective};
 pub use transfer::{lift_texture, render_textured, FaceTexture};

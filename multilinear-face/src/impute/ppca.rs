@@ -1,18 +1,20 @@
-//! Missing data (§5.3.4): per-mode PPCA on the incomplete matrices of mode vectors, the linear
-//! constraints of all modes combined through the shared missing values and solved jointly in
-//! the least-squares sense, iterated; and the averaging baseline (Blanz et al. generalised:
-//! copy the mean displacement of the identities that have the face).
+//! The thesis's imputation (§5.3.4) as written: per-mode PPCA on the incomplete matrices of
+//! mode vectors, the linear constraints of all modes combined through the shared missing
+//! values and solved jointly in the least-squares sense, iterated.
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use skin_core::tensor::Tensor;
-
+use super::averaging::{averaging_fill, check_shapes};
+use super::moments::{AffineFill, CentredKnown, Moments};
+use super::spd::spd_inverse;
 use crate::face_data::{unflatten, FaceTensor, KnownFaces};
+#[cfg(doc)]
+use crate::impute_by_averaging;
 use crate::{Error, Result};
 
-/// Parameters of [`impute`]. The thesis gives no constants for its PPCA; these are ours.
+/// Parameters of [`impute_ppca`]. The thesis gives no constants for its PPCA; these are ours.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ImputeParams {
+pub struct PpcaParams {
     /// PPCA latent dimension per attribute mode; `None`: the smallest that keeps
     /// `energy` of the mode vectors' variance (at most `dₙ − 1`).
     pub ranks: Option<Vec<usize>>,
@@ -29,9 +31,9 @@ pub struct ImputeParams {
     pub em_covariance: bool,
 }
 
-impl Default for ImputeParams {
+impl Default for PpcaParams {
     fn default() -> Self {
-        ImputeParams {
+        PpcaParams {
             ranks: None,
             energy: 0.9999,
             max_iterations: 200,
@@ -41,7 +43,7 @@ impl Default for ImputeParams {
     }
 }
 
-impl ImputeParams {
+impl PpcaParams {
     /// Fixed PPCA latent dimensions per attribute mode.
     pub fn with_ranks(mut self, ranks: &[usize]) -> Self {
         self.ranks = Some(ranks.to_vec());
@@ -49,9 +51,9 @@ impl ImputeParams {
     }
 }
 
-/// The result of [`impute`].
+/// The result of [`impute_ppca`].
 #[derive(Clone, Debug, PartialEq)]
-pub struct Imputation {
+pub struct PpcaImputation {
     /// The completed data tensor (known faces unchanged).
     pub faces: FaceTensor,
     /// Iterations run.
@@ -62,71 +64,6 @@ pub struct Imputation {
     pub converged: bool,
     /// PPCA latent dimension used per attribute mode (last iteration).
     pub ranks: Vec<usize>,
-}
-
-fn check_shapes(faces: &FaceTensor, known: &KnownFaces) -> Result<()> {
-    if faces.attribute_sizes() != known.attribute_sizes() {
-        return Err(Error::SizeMismatch {
-            what: "known-face flags (attribute sizes)",
-            expected: faces.face_count(),
-            got: known.attribute_sizes().iter().product(),
-        });
-    }
-    Ok(())
-}
-
-/// The averaging baseline (Figure 5-6, "a simple averaging scheme"; Blanz et al.'s copy of
-/// one person's displacement, generalised to the mean over every identity that has both
-/// faces): a missing face `(c, i)` (`c` the non-identity attributes, `i` the identity, the
-/// last mode) is `x(c', i) + mean_{i'} [x(c, i') − x(c', i')]` averaged over the known
-/// reference faces `c'` of `i`, with `i'` over the identities that have both `c` and `c'`.
-///
-/// # Errors
-/// [`Error::SizeMismatch`] if `known` is for another shape; [`Error::Empty`] if a missing face
-/// has no usable reference (no identity has both it and one of the person's known faces).
-pub fn impute_by_averaging(faces: &FaceTensor, known: &KnownFaces) -> Result<FaceTensor> {
-    check_shapes(faces, known)?;
-    let sizes = faces.attribute_sizes();
-    let d_id = sizes[sizes.len() - 1];
-    let d_c = faces.face_count() / d_id;
-    let k = faces.face_count();
-    let mut data = faces.tensor().data().to_vec();
-    let src = faces.tensor().data();
-    for f in known.missing() {
-        let (c, i) = (f / d_id, f % d_id);
-        // (reference c', identities i' with both c and c').
-        let mut pairs: Vec<(usize, Vec<usize>)> = Vec::new();
-        for cp in 0..d_c {
-            if cp == c || !known.is_known(cp * d_id + i) {
-                continue;
-            }
-            let others: Vec<usize> = (0..d_id)
-                .filter(|&ip| known.is_known(c * d_id + ip) && known.is_known(cp * d_id + ip))
-                .collect();
-            if !others.is_empty() {
-                pairs.push((cp, others));
-            }
-        }
-        if pairs.is_empty() {
-            return Err(Error::Empty {
-                what: "reference faces for the averaging baseline",
-            });
-        }
-        let np = pairs.len() as f64;
-        for (r, row) in src.chunks_exact(k).enumerate() {
-            let mut acc = 0.0;
-            for (cp, others) in &pairs {
-                let disp: f64 = others
-                    .iter()
-                    .map(|&ip| row[c * d_id + ip] - row[cp * d_id + ip])
-                    .sum::<f64>()
-                    / others.len() as f64;
-                acc += row[cp * d_id + i] + disp;
-            }
-            data[r * k + f] = acc / np;
-        }
-    }
-    FaceTensor::from_tensor(Tensor::new(faces.tensor().shape().to_vec(), data)?)
 }
 
 /// PPCA of the mode vectors: the precision `C⁻¹` of `C = W Wᵀ + σ² I` and the mean.
@@ -213,100 +150,154 @@ fn mode_groups(sizes: &[usize], mode: usize) -> Vec<Vec<usize>> {
         .collect()
 }
 
-/// Imputes the missing faces (§5.3.4). With the known faces' mean subtracted, each slice of
-/// the data along the vertex mode (one coordinate of all faces, `Π dₙ` values) contributes,
-/// for every attribute mode `n`, its mode-`n` vectors `v` to `Σₙ Σ_v (v − μₙ)ᵀ Cₙ⁻¹ (v − μₙ)`,
-/// the negative log-likelihood under the geometric average of the per-mode PPCA Gaussians
-/// (the thesis's probabilistic interpretation). Its minimiser over the missing values is the
-/// joint least-squares solution of all modes' PPCA constraints: `H x_m = c_m − Q_mo x_o` with
-/// one `m × m` matrix `H` shared by all slices (faces are missing whole). Starts from
-/// [`impute_by_averaging`]; each iteration re-fits every mode's PPCA to the completed data and
-/// re-solves.
+impl PpcaParams {
+    /// Checks the parameters against the attribute sizes.
+    pub(super) fn check(&self, sizes: &[usize]) -> Result<()> {
+        if let Some(r) = &self.ranks {
+            skin_core::check::same_size(
+                "PPCA ranks (one per attribute mode)",
+                sizes.len(),
+                r.len(),
+            )?;
+            for (&q, &d) in r.iter().zip(sizes) {
+                if q == 0 || q > d {
+                    return Err(Error::InvalidParam {
+                        name: "ranks",
+                        reason: format!(
+                            "a PPCA rank must be in 1..={d} (its mode's size), got {q}"
+                        ),
+                    });
+                }
+            }
+        }
+        if !(self.energy > 0.0 && self.energy <= 1.0) {
+            return Err(Error::InvalidParam {
+                name: "energy",
+                reason: format!("must be in (0, 1], got {}", self.energy),
+            });
+        }
+        skin_core::check::non_negative("tolerance", self.tolerance)?;
+        Ok(())
+    }
+}
+
+/// How an iteration of [`ppca_fill`] ended.
+pub(super) struct PpcaRun {
+    pub(super) iterations: usize,
+    pub(super) changes: Vec<f64>,
+    pub(super) converged: bool,
+    pub(super) ranks: Vec<usize>,
+}
+
+/// Where a face sits in the joint solve: its row among the missing faces or its column among
+/// the known ones.
+#[derive(Clone, Copy)]
+enum Slot {
+    Missing(usize),
+    Known(usize),
+}
+
+/// The iteration of [`impute_ppca`] on the known faces' moments (`moments` of
+/// `known.known()`, centred by their mean face; the parameters checked by the caller): the
+/// fill `x_m = a + B y_o` and how the iteration ended.
 ///
 /// # Errors
-/// [`Error::SizeMismatch`] if `known` is for another shape or `params.ranks` has the wrong
-/// length; [`Error::InvalidParam`] for a rank of 0 or above its mode, or an energy outside
-/// `(0, 1]`; [`Error::Empty`] as [`impute_by_averaging`].
-pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> Result<Imputation> {
-    check_shapes(faces, known)?;
-    let sizes = faces.attribute_sizes().to_vec();
-    if let Some(r) = &params.ranks {
-        skin_core::check::same_size("PPCA ranks (one per attribute mode)", sizes.len(), r.len())?;
-        for (&q, &d) in r.iter().zip(&sizes) {
-            if q == 0 || q > d {
-                return Err(Error::InvalidParam {
-                    name: "ranks",
-                    reason: format!("a PPCA rank must be in 1..={d} (its mode's size), got {q}"),
-                });
-            }
-        }
-    }
-    if !(params.energy > 0.0 && params.energy <= 1.0) {
-        return Err(Error::InvalidParam {
-            name: "energy",
-            reason: format!("must be in (0, 1], got {}", params.energy),
-        });
-    }
-    skin_core::check::non_negative("tolerance", params.tolerance)?;
-    let start = impute_by_averaging(faces, known)?;
+/// [`Error::Empty`] as [`impute_by_averaging`] (the start); [`Error::InvalidParam`] if the
+/// constraints leave a missing face undetermined.
+pub(super) fn ppca_fill(
+    known: &KnownFaces,
+    moments: &Moments,
+    params: &PpcaParams,
+) -> Result<(AffineFill, PpcaRun)> {
+    let sizes = known.attribute_sizes().to_vec();
     let missing = known.missing();
     let observed = known.known();
-    let k = faces.face_count();
-    let rows = faces.tensor().shape()[0];
-    let nr = rows as f64;
-    let mean_face = faces.mean_of(&observed);
-    let centred = |t: &Tensor, keep_missing: bool| -> Result<Tensor> {
-        let mut d = t.data().to_vec();
-        for (r, row) in d.chunks_exact_mut(k).enumerate() {
-            for (f, x) in row.iter_mut().enumerate() {
-                *x = if keep_missing || known.is_known(f) {
-                    *x - mean_face[r]
-                } else {
-                    0.0
-                };
-            }
-        }
-        Ok(Tensor::new(vec![rows, k], d)?)
-    };
+    let k: usize = sizes.iter().product();
+    let (nm, no) = (missing.len(), observed.len());
     let mut ranks = vec![0; sizes.len()];
+    let start = averaging_fill(known)?;
     if missing.is_empty() {
-        return Ok(Imputation {
-            faces: faces.clone(),
+        let run = PpcaRun {
             iterations: 0,
             changes: Vec::new(),
             converged: true,
             ranks,
-        });
+        };
+        return Ok((start, run));
     }
-    // Every missing slice value is affine in the known ones, x_m = a + B x_o (the joint
-    // solve below), so the moments E[y], E[y yᵀ] over the 3V slices follow from the known
-    // faces' moments alone: each iteration costs O(K³), independent of the vertex count.
-    let y0 = centred(faces.tensor(), false)?;
-    let g_full = y0.gram(1)? / nr;
-    let col_mean = |t: &Tensor| -> DVector<f64> {
-        let mut m = DVector::zeros(k);
-        for row in t.data().chunks_exact(k) {
-            for (f, x) in row.iter().enumerate() {
-                m[f] += x / nr;
-            }
+    let mut slot = vec![Slot::Known(0); k];
+    for (i, &f) in missing.iter().enumerate() {
+        slot[f] = Slot::Missing(i);
+    }
+    for (j, &f) in observed.iter().enumerate() {
+        slot[f] = Slot::Known(j);
+    }
+    let (g, xbar) = (&moments.gram, &moments.mean);
+    let groups: Vec<Vec<Vec<usize>>> = (0..sizes.len()).map(|n| mode_groups(&sizes, n)).collect();
+    // The second moments PPCA reads: pairs of faces in one mode vector with a missing first.
+    let mut pairs: Vec<(usize, usize)> = groups
+        .iter()
+        .flatten()
+        .flat_map(|grp| {
+            grp.iter()
+                .flat_map(move |&fa| grp.iter().map(move |&fb| (fa, fb)))
+                .filter(|&(fa, _)| matches!(slot[fa], Slot::Missing(_)))
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    // Moments E[y], E[y yᵀ] over the slices: the known block from the data, the missing
+    // blocks from x_m = a + B x_o (+ the posterior covariance H⁻¹ in the EM form). Every
+    // missing value is affine in the known ones, so these follow from the known faces'
+    // moments alone: each iteration costs O(K³), independent of the vertex count.
+    let mut m = DVector::zeros(k);
+    let mut s = DMatrix::zeros(k, k);
+    for (j, &fj) in observed.iter().enumerate() {
+        m[fj] = xbar[j];
+        for (l, &fl) in observed.iter().enumerate() {
+            s[(fj, fl)] = g[(j, l)];
         }
-        m
+    }
+    let set_moments = |m: &mut DVector<f64>,
+                       s: &mut DMatrix<f64>,
+                       fill: &AffineFill,
+                       bg: &DMatrix<f64>,
+                       posterior: Option<&DMatrix<f64>>| {
+        let bx = &fill.b * xbar;
+        // Columns are contiguous: the rows of B G and B as columns.
+        let (bg_t, b_t) = (bg.transpose(), fill.b.transpose());
+        for (i, &fi) in missing.iter().enumerate() {
+            m[fi] = fill.a[i] + bx[i];
+        }
+        for &(fa, fb) in &pairs {
+            let Slot::Missing(i) = slot[fa] else {
+                continue;
+            };
+            let v = match slot[fb] {
+                Slot::Known(j) => fill.a[i] * xbar[j] + bg[(i, j)],
+                Slot::Missing(l) => {
+                    fill.a[i] * fill.a[l]
+                        + fill.a[i] * bx[l]
+                        + bx[i] * fill.a[l]
+                        + bg_t.column(i).dot(&b_t.column(l))
+                        + posterior.map_or(0.0, |p| p[(i, l)])
+                }
+            };
+            s[(fa, fb)] = v;
+            s[(fb, fa)] = v;
+        }
     };
-    let m0 = col_mean(&y0);
-    let g = DMatrix::from_fn(observed.len(), observed.len(), |i, j| {
-        g_full[(observed[i], observed[j])]
-    });
-    let xbar = DVector::from_fn(observed.len(), |i, _| m0[observed[i]]);
-    // Moments of the averaging baseline's completion start the iteration.
-    let ys = centred(start.tensor(), true)?;
-    let mut s = ys.gram(1)? / nr;
-    let mut m = col_mean(&ys);
-    let mut a = DVector::zeros(missing.len());
-    let mut b = DMatrix::zeros(missing.len(), observed.len());
+    // The averaging baseline's completion starts the iteration.
+    let mut bg = &start.b * g;
+    set_moments(&mut m, &mut s, &start, &bg, None);
+    let mut fill = AffineFill {
+        a: DVector::zeros(nm),
+        b: DMatrix::zeros(nm, no),
+    };
+    bg.fill(0.0);
     let mut changes = Vec::new();
     let mut converged = false;
     let mut iterations = 0;
-    let groups: Vec<Vec<Vec<usize>>> = (0..sizes.len()).map(|n| mode_groups(&sizes, n)).collect();
     for it in 0..params.max_iterations {
         iterations += 1;
         let mut q = DMatrix::zeros(k, k);
@@ -332,84 +323,90 @@ pub fn impute(faces: &FaceTensor, known: &KnownFaces, params: &ImputeParams) -> 
             }
         }
         // Minimiser of Σₙ Σ_v (v − μₙ)ᵀ Cₙ⁻¹ (v − μₙ) over x_m: H x_m = c_m − Q_mo x_o.
-        let h = DMatrix::from_fn(missing.len(), missing.len(), |i, j| {
-            q[(missing[i], missing[j])]
-        });
-        let q_mo = DMatrix::from_fn(missing.len(), observed.len(), |i, j| {
-            q[(missing[i], observed[j])]
-        });
-        let c_m = DVector::from_fn(missing.len(), |i, _| lin[missing[i]]);
-        let ch = h.cholesky().ok_or(Error::InvalidParam {
+        let h = DMatrix::from_fn(nm, nm, |i, j| q[(missing[i], missing[j])]);
+        let q_mo = DMatrix::from_fn(nm, no, |i, j| q[(missing[i], observed[j])]);
+        let c_m = DVector::from_fn(nm, |i, _| lin[missing[i]]);
+        let h_inv = spd_inverse(&h).ok_or(Error::InvalidParam {
             name: "known faces",
             reason: "the PPCA constraints leave a missing face undetermined".into(),
         })?;
-        let a_new = ch.solve(&c_m);
-        let b_new = -ch.solve(&q_mo);
-        // RMS change of the imputed values over all slices, from the moments.
-        let (da, db) = (&a_new - &a, &b_new - &b);
-        let sq = |a: &DVector<f64>, b: &DMatrix<f64>| -> f64 {
-            a.dot(a) + 2.0 * a.dot(&(b * &xbar)) + (b * &g).component_mul(b).sum()
+        let b_new: DMatrix<f64> = &h_inv * q_mo;
+        let new = AffineFill {
+            a: &h_inv * c_m,
+            b: -b_new,
         };
-        let change = (sq(&da, &db).max(0.0) / sq(&a_new, &b_new).max(f64::MIN_POSITIVE)).sqrt();
-        a = a_new;
-        b = b_new;
-        // New moments: observed block fixed, missing blocks from x_m = a + B x_o, plus the
-        // posterior covariance H⁻¹ in the missing block (EM).
-        let bx = &b * &xbar;
-        let m_m = &a + &bx;
-        let s_mo = &a * xbar.transpose() + &b * &g;
-        let mut s_mm = &a * a.transpose()
-            + &a * bx.transpose()
-            + &bx * a.transpose()
-            + &b * &g * b.transpose();
-        if params.em_covariance {
-            s_mm += ch.inverse();
-        }
-        for (i, &fi) in missing.iter().enumerate() {
-            m[fi] = m_m[i];
-            for (j, &fj) in observed.iter().enumerate() {
-                s[(fi, fj)] = s_mo[(i, j)];
-                s[(fj, fi)] = s_mo[(i, j)];
-            }
-            for (j, &fj) in missing.iter().enumerate() {
-                s[(fi, fj)] = s_mm[(i, j)];
-            }
-        }
+        let bg_new = &new.b * g;
+        // RMS change of the imputed values over all slices, from the moments:
+        // Σ (Δa + ΔB y)² = Δa·Δa + 2 Δa·(ΔB ȳ) + tr(ΔB G ΔBᵀ).
+        let sq = |a: &DVector<f64>, b: &DMatrix<f64>, bg: &DMatrix<f64>| -> f64 {
+            a.dot(a) + 2.0 * a.dot(&(b * xbar)) + bg.component_mul(b).sum()
+        };
+        let (da, db) = (&new.a - &fill.a, &new.b - &fill.b);
+        let change = (sq(&da, &db, &(&bg_new - &bg)).max(0.0)
+            / sq(&new.a, &new.b, &bg_new).max(f64::MIN_POSITIVE))
+        .sqrt();
+        fill = new;
+        bg = bg_new;
+        set_moments(
+            &mut m,
+            &mut s,
+            &fill,
+            &bg,
+            params.em_covariance.then_some(&h_inv),
+        );
         changes.push(change);
         if it > 0 && change < params.tolerance {
             converged = true;
             break;
         }
     }
-    // x_m = a + B x_o for every slice: one mode-1 product of the known data.
-    let mut p = DMatrix::zeros(k, k);
-    for &f in &observed {
-        p[(f, f)] = 1.0;
-    }
-    for (i, &fi) in missing.iter().enumerate() {
-        for (j, &fj) in observed.iter().enumerate() {
-            p[(fi, fj)] = b[(i, j)];
-        }
-    }
-    let filled = y0.mode_product(1, &p)?;
-    let mut data = faces.tensor().data().to_vec();
-    for (r, row) in filled.data().chunks_exact(k).enumerate() {
-        for (i, &f) in missing.iter().enumerate() {
-            data[r * k + f] = row[f] + a[i] + mean_face[r];
-        }
-    }
-    Ok(Imputation {
-        faces: FaceTensor::from_tensor(Tensor::new(faces.tensor().shape().to_vec(), data)?)?,
+    let run = PpcaRun {
         iterations,
         changes,
         converged,
         ranks,
+    };
+    Ok((fill, run))
+}
+
+/// Imputes the missing faces as the thesis does (§5.3.4). With the known faces' mean
+/// subtracted, each slice of the data along the vertex mode (one coordinate of all faces,
+/// `Π dₙ` values) contributes, for every attribute mode `n`, its mode-`n` vectors `v` to
+/// `Σₙ Σ_v (v − μₙ)ᵀ Cₙ⁻¹ (v − μₙ)`, the negative log-likelihood under the geometric average of
+/// the per-mode PPCA Gaussians (the thesis's probabilistic interpretation). Its minimiser over
+/// the missing values is the joint least-squares solution of all modes' PPCA constraints:
+/// `H x_m = c_m − Q_mo x_o` with one `m × m` matrix `H` shared by all slices (faces are
+/// missing whole). Starts from [`impute_by_averaging`]; each iteration re-fits every mode's
+/// PPCA to the completed data (EM: with the posterior covariance `H⁻¹`) and re-solves.
+///
+/// [`crate::impute`] chooses between this and the averaging baseline by cross-validation.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if `known` is for another shape or `params.ranks` has the wrong
+/// length; [`Error::InvalidParam`] for a rank of 0 or above its mode, or an energy outside
+/// `(0, 1]`; [`Error::Empty`] as [`impute_by_averaging`].
+pub fn impute_ppca(
+    faces: &FaceTensor,
+    known: &KnownFaces,
+    params: &PpcaParams,
+) -> Result<PpcaImputation> {
+    check_shapes(faces, known)?;
+    params.check(faces.attribute_sizes())?;
+    let centred = CentredKnown::new(faces, known)?;
+    let (fill, run) = ppca_fill(known, &Moments::new(&centred)?, params)?;
+    Ok(PpcaImputation {
+        faces: centred.apply(faces, known, &fill)?,
+        iterations: run.iterations,
+        changes: run.changes,
+        converged: run.converged,
+        ranks: run.ranks,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::impute_by_averaging;
     use skin_core::math::DVec3;
 
     /// f(e, i) = base + a_e + b_i + interaction s_e t_i: additive plus a bilinear term.
@@ -463,7 +460,7 @@ mod tests {
 
         let inter = faces(0.5);
         let avg = impute_by_averaging(&inter, &known).unwrap();
-        let ours = impute(&inter, &known, &ImputeParams::default()).unwrap();
+        let ours = impute_ppca(&inter, &known, &PpcaParams::default()).unwrap();
         let (ea, eo) = (
             err(&avg, &inter, &known.missing()),
             err(&ours.faces, &inter, &known.missing()),
@@ -481,17 +478,17 @@ mod tests {
     fn bad_parameters_are_errors() {
         let t = faces(0.1);
         let known = KnownFaces::new(&[4, 7], vec![true; 28]).unwrap();
-        assert!(impute(&t, &known, &ImputeParams::default().with_ranks(&[5, 2])).is_err());
-        assert!(impute(&t, &known, &ImputeParams::default().with_ranks(&[2])).is_err());
-        let p = ImputeParams {
+        assert!(impute_ppca(&t, &known, &PpcaParams::default().with_ranks(&[5, 2])).is_err());
+        assert!(impute_ppca(&t, &known, &PpcaParams::default().with_ranks(&[2])).is_err());
+        let p = PpcaParams {
             energy: 0.0,
-            ..ImputeParams::default()
+            ..PpcaParams::default()
         };
-        assert!(impute(&t, &known, &p).is_err());
+        assert!(impute_ppca(&t, &known, &p).is_err());
         let other = KnownFaces::new(&[7, 4], vec![true; 28]).unwrap();
-        assert!(impute(&t, &other, &ImputeParams::default()).is_err());
+        assert!(impute_ppca(&t, &other, &PpcaParams::default()).is_err());
         // Nothing missing: nothing changes.
-        let done = impute(&t, &known, &ImputeParams::default()).unwrap();
+        let done = impute_ppca(&t, &known, &PpcaParams::default()).unwrap();
         assert!(done.converged && done.iterations == 0);
     }
 }

@@ -1,7 +1,7 @@
 //! The generator behind [`crate::validation`]: reading the ICT basis, building the bilinear,
 //! trilinear and pure-ICT data tensors, hold-out masks and the imputation metric.
 
-use std::path::Path;
+use std::borrow::Cow;
 
 use nalgebra::DMatrix;
 use rand::seq::SliceRandom;
@@ -9,34 +9,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Uniform};
 use skin_core::math::{fit_similarity, Alignment, DVec3};
-use skin_core::mesh::{read_obj, ObjFile, TriMesh};
-use skin_core::Context;
+use skin_core::mesh::TriMesh;
 
+use super::ict_basis::{IctBasis, Recipe};
 use crate::face_data::{FaceTensor, KnownFaces};
-use crate::{Error, Result, ResultExt};
-
-/// The 16 ICT blendshapes shipped in `data/ict-face/expression/`, in this order.
-pub const ICT_BLENDSHAPES: [&str; 16] = [
-    "browDown_L",
-    "browInnerUp_L",
-    "browInnerUp_R",
-    "cheekPuff_L",
-    "eyeBlink_L",
-    "eyeBlink_R",
-    "jawLeft",
-    "jawOpen",
-    "mouthClose",
-    "mouthFrown_L",
-    "mouthFunnel",
-    "mouthPucker",
-    "mouthSmile_L",
-    "mouthSmile_R",
-    "mouthStretch_L",
-    "noseSneer_L",
-];
-
-/// An attribute value made of ICT blendshapes: its name and `(blendshape, weight)` pairs.
-pub type Recipe = (&'static str, &'static [(&'static str, f64)]);
+use crate::impute::averaging_can_fill;
+use crate::{Error, Result};
 
 /// The 10 expressions of the bilinear set (thesis §5.3.1: "neutral, smile, frown, surprise,
 /// anger, and others").
@@ -124,72 +102,6 @@ pub const VISEMES: [Recipe; 5] = [
     ("sh (she)", &[("mouthFunnel", 0.8), ("jawOpen", 0.25)]),
 ];
 
-/// The ICT basis as displacements from the neutral face.
-#[derive(Clone, Debug, PartialEq)]
-pub struct IctBasis {
-    /// The generic neutral face (quads split into triangles).
-    pub neutral: TriMesh,
-    /// The 10 identity modes, as displacements from the neutral face.
-    pub identity_modes: Vec<Vec<DVec3>>,
-    /// The blendshapes of [`ICT_BLENDSHAPES`], as displacements, in that order.
-    pub blendshapes: Vec<Vec<DVec3>>,
-}
-
-fn displacement(path: &Path, neutral: &[DVec3]) -> Result<Vec<DVec3>> {
-    let v = ObjFile::read(path)?.vertices;
-    skin_core::check::same_size("ICT shape vertex count", neutral.len(), v.len())?;
-    Ok(v.iter().zip(neutral).map(|(a, b)| *a - *b).collect())
-}
-
-impl IctBasis {
-    /// Reads `dir/neutral_face.obj`, `dir/identity/identity000.obj … identity009.obj` and
-    /// `dir/expression/<name>.obj` for the names of [`ICT_BLENDSHAPES`].
-    ///
-    /// # Errors
-    /// I/O and parse errors of the OBJ files ([`Error::Core`]), and
-    /// [`Error::SizeMismatch`] for a shape whose vertex count is not the neutral face's (in
-    /// [`Error::At`] with [`Context::Frame`] = the shape's position: identities 0–9, then
-    /// blendshapes 10–25).
-    pub fn read(dir: impl AsRef<Path>) -> Result<Self> {
-        let dir = dir.as_ref();
-        let neutral = read_obj(dir.join("neutral_face.obj"))?;
-        let mut identity_modes = Vec::new();
-        for i in 0..10 {
-            let p = dir.join("identity").join(format!("identity{i:03}.obj"));
-            identity_modes.push(displacement(&p, &neutral.vertices).at(Context::Frame(i))?);
-        }
-        let mut blendshapes = Vec::new();
-        for (i, name) in ICT_BLENDSHAPES.iter().enumerate() {
-            let p = dir.join("expression").join(format!("{name}.obj"));
-            blendshapes.push(displacement(&p, &neutral.vertices).at(Context::Frame(10 + i))?);
-        }
-        Ok(IctBasis {
-            neutral,
-            identity_modes,
-            blendshapes,
-        })
-    }
-
-    /// Blendshape weights (one per [`ICT_BLENDSHAPES`]) of a recipe.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParam`] for a name that is not an ICT blendshape.
-    pub fn weights(recipe: &Recipe) -> Result<Vec<f64>> {
-        let mut w = vec![0.0; ICT_BLENDSHAPES.len()];
-        for (name, x) in recipe.1 {
-            let b = ICT_BLENDSHAPES
-                .iter()
-                .position(|n| n == name)
-                .ok_or_else(|| Error::InvalidParam {
-                    name: "recipe",
-                    reason: format!("{name} is not one of the ICT blendshapes"),
-                })?;
-            w[b] += x;
-        }
-        Ok(w)
-    }
-}
-
 /// Parameters of the generators.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FaceSetParams {
@@ -204,6 +116,11 @@ pub struct FaceSetParams {
     pub noise: f64,
     /// Seed of the people, the interaction matrices and the noise. Default 16.
     pub seed: u64,
+    /// Identity modes the generator uses: `None` (default) every mode of the basis; `Some(n)`
+    /// the basis's first `n`, or, for `n` above the basis's count, the basis's modes plus
+    /// `n − count` synthetic ones (see [`crate::validation`]). The identity mode of a
+    /// generated tensor has rank `min(n + 1, people)` (the interaction is linear in `α`).
+    pub identity_modes: Option<usize>,
 }
 
 impl Default for FaceSetParams {
@@ -214,6 +131,7 @@ impl Default for FaceSetParams {
             interaction: 0.3,
             noise: 0.0,
             seed: 16,
+            identity_modes: None,
         }
     }
 }
@@ -242,6 +160,12 @@ impl FaceSetParams {
         self.seed = seed;
         self
     }
+
+    /// With `n` identity modes (see [`FaceSetParams::identity_modes`]).
+    pub fn with_identity_modes(mut self, n: usize) -> Self {
+        self.identity_modes = Some(n);
+        self
+    }
 }
 
 /// A generated data set.
@@ -255,10 +179,10 @@ pub struct FaceSet {
     pub mode_names: Vec<&'static str>,
     /// The names of each mode's values.
     pub value_names: Vec<Vec<String>>,
-    /// Per non-identity mode, the blendshape weights of each value (`dₙ × 16`): the labels
-    /// for [`crate::Dials`].
+    /// Per non-identity mode, the blendshape weights of each value (`dₙ ×` the basis's
+    /// blendshape count): the labels for [`crate::Dials`].
     pub labels: Vec<DMatrix<f64>>,
-    /// Each person's identity-mode coefficients `α` (10 each).
+    /// Each person's identity-mode coefficients `α` (one per identity mode used).
     pub identity_coefficients: Vec<Vec<f64>>,
     /// Measured strength of the interaction term (see [`crate::validation`]).
     pub interaction_fraction: f64,
@@ -269,6 +193,9 @@ fn check_params(p: &FaceSetParams) -> Result<()> {
     skin_core::check::non_negative("identity_sigma", p.identity_sigma)?;
     skin_core::check::non_negative("interaction", p.interaction)?;
     skin_core::check::non_negative("noise", p.noise)?;
+    if let Some(n) = p.identity_modes {
+        skin_core::check::nonzero("identity_modes", n)?;
+    }
     Ok(())
 }
 
@@ -289,6 +216,43 @@ fn normal(sigma: f64) -> Result<Normal<f64>> {
 /// Faces, the people's identity coefficients, the measured interaction fraction.
 type Generated = (Vec<Vec<DVec3>>, Vec<Vec<f64>>, f64);
 
+/// The identity modes of the generator ([`FaceSetParams::identity_modes`]): the basis's first
+/// `n`, or all of them followed by synthetic modes. Synthetic mode `k` is basis mode
+/// `j = k mod n₀` modulated by a plane wave over the neutral face,
+/// `√2 cos(2π (1 + ⌊k / n₀⌋) u_k·p / W + φ_k) I_j(p)` (`u_k` a random direction, `φ_k` a
+/// random phase, `W` the face's width; the √2 keeps the mode's RMS): a smooth, face-shaped
+/// displacement linearly independent of the others.
+fn identity_modes<'a>(
+    basis: &'a IctBasis,
+    params: &FaceSetParams,
+) -> Result<Cow<'a, [Vec<DVec3>]>> {
+    let base = basis.identity_modes();
+    let n0 = base.len();
+    let n = params.identity_modes.unwrap_or(n0);
+    if n <= n0 {
+        return Ok(Cow::Borrowed(&base[..n]));
+    }
+    let neutral = &basis.neutral().vertices;
+    let width = face_width(neutral).max(f64::MIN_POSITIVE);
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x1d_0de5);
+    let unit = normal(1.0)?;
+    let phase = uniform(0.0, std::f64::consts::TAU)?;
+    let mut modes = base.to_vec();
+    for k in 0..n - n0 {
+        let u = DVec3::from_array([0; 3].map(|_| unit.sample(&mut rng))).normalize_or(DVec3::X);
+        let omega = std::f64::consts::TAU * (1 + k / n0) as f64 / width;
+        let phi = phase.sample(&mut rng);
+        modes.push(
+            base[k % n0]
+                .iter()
+                .zip(neutral)
+                .map(|(d, p)| *d * (2f64.sqrt() * (omega * u.dot(*p) + phi).cos()))
+                .collect(),
+        );
+    }
+    Ok(Cow::Owned(modes))
+}
+
 /// Builds the faces for `combos` (blendshape weights of the expression part `β` and of the
 /// viseme part `ν` with its expression scale `hₑ`) × people.
 fn generate(
@@ -297,9 +261,10 @@ fn generate(
     params: &FaceSetParams,
 ) -> Result<Generated> {
     check_params(params)?;
+    let modes = identity_modes(basis, params)?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
-    let nb = basis.blendshapes.len();
-    let na = basis.identity_modes.len();
+    let nb = basis.blendshapes().len();
+    let na = modes.len();
     let g_dist = uniform(-3f64.sqrt(), 3f64.sqrt())?;
     let g: Vec<Vec<f64>> = (0..na)
         .map(|_| (0..nb).map(|_| g_dist.sample(&mut rng)).collect())
@@ -312,13 +277,13 @@ fn generate(
                 .collect()
         })
         .collect();
-    let v = basis.neutral.vertices.len();
+    let v = basis.neutral().vertices.len();
     let (mut inter2, mut disp2) = (0.0, 0.0);
     let mut faces = Vec::with_capacity(combos.len() * params.identities);
     for (beta, nu, h) in combos {
         for alpha in &alphas {
-            let mut f = basis.neutral.vertices.clone();
-            for (a, m) in alpha.iter().zip(&basis.identity_modes) {
+            let mut f = basis.neutral().vertices.clone();
+            for (a, m) in alpha.iter().zip(modes.iter()) {
                 for (p, d) in f.iter_mut().zip(m) {
                     *p += *a * *d;
                 }
@@ -337,7 +302,7 @@ fn generate(
                     .iter_mut()
                     .zip(extra.iter_mut())
                     .zip(plain.iter_mut())
-                    .zip(&basis.blendshapes[b])
+                    .zip(&basis.blendshapes()[b])
                 {
                     *p += w * *d;
                     *e += (w - w_plain) * *d;
@@ -363,14 +328,14 @@ fn generate(
     Ok((faces, alphas, fraction))
 }
 
-fn labels_of(recipes: &[Recipe]) -> Result<DMatrix<f64>> {
+fn labels_of(basis: &IctBasis, recipes: &[Recipe]) -> Result<DMatrix<f64>> {
     let rows: Vec<Vec<f64>> = recipes
         .iter()
-        .map(IctBasis::weights)
+        .map(|r| basis.weights(r))
         .collect::<Result<_>>()?;
     Ok(DMatrix::from_fn(
         rows.len(),
-        ICT_BLENDSHAPES.len(),
+        basis.blendshapes().len(),
         |i, j| rows[i][j],
     ))
 }
@@ -379,17 +344,18 @@ fn labels_of(recipes: &[Recipe]) -> Result<DMatrix<f64>> {
 /// [`BILINEAR_EXPRESSIONS`].
 ///
 /// # Errors
-/// [`Error::InvalidParam`] for zero people or a negative σ, γ or noise.
+/// [`Error::UnknownName`] if the basis lacks a blendshape the expressions use;
+/// [`Error::InvalidParam`] for zero people, zero identity modes or a negative σ, γ or noise.
 pub fn bilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<FaceSet> {
-    let zero = vec![0.0; ICT_BLENDSHAPES.len()];
+    let zero = vec![0.0; basis.blendshapes().len()];
     let combos: Vec<_> = BILINEAR_EXPRESSIONS
         .iter()
-        .map(|r| Ok((IctBasis::weights(r)?, zero.clone(), 0.0)))
+        .map(|r| Ok((basis.weights(r)?, zero.clone(), 0.0)))
         .collect::<Result<_>>()?;
     let (faces, alphas, fraction) = generate(basis, &combos, params)?;
     Ok(FaceSet {
         faces: FaceTensor::from_faces(&[combos.len(), params.identities], &faces)?,
-        triangles: basis.neutral.faces.clone(),
+        triangles: basis.neutral().faces.clone(),
         mode_names: vec!["expression", "identity"],
         value_names: vec![
             BILINEAR_EXPRESSIONS
@@ -400,7 +366,7 @@ pub fn bilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fac
                 .map(|i| format!("person {i}"))
                 .collect(),
         ],
-        labels: vec![labels_of(&BILINEAR_EXPRESSIONS)?],
+        labels: vec![labels_of(basis, &BILINEAR_EXPRESSIONS)?],
         identity_coefficients: alphas,
         interaction_fraction: fraction,
     })
@@ -415,15 +381,15 @@ pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fa
     check_params(params)?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x5eed_0f7e);
     let hd = uniform(-1.0, 1.0)?;
-    let hb: Vec<f64> = (0..ICT_BLENDSHAPES.len())
+    let hb: Vec<f64> = (0..basis.blendshapes().len())
         .map(|_| hd.sample(&mut rng))
         .collect();
     let mut combos = Vec::new();
     for vis in &VISEMES {
         for ex in &TRILINEAR_EXPRESSIONS {
-            let beta = IctBasis::weights(ex)?;
+            let beta = basis.weights(ex)?;
             let h: f64 = beta.iter().zip(&hb).map(|(b, h)| b * h).sum();
-            combos.push((beta, IctBasis::weights(vis)?, h));
+            combos.push((beta, basis.weights(vis)?, h));
         }
     }
     let (faces, alphas, fraction) = generate(basis, &combos, params)?;
@@ -436,7 +402,7 @@ pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fa
             ],
             &faces,
         )?,
-        triangles: basis.neutral.faces.clone(),
+        triangles: basis.neutral().faces.clone(),
         mode_names: vec!["viseme", "expression", "identity"],
         value_names: vec![
             VISEMES.iter().map(|r| r.0.to_string()).collect(),
@@ -448,33 +414,36 @@ pub fn trilinear_face_set(basis: &IctBasis, params: &FaceSetParams) -> Result<Fa
                 .map(|i| format!("person {i}"))
                 .collect(),
         ],
-        labels: vec![labels_of(&VISEMES)?, labels_of(&TRILINEAR_EXPRESSIONS)?],
+        labels: vec![
+            labels_of(basis, &VISEMES)?,
+            labels_of(basis, &TRILINEAR_EXPRESSIONS)?,
+        ],
         identity_coefficients: alphas,
         interaction_fraction: fraction,
     })
 }
 
-/// The ICT shapes themselves as a bilinear data set: 17 expressions (neutral and the 16
-/// blendshapes at weight 1) × 11 identities (the generic face and the 10 identity modes at
-/// coefficient 1): `mesh(e, i) = N + Iᵢ + E_e`, what the ICT linear model does. Additive, so
-/// its interaction fraction is 0.
+/// The ICT shapes themselves as a bilinear data set: `1 + B` expressions (neutral and the
+/// basis's `B` blendshapes at weight 1) × `1 + I` identities (the generic face and the basis's
+/// `I` identity modes at coefficient 1) — 17 × 11 for the shipped basis:
+/// `mesh(e, i) = N + Iᵢ + E_e`, what the ICT linear model does. Additive, so its interaction
+/// fraction is 0. Any basis gives a valid set (the counts come from the basis).
 ///
 /// # Errors
-/// Only for an inconsistent basis ([`Error::SizeMismatch`]).
+/// None for a basis built by [`IctBasis::new`] or read; the `Result` carries
+/// [`FaceTensor::from_faces`]'s checks.
 pub fn ict_face_set(basis: &IctBasis) -> Result<FaceSet> {
-    let v = basis.neutral.vertices.len();
-    let zero = vec![DVec3::ZERO; v];
+    let neutral = &basis.neutral().vertices;
+    let zero = vec![DVec3::ZERO; neutral.len()];
     let ids: Vec<&Vec<DVec3>> = std::iter::once(&zero)
-        .chain(&basis.identity_modes)
+        .chain(basis.identity_modes())
         .collect();
-    let exs: Vec<&Vec<DVec3>> = std::iter::once(&zero).chain(&basis.blendshapes).collect();
-    let mut faces = Vec::new();
+    let exs: Vec<&Vec<DVec3>> = std::iter::once(&zero).chain(basis.blendshapes()).collect();
+    let mut faces = Vec::with_capacity(exs.len() * ids.len());
     for e in &exs {
         for i in &ids {
             faces.push(
-                basis
-                    .neutral
-                    .vertices
+                neutral
                     .iter()
                     .zip(e.iter())
                     .zip(i.iter())
@@ -483,26 +452,25 @@ pub fn ict_face_set(basis: &IctBasis) -> Result<FaceSet> {
             );
         }
     }
-    let mut labels = DMatrix::zeros(exs.len(), ICT_BLENDSHAPES.len());
-    for b in 0..ICT_BLENDSHAPES.len() {
-        labels[(b + 1, b)] = 1.0;
-    }
+    let nb = basis.blendshapes().len();
+    let labels = DMatrix::from_fn(exs.len(), nb, |e, b| if e == b + 1 { 1.0 } else { 0.0 });
+    let na = basis.identity_modes().len();
     Ok(FaceSet {
         faces: FaceTensor::from_faces(&[exs.len(), ids.len()], &faces)?,
-        triangles: basis.neutral.faces.clone(),
+        triangles: basis.neutral().faces.clone(),
         mode_names: vec!["expression", "identity"],
         value_names: vec![
             std::iter::once("neutral".to_string())
-                .chain(ICT_BLENDSHAPES.iter().map(|s| s.to_string()))
+                .chain(basis.blendshape_names().iter().cloned())
                 .collect(),
             std::iter::once("generic".to_string())
-                .chain((0..10).map(|i| format!("identity{i:03}")))
+                .chain(basis.identity_names().iter().cloned())
                 .collect(),
         ],
         labels: vec![labels],
         identity_coefficients: (0..ids.len())
             .map(|i| {
-                (0..10)
+                (0..na)
                     .map(|a| if i == a + 1 { 1.0 } else { 0.0 })
                     .collect()
             })
@@ -525,7 +493,6 @@ pub fn hold_out(attribute_sizes: &[usize], fraction: f64, seed: u64) -> Result<K
         });
     }
     let k: usize = attribute_sizes.iter().product();
-    let d_id = attribute_sizes.last().copied().unwrap_or(1).max(1);
     let m = (fraction * k as f64).round() as usize;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut ids: Vec<usize> = (0..k).collect();
@@ -535,18 +502,10 @@ pub fn hold_out(attribute_sizes: &[usize], fraction: f64, seed: u64) -> Result<K
         for &f in &ids[..m] {
             flags[f] = false;
         }
-        let Ok(known) = KnownFaces::new(attribute_sizes, flags.clone()) else {
+        let Ok(known) = KnownFaces::new(attribute_sizes, flags) else {
             continue;
         };
-        let usable = known.missing().iter().all(|&f| {
-            let (c, i) = (f / d_id, f % d_id);
-            (0..k / d_id).any(|cp| {
-                cp != c
-                    && flags[cp * d_id + i]
-                    && (0..d_id).any(|ip| flags[c * d_id + ip] && flags[cp * d_id + ip])
-            })
-        });
-        if usable {
+        if averaging_can_fill(&known) {
             return Ok(known);
         }
     }

@@ -32,12 +32,13 @@
 //! lists them).
 
 mod dataset;
+mod ict_basis;
 mod video;
 
 pub use dataset::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
     impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
-    FaceSetParams, IctBasis, PointTrackSequence, Recipe, BILINEAR_EXPRESSIONS, ICT_BLENDSHAPES,
-    TRILINEAR_EXPRESSIONS, VISEMES,
+    FaceSetParams, PointTrackSequence, BILINEAR_EXPRESSIONS, TRILINEAR_EXPRESSIONS, VISEMES,
 };
+pub use ict_basis::{IctBasis, NamedShape, Recipe, ICT_BLENDSHAPES};
 pub use video::{render_face_frame, render_face_video, FaceVideo, FaceVideoParams};
