@@ -45,8 +45,14 @@ fn markers_are_detected_triangulated_and_tracked_through_fast_motion() {
     errors.sort_by(f64::total_cmp);
     let median_mm = 1e3 * errors[errors.len() / 2];
     let p95_mm = 1e3 * errors[errors.len() * 95 / 100];
-    // The studio's fast motion is brisk (printed above): the scenario's search volumes cover it.
+    // The search volumes are the published human limits (`TrackParams::human`: 40 m/s,
+    // 800 m/s²), not fitted to this motion; the studio's fast motion (printed above) lies
+    // within them.
     let params = MarkerScenario::default().track_params();
+    assert_eq!(
+        params,
+        TrackParams::human(MarkerScenario::default().frame_rate_hz)
+    );
     assert!(vs[n - 1].0 < params.max_velocity_m_per_frame);
     assert!(acs[n - 1].0 < params.max_acceleration_m_per_frame2);
     let trajs = track_markers(&sets, &params).unwrap();
@@ -88,7 +94,9 @@ fn markers_are_detected_triangulated_and_tracked_through_fast_motion() {
         trajs.len()
     );
     assert!(switches < loose_switches, "{switches} ≥ {loose_switches}");
-    assert!(switches <= 5, "{switches} identity switches");
+    // Measured 6 with the human limits; 3 with volumes fitted just above this motion's
+    // maxima (21 m/s and 576 m/s²), which the limits no longer are.
+    assert!(switches <= 6, "{switches} identity switches");
 }
 
 #[test]

@@ -8,8 +8,8 @@
 //! the default proportions and a noisy pose (5° per rotation). It is run with IRLS (Tukey;
 //! the defaults: a type's robust scale from the observations the previous round kept once
 //! that round rejected ≥ 20 % of them, `EllipsoidParams::kept_scale_min_rejected`; per round
-//! the points' rejected fraction and choice in `irls_points_*`; `scale_all_*`: the scale over
-//! all observations in every round) and without (the plain least squares the paper starts
+//! the points' and rays' rejected fractions and choices in `irls_points_*`, `irls_rays_*`;
+//! `scale_all_*`: the scale over all observations in every round) and without (the plain least squares the paper starts
 //! from, given the same Levenberg–Marquardt budget: `EllipsoidParams::without_irls`, one
 //! round of 6 × 4 = 24 iterations; the `no_irls_*` figures), on frames 0, 5, …, 35 of the
 //! fast motion together (shared lengths and widths, a pose per frame: the headline figures,
@@ -18,7 +18,7 @@
 //!
 //! Also measured (`tracker_inputs_*`): the same fit from what the template tracker has —
 //! eight cameras' silhouettes and the visual hull's surface samples as attractors, no
-//! markers, no stereo points (`tracker_inputs_irls_points_*`: the same choice of scale there;
+//! markers, no stereo points (`tracker_inputs_irls_*`: the same choice of scale there;
 //! `tracker_inputs_scale_kept_*`: the scale from the kept observations in every round).
 //!
 //! Writes under `out/ellipsoid_fit/`: `ellipsoids.png` (the fitted ellipsoids over each
@@ -107,21 +107,24 @@ fn put(figures: &mut Map<String, Value>, prefix: &str, s: &EllipsoidScores) {
     );
 }
 
-/// The points' IRLS record (`EllipsoidParams::kept_scale_min_rejected`): per round the
-/// fraction the previous round rejected and whether the scale came from the kept ones.
+/// The IRLS record of the points and the rays (`EllipsoidParams::kept_scale_min_rejected`):
+/// per round the fraction the previous round rejected and whether the scale came from the
+/// kept ones.
 fn irls_figures(figures: &mut Map<String, Value>, prefix: &str, fit: &EllipsoidMultiFit) {
-    figures.insert(
-        format!("{prefix}irls_points_rejected_fraction"),
-        json!(fit.irls_rejected.iter().map(|r| r[0]).collect::<Vec<_>>()),
-    );
-    figures.insert(
-        format!("{prefix}irls_points_scale_from_kept"),
-        json!(fit
-            .irls_scale_from_kept
-            .iter()
-            .map(|k| k[0])
-            .collect::<Vec<_>>()),
-    );
+    for (t, kind) in [(0, "points"), (1, "rays")] {
+        figures.insert(
+            format!("{prefix}irls_{kind}_rejected_fraction"),
+            json!(fit.irls_rejected.iter().map(|r| r[t]).collect::<Vec<_>>()),
+        );
+        figures.insert(
+            format!("{prefix}irls_{kind}_scale_from_kept"),
+            json!(fit
+                .irls_scale_from_kept
+                .iter()
+                .map(|k| k[t])
+                .collect::<Vec<_>>()),
+        );
+    }
 }
 
 /// Mean scores of fitted states against their frames' truth.
@@ -411,6 +414,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         json!(multi.states[0].half_width),
     );
     figures.insert("frames".into(), json!(params.frames));
+    figures.insert(
+        "marker_id_switches".into(),
+        json!(scenario.marker_id_switches),
+    );
     // What the template tracker has (§2.3.2 of Vlasic): 8 cameras' silhouettes and the
     // visual hull's surface as attractors; no markers, no stereo points. Same truth and start.
     let stage = run.stage("tracker inputs (8 cameras, hull, silhouettes)", None);
@@ -519,6 +526,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "tracker_inputs_from_rest_",
         &mean_scores(&rest_scores),
     );
+    irls_figures(&mut figures, "tracker_inputs_from_rest_", &rest_fit);
     // The picture: the most bent frame of the protocol (frame 10).
     let shown = params.frames.len().min(3) - 1;
     let frame = &scenario.frames[shown];

@@ -254,14 +254,14 @@ pub struct EllipsoidParams {
     /// a Gaussian). The rejected fraction measures ε. The threshold lies between the kinds
     /// of data measured: stereo-like points with 30 % gross outliers (the `ellipsoid_fit`
     /// scenario) lose 23–30 % per round after the first, visual-hull samples (a one-sided
-    /// error, the hull's excess; sizing, the tracker inputs) 0.5–9 %, silhouette rays and
-    /// markers 2–12 %. Measured on the `ellipsoid_fit` scenario (`--quick`, 8 frames): mean
-    /// length error 6.6 mm with this default, 11.7 with the scale over all observations in
-    /// every round. The kept scale on every type and round (`Some(0.0)`) fits the hull
-    /// samples no worse, but through the automatic initialisation it moves the template
-    /// tracker's poses, and the sizing from them then fails its width claim (13.9 mm against
-    /// the default proportions' 15.8; 9.0 with this default). Details in
-    /// docs/template-silhouette.md ("The IRLS scale").
+    /// error, the hull's excess; sizing, the tracker inputs) 0.5–9 %, silhouette rays 2–9 %
+    /// (23–28 % when the fit starts far off, from the rest pose), markers 4–12 %. Measured on
+    /// the `ellipsoid_fit` scenario (`--quick`, 8 frames): mean length error 7.0 mm with this
+    /// default, 12.0 with the scale over all observations in every round. The kept scale on
+    /// every type and round (`Some(0.0)`) fits the hull samples no worse, but through the
+    /// automatic initialisation it moves the template tracker's poses, and the sizing from
+    /// them then fails its width claim (13.9 mm against the default proportions' 15.8; 9.0
+    /// with this default). Details in docs/template-silhouette.md ("The IRLS scale").
     pub kept_scale_min_rejected: Option<f64>,
 }
 

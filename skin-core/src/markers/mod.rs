@@ -6,7 +6,7 @@
 //! | `detect.rs` | [`detect_markers`]: high-pass filter, threshold, connected components, intensity-weighted centroids | §2.3 |
 //! | `triangulate.rs` | [`triangulate`]: linear ray intersection + Gauss–Newton on the reprojection error, per-view residuals | §2.3 (forward intersection) |
 //! | `triangulate.rs` | [`reconstruct_markers`]: correspondence of unlabelled detections across cameras (pair hypotheses completed in the other views) | §2.3 |
-//! | `track.rs` | [`track_markers`]: the three-frame rule (velocity volume, reduced acceleration volume, smallest acceleration), broken and restarted trajectories | §2.4 |
+//! | `track.rs` | [`track_markers`]: the three-frame rule (velocity volume, reduced acceleration volume, smallest acceleration), broken and restarted trajectories; [`TrackParams::human`]: the volumes from published human speed and acceleration limits | §2.4 |
 //!
 //! ## Example
 //! ```
@@ -34,7 +34,10 @@ pub use detect::{
     detect_markers, MarkerBlob, MarkerDetectParams, DEFAULT_BLUR_RADIUS_PX,
     DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,
 };
-pub use track::{id_switches, track_markers, TrackParams, Trajectory};
+pub use track::{
+    id_switches, track_markers, TrackParams, Trajectory, HUMAN_MAX_ACCELERATION_M_PER_S2,
+    HUMAN_MAX_SPEED_M_PER_S,
+};
 pub use triangulate::{
     reconstruct_markers, triangulate, MarkerView, ReconstructedMarker, Triangulation,
     MAX_TRIANGULATION_ITERATIONS,

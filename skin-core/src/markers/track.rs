@@ -14,8 +14,33 @@ use crate::check::{all_finite, positive};
 use crate::math::DVec3;
 use crate::{Context, Result, ResultExt};
 
+/// Largest speed of a point on the human body, m/s: an upper bound for any skin marker, used
+/// as the premise of the velocity search volume (§2.4: "the premise of a maximum velocity of
+/// the movement"; the paper gives no value). Among the fastest body points measured in sport
+/// is the throwing hand at ball release, which moves with the ball: pitched-ball speed at
+/// release 37.4 ± 0.8 m/s in the faster group of 30 collegiate pitchers (Kageyama, Sugiyama,
+/// Takai, Kanehisa, Maeda 2014, *J. Sports Sci. Med.* 13: 742–750, three-dimensional motion
+/// analysis);
+/// 40 m/s is that mean plus three standard deviations, rounded up. (Other segments are
+/// slower: an Olympic boxer's fist 9.14 ± 2.06 m/s at impact, Walilko, Viano, Bir 2005,
+/// *Br. J. Sports Med.* 39: 710–719, high-speed video of 18 straight punches.)
+pub const HUMAN_MAX_SPEED_M_PER_S: f64 = 40.0;
+
+/// Largest acceleration of a point on the human body, m/s², as seen at camera frame rates:
+/// the premise of the reduced (acceleration) search volume (§2.4; the paper gives no value).
+/// No published peak acceleration of a skin marker was found to cite; this value is derived.
+/// In pitching the hand is brought to the release speed during the arm-acceleration phase,
+/// from maximum shoulder external rotation to ball release, which lasts about 50 ms (Pappas,
+/// Zawacki, Sullivan 1985, *Am. J. Sports Med.* 13: 216–222, high-speed film of 147 pitches
+/// by 15 major-league pitchers). Reaching [`HUMAN_MAX_SPEED_M_PER_S`] from rest in 50 ms
+/// takes a mean of 800 m/s²; the tracker's second difference at 60 Hz averages the
+/// acceleration over 33 ms, so a mean over a comparable window is the quantity it bounds.
+/// Impacts (a fist or a foot stopped by a target) decelerate far harder for a few
+/// milliseconds, which no frame-rate tracker follows.
+pub const HUMAN_MAX_ACCELERATION_M_PER_S2: f64 = 800.0;
+
 /// Parameters of [`track_markers`] (the paper names the two limits but gives no values; they
-/// depend on the motion and frame rate).
+/// are per frame, so they depend on the frame rate: [`TrackParams::from_limits`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackParams {
     /// Largest marker displacement between adjacent frames, m (the velocity search volume).
@@ -25,13 +50,33 @@ pub struct TrackParams {
     pub max_acceleration_m_per_frame2: f64,
 }
 
-impl Default for TrackParams {
-    /// 4 m/s and 100 m/s² at 60 Hz: 0.067 m per frame, 0.028 m per frame².
-    fn default() -> Self {
+impl TrackParams {
+    /// The search volumes of a speed limit (m/s) and an acceleration limit (m/s²) at a frame
+    /// rate (Hz): `speed / rate` and `acceleration / rate²`. Non-finite or non-positive
+    /// arguments give limits that [`track_markers`] refuses.
+    pub fn from_limits(speed_m_per_s: f64, acceleration_m_per_s2: f64, frame_rate_hz: f64) -> Self {
         Self {
-            max_velocity_m_per_frame: 4.0 / 60.0,
-            max_acceleration_m_per_frame2: 100.0 / 3600.0,
+            max_velocity_m_per_frame: speed_m_per_s / frame_rate_hz,
+            max_acceleration_m_per_frame2: acceleration_m_per_s2 / (frame_rate_hz * frame_rate_hz),
         }
+    }
+
+    /// The human limits ([`HUMAN_MAX_SPEED_M_PER_S`], [`HUMAN_MAX_ACCELERATION_M_PER_S2`]) at
+    /// `frame_rate_hz`.
+    pub fn human(frame_rate_hz: f64) -> Self {
+        Self::from_limits(
+            HUMAN_MAX_SPEED_M_PER_S,
+            HUMAN_MAX_ACCELERATION_M_PER_S2,
+            frame_rate_hz,
+        )
+    }
+}
+
+impl Default for TrackParams {
+    /// The human limits at 60 Hz ([`TrackParams::human`]): 0.67 m per frame, 0.22 m per
+    /// frame².
+    fn default() -> Self {
+        Self::human(60.0)
     }
 }
 
@@ -286,6 +331,25 @@ mod tests {
                 .map(|t| (t.first_frame, t.points.len()))
                 .collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn the_search_volumes_scale_with_the_frame_rate() {
+        let p = TrackParams::human(60.0);
+        assert!((p.max_velocity_m_per_frame - 40.0 / 60.0).abs() < 1e-12);
+        assert!((p.max_acceleration_m_per_frame2 - 800.0 / 3600.0).abs() < 1e-12);
+        assert_eq!(TrackParams::default(), p);
+        let fast = TrackParams::human(120.0);
+        assert!((fast.max_velocity_m_per_frame - p.max_velocity_m_per_frame / 2.0).abs() < 1e-12);
+        assert!(
+            (fast.max_acceleration_m_per_frame2 - p.max_acceleration_m_per_frame2 / 4.0).abs()
+                < 1e-12
+        );
+        // A frame rate that is not finite and positive gives limits the tracker refuses.
+        for rate in [0.0, -60.0, f64::NAN, f64::INFINITY] {
+            let bad = TrackParams::human(rate);
+            assert!(track_markers(&[vec![DVec3::ZERO]], &bad).is_err(), "{rate}");
+        }
     }
 
     #[test]

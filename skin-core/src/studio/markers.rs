@@ -362,15 +362,13 @@ impl Default for MarkerScenario {
 }
 
 impl MarkerScenario {
-    /// Search volumes that cover the studio's fast motion: its markers move up to 18 m/s and
-    /// accelerate up to 540 m/s² (0.30 m per frame and 0.15 m per frame² at 60 Hz, measured by
-    /// the markers test), far beyond [`TrackParams::default`] (4 m/s, 100 m/s², brisk human
-    /// motion); 21 m/s and 576 m/s² at this scenario's frame rate.
+    /// The tracker's search volumes at this scenario's frame rate: the published human limits
+    /// ([`TrackParams::human`]: 40 m/s, 800 m/s², sources at
+    /// [`crate::markers::HUMAN_MAX_SPEED_M_PER_S`]), not limits fitted to the studio's fast
+    /// motion (whose markers move up to 18 m/s and accelerate up to 540 m/s², measured by the
+    /// markers test).
     pub fn track_params(&self) -> TrackParams {
-        TrackParams {
-            max_velocity_m_per_frame: 21.0 / self.frame_rate_hz,
-            max_acceleration_m_per_frame2: 576.0 / (self.frame_rate_hz * self.frame_rate_hz),
-        }
+        TrackParams::human(self.frame_rate_hz)
     }
 
     /// Renders, detects and triangulates every frame (default style and detector, 1.5 px

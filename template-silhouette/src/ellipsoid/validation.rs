@@ -22,7 +22,7 @@
 
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
-use skin_core::markers::{track_markers, MarkerDetectParams};
+use skin_core::markers::{id_switches, track_markers, MarkerDetectParams, TrackParams};
 use skin_core::math::DVec3;
 use skin_core::mesh::{resize_rest, SkinWeights, TriMesh};
 use skin_core::random::SplitMix64;
@@ -30,8 +30,8 @@ use skin_core::raster::{Buffers, RenderParams};
 use skin_core::skeleton::Skeleton;
 use skin_core::studio::{
     exercise_motion, fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec,
-    DeformationParams, ExerciseParams, FastMotionParams, MarkerImageStyle, MarkerScenario,
-    MarkerSet, Performer, ProceduralBodyParams, DEFAULT_MARKER_OFFSET_M, DEFAULT_MARKER_RADIUS_M,
+    DeformationParams, ExerciseParams, FastMotionParams, MarkerImageStyle, MarkerSet, Performer,
+    ProceduralBodyParams, DEFAULT_MARKER_OFFSET_M, DEFAULT_MARKER_RADIUS_M,
 };
 use skin_core::{check, Context};
 
@@ -132,6 +132,10 @@ pub struct EllipsoidScenario {
     pub cameras: Vec<Camera>,
     /// The frames.
     pub frames: Vec<ScenarioFrame>,
+    /// Identity switches of the marker tracking through the captured frames (links between
+    /// detections of different true markers, [`skin_core::markers::id_switches`]): a switched
+    /// trajectory keeps the bone of its first frame's marker.
+    pub marker_id_switches: usize,
 }
 
 impl EllipsoidScenario {
@@ -423,14 +427,9 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
             captured.push(frame);
         }
     }
-    let tracks = track_markers(
-        &marker_sets,
-        &MarkerScenario {
-            frame_rate_hz: rate_hz,
-            ..MarkerScenario::default()
-        }
-        .track_params(),
-    )?;
+    // The search volumes of the published human limits at the capture's rate.
+    let tracks = track_markers(&marker_sets, &TrackParams::human(rate_hz))?;
+    let marker_id_switches = id_switches(&tracks, &nearest)?;
     let mut frames = Vec::with_capacity(params.frames.len());
     let mut normal_k = 0u64;
     for &k in &params.frames {
@@ -564,6 +563,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
         model,
         cameras,
         frames,
+        marker_id_switches,
     })
 }
 
