@@ -3,13 +3,16 @@
 //! the exercise motion, seen by an 8-camera ring; pose tracking in the visual hulls (§2.3)
 //! then Algorithm 1 (§2.4),
 //! scored against the performer's true posed mesh and against linear blend skinning driven by
-//! the same estimated poses and by the true poses.
+//! the same estimated poses and by the true poses. The template is rigged by the library's
+//! bone-heat weights, as a user's would be; the performer's own weights (which generated the
+//! truth) are the oracle.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use std::time::Instant;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::math::DVec3;
+use dynamic_shapes::core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 use dynamic_shapes::core::skeleton::Motion;
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::core::studio::{
@@ -18,7 +21,7 @@ use dynamic_shapes::core::studio::{
 };
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
-    ShapeParams, SilhouetteParams, Template, VisualHullParams,
+    ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams, Template, VisualHullParams,
 };
 
 /// RMS distance between corresponding vertices, mm.
@@ -57,7 +60,21 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
         .frames_stepped(40..56, 2)
         .map(|f| f.unwrap())
         .collect();
+    // Rigged as a user's template would be (§2.5.1: Pinocchio's bone heat); the performer's
+    // own weights generated the truth and are the oracle.
+    let weights = bone_heat_weights(
+        &performer.template,
+        &rest_bones(&performer.skeleton).unwrap(),
+        &HeatWeightsParams::default(),
+    )
+    .unwrap();
     let template = Template::new(
+        performer.template.clone(),
+        performer.skeleton.clone(),
+        weights,
+    )
+    .unwrap();
+    let oracle = Template::new(
         performer.template.clone(),
         performer.skeleton.clone(),
         performer.weights.clone(),
@@ -95,7 +112,8 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
     let (pose_s, shape_s) = (result.pose_seconds, result.shape_seconds);
 
     let n = frames.len() as f64;
-    let (mut joint_mm, mut method_mm, mut lbs_mm, mut lbs_true_mm) = (0.0, 0.0, 0.0, 0.0);
+    let (mut joint_mm, mut method_mm, mut lbs_mm, mut lbs_true_mm, mut oracle_mm) =
+        (0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut sil_method, mut sil_lbs, mut edge, mut lbs_edge, mut true_edge) =
         (0.0, 0.0, 0.0, 0.0, 0.0);
     for (t, f) in frames.iter().enumerate() {
@@ -114,6 +132,7 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
         method_mm += rms_mm(&seq.frames[t], truth);
         lbs_mm += rms_mm(&lbs, truth);
         lbs_true_mm += rms_mm(&template.skin(&f.truth.theta).unwrap(), truth);
+        oracle_mm += rms_mm(&oracle.skin(&f.truth.theta).unwrap(), truth);
         let mesh = template.mesh_with(seq.frames[t].clone());
         sil_method += mean(&silhouette_error_pct(&mesh, &cameras, &masks[t]).unwrap());
         sil_lbs +=
@@ -128,6 +147,7 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
         ("vertex_rms_mm", method_mm / n),
         ("lbs_vertex_rms_mm", lbs_mm / n),
         ("lbs_true_pose_vertex_rms_mm", lbs_true_mm / n),
+        ("lbs_oracle_pose_vertex_rms_mm", oracle_mm / n),
         ("silhouette_error_pct", sil_method / n),
         ("lbs_silhouette_error_pct", sil_lbs / n),
         ("edge_error_pct", edge / n),
@@ -141,17 +161,55 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
         println!("{k}: {v:.3}");
     }
     let get = |k: &str| figures.iter().find(|f| f.0 == k).unwrap().1;
-    // Measured (8 frames, 480 × 360; hands' and feet's frames in E_R): joints 15.1 mm (11.9
-    // with the thesis' tip rule: on 8 frames the rules differ by noise; see EffectorTargets
-    // for means over independent tracks); silhouettes 3.9 % against 11.3 % for skinning with
-    // the same poses; vertices 24.0 mm against 23.8 mm for that skinning (the pose dominates:
-    // skinning with the true poses is 1.1 mm from this body-only truth); edges 15.4 %
-    // against 3 % for skinning (the thesis: 8.7–13.3 %).
+    // Measured (8 frames, 480 × 360, the library's weights): joints 14.4 mm; silhouettes
+    // 7.9 % against 11.4 % for skinning with the same poses; vertices 88 mm against 25 mm for
+    // that skinning — the thesis' Eq. 2.1 collapses the head and torso, where bone heat
+    // leaves few nearly-rigid vertices (below) — and skinning with the true poses 9.8 mm
+    // (1.1 mm with the performer's own weights, the oracle that generated the truth).
     assert!(get("joint_error_mm") < 20.0);
-    assert!(get("silhouette_error_pct") < 0.5 * get("lbs_silhouette_error_pct"));
-    assert!(get("vertex_rms_mm") < 35.0);
-    assert!(get("vertex_rms_mm") < 1.25 * get("lbs_vertex_rms_mm"));
-    assert!(get("edge_error_pct") < 20.0);
+    assert!(get("silhouette_error_pct") < 0.85 * get("lbs_silhouette_error_pct"));
+    assert!(get("lbs_oracle_pose_vertex_rms_mm") < 2.0);
+    assert!(get("lbs_true_pose_vertex_rms_mm") > 3.0 * get("lbs_oracle_pose_vertex_rms_mm"));
+
+    // Algorithm 1 on the true poses separates the molding from the tracker. With automatic
+    // weights the thesis' molding ends far from the truth — farther than skinning with the
+    // same (true) poses — while the anchor to the skinned surface (ShapeParams::w_anchor,
+    // ours) brings it back to skinning's level without beating it (docs: the full run).
+    let shape_frames: Vec<ShapeFrame> = frames
+        .iter()
+        .zip(&observations)
+        .map(|(f, o)| ShapeFrame {
+            theta: &f.truth.theta,
+            rays: &o.rays,
+        })
+        .collect();
+    let molded_true_pose_mm = |params: ShapeParams| {
+        let shapes = ShapeEstimator::new(template.clone(), params)
+            .unwrap()
+            .estimate(&shape_frames)
+            .unwrap();
+        frames
+            .iter()
+            .zip(&shapes.frames)
+            .map(|(f, v)| rms_mm(v, &f.truth.posed.true_vertices))
+            .sum::<f64>()
+            / n
+    };
+    let thesis = molded_true_pose_mm(ShapeParams::default());
+    let anchored = molded_true_pose_mm(ShapeParams {
+        w_anchor: 1.0,
+        ..ShapeParams::default()
+    });
+    let lbs_true = get("lbs_true_pose_vertex_rms_mm");
+    println!("molded_true_pose_vertex_rms_mm: {thesis:.3} (anchored {anchored:.3})");
+    assert!(
+        thesis > 2.0 * lbs_true,
+        "thesis {thesis} mm vs skinning {lbs_true} mm"
+    );
+    assert!(
+        anchored < 1.15 * lbs_true && anchored < 0.5 * thesis,
+        "anchored {anchored} mm vs skinning {lbs_true} mm, thesis {thesis} mm"
+    );
 }
 
 /// The pieces a user strings together around a capture (§2.5): the MakeHuman template with
