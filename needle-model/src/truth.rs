@@ -7,15 +7,35 @@
 //! LBS baseline's length is the same ray against the LBS-skinned rest shape, which is what a
 //! skinning-only model predicts. [`TestSet`] precomputes both for a sequence of test poses so
 //! that any number of models can be scored cheaply with [`TestSet::errors`].
+//!
+//! [`HullOracle`] is the pose-local visual hull: the needles' lengths as many cameras see the
+//! body at exactly the test pose.
+//!
+//! Two tools take a predictor's errors apart:
+//!
+//! * [`TestSet::coverage`] and [`Errors::restricted`]: for a predictor that knows only some
+//!   needles (the hull oracle knows the needles some camera saw) and falls back to another
+//!   predictor elsewhere, how often it fell back, and every predictor's errors on the
+//!   needle-frames it did know, so they are compared on the same needles.
+//! * [`EffectAttribution`]: which of the studio's effects — the geometry of skinning itself,
+//!   each pose-driven muscle or crease ([`skin_core::studio::PoseDeformParams`]), the hip
+//!   flap — moves each pose-deforming needle most over the test, and
+//!   [`EffectAttribution::breakdown`] a predictor's mean error per effect: what "hidden from
+//!   silhouettes" means, measured (an inward crease against an outward muscle).
 
 use std::collections::{HashMap, HashSet};
 
 use glam::DVec3;
 use rayon::prelude::*;
+use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::math::Ray;
 use skin_core::mesh::{MeshQuery, TriMesh};
-use skin_core::studio::{FrameTruth, Performer};
+use skin_core::studio::{
+    DeformationParams, DeformationState, FrameTruth, Performer, PoseDeformParams,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
+};
 
+use crate::observe::{FrameInput, Observer};
 use crate::primitive::NeedleBody;
 use crate::reconstruct::NeedleModel;
 use crate::{Error, Result};
@@ -39,6 +59,22 @@ pub const POSE_DEFORMING_SPAN_M: f64 = 0.003;
 
 /// A needle's identity: (primitive, needle within it).
 pub type NeedleKey = (u32, u32);
+
+/// Name of [`EffectAttribution`]'s category for the geometry of skinning itself: the needle's
+/// length under linear blend skinning of the exact rest shape ([`NeedleTruth::lbs_m`]).
+pub const SKINNING_GEOMETRY: &str = "skinning_geometry";
+
+/// Name of [`EffectAttribution`]'s category for the performer's dynamic deformation (the hip
+/// flap's lag, a garment's departure from its skinning:
+/// [`skin_core::studio::PosedFrame::dynamic_displacement`]).
+pub const FLAP: &str = "flap";
+
+/// Largest difference, metres, allowed between the sum of the per-effect displacements
+/// [`EffectAttribution`] computes and the performer's own pose-driven displacement before it
+/// decides the performer was built with other effects. The effects add exactly
+/// (`skin_core::studio` muscles: linear in their rest-space offsets); 1 µm leaves room for
+/// rounding only.
+pub const EFFECT_SUM_TOLERANCE_M: f64 = 1e-6;
 
 /// One needle-frame of a pose-deforming needle: the predicted and the true length, metres.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,6 +177,480 @@ pub struct Errors {
     /// [`TestFrame::needles`] in order), parallel to [`Errors::all_mm`]: what the predictor
     /// said, e.g. to draw its surface.
     pub samples: Vec<NeedleSample>,
+}
+
+/// Cameras per ring of [`HullOracle::rig`].
+pub const HULL_ORACLE_CAMERAS_PER_RING: usize = 8;
+
+/// Heights of [`HullOracle::rig`]'s three rings above the floor, metres: below the knees
+/// (looking up), the studio ring's at mid-body ([`STUDIO_RING_HEIGHT_M`]), above the head
+/// (looking down).
+pub const HULL_ORACLE_RING_HEIGHTS_M: [f64; 3] = [0.3, STUDIO_RING_HEIGHT_M, 2.3];
+
+/// The pose-local visual-hull oracle: at each test frame, every needle's length as the
+/// cameras of [`HullOracle::rig`] see the body at exactly that pose — the shortest of its
+/// silhouette observations ([`Observer`], Sand 2003 §4.3), each the length to where the needle
+/// leaves one silhouette. It sees the test poses, so it is an oracle no capture has: what
+/// silhouettes show of each pose with no interpolation between poses and no robust
+/// percentile. Where no view saw a needle it knows nothing ([`HullOracle::length`] is `None`);
+/// [`HullOracle::errors`] fills those in from a fallback model and
+/// [`HullOracle::coverage`] counts how often.
+///
+/// **Where it is a bound.** The visual hull contains the body, so with exact silhouettes each
+/// observation, and their shortest, is at least the true length: an upper bound on what the
+/// silhouettes say about that needle at that pose. Pixels and the walk's knots make it fall
+/// short of the truth by up to about a pixel's footprint, where it is no bound. Nor is it a
+/// bound on how well a model follows the pose: a model pooling many poses can follow it
+/// better than the per-pose shortest, whose noise changes from pose to pose.
+#[derive(Clone, Debug, Default)]
+pub struct HullOracle {
+    /// Per frame: its pose and the shortest observation of every needle some view saw.
+    frames: Vec<(Vec<f64>, HashMap<NeedleKey, f64>)>,
+}
+
+impl HullOracle {
+    /// The oracle's 24 cameras: [`HULL_ORACLE_CAMERAS_PER_RING`] on each of three rings of the
+    /// studio's radius ([`STUDIO_RING_RADIUS_M`]) at [`HULL_ORACLE_RING_HEIGHTS_M`], all
+    /// looking at the studio's mid-body target ([`STUDIO_RING_TARGET_M`]) with the studio
+    /// ring's lens ([`STUDIO_RING_HFOV_DEG`]), the rings turned a third of their spacing from
+    /// each other (24 azimuths 15° apart), images `width × height`.
+    ///
+    /// # Errors
+    /// As [`Intrinsics::from_horizontal_fov`] (a zero image size) and [`Camera::look_at`].
+    pub fn rig(width: u32, height: u32) -> Result<Rig> {
+        let k = Intrinsics::from_horizontal_fov(STUDIO_RING_HFOV_DEG.to_radians(), width, height)?;
+        let target = DVec3::from_array(STUDIO_RING_TARGET_M);
+        let per_ring = HULL_ORACLE_CAMERAS_PER_RING as f64;
+        let mut cameras = Vec::with_capacity(3 * HULL_ORACLE_CAMERAS_PER_RING);
+        for (r, &h) in HULL_ORACLE_RING_HEIGHTS_M.iter().enumerate() {
+            for i in 0..HULL_ORACLE_CAMERAS_PER_RING {
+                let a = std::f64::consts::TAU * (i as f64 + r as f64 / 3.0) / per_ring;
+                let eye = DVec3::new(
+                    STUDIO_RING_RADIUS_M * a.cos(),
+                    h,
+                    STUDIO_RING_RADIUS_M * a.sin(),
+                );
+                cameras.push(Camera::look_at(k, eye, target, DVec3::Y)?);
+            }
+        }
+        Ok(Rig { cameras })
+    }
+
+    /// Records test frames, in the order of the test set's frames: each the pose and one
+    /// silhouette per camera of `observer` (whose cameras are [`HullOracle::rig`]'s or any
+    /// others). Frames are walked in parallel.
+    ///
+    /// # Errors
+    /// As [`Observer::accumulate`] (masks of the wrong count or size, a bad pose), in
+    /// [`Error::At`] with the frame's [`crate::Context::Frame`] among these frames.
+    pub fn push_frames(&mut self, observer: &Observer, frames: &[FrameInput<'_>]) -> Result<()> {
+        use crate::ResultExt;
+        let shortest: Vec<HashMap<NeedleKey, f64>> = frames
+            .par_iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let store = observer
+                    .accumulate(std::slice::from_ref(f))
+                    .at(crate::Context::Frame(i))?
+                    .store;
+                let mut map = HashMap::new();
+                for p in 0..store.primitive_count() {
+                    for o in store.observations(p) {
+                        let l = map
+                            .entry((p as u32, u32::from(o.needle)))
+                            .or_insert(f64::INFINITY);
+                        *l = f64::min(*l, f64::from(o.length_m));
+                    }
+                }
+                Ok(map)
+            })
+            .collect::<Result<_>>()?;
+        self.frames
+            .extend(frames.iter().map(|f| f.theta.to_vec()).zip(shortest));
+        Ok(())
+    }
+
+    /// Number of frames recorded.
+    pub fn frame_count(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// The oracle's length of needle `key` in frame `k`, metres; `None` where no view saw it.
+    pub fn length(&self, k: usize, key: NeedleKey) -> Option<f64> {
+        self.frames.get(k).and_then(|(_, m)| m.get(&key).copied())
+    }
+
+    /// How many of `set`'s needle-frames some view saw ([`TestSet::coverage`]).
+    pub fn coverage(&self, set: &TestSet) -> Coverage {
+        set.coverage(|k, n| self.length(k, (n.primitive, n.needle)).is_some())
+    }
+
+    /// The oracle's errors on `set` (recorded frame by frame from the same poses), with
+    /// `fallback`'s length where no view saw a needle. Restrict them to the needles it saw
+    /// with [`Errors::restricted`] and [`HullOracle::length`].
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] for a test set of another frame count, [`Error::InvalidParam`]
+    /// for one of other poses; as [`NeedleModel::needle_lengths`] (a fallback of another
+    /// body).
+    pub fn errors(&self, set: &TestSet, fallback: &NeedleModel) -> Result<Errors> {
+        if self.frames.len() != set.frames.len() {
+            return Err(Error::SizeMismatch {
+                what: "hull oracle frames vs test set",
+                expected: set.frames.len(),
+                got: self.frames.len(),
+            });
+        }
+        if self
+            .frames
+            .iter()
+            .zip(&set.frames)
+            .any(|((theta, _), f)| *theta != f.theta)
+        {
+            return Err(Error::InvalidParam {
+                name: "set",
+                reason: "the hull oracle saw other poses than the test set's".into(),
+            });
+        }
+        set.errors_of(|k, n| match self.length(k, (n.primitive, n.needle)) {
+            Some(l) => Ok(l),
+            None => {
+                let p = n.primitive as usize;
+                let l = fallback.needle_lengths(p, &set.frames[k].config[p])?;
+                l.get(n.needle as usize)
+                    .map(|&l| f64::from(l))
+                    .ok_or(Error::SizeMismatch {
+                        what: "fallback needle count",
+                        expected: n.needle as usize + 1,
+                        got: l.len(),
+                    })
+            }
+        })
+    }
+}
+
+/// How many of a test set's scored needle-frames a partial predictor knew
+/// ([`TestSet::coverage`]); the rest it filled in from a fallback.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Coverage {
+    /// Scored needle-frames.
+    pub needle_frames: usize,
+    /// Of those, the ones the predictor knew.
+    pub observed: usize,
+    /// Needle-frames of the pose-deforming needles ([`TestSet::pose_deforming`]).
+    pub pose_deforming_needle_frames: usize,
+    /// Of those, the ones the predictor knew.
+    pub pose_deforming_observed: usize,
+}
+
+impl Coverage {
+    /// Share of all scored needle-frames filled in from the fallback; NaN without any.
+    pub fn fallback_share(&self) -> f64 {
+        share(self.needle_frames - self.observed, self.needle_frames)
+    }
+
+    /// Share of the pose-deforming needle-frames filled in from the fallback; NaN without any.
+    pub fn pose_deforming_fallback_share(&self) -> f64 {
+        share(
+            self.pose_deforming_needle_frames - self.pose_deforming_observed,
+            self.pose_deforming_needle_frames,
+        )
+    }
+}
+
+fn short_share(samples: &[NeedleSample], slack_m: f64) -> f64 {
+    let short = samples
+        .iter()
+        .filter(|s| s.predicted_m < s.true_m - slack_m)
+        .count();
+    share(short, samples.len())
+}
+
+fn share(part: usize, whole: usize) -> f64 {
+    if whole == 0 {
+        f64::NAN
+    } else {
+        part as f64 / whole as f64
+    }
+}
+
+/// One category's share of a predictor's error on the pose-deforming needles
+/// ([`EffectAttribution::breakdown`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EffectErrors {
+    /// The category: [`SKINNING_GEOMETRY`], a pose effect's name (e.g. `"l_elbow_crease"`) or
+    /// [`FLAP`].
+    pub effect: String,
+    /// Pose-deforming needles this category dominates (among those the errors cover).
+    pub needles: usize,
+    /// Their needle-frames in the errors.
+    pub needle_frames: usize,
+    /// Mean absolute length error over those needle-frames, mm; NaN without any.
+    pub mean_mm: f64,
+}
+
+/// Which studio effect moves each needle most over a test set: the geometry of skinning
+/// itself, each pose-driven effect of the performer, or its dynamic deformation (the flap).
+///
+/// **The rule.** For needle-frame `(k, n)` of a needle with unit direction `d̂` leaving the
+/// true mesh at point `x` (a face and barycentric weights), each category has a value:
+///
+/// * [`SKINNING_GEOMETRY`]: the needle's length under LBS of the exact rest shape,
+///   [`NeedleTruth::lbs_m`];
+/// * each pose effect `e` of the performer ([`skin_core::studio::PoseEffect`], in the order of
+///   [`PoseDeformParams::effects`]): `u_e(x) · d̂`, its displacement at `x` (barycentric over
+///   the face's vertices) projected on the needle — to first order the length it adds where
+///   the surface is normal to the needle;
+/// * [`FLAP`]: the same of the dynamic displacement
+///   ([`skin_core::studio::PosedFrame::dynamic_displacement`]).
+///
+/// A category's **span** for a needle is the largest minus the smallest of its values over
+/// the frames in which the needle is scored, and the needle's **dominant** category is the one
+/// of largest span (ties to the earlier category, skinning geometry first). So a needle whose
+/// length the bending of skinning moves by 4 cm while a crease moves it 1 cm is skinning
+/// geometry's, even though it is pose-deforming; an upper-arm needle in the middle of the
+/// biceps, which skinning carries rigidly, is the biceps'.
+#[derive(Clone, Debug)]
+pub struct EffectAttribution {
+    /// Category names: skinning geometry, the effects, the flap.
+    categories: Vec<String>,
+    /// One performer per pose effect, with that effect alone.
+    single: Vec<Performer>,
+    /// Per needle, per category: (smallest, largest) value so far.
+    ranges: HashMap<NeedleKey, Vec<(f64, f64)>>,
+}
+
+impl EffectAttribution {
+    /// Prepares the attribution for `performer`, whose pose-driven deformation is `effects`
+    /// (the [`DeformationParams::pose`] it was built with; an empty list if it has none).
+    /// Each effect's displacement comes from a copy of the performer with that effect alone;
+    /// [`EffectAttribution::push_frame`] checks that they add up to the performer's own.
+    ///
+    /// # Errors
+    /// As [`Performer::new`] (an effect the skeleton cannot carry).
+    pub fn new(performer: &Performer, effects: &PoseDeformParams) -> Result<Self> {
+        let single = effects
+            .effects
+            .iter()
+            .map(|e| {
+                Performer::new(
+                    performer.name.clone(),
+                    performer.template.clone(),
+                    performer.skeleton.clone(),
+                    performer.weights.clone(),
+                    &DeformationParams::none().with_pose(Some(effects.clone().only(&e.name))),
+                )
+            })
+            .collect::<skin_core::Result<Vec<_>>>()?;
+        Ok(Self::with_categories(
+            effects.effects.iter().map(|e| e.name.clone()),
+            single,
+        ))
+    }
+
+    fn with_categories(effects: impl Iterator<Item = String>, single: Vec<Performer>) -> Self {
+        let mut categories = vec![SKINNING_GEOMETRY.to_string()];
+        categories.extend(effects);
+        categories.push(FLAP.to_string());
+        Self {
+            categories,
+            single,
+            ranges: HashMap::new(),
+        }
+    }
+
+    /// The categories, in order: [`SKINNING_GEOMETRY`], the pose effects, [`FLAP`].
+    pub fn categories(&self) -> &[String] {
+        &self.categories
+    }
+
+    /// Records the values of every scored needle of `frame` (the [`TestFrame`] that
+    /// [`TestSet::push_frame`] made of `truth`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] if `frame` is not `truth`'s (another pose), if a scored needle
+    /// no longer leaves the true mesh where `frame` says, or if the per-effect displacements do
+    /// not add up to `truth`'s pose-driven displacement within [`EFFECT_SUM_TOLERANCE_M`] (a
+    /// performer built with other effects); [`Error::SizeMismatch`] for a truth of another
+    /// performer or a frame of another body; as forward kinematics and [`MeshQuery::new`].
+    pub fn push_frame(
+        &mut self,
+        body: &NeedleBody,
+        performer: &Performer,
+        truth: &FrameTruth,
+        frame: &TestFrame,
+    ) -> Result<()> {
+        if frame.theta != truth.theta {
+            return Err(Error::InvalidParam {
+                name: "frame",
+                reason: "the test frame's pose is not the truth's".into(),
+            });
+        }
+        let nv = performer.template.vertices.len();
+        let posed = &truth.posed;
+        for (what, len) in [
+            ("true vertices", posed.true_vertices.len()),
+            ("pose displacement", posed.pose_displacement.len()),
+            ("dynamic displacement", posed.dynamic_displacement.len()),
+        ] {
+            if len != nv {
+                return Err(Error::SizeMismatch {
+                    what,
+                    expected: nv,
+                    got: len,
+                });
+            }
+        }
+        // Each effect alone at this pose (no dynamics: a fresh state).
+        let per_effect: Vec<Vec<DVec3>> = self
+            .single
+            .par_iter()
+            .map(|p| {
+                p.pose(&truth.theta, &mut DeformationState::default(), 1.0)
+                    .map(|f| f.pose_displacement)
+            })
+            .collect::<skin_core::Result<_>>()?;
+        for (v, total) in posed.pose_displacement.iter().enumerate() {
+            let sum: DVec3 = per_effect.iter().map(|d| d[v]).sum();
+            let gap = sum.distance(*total);
+            // NaN (a non-finite displacement) fails too.
+            if gap.is_nan() || gap > EFFECT_SUM_TOLERANCE_M {
+                return Err(Error::InvalidParam {
+                    name: "effects",
+                    reason: format!(
+                        "the effects' displacements miss the performer's by {gap} m at vertex \
+                         {v}: it was built with other pose effects"
+                    ),
+                });
+            }
+        }
+        let mesh = performer.mesh(posed.true_vertices.clone());
+        let query = MeshQuery::new(&mesh)?;
+        let fk = performer.skeleton.forward_kinematics(&truth.theta)?;
+        let values: Vec<Vec<f64>> = frame
+            .needles
+            .par_iter()
+            .map(|n| {
+                let prim =
+                    body.primitives
+                        .get(n.primitive as usize)
+                        .ok_or(Error::SizeMismatch {
+                            what: "body primitives vs test frame",
+                            expected: n.primitive as usize + 1,
+                            got: body.primitives.len(),
+                        })?;
+                if n.needle as usize >= prim.needle_count() {
+                    return Err(Error::SizeMismatch {
+                        what: "primitive needles vs test frame",
+                        expected: n.needle as usize + 1,
+                        got: prim.needle_count(),
+                    });
+                }
+                let (o, d) =
+                    prim.needle_world(&fk.world_from_joint()[prim.carrier], n.needle as usize);
+                let hit = query
+                    .cast_ray(Ray::new(o, d), prim.max_length_m)?
+                    .filter(|h| !h.front_face && (h.t - n.true_m).abs() <= 1e-9)
+                    .ok_or_else(|| Error::InvalidParam {
+                        name: "frame",
+                        reason: format!(
+                            "needle {} of primitive {} does not leave the true mesh at its \
+                             true length",
+                            n.needle, n.primitive
+                        ),
+                    })?;
+                let face = mesh.faces[hit.point.face as usize];
+                let at = |u: &[DVec3]| -> f64 {
+                    face.iter()
+                        .zip(&hit.point.bary)
+                        .map(|(&v, &b)| u[v as usize] * b)
+                        .sum::<DVec3>()
+                        .dot(d)
+                };
+                let mut row = Vec::with_capacity(self.categories.len());
+                row.push(n.lbs_m);
+                row.extend(per_effect.iter().map(|u| at(u)));
+                row.push(at(&posed.dynamic_displacement));
+                Ok(row)
+            })
+            .collect::<Result<_>>()?;
+        for (n, row) in frame.needles.iter().zip(&values) {
+            self.push((n.primitive, n.needle), row);
+        }
+        Ok(())
+    }
+
+    /// Records one needle-frame's values, one per category (the rule in the type's docs).
+    fn push(&mut self, key: NeedleKey, values: &[f64]) {
+        let ranges = self
+            .ranges
+            .entry(key)
+            .or_insert_with(|| vec![(f64::INFINITY, f64::NEG_INFINITY); values.len()]);
+        for (r, &v) in ranges.iter_mut().zip(values) {
+            *r = (r.0.min(v), r.1.max(v));
+        }
+    }
+
+    /// Each category's span for needle `key`, metres, in the order of
+    /// [`EffectAttribution::categories`]; `None` for a needle never pushed.
+    pub fn spans(&self, key: NeedleKey) -> Option<Vec<f64>> {
+        self.ranges
+            .get(&key)
+            .map(|r| r.iter().map(|(lo, hi)| hi - lo).collect())
+    }
+
+    /// The dominant category of needle `key` (an index into
+    /// [`EffectAttribution::categories`]); `None` for a needle never pushed.
+    pub fn dominant(&self, key: NeedleKey) -> Option<usize> {
+        let spans = self.spans(key)?;
+        let mut best = 0;
+        for (i, s) in spans.iter().enumerate() {
+            if *s > spans[best] {
+                best = i;
+            }
+        }
+        Some(best)
+    }
+
+    /// `errors`' pose-deforming needle-frames ([`Errors::pose_samples`]) grouped by their
+    /// needle's dominant category, one entry per category in the order of
+    /// [`EffectAttribution::categories`] (empty categories too).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] naming a needle of `errors` that was never pushed (errors of
+    /// another test set).
+    pub fn breakdown(&self, errors: &Errors) -> Result<Vec<EffectErrors>> {
+        let mut needles: Vec<HashSet<NeedleKey>> = vec![HashSet::new(); self.categories.len()];
+        let mut sums = vec![(0usize, 0.0f64); self.categories.len()];
+        for s in &errors.pose_samples {
+            let c = self.dominant(s.key).ok_or_else(|| Error::InvalidParam {
+                name: "errors",
+                reason: format!(
+                    "needle {} of primitive {} has no attribution: errors of another test set",
+                    s.key.1, s.key.0
+                ),
+            })?;
+            needles[c].insert(s.key);
+            sums[c].0 += 1;
+            sums[c].1 += (s.predicted_m - s.true_m).abs() * 1e3;
+        }
+        Ok(self
+            .categories
+            .iter()
+            .zip(needles)
+            .zip(sums)
+            .map(|((effect, needles), (count, sum))| EffectErrors {
+                effect: effect.clone(),
+                needles: needles.len(),
+                needle_frames: count,
+                mean_mm: if count == 0 {
+                    f64::NAN
+                } else {
+                    sum / count as f64
+                },
+            })
+            .collect())
+    }
 }
 
 impl TestSet {
@@ -337,6 +847,25 @@ impl TestSet {
             .map(|(k, _)| k)
             .collect()
     }
+
+    /// How many scored needle-frames a partial predictor knew: `observed(k, n)` says whether
+    /// it knew needle-frame `n` of frame `k` (the rest it filled in from a fallback).
+    pub fn coverage(&self, mut observed: impl FnMut(usize, &NeedleTruth) -> bool) -> Coverage {
+        let deforming = self.pose_deforming();
+        let mut c = Coverage::default();
+        for (k, f) in self.frames.iter().enumerate() {
+            for n in &f.needles {
+                let seen = observed(k, n);
+                c.needle_frames += 1;
+                c.observed += usize::from(seen);
+                if deforming.contains(&(n.primitive, n.needle)) {
+                    c.pose_deforming_needle_frames += 1;
+                    c.pose_deforming_observed += usize::from(seen);
+                }
+            }
+        }
+        c
+    }
 }
 
 impl Errors {
@@ -362,6 +891,59 @@ impl Errors {
             self.pose_deforming_mm.push(e_mm);
             self.pose_samples.push(sample);
         }
+    }
+
+    /// These errors on the needle-frames of `set` that `keep(k, n)` selects (needle-frame `n`
+    /// of frame `k`), `set` being the test set they were scored on: the pose-deforming needles
+    /// stay those of the whole set, so predictors restricted to one subset are compared on the
+    /// same needle-frames (e.g. those a visual-hull oracle saw, [`TestSet::coverage`]).
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if these errors are not one per needle-frame of `set`, and
+    /// [`Error::InvalidParam`] if their needles are not `set`'s, in its order.
+    pub fn restricted(
+        &self,
+        set: &TestSet,
+        mut keep: impl FnMut(usize, &NeedleTruth) -> bool,
+    ) -> Result<Errors> {
+        let total: usize = set.frames.iter().map(|f| f.needles.len()).sum();
+        if self.samples.len() != total {
+            return Err(Error::SizeMismatch {
+                what: "errors vs test set needle-frames",
+                expected: total,
+                got: self.samples.len(),
+            });
+        }
+        let deforming = set.pose_deforming();
+        let mut out = Errors::default();
+        let mut samples = self.samples.iter();
+        for (k, f) in set.frames.iter().enumerate() {
+            for (n, s) in f.needles.iter().zip(samples.by_ref()) {
+                if s.key != (n.primitive, n.needle) || s.true_m != n.true_m {
+                    return Err(Error::InvalidParam {
+                        name: "set",
+                        reason: "the errors were scored on another test set".into(),
+                    });
+                }
+                if keep(k, n) {
+                    out.push(n, s.predicted_m, &deforming);
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Share of the scored needle-frames ([`Errors::samples`]) whose prediction falls short of
+    /// the truth by more than `slack_m` metres: where a predictor meant as an outer bound (the
+    /// visual hull's, [`HullOracle`]) is none. NaN without samples.
+    pub fn short_share(&self, slack_m: f64) -> f64 {
+        short_share(&self.samples, slack_m)
+    }
+
+    /// [`Errors::short_share`] over the pose-deforming needle-frames
+    /// ([`Errors::pose_samples`]).
+    pub fn pose_short_share(&self, slack_m: f64) -> f64 {
+        short_share(&self.pose_samples, slack_m)
     }
 
     /// The share of the pose variance of the pose-deforming needles this predictor explains
@@ -471,5 +1053,233 @@ mod tests {
         };
         assert!(flat.pose_deforming().is_empty());
         assert!(flat.lbs_errors().pose_r2().r2.is_nan());
+    }
+
+    #[test]
+    fn coverage_counts_the_fallbacks_and_restriction_keeps_the_pose_deforming_needles() {
+        let t = set(0.0);
+        // A partial predictor that knew needle 0 in frames 0 and 2, needle 1 in frame 1.
+        let seen = |k: usize, n: &NeedleTruth| (n.primitive == 0) == (k != 1);
+        let c = t.coverage(seen);
+        assert_eq!(
+            c,
+            Coverage {
+                needle_frames: 6,
+                observed: 3,
+                pose_deforming_needle_frames: 3,
+                pose_deforming_observed: 2,
+            }
+        );
+        assert!((c.fallback_share() - 0.5).abs() < 1e-12);
+        assert!((c.pose_deforming_fallback_share() - 1.0 / 3.0).abs() < 1e-12);
+        assert!(Coverage::default().fallback_share().is_nan());
+        // LBS errors of needle 0 are 0, 3, 6 mm; on the known frames 0 and 6 mm. Needle 0
+        // stays pose-deforming although, alone, frames 0 and 2 of the subset would not make
+        // needle 1 one either: the set is the whole test's.
+        let e = t.lbs_errors().restricted(&t, seen).unwrap();
+        assert_eq!(e.all_mm.len(), 3);
+        assert_eq!(e.pose_samples.len(), 2);
+        assert_eq!(e.pose_deforming_mm.len(), 2);
+        assert!((e.pose_deforming_mm[0] - 0.0).abs() < 1e-9);
+        assert!((e.pose_deforming_mm[1] - 6.0).abs() < 1e-9, "{e:?}");
+        assert_eq!(e.samples[1].key, (1, 0));
+        // LBS predicts needle 0 at 50 mm against 50, 53, 56 mm: 2 of 3 frames more than
+        // 1.5 mm short, 1 of 3 more than 4 mm; needle 1 (40 mm against 40, 41, 40.5) never.
+        let all = t.lbs_errors();
+        assert!((all.pose_short_share(0.0015) - 2.0 / 3.0).abs() < 1e-12);
+        assert!((all.pose_short_share(0.004) - 1.0 / 3.0).abs() < 1e-12);
+        assert!((all.short_share(0.0015) - 2.0 / 6.0).abs() < 1e-12);
+        assert!(Errors::default().short_share(0.0).is_nan());
+        // Errors of another test set are refused.
+        let other = TestSet {
+            frames: t.frames[..2].to_vec(),
+        };
+        assert!(matches!(
+            t.lbs_errors().restricted(&other, seen),
+            Err(Error::SizeMismatch { .. })
+        ));
+        let mut swapped = t.clone();
+        swapped.frames[0].needles.swap(0, 1);
+        assert!(matches!(
+            t.lbs_errors().restricted(&swapped, seen),
+            Err(Error::InvalidParam { .. })
+        ));
+    }
+
+    #[test]
+    fn the_effect_of_largest_span_dominates_a_needle() {
+        let mut a = EffectAttribution::with_categories(
+            ["l_biceps".to_string(), "l_elbow_crease".to_string()].into_iter(),
+            vec![],
+        );
+        assert_eq!(
+            a.categories(),
+            [SKINNING_GEOMETRY, "l_biceps", "l_elbow_crease", FLAP]
+        );
+        // Values per frame: [LBS length, biceps, crease, flap], metres.
+        let frames: [[[f64; 4]; 4]; 3] = [
+            // (0, 0): skinning carries it rigidly, the biceps swells 8 mm, the crease 3 mm.
+            // (0, 1): skinning moves it 4 cm, the crease 1 cm.
+            // (0, 2): only the flap moves it.
+            // (0, 3): skinning and the biceps tie at 7.8125 mm (exact in binary): skinning,
+            // the earlier category.
+            [
+                [0.05, 0.000, 0.000, 0.0],
+                [0.05, 0.000, 0.000, 0.0],
+                [0.07, 0.0, 0.0, 0.0],
+                [0.0625, 0.0, 0.0, 0.0],
+            ],
+            [
+                [0.05, 0.004, -0.001, 0.0],
+                [0.07, 0.000, -0.005, 0.0],
+                [0.07, 0.0, 0.0, 0.004],
+                [0.0703125, 0.00390625, 0.0, 0.0],
+            ],
+            [
+                [0.05, 0.008, -0.003, 0.0],
+                [0.09, 0.000, -0.010, 0.0],
+                [0.07, 0.0, 0.0, -0.002],
+                [0.0625, 0.0078125, 0.0, 0.0],
+            ],
+        ];
+        for f in &frames {
+            for (j, v) in f.iter().enumerate() {
+                a.push((0, j as u32), v);
+            }
+        }
+        let spans = a.spans((0, 0)).unwrap();
+        assert!((spans[1] - 0.008).abs() < 1e-12 && (spans[2] - 0.003).abs() < 1e-12);
+        assert!(spans[0].abs() < 1e-12 && spans[3] == 0.0);
+        assert_eq!(a.dominant((0, 0)), Some(1));
+        assert_eq!(a.dominant((0, 1)), Some(0));
+        assert_eq!(a.dominant((0, 2)), Some(3));
+        assert_eq!(a.dominant((0, 3)), Some(0));
+        assert_eq!(a.dominant((1, 0)), None);
+        // Errors: needle (0, 0) off by 2 and 4 mm, needle (0, 1) by 1 mm, needle (0, 3) by
+        // 3 mm.
+        let sample = |needle: u32, err_mm: f64| NeedleSample {
+            key: (0, needle),
+            predicted_m: 0.05 + err_mm * 1e-3,
+            true_m: 0.05,
+        };
+        let errors = Errors {
+            pose_samples: vec![
+                sample(0, 2.0),
+                sample(1, 1.0),
+                sample(0, -4.0),
+                sample(3, 3.0),
+            ],
+            ..Errors::default()
+        };
+        let b = a.breakdown(&errors).unwrap();
+        let names: Vec<&str> = b.iter().map(|e| e.effect.as_str()).collect();
+        assert_eq!(names, a.categories());
+        assert_eq!((b[0].needles, b[0].needle_frames), (2, 2));
+        assert!((b[0].mean_mm - 2.0).abs() < 1e-9, "{b:?}");
+        assert_eq!((b[1].needles, b[1].needle_frames), (1, 2));
+        assert!((b[1].mean_mm - 3.0).abs() < 1e-9, "{b:?}");
+        assert_eq!((b[2].needles, b[2].needle_frames), (0, 0));
+        assert!(b[2].mean_mm.is_nan());
+        // A needle never pushed: errors of another test set.
+        let stranger = Errors {
+            pose_samples: vec![NeedleSample {
+                key: (7, 7),
+                predicted_m: 0.0,
+                true_m: 0.0,
+            }],
+            ..Errors::default()
+        };
+        assert!(a.breakdown(&stranger).is_err());
+    }
+
+    #[test]
+    fn a_bent_elbow_is_attributed_to_skinning_and_the_elbow_effects() {
+        use crate::primitive::BodyLayout;
+        use skin_core::studio::{procedural_performer, ProceduralBodyParams};
+        let deformation = DeformationParams::default().with_flap(None);
+        let effects = deformation.pose.clone().unwrap();
+        let p = procedural_performer(&ProceduralBodyParams {
+            deformation,
+            ..Default::default()
+        })
+        .unwrap();
+        let body =
+            NeedleBody::new(&p.skeleton, &BodyLayout::table_3_1().with_density(0.5)).unwrap();
+        let elbow = p.skeleton.dof_index("l_elbow.flexion").unwrap();
+        let mut set = TestSet::default();
+        let mut a = EffectAttribution::new(&p, &effects).unwrap();
+        let truth = |degrees: f64| {
+            let mut theta = p.skeleton.rest_pose();
+            theta[elbow] = degrees.to_radians();
+            let posed = p
+                .pose(&theta, &mut DeformationState::default(), 1.0)
+                .unwrap();
+            FrameTruth {
+                theta,
+                posed,
+                fine: None,
+                views: vec![],
+            }
+        };
+        for degrees in [0.0, 30.0, 60.0, 90.0] {
+            let t = truth(degrees);
+            set.push_frame(&body, &p, &t).unwrap();
+            let frame = set.frames.last().unwrap().clone();
+            a.push_frame(&body, &p, &t, &frame).unwrap();
+        }
+        // Only the left elbow bent: every pose-deforming needle is skinning geometry's or one
+        // of the effects the left elbow's flexion drives, and the biceps, which skinning
+        // carries rigidly in the middle of the upper arm, has needles of its own there.
+        let elbow_effects = [
+            "l_biceps",
+            "l_brachioradialis",
+            "l_elbow_crease",
+            "l_elbow_round",
+        ];
+        let mut count: HashMap<&str, usize> = HashMap::new();
+        for key in set.pose_deforming() {
+            let c = a.categories()[a.dominant(key).unwrap()].as_str();
+            assert!(
+                c == SKINNING_GEOMETRY || elbow_effects.contains(&c),
+                "needle {key:?}: {c}"
+            );
+            *count.entry(c).or_default() += 1;
+            let primitive = body.primitives[key.0 as usize].name.as_str();
+            if c != SKINNING_GEOMETRY {
+                // The biceps reaches the elbow, the brachioradialis starts there.
+                assert!(
+                    ["left upper arm", "left forearm"].contains(&primitive),
+                    "needle {key:?} of {primitive}: {c}"
+                );
+            }
+            if c == "l_biceps" && primitive == "left upper arm" {
+                *count.entry("l_biceps on the upper arm").or_default() += 1;
+            }
+            // The flap is off and nothing else moves: their spans are zero.
+            let spans = a.spans(key).unwrap();
+            assert_eq!(spans[spans.len() - 1], 0.0);
+        }
+        eprintln!("dominant categories of the pose-deforming needles: {count:?}");
+        assert!(
+            count.get("l_biceps on the upper arm").copied().unwrap_or(0) > 0,
+            "{count:?}"
+        );
+        // The effects must be the performer's: one missing is refused, as is a frame of
+        // another pose.
+        let t = truth(45.0);
+        let mut missing = EffectAttribution::new(&p, &effects.clone().without("l_biceps")).unwrap();
+        set.push_frame(&body, &p, &t).unwrap();
+        let frame = set.frames.last().unwrap().clone();
+        assert!(matches!(
+            missing.push_frame(&body, &p, &t, &frame),
+            Err(Error::InvalidParam {
+                name: "effects",
+                ..
+            })
+        ));
+        assert!(matches!(
+            a.push_frame(&body, &p, &truth(20.0), &frame),
+            Err(Error::InvalidParam { name: "frame", .. })
+        ));
     }
 }
