@@ -159,6 +159,9 @@ fn write_tensorly(dir: &Path, name: &str, faces: &FaceTensor, runs: &[(f64, &Fil
     Ok(())
 }
 
+/// People, then the mean errors of the default, the thesis's PPCA and averaging.
+type SweepPoint = (f64, f64, f64, f64);
+
 /// The sweep over people: 50 % held out of trilinear sets (5 visemes × 5 expressions × P
 /// people, all 6,706 vertices) for P people and identity rank r (the generator's identity
 /// modes + 1; full = P), per hold-out seed. Returns the rows and every hold-out's row.
@@ -168,7 +171,7 @@ fn identities_sweep(run: &mut Run, basis: &IctBasis, quick: bool) -> Res<(Value,
     let palette = [[40, 160, 80], [40, 90, 200], [200, 60, 60]];
     let mut rows = Vec::new();
     let mut all = Vec::new();
-    let mut by_rank: Vec<(String, Vec<(f64, f64, f64, f64)>)> = Vec::new();
+    let mut by_rank: Vec<(String, Vec<SweepPoint>)> = Vec::new();
     for &p in people {
         let ranks = if quick { vec![11, p] } else { vec![6, 11, p] };
         for (ri, &r) in ranks.iter().enumerate() {
@@ -216,7 +219,7 @@ fn identities_sweep(run: &mut Run, basis: &IctBasis, quick: bool) -> Res<(Value,
     chart.log_x = true;
     for (i, (name, pts)) in by_rank.iter().enumerate() {
         let c = palette[(i + if quick { 1 } else { 0 }) % palette.len()];
-        let series = |f: fn(&(f64, f64, f64, f64)) -> f64| -> Vec<(f64, f64)> {
+        let series = |f: fn(&SweepPoint) -> f64| -> Vec<(f64, f64)> {
             pts.iter().map(|q| (q.0, 100.0 * f(q))).collect()
         };
         chart = chart

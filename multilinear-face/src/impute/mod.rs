@@ -10,6 +10,7 @@ mod moments;
 mod ppca;
 mod spd;
 
+#[cfg(feature = "validation")]
 pub(crate) use averaging::averaging_can_fill;
 pub use averaging::impute_by_averaging;
 pub use model_choice::{impute, Imputation, ImputeModel, ImputeParams};
