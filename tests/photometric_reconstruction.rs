@@ -347,7 +347,10 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
         &exact,
         &silhouettes,
         &rec.pass2.views.surfaces,
-        rec.pass2.unrefined.as_ref().expect("pass 2 is refined by default"),
+        rec.pass2
+            .unrefined
+            .as_ref()
+            .expect("pass 2 is refined by default"),
         &MetricParams::default(),
     )
     .unwrap();
