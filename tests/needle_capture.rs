@@ -1,18 +1,24 @@
 //! Small end-to-end validation of the needle model on the studio (the CI-sized version of
 //! `examples/needle_capture`): train on the free exercise while turning, test on an exercise
 //! of another seed and on real motion capture it never saw (CMU 131_01, retargeted) against
-//! the performer's true posed mesh, pose-driven shapes on and the hip flap off.
+//! the performer's true posed mesh, pose-driven shapes on and the hip flap off; beside the
+//! static model, the fair skinning baseline (LBS of the captured shape, library weights) and,
+//! on a third of the exercise frames, the pose-local visual-hull oracle with each needle's
+//! error split by the studio effect that moves it most.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 use dynamic_shapes::core::image::Mask;
+use dynamic_shapes::core::mesh::HeatWeightsParams;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
 use dynamic_shapes::core::studio::{
     exercise_motion, play_bvh, procedural_performer, studio_ring, Capture, CaptureFrame,
     CaptureSpec, DeformationParams, ExerciseParams, FrameTruth, Performer, ProceduralBodyParams,
-    RetargetParams,
+    RetargetParams, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
 };
-use dynamic_shapes::needle::truth::TestSet;
+use dynamic_shapes::needle::truth::{
+    EffectAttribution, EffectErrors, HullOracle, NeedleTruth, TestSet,
+};
 use dynamic_shapes::needle::{
     animate, union_mesh, BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
     ReconstructionParams, SkinnedShape, SurfaceParams,
@@ -108,9 +114,15 @@ fn needle_model_follows_the_pose_on_unseen_motions() {
     let stat = NeedleModel::reconstruct(&store, &body, &params.with_f_near(1.0))
         .unwrap()
         .model;
+    // The fair skinning baseline: LBS of the model's own rest shape with the library's
+    // bone-heat weights (Pinocchio's visibility test on).
     let rest = animate(&body, &model, &sk, &sk.rest_pose()).unwrap();
-    let lbs =
-        SkinnedShape::heat(&sk, union_mesh(&rest, &SurfaceParams::default()).unwrap()).unwrap();
+    let lbs = SkinnedShape::heat(
+        &sk,
+        union_mesh(&rest, &SurfaceParams::default()).unwrap(),
+        &HeatWeightsParams::default(),
+    )
+    .unwrap();
     let lbs_of = |t: &TestSet| {
         t.surface_errors(&body, &sk, |th| {
             lbs.pose(&performer, sk.forward_kinematics(th)?.world_from_joint())
@@ -155,15 +167,17 @@ fn needle_model_follows_the_pose_on_unseen_motions() {
             mean(&b.pose_deforming_mm),
             mean(&x.pose_deforming_mm),
         );
-        let (mr, sr) = (m.pose_r2(), s.pose_r2());
+        let (mr, sr, br) = (m.pose_r2(), s.pose_r2(), b.pose_r2());
         let (pm, ps) = (per_primitive(t, &model), per_primitive(t, &stat));
         eprintln!(
-            "{name}: median mm: model {mm:.2}, static {sm:.2}, captured-rest LBS {bm:.2}, exact-rest LBS {em:.2}; \
-             pose-deforming mean mm ({} needles): model {md:.2}, static {sd:.2}, LBS {bd:.2}, exact-rest LBS {ed:.2}; \
-             pose_r2_centred model {:.3} static {:.3}; per primitive: model {pm:.1?}, static {ps:.1?}",
+            "{name}: median mm: model {mm:.2}, static {sm:.2}, captured-rest LBS {bm:.2}, \
+             exact-rest LBS {em:.2}; pose-deforming mean mm ({} needles): model {md:.2}, static \
+             {sd:.2}, LBS {bd:.2}, exact-rest LBS {ed:.2}; pose_r2_centred model {:.3} static \
+             {:.3} LBS {:.3}; per primitive: model {pm:.1?}, static {ps:.1?}",
             t.pose_deforming().len(),
             mr.r2_centred,
             sr.r2_centred,
+            br.r2_centred,
         );
         // Silhouettes bound the surface from outside (visual hull) at 360×240 (≈ 1 cm
         // pixels): the model lands within half a pixel of the truth on most needles...
@@ -184,18 +198,133 @@ fn needle_model_follows_the_pose_on_unseen_motions() {
             t.pose_deforming().len() > 200,
             "{name}: too few pose-deforming needles"
         );
-        // ...and, where the pose changes the shape, follows it: better than the static model
-        // and than LBS of its own captured shape.
-        assert!(
-            md < sd && md < bd,
-            "{name}: pose-deforming model {md} mm, static {sd}, LBS {bd}"
-        );
+        // ...and, where the pose changes the shape, follows it: better than the static model.
+        assert!(md < sd, "{name}: pose-deforming model {md} mm, static {sd}");
         assert!(
             mr.r2_centred > MIN_R2_CENTRED,
             "{name}: pose_r2_centred {:.3}",
             mr.r2_centred
         );
+        // Against the fair skinning baseline, LBS of the captured shape with the library's
+        // bone-heat weights: better on the exercise (on MakeHuman too: 7.03 vs 8.32 mm), as
+        // good and no better on the walk (MakeHuman: 10.03 vs 9.70 mm, LBS ahead;
+        // docs/needle-model.md).
+        if name == "exercise" {
+            assert!(
+                md < 0.95 * bd,
+                "{name}: pose-deforming model {md} mm, LBS {bd} mm"
+            );
+        } else {
+            assert!(
+                md > 0.9 * bd,
+                "{name}: pose-deforming model {md} mm now clearly beats LBS {bd} mm: update the docs"
+            );
+        }
     }
+
+    // The pose-local visual-hull oracle on every third exercise test frame (every 30th of
+    // the motion): 24 cameras at three heights see the body at exactly these poses.
+    let oracle_rig = HullOracle::rig(360, 240).unwrap();
+    let oracle_observer = Observer::new(
+        body.clone(),
+        sk.clone(),
+        oracle_rig.cameras.clone(),
+        ObserveParams::default(),
+    )
+    .unwrap();
+    let capture = capture_of(&performer, &oracle_rig, &other);
+    let seen: Vec<CaptureFrame> = capture
+        .frames_stepped(0..capture.frame_count(), 30)
+        .collect::<Result<_, _>>()
+        .unwrap();
+    let sub = TestSet {
+        frames: ex.frames.iter().step_by(3).cloned().collect(),
+    };
+    let masks: Vec<Vec<Mask>> = seen.iter().map(CaptureFrame::masks).collect();
+    let inputs: Vec<FrameInput> = seen
+        .iter()
+        .zip(&masks)
+        .map(|(f, m)| FrameInput {
+            theta: &f.truth.theta,
+            masks: m,
+        })
+        .collect();
+    let mut oracle = HullOracle::default();
+    oracle.push_frames(&oracle_observer, &inputs).unwrap();
+    // Which studio effect moves each of these needles most.
+    let effects = DeformationParams::default().pose.unwrap();
+    let mut attribution = EffectAttribution::new(&performer, &effects).unwrap();
+    for (f, k) in seen.iter().zip(&sub.frames) {
+        attribution
+            .push_frame(&body, &performer, &f.truth, k)
+            .unwrap();
+    }
+    let coverage = oracle.coverage(&sub);
+    let saw = |k: usize, n: &NeedleTruth| oracle.length(k, (n.primitive, n.needle)).is_some();
+    let o = oracle
+        .errors(&sub, &stat)
+        .unwrap()
+        .restricted(&sub, saw)
+        .unwrap();
+    let m = sub.errors(&model).unwrap().restricted(&sub, saw).unwrap();
+    let (or, mr) = (o.pose_r2(), m.pose_r2());
+    let (om, mm) = (mean(&o.pose_deforming_mm), mean(&m.pose_deforming_mm));
+    // Where the oracle is no outer bound: shorter than the truth by more than a pixel's
+    // footprint at the ring's distance (1 cm at 360 px).
+    let pixel_m =
+        2.0 * STUDIO_RING_RADIUS_M * (STUDIO_RING_HFOV_DEG.to_radians() / 2.0).tan() / 360.0;
+    let (short, model_short) = (o.pose_short_share(pixel_m), m.pose_short_share(pixel_m));
+    eprintln!(
+        "hull oracle, {} frames: fallback on {:.3} of the pose-deforming needle-frames ({:.3} of \
+         all); on the needle-frames it saw: pose-deforming mean model {mm:.2} mm, oracle \
+         {om:.2} mm; pose_r2_centred model {:.3}, oracle {:.3}; short of the truth by more \
+         than a pixel: oracle {short:.3}, model {model_short:.3}",
+        sub.frames.len(),
+        coverage.pose_deforming_fallback_share(),
+        coverage.fallback_share(),
+        mr.r2_centred,
+        or.r2_centred,
+    );
+    let split = |e| attribution.breakdown(e).unwrap();
+    let (bo, bm) = (split(&o), split(&m));
+    for (o, m) in bo.iter().zip(&bm) {
+        if o.needle_frames > 0 {
+            eprintln!(
+                "  {}: {} needles, {} needle-frames: model {:.2}, oracle {:.2} mm",
+                o.effect, o.needles, o.needle_frames, m.mean_mm, o.mean_mm
+            );
+        }
+    }
+    // The oracle knows most pose-deforming needle-frames; where it falls back is counted.
+    assert!(
+        coverage.pose_deforming_fallback_share() < 0.1,
+        "{coverage:?}"
+    );
+    // Where it saw a needle it is an outer bound, up to a pixel: the visual hull contains the
+    // body. (Which of the model and the oracle follows the pose better depends on the
+    // pixels: here, at 360×240, the model; at 720×480 on MakeHuman the oracle.)
+    assert!(short < 0.05, "oracle short of the truth on {short:.3}");
+    // On the needles a muscle's swelling moves most (outward, in view of some silhouette) the
+    // model, pooling many poses, errs far less than the per-pose oracle (on MakeHuman too).
+    let muscles = ["biceps", "brachioradialis", "deltoid", "calf", "hamstrings"];
+    let pooled = |rows: &[EffectErrors]| {
+        let (n, sum) = rows
+            .iter()
+            .filter(|r| muscles.iter().any(|m| r.effect.ends_with(m)) && r.needle_frames > 0)
+            .fold((0, 0.0), |(n, sum), r| {
+                (
+                    n + r.needle_frames,
+                    sum + r.mean_mm * r.needle_frames as f64,
+                )
+            });
+        (n, sum / n as f64)
+    };
+    let ((n, om), (_, mm)) = (pooled(&bo), pooled(&bm));
+    assert!(n > 500, "{n} muscle-dominated needle-frames");
+    assert!(
+        mm < 0.75 * om,
+        "muscle-dominated needles: model {mm:.2} mm, oracle {om:.2} mm"
+    );
 }
 
 /// Seconds of training exercise.

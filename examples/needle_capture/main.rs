@@ -13,19 +13,31 @@
 //! fraction neighbourhoods (`fraction_*`), parameters selected automatically by silhouette
 //! error (§6.3, Figure 11; `selected_*`), a **static** model (`F_near = 1`, thesis Figure
 //! 6-2c; `static_*`), **LBS** of the model's own rest shape captured from the same
-//! silhouettes with automatic bone-heat weights (`needle_model::baseline`; `lbs_*`), the same
-//! shape with the performer's own weights (`lbs_true_weights_*`), and LBS of the performer's
-//! EXACT rest shape (`lbs_exact_rest_*`, an oracle no capture has). Pose-deforming needles are
+//! silhouettes with automatic bone-heat weights (`needle_model::baseline`; `lbs_*` with the
+//! library's default weights, Pinocchio's visibility test on; `lbs_no_visibility_*` without
+//! it), the same shape with the performer's own weights (`lbs_true_weights_*`), LBS of the
+//! performer's EXACT rest shape (`lbs_exact_rest_*`, an oracle no capture has), and on the
+//! exercise a pose-local visual-hull oracle (`hull_oracle_*`: 24 cameras on three rings see
+//! every test pose; `hull_oracle_fallback_share` of the pose-deforming needle-frames no view
+//! saw, `…_all_needles` of all; every predictor on the needle-frames it saw,
+//! `{predictor}_observed_*`, the model's `model_observed_*`; `hull_oracle_observed_short_share`
+//! the share of those pose-deforming needle-frames where the oracle is shorter than the truth
+//! by more than a pixel's footprint at the ring's distance, `hull_oracle_pixel_mm`: where it
+//! is no outer bound). Pose-deforming needles are
 //! those whose non-skinning length spans more than 3 mm over the test
-//! (`deforming_mean_mm`, `pose_r2`, ...). Figures of §6: error against N (10, 30, 100, 300)
+//! (`deforming_mean_mm`, `pose_r2`, ...); `deforming_error_by_effect` (and `walk_…`) splits
+//! each predictor's error on them by the studio effect that moves each needle most
+//! (`needle_model::truth::EffectAttribution`: skinning geometry, each pose-driven muscle or
+//! crease, the flap — off here, so empty). Figures of §6: error against N (10, 30, 100, 300)
 //! over 3 prototype seeds, 30 s against 5 minutes of training; the neighbourhood diagnostics
 //! (`pool_max_pose_share`, `pool_radius_deg_median`, `floor_bound_share`, per primitive in
 //! `pools`).
 //!
 //! Writes under `out/needle_capture/`:
 //! * `error_vs_n.png`: error (mm) against N (log axis) — pose-deforming mean (red, each seed
-//!   pink), all-needle median (blue); dashed: static, captured-rest LBS and exact-rest LBS at
-//!   their pose-deforming means; title, axis labels and legend.
+//!   pink), all-needle median (blue); dashed: static, captured-rest LBS (with and without the
+//!   visibility test) and exact-rest LBS at their pose-deforming means; title, axis labels
+//!   and legend.
 //! * `flexed_elbow.png`: the test frame of the most flexed elbow from the static model, LBS
 //!   and the model, coloured by needle error with a colour bar, beside the truth (like Sand
 //!   2003 Figure 12).
@@ -52,15 +64,18 @@ use clap::Parser;
 
 use dynamic_shapes::core::camera::{Camera, Rig};
 use dynamic_shapes::core::image::Mask;
-use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::core::mesh::{HeatWeightsParams, TriMesh};
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
 use dynamic_shapes::core::studio::{
     exercise_motion, makehuman_performer, play_bvh, preview, procedural_performer, studio_ring,
     Capture, CaptureFrame, CaptureSpec, DeformationParams, DeformationState, ExerciseParams, Paint,
-    Performer, PreviewPanel, ProceduralBodyParams, RetargetParams,
+    Performer, PoseDeformParams, PreviewPanel, ProceduralBodyParams, RetargetParams,
+    STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
 };
-use dynamic_shapes::needle::truth::{Errors, TestSet};
+use dynamic_shapes::needle::truth::{
+    EffectAttribution, EffectErrors, Errors, HullOracle, NeedleTruth, TestSet,
+};
 use dynamic_shapes::needle::{
     animate, merged_mesh, primitive_meshes, select_params, union_mesh, BodyLayout, FrameInput,
     NeedleBody, NeedleModel, Neighbourhood, ObservationStore, ObserveParams, Observer, Parameter,
@@ -80,8 +95,6 @@ const TRAIN_SEED: u64 = 11;
 const TEST_SEED: u64 = 23;
 /// Step between the prototype seeds of the error-against-N sweep.
 const SEED_STEP: u64 = 1000;
-/// Cameras of the pose-local visual-hull oracle ([`hull_oracle`]).
-const HULL_ORACLE_CAMERAS: usize = 24;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
@@ -141,10 +154,15 @@ impl Setup {
     }
 }
 
-/// The performer with its pose-driven shapes and without the hip flap: the test scores what
-/// a pose-driven model can predict (the issue's protocol; no garment, no wrinkles).
+/// The performer's deformation: its pose-driven shapes and no hip flap, so the test scores
+/// what a pose-driven model can predict (the issue's protocol; no garment, no wrinkles).
+fn deformation() -> DeformationParams {
+    DeformationParams::default().with_flap(None)
+}
+
+/// The performer with [`deformation`].
 fn performer(quick: bool) -> Res<Performer> {
-    let deformation = DeformationParams::default().with_flap(None);
+    let deformation = deformation();
     if !quick {
         eprintln!("performer: MakeHuman, pose-driven shapes, no flap");
         let dir = example_kit::data_path("makehuman")?;
@@ -165,10 +183,12 @@ fn exercise(p: &Performer, seconds: f64, seed: u64) -> Res<Motion> {
     Ok(exercise_motion(&p.skeleton, &params)?)
 }
 
-/// A test motion's truth, plus the true silhouettes of its scored frames.
+/// A test motion's truth, plus the true silhouettes of its scored frames and which studio
+/// effect moves each needle most.
 struct Test {
     set: TestSet,
     masks: Vec<Vec<Mask>>,
+    effects: EffectAttribution,
 }
 
 /// A silhouette capture of `motion` at its own frame rate by `rig`.
@@ -186,13 +206,22 @@ fn test_set(
 ) -> Res<Test> {
     let mut set = TestSet::default();
     let mut masks = vec![];
+    let pose_effects = deformation().pose.unwrap_or_else(PoseDeformParams::none);
+    let mut effects = EffectAttribution::new(p, &pose_effects)?;
     let capture = silhouettes(p, rig, motion)?;
     for frame in capture.frames_stepped(0..capture.frame_count(), stride) {
         let frame = frame?;
         masks.push(frame.masks());
         set.push_frame(body, p, &frame.truth)?;
+        if let Some(last) = set.frames.last() {
+            effects.push_frame(body, p, &frame.truth, last)?;
+        }
     }
-    Ok(Test { set, masks })
+    Ok(Test {
+        set,
+        masks,
+        effects,
+    })
 }
 
 /// Medians and tail of one predictor's errors, as JSON fields `{prefix}_…`.
@@ -405,45 +434,97 @@ fn main() -> Res<()> {
     let stage = run.stage("score baselines", None);
     let rest = animate(&body, &main, &sk, &sk.rest_pose())?;
     let rest_mesh = union_mesh(&rest, &SurfaceParams::default())?;
-    let lbs_heat = SkinnedShape::heat(&sk, rest_mesh.clone())?;
+    let lbs_heat = SkinnedShape::heat(&sk, rest_mesh.clone(), &HeatWeightsParams::default())?;
+    let lbs_no_visibility = SkinnedShape::heat(
+        &sk,
+        rest_mesh.clone(),
+        &HeatWeightsParams::default().without_visibility(),
+    )?;
     let lbs_true = SkinnedShape::transfer(&performer, rest_mesh)?;
     let surface = |shape: &SkinnedShape, theta: &[f64]| {
         let fk = sk.forward_kinematics(theta)?;
         shape.pose(&performer, fk.world_from_joint())
     };
-    summary(
-        "hull_oracle",
-        &mut hull_oracle(&performer, &body, &s, &test_motion, &test, &stat)?,
-        &mut out,
-    );
+    let oracle = hull_oracle(&performer, &body, &s, &test_motion, &test)?;
     for (name, t) in [("", &test), ("walk_", &walk)] {
         let pre = |p: &str| format!("{name}{p}");
-        summary(&pre("test"), &mut t.set.errors(&main)?, &mut out);
-        summary(&pre("static"), &mut t.set.errors(&stat)?, &mut out);
-        summary(&pre("fraction"), &mut t.set.errors(&fraction)?, &mut out);
-        summary(
-            &pre("psd"),
-            &mut psd_errors(&psd, &body, &sk, &t.set)?,
-            &mut out,
-        );
-        summary(
-            &pre("lbs"),
-            &mut t
-                .set
-                .surface_errors(&body, &sk, |th| surface(&lbs_heat, th))?,
-            &mut out,
-        );
-        summary(
-            &pre("lbs_true_weights"),
-            &mut t
-                .set
-                .surface_errors(&body, &sk, |th| surface(&lbs_true, th))?,
-            &mut out,
-        );
-        summary(&pre("lbs_exact_rest"), &mut t.set.lbs_errors(), &mut out);
+        let mut scored: Vec<(&str, Errors)> = vec![
+            ("model", t.set.errors(&main)?),
+            ("static", t.set.errors(&stat)?),
+            ("fraction", t.set.errors(&fraction)?),
+            ("psd", psd_errors(&psd, &body, &sk, &t.set)?),
+            (
+                "lbs",
+                t.set
+                    .surface_errors(&body, &sk, |th| surface(&lbs_heat, th))?,
+            ),
+            (
+                "lbs_no_visibility",
+                t.set
+                    .surface_errors(&body, &sk, |th| surface(&lbs_no_visibility, th))?,
+            ),
+            (
+                "lbs_true_weights",
+                t.set
+                    .surface_errors(&body, &sk, |th| surface(&lbs_true, th))?,
+            ),
+            ("lbs_exact_rest", t.set.lbs_errors()),
+        ];
+        // The oracle sees the exercise only (24 views of every test frame).
+        if name.is_empty() {
+            scored.push(("hull_oracle", oracle.errors(&t.set, &stat)?));
+        }
+        for (p, e) in &mut scored {
+            // The model's figures: `test_*` and, for the pose figures, no prefix.
+            let prefix = if *p == "model" { "test" } else { *p };
+            summary(&pre(prefix), e, &mut out);
+        }
         out.insert(
             pre("pose_deforming_needles"),
             json!(t.set.pose_deforming().len()),
+        );
+        // Every predictor on the needle-frames some oracle view saw, the oracle alone there.
+        let observed = if name.is_empty() {
+            let seen =
+                |k: usize, n: &NeedleTruth| oracle.length(k, (n.primitive, n.needle)).is_some();
+            let coverage = oracle.coverage(&t.set);
+            out.insert(
+                "hull_oracle_fallback_share".into(),
+                json!(coverage.pose_deforming_fallback_share()),
+            );
+            out.insert(
+                "hull_oracle_fallback_share_all_needles".into(),
+                json!(coverage.fallback_share()),
+            );
+            let mut observed = vec![];
+            for (p, e) in &scored {
+                let r = e.restricted(&t.set, seen)?;
+                observed_summary(p, &r, &mut out);
+                observed.push((*p, r));
+            }
+            // Where the oracle is an outer bound: its length at least the truth's, up to one
+            // pixel's footprint at the ring's distance.
+            let pixel_m =
+                2.0 * STUDIO_RING_RADIUS_M * (STUDIO_RING_HFOV_DEG.to_radians() / 2.0).tan()
+                    / f64::from(s.width);
+            if let Some((_, e)) = observed.iter().find(|(p, _)| *p == "hull_oracle") {
+                out.insert("hull_oracle_pixel_mm".into(), json!(pixel_m * 1e3));
+                out.insert(
+                    "hull_oracle_observed_short_share".into(),
+                    json!(e.pose_short_share(pixel_m)),
+                );
+                out.insert(
+                    "hull_oracle_observed_short_share_all_needles".into(),
+                    json!(e.short_share(pixel_m)),
+                );
+            }
+            observed
+        } else {
+            vec![]
+        };
+        out.insert(
+            pre("deforming_error_by_effect"),
+            by_effect(&t.effects, &scored, &observed)?,
         );
     }
     out.insert(
@@ -463,16 +544,48 @@ fn main() -> Res<()> {
         "static_deforming_mean_mm",
         "fraction_deforming_mean_mm",
         "lbs_deforming_mean_mm",
+        "lbs_no_visibility_deforming_mean_mm",
         "lbs_exact_rest_deforming_mean_mm",
         "hull_oracle_deforming_mean_mm",
         "hull_oracle_pose_r2_centred",
+        "hull_oracle_fallback_share",
+        "hull_oracle_fallback_share_all_needles",
+        "hull_oracle_observed_deforming_mean_mm",
+        "hull_oracle_observed_pose_r2_centred",
+        "hull_oracle_observed_short_share",
+        "model_observed_deforming_mean_mm",
+        "model_observed_pose_r2_centred",
         "pose_r2_centred",
+        "lbs_pose_r2_centred",
         "psd_deforming_mean_mm",
         "psd_pose_r2_centred",
         "walk_deforming_mean_mm",
         "walk_static_deforming_mean_mm",
+        "walk_lbs_deforming_mean_mm",
     ] {
         stage.println(format!("{k}: {:.3}", out[k].as_f64().unwrap_or(f64::NAN)));
+    }
+    if let Some(Value::Object(rows)) = out.get("deforming_error_by_effect") {
+        for (effect, row) in rows {
+            if row["needles"].as_u64().unwrap_or(0) == 0 {
+                continue;
+            }
+            let m = |p: &str| row["mean_mm"][p].as_f64().unwrap_or(f64::NAN);
+            let o = |p: &str| row["observed_mean_mm"][p].as_f64().unwrap_or(f64::NAN);
+            stage.println(format!(
+                "{effect}: {} needles, {} needle-frames: model {:.2}, static {:.2}, lbs {:.2}, \
+                 oracle {:.2} mm; seen by the oracle ({} needle-frames): model {:.2}, oracle {:.2} mm",
+                row["needles"],
+                row["needle_frames"],
+                m("model"),
+                m("static"),
+                m("lbs"),
+                m("hull_oracle"),
+                row["observed_needle_frames"],
+                o("model"),
+                o("hull_oracle"),
+            ));
+        }
     }
     stage.finish("exercise and walk tests");
 
@@ -647,8 +760,13 @@ fn main() -> Res<()> {
     let f = |k: &str| out[k].as_f64().unwrap_or(f64::NAN);
     let over_static = f("static_deforming_mean_mm") / f("deforming_mean_mm");
     let over_lbs = f("lbs_deforming_mean_mm") / f("deforming_mean_mm");
+    let over_lbs_no_visibility = f("lbs_no_visibility_deforming_mean_mm") / f("deforming_mean_mm");
     out.insert("deforming_gain_over_static".into(), json!(over_static));
     out.insert("deforming_gain_over_lbs".into(), json!(over_lbs));
+    out.insert(
+        "deforming_gain_over_lbs_no_visibility".into(),
+        json!(over_lbs_no_visibility),
+    );
     headlines(&mut run, &s);
     run.finish(Value::Object(out))?;
     Ok(())
@@ -956,6 +1074,12 @@ fn plot_error_vs_n(run: &mut Run, sweep: &[SweepPoint], fig: &Map<String, Value>
             baseline("lbs_deforming_mean_mm"),
         ))
         .with(Series::new(
+            "the same, heat weights without visibility test, pose-deforming mean",
+            [150, 90, 30],
+            Style::Dashed,
+            baseline("lbs_no_visibility_deforming_mean_mm"),
+        ))
+        .with(Series::new(
             "LBS of the exact rest shape (oracle), pose-deforming mean",
             [40, 160, 40],
             Style::Dashed,
@@ -968,8 +1092,9 @@ fn plot_error_vs_n(run: &mut Run, sweep: &[SweepPoint], fig: &Map<String, Value>
         "Needle-length error on the test exercise against the number of prototypes N (log \
          axis): mean over the pose-deforming needles (red line: mean over the prototype \
          seeds; pink: each seed) and median over all needles (blue); dashed: the static \
-         model, LBS of the captured rest shape and LBS of the exact rest shape (an oracle), \
-         each at its pose-deforming mean.",
+         model, LBS of the captured rest shape (bone-heat weights with and without the \
+         visibility test) and LBS of the exact rest shape (an oracle), each at its \
+         pose-deforming mean.",
     )?;
     Ok(())
 }
@@ -1176,21 +1301,17 @@ fn render_error_map(
     Ok(())
 }
 
-/// The pose-local visual-hull oracle: for each test frame, the length of every needle as
-/// [`HULL_ORACLE_CAMERAS`] cameras around the body see it at exactly that pose (the
-/// shortest of its observations, each a silhouette bound), the static model's where no view
-/// saw it. It is what a silhouette method could reach with unlimited training at every test
-/// pose, seen from every direction; what it misses is hidden from silhouettes (concavities).
+/// The pose-local visual-hull oracle ([`HullOracle`]) on the test motion: 24 cameras at
+/// three heights ([`HullOracle::rig`]) see every scored test frame at the run's image size.
 fn hull_oracle(
     performer: &Performer,
     body: &NeedleBody,
     setup: &Setup,
     motion: &Motion,
     test: &Test,
-    fallback: &NeedleModel,
-) -> Res<Errors> {
+) -> Res<HullOracle> {
     let sk = &performer.skeleton;
-    let rig = studio_ring(HULL_ORACLE_CAMERAS, setup.width, setup.height)?;
+    let rig = HullOracle::rig(setup.width, setup.height)?;
     let observer = Observer::new(
         body.clone(),
         sk.clone(),
@@ -1198,43 +1319,96 @@ fn hull_oracle(
         ObserveParams::default(),
     )?;
     let capture = silhouettes(performer, &rig, motion)?;
-    let mut shortest: Vec<std::collections::HashMap<(u32, u32), f64>> = vec![];
-    for (k, frame) in capture
-        .frames_stepped(0..capture.frame_count(), setup.test_stride)
-        .enumerate()
-    {
-        let frame = frame?;
-        if test.set.frames.get(k).map(|f| &f.theta) != Some(&frame.truth.theta) {
-            return Err("hull oracle: frames differ from the test set's".into());
+    let mut oracle = HullOracle::default();
+    let mut frames = capture.frames_stepped(0..capture.frame_count(), setup.test_stride);
+    loop {
+        // A few frames at a time: walked in parallel, masks not kept.
+        let pending: Vec<CaptureFrame> = frames.by_ref().take(8).collect::<Result<_, _>>()?;
+        if pending.is_empty() {
+            break;
         }
-        let masks = frame.masks();
-        let store = observer
-            .accumulate(&[FrameInput {
-                theta: &frame.truth.theta,
-                masks: &masks,
-            }])?
-            .store;
-        let mut map = std::collections::HashMap::new();
-        for p in 0..store.primitive_count() {
-            for o in store.observations(p) {
-                let l = map
-                    .entry((p as u32, u32::from(o.needle)))
-                    .or_insert(f64::INFINITY);
-                *l = f64::min(*l, f64::from(o.length_m));
-            }
-        }
-        shortest.push(map);
+        let masks: Vec<Vec<Mask>> = pending.iter().map(CaptureFrame::masks).collect();
+        let inputs: Vec<FrameInput> = pending
+            .iter()
+            .zip(&masks)
+            .map(|(f, m)| FrameInput {
+                theta: &f.truth.theta,
+                masks: m,
+            })
+            .collect();
+        oracle.push_frames(&observer, &inputs)?;
     }
-    Ok(test
-        .set
-        .errors_of(|k, n| match shortest[k].get(&(n.primitive, n.needle)) {
-            Some(&l) => Ok(l),
-            None => {
-                let p = n.primitive as usize;
-                let l = fallback.needle_lengths(p, &test.set.frames[k].config[p])?;
-                Ok::<_, dynamic_shapes::needle::Error>(f64::from(l[n.needle as usize]))
+    if oracle.frame_count() != test.set.frames.len() {
+        return Err("hull oracle: frames differ from the test set's".into());
+    }
+    Ok(oracle)
+}
+
+/// The pose-deforming figures of predictor `name` on the needle-frames the hull oracle saw,
+/// as JSON fields `{name}_observed_…` (the model's `model_observed_…`).
+fn observed_summary(name: &str, e: &Errors, out: &mut Map<String, Value>) {
+    let r2 = e.pose_r2();
+    for (field, v) in [
+        ("median_mm", median(&e.all_mm)),
+        ("deforming_mean_mm", mean(&e.pose_deforming_mm)),
+        ("pose_r2", r2.r2),
+        ("pose_r2_centred", r2.r2_centred),
+        ("deforming_bias_rms_mm", r2.bias_rms_mm),
+        ("deforming_centred_rms_mm", r2.centred_rms_mm),
+        ("deforming_pose_rms_mm", r2.pose_rms_mm),
+    ] {
+        out.insert(format!("{name}_observed_{field}"), json!(v));
+    }
+    out.insert(
+        format!("{name}_observed_deforming_needle_frames"),
+        json!(e.pose_deforming_mm.len()),
+    );
+}
+
+/// `deforming_error_by_effect`: per category of [`EffectAttribution`] (skinning geometry,
+/// each pose effect, the flap), its pose-deforming needles and needle-frames and each
+/// predictor's mean error there (`mean_mm`); with `observed` (the predictors restricted to
+/// the needle-frames the hull oracle saw), the same there (`observed_needles`,
+/// `observed_needle_frames`, `observed_mean_mm`). A category no needle falls in has counts
+/// and no means.
+fn by_effect(
+    effects: &EffectAttribution,
+    scored: &[(&str, Errors)],
+    observed: &[(&str, Errors)],
+) -> Res<Value> {
+    let split = |list: &[(&str, Errors)]| -> Res<Vec<(String, Vec<EffectErrors>)>> {
+        list.iter()
+            .map(|(p, e)| Ok((p.to_string(), effects.breakdown(e)?)))
+            .collect()
+    };
+    let (all, seen) = (split(scored)?, split(observed)?);
+    let mut rows = Map::new();
+    for (i, effect) in effects.categories().iter().enumerate() {
+        let means = |rows: &[(String, Vec<EffectErrors>)]| -> Map<String, Value> {
+            rows.iter()
+                .map(|(p, b)| (p.clone(), json!(b[i].mean_mm)))
+                .collect()
+        };
+        let first = |rows: &[(String, Vec<EffectErrors>)]| rows.first().map(|(_, b)| b[i].clone());
+        // An empty category (no needle it dominates) lists no means.
+        let mut row = Map::new();
+        if let Some(b) = first(&all) {
+            row.insert("needles".into(), json!(b.needles));
+            row.insert("needle_frames".into(), json!(b.needle_frames));
+            if b.needle_frames > 0 {
+                row.insert("mean_mm".into(), Value::Object(means(&all)));
             }
-        })?)
+        }
+        if let Some(b) = first(&seen) {
+            row.insert("observed_needles".into(), json!(b.needles));
+            row.insert("observed_needle_frames".into(), json!(b.needle_frames));
+            if b.needle_frames > 0 {
+                row.insert("observed_mean_mm".into(), Value::Object(means(&seen)));
+            }
+        }
+        rows.insert(effect.clone(), Value::Object(row));
+    }
+    Ok(Value::Object(rows))
 }
 
 /// Errors of the model over skinning ([`PoseSpaceModel`]) on a test set.
