@@ -40,6 +40,7 @@
 //!   the test was added; weights then bleed across gaps where limbs are close).
 
 use nalgebra::DMatrix;
+use nalgebra_sparse::CscMatrix;
 use serde::{Deserialize, Serialize};
 
 use rayon::prelude::*;
@@ -306,7 +307,6 @@ pub fn bone_heat_weights_dense(
     // Vertices without area (unreferenced or only in skipped degenerate faces) would make the
     // system singular; a tiny mass makes their equation H w = H p (nearest bone wins, visible
     // or not: nothing else reaches them).
-    let massless: Vec<bool> = mass.iter().map(|&m| m <= 0.0).collect();
     let mean_mass = mass.sum() / n as f64;
     for m in mass.iter_mut() {
         *m = m.max(1e-12 * mean_mass);
@@ -321,12 +321,8 @@ pub fn bone_heat_weights_dense(
         None => nearest.iter().map(|(b, _)| b.clone()).collect(),
         Some(vis) => visible_nearest(mesh, bones, &nearest, vis, (hi - lo).max_element())?,
     };
-    heat_unheated_components(mesh, &nearest, &mut heated);
-    for (j, hot) in heated.iter_mut().enumerate() {
-        if massless[j] && hot.is_empty() {
-            *hot = nearest[j].0.clone();
-        }
-    }
+    // Massless vertices have no Laplacian neighbours: each is its own component here.
+    heat_unheated_components(&l, &nearest, &mut heated);
     let k = bones.len();
     let mut rhs = DMatrix::zeros(n, k);
     let mut diag_add = vec![0.0; n];
@@ -435,14 +431,16 @@ fn visible_nearest(
         .collect()
 }
 
-/// A connected component of the surface none of whose vertices is heated would make the heat
-/// system singular: its vertices are heated by their nearest bones (module docs).
+/// A connected component of the heat system none of whose vertices is heated would make it
+/// singular: its vertices are heated by their nearest bones (module docs). Components are
+/// those of the Laplacian `l` (its non-zero off-diagonal entries), which skips degenerate
+/// faces: a vertex joined to the rest only through degenerate faces is its own component.
 fn heat_unheated_components(
-    mesh: &TriMesh,
+    l: &CscMatrix<f64>,
     nearest: &[(Vec<usize>, f64)],
     heated: &mut [Vec<usize>],
 ) {
-    let n = mesh.vertices.len();
+    let n = heated.len();
     let mut parent: Vec<usize> = (0..n).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -451,12 +449,12 @@ fn heat_unheated_components(
         }
         i
     }
-    for f in &mesh.faces {
-        for e in 0..3 {
-            let (a, b) = (
-                root(&mut parent, f[e] as usize),
-                root(&mut parent, f[(e + 1) % 3] as usize),
-            );
+    for (j, col) in (0..l.ncols()).map(|j| (j, l.col(j))) {
+        for (&i, &v) in col.row_indices().iter().zip(col.values()) {
+            if i == j || v == 0.0 {
+                continue;
+            }
+            let (a, b) = (root(&mut parent, i), root(&mut parent, j));
             if a != b {
                 parent[a.max(b)] = a.min(b);
             }
@@ -664,6 +662,14 @@ mod tests {
         for i in n0 as usize..mesh.vertices.len() {
             assert!((d.row(i).sum() - 1.0).abs() < 1e-9);
             assert!(d[(i, 0)] > 0.99, "ring vertex {i}: {}", d[(i, 0)]);
+        }
+        // Joined to the arm only by a degenerate face (its first vertex collinear with two
+        // of the arm's at z = 0.4), the ring is still its own component of the heat system,
+        // whose Laplacian skips that face.
+        mesh.faces.push([n0, 8 * 16, 8 * 16 + 8]);
+        let d = bone_heat_weights_dense(&mesh, &bones, &HeatWeightsParams::default()).unwrap();
+        for i in n0 as usize..mesh.vertices.len() {
+            assert!(d[(i, 0)] > 0.99, "bridged ring vertex {i}: {}", d[(i, 0)]);
         }
     }
 
