@@ -151,8 +151,8 @@ impl FaceTensor {
             .collect())
     }
 
-    /// The same faces restricted to the given vertices (in that order), e.g. a farthest-point
-    /// subsample for a cheaper experiment.
+    /// The same data tensor (Figure 5-3) restricted to the given vertices (in that order), e.g.
+    /// a farthest-point subsample for a cheaper experiment.
     ///
     /// # Errors
     /// [`Error::Empty`] for no vertex; [`Error::IndexOutOfRange`] for a vertex past

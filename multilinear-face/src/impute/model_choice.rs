@@ -24,7 +24,7 @@ pub enum ImputeModel {
     Ppca(PpcaParams),
 }
 
-/// Parameters of [`impute`]. All ours: the thesis fills missing faces with one model.
+/// Parameters of [`impute`]. All ours: the thesis (§5.3.4) fills missing faces with one model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImputeParams {
     /// The candidate models, in order of preference on equal errors. Default: the averaging
@@ -71,7 +71,7 @@ impl ImputeParams {
     }
 }
 
-/// The result of [`impute`].
+/// The result of [`impute`] (§5.3.4 and the model choice beyond it).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Imputation {
     /// The completed data tensor (known faces unchanged).

@@ -38,7 +38,8 @@ pub type Recipe = (&'static str, &'static [(&'static str, f64)]);
 /// neutral face, one vector per vertex.
 pub type NamedShape = (String, Vec<DVec3>);
 
-/// The ICT basis as displacements from the neutral face: valid by construction (at least one
+/// The ICT basis as displacements from the neutral face, the stand-in for the thesis's scans
+/// (§5.3.1): valid by construction (at least one
 /// identity mode and one blendshape, every shape with the neutral face's vertex count, finite,
 /// names unique within their kind).
 #[derive(Clone, Debug, PartialEq)]

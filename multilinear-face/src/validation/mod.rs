@@ -27,6 +27,18 @@
 //! `‖f − f|_{γ=0}‖ / ‖f|_{γ=0} − N − Σ αI‖` over all faces (the interaction over the
 //! expression and viseme displacements it modulates).
 //!
+//! **Identity rank.** The identity mode of a generated tensor has rank
+//! `min(modes + 1, people)`. [`FaceSetParams::identity_modes`] takes fewer of the basis's
+//! modes, or more: synthetic mode `k` is basis mode `k mod n₀` modulated by a plane wave over
+//! the neutral face, `√2 cos(2π (1 + ⌊k / n₀⌋) u_k·p / W + φ_k) I_{k mod n₀}(p)` (random
+//! direction and phase, `W` the face's width), so that as many modes as people give a full-rank
+//! identity mode (the case where the thesis's low-rank argument has nothing to use).
+//!
+//! **Reading the basis.** [`IctBasis::read`] takes every identity and blendshape file a folder
+//! holds, [`IctBasis::read_named`] a caller's lists; every mismatch is a typed error, and the
+//! sets take their counts from the basis ([`Error::UnknownName`](crate::Error::UnknownName) for
+//! a blendshape a recipe needs and the basis lacks).
+//!
 //! **Which blendshapes make each attribute value**: [`BILINEAR_EXPRESSIONS`],
 //! [`TRILINEAR_EXPRESSIONS`], [`VISEMES`] (names and weights, `docs/multilinear-face.md`
 //! lists them).
