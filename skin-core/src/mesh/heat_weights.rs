@@ -49,8 +49,8 @@ use crate::lsq::{CholeskyParams, SparseCholesky};
 use crate::math::DVec3;
 use crate::mesh::skinning::{SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW};
 use crate::mesh::{
-    cotangent_laplacian, mass_matrix, vertex_normals, LaplacianParams, MassKind, MeshQuery,
-    NormalWeighting, TriMesh, WindingNumber,
+    cotangent_laplacian, mass_matrix, vertex_normals, EdgeTopology, LaplacianParams, MassKind,
+    MeshQuery, NormalWeighting, TriMesh, WindingNumber,
 };
 use crate::skeleton::Skeleton;
 use crate::{Error, Result};
@@ -394,9 +394,12 @@ fn visible_nearest(
     let query = MeshQuery::new(mesh)?;
     let normals = vertex_normals(mesh, NormalWeighting::Area)?;
     let (tol, step) = (vis.tolerance_rel * size, vis.step_rel * size);
-    let inside = |x: DVec3| -> Result<bool> {
-        Ok(winding.at(x)? >= 0.5 || query.closest_point(x)?.distance <= tol)
-    };
+    // On a closed surface the winding number is constant off the surface, so a sample known
+    // to be inside (w ≥ ½) at distance d from the surface vouches for every sample closer
+    // than d: the walk jumps over them (a closest-point query instead of a winding number;
+    // the same verdicts as testing every sample). On an open surface the ½ level set can
+    // leave the surface across a hole, and every sample is tested.
+    let closed = EdgeTopology::new(mesh)?.is_closed();
     let sees = |j: usize, b: usize| -> Result<bool> {
         let p = mesh.vertices[j];
         let q = bones[b].closest_point(p);
@@ -409,10 +412,33 @@ fn visible_nearest(
             return Ok(false);
         }
         let samples = (len / step).ceil().max(1.0) as usize;
-        for s in 1..=samples {
-            if !inside(p - to_vertex * (s as f64 / samples as f64))? {
-                return Ok(false);
+        let spacing = len / samples as f64;
+        let at = |s: usize| p - to_vertex * (s as f64 / samples as f64);
+        // A sample index known inside and its distance to the surface.
+        let mut ball: Option<(usize, f64)> = None;
+        let mut s = 1;
+        while s <= samples {
+            if let Some((k, r)) = ball {
+                // The last sample strictly within the ball: (s' − k) · spacing < r.
+                let last = (k + ((r / spacing).ceil() as usize).saturating_sub(1)).min(samples);
+                if last >= s {
+                    ball = Some((last, query.closest_point(at(last))?.distance));
+                    s = last + 1;
+                    continue;
+                }
             }
+            let y = at(s);
+            let d = query.closest_point(y)?.distance;
+            if d > tol {
+                if winding.at(y)? < 0.5 {
+                    return Ok(false);
+                }
+                ball = closed.then_some((s, d));
+            } else {
+                // Inside by the tolerance; which side is not known.
+                ball = None;
+            }
+            s += 1;
         }
         Ok(true)
     };
