@@ -10,7 +10,7 @@ skin_core::method_error!("photometric-normals", Context, {
     #[error("missing pattern image: {pattern:?}")]
     MissingPattern {
         /// The missing pattern.
-        pattern: crate::Pattern,
+        pattern: crate::cycle::Pattern,
     },
     /// A calibration object does not lie entirely inside a camera's view.
     #[error("calibration sphere partly out of view: {reason}")]

@@ -16,7 +16,8 @@
 //!
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
-//! | `patterns.rs` | half-on patterns, the 8-frame cycle, one view under the seven conditions, exposure limits | [`Pattern`], [`pattern_weights`], [`CYCLE`], [`PatternImages`], [`Exposure`] | §3.2.2 Eq. 3.1, §3.2.3 |
+//! | `cycle.rs` | the lighting conditions: half-on patterns and the 8-frame cycle | [`Pattern`], [`PATTERNS`], [`CYCLE`] | §3.2.2 Eq. 3.1 |
+//! | `patterns.rs` | the lights' weights under a pattern, one view under the seven conditions, exposure limits | [`pattern_weights`], [`PatternImages`], [`Exposure`] | §3.2.2, §3.2.3 |
 //! | `calibration.rs` | grey-sphere lookup tables in a kd-tree, N-best blending, heights | [`LookupTable`], [`HeightCalibration`], [`CalibrationSphere`] | §3.2.2 Eq. 3.2, §3.2.3 |
 //! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
 //! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
@@ -54,7 +55,7 @@
 //! use skin_core::math::DVec3;
 //! use skin_core::mesh::shapes::uv_sphere;
 //! use skin_core::raster::{Buffers, Rasterizer, RenderParams};
-//! use skin_core::studio::shading::{dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows};
+//! use dynamic_shapes_studio::shading::{dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows};
 //!
 //! let dome = DomeParams { sphere_lights: 300, floor_lights: 100, ..Default::default() };
 //! let lights = dome_lights(&dome)?;
@@ -97,6 +98,7 @@
 
 mod calibration;
 mod colour;
+mod cycle;
 mod depth_map;
 mod error;
 mod flow;
@@ -122,6 +124,7 @@ pub mod truth;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 pub use colour::{macbeth_reference, ColourParams, ColourTransfer};
+pub use cycle::{Pattern, CYCLE, CYCLE_FRAME_RATE_HZ, PATTERNS};
 pub use depth_map::DepthMap;
 pub use error::{Context, Error, Result, ResultExt};
 pub use flow::{dense_flow, warp, Flow, FlowParams};
@@ -148,10 +151,7 @@ pub use offsets::{
     OffsetReport, OffsetSurface, RobustWeights, SurfaceErrors, SurfaceParams, SurfaceTimes,
     ViewSurfaces,
 };
-pub use patterns::{
-    grey, pattern_weights, patterns_weights, Exposure, Pattern, PatternImages, CYCLE,
-    CYCLE_FRAME_RATE_HZ, PATTERNS,
-};
+pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
 pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
 pub use reconstruct::{

@@ -5,8 +5,9 @@
 use serde::{Deserialize, Serialize};
 use skin_core::image::{GrayF32Image, Mask};
 
+use crate::cycle::Pattern;
 use crate::flow::{dense_flow, warp, Flow, FlowParams};
-use crate::patterns::{Pattern, PatternImages};
+use crate::patterns::PatternImages;
 use crate::{Error, Result};
 
 /// Options of [`compensate_motion`].
@@ -108,7 +109,7 @@ pub fn compensate_motion(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::patterns::PATTERNS;
+    use crate::cycle::PATTERNS;
 
     /// A textured surface under a pattern-dependent brightness, translated by `t` px.
     fn frame(p: Pattern, t: f32) -> GrayF32Image {

@@ -5,6 +5,15 @@
 
 use std::path::Path;
 
+use dynamic_shapes_studio::shading::{
+    dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, makehuman_performer, CameraObservation, Capture, CaptureFrame,
+    CaptureLighting, CaptureSpec, DeformationParams, ExerciseParams, FineSurface, GarmentParams,
+    LightPatterns, PatternSchedule, Performer, PixelNoise, SheetParams, SkirtParams, TextureParams,
+    ViewTruth, WrinkleParams,
+};
 use image::Rgb32FImage;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
@@ -15,19 +24,11 @@ use skin_core::mesh::TriMesh;
 use skin_core::raster::{Buffers, NormalMode, Rasterizer, RenderParams, RenderedView};
 use skin_core::skeleton::Motion;
 use skin_core::stats::{mean, median};
-use skin_core::studio::shading::{
-    dome_lights, shade, shade_patterns, Albedo, DomeParams, Light, LightVisibility, Shadows,
-};
-use skin_core::studio::{
-    exercise_motion, makehuman_performer, CameraObservation, Capture, CaptureFrame,
-    CaptureLighting, CaptureSpec, DeformationParams, ExerciseParams, FineSurface, GarmentParams,
-    LightPatterns, PatternSchedule, Performer, PixelNoise, SheetParams, SkirtParams, TextureParams,
-    ViewTruth, WrinkleParams,
-};
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
+use crate::cycle::{CYCLE, PATTERNS};
 use crate::normals::{NormalMap, NormalParams};
-use crate::patterns::{grey, key, patterns_weights, Exposure, PatternImages, CYCLE, PATTERNS};
+use crate::patterns::{grey, key, patterns_weights, Exposure, PatternImages};
 use crate::{Error, Result};
 
 /// Centre of the dome's sphere (the origin of the pattern directions of Eq. 3.1), world, m.
@@ -161,7 +162,7 @@ pub fn ghost_subject() -> DeformationParams {
 
 /// The true surface of a [`StudioScene`]: what the cameras see, what the exact normals, the
 /// true depth maps and the distances to the truth are taken from (all from
-/// [`skin_core::studio::FrameTruth::rendered_mesh`], one mesh).
+/// [`dynamic_shapes_studio::FrameTruth::rendered_mesh`], one mesh).
 ///
 /// **Why (issue 14, sixth session).** The performer's template is polygonal (MakeHuman's
 /// 13,380 body vertices, edges of 1–3 cm; the skirt's 2,304). Rendered as it is, its depth,
@@ -724,8 +725,8 @@ fn view_of(view: &ViewTruth) -> Result<RenderedView> {
 
 /// Per pixel, the fraction of its unoccluded dome irradiance that reaches it with cast
 /// shadows (1 unshadowed; NaN on background): the issue's "shadowed concavities" are the
-/// pixels below 0.9. `mesh` is the mesh the camera saw ([`skin_core::studio::FrameTruth`]),
-/// `visibility` the frame's ([`skin_core::studio::CaptureFrame::light_visibility`]).
+/// pixels below 0.9. `mesh` is the mesh the camera saw ([`dynamic_shapes_studio::FrameTruth`]),
+/// `visibility` the frame's ([`dynamic_shapes_studio::CaptureFrame::light_visibility`]).
 ///
 /// # Errors
 /// [`Error::Empty`] without triangle/barycentric truth; shading errors (e.g. a visibility of
