@@ -24,7 +24,7 @@ use dynamic_shapes::core::mesh::{
     cotangent_laplacian, read_obj_group, shapes, write_obj, LaplacianParams, TriMesh,
 };
 use dynamic_shapes::core::random::SplitMix64;
-use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
+use dynamic_shapes_studio::{preview, Paint, PreviewPanel};
 use example_kit::{Headline, Run};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};

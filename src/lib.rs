@@ -21,3 +21,9 @@ pub use inertial_acoustic as inertial;
 
 #[doc(inline)]
 pub use multilinear_face as face;
+
+/// The synthetic capture studio (feature `studio`): performers, motions, garments, lighting
+/// and the capture builder that renders ground truth for the methods' validation.
+#[cfg(feature = "studio")]
+#[doc(inline)]
+pub use dynamic_shapes_studio as studio;

@@ -7,9 +7,6 @@
 
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::skeleton::{human_skeleton, HumanParams, Skeleton};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, DeformationParams, ExerciseParams,
-};
 use dynamic_shapes::inertial::simulate::{
     estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
     prepare_motion, run_filter, run_filter_board_noise, table_4_1, FilterRun, SimulatedRecording,
@@ -19,6 +16,9 @@ use dynamic_shapes::inertial::{
     refine_headings, BoardNoise, Context, DistanceMeasurement, Error, FilterParams,
     FrameObservations, InertialReading, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
     INNOVATION_TYPES,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, makehuman_performer, DeformationParams, ExerciseParams,
 };
 
 /// The filter noise levels the example's tuning grid selects on its separate tuning clip
@@ -641,13 +641,13 @@ fn heading_fit_recovers_turns_about_gravity() {
 /// hip flap, prepared for simulation with default parameters: the performer, its deformation
 /// and the prepared motion.
 fn treadmill_on_makehuman() -> (
-    dynamic_shapes::core::studio::Performer,
+    dynamic_shapes_studio::Performer,
     DeformationParams,
     SmoothMotion,
 ) {
     use dynamic_shapes::core::skeleton::BvhParams;
-    use dynamic_shapes::core::studio::{play_bvh, RetargetParams};
     use dynamic_shapes::inertial::simulate::treadmill_motion;
+    use dynamic_shapes_studio::{play_bvh, RetargetParams};
     let deformation = DeformationParams::default().with_flap(None);
     let performer =
         makehuman_performer(example_kit::data_path("makehuman").unwrap(), &deformation).unwrap();

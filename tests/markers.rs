@@ -10,8 +10,8 @@ use dynamic_shapes::core::markers::{
     MarkerDetectParams, MarkerView, TrackParams,
 };
 use dynamic_shapes::core::math::{DVec2, DVec3};
-use dynamic_shapes::core::studio::MarkerScenario;
 use dynamic_shapes::core::Error;
+use dynamic_shapes_studio::MarkerScenario;
 use image::GrayImage;
 use std::time::Instant;
 

@@ -11,17 +11,17 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::HeatWeightsParams;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
-use dynamic_shapes::core::studio::{
-    exercise_motion, play_bvh, procedural_performer, studio_ring, Capture, CaptureFrame,
-    CaptureSpec, DeformationParams, ExerciseParams, FrameTruth, Performer, ProceduralBodyParams,
-    RetargetParams, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
-};
 use dynamic_shapes::needle::truth::{
     EffectAttribution, EffectErrors, HullOracle, NeedleTruth, TestSet,
 };
 use dynamic_shapes::needle::{
     animate, union_mesh, BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
     ReconstructionParams, SkinnedShape, SurfaceParams,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, play_bvh, procedural_performer, studio_ring, Capture, CaptureFrame,
+    CaptureSpec, DeformationParams, ExerciseParams, FrameTruth, Performer, ProceduralBodyParams,
+    RetargetParams, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
 };
 
 /// Silhouettes of `motion` at its own frame rate.
@@ -348,7 +348,7 @@ fn truth_rejects_bad_input() {
         .unwrap();
     let truth = |theta: &[f64], true_vertices: &[_], lbs_vertices: &[_]| FrameTruth {
         theta: theta.to_vec(),
-        posed: dynamic_shapes::core::studio::PosedFrame {
+        posed: dynamic_shapes_studio::PosedFrame {
             true_vertices: true_vertices.to_vec(),
             lbs_vertices: lbs_vertices.to_vec(),
             ..rest.clone()

@@ -17,7 +17,6 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{NormalMode, Rasterizer, RenderParams};
-use dynamic_shapes::core::studio::DeformationParams;
 use dynamic_shapes::photometric::truth::{
     facet_shading_gap, ghost_subject, skirt_subject, StudioScene, TrueSurface, GHOST_FRAME,
     STUDIO_FRAME,
@@ -28,6 +27,7 @@ use dynamic_shapes::photometric::{
     MetricParams, NormalMap, OffsetOutliers, OffsetParams, RobustWeights, SubPixel, SurfaceParams,
     VisualHullParams,
 };
+use dynamic_shapes_studio::DeformationParams;
 
 const CAMERAS: usize = 8;
 

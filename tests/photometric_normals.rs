@@ -12,7 +12,6 @@ use std::time::Instant;
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule};
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
     dome_power_fraction, pattern_images, render_sphere_patterns, silhouette_scores, skirt_subject,
@@ -23,6 +22,7 @@ use dynamic_shapes::photometric::{
     CalibrationSphere, ColourParams, ColourTransfer, Error, Exposure, LookupTable, NormalParams,
     Pattern, PatternImages, SilhouetteParams, PATTERNS,
 };
+use dynamic_shapes_studio::{makehuman_performer, Capture, PatternSchedule};
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
 const WHITE_LEVEL: f32 = 0.4;
@@ -280,10 +280,10 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
 
 #[test]
 fn motion_compensation_recovers_normals_of_a_moving_performer() {
-    use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
     use dynamic_shapes::photometric::{
         compensate_motion, grey, MotionParams, CYCLE, CYCLE_FRAME_RATE_HZ,
     };
+    use dynamic_shapes_studio::{fast_motion, FastMotionParams};
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
         &skirt_subject(),

@@ -10,7 +10,7 @@ use dynamic_shapes::core::math::{DVec2, DVec3};
 use dynamic_shapes::core::mesh::MeshQuery;
 use dynamic_shapes::core::raster::{Buffers, RenderParams};
 use dynamic_shapes::core::skeleton::{BvhParams, CMU_METRES_PER_UNIT};
-use dynamic_shapes::core::studio::{
+use dynamic_shapes_studio::{
     makehuman_performer, play_bvh, Capture, CaptureSpec, DeformationParams, RetargetParams,
 };
 use example_kit::data_path;

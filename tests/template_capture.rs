@@ -15,13 +15,13 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 use dynamic_shapes::core::skeleton::Motion;
 use dynamic_shapes::core::stats::{mean, rms};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
-    Performer,
-};
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
     ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams, Template, VisualHullParams,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
+    Performer,
 };
 
 /// RMS distance between corresponding vertices, mm.
@@ -219,8 +219,8 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
 #[test]
 fn a_decimated_textured_template_takes_an_edit_to_a_posed_frame() {
     use dynamic_shapes::core::mesh::{decimate, SkinWeights};
-    use dynamic_shapes::core::studio::{GarmentParams, SkirtParams};
     use dynamic_shapes::template::DeformationTransfer;
+    use dynamic_shapes_studio::{GarmentParams, SkirtParams};
 
     let performer = makehuman_performer(
         example_kit::data_path("makehuman").unwrap(),
@@ -364,14 +364,12 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
 ///    the same first pose; against the default-proportion track and the true skeleton's.
 #[test]
 fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
-    use dynamic_shapes::core::studio::{
-        procedural_performer, FastMotionParams, ProceduralBodyParams,
-    };
     use dynamic_shapes::template::{
         ellipsoid_scenario, score_ellipsoids, size_from_poses, size_performer, track,
         EllipsoidScenarioParams, EllipsoidScores, PoseFrame, PoseModel, ScenarioMotion,
         SizingParams,
     };
+    use dynamic_shapes_studio::{procedural_performer, FastMotionParams, ProceduralBodyParams};
     let t = Instant::now();
     let scenario = ellipsoid_scenario(&EllipsoidScenarioParams {
         cameras: 8,
@@ -530,7 +528,7 @@ struct ResizedStudio {
     default: Performer,
     model: dynamic_shapes::template::EllipsoidModel,
     performer: Performer,
-    frames: Vec<dynamic_shapes::core::studio::CaptureFrame>,
+    frames: Vec<dynamic_shapes_studio::CaptureFrame>,
     obs: Vec<FrameObservation>,
 }
 

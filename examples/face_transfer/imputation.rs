@@ -11,7 +11,6 @@ use std::time::Instant;
 use serde_json::{json, Value};
 
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use dynamic_shapes::face::validation::{
     feature_vertices, hold_out, impute_rel_error, trilinear_face_set, FaceSet, FaceSetParams,
     IctBasis,
@@ -20,6 +19,7 @@ use dynamic_shapes::face::{
     impute, impute_by_averaging, impute_ppca, FaceTensor, ImputeModel, ImputeParams, KnownFaces,
     PpcaParams,
 };
+use dynamic_shapes_studio::{preview, Paint, PreviewPanel};
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::Run;
 

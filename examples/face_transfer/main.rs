@@ -40,7 +40,6 @@ use serde_json::json;
 
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{RefineParams, Refinement, TriMesh};
-use dynamic_shapes::core::studio::{preview, Paint, PreviewPanel};
 use dynamic_shapes::face::validation::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
     impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
@@ -50,6 +49,7 @@ use dynamic_shapes::face::{
     fit_template, impute, impute_ppca, mean_weights, track_points, CorrespondenceParams, Dials,
     FaceTensor, ImputeParams, ModelParams, MultilinearModel, PpcaParams, TrackParams,
 };
+use dynamic_shapes_studio::{preview, Paint, PreviewPanel};
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};
 

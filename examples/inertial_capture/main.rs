@@ -60,10 +60,6 @@ use serde_json::{json, Value};
 
 use dynamic_shapes::core::math::DQuat;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, play_bvh, range_of_motion, DeformationParams,
-    ExerciseParams, RangeOfMotionParams, RetargetParams,
-};
 use dynamic_shapes::inertial::simulate::{
     estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
     prepare_motion, refine_recording_headings, run_filter, table_4_1, treadmill_motion, tune,
@@ -71,6 +67,10 @@ use dynamic_shapes::inertial::simulate::{
 };
 use dynamic_shapes::inertial::{
     FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, makehuman_performer, play_bvh, range_of_motion, DeformationParams,
+    ExerciseParams, RangeOfMotionParams, RetargetParams,
 };
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};

@@ -22,13 +22,14 @@
 use std::time::Instant;
 
 use clap::Parser;
-use dynamic_shapes::core::camera::{
-    bar_length_rms_m, calibrate_with_bar, synthetic_bar_calibration, BarCalibrationParams, Camera,
+use dynamic_shapes::core::camera::Camera;
+use dynamic_shapes::core::markers::{
+    bar_length_rms_m, calibrate_with_bar, id_switches, synthetic_bar_calibration, track_markers,
+    BarCalibrationParams, TrackParams,
 };
-use dynamic_shapes::core::markers::{id_switches, track_markers, TrackParams};
 use dynamic_shapes::core::math::{fit_similarity, Alignment, DVec3};
 use dynamic_shapes::core::stats::percentile;
-use dynamic_shapes::core::studio::MarkerScenario;
+use dynamic_shapes_studio::MarkerScenario;
 use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
 use serde_json::json;

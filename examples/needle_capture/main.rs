@@ -67,12 +67,6 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::{HeatWeightsParams, TriMesh};
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
-use dynamic_shapes::core::studio::{
-    exercise_motion, makehuman_performer, play_bvh, preview, procedural_performer, studio_ring,
-    Capture, CaptureFrame, CaptureSpec, DeformationParams, DeformationState, ExerciseParams, Paint,
-    Performer, PoseDeformParams, PreviewPanel, ProceduralBodyParams, RetargetParams,
-    STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
-};
 use dynamic_shapes::needle::truth::{
     EffectAttribution, EffectErrors, Errors, HullOracle, NeedleTruth, TestSet,
 };
@@ -81,6 +75,12 @@ use dynamic_shapes::needle::{
     NeedleBody, NeedleModel, Neighbourhood, ObservationStore, ObserveParams, Observer, Parameter,
     PoseSpaceModel, PrimitiveFitReport, ReconstructionParams, SelectionParams,
     SilhouetteErrorParams, SilhouetteScorer, SkinnedShape, SurfaceParams, ValidationFrame,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, makehuman_performer, play_bvh, preview, procedural_performer, studio_ring,
+    Capture, CaptureFrame, CaptureSpec, DeformationParams, DeformationState, ExerciseParams, Paint,
+    Performer, PoseDeformParams, PreviewPanel, ProceduralBodyParams, RetargetParams,
+    STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
 };
 use example_kit::plot::{self as kplot, Chart, LegendPosition, Series, Style};
 use example_kit::{Goal, Headline, Run};

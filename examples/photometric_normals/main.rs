@@ -38,7 +38,6 @@ use serde_json::json;
 
 use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::math::DVec3;
-use dynamic_shapes::core::studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, colour_scores, distant_light_normals, dome_power_fraction, pattern_images,
     silhouette_scores, skirt_subject, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
@@ -48,6 +47,7 @@ use dynamic_shapes::photometric::{
     estimate_normals, Exposure, NormalMap, NormalParams, Pattern, PatternImages, SilhouetteParams,
     CYCLE, PATTERNS,
 };
+use dynamic_shapes_studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use example_kit::plot::{
     error_colour, label_rows, side_by_side, titled, with_colour_bar, ColourBar,
 };
@@ -666,7 +666,7 @@ struct MovingFrame {
     greys: Vec<dynamic_shapes::core::image::GrayF32Image>,
     mesh: dynamic_shapes::core::mesh::TriMesh,
     masks: Vec<dynamic_shapes::core::image::Mask>,
-    views: Vec<dynamic_shapes::core::studio::ViewTruth>,
+    views: Vec<dynamic_shapes_studio::ViewTruth>,
 }
 
 /// §3.2.3 on a moving performer: the skirt performer (no wrinkles: cheaper shadow rays) in
@@ -688,10 +688,10 @@ fn moving_sequence(
     maps: usize,
     light_bins: Option<usize>,
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
-    use dynamic_shapes::core::studio::{fast_motion, FastMotionParams};
     use dynamic_shapes::photometric::{
         compensate_motion, grey, warp, Flow, MotionParams, CYCLE_FRAME_RATE_HZ,
     };
+    use dynamic_shapes_studio::{fast_motion, FastMotionParams};
     use std::collections::VecDeque;
     const FIRST: usize = 75;
     let performer = makehuman_performer(example_kit::data_path("makehuman")?, &skirt_subject())?;
@@ -944,7 +944,7 @@ enum Noise {
 
 impl Noise {
     /// Keeps the studio's own noise only for `Noise::Studio`.
-    fn set_studio(&self, spec: &mut dynamic_shapes::core::studio::CaptureSpec) {
+    fn set_studio(&self, spec: &mut dynamic_shapes_studio::CaptureSpec) {
         if !matches!(self, Noise::Studio) {
             spec.noise = None;
         }

@@ -66,8 +66,6 @@ use dynamic_shapes::core::math::{DAffine3, DVec3};
 use dynamic_shapes::core::mesh::{points_to_surface, write_ply, MeshQuery, PlyEncoding, TriMesh};
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, NO_TRIANGLE};
-use dynamic_shapes::core::studio::shading::DomeParams;
-use dynamic_shapes::core::studio::{DeformationParams, FineSurface, WrinkleParams};
 use dynamic_shapes::photometric::truth::{
     facet_shading_gap, ghost_subject, pattern_images, render_both_faces, skirt_subject,
     StudioScene, TrueSurface, GHOST_FRAME, RING_RADIUS_M, STUDIO_FRAME,
@@ -81,6 +79,8 @@ use dynamic_shapes::photometric::{
     ReconstructParams, Reconstruction, RefineParams, RobustWeights, SubPixel, SurfaceDistance,
     SurfaceErrors, SurfaceParams, TargetNormals, ViewSurfaces, VisualHull, VisualHullParams,
 };
+use dynamic_shapes_studio::shading::DomeParams;
+use dynamic_shapes_studio::{DeformationParams, FineSurface, WrinkleParams};
 use example_kit::plot::{
     error_colour, side_by_side, titled, with_colour_bar, Chart, ColourBar, LegendPosition, Series,
     Style,

@@ -6,8 +6,8 @@ use dynamic_shapes::core::image::{
     normals_rgb8, write_depth_png16, write_mask_png, DepthEncoding, GrayF32Image, Mask,
 };
 use dynamic_shapes::core::raster::NO_TRIANGLE;
-use dynamic_shapes::core::studio::shading::srgb8;
-use dynamic_shapes::core::studio::{CaptureFrame, Performer, ViewTruth};
+use dynamic_shapes_studio::shading::srgb8;
+use dynamic_shapes_studio::{CaptureFrame, Performer, ViewTruth};
 use example_kit::plot::{self as kplot, ColourBar};
 use image::imageops::{resize, FilterType};
 use image::{Rgb, Rgb32FImage, RgbImage};

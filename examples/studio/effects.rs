@@ -14,7 +14,7 @@ use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::{Buffers, Rasterizer, RenderParams, RenderedView, NO_TRIANGLE};
 use dynamic_shapes::core::skeleton::{read_bvh, BvhParams, Motion};
 use dynamic_shapes::core::stats::{median, percentile};
-use dynamic_shapes::core::studio::{
+use dynamic_shapes_studio::{
     exercise_motion, fast_motion, max_pose_share, preview, procedural_performer, range_coverage,
     range_of_motion, retarget, DeformationParams, DeformationState, ExerciseParams,
     FastMotionParams, GarmentParams, JointMap, Paint, Performer, PosedFrame, PreviewPanel,

@@ -58,11 +58,11 @@ use dynamic_shapes::core::skeleton::{
     AttachedPoint, BvhParams, ForwardKinematics, Motion, Skeleton, CMU_METRES_PER_UNIT,
 };
 use dynamic_shapes::core::stats::median;
-use dynamic_shapes::core::studio::shading::{
+use dynamic_shapes_studio::shading::{
     dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
     DEFAULT_SHADOW_BIAS_M,
 };
-use dynamic_shapes::core::studio::{
+use dynamic_shapes_studio::{
     makehuman_performer, play_bvh, Capture, CaptureLighting, CaptureSpec, DeformationParams,
     RetargetParams,
 };
@@ -497,7 +497,7 @@ fn headlines(run: &mut Run, w: u32, h: u32) {
 /// the shadow visibility of the vertices that view sees (once).
 fn shade_timing(
     mesh: &TriMesh,
-    lights: &[dynamic_shapes::core::studio::shading::Light],
+    lights: &[dynamic_shapes_studio::shading::Light],
     look_at: DVec3,
     reps: usize,
 ) -> AnyResult<(f64, f64)> {

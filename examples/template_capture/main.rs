@@ -55,17 +55,17 @@ use dynamic_shapes::core::mesh::{
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
-use dynamic_shapes::core::studio::{
-    exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
-    DeformationParams, ExerciseParams, FastMotionParams, FrameTruth, GarmentParams, Paint,
-    Performer, PreviewPanel, RetargetParams, SkirtParams,
-};
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, initialise_pose, pose_error, reference_sizes,
     rest_pose_start, score_ellipsoids, silhouette_error_pct, size_from_poses, AutoInitParams,
     DeformationTransfer, EllipsoidModel, EllipsoidState, FrameObservation, PoseEditor, PoseModel,
     PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams,
     SizingParams, Template, UserRay, VisualHullParams,
+};
+use dynamic_shapes_studio::{
+    exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
+    DeformationParams, ExerciseParams, FastMotionParams, FrameTruth, GarmentParams, Paint,
+    Performer, PreviewPanel, RetargetParams, SkirtParams,
 };
 use example_kit::plot::{error_colour, Chart, ColourBar, Series, Style};
 use example_kit::{Goal, Headline, Run};

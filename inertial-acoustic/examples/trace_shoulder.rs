@@ -22,6 +22,7 @@
 //! σ, each with and without the heading fit and Cauchy distances.
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // a diagnostic, not library code
 
+use dynamic_shapes_studio::{exercise_motion, ExerciseParams};
 use inertial_acoustic::simulate::{
     estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
     prepare_motion, refine_recording_headings, run_filter, run_filter_board_noise, start_filter,
@@ -33,7 +34,6 @@ use inertial_acoustic::{
 };
 use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{human_skeleton, BvhParams, HumanParams, Motion, Skeleton};
-use skin_core::studio::{exercise_motion, ExerciseParams};
 
 fn line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: FilterParams, joints: &[usize]) {
     let r = run_filter(s, rec, p, true, joints).unwrap();
@@ -112,8 +112,8 @@ fn main() {
         .collect();
     if args.get(3).is_some_and(|a| a == "axes") {
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
-        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
-        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let deformation = dynamic_shapes_studio::DeformationParams::default().with_flap(None);
+        let performer = dynamic_shapes_studio::makehuman_performer(dir, &deformation).unwrap();
         let seeds: u64 = args.get(4).map_or(1, |a| a.parse().unwrap());
         axes_trace(&performer, &deformation, seconds, seed, seeds);
         return;
@@ -121,8 +121,8 @@ fn main() {
     if args.get(3).is_some_and(|a| a == "rom") {
         // Issue 15, ninth session: the full run's range-of-motion clip and suit.
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
-        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
-        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let deformation = dynamic_shapes_studio::DeformationParams::default().with_flap(None);
+        let performer = dynamic_shapes_studio::makehuman_performer(dir, &deformation).unwrap();
         let what = args.get(4).map_or("base", String::as_str);
         rom_trace(&performer, &deformation, seconds, what);
         return;
@@ -130,8 +130,8 @@ fn main() {
     if args.get(3).is_some_and(|a| a == "treadmill") {
         // The example's skeleton: the MakeHuman performer's (its drift run's figures).
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/makehuman");
-        let deformation = skin_core::studio::DeformationParams::default().with_flap(None);
-        let performer = skin_core::studio::makehuman_performer(dir, &deformation).unwrap();
+        let deformation = dynamic_shapes_studio::DeformationParams::default().with_flap(None);
+        let performer = dynamic_shapes_studio::makehuman_performer(dir, &deformation).unwrap();
         let what = args.get(4).map_or("all", String::as_str);
         treadmill_trace(&performer, &deformation, seconds, what);
         return;
@@ -139,8 +139,8 @@ fn main() {
     let motion = if args.get(3).is_some_and(|a| a == "walk") {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
         let bvh = skin_core::skeleton::BvhParams::default();
-        let retarget = skin_core::studio::RetargetParams::default();
-        skin_core::studio::play_bvh(path, &bvh, &s, 1.0 / 120.0, &retarget)
+        let retarget = dynamic_shapes_studio::RetargetParams::default();
+        dynamic_shapes_studio::play_bvh(path, &bvh, &s, 1.0 / 120.0, &retarget)
             .unwrap()
             .motion
     } else {
@@ -948,19 +948,19 @@ fn treadmill_line(label: &str, s: &Skeleton, rec: &SimulatedRecording, p: Filter
 }
 
 fn treadmill_trace(
-    performer: &skin_core::studio::Performer,
-    deformation: &skin_core::studio::DeformationParams,
+    performer: &dynamic_shapes_studio::Performer,
+    deformation: &dynamic_shapes_studio::DeformationParams,
     seconds: f64,
     what: &str,
 ) {
     let s = &performer.skeleton;
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/mocap-cmu/131_01.bvh");
     let walk = |limit: Option<f64>| {
-        let retarget = skin_core::studio::RetargetParams {
+        let retarget = dynamic_shapes_studio::RetargetParams {
             twist_rate_limit_rad_per_s: limit,
-            ..skin_core::studio::RetargetParams::default()
+            ..dynamic_shapes_studio::RetargetParams::default()
         };
-        skin_core::studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
+        dynamic_shapes_studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
             .unwrap()
             .motion
     };
@@ -1201,12 +1201,12 @@ fn treadmill_trace(
     if what == "clamp" || what == "all" {
         // The walk retargeted with every DOF clamped into the performer's limits (the wrist's
         // flexion sits near ±π otherwise): the hand's rates, then the garment suit.
-        let retarget = skin_core::studio::RetargetParams {
+        let retarget = dynamic_shapes_studio::RetargetParams {
             twist_rate_limit_rad_per_s: Some(10.0),
             clamp_to_limits: true,
         };
         let clamped =
-            skin_core::studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
+            dynamic_shapes_studio::play_bvh(path, &BvhParams::default(), s, 1.0 / 120.0, &retarget)
                 .unwrap()
                 .motion;
         let tread = treadmill_motion(s, &clamped, seconds).unwrap();
@@ -1305,8 +1305,8 @@ fn treadmill_trace(
 /// Issue 15, seventh session: per-axis σ against per-board σ (and the heading fit, Cauchy
 /// distances) on the example's garment and rigid suits, several seeds; means at the end.
 fn axes_trace(
-    performer: &skin_core::studio::Performer,
-    deformation: &skin_core::studio::DeformationParams,
+    performer: &dynamic_shapes_studio::Performer,
+    deformation: &dynamic_shapes_studio::DeformationParams,
     seconds: f64,
     seed0: u64,
     seeds: u64,
@@ -1468,12 +1468,12 @@ fn axes_trace(
 /// `knobs`: σ_d, Cauchy, q, the placement split, other seeds; `cmp`: the whole-count code's
 /// tuned point on both codes; `restbias`: the rest hold's per-pair distance bias removed.
 fn rom_trace(
-    performer: &skin_core::studio::Performer,
-    deformation: &skin_core::studio::DeformationParams,
+    performer: &dynamic_shapes_studio::Performer,
+    deformation: &dynamic_shapes_studio::DeformationParams,
     seconds: f64,
     what: &str,
 ) {
-    use skin_core::studio::{range_of_motion, RangeOfMotionParams};
+    use dynamic_shapes_studio::{range_of_motion, RangeOfMotionParams};
     let s = &performer.skeleton;
     let full = range_of_motion(s, &RangeOfMotionParams::default()).unwrap();
     let rom = if seconds > 0.0 {

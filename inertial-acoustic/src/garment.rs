@@ -3,7 +3,7 @@
 //! Every board and source is attached to a point of a triangle of the performer's rest body
 //! surface (barycentric weights fixed at rest), so it moves with the studio's pose-driven
 //! deformation — linear blend skinning plus the muscle and joint shapes of
-//! [`skin_core::studio::PoseDeformParams`] — rather than rigidly with its bone: the
+//! [`dynamic_shapes_studio::PoseDeformParams`] — rather than rigidly with its bone: the
 //! skin-motion error real suits have (§4.5). A board is a rigid plate on a patch of skin: its
 //! axes turn with the best-fitting rotation (Kabsch) of the skin vertices within
 //! [`PATCH_RADIUS_M`] of its point (at least the [`MIN_PATCH`] nearest), from rest to the
@@ -17,10 +17,10 @@
 
 use crate::suit::{SensorBoard, Suit, UltrasonicSource};
 use crate::{Error, Result};
+use dynamic_shapes_studio::{DeformationParams, DeformationState, Performer};
 use skin_core::math::{fit_similarity, Alignment, DQuat, DVec3};
 use skin_core::mesh::{closest_point_on_triangle, SkinWeights, TriMesh};
 use skin_core::skeleton::{AttachedPoint, Skeleton};
-use skin_core::studio::{DeformationParams, DeformationState, Performer};
 
 /// Smallest mean skin weight on the carrying bone for a triangle to take a board or source.
 const MIN_BONE_WEIGHT: f64 = 0.5;
@@ -322,7 +322,7 @@ impl GarmentSurface {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skin_core::studio::makehuman_performer;
+    use dynamic_shapes_studio::makehuman_performer;
 
     fn performer() -> (Performer, DeformationParams) {
         let deformation = DeformationParams::default().with_flap(None);

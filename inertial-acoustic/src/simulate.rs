@@ -37,6 +37,7 @@ use crate::ultrasound::{
     calibrate_offsets, leave_one_out_errors_m, CalibrationShot, PulseDetector,
 };
 use crate::{Context, Error, Result, ResultExt};
+use dynamic_shapes_studio::{DeformationParams, Performer};
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,7 +46,6 @@ use serde::{Deserialize, Serialize};
 use skin_core::check::{non_negative, positive};
 use skin_core::math::{DQuat, DVec3};
 use skin_core::skeleton::{ForwardKinematics, Motion, Skeleton};
-use skin_core::studio::{DeformationParams, Performer};
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 

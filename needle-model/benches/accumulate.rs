@@ -10,11 +10,11 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
-use skin_core::studio::{
+use dynamic_shapes_studio::{
     fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
     FastMotionParams, ProceduralBodyParams,
 };
+use needle_model::{BodyLayout, FrameInput, NeedleBody, ObserveParams, Observer};
 
 const FRAMES: usize = 4;
 

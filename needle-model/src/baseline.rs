@@ -23,13 +23,13 @@
 //!   each vertex's closest point on the rest-pose template. On the studio those are the very
 //!   weights that generated the truth, so this variant knows more than any capture could.
 
+use dynamic_shapes_studio::Performer;
 use glam::DVec3;
 use skin_core::math::DAffine3;
 use skin_core::mesh::{
     bone_heat_weights, rest_bones, skin, HeatWeightsParams, MeshQuery, SkinWeights, TriMesh,
 };
 use skin_core::skeleton::Skeleton;
-use skin_core::studio::Performer;
 
 use crate::{Error, Result};
 
@@ -130,7 +130,7 @@ fn check_rest(rest: &TriMesh) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skin_core::studio::{procedural_performer, ProceduralBodyParams};
+    use dynamic_shapes_studio::{procedural_performer, ProceduralBodyParams};
 
     #[test]
     fn the_template_itself_reproduces_the_performers_lbs() {

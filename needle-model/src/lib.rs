@@ -56,7 +56,7 @@
 //!     BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
 //!     ReconstructionParams,
 //! };
-//! use skin_core::studio::{
+//! use dynamic_shapes_studio::{
 //!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
 //!     ProceduralBodyParams,
 //! };

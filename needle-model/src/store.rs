@@ -258,7 +258,7 @@ impl<'de> Deserialize<'de> for NeedleObservations {
     }
 }
 
-/// All needle observations of a body, compact (4 bytes per observation plus one configuration
+/// All needle observations of a body, compact (3 bytes per observation plus one configuration
 /// row and one offset per sample).
 ///
 /// Compact storage of needle-length observations (Sand 2003 §4.3).
@@ -270,10 +270,10 @@ impl<'de> Deserialize<'de> for NeedleObservations {
 /// * the configuration point of a primitive is stored **once per sample** — one sample is one
 ///   (frame, camera) pair in which the primitive produced at least one observation — as a
 ///   row of `config_dim` `f32` values (row-major);
-/// * each observation is **4 bytes**: the needle index within its primitive (`u16`) and the
-///   length quantised to `u16` with a per-primitive scale
-///   `length_step_m = max_length_m / 65535` (see [`ObservationStore::length_step_m`]); with the
-///   Table 3.1 maxima (10–30 cm) the step is 1.5–4.6 µm, far below a pixel's footprint;
+/// * each observation is **3 bytes** ([`PackedObservation`]): the needle index within its
+///   primitive (12 bits) and the length quantised to 12 bits with a per-primitive scale
+///   `length_step_m = max_length_m / 4095` (see [`ObservationStore::length_step_m`]); with the
+///   Table 3.1 maxima (10–30 cm) the step is 0.02–0.07 mm, far below a pixel's footprint;
 /// * observations are grouped by sample (CSR offsets, one `u32` per sample), so the sample
 ///   index of an observation is implicit.
 ///
@@ -352,7 +352,7 @@ impl ObservationStore {
         self.primitives.get(p).map_or(0, |t| t.needle_count)
     }
 
-    /// Quantisation step of primitive `p`'s lengths, metres: `max_length_m / 65535`
+    /// Quantisation step of primitive `p`'s lengths, metres: `max_length_m / 4095`
     /// (0 if `p` is out of range). Stored lengths are within half a step of the input.
     pub fn length_step_m(&self, p: usize) -> f32 {
         self.primitives.get(p).map_or(0.0, |t| t.length_step_m)

@@ -270,7 +270,7 @@ pub fn estimate_sync_offset(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skin_core::studio::{
+    use dynamic_shapes_studio::{
         fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
         FastMotionParams, ProceduralBodyParams,
     };

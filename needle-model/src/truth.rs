@@ -18,22 +18,22 @@
 //!   predictor elsewhere, how often it fell back, and every predictor's errors on the
 //!   needle-frames it did know, so they are compared on the same needles.
 //! * [`EffectAttribution`]: which of the studio's effects — the geometry of skinning itself,
-//!   each pose-driven muscle or crease ([`skin_core::studio::PoseDeformParams`]), the hip
+//!   each pose-driven muscle or crease ([`dynamic_shapes_studio::PoseDeformParams`]), the hip
 //!   flap — moves each pose-deforming needle most over the test, and
 //!   [`EffectAttribution::breakdown`] a predictor's mean error per effect: what "hidden from
 //!   silhouettes" means, measured (an inward crease against an outward muscle).
 
 use std::collections::{HashMap, HashSet};
 
+use dynamic_shapes_studio::{
+    DeformationParams, DeformationState, FrameTruth, Performer, PoseDeformParams,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
+};
 use glam::DVec3;
 use rayon::prelude::*;
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::math::Ray;
 use skin_core::mesh::{MeshQuery, TriMesh};
-use skin_core::studio::{
-    DeformationParams, DeformationState, FrameTruth, Performer, PoseDeformParams,
-    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
-};
 
 use crate::observe::{FrameInput, Observer};
 use crate::primitive::NeedleBody;
@@ -66,13 +66,13 @@ pub const SKINNING_GEOMETRY: &str = "skinning_geometry";
 
 /// Name of [`EffectAttribution`]'s category for the performer's dynamic deformation (the hip
 /// flap's lag, a garment's departure from its skinning:
-/// [`skin_core::studio::PosedFrame::dynamic_displacement`]).
+/// [`dynamic_shapes_studio::PosedFrame::dynamic_displacement`]).
 pub const FLAP: &str = "flap";
 
 /// Largest difference, metres, allowed between the sum of the per-effect displacements
 /// [`EffectAttribution`] computes and the performer's own pose-driven displacement before it
 /// decides the performer was built with other effects. The effects add exactly
-/// (`skin_core::studio` muscles: linear in their rest-space offsets); 1 µm leaves room for
+/// (`dynamic_shapes_studio` muscles: linear in their rest-space offsets); 1 µm leaves room for
 /// rounding only.
 pub const EFFECT_SUM_TOLERANCE_M: f64 = 1e-6;
 
@@ -397,12 +397,12 @@ pub struct EffectErrors {
 ///
 /// * [`SKINNING_GEOMETRY`]: the needle's length under LBS of the exact rest shape,
 ///   [`NeedleTruth::lbs_m`];
-/// * each pose effect `e` of the performer ([`skin_core::studio::PoseEffect`], in the order of
+/// * each pose effect `e` of the performer ([`dynamic_shapes_studio::PoseEffect`], in the order of
 ///   [`PoseDeformParams::effects`]): `u_e(x) · d̂`, its displacement at `x` (barycentric over
 ///   the face's vertices) projected on the needle — to first order the length it adds where
 ///   the surface is normal to the needle;
 /// * [`FLAP`]: the same of the dynamic displacement
-///   ([`skin_core::studio::PosedFrame::dynamic_displacement`]).
+///   ([`dynamic_shapes_studio::PosedFrame::dynamic_displacement`]).
 ///
 /// A category's **span** for a needle is the largest minus the smallest of its values over
 /// the frames in which the needle is scored, and the needle's **dominant** category is the one
@@ -655,7 +655,7 @@ impl EffectAttribution {
 
 impl TestSet {
     /// Records the truth of one captured frame (its pose and the performer's true and
-    /// LBS surfaces there, from [`skin_core::studio::Capture`]).
+    /// LBS surfaces there, from [`dynamic_shapes_studio::Capture`]).
     ///
     /// # Errors
     /// As forward kinematics, [`MeshQuery::new`] and the configuration points;
@@ -1195,7 +1195,7 @@ mod tests {
     #[test]
     fn a_bent_elbow_is_attributed_to_skinning_and_the_elbow_effects() {
         use crate::primitive::BodyLayout;
-        use skin_core::studio::{procedural_performer, ProceduralBodyParams};
+        use dynamic_shapes_studio::{procedural_performer, ProceduralBodyParams};
         let deformation = DeformationParams::default().with_flap(None);
         let effects = deformation.pose.clone().unwrap();
         let p = procedural_performer(&ProceduralBodyParams {

@@ -278,12 +278,12 @@ mod tests {
     use crate::{
         grey, patterns_weights, CalibrationParams, CalibrationSphere, LookupTable, PATTERNS,
     };
+    use dynamic_shapes_studio::shading::{
+        dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows,
+    };
     use skin_core::camera::Intrinsics;
     use skin_core::mesh::shapes::uv_sphere;
     use skin_core::raster::{Buffers, Rasterizer, RenderParams};
-    use skin_core::studio::shading::{
-        dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows,
-    };
 
     /// A camera 5 m above the dome's floor centre looking straight down, calibrated with grey
     /// spheres at two heights under the axis, and a probe sphere at `probe_y`: its pattern

@@ -34,8 +34,6 @@ pub mod random;
 pub mod raster;
 pub mod skeleton;
 pub mod stats;
-#[cfg(feature = "studio")]
-pub mod studio;
 pub mod tensor;
 
 mod faer_bridge;

@@ -15,11 +15,11 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use skin_core::camera::{Intrinsics, Rig};
-use skin_core::math::DVec3;
-use skin_core::studio::{
+use dynamic_shapes_studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
 };
+use skin_core::camera::{Intrinsics, Rig};
+use skin_core::math::DVec3;
 use template_silhouette::{
     fit_frame, FrameObservation, PoseFrame, PoseModel, PoseParams, ShapeEstimator, ShapeParams,
     SilhouetteParams, Template, Temporal, VisualHullParams,

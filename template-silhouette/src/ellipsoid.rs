@@ -177,7 +177,7 @@ pub struct EllipsoidParams {
     pub sigma_marker_m: f64,
     /// Height of a marker's centre above the skin, metres: a marker's residual is its
     /// distance to the ellipsoid's surface minus this. Default 0.010 (the studio's balls,
-    /// [`skin_core::studio::DEFAULT_MARKER_OFFSET_M`]: radius 8 mm on a 2 mm base).
+    /// [`skin_core::markers::DEFAULT_MARKER_OFFSET_M`]: radius 8 mm on a 2 mm base).
     pub marker_offset_m: f64,
     /// A-priori σ of a silhouette ray's tangency, metres. Default 0.005.
     pub sigma_silhouette_m: f64,
@@ -270,7 +270,7 @@ impl Default for EllipsoidParams {
         EllipsoidParams {
             sigma_point_m: 0.005,
             sigma_marker_m: 0.001,
-            marker_offset_m: skin_core::studio::DEFAULT_MARKER_OFFSET_M,
+            marker_offset_m: skin_core::markers::DEFAULT_MARKER_OFFSET_M,
             sigma_silhouette_m: 0.005,
             sigma_theta_prior: 1.0,
             sigma_translation_prior_m: None,

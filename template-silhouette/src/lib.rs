@@ -39,7 +39,7 @@
 //! §2.3.3), then Algorithm 1 molds the template to the silhouettes.
 //!
 //! ```
-//! use skin_core::studio::{
+//! use dynamic_shapes_studio::{
 //!     fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec, FastMotionParams,
 //!     ProceduralBodyParams,
 //! };

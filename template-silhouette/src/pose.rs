@@ -800,11 +800,11 @@ pub fn track(
 pub(crate) mod tests {
     use super::*;
     use crate::visual_hull::VisualHullParams;
-    use skin_core::math::DVec3;
-    use skin_core::raster::{Rasterizer, RenderParams};
-    use skin_core::studio::{
+    use dynamic_shapes_studio::{
         fast_motion, procedural_performer, studio_ring, FastMotionParams, ProceduralBodyParams,
     };
+    use skin_core::math::DVec3;
+    use skin_core::raster::{Rasterizer, RenderParams};
 
     #[test]
     fn gamma_is_a_smooth_hinge() {

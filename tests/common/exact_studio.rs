@@ -5,11 +5,11 @@
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::core::raster::RenderedView;
-use dynamic_shapes::core::studio::DeformationParams;
 use dynamic_shapes::photometric::truth::{
     render_both_faces, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, VisualHull};
+use dynamic_shapes_studio::DeformationParams;
 
 /// The studio scene with exact normals.
 pub struct ExactStudio {

@@ -13,13 +13,13 @@
 //! changes as the head turns (the KLT removes each window's mean). **Pixels**: linear values
 //! × 255 on a uniform dark grey backdrop, plus Gaussian noise of 1 grey level.
 
+use dynamic_shapes_studio::{AlbedoTexture, TextureParams};
 use image::{Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use skin_core::math::DVec3;
 use skin_core::raster::NO_TRIANGLE;
-use skin_core::studio::{AlbedoTexture, TextureParams};
 
 use super::point_track_sequence;
 use crate::face_data::FaceTensor;

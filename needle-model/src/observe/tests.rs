@@ -2,14 +2,14 @@
 
 use super::*;
 use crate::primitive::BodyLayout;
+use dynamic_shapes_studio::{
+    fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
+    FastMotionParams, Performer, ProceduralBodyParams,
+};
 use skin_core::camera::{Intrinsics, RadialDistortion};
 use skin_core::math::Ray;
 use skin_core::mesh::{MeshQuery, TriMesh};
 use skin_core::skeleton::Motion;
-use skin_core::studio::{
-    fast_motion, procedural_performer, studio_ring, Capture, CaptureFrame, CaptureSpec,
-    FastMotionParams, Performer, ProceduralBodyParams,
-};
 
 pub(crate) struct Scene {
     pub performer: Performer,
@@ -76,7 +76,7 @@ fn silhouette_lengths_bound_the_true_mesh() {
 #[test]
 fn silhouette_lengths_bound_the_true_makehuman_mesh() {
     let dir = example_kit::data_path("makehuman").unwrap();
-    let performer = skin_core::studio::makehuman_performer(dir, &Default::default()).unwrap();
+    let performer = dynamic_shapes_studio::makehuman_performer(dir, &Default::default()).unwrap();
     check_against_truth(&scene_of(performer, 2, 30));
 }
 

@@ -16,7 +16,6 @@
 //! | `rig.rs` | [`Rig`]: rings of cameras around a volume plus a top camera |
 //! | `dlt.rs` | normalised DLT and RQ decomposition of `P = K[R|t]` |
 //! | `calibrate.rs` | [`calibrate`]: DLT + Levenberg–Marquardt or Nelder–Mead refinement |
-//! | `bar_calibration.rs` | [`calibrate_with_bar`]: self-calibrating bundle adjustment from a bar of known length (Fua et al. §2.2) |
 //! | `time_offset.rs` | [`estimate_time_offset`]: synchronisation of two sampled signals |
 //! | `opencv.rs` | OpenCV calibration import/export (FileStorage YAML) |
 //! | `synthetic.rs` | synthetic calibration problems with ground truth |
@@ -24,7 +23,6 @@
 //! Conventions: world and camera frames in metres; camera frame x right, y down, z forward;
 //! pixels with integer coordinates at pixel centres (OpenCV).
 
-mod bar_calibration;
 mod calibrate;
 mod distortion;
 mod dlt;
@@ -36,10 +34,6 @@ mod rig;
 mod synthetic;
 mod time_offset;
 
-pub use bar_calibration::{
-    bar_length_rms_m, calibrate_with_bar, synthetic_bar_calibration, BarCalibration,
-    BarCalibrationParams, SyntheticBarCalibration,
-};
 pub use calibrate::{
     calibrate, CalibrationMethod, CalibrationParams, CalibrationReport, SimplexObjective,
     DEFAULT_COPLANARITY_TOLERANCE,

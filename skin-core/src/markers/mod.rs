@@ -3,6 +3,7 @@
 //!
 //! | file | holds | paper |
 //! | --- | --- | --- |
+//! | `bar_calibration.rs` | [`calibrate_with_bar`]: self-calibrating bundle adjustment of the cameras from a bar of known length with a marker at each end | §2.2 |
 //! | `detect.rs` | [`detect_markers`]: high-pass filter, threshold, connected components, intensity-weighted centroids | §2.3 |
 //! | `triangulate.rs` | [`triangulate`]: linear ray intersection + Gauss–Newton on the reprojection error, per-view residuals | §2.3 (forward intersection) |
 //! | `triangulate.rs` | [`reconstruct_markers`]: correspondence of unlabelled detections across cameras (pair hypotheses completed in the other views) | §2.3 |
@@ -26,10 +27,21 @@
 //! # Ok::<(), skin_core::Error>(())
 //! ```
 
+mod bar_calibration;
 mod detect;
 mod track;
 mod triangulate;
 
+/// Default marker sphere radius, m (the 5–10 mm retro-reflective balls of optical capture).
+pub const DEFAULT_MARKER_RADIUS_M: f64 = 0.008;
+/// Default distance of a marker's sphere centre from the skin along the normal, m (the radius
+/// plus a 2 mm base): what a fit to marker centres subtracts to reach the skin.
+pub const DEFAULT_MARKER_OFFSET_M: f64 = 0.010;
+
+pub use bar_calibration::{
+    bar_length_rms_m, calibrate_with_bar, synthetic_bar_calibration, BarCalibration,
+    BarCalibrationParams, SyntheticBarCalibration,
+};
 pub use detect::{
     detect_markers, MarkerBlob, MarkerDetectParams, DEFAULT_BLUR_RADIUS_PX,
     DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,

@@ -32,9 +32,7 @@ mod setup;
 mod view;
 
 pub use params::{Buffers, NormalMode, RenderParams};
-#[cfg(feature = "studio")]
-pub(crate) use view::buffer_image;
-pub use view::{RenderedView, NO_TRIANGLE};
+pub use view::{buffer_image, RenderedView, NO_TRIANGLE};
 
 use crate::camera::Camera;
 use crate::mesh::TriMesh;

@@ -48,7 +48,7 @@ fn missing(what: &'static str) -> Error {
 ///
 /// # Errors
 /// [`Error::SizeMismatch`] naming `what` unless there are `width · height · channels` samples.
-pub(crate) fn buffer_image<P: Pixel>(
+pub fn buffer_image<P: Pixel>(
     width: u32,
     height: u32,
     samples: Vec<P::Subpixel>,

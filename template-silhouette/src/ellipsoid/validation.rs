@@ -20,19 +20,22 @@
 //! fitted and the true bone directions (axial twist excluded: the ellipsoids are symmetric
 //! about the bone).
 
+use dynamic_shapes_studio::{
+    exercise_motion, fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec,
+    DeformationParams, ExerciseParams, FastMotionParams, MarkerImageStyle, MarkerSet, Performer,
+    ProceduralBodyParams,
+};
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
-use skin_core::markers::{id_switches, track_markers, MarkerDetectParams, TrackParams};
+use skin_core::markers::{
+    id_switches, track_markers, MarkerDetectParams, TrackParams, DEFAULT_MARKER_OFFSET_M,
+    DEFAULT_MARKER_RADIUS_M,
+};
 use skin_core::math::DVec3;
 use skin_core::mesh::{resize_rest, SkinWeights, TriMesh};
 use skin_core::random::SplitMix64;
 use skin_core::raster::{Buffers, RenderParams};
 use skin_core::skeleton::Skeleton;
-use skin_core::studio::{
-    exercise_motion, fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec,
-    DeformationParams, ExerciseParams, FastMotionParams, MarkerImageStyle, MarkerSet, Performer,
-    ProceduralBodyParams, DEFAULT_MARKER_OFFSET_M, DEFAULT_MARKER_RADIUS_M,
-};
 use skin_core::{check, Context};
 
 use super::{
