@@ -127,7 +127,7 @@ mod tests {
     use super::*;
     use crate::pose::tests::studio;
     use crate::silhouette_constraints::SilhouetteParams;
-    use crate::visual_hull::VisualHullParams;
+    use crate::visual_hull::ContourRayHullParams;
     use skin_core::math::{DVec3, Ray};
 
     #[test]
@@ -139,7 +139,7 @@ mod tests {
             FrameObservation::new(
                 &st.cameras,
                 &st.masks,
-                &VisualHullParams::default(),
+                &ContourRayHullParams::default(),
                 &SilhouetteParams::default(),
             )
             .unwrap()

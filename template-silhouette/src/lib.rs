@@ -14,7 +14,7 @@
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
 //! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
-//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`VisualHull`], [`ConeDistance`], [`VisualHullParams`] | §2.3.2 |
+//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`ContourRayHull`], [`ConeDistance`], [`ContourRayHullParams`] | §2.3.2 |
 //! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
@@ -46,7 +46,7 @@
 //! use skin_core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 //! use template_silhouette::{
 //!     capture_sequence, FrameObservation, PoseParams, ShapeParams, SilhouetteParams, Template,
-//!     VisualHullParams,
+//!     ContourRayHullParams,
 //! };
 //!
 //! let performer = procedural_performer(&ProceduralBodyParams::default())?;
@@ -62,7 +62,7 @@
 //!     observations.push(FrameObservation::new(
 //!         &cameras,
 //!         &frame.masks(),
-//!         &VisualHullParams::default(),
+//!         &ContourRayHullParams::default(),
 //!         &SilhouetteParams::default(),
 //!     )?);
 //!     first_pose.get_or_insert(frame.truth.theta);
@@ -150,6 +150,6 @@ pub use sizing::{
 };
 pub use template::Template;
 pub use visual_hull::{
-    ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,
+    ConeDistance, ConeSample, ContourRayHull, ContourRayHullParams, HullDistance, HullRegion,
     DEFAULT_COARSE_SPACING_M, DEFAULT_MARGIN_PX, DEFAULT_POLYGON_SPACING_M,
 };

@@ -14,7 +14,7 @@
 //! each depth sample (γ is a sum of hinge terms, not of squares, so its square root is the
 //! residual), `√w_T (θ − θ_{t±1})`, `√w_R (q_j − target_j)`, `√w_U (q_j − o) × r`. Every
 //! Jacobian is analytic: skin-core's positional Jacobians of attached points, the visual-hull
-//! distance gradient of [`crate::VisualHull::distance`], and γ′.
+//! distance gradient of [`crate::ContourRayHull::distance`], and γ′.
 //!
 //! **γ** is the softplus `γ(x) = s ln(1 + e^{−x/s})`: approximately `−x` for `x ≪ −s` and
 //! approximately 0 for `x ≫ s`, smooth in between — the "smooth function that is approximately
@@ -41,7 +41,7 @@ use crate::error::{Context, Error, Result, ResultExt};
 use crate::shape::ShapeEstimator;
 use crate::silhouette_constraints::ContourRay;
 use crate::template::Template;
-use crate::visual_hull::VisualHull;
+use crate::visual_hull::ContourRayHull;
 
 /// Default weight of the depth term (§2.3.1: `w_D = 5`, 1/m).
 pub const DEFAULT_W_D: f64 = 5.0;
@@ -401,7 +401,7 @@ pub struct Temporal<'a> {
 #[derive(Debug, Clone, Copy)]
 pub struct PoseTerms<'a> {
     /// The frame's visual hull (`E_D`).
-    pub hull: &'a VisualHull,
+    pub hull: &'a ContourRayHull,
     /// Temporal neighbours (`E_T`).
     pub temporal: Temporal<'a>,
     /// Refinement targets (`E_R`).
@@ -597,7 +597,7 @@ fn bounds(sk: &Skeleton) -> (DVector<f64>, DVector<f64>) {
 #[derive(Debug, Clone, Copy)]
 pub struct PoseFrame<'a> {
     /// The frame's visual hull.
-    pub hull: &'a VisualHull,
+    pub hull: &'a ContourRayHull,
     /// The frame's contour rays (for the refinement term's shape solve; may be empty when no
     /// shape estimator is given).
     pub rays: &'a [ContourRay],

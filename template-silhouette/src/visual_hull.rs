@@ -20,7 +20,7 @@
 //! scalar, so it is also exact between pixel centres and gives the analytic gradient
 //! `(p − o)⊥ / |(p − o)⊥|` the pose optimiser needs (§2.3.1).
 //!
-//! **Outside the hull** ([`VisualHull`]): a bone sample outside the hull is far from where it
+//! **Outside the hull** ([`ContourRayHull`]): a bone sample outside the hull is far from where it
 //! should be and needs less accuracy (§2.3.2); the distance is then the distance to a
 //! polygonal hull extracted once per frame with marching cubes (skin-core's watertight
 //! marching tetrahedra) from the signed field `min_i s_i(p)` sampled near the hull, and
@@ -40,7 +40,7 @@ use crate::error::{Context, Error, Result, ResultExt};
 
 /// Default margin around a silhouette's bounding box in which the cone transform is computed,
 /// pixels. Must cover the coarse cell's half-diagonal seen from the nearest camera (see
-/// [`VisualHullParams::margin_px`]).
+/// [`ContourRayHullParams::margin_px`]).
 pub const DEFAULT_MARGIN_PX: u32 = 48;
 /// Default node spacing of the coarse occupancy grid that finds the hull's bounding box, m.
 pub const DEFAULT_COARSE_SPACING_M: f64 = 0.08;
@@ -50,10 +50,10 @@ pub const DEFAULT_POLYGON_SPACING_M: f64 = 0.025;
 /// No contour ray reaches this pixel (yet).
 const NO_RAY: u32 = u32::MAX;
 
-/// Knobs of the visual-hull distance (§2.3.2). The thesis gives no values: the defaults are
+/// Knobs of [`ContourRayHull`], the visual-hull distance by the nearest contour ray (§2.3.2). The thesis gives no values: the defaults are
 /// chosen here and justified per field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct VisualHullParams {
+pub struct ContourRayHullParams {
     /// Pixels added around each silhouette's bounding box for the cone transform. Outside
     /// this window a point counts as far outside that cone. It must exceed the coarse cell's
     /// half-diagonal projected from the nearest camera, so that the coarse occupancy test
@@ -78,9 +78,9 @@ pub struct VisualHullParams {
     pub polygon_spacing_m: f64,
 }
 
-impl Default for VisualHullParams {
+impl Default for ContourRayHullParams {
     fn default() -> Self {
-        VisualHullParams {
+        ContourRayHullParams {
             margin_px: DEFAULT_MARGIN_PX,
             volume: BoundingBox {
                 min: DVec3::new(-2.5, -1.5, -2.5),
@@ -92,7 +92,7 @@ impl Default for VisualHullParams {
     }
 }
 
-impl VisualHullParams {
+impl ContourRayHullParams {
     /// Sets [`Self::margin_px`].
     pub fn with_margin_px(mut self, px: u32) -> Self {
         self.margin_px = px;
@@ -414,26 +414,27 @@ pub struct HullDistance {
     pub camera: Option<usize>,
 }
 
-/// The visual hull of one frame: the cone distances of every camera and the polygonal hull
-/// (§2.3.2).
+/// The visual hull of one frame as a distance field by the nearest contour ray (§2.3.2): the
+/// cone distances of every camera (exact inside the hull, with the analytic gradient the pose
+/// fit needs) and the polygonal hull for points outside it.
 #[derive(Debug)]
-pub struct VisualHull {
+pub struct ContourRayHull {
     cones: Vec<ConeDistance>,
     polygon: TriMesh,
     query: MeshQuery,
 }
 
-impl VisualHull {
+impl ContourRayHull {
     /// Builds the cone transforms of every camera, then extracts the polygonal hull: coarse
-    /// occupancy over [`VisualHullParams::volume`], then marching cubes of `min_i s_i` on a
-    /// [`VisualHullParams::polygon_spacing_m`] grid over the occupied box.
+    /// occupancy over [`ContourRayHullParams::volume`], then marching cubes of `min_i s_i` on a
+    /// [`ContourRayHullParams::polygon_spacing_m`] grid over the occupied box.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] if cameras and masks differ in number; [`Error::Empty`] for no
     /// camera, or when no grid node lies inside every silhouette (cameras that disagree, or a
     /// volume that misses the performer); [`Error::InvalidParam`] for bad params; errors of
     /// [`ConeDistance::new`] wrapped in [`Error::At`] with the camera.
-    pub fn new(cameras: &[Camera], masks: &[Mask], params: &VisualHullParams) -> Result<Self> {
+    pub fn new(cameras: &[Camera], masks: &[Mask], params: &ContourRayHullParams) -> Result<Self> {
         params.validate()?;
         check_views(cameras, masks)?;
         let cones = cameras
@@ -446,7 +447,7 @@ impl VisualHull {
             .collect::<Result<Vec<_>>>()?;
         let polygon = extract_polygon(&cones, params)?;
         let query = MeshQuery::new(&polygon)?;
-        Ok(VisualHull {
+        Ok(ContourRayHull {
             cones,
             polygon,
             query,
@@ -537,7 +538,7 @@ pub(crate) fn check_views(cameras: &[Camera], masks: &[Mask]) -> Result<()> {
 }
 
 /// Marching cubes of the signed cone field over the box the coarse occupancy finds.
-fn extract_polygon(cones: &[ConeDistance], params: &VisualHullParams) -> Result<TriMesh> {
+fn extract_polygon(cones: &[ConeDistance], params: &ContourRayHullParams) -> Result<TriMesh> {
     let field = |p: DVec3, far: f64| -> f64 {
         let mut best = f64::INFINITY;
         for cone in cones {
@@ -647,10 +648,10 @@ pub(crate) mod tests {
     const C: DVec3 = DVec3::new(0.0, 1.0, 0.0);
     const R: f64 = 0.3;
 
-    fn sphere_hull(n: usize) -> (Vec<Camera>, VisualHull) {
+    fn sphere_hull(n: usize) -> (Vec<Camera>, ContourRayHull) {
         let cams = ring(n, 320, 240);
         let masks: Vec<Mask> = cams.iter().map(|c| sphere_mask(c, C, R)).collect();
-        let hull = VisualHull::new(&cams, &masks, &VisualHullParams::default()).unwrap();
+        let hull = ContourRayHull::new(&cams, &masks, &ContourRayHullParams::default()).unwrap();
         (cams, hull)
     }
 
@@ -759,7 +760,7 @@ pub(crate) mod tests {
         let cams = ring(2, 64, 48);
         let good = sphere_mask(&cams[0], C, R);
         // Empty silhouette in camera 1.
-        let e = VisualHull::new(
+        let e = ContourRayHull::new(
             &cams,
             &[good.clone(), Mask::new(64, 48)],
             &Default::default(),
@@ -768,7 +769,7 @@ pub(crate) mod tests {
         assert_eq!(e.contexts(), [Context::Camera(1)]);
         assert!(matches!(e.root(), Error::Empty { .. }), "{e}");
         // Wrong size.
-        let e = VisualHull::new(
+        let e = ContourRayHull::new(
             &cams,
             &[good.clone(), Mask::new(10, 48)],
             &Default::default(),
@@ -776,16 +777,16 @@ pub(crate) mod tests {
         .unwrap_err();
         assert!(matches!(e.root(), Error::SizeMismatch { .. }), "{e}");
         // Count mismatch.
-        let e =
-            VisualHull::new(&cams, std::slice::from_ref(&good), &Default::default()).unwrap_err();
+        let e = ContourRayHull::new(&cams, std::slice::from_ref(&good), &Default::default())
+            .unwrap_err();
         assert!(matches!(e, Error::SizeMismatch { .. }), "{e}");
         // Silhouettes that do not intersect.
         let far = sphere_mask(&cams[1], C + DVec3::new(0.0, 0.0, 1.2), 0.1);
-        let e = VisualHull::new(&cams, &[good.clone(), far], &Default::default()).unwrap_err();
+        let e = ContourRayHull::new(&cams, &[good.clone(), far], &Default::default()).unwrap_err();
         assert!(matches!(e, Error::Empty { .. }), "{e}");
         // Bad params and points.
-        let p = VisualHullParams::default().with_polygon_spacing_m(f64::NAN);
-        assert!(VisualHull::new(&cams, &[good.clone(), good.clone()], &p).is_err());
+        let p = ContourRayHullParams::default().with_polygon_spacing_m(f64::NAN);
+        assert!(ContourRayHull::new(&cams, &[good.clone(), good.clone()], &p).is_err());
         let cone = ConeDistance::new(&cams[0], &good, 8).unwrap();
         assert!(matches!(
             cone.sample(DVec3::NAN),

@@ -1,5 +1,5 @@
 use super::*;
-use crate::visual_hull::VisualHullParams;
+use crate::visual_hull::ContourRayHullParams;
 use dynamic_shapes_studio::{
     fast_motion, procedural_performer, studio_ring, FastMotionParams, ProceduralBodyParams,
 };
@@ -111,7 +111,7 @@ fn roundness_tells_a_flat_hand_from_a_round_head() {
 /// One studio frame: template, hull, true pose, cameras and silhouettes.
 pub(crate) struct Studio {
     pub(crate) template: Template,
-    pub(crate) hull: VisualHull,
+    pub(crate) hull: ContourRayHull,
     pub(crate) truth: Vec<f64>,
     pub(crate) cameras: Vec<skin_core::camera::Camera>,
     pub(crate) masks: Vec<skin_core::image::Mask>,
@@ -136,7 +136,7 @@ pub(crate) fn studio(frame: usize) -> Studio {
                 .silhouette()
         })
         .collect();
-    let hull = VisualHull::new(&cameras, &masks, &VisualHullParams::default()).unwrap();
+    let hull = ContourRayHull::new(&cameras, &masks, &ContourRayHullParams::default()).unwrap();
     let template = Template::new(
         performer.template.clone(),
         performer.skeleton.clone(),
