@@ -109,7 +109,7 @@ mod sizing;
 mod template;
 mod visual_hull;
 
-pub use editing::{DeformationTransfer, DEFAULT_ANCHOR_WEIGHT, DEFAULT_UNEDITED_TOLERANCE_M};
+pub use editing::DeformationTransfer;
 #[cfg(feature = "validation")]
 pub use ellipsoid::{
     ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
@@ -131,19 +131,13 @@ pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
 pub use pose::{
     fit_frame, fit_pose, track, Effector, EffectorTargets, FrameFit, JointTarget, PoseFit,
     PoseFrame, PoseModel, PoseParams, PoseTerms, PoseTrack, Temporal, UserRay,
-    DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_EFFECTOR_TARGETS, DEFAULT_GAMMA_WIDTH_M,
-    DEFAULT_REFINEMENT_ROUNDS, DEFAULT_SAMPLES_PER_BONE, DEFAULT_W_D, DEFAULT_W_R, DEFAULT_W_T,
-    DEFAULT_W_U,
 };
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
-    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_ANCHOR,
-    DEFAULT_W_C, DEFAULT_W_L_STEP,
 };
 pub use silhouette_constraints::{
     contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,
-    SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
-    DEFAULT_NORMAL_SCALE,
+    SilhouetteParams,
 };
 pub use sizing::{
     reference_sizes, size_from_poses, size_performer, Sizing, SizingParams, SizingTracker,
@@ -151,5 +145,4 @@ pub use sizing::{
 pub use template::Template;
 pub use visual_hull::{
     ConeDistance, ConeSample, ContourRayHull, ContourRayHullParams, HullDistance, HullRegion,
-    DEFAULT_COARSE_SPACING_M, DEFAULT_MARGIN_PX, DEFAULT_POLYGON_SPACING_M,
 };

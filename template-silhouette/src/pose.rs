@@ -43,54 +43,34 @@ use crate::silhouette_constraints::ContourRay;
 use crate::template::Template;
 use crate::visual_hull::ContourRayHull;
 
-/// Default weight of the depth term (§2.3.1: `w_D = 5`, 1/m).
-pub const DEFAULT_W_D: f64 = 5.0;
-/// Default weight of the temporal term (§2.3.1: `w_T = 1`, 1/rad²).
-pub const DEFAULT_W_T: f64 = 1.0;
-/// Default weight of the refinement term (§2.3.1: `w_R = 500`, 1/m²).
-pub const DEFAULT_W_R: f64 = 500.0;
-/// Default weight of the user term (§2.3.1: `w_U = 5000`, 1/m²).
-pub const DEFAULT_W_U: f64 = 5000.0;
-/// Default number of depth samples per bone (§2.3.1: "four evenly spaced samples per bone").
-pub const DEFAULT_SAMPLES_PER_BONE: usize = 4;
-/// Default smoothing width of γ, m (not in the thesis; see the module docs).
-pub const DEFAULT_GAMMA_WIDTH_M: f64 = 0.005;
-/// Default number of refinement rounds (§2.3.1: "We repeat this process twice").
-pub const DEFAULT_REFINEMENT_ROUNDS: usize = 2;
-/// Default LBS weight from which a vertex belongs to an end effector's rigid portion
-/// (§2.3.1 "nearly rigidly bound"; the 0.95 of §2.4.2's nearly-rigid vertices).
-pub const DEFAULT_EFFECTOR_MIN_WEIGHT: f64 = 0.95;
-/// Default handling of end effectors in `E_R`: their whole rigid frame (ours; see
-/// [`EffectorTargets`]).
-pub const DEFAULT_EFFECTOR_TARGETS: EffectorTargets =
-    EffectorTargets::RigidFrame { max_roundness: 0.5 };
 /// Bones shorter than this carry no depth samples, m (a joint at its parent's origin).
 const MIN_BONE_LENGTH_M: f64 = 0.01;
 
 /// Knobs of pose estimation (§2.3), the thesis' values by default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PoseParams {
-    /// `w_D`, 1/m. §2.3.1. Default: [`DEFAULT_W_D`] = 5.
+    /// `w_D`, 1/m. §2.3.1. Default: [`Self::DEFAULT_W_D`] = 5.
     pub w_d: f64,
-    /// `w_T`, 1/rad² (and 1/m² on the root translation). §2.3.1. Default: [`DEFAULT_W_T`] = 1.
+    /// `w_T`, 1/rad² (and 1/m² on the root translation). §2.3.1. Default:
+    /// [`Self::DEFAULT_W_T`] = 1.
     pub w_t: f64,
-    /// `w_R`, 1/m². §2.3.1. Default: [`DEFAULT_W_R`] = 500.
+    /// `w_R`, 1/m². §2.3.1. Default: [`Self::DEFAULT_W_R`] = 500.
     pub w_r: f64,
-    /// `w_U`, 1/m². §2.3.1. Default: [`DEFAULT_W_U`] = 5000.
+    /// `w_U`, 1/m². §2.3.1. Default: [`Self::DEFAULT_W_U`] = 5000.
     pub w_u: f64,
     /// Depth samples per bone, evenly spaced at `(k + ½)/n` of its length. §2.3.1. Default:
-    /// [`DEFAULT_SAMPLES_PER_BONE`] = 4.
+    /// [`Self::DEFAULT_SAMPLES_PER_BONE`] = 4.
     pub samples_per_bone: usize,
-    /// Smoothing width `s` of γ, m. Not in the thesis. Default: [`DEFAULT_GAMMA_WIDTH_M`].
+    /// Smoothing width `s` of γ, m. Not in the thesis. Default: [`Self::DEFAULT_GAMMA_WIDTH_M`].
     pub gamma_width_m: f64,
     /// Rounds of (shape solve, refit with `E_R`). §2.3.1: twice. Default:
-    /// [`DEFAULT_REFINEMENT_ROUNDS`] = 2.
+    /// [`Self::DEFAULT_REFINEMENT_ROUNDS`] = 2.
     pub refinement_rounds: usize,
     /// LBS weight from which a vertex belongs to an end effector's portion. Default:
-    /// [`DEFAULT_EFFECTOR_MIN_WEIGHT`] = 0.95.
+    /// [`Self::DEFAULT_EFFECTOR_MIN_WEIGHT`] = 0.95.
     pub effector_min_weight: f64,
     /// What the refinement term pulls on each end effector. Default:
-    /// [`DEFAULT_EFFECTOR_TARGETS`] (the whole rigid frame; the thesis: the tip only).
+    /// [`Self::DEFAULT_EFFECTOR_TARGETS`] (the whole rigid frame; the thesis: the tip only).
     pub effector_targets: EffectorTargets,
     /// The optimiser's stopping rules. Default: 100 iterations, relative cost change 1e-6
     /// (a pose is settled well before; the thesis re-optimises "several times per second").
@@ -103,21 +83,51 @@ impl Default for PoseParams {
         lm.cost_tolerance = 1e-6;
         lm.step_tolerance = 1e-6;
         PoseParams {
-            w_d: DEFAULT_W_D,
-            w_t: DEFAULT_W_T,
-            w_r: DEFAULT_W_R,
-            w_u: DEFAULT_W_U,
-            samples_per_bone: DEFAULT_SAMPLES_PER_BONE,
-            gamma_width_m: DEFAULT_GAMMA_WIDTH_M,
-            refinement_rounds: DEFAULT_REFINEMENT_ROUNDS,
-            effector_min_weight: DEFAULT_EFFECTOR_MIN_WEIGHT,
-            effector_targets: DEFAULT_EFFECTOR_TARGETS,
+            w_d: Self::DEFAULT_W_D,
+            w_t: Self::DEFAULT_W_T,
+            w_r: Self::DEFAULT_W_R,
+            w_u: Self::DEFAULT_W_U,
+            samples_per_bone: Self::DEFAULT_SAMPLES_PER_BONE,
+            gamma_width_m: Self::DEFAULT_GAMMA_WIDTH_M,
+            refinement_rounds: Self::DEFAULT_REFINEMENT_ROUNDS,
+            effector_min_weight: Self::DEFAULT_EFFECTOR_MIN_WEIGHT,
+            effector_targets: Self::DEFAULT_EFFECTOR_TARGETS,
             lm,
         }
     }
 }
 
 impl PoseParams {
+    /// Default weight of the depth term (§2.3.1: `w_D = 5`, 1/m).
+    pub const DEFAULT_W_D: f64 = 5.0;
+
+    /// Default weight of the temporal term (§2.3.1: `w_T = 1`, 1/rad²).
+    pub const DEFAULT_W_T: f64 = 1.0;
+
+    /// Default weight of the refinement term (§2.3.1: `w_R = 500`, 1/m²).
+    pub const DEFAULT_W_R: f64 = 500.0;
+
+    /// Default weight of the user term (§2.3.1: `w_U = 5000`, 1/m²).
+    pub const DEFAULT_W_U: f64 = 5000.0;
+
+    /// Default number of depth samples per bone (§2.3.1: "four evenly spaced samples per bone").
+    pub const DEFAULT_SAMPLES_PER_BONE: usize = 4;
+
+    /// Default smoothing width of γ, m (not in the thesis; see the module docs).
+    pub const DEFAULT_GAMMA_WIDTH_M: f64 = 0.005;
+
+    /// Default number of refinement rounds (§2.3.1: "We repeat this process twice").
+    pub const DEFAULT_REFINEMENT_ROUNDS: usize = 2;
+
+    /// Default LBS weight from which a vertex belongs to an end effector's rigid portion
+    /// (§2.3.1 "nearly rigidly bound"; the 0.95 of §2.4.2's nearly-rigid vertices).
+    pub const DEFAULT_EFFECTOR_MIN_WEIGHT: f64 = 0.95;
+
+    /// Default handling of end effectors in `E_R`: their whole rigid frame (ours; see
+    /// [`EffectorTargets`]).
+    pub const DEFAULT_EFFECTOR_TARGETS: EffectorTargets =
+        EffectorTargets::RigidFrame { max_roundness: 0.5 };
+
     /// Sets [`Self::refinement_rounds`].
     pub fn with_refinement_rounds(mut self, rounds: usize) -> Self {
         self.refinement_rounds = rounds;

@@ -26,34 +26,20 @@ use crate::molding::{Molding, SoftConstraint};
 use crate::silhouette_constraints::{silhouette_constraints, ContourRay, SilhouetteParams};
 use crate::template::Template;
 
-/// Default weight of the positional constraints, Eq. 2.1 and 2.2: `w_C = 1000`.
-pub const DEFAULT_W_C: f64 = 1000.0;
-/// Default LBS weight from which a vertex counts as nearly rigid (§2.4.2: "at least .95").
-pub const DEFAULT_RIGID_MIN_WEIGHT: f64 = 0.95;
-/// Default weight of the nearly-rigid vertices' skinned positions in Eq. 2.2, `w_A` (beyond
-/// the thesis, whose Eq. 2.2 has none: see [`ShapeParams::w_anchor`]).
-pub const DEFAULT_W_ANCHOR: f64 = 0.0;
-/// Default step of `w_L` over the iterations (§2.4.2: six iterations from 0 to 1).
-pub const DEFAULT_W_L_STEP: f64 = 0.2;
-/// Default σ of the bilateral temporal filter, m (§2.4.2: 0.07 m).
-pub const DEFAULT_FILTER_SIGMA_M: f64 = 0.07;
-/// Default number of filter passes after each iteration (§2.4.2: twice).
-pub const DEFAULT_FILTER_PASSES: usize = 2;
-
 /// Knobs of shape estimation (§2.4.2, Algorithm 1), the thesis' values by default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShapeParams {
     /// LBS weight of a single bone from which a vertex is nearly rigid and constrained in
-    /// Eq. 2.1. §2.4.2. Default: [`DEFAULT_RIGID_MIN_WEIGHT`] = 0.95. A rig whose weights
+    /// Eq. 2.1. §2.4.2. Default: [`Self::DEFAULT_RIGID_MIN_WEIGHT`] = 0.95. A rig whose weights
     /// blend whole regions (MakeHuman's torso: 2 of its pelvis and spine vertices reach 0.95)
     /// leaves those regions unanchored ([`ShapeEstimator::unanchored_bones`]).
     pub rigid_min_weight: f64,
-    /// `w_C` of Eq. 2.1 and 2.2. §2.4.2. Default: [`DEFAULT_W_C`] = 1000.
+    /// `w_C` of Eq. 2.1 and 2.2. §2.4.2. Default: [`Self::DEFAULT_W_C`] = 1000.
     pub w_c: f64,
     /// `w_A`, beyond the thesis: every vertex not marked loose
     /// ([`Template::with_loose_vertices`]) is held at its skinned position with this weight
     /// in Eq. 2.1 and every Eq. 2.2 solve (0: the thesis, whose Eq. 2.2 has the silhouette
-    /// constraints alone). Default: [`DEFAULT_W_ANCHOR`] = 0.
+    /// constraints alone). Default: [`Self::DEFAULT_W_ANCHOR`] = 0.
     ///
     /// Why: Eq. 2.2 fixes the surface only where a contour ray touches it; elsewhere the
     /// shape is rebuilt from Laplacian coordinates rotated by blended bone rotations, which
@@ -66,12 +52,12 @@ pub struct ShapeParams {
     /// leaves the contours in charge where they see the surface.
     pub w_anchor: f64,
     /// Step of `w_L` from 0 to 1 (iterations = 1/step + 1). §2.4.2. Default:
-    /// [`DEFAULT_W_L_STEP`] = 0.2 (six iterations).
+    /// [`Self::DEFAULT_W_L_STEP`] = 0.2 (six iterations).
     pub w_l_step: f64,
-    /// σ of the bilateral temporal filter, m. §2.4.2. Default: [`DEFAULT_FILTER_SIGMA_M`].
+    /// σ of the bilateral temporal filter, m. §2.4.2. Default: [`Self::DEFAULT_FILTER_SIGMA_M`].
     pub filter_sigma_m: f64,
     /// Filter passes after the initial solve and after each iteration. §2.4.2. Default:
-    /// [`DEFAULT_FILTER_PASSES`] = 2.
+    /// [`Self::DEFAULT_FILTER_PASSES`] = 2.
     pub filter_passes: usize,
     /// The silhouette constraints. Default: the thesis' (10 px, 0.25, 5 cm, 90°).
     pub silhouette: SilhouetteParams,
@@ -82,12 +68,12 @@ pub struct ShapeParams {
 impl Default for ShapeParams {
     fn default() -> Self {
         ShapeParams {
-            rigid_min_weight: DEFAULT_RIGID_MIN_WEIGHT,
-            w_c: DEFAULT_W_C,
-            w_anchor: DEFAULT_W_ANCHOR,
-            w_l_step: DEFAULT_W_L_STEP,
-            filter_sigma_m: DEFAULT_FILTER_SIGMA_M,
-            filter_passes: DEFAULT_FILTER_PASSES,
+            rigid_min_weight: Self::DEFAULT_RIGID_MIN_WEIGHT,
+            w_c: Self::DEFAULT_W_C,
+            w_anchor: Self::DEFAULT_W_ANCHOR,
+            w_l_step: Self::DEFAULT_W_L_STEP,
+            filter_sigma_m: Self::DEFAULT_FILTER_SIGMA_M,
+            filter_passes: Self::DEFAULT_FILTER_PASSES,
             silhouette: SilhouetteParams::default(),
             laplacian: LaplacianParams::default(),
         }
@@ -95,6 +81,25 @@ impl Default for ShapeParams {
 }
 
 impl ShapeParams {
+    /// Default weight of the positional constraints, Eq. 2.1 and 2.2: `w_C = 1000`.
+    pub const DEFAULT_W_C: f64 = 1000.0;
+
+    /// Default LBS weight from which a vertex counts as nearly rigid (§2.4.2: "at least .95").
+    pub const DEFAULT_RIGID_MIN_WEIGHT: f64 = 0.95;
+
+    /// Default weight of the nearly-rigid vertices' skinned positions in Eq. 2.2, `w_A` (beyond
+    /// the thesis, whose Eq. 2.2 has none: see [`ShapeParams::w_anchor`]).
+    pub const DEFAULT_W_ANCHOR: f64 = 0.0;
+
+    /// Default step of `w_L` over the iterations (§2.4.2: six iterations from 0 to 1).
+    pub const DEFAULT_W_L_STEP: f64 = 0.2;
+
+    /// Default σ of the bilateral temporal filter, m (§2.4.2: 0.07 m).
+    pub const DEFAULT_FILTER_SIGMA_M: f64 = 0.07;
+
+    /// Default number of filter passes after each iteration (§2.4.2: twice).
+    pub const DEFAULT_FILTER_PASSES: usize = 2;
+
     /// Sets [`Self::silhouette`].
     pub fn with_silhouette(mut self, silhouette: SilhouetteParams) -> Self {
         self.silhouette = silhouette;

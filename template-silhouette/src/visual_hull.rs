@@ -38,19 +38,11 @@ use skin_core::mesh::{marching_cubes, BoundingBox, MeshQuery, ScalarGrid, TriMes
 
 use crate::error::{Context, Error, Result, ResultExt};
 
-/// Default margin around a silhouette's bounding box in which the cone transform is computed,
-/// pixels. Must cover the coarse cell's half-diagonal seen from the nearest camera (see
-/// [`ContourRayHullParams::margin_px`]).
-pub const DEFAULT_MARGIN_PX: u32 = 48;
-/// Default node spacing of the coarse occupancy grid that finds the hull's bounding box, m.
-pub const DEFAULT_COARSE_SPACING_M: f64 = 0.08;
-/// Default node spacing of the marching-cubes grid of the polygonal hull, m.
-pub const DEFAULT_POLYGON_SPACING_M: f64 = 0.025;
-
 /// No contour ray reaches this pixel (yet).
 const NO_RAY: u32 = u32::MAX;
 
-/// Knobs of [`ContourRayHull`], the visual-hull distance by the nearest contour ray (§2.3.2). The thesis gives no values: the defaults are
+/// Knobs of [`ContourRayHull`], the visual-hull distance by the nearest contour ray
+/// (§2.3.2). The thesis gives no values: the defaults are
 /// chosen here and justified per field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ContourRayHullParams {
@@ -59,7 +51,7 @@ pub struct ContourRayHullParams {
     /// half-diagonal projected from the nearest camera, so that the coarse occupancy test
     /// never loses a cell touching the hull: at 1600 × 1200 px (focal ≈ 1400 px) and 2.5 m,
     /// the default 0.08 m cell's 0.07 m half-diagonal is 39 px. Default:
-    /// [`DEFAULT_MARGIN_PX`] = 48.
+    /// [`Self::DEFAULT_MARGIN_PX`] = 48.
     pub margin_px: u32,
     /// The capture volume searched for the hull, world metres; the polygonal hull is clipped
     /// to it. Default: x, z in ±2.5 m and y in −1.5…2.5 m (+Y up): larger than the 8-camera
@@ -69,11 +61,11 @@ pub struct ContourRayHullParams {
     /// Node spacing of the coarse occupancy grid over [`Self::volume`], m. A coarse node is
     /// kept when it is within its cell's half-diagonal of every cone, which no cell touching
     /// the hull fails, so the hull's box is found whatever its limbs' thickness. Default:
-    /// [`DEFAULT_COARSE_SPACING_M`] = 0.08.
+    /// [`Self::DEFAULT_COARSE_SPACING_M`] = 0.08.
     pub coarse_spacing_m: f64,
     /// Node spacing of the marching-cubes grid of the polygonal hull, m. It serves points
     /// outside the hull only, which "don't need as much accuracy" (§2.3.2): 2.5 cm is the
-    /// thickness of a finger and a tenth of a thigh. Default: [`DEFAULT_POLYGON_SPACING_M`]
+    /// thickness of a finger and a tenth of a thigh. Default: [`Self::DEFAULT_POLYGON_SPACING_M`]
     /// = 0.025.
     pub polygon_spacing_m: f64,
 }
@@ -81,18 +73,29 @@ pub struct ContourRayHullParams {
 impl Default for ContourRayHullParams {
     fn default() -> Self {
         ContourRayHullParams {
-            margin_px: DEFAULT_MARGIN_PX,
+            margin_px: Self::DEFAULT_MARGIN_PX,
             volume: BoundingBox {
                 min: DVec3::new(-2.5, -1.5, -2.5),
                 max: DVec3::new(2.5, 2.5, 2.5),
             },
-            coarse_spacing_m: DEFAULT_COARSE_SPACING_M,
-            polygon_spacing_m: DEFAULT_POLYGON_SPACING_M,
+            coarse_spacing_m: Self::DEFAULT_COARSE_SPACING_M,
+            polygon_spacing_m: Self::DEFAULT_POLYGON_SPACING_M,
         }
     }
 }
 
 impl ContourRayHullParams {
+    /// Default margin around a silhouette's bounding box in which the cone transform is computed,
+    /// pixels. Must cover the coarse cell's half-diagonal seen from the nearest camera (see
+    /// [`ContourRayHullParams::margin_px`]).
+    pub const DEFAULT_MARGIN_PX: u32 = 48;
+
+    /// Default node spacing of the coarse occupancy grid that finds the hull's bounding box, m.
+    pub const DEFAULT_COARSE_SPACING_M: f64 = 0.08;
+
+    /// Default node spacing of the marching-cubes grid of the polygonal hull, m.
+    pub const DEFAULT_POLYGON_SPACING_M: f64 = 0.025;
+
     /// Sets [`Self::margin_px`].
     pub fn with_margin_px(mut self, px: u32) -> Self {
         self.margin_px = px;

@@ -5,8 +5,8 @@ use skin_core::check;
 
 use crate::error::Result;
 
-/// Parameters of [`fit_ellipsoids`](crate::fit_ellipsoids). The paper gives no numbers; the defaults are ours and
-/// documented per field.
+/// Parameters of [`fit_ellipsoids`](crate::fit_ellipsoids). The paper gives no numbers; the
+/// defaults are ours and documented per field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EllipsoidParams {
     /// A-priori σ of a 3D attractor point, metres (Eq. 7). Default 0.005 (stereo noise).
@@ -30,10 +30,11 @@ pub struct EllipsoidParams {
     /// σ of the prior pulling each length scale to 1. Default 0.2.
     pub sigma_scale_prior: f64,
     /// σ of the prior pulling an end-site segment's length scale (a hand, a foot, the head:
-    /// [`EllipsoidModel::with_end_sites`](crate::EllipsoidModel::with_end_sites)) to 1. Its scale moves no joint, only the
-    /// ellipsoid's extent along a limb that continues the last bone, so it trades freely with
-    /// that bone's length (measured on the studio, 8-frame fit with σ = 0.2 as the limbs':
-    /// the right forearm to the scale box's top, +62 mm, its hand to the bottom, −38 mm).
+    /// [`EllipsoidModel::with_end_sites`](crate::EllipsoidModel::with_end_sites)) to 1. Its
+    /// scale moves no joint, only the ellipsoid's extent along a limb that continues the last
+    /// bone, so it trades freely with that bone's length (measured on the studio, 8-frame fit
+    /// with σ = 0.2 as the limbs': the right forearm to the scale box's top, +62 mm, its hand
+    /// to the bottom, −38 mm).
     /// Default 0.002: the end sites keep the default proportions and serve to pin the end
     /// of the last bone (forearm, shin).
     pub sigma_end_site_scale_prior: f64,
