@@ -240,7 +240,9 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 
 fn degenerate(which: &str, face: usize) -> crate::Error {
     skin_core::Error::Degenerate {
-        what: format!("triangle {face} of the {which} has zero area"),
+        what: format!(
+            "triangle {face} of the {which} has zero area; remove it or move its vertices apart"
+        ),
     }
     .into()
 }

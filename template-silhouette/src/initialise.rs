@@ -1,4 +1,4 @@
-//! Automatic first-frame initialisation (issue 12, "use it in the template tracker"): the
+//! Automatic first-frame initialisation of the template tracker: the
 //! thesis needed a user's constraints on the first frame (Vlasic 2010 §2.3.3); here a global
 //! search over the articulated ellipsoid model (Fua et al. §4.2) scored against the frame's
 //! visual hull, then the robust local fit of §5 ([`fit_ellipsoids`]) from the tracker's own
@@ -110,7 +110,7 @@ impl AutoInitParams {
         check::nonzero("axis_samples", self.axis_samples)?;
         if self.heading_offsets_deg.is_empty() {
             return Err(Error::Empty {
-                what: "heading offsets",
+                what: "heading offsets (give at least one, e.g. 0°)",
             });
         }
         for &h in self
@@ -122,7 +122,9 @@ impl AutoInitParams {
             check::finite("heading/height offset", h)?;
         }
         if !(self.up.is_finite() && self.up.length() > 0.0) {
-            return Err(Error::NonFinite { what: "up" });
+            return Err(Error::NonFinite {
+                what: "up (give a finite, non-zero vertical direction)",
+            });
         }
         Ok(())
     }
@@ -379,7 +381,8 @@ pub(crate) fn hull_samples(hull: &ContourRayHull, n: usize) -> Result<Vec<DVec3>
     let vertices = &hull.polygon().vertices;
     if vertices.is_empty() {
         return Err(Error::Empty {
-            what: "visual-hull samples",
+            what: "visual-hull samples (the hull has no surface: check the silhouettes and \
+                   ContourRayHullParams::volume)",
         });
     }
     let step = vertices.len().div_ceil(n.max(1)).max(1);
@@ -422,7 +425,7 @@ pub fn initialise_pose(
         .any(|r| !(r.origin.is_finite() && r.direction.is_finite()))
     {
         return Err(Error::NonFinite {
-            what: "contour rays",
+            what: "contour rays (remove rays with a NaN or infinite origin or direction)",
         });
     }
     let up = params.up.normalize();
@@ -437,9 +440,16 @@ pub fn initialise_pose(
     };
     let translations: Vec<usize> = root_dofs.clone().filter(|&d| !sk.is_rotation(d)).collect();
     if translations.len() < 3 {
-        return Err(invalid("needs three translation DOFs"));
+        return Err(invalid(
+            "needs three translation DOFs; give the root joint a free position",
+        ));
     }
-    let yaw = yaw_dof(sk, up).ok_or_else(|| invalid("needs a rotation DOF about the vertical"))?;
+    let yaw = yaw_dof(sk, up).ok_or_else(|| {
+        invalid(
+            "needs a rotation DOF about the vertical; give the root a heading DOF about \
+             AutoInitParams::up, or set up to the axis it has",
+        )
+    })?;
     let yaw_sign = sk.dof(yaw).axis.dot(up).signum();
     let mut evaluations = 0;
 

@@ -33,7 +33,7 @@ impl<'a> PoseEditor<'a> {
     ) -> Result<Self> {
         if poses.len() != observations.len() {
             return Err(Error::SizeMismatch {
-                what: "poses vs frames",
+                what: "poses vs frames (give one pose per frame)",
                 expected: observations.len(),
                 got: poses.len(),
             });
@@ -79,7 +79,7 @@ impl<'a> PoseEditor<'a> {
             && ray.ray.direction.length() > 0.0)
         {
             return Err(Error::NonFinite {
-                what: "user ray (origin, or non-zero direction)",
+                what: "user ray (give a finite origin and a finite, non-zero direction)",
             });
         }
         let mut ray = ray;

@@ -14,7 +14,7 @@
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
 //! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
-//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`ContourRayHull`], [`ConeDistance`], [`ContourRayHullParams`] | §2.3.2 |
+//! | `visual_hull.rs` | distance to the visual hull by the nearest contour ray per pixel, cone scaling, polygonal hull outside | [`ContourRayHull`], [`ConeDistance`], [`ContourRayHullParams`] | §2.3.2 |
 //! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
@@ -23,9 +23,9 @@
 //! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `editing.rs` | a template edit carried to every frame by deformation transfer | [`DeformationTransfer`] | §2.5.3, Figure 2-9 |
-//! | `ellipsoid.rs` | articulated ellipsoids (Eq. 3) fitted by joint least squares to attractor points, markers and silhouette rays, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
-//! | `initialise.rs` | the tracker's automatic first pose: global heading / per-joint grid search on the hull, then the ellipsoid fit | [`initialise_pose`], [`AutoInitParams`] | issue 12; Fua et al. §4.2, §5 |
-//! | `sizing.rs` | the performer's bone lengths and widths from the first frames: automatic first pose, pose-only tracking, one fit over the most varied frames | [`size_performer`], [`SizingParams`], [`Sizing`] | issue 12; Fua et al. §5; Vlasic §2.5.1 |
+//! | `ellipsoid/` | `model.rs`: articulated ellipsoids (Eq. 3); `observations.rs`: attractor points, markers and silhouette rays; `params.rs`; `fit.rs`: joint least squares, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
+//! | `initialise.rs` | the tracker's automatic first pose: global heading / per-joint grid search on the hull, then the ellipsoid fit | [`initialise_pose`], [`AutoInitParams`] | Fua et al. §4.2, §5 |
+//! | `sizing.rs` | the performer's bone lengths and widths from the first frames: automatic first pose, pose-only tracking, one fit over the most varied frames | [`size_performer`], [`SizingParams`], [`Sizing`] | Fua et al. §5; Vlasic §2.5.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints

@@ -93,11 +93,13 @@ pub fn capture_sequence(
     shape: &ShapeParams,
 ) -> Result<SequenceCapture> {
     if observations.is_empty() {
-        return Err(Error::Empty { what: "frames" });
+        return Err(Error::Empty {
+            what: "frames (give at least one frame's observation)",
+        });
     }
     if !user.is_empty() && user.len() != observations.len() {
         return Err(Error::SizeMismatch {
-            what: "user-ray lists vs frames",
+            what: "user-ray lists vs frames (give one list per frame, or none at all)",
             expected: observations.len(),
             got: user.len(),
         });

@@ -271,7 +271,7 @@ impl PoseModel {
         }
         if samples.is_empty() {
             return Err(Error::Empty {
-                what: "skeleton bones (no bone longer than 1 cm)",
+                what: "skeleton bones (no bone longer than 1 cm: give a skeleton in metres)",
             });
         }
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
@@ -751,7 +751,9 @@ pub fn track(
     params: &PoseParams,
 ) -> Result<PoseTrack> {
     if frames.is_empty() {
-        return Err(Error::Empty { what: "frames" });
+        return Err(Error::Empty {
+            what: "frames (give at least one frame's observation)",
+        });
     }
     let sk = &model.skeleton;
     let mut forward: Vec<Vec<f64>> = Vec::with_capacity(frames.len());

@@ -188,7 +188,8 @@ impl ShapeEstimator {
                 name: "rigid_min_weight",
                 reason: format!(
                     "no template vertex has a bone weight of at least {} (Eq. 2.1 needs \
-                     nearly-rigid vertices)",
+                     nearly-rigid vertices): lower rigid_min_weight or give the template \
+                     rigid skin weights",
                     params.rigid_min_weight
                 ),
             });
@@ -218,7 +219,7 @@ impl ShapeEstimator {
             .map(|(i, c)| {
                 c.ok_or(Error::InvalidParam {
                     name: "template",
-                    reason: "vertex belongs to no face".into(),
+                    reason: "vertex belongs to no face; remove the unreferenced vertex".into(),
                 })
                 .at(Context::Vertex(i))
             })
@@ -381,7 +382,7 @@ impl ShapeEstimator {
     ) -> Result<(Vec<DVec3>, usize)> {
         if current.len() != self.template.vertex_count() {
             return Err(Error::SizeMismatch {
-                what: "current shape vs template vertices",
+                what: "current shape vs template vertices (give one position per template vertex)",
                 expected: self.template.vertex_count(),
                 got: current.len(),
             });
@@ -410,7 +411,9 @@ impl ShapeEstimator {
     /// [`Self::refine`] wrapped in [`Error::At`] with the frame.
     pub fn estimate(&mut self, frames: &[ShapeFrame<'_>]) -> Result<ShapeSequence> {
         if frames.is_empty() {
-            return Err(Error::Empty { what: "frames" });
+            return Err(Error::Empty {
+                what: "frames (give at least one frame)",
+            });
         }
         // Frames are independent between filter passes: solved in parallel, each thread
         // with its own clone of the factorisation (the symbolic analysis is shared).
@@ -494,7 +497,7 @@ pub fn temporal_filter(frames: &mut [Vec<DVec3>], sigma_m: f64, passes: usize) -
     };
     if let Some(bad) = frames.iter().find(|f| f.len() != n) {
         return Err(Error::SizeMismatch {
-            what: "vertices of a frame vs the first frame",
+            what: "vertices of a frame vs the first frame (give every frame the same vertex count)",
             expected: n,
             got: bad.len(),
         });

@@ -136,14 +136,16 @@ pub fn contour_rays(
     let k = &camera.intrinsics;
     if mask.dimensions() != (k.width, k.height) {
         return Err(Error::SizeMismatch {
-            what: "silhouette pixels vs camera image pixels",
+            what: "silhouette pixels vs camera image pixels (give a mask of the camera's image \
+                   size)",
             expected: k.width as usize * k.height as usize,
             got: mask.pixel_count(),
         });
     }
     if mask.is_empty() {
         return Err(Error::Empty {
-            what: "silhouette (no foreground pixel)",
+            what: "silhouette (no foreground pixel: the performer is out of view, or the \
+                   background subtraction failed)",
         });
     }
     let contours = extract_contours(

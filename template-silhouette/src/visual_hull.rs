@@ -123,13 +123,13 @@ impl ContourRayHullParams {
         let (lo, hi) = (self.volume.min, self.volume.max);
         if !(lo.is_finite() && hi.is_finite()) {
             return Err(Error::NonFinite {
-                what: "visual-hull volume",
+                what: "visual-hull volume (give finite corners)",
             });
         }
         if !(hi.cmpgt(lo).all()) {
             return Err(Error::InvalidParam {
                 name: "volume",
-                reason: format!("max {hi} must exceed min {lo} on every axis"),
+                reason: format!("max {hi} must exceed min {lo} on every axis; swap the corners"),
             });
         }
         Ok(())
@@ -177,20 +177,24 @@ impl ConeDistance {
         let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
         if mask.width() != w {
             return Err(Error::SizeMismatch {
-                what: "silhouette width vs camera image width",
+                what: "silhouette width vs camera image width (give a mask of the camera's image \
+                       size)",
                 expected: w as usize,
                 got: mask.width() as usize,
             });
         }
         if mask.height() != h {
             return Err(Error::SizeMismatch {
-                what: "silhouette height vs camera image height",
+                what:
+                    "silhouette height vs camera image height (give a mask of the camera's image \
+                       size)",
                 expected: h as usize,
                 got: mask.height() as usize,
             });
         }
         let bbox = mask.bounding_box().ok_or(Error::Empty {
-            what: "silhouette (no foreground pixel)",
+            what: "silhouette (no foreground pixel: the performer is out of view, or the \
+                   background subtraction failed)",
         })?;
         let window = PixelRect {
             x_min: bbox.x_min.saturating_sub(margin_px),
@@ -283,7 +287,7 @@ impl ConeDistance {
     pub(crate) fn sample_core(&self, p: DVec3) -> skin_core::Result<ConeSample> {
         if !p.is_finite() {
             return Err(skin_core::Error::NonFinite {
-                what: "visual-hull query point",
+                what: "visual-hull query point (give a finite point)",
             });
         }
         let Ok(pixel) = self.camera.project(p) else {
@@ -529,13 +533,15 @@ impl ContourRayHull {
 pub(crate) fn check_views(cameras: &[Camera], masks: &[Mask]) -> Result<()> {
     if cameras.len() != masks.len() {
         return Err(Error::SizeMismatch {
-            what: "silhouettes vs cameras",
+            what: "silhouettes vs cameras (give one silhouette per camera)",
             expected: cameras.len(),
             got: masks.len(),
         });
     }
     if cameras.is_empty() {
-        return Err(Error::Empty { what: "cameras" });
+        return Err(Error::Empty {
+            what: "cameras (give at least one camera)",
+        });
     }
     Ok(())
 }
@@ -568,7 +574,8 @@ fn extract_polygon(cones: &[ConeDistance], params: &ContourRayHullParams) -> Res
     if occupied.is_empty() {
         return Err(Error::Empty {
             what: "visual hull (no point of the volume lies inside every silhouette: the \
-                   cameras disagree or the volume misses the performer)",
+                   cameras disagree, or the volume misses the performer: check the calibration and \
+                   ContourRayHullParams::volume)",
         });
     }
     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);

@@ -644,7 +644,8 @@ pub fn fit_ellipsoids_multi(
     }
     if frames.iter().all(|f| f.n_obs() == 0) {
         return Err(Error::Empty {
-            what: "ellipsoid observations",
+            what: "ellipsoid observations (give points, markers or silhouette rays in at least \
+                   one frame)",
         });
     }
     let mut problem = Problem {
@@ -701,14 +702,17 @@ pub fn fit_ellipsoids_multi(
     for (b, bone) in model.bones.iter().enumerate() {
         if observations_per_bone[b] < params.min_observations_per_bone {
             return Err(Error::Empty {
-                what: "observations near the bone's ellipsoid",
+                what: "observations near the bone's ellipsoid (fewer than \
+                       min_observations_per_bone: start from a closer pose, observe this limb, \
+                       or leave the bone out of the model)",
             })
             .at(Context::Joint(bone.joint()));
         }
         if !params.pose_only && state.half_width[b] <= params.min_half_width_m * (1.0 + 1e-9) {
             return Err(Error::Core(skin_core::Error::Degenerate {
                 what: format!(
-                    "ellipsoid collapsed to the minimum half-width {} m",
+                    "ellipsoid collapsed to the minimum half-width {} m; start from a closer \
+                     pose, or lower min_half_width_m for a thinner limb",
                     params.min_half_width_m
                 ),
             }))

@@ -93,7 +93,8 @@ impl EllipsoidModel {
     pub fn new(skeleton: Skeleton, bones: Vec<EllipsoidBone>) -> Result<Self> {
         if bones.is_empty() {
             return Err(Error::Empty {
-                what: "ellipsoid bones",
+                what: "ellipsoid bones (give at least one, or build the model with \
+                       EllipsoidModel::limbs)",
             });
         }
         let n = skeleton.joint_count();
@@ -108,7 +109,11 @@ impl EllipsoidModel {
                     if joint.parent != Some(bone.parent) {
                         return Err(Error::InvalidParam {
                             name: "bones",
-                            reason: format!("joint {c} is not a child of joint {}", bone.parent),
+                            reason: format!(
+                                "joint {c} is not a child of joint {}; give a child of the \
+                                 bone's parent, or None for the parent's end site",
+                                bone.parent
+                            ),
                         });
                     }
                     (joint.offset, joint.name.clone())
@@ -118,7 +123,10 @@ impl EllipsoidModel {
                     let Some(end) = joint.end_site else {
                         return Err(Error::InvalidParam {
                             name: "bones",
-                            reason: format!("joint {} has no end site", bone.parent),
+                            reason: format!(
+                                "joint {} has no end site; give the bone a child joint",
+                                bone.parent
+                            ),
                         });
                     };
                     (end, format!("{} end site", joint.name))
@@ -127,7 +135,7 @@ impl EllipsoidModel {
             let len = offset.length();
             if len < 1e-6 {
                 return Err(Error::Core(skin_core::Error::Degenerate {
-                    what: format!("zero-length bone to {name}"),
+                    what: format!("zero-length bone to {name}; leave it out of the model"),
                 }));
             }
             lengths.push(len);
@@ -366,7 +374,7 @@ pub fn fit_half_width(
     check::index("bone", b, model.bones.len())?;
     if points.is_empty() {
         return Err(Error::Empty {
-            what: "limb points",
+            what: "limb points (give at least one point around the bone)",
         });
     }
     let sk = model.scaled_skeleton(state)?;

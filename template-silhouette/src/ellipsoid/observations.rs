@@ -38,14 +38,14 @@ pub(super) fn check_observations(
     for p in &obs.points {
         if !p.is_finite() {
             return Err(Error::NonFinite {
-                what: "attractor points",
+                what: "attractor points (remove NaN or infinite points)",
             });
         }
     }
     for r in &obs.rays {
         if !(r.origin.is_finite() && r.direction.is_finite()) {
             return Err(Error::NonFinite {
-                what: "contour rays",
+                what: "contour rays (remove rays with a NaN or infinite origin or direction)",
             });
         }
     }
@@ -54,7 +54,9 @@ pub(super) fn check_observations(
         check::index("marker bone", m.bone, model.bones.len())?;
         if let Some(x) = m.position {
             if !x.is_finite() {
-                return Err(Error::NonFinite { what: "markers" });
+                return Err(Error::NonFinite {
+                    what: "marker positions (give None for a marker not seen)",
+                });
             }
             markers.push((m.bone, x));
         }
