@@ -9,7 +9,7 @@
 //! template with linear blend skinning, then adjust its surface to the silhouettes with
 //! Laplacian coordinates (§2.4, Algorithm 1).
 //!
-//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//! ## Stages, in pipeline order (one private file or folder each, everything re-exported here)
 //!
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
