@@ -16,8 +16,8 @@ use dynamic_shapes::core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParam
 use dynamic_shapes::core::skeleton::Motion;
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, silhouette_error_pct, FrameObservation, PoseParams,
-    ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams, Template, VisualHullParams,
+    capture_sequence, edge_error_pct, silhouette_error_pct, ContourRayHullParams, FrameObservation,
+    PoseParams, ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams, Template,
 };
 use dynamic_shapes_studio::{
     exercise_motion, makehuman_performer, Capture, CaptureSpec, DeformationParams, ExerciseParams,
@@ -90,7 +90,7 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
             FrameObservation::new(
                 &cameras,
                 m,
-                &VisualHullParams::default(),
+                &ContourRayHullParams::default(),
                 &SilhouetteParams::default(),
             )
             .unwrap()
@@ -320,7 +320,7 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
         let obs = FrameObservation::new(
             &cameras,
             &frame.masks(),
-            &VisualHullParams::default(),
+            &ContourRayHullParams::default(),
             &SilhouetteParams::default(),
         )
         .unwrap();
@@ -392,7 +392,7 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
             FrameObservation::new(
                 &scenario.cameras,
                 &f.masks,
-                &VisualHullParams::default(),
+                &ContourRayHullParams::default(),
                 &SilhouetteParams::default(),
             )
             .unwrap()
@@ -558,7 +558,7 @@ fn resized_body_exercise() -> ResizedStudio {
             FrameObservation::new(
                 &cameras,
                 &f.masks(),
-                &VisualHullParams::default(),
+                &ContourRayHullParams::default(),
                 &SilhouetteParams::default(),
             )
             .unwrap()

@@ -41,10 +41,9 @@ use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::template::{
-    ellipsoid_scenario, fit_ellipsoids, fit_ellipsoids_multi, score_ellipsoids, Ellipsoid,
-    EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations, EllipsoidParams,
-    EllipsoidScenarioParams, EllipsoidScores, EllipsoidState, ScenarioFrame, VisualHull,
-    VisualHullParams,
+    ellipsoid_scenario, fit_ellipsoids, fit_ellipsoids_multi, score_ellipsoids, ContourRayHull,
+    ContourRayHullParams, Ellipsoid, EllipsoidModel, EllipsoidMultiFit, EllipsoidObservations,
+    EllipsoidParams, EllipsoidScenarioParams, EllipsoidScores, EllipsoidState, ScenarioFrame,
 };
 use example_kit::plot::{side_by_side, titled, Chart, Series, Style};
 use example_kit::{Goal, Headline, Run};
@@ -433,10 +432,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(
             |f| -> Result<EllipsoidObservations, Box<dyn std::error::Error>> {
-                let hull = VisualHull::new(
+                let hull = ContourRayHull::new(
                     &hull_scenario.cameras,
                     &f.masks,
-                    &VisualHullParams::default(),
+                    &ContourRayHullParams::default(),
                 )?;
                 let v = &hull.polygon().vertices;
                 let step = v.len().div_ceil(params.points).max(1);

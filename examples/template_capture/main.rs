@@ -58,9 +58,9 @@ use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::template::{
     capture_sequence, edge_error_pct, initialise_pose, pose_error, reference_sizes,
     rest_pose_start, score_ellipsoids, silhouette_error_pct, size_from_poses, AutoInitParams,
-    DeformationTransfer, EllipsoidModel, EllipsoidState, FrameObservation, PoseEditor, PoseModel,
-    PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams,
-    SizingParams, Template, UserRay, VisualHullParams,
+    ContourRayHullParams, DeformationTransfer, EllipsoidModel, EllipsoidState, FrameObservation,
+    PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
+    SilhouetteParams, SizingParams, Template, UserRay,
 };
 use dynamic_shapes_studio::{
     exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
@@ -427,7 +427,7 @@ fn capture_run(
         observations.push(FrameObservation::new(
             &cameras,
             &m,
-            &VisualHullParams::default(),
+            &ContourRayHullParams::default(),
             &SilhouetteParams::default(),
         )?);
         observe_s += t0.elapsed().as_secs_f64();

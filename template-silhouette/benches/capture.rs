@@ -21,8 +21,8 @@ use dynamic_shapes_studio::{
 use skin_core::camera::{Intrinsics, Rig};
 use skin_core::math::DVec3;
 use template_silhouette::{
-    fit_frame, FrameObservation, PoseFrame, PoseModel, PoseParams, ShapeEstimator, ShapeParams,
-    SilhouetteParams, Template, Temporal, VisualHullParams,
+    fit_frame, ContourRayHullParams, FrameObservation, PoseFrame, PoseModel, PoseParams,
+    ShapeEstimator, ShapeParams, SilhouetteParams, Template, Temporal,
 };
 
 fn bench(c: &mut Criterion) {
@@ -47,7 +47,7 @@ fn bench(c: &mut Criterion) {
         .collect::<Result<_, _>>()
         .expect("frames");
     let masks = frames[1].masks();
-    let (hull, sil) = (VisualHullParams::default(), SilhouetteParams::default());
+    let (hull, sil) = (ContourRayHullParams::default(), SilhouetteParams::default());
     let obs = FrameObservation::new(&cameras, &masks, &hull, &sil).expect("observe");
     let template = Template::new(
         performer.template.clone(),

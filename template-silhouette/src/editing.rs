@@ -22,10 +22,10 @@
 //!
 //! **Translation.** The energy sees only gradients, so each connected part's position is free
 //! (Sumner and Popović fix one vertex). Here every vertex the edit did not move is softly tied
-//! to its captured position with the weight [`DEFAULT_ANCHOR_WEIGHT`], small against the
-//! gradient rows, so it places each part without pulling on the edit; a part the edit moved
-//! entirely is tied instead to its captured positions plus the edit's displacement. With no
-//! edit the transfer reproduces every frame exactly.
+//! to its captured position with the weight [`DeformationTransfer::DEFAULT_ANCHOR_WEIGHT`],
+//! small against the gradient rows, so it places each part without pulling on the edit; a
+//! part the edit moved entirely is tied instead to its captured positions plus the edit's
+//! displacement. With no edit the transfer reproduces every frame exactly.
 
 use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
@@ -36,13 +36,8 @@ use skin_core::mesh::TriMesh;
 
 use crate::error::Result;
 
-/// Weight of the soft ties that place each connected part (relative to the area-weighted
-/// gradient rows, whose normal matrix has entries of order one): small enough that the ties
-/// bend nothing, large enough for a well-conditioned factorisation.
-pub const DEFAULT_ANCHOR_WEIGHT: f64 = 1e-4;
-
 /// A vertex counts as unedited when the edit moved it less than this, m.
-pub const DEFAULT_UNEDITED_TOLERANCE_M: f64 = 1e-9;
+const UNEDITED_TOLERANCE_M: f64 = 1e-9;
 
 /// Deformation transfer of one template edit to the frames of a captured sequence.
 ///
@@ -78,8 +73,13 @@ pub struct DeformationTransfer {
 }
 
 impl DeformationTransfer {
+    /// Default weight of the soft ties that place each connected part (relative to the
+    /// area-weighted gradient rows, whose normal matrix has entries of order one): small
+    /// enough that the ties bend nothing, large enough for a well-conditioned factorisation.
+    pub const DEFAULT_ANCHOR_WEIGHT: f64 = 1e-4;
+
     /// Prepares the transfer of the edit `template → edited` (the template's faces with the
-    /// vertex positions `edited`), with [`DEFAULT_ANCHOR_WEIGHT`].
+    /// vertex positions `edited`), with [`Self::DEFAULT_ANCHOR_WEIGHT`].
     ///
     /// # Errors
     /// [`Error::SizeMismatch`](crate::Error::SizeMismatch) if `edited` has not the
@@ -87,7 +87,7 @@ impl DeformationTransfer {
     /// skin-core `Degenerate` error naming the first triangle of zero area in the template
     /// or in the edit.
     pub fn new(template: &TriMesh, edited: &[DVec3]) -> Result<Self> {
-        Self::with_anchor_weight(template, edited, DEFAULT_ANCHOR_WEIGHT)
+        Self::with_anchor_weight(template, edited, Self::DEFAULT_ANCHOR_WEIGHT)
     }
 
     /// As [`DeformationTransfer::new`] with the anchor weight `anchor_weight` (> 0).
@@ -240,7 +240,9 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 
 fn degenerate(which: &str, face: usize) -> crate::Error {
     skin_core::Error::Degenerate {
-        what: format!("triangle {face} of the {which} has zero area"),
+        what: format!(
+            "triangle {face} of the {which} has zero area; remove it or move its vertices apart"
+        ),
     }
     .into()
 }
@@ -271,7 +273,7 @@ fn anchors(template: &TriMesh, edited: &[DVec3]) -> Vec<(usize, DVec3)> {
         .collect();
     let mut has_unedited = vec![false; n];
     for (v, d) in moved.iter().enumerate() {
-        if d.length() < DEFAULT_UNEDITED_TOLERANCE_M {
+        if d.length() < UNEDITED_TOLERANCE_M {
             let r = root(&mut parent, v);
             has_unedited[r] = true;
         }
@@ -281,7 +283,7 @@ fn anchors(template: &TriMesh, edited: &[DVec3]) -> Vec<(usize, DVec3)> {
             let r = root(&mut parent, v);
             if !has_unedited[r] {
                 Some((v, moved[v]))
-            } else if moved[v].length() < DEFAULT_UNEDITED_TOLERANCE_M {
+            } else if moved[v].length() < UNEDITED_TOLERANCE_M {
                 Some((v, DVec3::ZERO))
             } else {
                 None

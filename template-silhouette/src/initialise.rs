@@ -1,4 +1,4 @@
-//! Automatic first-frame initialisation (issue 12, "use it in the template tracker"): the
+//! Automatic first-frame initialisation of the template tracker: the
 //! thesis needed a user's constraints on the first frame (Vlasic 2010 §2.3.3); here a global
 //! search over the articulated ellipsoid model (Fua et al. §4.2) scored against the frame's
 //! visual hull, then the robust local fit of §5 ([`fit_ellipsoids`]) from the tracker's own
@@ -21,7 +21,7 @@
 //!
 //! The score is a truncated chamfer cost: each hull sample's distance to the nearest
 //! ellipsoid surface (radial approximation), and each ellipsoid's axis samples' distance
-//! outside the hull ([`VisualHull::distance`]), both truncated at
+//! outside the hull ([`ContourRayHull::distance`]), both truncated at
 //! [`AutoInitParams::truncation_m`] so a wrong limb costs a bounded amount.
 
 use rayon::prelude::*;
@@ -35,7 +35,7 @@ use crate::ellipsoid::{
 };
 use crate::error::{Error, Result};
 use crate::silhouette_constraints::ContourRay;
-use crate::visual_hull::VisualHull;
+use crate::visual_hull::ContourRayHull;
 
 /// Parameters of [`initialise_pose`]. Neither paper gives numbers (the thesis' start is
 /// manual); the defaults are ours and documented per field.
@@ -110,7 +110,7 @@ impl AutoInitParams {
         check::nonzero("axis_samples", self.axis_samples)?;
         if self.heading_offsets_deg.is_empty() {
             return Err(Error::Empty {
-                what: "heading offsets",
+                what: "heading offsets (give at least one, e.g. 0°)",
             });
         }
         for &h in self
@@ -122,7 +122,9 @@ impl AutoInitParams {
             check::finite("heading/height offset", h)?;
         }
         if !(self.up.is_finite() && self.up.length() > 0.0) {
-            return Err(Error::NonFinite { what: "up" });
+            return Err(Error::NonFinite {
+                what: "up (give a finite, non-zero vertical direction)",
+            });
         }
         Ok(())
     }
@@ -155,7 +157,7 @@ pub struct AutoInit {
 /// Invalid parameters, a hull without surface samples, a θ of the wrong size.
 pub fn initial_pose_score(
     model: &EllipsoidModel,
-    hull: &VisualHull,
+    hull: &ContourRayHull,
     theta: &[f64],
     params: &AutoInitParams,
 ) -> Result<f64> {
@@ -179,7 +181,7 @@ impl AutoInit {
 /// The global score's data: subsampled hull points and the hull itself.
 struct Scorer<'a> {
     model: &'a EllipsoidModel,
-    hull: &'a VisualHull,
+    hull: &'a ContourRayHull,
     points: Vec<DVec3>,
     params: &'a AutoInitParams,
 }
@@ -199,7 +201,7 @@ fn radial_distance(e: &Ellipsoid, p: DVec3) -> f64 {
 impl<'a> Scorer<'a> {
     fn new(
         model: &'a EllipsoidModel,
-        hull: &'a VisualHull,
+        hull: &'a ContourRayHull,
         params: &'a AutoInitParams,
     ) -> Result<Self> {
         Ok(Scorer {
@@ -351,7 +353,7 @@ fn searched_dofs(model: &EllipsoidModel) -> Vec<usize> {
 /// As [`initial_pose_score`].
 pub(crate) fn descend_pose(
     model: &EllipsoidModel,
-    hull: &VisualHull,
+    hull: &ContourRayHull,
     theta: &[f64],
     params: &AutoInitParams,
     steps_deg: &[f64],
@@ -375,11 +377,12 @@ pub(crate) fn descend_pose(
 ///
 /// # Errors
 /// [`Error::Empty`] for a hull without surface samples.
-pub(crate) fn hull_samples(hull: &VisualHull, n: usize) -> Result<Vec<DVec3>> {
+pub(crate) fn hull_samples(hull: &ContourRayHull, n: usize) -> Result<Vec<DVec3>> {
     let vertices = &hull.polygon().vertices;
     if vertices.is_empty() {
         return Err(Error::Empty {
-            what: "visual-hull samples",
+            what: "visual-hull samples (the hull has no surface: check the silhouettes and \
+                   ContourRayHullParams::volume)",
         });
     }
     let step = vertices.len().div_ceil(n.max(1)).max(1);
@@ -412,7 +415,7 @@ fn principal_azimuth(points: &[DVec3], up: DVec3, a: DVec3) -> f64 {
 /// observations, a collapsed ellipsoid).
 pub fn initialise_pose(
     model: &EllipsoidModel,
-    hull: &VisualHull,
+    hull: &ContourRayHull,
     rays: &[ContourRay],
     params: &AutoInitParams,
 ) -> Result<AutoInit> {
@@ -422,7 +425,7 @@ pub fn initialise_pose(
         .any(|r| !(r.origin.is_finite() && r.direction.is_finite()))
     {
         return Err(Error::NonFinite {
-            what: "contour rays",
+            what: "contour rays (remove rays with a NaN or infinite origin or direction)",
         });
     }
     let up = params.up.normalize();
@@ -437,9 +440,16 @@ pub fn initialise_pose(
     };
     let translations: Vec<usize> = root_dofs.clone().filter(|&d| !sk.is_rotation(d)).collect();
     if translations.len() < 3 {
-        return Err(invalid("needs three translation DOFs"));
+        return Err(invalid(
+            "needs three translation DOFs; give the root joint a free position",
+        ));
     }
-    let yaw = yaw_dof(sk, up).ok_or_else(|| invalid("needs a rotation DOF about the vertical"))?;
+    let yaw = yaw_dof(sk, up).ok_or_else(|| {
+        invalid(
+            "needs a rotation DOF about the vertical; give the root a heading DOF about \
+             AutoInitParams::up, or set up to the axis it has",
+        )
+    })?;
     let yaw_sign = sk.dof(yaw).axis.dot(up).signum();
     let mut evaluations = 0;
 
@@ -639,7 +649,7 @@ pub fn pose_error(skeleton: &Skeleton, theta: &[f64], truth: &[f64]) -> Result<(
 /// As [`initialise_pose`].
 pub fn rest_pose_start(
     model: &EllipsoidModel,
-    hull: &VisualHull,
+    hull: &ContourRayHull,
     rays: &[ContourRay],
     params: &AutoInitParams,
 ) -> Result<EllipsoidFit> {
@@ -670,17 +680,17 @@ pub fn rest_pose_start(
 mod tests {
     use super::*;
     use crate::visual_hull::tests::{ring, sphere_mask};
-    use crate::visual_hull::VisualHullParams;
+    use crate::visual_hull::ContourRayHullParams;
     use skin_core::image::Mask;
     use skin_core::skeleton::{human_skeleton, HumanParams};
 
-    fn setup() -> (EllipsoidModel, VisualHull) {
+    fn setup() -> (EllipsoidModel, ContourRayHull) {
         let cams = ring(4, 160, 120);
         let masks: Vec<Mask> = cams
             .iter()
             .map(|c| sphere_mask(c, DVec3::new(0.0, 1.0, 0.0), 0.3))
             .collect();
-        let hull = VisualHull::new(&cams, &masks, &VisualHullParams::default()).unwrap();
+        let hull = ContourRayHull::new(&cams, &masks, &ContourRayHullParams::default()).unwrap();
         let sk = human_skeleton(&HumanParams::default()).unwrap();
         (EllipsoidModel::with_end_sites(sk, 0.1).unwrap(), hull)
     }

@@ -33,7 +33,7 @@ impl<'a> PoseEditor<'a> {
     ) -> Result<Self> {
         if poses.len() != observations.len() {
             return Err(Error::SizeMismatch {
-                what: "poses vs frames",
+                what: "poses vs frames (give one pose per frame)",
                 expected: observations.len(),
                 got: poses.len(),
             });
@@ -79,7 +79,7 @@ impl<'a> PoseEditor<'a> {
             && ray.ray.direction.length() > 0.0)
         {
             return Err(Error::NonFinite {
-                what: "user ray (origin, or non-zero direction)",
+                what: "user ray (give a finite origin and a finite, non-zero direction)",
             });
         }
         let mut ray = ray;
@@ -127,7 +127,7 @@ mod tests {
     use super::*;
     use crate::pose::tests::studio;
     use crate::silhouette_constraints::SilhouetteParams;
-    use crate::visual_hull::VisualHullParams;
+    use crate::visual_hull::ContourRayHullParams;
     use skin_core::math::{DVec3, Ray};
 
     #[test]
@@ -139,7 +139,7 @@ mod tests {
             FrameObservation::new(
                 &st.cameras,
                 &st.masks,
-                &VisualHullParams::default(),
+                &ContourRayHullParams::default(),
                 &SilhouetteParams::default(),
             )
             .unwrap()

@@ -9,12 +9,12 @@
 //! template with linear blend skinning, then adjust its surface to the silhouettes with
 //! Laplacian coordinates (§2.4, Algorithm 1).
 //!
-//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//! ## Stages, in pipeline order (one private file or folder each, everything re-exported here)
 //!
 //! | file | stage | main items | paper |
 //! | --- | --- | --- | --- |
 //! | `template.rs` | the rigged template | [`Template`] | §2.2, §2.5.1 |
-//! | `visual_hull.rs` | distance to the visual hull: nearest contour ray per pixel, cone scaling, polygonal hull outside | [`VisualHull`], [`ConeDistance`], [`VisualHullParams`] | §2.3.2 |
+//! | `visual_hull.rs` | distance to the visual hull by the nearest contour ray per pixel, cone scaling, polygonal hull outside | [`ContourRayHull`], [`ConeDistance`], [`ContourRayHullParams`] | §2.3.2 |
 //! | `molding.rs` | Laplacian coordinates, soft constraints with barycentric rows, one symbolic factorisation | [`Molding`], [`SoftConstraint`] | §2.4.1, Eq. 2.1–2.2 |
 //! | `silhouette_constraints.rs` | contour rays every 10 px; the vertex each ray pulls (scaled metric, 5 cm, 90°) | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] | §2.4.2, Figure 2-6 |
 //! | `shape.rs` | Algorithm 1: Eq. 2.1 initial guess, six Eq. 2.2 iterations with rotated coordinates, bilateral temporal filter | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] | §2.4.2 |
@@ -23,9 +23,9 @@
 //! | `interactive.rs` | user rays added to or removed from a frame, which is re-optimised at once | [`PoseEditor`] | §2.3.3, Figure 2-4 |
 //! | `metrics.rs` | silhouette error and edge error | [`silhouette_error_pct`], [`edge_error_pct`] | §2.5.2, Table 2.1 |
 //! | `editing.rs` | a template edit carried to every frame by deformation transfer | [`DeformationTransfer`] | §2.5.3, Figure 2-9 |
-//! | `ellipsoid.rs` | articulated ellipsoids (Eq. 3) fitted by joint least squares to attractor points, markers and silhouette rays, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
-//! | `initialise.rs` | the tracker's automatic first pose: global heading / per-joint grid search on the hull, then the ellipsoid fit | [`initialise_pose`], [`AutoInitParams`] | issue 12; Fua et al. §4.2, §5 |
-//! | `sizing.rs` | the performer's bone lengths and widths from the first frames: automatic first pose, pose-only tracking, one fit over the most varied frames | [`size_performer`], [`SizingParams`], [`Sizing`] | issue 12; Fua et al. §5; Vlasic §2.5.1 |
+//! | `ellipsoid/` | `model.rs`: articulated ellipsoids (Eq. 3); `observations.rs`: attractor points, markers and silhouette rays; `params.rs`; `fit.rs`: joint least squares, LM + IRLS (Tukey), one frame or several with shared lengths and widths | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] | Fua et al. §4.2, §5, Eq. 3, 7–17 |
+//! | `initialise.rs` | the tracker's automatic first pose: global heading / per-joint grid search on the hull, then the ellipsoid fit | [`initialise_pose`], [`AutoInitParams`] | Fua et al. §4.2, §5 |
+//! | `sizing.rs` | the performer's bone lengths and widths from the first frames: automatic first pose, pose-only tracking, one fit over the most varied frames | [`size_performer`], [`SizingParams`], [`Sizing`] | Fua et al. §5; Vlasic §2.5.1 |
 //! | `error.rs` | [`Error`], [`Context`] (where in a loop an error happened) | | — |
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
@@ -46,7 +46,7 @@
 //! use skin_core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 //! use template_silhouette::{
 //!     capture_sequence, FrameObservation, PoseParams, ShapeParams, SilhouetteParams, Template,
-//!     VisualHullParams,
+//!     ContourRayHullParams,
 //! };
 //!
 //! let performer = procedural_performer(&ProceduralBodyParams::default())?;
@@ -62,7 +62,7 @@
 //!     observations.push(FrameObservation::new(
 //!         &cameras,
 //!         &frame.masks(),
-//!         &VisualHullParams::default(),
+//!         &ContourRayHullParams::default(),
 //!         &SilhouetteParams::default(),
 //!     )?);
 //!     first_pose.get_or_insert(frame.truth.theta);
@@ -109,7 +109,7 @@ mod sizing;
 mod template;
 mod visual_hull;
 
-pub use editing::{DeformationTransfer, DEFAULT_ANCHOR_WEIGHT, DEFAULT_UNEDITED_TOLERANCE_M};
+pub use editing::DeformationTransfer;
 #[cfg(feature = "validation")]
 pub use ellipsoid::{
     ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
@@ -131,25 +131,18 @@ pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
 pub use pose::{
     fit_frame, fit_pose, track, Effector, EffectorTargets, FrameFit, JointTarget, PoseFit,
     PoseFrame, PoseModel, PoseParams, PoseTerms, PoseTrack, Temporal, UserRay,
-    DEFAULT_EFFECTOR_MIN_WEIGHT, DEFAULT_EFFECTOR_TARGETS, DEFAULT_GAMMA_WIDTH_M,
-    DEFAULT_REFINEMENT_ROUNDS, DEFAULT_SAMPLES_PER_BONE, DEFAULT_W_D, DEFAULT_W_R, DEFAULT_W_T,
-    DEFAULT_W_U,
 };
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
-    DEFAULT_FILTER_PASSES, DEFAULT_FILTER_SIGMA_M, DEFAULT_RIGID_MIN_WEIGHT, DEFAULT_W_ANCHOR,
-    DEFAULT_W_C, DEFAULT_W_L_STEP,
 };
 pub use silhouette_constraints::{
     contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,
-    SilhouetteParams, DEFAULT_DEPTH_SAMPLES, DEFAULT_MAX_DISTANCE_M, DEFAULT_MAX_NORMAL_ANGLE_DEG,
-    DEFAULT_NORMAL_SCALE,
+    SilhouetteParams,
 };
 pub use sizing::{
     reference_sizes, size_from_poses, size_performer, Sizing, SizingParams, SizingTracker,
 };
 pub use template::Template;
 pub use visual_hull::{
-    ConeDistance, ConeSample, HullDistance, HullRegion, VisualHull, VisualHullParams,
-    DEFAULT_COARSE_SPACING_M, DEFAULT_MARGIN_PX, DEFAULT_POLYGON_SPACING_M,
+    ConeDistance, ConeSample, ContourRayHull, ContourRayHullParams, HullDistance, HullRegion,
 };

@@ -49,18 +49,20 @@ pub fn silhouette_error_pct(
 pub fn edge_error_pct(template: &TriMesh, vertices: &[DVec3]) -> Result<f64> {
     if vertices.len() != template.vertex_count() {
         return Err(Error::SizeMismatch {
-            what: "vertices vs template vertices",
+            what: "vertices vs template vertices (give one position per template vertex)",
             expected: template.vertex_count(),
             got: vertices.len(),
         });
     }
     if !vertices.iter().all(|v| v.is_finite()) {
-        return Err(Error::NonFinite { what: "vertices" });
+        return Err(Error::NonFinite {
+            what: "vertices (remove NaN or infinite positions)",
+        });
     }
     let edges = unique_edges(template)?;
     if edges.is_empty() {
         return Err(Error::Empty {
-            what: "template edges",
+            what: "template edges (give a template with faces)",
         });
     }
     let mut sum = 0.0;
@@ -70,7 +72,9 @@ pub fn edge_error_pct(template: &TriMesh, vertices: &[DVec3]) -> Result<f64> {
         if l0 <= 0.0 {
             return Err(Error::InvalidParam {
                 name: "template",
-                reason: format!("edge ({a}, {b}) has zero length"),
+                reason: format!(
+                    "edge ({a}, {b}) has zero length; merge or move apart its two vertices"
+                ),
             });
         }
         sum += (vertices[a].distance(vertices[b]) - l0).abs() / l0;

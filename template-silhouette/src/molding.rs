@@ -88,7 +88,8 @@ impl Molding {
                 name: "template",
                 reason: format!(
                     "vertex {i} has cotangent weights summing to {} (isolated vertex or \
-                     degenerate fan); the Laplacian coordinates need a positive sum",
+                     degenerate fan); the Laplacian coordinates need a positive sum: remove the \
+                     vertex or its degenerate faces",
                     diag[i]
                 ),
             });
@@ -212,14 +213,14 @@ impl Molding {
         }
         if coords.len() != n {
             return Err(Error::SizeMismatch {
-                what: "Laplacian coordinates vs template vertices",
+                what: "Laplacian coordinates vs template vertices (give one per template vertex)",
                 expected: n,
                 got: coords.len(),
             });
         }
         if !coords.iter().all(|c| c.is_finite()) {
             return Err(Error::NonFinite {
-                what: "Laplacian coordinates",
+                what: "Laplacian coordinates (remove NaN or infinite values)",
             });
         }
         let mut values = self.base_values.clone();
@@ -233,14 +234,15 @@ impl Molding {
             let f = c.point.face as usize;
             let (Some(face), Some(slots)) = (self.faces.get(f), self.face_slots.get(f)) else {
                 return Err(Error::IndexOutOfRange {
-                    what: "constraint face",
+                    what: "constraint face (give a face of the template)",
                     index: f,
                     len: self.faces.len(),
                 });
             };
             if !(c.target.is_finite() && c.point.bary.iter().all(|b| b.is_finite())) {
                 return Err(Error::NonFinite {
-                    what: "constraint target or barycentric weights",
+                    what:
+                        "constraint target or barycentric weights (remove NaN or infinite values)",
                 });
             }
             let b = c.point.bary;

@@ -14,14 +14,14 @@ use crate::pose::{track, PoseFrame, PoseModel, PoseParams, PoseTrack, UserRay};
 use crate::shape::{ShapeEstimator, ShapeFrame, ShapeParams, ShapeSequence};
 use crate::silhouette_constraints::{contour_rays, ContourRay, SilhouetteParams};
 use crate::template::Template;
-use crate::visual_hull::{check_views, VisualHull, VisualHullParams};
+use crate::visual_hull::{check_views, ContourRayHull, ContourRayHullParams};
 
 /// What one frame's silhouettes give the method: the visual hull (pose, §2.3.2) and the
 /// contour rays of every camera (shape, §2.4.2).
 #[derive(Debug)]
 pub struct FrameObservation {
     /// The frame's visual hull.
-    pub hull: VisualHull,
+    pub hull: ContourRayHull,
     /// Contour rays of all cameras, sampled every `sample_step_px`.
     pub rays: Vec<ContourRay>,
 }
@@ -30,15 +30,15 @@ impl FrameObservation {
     /// Builds the hull and the contour rays of one frame (cameras in parallel).
     ///
     /// # Errors
-    /// As [`VisualHull::new`] and [`contour_rays`], wrapped with the camera.
+    /// As [`ContourRayHull::new`] and [`contour_rays`], wrapped with the camera.
     pub fn new(
         cameras: &[Camera],
         masks: &[Mask],
-        hull: &VisualHullParams,
+        hull: &ContourRayHullParams,
         silhouette: &SilhouetteParams,
     ) -> Result<Self> {
         check_views(cameras, masks)?;
-        let hull = VisualHull::new(cameras, masks, hull)?;
+        let hull = ContourRayHull::new(cameras, masks, hull)?;
         let per_camera = cameras
             .par_iter()
             .zip(masks)
@@ -93,11 +93,13 @@ pub fn capture_sequence(
     shape: &ShapeParams,
 ) -> Result<SequenceCapture> {
     if observations.is_empty() {
-        return Err(Error::Empty { what: "frames" });
+        return Err(Error::Empty {
+            what: "frames (give at least one frame's observation)",
+        });
     }
     if !user.is_empty() && user.len() != observations.len() {
         return Err(Error::SizeMismatch {
-            what: "user-ray lists vs frames",
+            what: "user-ray lists vs frames (give one list per frame, or none at all)",
             expected: observations.len(),
             got: user.len(),
         });

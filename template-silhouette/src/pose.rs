@@ -14,7 +14,7 @@
 //! each depth sample (γ is a sum of hinge terms, not of squares, so its square root is the
 //! residual), `√w_T (θ − θ_{t±1})`, `√w_R (q_j − target_j)`, `√w_U (q_j − o) × r`. Every
 //! Jacobian is analytic: skin-core's positional Jacobians of attached points, the visual-hull
-//! distance gradient of [`crate::VisualHull::distance`], and γ′.
+//! distance gradient of [`crate::ContourRayHull::distance`], and γ′.
 //!
 //! **γ** is the softplus `γ(x) = s ln(1 + e^{−x/s})`: approximately `−x` for `x ≪ −s` and
 //! approximately 0 for `x ≫ s`, smooth in between — the "smooth function that is approximately
@@ -41,56 +41,36 @@ use crate::error::{Context, Error, Result, ResultExt};
 use crate::shape::ShapeEstimator;
 use crate::silhouette_constraints::ContourRay;
 use crate::template::Template;
-use crate::visual_hull::VisualHull;
+use crate::visual_hull::ContourRayHull;
 
-/// Default weight of the depth term (§2.3.1: `w_D = 5`, 1/m).
-pub const DEFAULT_W_D: f64 = 5.0;
-/// Default weight of the temporal term (§2.3.1: `w_T = 1`, 1/rad²).
-pub const DEFAULT_W_T: f64 = 1.0;
-/// Default weight of the refinement term (§2.3.1: `w_R = 500`, 1/m²).
-pub const DEFAULT_W_R: f64 = 500.0;
-/// Default weight of the user term (§2.3.1: `w_U = 5000`, 1/m²).
-pub const DEFAULT_W_U: f64 = 5000.0;
-/// Default number of depth samples per bone (§2.3.1: "four evenly spaced samples per bone").
-pub const DEFAULT_SAMPLES_PER_BONE: usize = 4;
-/// Default smoothing width of γ, m (not in the thesis; see the module docs).
-pub const DEFAULT_GAMMA_WIDTH_M: f64 = 0.005;
-/// Default number of refinement rounds (§2.3.1: "We repeat this process twice").
-pub const DEFAULT_REFINEMENT_ROUNDS: usize = 2;
-/// Default LBS weight from which a vertex belongs to an end effector's rigid portion
-/// (§2.3.1 "nearly rigidly bound"; the 0.95 of §2.4.2's nearly-rigid vertices).
-pub const DEFAULT_EFFECTOR_MIN_WEIGHT: f64 = 0.95;
-/// Default handling of end effectors in `E_R`: their whole rigid frame (ours; see
-/// [`EffectorTargets`]).
-pub const DEFAULT_EFFECTOR_TARGETS: EffectorTargets =
-    EffectorTargets::RigidFrame { max_roundness: 0.5 };
 /// Bones shorter than this carry no depth samples, m (a joint at its parent's origin).
 const MIN_BONE_LENGTH_M: f64 = 0.01;
 
 /// Knobs of pose estimation (§2.3), the thesis' values by default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PoseParams {
-    /// `w_D`, 1/m. §2.3.1. Default: [`DEFAULT_W_D`] = 5.
+    /// `w_D`, 1/m. §2.3.1. Default: [`Self::DEFAULT_W_D`] = 5.
     pub w_d: f64,
-    /// `w_T`, 1/rad² (and 1/m² on the root translation). §2.3.1. Default: [`DEFAULT_W_T`] = 1.
+    /// `w_T`, 1/rad² (and 1/m² on the root translation). §2.3.1. Default:
+    /// [`Self::DEFAULT_W_T`] = 1.
     pub w_t: f64,
-    /// `w_R`, 1/m². §2.3.1. Default: [`DEFAULT_W_R`] = 500.
+    /// `w_R`, 1/m². §2.3.1. Default: [`Self::DEFAULT_W_R`] = 500.
     pub w_r: f64,
-    /// `w_U`, 1/m². §2.3.1. Default: [`DEFAULT_W_U`] = 5000.
+    /// `w_U`, 1/m². §2.3.1. Default: [`Self::DEFAULT_W_U`] = 5000.
     pub w_u: f64,
     /// Depth samples per bone, evenly spaced at `(k + ½)/n` of its length. §2.3.1. Default:
-    /// [`DEFAULT_SAMPLES_PER_BONE`] = 4.
+    /// [`Self::DEFAULT_SAMPLES_PER_BONE`] = 4.
     pub samples_per_bone: usize,
-    /// Smoothing width `s` of γ, m. Not in the thesis. Default: [`DEFAULT_GAMMA_WIDTH_M`].
+    /// Smoothing width `s` of γ, m. Not in the thesis. Default: [`Self::DEFAULT_GAMMA_WIDTH_M`].
     pub gamma_width_m: f64,
     /// Rounds of (shape solve, refit with `E_R`). §2.3.1: twice. Default:
-    /// [`DEFAULT_REFINEMENT_ROUNDS`] = 2.
+    /// [`Self::DEFAULT_REFINEMENT_ROUNDS`] = 2.
     pub refinement_rounds: usize,
     /// LBS weight from which a vertex belongs to an end effector's portion. Default:
-    /// [`DEFAULT_EFFECTOR_MIN_WEIGHT`] = 0.95.
+    /// [`Self::DEFAULT_EFFECTOR_MIN_WEIGHT`] = 0.95.
     pub effector_min_weight: f64,
     /// What the refinement term pulls on each end effector. Default:
-    /// [`DEFAULT_EFFECTOR_TARGETS`] (the whole rigid frame; the thesis: the tip only).
+    /// [`Self::DEFAULT_EFFECTOR_TARGETS`] (the whole rigid frame; the thesis: the tip only).
     pub effector_targets: EffectorTargets,
     /// The optimiser's stopping rules. Default: 100 iterations, relative cost change 1e-6
     /// (a pose is settled well before; the thesis re-optimises "several times per second").
@@ -103,21 +83,51 @@ impl Default for PoseParams {
         lm.cost_tolerance = 1e-6;
         lm.step_tolerance = 1e-6;
         PoseParams {
-            w_d: DEFAULT_W_D,
-            w_t: DEFAULT_W_T,
-            w_r: DEFAULT_W_R,
-            w_u: DEFAULT_W_U,
-            samples_per_bone: DEFAULT_SAMPLES_PER_BONE,
-            gamma_width_m: DEFAULT_GAMMA_WIDTH_M,
-            refinement_rounds: DEFAULT_REFINEMENT_ROUNDS,
-            effector_min_weight: DEFAULT_EFFECTOR_MIN_WEIGHT,
-            effector_targets: DEFAULT_EFFECTOR_TARGETS,
+            w_d: Self::DEFAULT_W_D,
+            w_t: Self::DEFAULT_W_T,
+            w_r: Self::DEFAULT_W_R,
+            w_u: Self::DEFAULT_W_U,
+            samples_per_bone: Self::DEFAULT_SAMPLES_PER_BONE,
+            gamma_width_m: Self::DEFAULT_GAMMA_WIDTH_M,
+            refinement_rounds: Self::DEFAULT_REFINEMENT_ROUNDS,
+            effector_min_weight: Self::DEFAULT_EFFECTOR_MIN_WEIGHT,
+            effector_targets: Self::DEFAULT_EFFECTOR_TARGETS,
             lm,
         }
     }
 }
 
 impl PoseParams {
+    /// Default weight of the depth term (§2.3.1: `w_D = 5`, 1/m).
+    pub const DEFAULT_W_D: f64 = 5.0;
+
+    /// Default weight of the temporal term (§2.3.1: `w_T = 1`, 1/rad²).
+    pub const DEFAULT_W_T: f64 = 1.0;
+
+    /// Default weight of the refinement term (§2.3.1: `w_R = 500`, 1/m²).
+    pub const DEFAULT_W_R: f64 = 500.0;
+
+    /// Default weight of the user term (§2.3.1: `w_U = 5000`, 1/m²).
+    pub const DEFAULT_W_U: f64 = 5000.0;
+
+    /// Default number of depth samples per bone (§2.3.1: "four evenly spaced samples per bone").
+    pub const DEFAULT_SAMPLES_PER_BONE: usize = 4;
+
+    /// Default smoothing width of γ, m (not in the thesis; see the module docs).
+    pub const DEFAULT_GAMMA_WIDTH_M: f64 = 0.005;
+
+    /// Default number of refinement rounds (§2.3.1: "We repeat this process twice").
+    pub const DEFAULT_REFINEMENT_ROUNDS: usize = 2;
+
+    /// Default LBS weight from which a vertex belongs to an end effector's rigid portion
+    /// (§2.3.1 "nearly rigidly bound"; the 0.95 of §2.4.2's nearly-rigid vertices).
+    pub const DEFAULT_EFFECTOR_MIN_WEIGHT: f64 = 0.95;
+
+    /// Default handling of end effectors in `E_R`: their whole rigid frame (ours; see
+    /// [`EffectorTargets`]).
+    pub const DEFAULT_EFFECTOR_TARGETS: EffectorTargets =
+        EffectorTargets::RigidFrame { max_roundness: 0.5 };
+
     /// Sets [`Self::refinement_rounds`].
     pub fn with_refinement_rounds(mut self, rounds: usize) -> Self {
         self.refinement_rounds = rounds;
@@ -261,7 +271,7 @@ impl PoseModel {
         }
         if samples.is_empty() {
             return Err(Error::Empty {
-                what: "skeleton bones (no bone longer than 1 cm)",
+                what: "skeleton bones (no bone longer than 1 cm: give a skeleton in metres)",
             });
         }
         let rest = skeleton.forward_kinematics(&skeleton.rest_pose())?;
@@ -401,7 +411,7 @@ pub struct Temporal<'a> {
 #[derive(Debug, Clone, Copy)]
 pub struct PoseTerms<'a> {
     /// The frame's visual hull (`E_D`).
-    pub hull: &'a VisualHull,
+    pub hull: &'a ContourRayHull,
     /// Temporal neighbours (`E_T`).
     pub temporal: Temporal<'a>,
     /// Refinement targets (`E_R`).
@@ -597,7 +607,7 @@ fn bounds(sk: &Skeleton) -> (DVector<f64>, DVector<f64>) {
 #[derive(Debug, Clone, Copy)]
 pub struct PoseFrame<'a> {
     /// The frame's visual hull.
-    pub hull: &'a VisualHull,
+    pub hull: &'a ContourRayHull,
     /// The frame's contour rays (for the refinement term's shape solve; may be empty when no
     /// shape estimator is given).
     pub rays: &'a [ContourRay],
@@ -741,7 +751,9 @@ pub fn track(
     params: &PoseParams,
 ) -> Result<PoseTrack> {
     if frames.is_empty() {
-        return Err(Error::Empty { what: "frames" });
+        return Err(Error::Empty {
+            what: "frames (give at least one frame's observation)",
+        });
     }
     let sk = &model.skeleton;
     let mut forward: Vec<Vec<f64>> = Vec::with_capacity(frames.len());
@@ -797,346 +809,4 @@ pub fn track(
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
-    use super::*;
-    use crate::visual_hull::VisualHullParams;
-    use dynamic_shapes_studio::{
-        fast_motion, procedural_performer, studio_ring, FastMotionParams, ProceduralBodyParams,
-    };
-    use skin_core::math::DVec3;
-    use skin_core::raster::{Rasterizer, RenderParams};
-
-    #[test]
-    fn gamma_is_a_smooth_hinge() {
-        let s = 0.005;
-        assert!((gamma(-0.1, s).0 - 0.1).abs() < 1e-9);
-        assert!(gamma(0.1, s).0 < 1e-9);
-        assert!((gamma(0.0, s).0 - s * 2f64.ln()).abs() < 1e-15);
-        assert!((gamma(-0.1, s).1 + 1.0).abs() < 1e-8 && gamma(0.1, s).1.abs() < 1e-8);
-        for x in [-0.02, -0.003, 0.0, 0.004, 0.03] {
-            let h = 1e-7;
-            let fd = (gamma(x + h, s).0 - gamma(x - h, s).0) / (2.0 * h);
-            assert!((fd - gamma(x, s).1).abs() < 1e-6);
-        }
-        // No overflow far out.
-        assert!(gamma(1e3, s).0.is_finite() && gamma(-1e3, s).0.is_finite());
-    }
-
-    #[test]
-    fn a_rigid_frame_effector_follows_the_turn_of_its_vertices_and_a_tip_only_its_shift() {
-        use skin_core::math::DQuat;
-        let template = crate::template::tests::bendy();
-        let sk = template.skeleton();
-        let fk = sk.forward_kinematics(&sk.rest_pose()).unwrap();
-        let verts: Vec<usize> = (0..template.vertex_count())
-            .filter(|&v| template.mesh().vertices[v].y > 0.75)
-            .collect();
-        let effector = Effector {
-            tip: AttachedPoint {
-                joint: 1,
-                offset: DVec3::new(0.0, 0.4, 0.0),
-            },
-            vertices: verts.clone(),
-            roundness: 0.1,
-        };
-        let lbs = template.mesh().vertices.clone();
-        // The shape solve turned the effector 20° about its bone and shifted it 1 cm.
-        let turn = DQuat::from_axis_angle(DVec3::Y, 20f64.to_radians());
-        let (pivot, shift) = (DVec3::new(0.0, 0.5, 0.0), DVec3::new(0.01, 0.0, 0.0));
-        let moved: Vec<DVec3> = lbs
-            .iter()
-            .map(|p| turn * (*p - pivot) + pivot + shift)
-            .collect();
-        let mut frame = Vec::new();
-        let params = PoseParams::default();
-        effector_targets(&fk, &effector, (&lbs, &moved), &params, &mut frame).unwrap();
-        assert_eq!(frame.len(), 3);
-        for t in &frame {
-            let p = fk.point(&t.point).unwrap();
-            assert!(t.target.distance(turn * (p - pivot) + pivot + shift) < 1e-9);
-        }
-        // Two of the three points are off the axis, so the turn moves their targets.
-        assert!(
-            frame
-                .iter()
-                .filter(|t| { t.target.distance(fk.point(&t.point).unwrap() + shift) > 0.01 })
-                .count()
-                == 2
-        );
-        // The thesis' rule, and a round effector under the default gate: the tip's shift only.
-        let round = Effector {
-            roundness: 0.9,
-            ..effector.clone()
-        };
-        for (e, p) in [
-            (
-                &effector,
-                params.clone().with_effector_targets(EffectorTargets::Tip),
-            ),
-            (&round, params.clone()),
-        ] {
-            let mut tip = Vec::new();
-            effector_targets(&fk, e, (&lbs, &moved), &p, &mut tip).unwrap();
-            assert_eq!(tip.len(), 1);
-            let dm = verts.iter().map(|&v| moved[v] - lbs[v]).sum::<DVec3>() / verts.len() as f64;
-            assert!(tip[0].target.distance(fk.point(&e.tip).unwrap() + dm) < 1e-12);
-        }
-    }
-
-    #[test]
-    fn roundness_tells_a_flat_hand_from_a_round_head() {
-        let ring = |a: f64, b: f64| -> Vec<DVec3> {
-            (0..64)
-                .map(|k| {
-                    let t = k as f64 * std::f64::consts::TAU / 64.0;
-                    DVec3::new(a * t.cos(), 0.1 * (k % 4) as f64, b * t.sin())
-                })
-                .collect()
-        };
-        let all: Vec<usize> = (0..64).collect();
-        let head = cross_section_roundness(&ring(0.1, 0.1), &all, DVec3::Y);
-        let hand = cross_section_roundness(&ring(0.05, 0.015), &all, DVec3::Y);
-        assert!((head - 1.0).abs() < 1e-9, "{head}");
-        assert!((hand - 0.09).abs() < 1e-9, "{hand}");
-        assert_eq!(
-            cross_section_roundness(&ring(0.1, 0.1), &all, DVec3::ZERO),
-            1.0
-        );
-        assert!(PoseParams::default()
-            .with_effector_targets(EffectorTargets::RigidFrame { max_roundness: 1.5 })
-            .validate()
-            .is_err());
-    }
-
-    /// One studio frame: template, hull, true pose, cameras and silhouettes.
-    pub(crate) struct Studio {
-        pub(crate) template: Template,
-        pub(crate) hull: VisualHull,
-        pub(crate) truth: Vec<f64>,
-        pub(crate) cameras: Vec<skin_core::camera::Camera>,
-        pub(crate) masks: Vec<skin_core::image::Mask>,
-    }
-
-    /// The procedural performer at one frame of the fast motion, seen by the 8-camera ring.
-    pub(crate) fn studio(frame: usize) -> Studio {
-        let performer = procedural_performer(&ProceduralBodyParams::default()).unwrap();
-        let motion = fast_motion(&performer.skeleton, &FastMotionParams::default()).unwrap();
-        let truth = motion.frame(frame).to_vec();
-        let posed = performer
-            .pose(&truth, &mut Default::default(), motion.frame_time_s)
-            .unwrap();
-        let mesh = performer.mesh(posed.true_vertices);
-        let cameras = studio_ring(8, 400, 300).unwrap().cameras;
-        let masks: Vec<_> = cameras
-            .iter()
-            .map(|c| {
-                Rasterizer::new(c)
-                    .render(&mesh, &RenderParams::default())
-                    .unwrap()
-                    .silhouette()
-            })
-            .collect();
-        let hull = VisualHull::new(&cameras, &masks, &VisualHullParams::default()).unwrap();
-        let template = Template::new(
-            performer.template.clone(),
-            performer.skeleton.clone(),
-            performer.weights.clone(),
-        )
-        .unwrap();
-        Studio {
-            template,
-            hull,
-            truth,
-            cameras,
-            masks,
-        }
-    }
-
-    fn joint_error_m(sk: &Skeleton, a: &[f64], b: &[f64]) -> f64 {
-        let pa = sk.forward_kinematics(a).unwrap().joint_positions();
-        let pb = sk.forward_kinematics(b).unwrap().joint_positions();
-        pa.iter()
-            .zip(&pb)
-            .map(|(x, y)| (*x - *y).length())
-            .sum::<f64>()
-            / pa.len() as f64
-    }
-
-    #[test]
-    fn analytic_jacobian_matches_finite_differences() {
-        let st = studio(20);
-        let params = PoseParams::default();
-        let model = PoseModel::new(&st.template, &params).unwrap();
-        let prev: Vec<f64> = st.truth.iter().map(|t| t + 0.01).collect();
-        let origin = st.cameras[0].centre();
-        let user = [UserRay {
-            joint: 5,
-            ray: Ray::new(origin, (DVec3::new(0.0, 1.0, 0.0) - origin).normalize()),
-        }];
-        let refinement = [JointTarget {
-            point: AttachedPoint {
-                joint: 3,
-                offset: DVec3::new(0.0, 0.1, 0.02),
-            },
-            target: DVec3::new(0.1, 1.2, 0.0),
-        }];
-        let terms = PoseTerms {
-            hull: &st.hull,
-            temporal: Temporal {
-                previous: Some(&prev),
-                next: Some(&prev),
-            },
-            refinement: &refinement,
-            user: &user,
-        };
-        let points = [
-            refinement[0].point,
-            AttachedPoint {
-                joint: 5,
-                offset: DVec3::ZERO,
-            },
-        ];
-        let mut theta = st.truth.clone();
-        theta[7] += 0.05;
-        let mut j = DMatrix::zeros(0, 0);
-        let r0 = residuals(&model, &terms, &points, &params, &theta, Some(&mut j)).unwrap();
-        let h = 1e-7;
-        let mut worst: f64 = 0.0;
-        for c in 0..theta.len() {
-            let mut tp = theta.clone();
-            tp[c] += h;
-            let mut tm = theta.clone();
-            tm[c] -= h;
-            let rp = residuals(&model, &terms, &points, &params, &tp, None).unwrap();
-            let rm = residuals(&model, &terms, &points, &params, &tm, None).unwrap();
-            for i in 0..r0.len() {
-                let fd = (rp[i] - rm[i]) / (2.0 * h);
-                // A sample whose nearest contour ray or camera switches within ±h has a kink;
-                // compare where the residual is smooth (the three evaluations agree in
-                // curvature).
-                let curvature = (rp[i] - 2.0 * r0[i] + rm[i]).abs() / (h * h);
-                if curvature < 1e3 {
-                    worst = worst.max((fd - j[(i, c)]).abs());
-                }
-            }
-        }
-        assert!(worst < 1e-4, "worst Jacobian error {worst}");
-    }
-
-    /// The tracking situation of §2.3.3: frame 20 of the fast motion fitted from the pose of
-    /// two frames earlier (10 cm mean joint error), with the temporal
-    /// term to that pose. The truth is not an exact minimiser here: the studio rig's
-    /// bone-heat weights leak from the forearms into the pelvis (4–7 %), so with a raised
-    /// arm the true forearm surface lies up to 7 cm from the skeleton's forearm bone, and the
-    /// depth term places the bone in the surface rather than at the truth.
-    #[test]
-    fn recovers_a_studio_pose_from_its_visual_hull() {
-        let st = studio(20);
-        let sk = st.template.skeleton();
-        let motion = fast_motion(sk, &FastMotionParams::default()).unwrap();
-        let params = PoseParams::default();
-        let model = PoseModel::new(&st.template, &params).unwrap();
-        assert!(model.outside_samples().is_empty());
-        let start = motion.frame(18).to_vec();
-        let terms = PoseTerms {
-            hull: &st.hull,
-            temporal: Temporal {
-                previous: Some(&start),
-                next: None,
-            },
-            refinement: &[],
-            user: &[],
-        };
-        let fit = fit_pose(&model, &terms, &start, &params).unwrap();
-        let before = joint_error_m(sk, &start, &st.truth);
-        let after = joint_error_m(sk, &fit.theta, &st.truth);
-        eprintln!(
-            "mean joint error: start {before:.4} m, fit {after:.4} m ({:?}, {} iterations)",
-            fit.report.termination, fit.report.iterations
-        );
-        assert!(fit.report.cost < fit.report.initial_cost);
-        // Every joint but the wrists within 3.5 cm, 2 cm on average (from 10 cm at the start;
-        // measured 3.1 cm worst, 1.7 cm mean);
-        // the wrists follow the forearm surface the leaking weights displace (see above).
-        let pa = sk.forward_kinematics(&fit.theta).unwrap().joint_positions();
-        let pb = sk.forward_kinematics(&st.truth).unwrap().joint_positions();
-        let body: Vec<f64> = (0..pa.len())
-            .filter(|&j| !sk.joints()[j].name.ends_with("wrist"))
-            .map(|j| (pa[j] - pb[j]).length())
-            .collect();
-        let worst = body.iter().fold(0.0f64, |a, b| a.max(*b));
-        let mean = body.iter().sum::<f64>() / body.len() as f64;
-        eprintln!("joints but wrists: mean {mean:.4} m, worst {worst:.4} m");
-        assert!(
-            worst < 0.035 && mean < 0.02,
-            "mean {mean} m, worst {worst} m"
-        );
-        assert!(after < 0.5 * before, "{after} m (start {before} m)");
-        assert!(sk.limit_violations(&fit.theta).unwrap().is_empty());
-    }
-
-    /// §2.3.1 user term: a ray from camera 0 through a point 10 cm beside the true wrist pulls
-    /// the wrist onto it (w_U = 5000 overrides the depth term), and removing it lets the
-    /// wrist go back.
-    #[test]
-    fn a_user_ray_moves_the_joint_onto_it() {
-        let st = studio(20);
-        let sk = st.template.skeleton();
-        let params = PoseParams::default();
-        let model = PoseModel::new(&st.template, &params).unwrap();
-        let wrist = sk.joint_index("l_wrist").unwrap();
-        let truth_fk = sk.forward_kinematics(&st.truth).unwrap();
-        let target = truth_fk.joint_positions()[wrist] + DVec3::new(0.0, 0.1, 0.0);
-        let origin = st.cameras[0].centre();
-        let user = [UserRay {
-            joint: wrist,
-            ray: Ray::new(origin, (target - origin).normalize()),
-        }];
-        let fit = |user: &[UserRay]| {
-            let terms = PoseTerms {
-                hull: &st.hull,
-                temporal: Temporal {
-                    previous: Some(&st.truth),
-                    next: None,
-                },
-                refinement: &[],
-                user,
-            };
-            fit_pose(&model, &terms, &st.truth, &params).unwrap().theta
-        };
-        let off_ray = |theta: &[f64]| {
-            let q = sk.forward_kinematics(theta).unwrap().joint_positions()[wrist];
-            (q - origin).cross(user[0].ray.direction).length()
-        };
-        let (with, without) = (fit(&user), fit(&[]));
-        assert!(off_ray(&with) < 0.01, "{} m off the ray", off_ray(&with));
-        assert!(
-            off_ray(&without) > 0.05,
-            "{} m off the ray",
-            off_ray(&without)
-        );
-    }
-
-    /// A skeleton partly outside its template: those samples get radius 0 and are listed.
-    #[test]
-    fn samples_outside_the_template_are_reported() {
-        let st = studio(0);
-        let mut joints = st.template.skeleton().joints().to_vec();
-        // Move the left arm's chain 30 cm out of the body.
-        let shoulder = st.template.skeleton().joint_index("l_shoulder").unwrap();
-        joints[shoulder].offset += DVec3::new(0.3, 0.0, 0.0);
-        let sk = Skeleton::new(joints).unwrap();
-        let t = Template::new(
-            st.template.mesh().clone(),
-            sk,
-            st.template.weights().clone(),
-        )
-        .unwrap();
-        let model = PoseModel::new(&t, &PoseParams::default()).unwrap();
-        assert!(!model.outside_samples().is_empty());
-        assert!(model
-            .outside_samples()
-            .iter()
-            .all(|&i| model.radii_m()[i] == 0.0));
-    }
-}
+pub(crate) mod tests;

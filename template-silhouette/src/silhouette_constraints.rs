@@ -36,16 +36,6 @@ use skin_core::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 
 use crate::error::{Error, Result};
 
-/// Default scale of the distance component along the silhouette normal (§2.4.2: "we scale
-/// the distance metric by 0.25 in this direction").
-pub const DEFAULT_NORMAL_SCALE: f64 = 0.25;
-/// Default largest scaled distance of a constrained point from its ray, m (§2.4.2: 5 cm).
-pub const DEFAULT_MAX_DISTANCE_M: f64 = 0.05;
-/// Default largest angle between mesh and silhouette normals, degrees (§2.4.2: 90°).
-pub const DEFAULT_MAX_NORMAL_ANGLE_DEG: f64 = 90.0;
-/// Default number of samples of a ray's inside interval searched for the deepest point.
-pub const DEFAULT_DEPTH_SAMPLES: usize = 12;
-
 /// Knobs of the silhouette constraints (§2.4.2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SilhouetteParams {
@@ -53,17 +43,17 @@ pub struct SilhouetteParams {
     /// Default: 10.
     pub sample_step_px: f64,
     /// Scale of the distance component along the silhouette normal. §2.4.2. Default:
-    /// [`DEFAULT_NORMAL_SCALE`] = 0.25.
+    /// [`Self::DEFAULT_NORMAL_SCALE`] = 0.25.
     pub normal_scale: f64,
     /// Largest scaled distance from the ray of a constrained point, m. §2.4.2: 5 cm.
-    /// Default: [`DEFAULT_MAX_DISTANCE_M`] = 0.05.
+    /// Default: [`Self::DEFAULT_MAX_DISTANCE_M`] = 0.05.
     pub max_distance_m: f64,
     /// Largest angle between the mesh normal at a candidate and the silhouette normal,
-    /// degrees. §2.4.2: 90°. Default: [`DEFAULT_MAX_NORMAL_ANGLE_DEG`] = 90.
+    /// degrees. §2.4.2: 90°. Default: [`Self::DEFAULT_MAX_NORMAL_ANGLE_DEG`] = 90.
     pub max_normal_angle_deg: f64,
     /// Samples of the inside interval of a ray that passes through the shape, searched for
     /// the deepest point (the thesis does not say how it finds it; 12 samples resolve a
-    /// 12 cm limb to 1 cm). Default: [`DEFAULT_DEPTH_SAMPLES`] = 12.
+    /// 12 cm limb to 1 cm). Default: [`Self::DEFAULT_DEPTH_SAMPLES`] = 12.
     pub depth_samples: usize,
 }
 
@@ -71,15 +61,28 @@ impl Default for SilhouetteParams {
     fn default() -> Self {
         SilhouetteParams {
             sample_step_px: DEFAULT_SAMPLE_STEP_PX,
-            normal_scale: DEFAULT_NORMAL_SCALE,
-            max_distance_m: DEFAULT_MAX_DISTANCE_M,
-            max_normal_angle_deg: DEFAULT_MAX_NORMAL_ANGLE_DEG,
-            depth_samples: DEFAULT_DEPTH_SAMPLES,
+            normal_scale: Self::DEFAULT_NORMAL_SCALE,
+            max_distance_m: Self::DEFAULT_MAX_DISTANCE_M,
+            max_normal_angle_deg: Self::DEFAULT_MAX_NORMAL_ANGLE_DEG,
+            depth_samples: Self::DEFAULT_DEPTH_SAMPLES,
         }
     }
 }
 
 impl SilhouetteParams {
+    /// Default scale of the distance component along the silhouette normal (§2.4.2: "we scale
+    /// the distance metric by 0.25 in this direction").
+    pub const DEFAULT_NORMAL_SCALE: f64 = 0.25;
+
+    /// Default largest scaled distance of a constrained point from its ray, m (§2.4.2: 5 cm).
+    pub const DEFAULT_MAX_DISTANCE_M: f64 = 0.05;
+
+    /// Default largest angle between mesh and silhouette normals, degrees (§2.4.2: 90°).
+    pub const DEFAULT_MAX_NORMAL_ANGLE_DEG: f64 = 90.0;
+
+    /// Default number of samples of a ray's inside interval searched for the deepest point.
+    pub const DEFAULT_DEPTH_SAMPLES: usize = 12;
+
     /// Sets [`Self::sample_step_px`].
     pub fn with_sample_step_px(mut self, px: f64) -> Self {
         self.sample_step_px = px;
@@ -133,14 +136,16 @@ pub fn contour_rays(
     let k = &camera.intrinsics;
     if mask.dimensions() != (k.width, k.height) {
         return Err(Error::SizeMismatch {
-            what: "silhouette pixels vs camera image pixels",
+            what: "silhouette pixels vs camera image pixels (give a mask of the camera's image \
+                   size)",
             expected: k.width as usize * k.height as usize,
             got: mask.pixel_count(),
         });
     }
     if mask.is_empty() {
         return Err(Error::Empty {
-            what: "silhouette (no foreground pixel)",
+            what: "silhouette (no foreground pixel: the performer is out of view, or the \
+                   background subtraction failed)",
         });
     }
     let contours = extract_contours(

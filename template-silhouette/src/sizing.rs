@@ -1,4 +1,4 @@
-//! Automatic sizing of the template tracker's performer (issue 12, "use it"): bone lengths and
+//! Automatic sizing of the template tracker's performer: bone lengths and
 //! limb widths estimated from the first frames of the sequence, from what the tracker has —
 //! each frame's visual hull (surface samples as attractors) and silhouette contour rays; no
 //! markers, no stereo points. The thesis sized its skeletons by hand (Vlasic 2010 §2.5.1);
@@ -165,7 +165,7 @@ pub fn size_performer(
     check::nonzero("frames", frames.len())?;
     check::nonzero("sized frames", params.frames)?;
     let first = frames.first().ok_or(Error::Empty {
-        what: "sizing frames",
+        what: "sizing frames (give at least one frame)",
     })?;
     let init =
         initialise_pose(model, &first.hull, &first.rays, &params.init).at(Context::Frame(0))?;
@@ -350,7 +350,9 @@ pub fn reference_sizes(
     if !same_tree {
         return Err(Error::InvalidParam {
             name: "template",
-            reason: "the template's skeleton must have the model's joint tree".into(),
+            reason: "the template's skeleton must have the model's joint tree; build the model \
+                     from the template's skeleton"
+                .into(),
         });
     }
     let bones = model.bones();

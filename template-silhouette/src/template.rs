@@ -41,7 +41,7 @@ impl Template {
         let binding = SkinBinding::new(&mesh, &skeleton, &weights)?;
         if mesh.faces.is_empty() {
             return Err(Error::Empty {
-                what: "template mesh faces",
+                what: "template mesh faces (give a triangle mesh, not a point cloud)",
             });
         }
         let non_manifold = EdgeTopology::new(&mesh)?.non_manifold_edges();
@@ -49,7 +49,8 @@ impl Template {
             return Err(Error::InvalidParam {
                 name: "template",
                 reason: format!(
-                    "{} edges are shared by three or more faces (the first joins vertices {}                      and {}); split or remove the extra faces",
+                    "{} edges are shared by three or more faces (the first joins vertices {} \
+                     and {}); split or remove the extra faces",
                     non_manifold.len(),
                     e[0],
                     e[1]

@@ -20,7 +20,7 @@
 //! scalar, so it is also exact between pixel centres and gives the analytic gradient
 //! `(p − o)⊥ / |(p − o)⊥|` the pose optimiser needs (§2.3.1).
 //!
-//! **Outside the hull** ([`VisualHull`]): a bone sample outside the hull is far from where it
+//! **Outside the hull** ([`ContourRayHull`]): a bone sample outside the hull is far from where it
 //! should be and needs less accuracy (§2.3.2); the distance is then the distance to a
 //! polygonal hull extracted once per frame with marching cubes (skin-core's watertight
 //! marching tetrahedra) from the signed field `min_i s_i(p)` sampled near the hull, and
@@ -38,28 +38,20 @@ use skin_core::mesh::{marching_cubes, BoundingBox, MeshQuery, ScalarGrid, TriMes
 
 use crate::error::{Context, Error, Result, ResultExt};
 
-/// Default margin around a silhouette's bounding box in which the cone transform is computed,
-/// pixels. Must cover the coarse cell's half-diagonal seen from the nearest camera (see
-/// [`VisualHullParams::margin_px`]).
-pub const DEFAULT_MARGIN_PX: u32 = 48;
-/// Default node spacing of the coarse occupancy grid that finds the hull's bounding box, m.
-pub const DEFAULT_COARSE_SPACING_M: f64 = 0.08;
-/// Default node spacing of the marching-cubes grid of the polygonal hull, m.
-pub const DEFAULT_POLYGON_SPACING_M: f64 = 0.025;
-
 /// No contour ray reaches this pixel (yet).
 const NO_RAY: u32 = u32::MAX;
 
-/// Knobs of the visual-hull distance (§2.3.2). The thesis gives no values: the defaults are
+/// Knobs of [`ContourRayHull`], the visual-hull distance by the nearest contour ray
+/// (§2.3.2). The thesis gives no values: the defaults are
 /// chosen here and justified per field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct VisualHullParams {
+pub struct ContourRayHullParams {
     /// Pixels added around each silhouette's bounding box for the cone transform. Outside
     /// this window a point counts as far outside that cone. It must exceed the coarse cell's
     /// half-diagonal projected from the nearest camera, so that the coarse occupancy test
     /// never loses a cell touching the hull: at 1600 × 1200 px (focal ≈ 1400 px) and 2.5 m,
     /// the default 0.08 m cell's 0.07 m half-diagonal is 39 px. Default:
-    /// [`DEFAULT_MARGIN_PX`] = 48.
+    /// [`Self::DEFAULT_MARGIN_PX`] = 48.
     pub margin_px: u32,
     /// The capture volume searched for the hull, world metres; the polygonal hull is clipped
     /// to it. Default: x, z in ±2.5 m and y in −1.5…2.5 m (+Y up): larger than the 8-camera
@@ -69,30 +61,41 @@ pub struct VisualHullParams {
     /// Node spacing of the coarse occupancy grid over [`Self::volume`], m. A coarse node is
     /// kept when it is within its cell's half-diagonal of every cone, which no cell touching
     /// the hull fails, so the hull's box is found whatever its limbs' thickness. Default:
-    /// [`DEFAULT_COARSE_SPACING_M`] = 0.08.
+    /// [`Self::DEFAULT_COARSE_SPACING_M`] = 0.08.
     pub coarse_spacing_m: f64,
     /// Node spacing of the marching-cubes grid of the polygonal hull, m. It serves points
     /// outside the hull only, which "don't need as much accuracy" (§2.3.2): 2.5 cm is the
-    /// thickness of a finger and a tenth of a thigh. Default: [`DEFAULT_POLYGON_SPACING_M`]
+    /// thickness of a finger and a tenth of a thigh. Default: [`Self::DEFAULT_POLYGON_SPACING_M`]
     /// = 0.025.
     pub polygon_spacing_m: f64,
 }
 
-impl Default for VisualHullParams {
+impl Default for ContourRayHullParams {
     fn default() -> Self {
-        VisualHullParams {
-            margin_px: DEFAULT_MARGIN_PX,
+        ContourRayHullParams {
+            margin_px: Self::DEFAULT_MARGIN_PX,
             volume: BoundingBox {
                 min: DVec3::new(-2.5, -1.5, -2.5),
                 max: DVec3::new(2.5, 2.5, 2.5),
             },
-            coarse_spacing_m: DEFAULT_COARSE_SPACING_M,
-            polygon_spacing_m: DEFAULT_POLYGON_SPACING_M,
+            coarse_spacing_m: Self::DEFAULT_COARSE_SPACING_M,
+            polygon_spacing_m: Self::DEFAULT_POLYGON_SPACING_M,
         }
     }
 }
 
-impl VisualHullParams {
+impl ContourRayHullParams {
+    /// Default margin around a silhouette's bounding box in which the cone transform is computed,
+    /// pixels. Must cover the coarse cell's half-diagonal seen from the nearest camera (see
+    /// [`ContourRayHullParams::margin_px`]).
+    pub const DEFAULT_MARGIN_PX: u32 = 48;
+
+    /// Default node spacing of the coarse occupancy grid that finds the hull's bounding box, m.
+    pub const DEFAULT_COARSE_SPACING_M: f64 = 0.08;
+
+    /// Default node spacing of the marching-cubes grid of the polygonal hull, m.
+    pub const DEFAULT_POLYGON_SPACING_M: f64 = 0.025;
+
     /// Sets [`Self::margin_px`].
     pub fn with_margin_px(mut self, px: u32) -> Self {
         self.margin_px = px;
@@ -120,13 +123,13 @@ impl VisualHullParams {
         let (lo, hi) = (self.volume.min, self.volume.max);
         if !(lo.is_finite() && hi.is_finite()) {
             return Err(Error::NonFinite {
-                what: "visual-hull volume",
+                what: "visual-hull volume (give finite corners)",
             });
         }
         if !(hi.cmpgt(lo).all()) {
             return Err(Error::InvalidParam {
                 name: "volume",
-                reason: format!("max {hi} must exceed min {lo} on every axis"),
+                reason: format!("max {hi} must exceed min {lo} on every axis; swap the corners"),
             });
         }
         Ok(())
@@ -174,20 +177,24 @@ impl ConeDistance {
         let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
         if mask.width() != w {
             return Err(Error::SizeMismatch {
-                what: "silhouette width vs camera image width",
+                what: "silhouette width vs camera image width (give a mask of the camera's image \
+                       size)",
                 expected: w as usize,
                 got: mask.width() as usize,
             });
         }
         if mask.height() != h {
             return Err(Error::SizeMismatch {
-                what: "silhouette height vs camera image height",
+                what:
+                    "silhouette height vs camera image height (give a mask of the camera's image \
+                       size)",
                 expected: h as usize,
                 got: mask.height() as usize,
             });
         }
         let bbox = mask.bounding_box().ok_or(Error::Empty {
-            what: "silhouette (no foreground pixel)",
+            what: "silhouette (no foreground pixel: the performer is out of view, or the \
+                   background subtraction failed)",
         })?;
         let window = PixelRect {
             x_min: bbox.x_min.saturating_sub(margin_px),
@@ -280,7 +287,7 @@ impl ConeDistance {
     pub(crate) fn sample_core(&self, p: DVec3) -> skin_core::Result<ConeSample> {
         if !p.is_finite() {
             return Err(skin_core::Error::NonFinite {
-                what: "visual-hull query point",
+                what: "visual-hull query point (give a finite point)",
             });
         }
         let Ok(pixel) = self.camera.project(p) else {
@@ -414,26 +421,27 @@ pub struct HullDistance {
     pub camera: Option<usize>,
 }
 
-/// The visual hull of one frame: the cone distances of every camera and the polygonal hull
-/// (§2.3.2).
+/// The visual hull of one frame as a distance field by the nearest contour ray (§2.3.2): the
+/// cone distances of every camera (exact inside the hull, with the analytic gradient the pose
+/// fit needs) and the polygonal hull for points outside it.
 #[derive(Debug)]
-pub struct VisualHull {
+pub struct ContourRayHull {
     cones: Vec<ConeDistance>,
     polygon: TriMesh,
     query: MeshQuery,
 }
 
-impl VisualHull {
+impl ContourRayHull {
     /// Builds the cone transforms of every camera, then extracts the polygonal hull: coarse
-    /// occupancy over [`VisualHullParams::volume`], then marching cubes of `min_i s_i` on a
-    /// [`VisualHullParams::polygon_spacing_m`] grid over the occupied box.
+    /// occupancy over [`ContourRayHullParams::volume`], then marching cubes of `min_i s_i` on a
+    /// [`ContourRayHullParams::polygon_spacing_m`] grid over the occupied box.
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] if cameras and masks differ in number; [`Error::Empty`] for no
     /// camera, or when no grid node lies inside every silhouette (cameras that disagree, or a
     /// volume that misses the performer); [`Error::InvalidParam`] for bad params; errors of
     /// [`ConeDistance::new`] wrapped in [`Error::At`] with the camera.
-    pub fn new(cameras: &[Camera], masks: &[Mask], params: &VisualHullParams) -> Result<Self> {
+    pub fn new(cameras: &[Camera], masks: &[Mask], params: &ContourRayHullParams) -> Result<Self> {
         params.validate()?;
         check_views(cameras, masks)?;
         let cones = cameras
@@ -446,7 +454,7 @@ impl VisualHull {
             .collect::<Result<Vec<_>>>()?;
         let polygon = extract_polygon(&cones, params)?;
         let query = MeshQuery::new(&polygon)?;
-        Ok(VisualHull {
+        Ok(ContourRayHull {
             cones,
             polygon,
             query,
@@ -525,19 +533,21 @@ impl VisualHull {
 pub(crate) fn check_views(cameras: &[Camera], masks: &[Mask]) -> Result<()> {
     if cameras.len() != masks.len() {
         return Err(Error::SizeMismatch {
-            what: "silhouettes vs cameras",
+            what: "silhouettes vs cameras (give one silhouette per camera)",
             expected: cameras.len(),
             got: masks.len(),
         });
     }
     if cameras.is_empty() {
-        return Err(Error::Empty { what: "cameras" });
+        return Err(Error::Empty {
+            what: "cameras (give at least one camera)",
+        });
     }
     Ok(())
 }
 
 /// Marching cubes of the signed cone field over the box the coarse occupancy finds.
-fn extract_polygon(cones: &[ConeDistance], params: &VisualHullParams) -> Result<TriMesh> {
+fn extract_polygon(cones: &[ConeDistance], params: &ContourRayHullParams) -> Result<TriMesh> {
     let field = |p: DVec3, far: f64| -> f64 {
         let mut best = f64::INFINITY;
         for cone in cones {
@@ -564,7 +574,8 @@ fn extract_polygon(cones: &[ConeDistance], params: &VisualHullParams) -> Result<
     if occupied.is_empty() {
         return Err(Error::Empty {
             what: "visual hull (no point of the volume lies inside every silhouette: the \
-                   cameras disagree or the volume misses the performer)",
+                   cameras disagree, or the volume misses the performer: check the calibration and \
+                   ContourRayHullParams::volume)",
         });
     }
     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
@@ -647,10 +658,10 @@ pub(crate) mod tests {
     const C: DVec3 = DVec3::new(0.0, 1.0, 0.0);
     const R: f64 = 0.3;
 
-    fn sphere_hull(n: usize) -> (Vec<Camera>, VisualHull) {
+    fn sphere_hull(n: usize) -> (Vec<Camera>, ContourRayHull) {
         let cams = ring(n, 320, 240);
         let masks: Vec<Mask> = cams.iter().map(|c| sphere_mask(c, C, R)).collect();
-        let hull = VisualHull::new(&cams, &masks, &VisualHullParams::default()).unwrap();
+        let hull = ContourRayHull::new(&cams, &masks, &ContourRayHullParams::default()).unwrap();
         (cams, hull)
     }
 
@@ -759,7 +770,7 @@ pub(crate) mod tests {
         let cams = ring(2, 64, 48);
         let good = sphere_mask(&cams[0], C, R);
         // Empty silhouette in camera 1.
-        let e = VisualHull::new(
+        let e = ContourRayHull::new(
             &cams,
             &[good.clone(), Mask::new(64, 48)],
             &Default::default(),
@@ -768,7 +779,7 @@ pub(crate) mod tests {
         assert_eq!(e.contexts(), [Context::Camera(1)]);
         assert!(matches!(e.root(), Error::Empty { .. }), "{e}");
         // Wrong size.
-        let e = VisualHull::new(
+        let e = ContourRayHull::new(
             &cams,
             &[good.clone(), Mask::new(10, 48)],
             &Default::default(),
@@ -776,16 +787,16 @@ pub(crate) mod tests {
         .unwrap_err();
         assert!(matches!(e.root(), Error::SizeMismatch { .. }), "{e}");
         // Count mismatch.
-        let e =
-            VisualHull::new(&cams, std::slice::from_ref(&good), &Default::default()).unwrap_err();
+        let e = ContourRayHull::new(&cams, std::slice::from_ref(&good), &Default::default())
+            .unwrap_err();
         assert!(matches!(e, Error::SizeMismatch { .. }), "{e}");
         // Silhouettes that do not intersect.
         let far = sphere_mask(&cams[1], C + DVec3::new(0.0, 0.0, 1.2), 0.1);
-        let e = VisualHull::new(&cams, &[good.clone(), far], &Default::default()).unwrap_err();
+        let e = ContourRayHull::new(&cams, &[good.clone(), far], &Default::default()).unwrap_err();
         assert!(matches!(e, Error::Empty { .. }), "{e}");
         // Bad params and points.
-        let p = VisualHullParams::default().with_polygon_spacing_m(f64::NAN);
-        assert!(VisualHull::new(&cams, &[good.clone(), good.clone()], &p).is_err());
+        let p = ContourRayHullParams::default().with_polygon_spacing_m(f64::NAN);
+        assert!(ContourRayHull::new(&cams, &[good.clone(), good.clone()], &p).is_err());
         let cone = ConeDistance::new(&cams[0], &good, 8).unwrap();
         assert!(matches!(
             cone.sample(DVec3::NAN),

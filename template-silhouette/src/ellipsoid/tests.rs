@@ -1,6 +1,11 @@
+use super::fit::{FrameData, Normal, Problem};
 use super::*;
+use crate::error::{Context, Error};
+use crate::silhouette_constraints::ContourRay;
+use nalgebra::{DMatrix, DVector};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use skin_core::math::DVec3;
 use skin_core::skeleton::{human_skeleton, HumanParams};
 
 fn model() -> EllipsoidModel {

@@ -1,5 +1,5 @@
-//! Validation equipment for the ellipsoid fit (feature `validation`): the studio scenario of
-//! issue 12 and its scores.
+//! Validation equipment for the ellipsoid fit (feature `validation`): the studio scenario
+//! and its scores.
 //!
 //! **Scenario.** The studio's procedural performer defines the *default* skeleton. The
 //! *true* performer has every model bone's length scaled by a factor drawn in
@@ -45,7 +45,7 @@ use super::{
 use crate::error::{Error, Result, ResultExt};
 use crate::silhouette_constraints::{contour_rays, SilhouetteParams};
 
-/// Parameters of [`ellipsoid_scenario`] (the issue's protocol as defaults).
+/// Parameters of [`ellipsoid_scenario`] (the validation protocol as defaults).
 #[derive(Debug, Clone, PartialEq)]
 pub struct EllipsoidScenarioParams {
     /// Seed of every random draw. Default 12.
