@@ -54,15 +54,16 @@
 //! [`crate::IntegrationSolver::Direct`] stays the default. The multigrid wins on large
 //! compact foregrounds (the 1024² sphere view of `benches/integrate.rs`).
 //!
-//! **Stopping.** CG stops when the residual of the normal equations (in depth units, i.e. the
-//! scaled residual divided by `z₀`) falls to [`MultigridParams::tolerance`] times the warm
-//! start's residual (the proxy's disagreement with the normals), or after
-//! [`MultigridParams::max_iterations`].
+//! **Stopping.** CG ([`skin_core::lsq::pcg`], its sums serial) stops when the residual of
+//! the normal equations (in depth units, i.e. the scaled residual divided by `z₀`) falls to
+//! [`MultigridParams::tolerance`] times the warm start's residual (the proxy's disagreement
+//! with the normals), or after [`MultigridParams::max_iterations`].
 
 use nalgebra::{DMatrix, DVector};
 use nalgebra_sparse::{CooMatrix, CsrMatrix};
 use serde::{Deserialize, Serialize};
 use skin_core::check;
+use skin_core::lsq::{pcg, PcgParams, Preconditioner, Reduction, Reference, ResidualNorm};
 
 use crate::{Error, Result};
 
@@ -498,10 +499,6 @@ impl Hierarchy {
     }
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// Eq. 3.3 on a masked image grid, as [`crate::integrate`] assembles it.
 pub(crate) struct GridSystem<'a> {
     /// Image width and height, px.
@@ -532,12 +529,28 @@ pub(crate) fn solve(
     check::same_size("multigrid warm start", system.pixels.len(), z0.len())?;
     let (fine, b) = scaled_level(system, z0)?;
     let mg = Hierarchy::new(fine, system.height as usize, *params)?;
-    let t0 = vec![1.0; z0.len()];
-    let (t, iterations, relative_residual) =
-        pcg(&mg, &b, t0, z0, params.tolerance, params.max_iterations);
+    // CG on the finest level from t = 1, its residual measured unscaled (`r / z₀`: the
+    // residual of the normal equations of the depths) relative to the start's, every sum
+    // serial.
+    let mut t = vec![1.0; z0.len()];
+    let fine = &mg.levels[0];
+    let mut cycle = |r: &[f64], z: &mut [f64]| mg.cycle(0, r, z);
+    let cg = pcg(
+        &|x: &[f64], y: &mut [f64]| fine.apply(x, y),
+        Preconditioner::Apply(&mut cycle),
+        &b,
+        &mut t,
+        ResidualNorm::DividedBy(z0),
+        &PcgParams {
+            tolerance: params.tolerance,
+            max_iterations: params.max_iterations,
+            reference: Reference::Start,
+            reduction: Reduction::Serial,
+        },
+    )?;
     let stats = MultigridStats {
-        iterations,
-        relative_residual,
+        iterations: cg.iterations,
+        relative_residual: cg.relative_residual,
         levels: mg.levels.len(),
     };
     Ok((t.iter().zip(z0).map(|(t, z)| t * z).collect(), stats))
@@ -572,67 +585,4 @@ fn scaled_level(system: &GridSystem<'_>, scale: &[f64]) -> Result<(Level, Vec<f6
         });
     }
     Ok((fine, b))
-}
-
-/// Preconditioned CG on the finest level of `mg` from `t`. Residuals are measured unscaled
-/// (`r / scale`: the residual of the normal equations of the depths), relative to the
-/// start's. Returns (t, iterations, relative residual).
-fn pcg(
-    mg: &Hierarchy,
-    b: &[f64],
-    mut t: Vec<f64>,
-    scale: &[f64],
-    tolerance: f64,
-    max_iterations: usize,
-) -> (Vec<f64>, usize, f64) {
-    let n = b.len();
-    let a = &mg.levels[0];
-    let unscaled = |r: &[f64]| {
-        r.iter()
-            .zip(scale)
-            .map(|(r, s)| (r / s).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let mut r = vec![0.0; n];
-    a.apply(&t, &mut r);
-    for (ri, bi) in r.iter_mut().zip(b) {
-        *ri = bi - *ri;
-    }
-    let r0 = unscaled(&r);
-    let mut iterations = 0;
-    if r0 == 0.0 {
-        return (t, iterations, 0.0);
-    }
-    let mut rel = 1.0;
-    let mut zr = vec![0.0; n];
-    mg.cycle(0, &r, &mut zr);
-    let mut p = zr.clone();
-    let mut rz = dot(&r, &zr);
-    let mut ap = vec![0.0; n];
-    while iterations < max_iterations {
-        a.apply(&p, &mut ap);
-        let pap = dot(&p, &ap);
-        if pap <= 0.0 || !pap.is_finite() {
-            break;
-        }
-        let step = rz / pap;
-        for k in 0..n {
-            t[k] += step * p[k];
-            r[k] -= step * ap[k];
-        }
-        iterations += 1;
-        rel = unscaled(&r) / r0;
-        if rel <= tolerance {
-            break;
-        }
-        mg.cycle(0, &r, &mut zr);
-        let rz_next = dot(&r, &zr);
-        let beta = rz_next / rz;
-        rz = rz_next;
-        for k in 0..n {
-            p[k] = zr[k] + beta * p[k];
-        }
-    }
-    (t, iterations, rel)
 }

@@ -50,6 +50,9 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use skin_core::check;
+use skin_core::lsq::{
+    pcg, LinearOperator, PcgParams, PcgStats, Preconditioner, Reduction, Reference, ResidualNorm,
+};
 use skin_core::math::DVec3;
 use skin_core::mesh::{vertex_normals, NormalWeighting, TriMesh};
 
@@ -716,7 +719,10 @@ fn add(p: Node, d: [i64; 3], s: i64) -> Node {
 
 /// Every level from the coarsest (dense down to `params.dense_depth`, then the band around
 /// the samples) to `params.depth`, each solved from the coarser ones, with its figures.
-fn solve_hierarchy(unit: &[UnitSample], params: &PoissonParams) -> (Vec<Level>, Vec<PoissonLevel>) {
+fn solve_hierarchy(
+    unit: &[UnitSample],
+    params: &PoissonParams,
+) -> Result<(Vec<Level>, Vec<PoissonLevel>)> {
     let mut levels: Vec<Level> = Vec::new();
     let mut figures = Vec::new();
     for depth in COARSEST_DEPTH.min(params.dense_depth)..=params.depth {
@@ -727,10 +733,10 @@ fn solve_hierarchy(unit: &[UnitSample], params: &PoissonParams) -> (Vec<Level>, 
             band_blocks(unit, depth, i64::from(params.band_blocks))
         };
         let mut level = Level::new(depth, &active);
-        figures.push(solve_level(&mut level, &levels, unit, params));
+        figures.push(solve_level(&mut level, &levels, unit, params)?);
         levels.push(level);
     }
-    (levels, figures)
+    Ok((levels, figures))
 }
 
 /// Builds and solves one level's system; `prev` (the coarser levels) gives the start and the
@@ -740,7 +746,7 @@ fn solve_level(
     coarser: &[Level],
     samples: &[UnitSample],
     params: &PoissonParams,
-) -> PoissonLevel {
+) -> Result<PoissonLevel> {
     let nn = level.nodes.len();
     let h = level.h();
     let n = level.n;
@@ -858,19 +864,17 @@ fn solve_level(
             })
             .collect();
     }
-    let (iterations, residual) = {
-        // Complete levels: a V-cycle. Band levels: Jacobi unless asked (see
-        // `PoissonParams::multigrid_bands`).
-        let multigrid = level.complete || params.multigrid_bands;
-        pcg(level, coarser, multigrid, &b, &mut x, params)
-    };
+    // Complete levels: a V-cycle. Band levels: Jacobi unless asked (see
+    // `PoissonParams::multigrid_bands`).
+    let multigrid = level.complete || params.multigrid_bands;
+    let cg = level_cg(level, coarser, multigrid, &b, &mut x, params)?;
     level.x = x;
-    PoissonLevel {
+    Ok(PoissonLevel {
         depth: level.depth,
         nodes: nn,
-        iterations,
-        residual,
-    }
+        iterations: cg.iterations,
+        residual: cg.relative_residual,
+    })
 }
 
 /// Samples per parallel task of a level's splat.
@@ -1000,57 +1004,9 @@ fn v_cycle(top: &Level, coarser: &[Level], r: &[f64]) -> Vec<f64> {
     e
 }
 
-/// Elements per task of the conjugate gradients' vector loops. Every sum over a vector is
-/// taken serially within such a chunk and the chunks' sums are added in chunk order, so the
-/// iterates do not depend on how the work is split among threads (ours, issue 14: rayon's
-/// `sum` adds in an order that depends on work stealing, which made the mesh differ in its
-/// last bits from run to run).
-const CG_CHUNK: usize = 8192;
-
-/// The chunks' partial sums added in chunk order.
-fn ordered_sum(partial: Vec<f64>) -> f64 {
-    partial.iter().sum()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    ordered_sum(
-        a.par_chunks(CG_CHUNK)
-            .zip(b.par_chunks(CG_CHUNK))
-            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-            .collect(),
-    )
-}
-
-impl Level {
-    /// `q = A p` ([`Level::apply`]) and `p · q` in the same pass.
-    fn apply_dot(&self, p: &[f64], q: &mut [f64]) -> f64 {
-        ordered_sum(
-            q.par_chunks_mut(CG_CHUNK)
-                .enumerate()
-                .map(|(ci, qc)| {
-                    let base = ci * CG_CHUNK;
-                    let mut pq = 0.0;
-                    for (k, qi) in qc.iter_mut().enumerate() {
-                        let i = base + k;
-                        let mut s = self.diag[i] * p[i];
-                        for &j in &self.nbr[i] {
-                            if j != NONE {
-                                s -= p[j as usize];
-                            }
-                        }
-                        *qi = s;
-                        pq += p[i] * s;
-                    }
-                    pq
-                })
-                .collect(),
-        )
-    }
-}
-
-/// Preconditioned conjugate gradients on `level`'s operator, preconditioned by a multigrid
-/// V-cycle over `coarser` ([`v_cycle`]) or by the diagonal (Jacobi); returns iterations and
-/// relative residual.
+/// Conjugate gradients ([`skin_core::lsq::pcg`]) on `level`'s operator from `x`,
+/// preconditioned by a multigrid V-cycle over `coarser` ([`v_cycle`]) or by the diagonal
+/// (Jacobi), the residual relative to `‖b‖`, the sums in [`CG_CHUNK`] chunks.
 ///
 /// The Jacobi iteration runs in three fused passes over the vectors (`q = A p` with `p · q`;
 /// `x`, `r` updated with `r · z` and `r · r`, `z = r / diag` not stored; `p = z + β p`), with
@@ -1058,81 +1014,76 @@ impl Level {
 /// issue 14: the separate loops, and a fresh preconditioned vector each iteration — fresh
 /// pages from the kernel at the band levels' millions of nodes — were most of the hole
 /// filling's time).
-fn pcg(
+fn level_cg(
     level: &Level,
     coarser: &[Level],
     multigrid: bool,
     b: &[f64],
     x: &mut [f64],
     params: &PoissonParams,
-) -> (usize, f64) {
-    let n = b.len();
-    let diag = &level.diag;
-    let bnorm = dot(b, b).sqrt().max(1e-300);
-    let mut r = vec![0.0; n];
-    level.apply(x, &mut r);
-    r.par_iter_mut().zip(b).for_each(|(ri, bi)| *ri = bi - *ri);
-    let mut z = if multigrid {
-        v_cycle(level, coarser, &r)
+) -> Result<PcgStats> {
+    let mut v = |r: &[f64], z: &mut [f64]| z.copy_from_slice(&v_cycle(level, coarser, r));
+    let preconditioner = if multigrid {
+        Preconditioner::Apply(&mut v)
     } else {
-        r.par_iter().zip(diag).map(|(ri, di)| ri / di).collect()
+        Preconditioner::Jacobi(&level.diag)
     };
-    let mut rz = dot(&r, &z);
-    let mut p = z.clone();
-    if !multigrid {
-        // Jacobi recomputes `z = r / diag` where it is needed.
-        z = Vec::new();
+    Ok(pcg(
+        level,
+        preconditioner,
+        b,
+        x,
+        ResidualNorm::Euclidean,
+        &PcgParams {
+            tolerance: params.tolerance,
+            max_iterations: params.max_iterations,
+            reference: Reference::RightHandSide,
+            reduction: Reduction::Chunked(CG_CHUNK),
+        },
+    )?)
+}
+
+/// Elements per task of the conjugate gradients' vector loops. Every sum over a vector is
+/// taken serially within such a chunk and the chunks' sums are added in chunk order, so the
+/// iterates do not depend on how the work is split among threads (ours: rayon's
+/// `sum` adds in an order that depends on work stealing, which made the mesh differ in its
+/// last bits from run to run).
+const CG_CHUNK: usize = 8192;
+
+impl LinearOperator for Level {
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        Level::apply(self, x, y);
     }
-    let mut q = vec![0.0; n];
-    let mut res = dot(&r, &r).sqrt() / bnorm;
-    let mut it = 0;
-    while it < params.max_iterations && res > params.tolerance {
-        let pq = level.apply_dot(&p, &mut q);
-        if pq <= 0.0 {
-            break;
-        }
-        let alpha = rz / pq;
-        // x += α p, r −= α q, with r · z and r · r.
-        let sums: Vec<(f64, f64)> = x
-            .par_chunks_mut(CG_CHUNK)
-            .zip(r.par_chunks_mut(CG_CHUNK))
-            .zip(p.par_chunks(CG_CHUNK))
-            .zip(q.par_chunks(CG_CHUNK))
-            .zip(diag.par_chunks(CG_CHUNK))
-            .map(|((((xc, rc), pc), qc), dc)| {
-                let (mut rz, mut rr) = (0.0, 0.0);
-                for ((((xi, ri), pi), qi), di) in xc.iter_mut().zip(rc).zip(pc).zip(qc).zip(dc) {
-                    *xi += alpha * pi;
-                    *ri -= alpha * qi;
-                    rz += *ri * (*ri / di);
-                    rr += *ri * *ri;
+
+    /// `q = A p` ([`Level::apply`]) and `p · q` in the same pass (chunked: the sum of
+    /// [`Reduction::dot`]).
+    fn apply_dot(&self, p: &[f64], q: &mut [f64], reduction: Reduction) -> f64 {
+        let Reduction::Chunked(chunk) = reduction else {
+            Level::apply(self, p, q);
+            return reduction.dot(p, q);
+        };
+        let partial: Vec<f64> = q
+            .par_chunks_mut(chunk)
+            .enumerate()
+            .map(|(ci, qc)| {
+                let base = ci * chunk;
+                let mut pq = 0.0;
+                for (k, qi) in qc.iter_mut().enumerate() {
+                    let i = base + k;
+                    let mut s = self.diag[i] * p[i];
+                    for &j in &self.nbr[i] {
+                        if j != NONE {
+                            s -= p[j as usize];
+                        }
+                    }
+                    *qi = s;
+                    pq += p[i] * s;
                 }
-                (rz, rr)
+                pq
             })
             .collect();
-        let rr = ordered_sum(sums.iter().map(|s| s.1).collect());
-        let rz_new = if multigrid {
-            z = v_cycle(level, coarser, &r);
-            dot(&r, &z)
-        } else {
-            ordered_sum(sums.iter().map(|s| s.0).collect())
-        };
-        let beta = rz_new / rz;
-        rz = rz_new;
-        if multigrid {
-            p.par_iter_mut()
-                .zip(&z)
-                .for_each(|(pi, zi)| *pi = zi + beta * *pi);
-        } else {
-            p.par_iter_mut()
-                .zip(&r)
-                .zip(diag)
-                .for_each(|((pi, ri), di)| *pi = ri / di + beta * *pi);
-        }
-        res = rr.sqrt() / bnorm;
-        it += 1;
+        partial.iter().sum()
     }
-    (it, res)
 }
 
 /// Cells of the finest level to polygonise: descend from the complete level into cells whose
@@ -1258,7 +1209,7 @@ pub fn screened_poisson(
         check::positive("weight", s.weight)?;
     }
     let (unit, origin, side) = unit_samples(samples, params.scale, params.depth);
-    let (levels, figures) = solve_hierarchy(&unit, params);
+    let (levels, figures) = solve_hierarchy(&unit, params)?;
     let mut comp = Composite {
         levels: &levels,
         memo: NodeMap::default(),
@@ -1377,7 +1328,7 @@ mod tests {
     /// The hierarchy of `screened_poisson` on `samples`, every level solved.
     fn solved_levels(samples: &[OrientedSample], params: &PoissonParams) -> Vec<Level> {
         let (unit, _, _) = unit_samples(samples, params.scale, params.depth);
-        solve_hierarchy(&unit, params).0
+        solve_hierarchy(&unit, params).unwrap().0
     }
 
     #[test]
@@ -1415,7 +1366,8 @@ mod tests {
                 ..params
             };
             let mut x = vec![0.0; n];
-            let (it, res) = pcg(top, coarser, false, &b, &mut x, &p);
+            let cg = level_cg(top, coarser, false, &b, &mut x, &p).unwrap();
+            let (it, res) = (cg.iterations, cg.relative_residual);
             assert_eq!(it, steps);
             // Textbook PCG from the same start.
             let mut xr = vec![0.0; n];
