@@ -28,7 +28,7 @@
 //! | `marching_cubes.rs` | marching cubes over sparse cells (face-walking loops, asymptotic decider; watertight where observed) | (internal) | §3.3.3 |
 //! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
 //! | `poisson.rs` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
-//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
+//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`PolygonalHull`], [`PolygonalHullParams`], [`mesh_proxy_depth`] | §3.3 |
 //! | `multigrid.rs` | the O(n) solver of Eq. 3.3: conjugate gradients preconditioned by a V-cycle of smoothed aggregation (3 × 3 blocks, Galerkin), scaled by and warm-started from the proxy depth | [`MultigridParams`], [`COARSEST_UNKNOWNS`] | §3.3.1 Eq. 3.3 |
 //! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`IntegrationSolver`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
 //! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
@@ -153,7 +153,7 @@ pub use offsets::{
 };
 pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
-pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
+pub use proxy::{mesh_proxy_depth, PolygonalHull, PolygonalHullParams};
 pub use reconstruct::{
     hull_samples, reconstruct, reconstruct_from_hull_depths, Pass, PassTimes, ReconstructParams,
     Reconstruction,

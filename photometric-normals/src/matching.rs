@@ -45,7 +45,7 @@ use skin_core::stats::median;
 
 use crate::integrate::{camera_rays, IntegrationParams};
 use crate::{
-    mesh_proxy_depth, DepthMap, Error, Pattern, PatternImages, Result, VisualHull, PATTERNS,
+    mesh_proxy_depth, DepthMap, Error, Pattern, PatternImages, PolygonalHull, Result, PATTERNS,
 };
 
 /// The four matching metrics of §3.3.2.
@@ -1043,7 +1043,7 @@ struct PlaneResult {
 pub fn match_pair(
     left: &MatchView<'_>,
     right: &MatchView<'_>,
-    hull: Option<&VisualHull>,
+    hull: Option<&PolygonalHull>,
     params: &MatchingParams,
 ) -> Result<PairMatches> {
     params.validate()?;
@@ -1179,7 +1179,7 @@ fn half_image(im: &GrayF32Image) -> GrayF32Image {
 fn coarse_intervals(
     left: &MatchView<'_>,
     right: &MatchView<'_>,
-    hull: Option<&VisualHull>,
+    hull: Option<&PolygonalHull>,
     params: &MatchingParams,
 ) -> Result<(PathRanges, PathRanges)> {
     let jump = IntegrationParams::jump_threshold_m(params.jump_m, left.camera.intrinsics.width);
@@ -1229,7 +1229,7 @@ fn coarse_intervals(
 fn match_views(
     left: &MatchView<'_>,
     right: &MatchView<'_>,
-    hull: Option<&VisualHull>,
+    hull: Option<&PolygonalHull>,
     params: &MatchingParams,
     narrow: Option<(PathRanges, PathRanges)>,
 ) -> Result<(PairMatches, (PathRanges, PathRanges))> {
@@ -1360,7 +1360,7 @@ fn match_plane(
     pr: &Prepared<'_>,
     ll: &Line,
     lr: &Line,
-    hull: Option<&VisualHull>,
+    hull: Option<&PolygonalHull>,
     params: &MatchingParams,
     half: i64,
     jump: f64,
@@ -2309,7 +2309,7 @@ mod tests {
                 })
             })
             .collect();
-        let hull = VisualHull::new(&cams, &masks).unwrap();
+        let hull = PolygonalHull::new(&cams, &masks).unwrap();
         let (left, right) = (plain(&cams[0], &truth[0]), plain(&cams[1], &truth[1]));
         let params = MatchingParams {
             coarse_to_fine: false,

@@ -30,7 +30,7 @@ use crate::integrate::{neighbour_pairs, regions, IntegrationParams};
 use crate::{
     depth_errors, integrate_normals_with_evidence, match_pair, Context, DepthErrors, DepthMap,
     Error, Integrated, IntegrationReport, MatchStats, MatchView, MatchingParams, NormalMap,
-    PairMatches, Result, ResultExt, VisualHull,
+    PairMatches, PolygonalHull, Result, ResultExt,
 };
 
 /// Knobs of Eq. 3.4.
@@ -567,7 +567,7 @@ pub fn per_view_surfaces(
     normals: &[NormalMap],
     proxies: &[DepthMap],
     pairs: &[(usize, usize)],
-    hull: Option<&VisualHull>,
+    hull: Option<&PolygonalHull>,
     params: &SurfaceParams,
 ) -> Result<ViewSurfaces> {
     let n = cameras.len();

@@ -19,15 +19,16 @@ use skin_core::mesh::TriMesh;
 use crate::{
     depth_map_mesh, merge_views, mesh_proxy_depth, per_view_surfaces, refine_mesh,
     screened_poisson, Context, DepthMap, Error, IntegrationParams, MergeParams, MergeView,
-    MergedSurface, NormalMap, OrientedSample, PoissonParams, PoissonSurface, RefineParams,
-    RefineReport, Result, ResultExt, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    MergedSurface, NormalMap, OrientedSample, PoissonParams, PoissonSurface, PolygonalHull,
+    PolygonalHullParams, RefineParams, RefineReport, Result, ResultExt, SurfaceParams,
+    ViewSurfaces,
 };
 
 /// Parameters of the two-pass pipeline ([`reconstruct`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReconstructParams {
     /// The visual hull's rendering as the pass-1 proxy.
-    pub hull: VisualHullParams,
+    pub hull: PolygonalHullParams,
     /// The per-view stage of pass 1. Default [`SurfaceParams::pass1`] (α = 10⁻⁶, ±20 cm
     /// band, coarse-to-fine matching).
     pub pass1: SurfaceParams,
@@ -77,7 +78,7 @@ pub struct ReconstructParams {
 impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
-            hull: VisualHullParams::default(),
+            hull: PolygonalHullParams::default(),
             pass1: SurfaceParams::pass1(),
             pass2: SurfaceParams::pass2(),
             merge: MergeParams::default(),
@@ -222,7 +223,7 @@ fn run_pass(
     proxies: Vec<DepthMap>,
     proxy_s: f64,
     pairs: &[(usize, usize)],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     hull_samples: &[OrientedSample],
     surface: &SurfaceParams,
     poisson: &PoissonParams,
@@ -292,7 +293,7 @@ fn run_pass(
 pub fn reconstruct(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     pairs: &[(usize, usize)],
     params: &ReconstructParams,
 ) -> Result<Reconstruction> {
@@ -305,7 +306,7 @@ pub fn reconstruct(
 }
 
 /// [`reconstruct`] with the visual hull's depth maps already rendered (`hull_depths`, one per
-/// camera, from [`VisualHull::depth_maps`] with [`ReconstructParams::hull`]; `proxy_s` their
+/// camera, from [`PolygonalHull::depth_maps`] with [`ReconstructParams::hull`]; `proxy_s` their
 /// wall time, reported as pass 1's proxy time): a caller that renders them anyway (to score
 /// them, or to show them) does not pay for them twice (issue 14: 2.6 s of the 1024² frame).
 ///
@@ -315,7 +316,7 @@ pub fn reconstruct(
 pub fn reconstruct_from_hull_depths(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     hull_depths: Vec<DepthMap>,
     proxy_s: f64,
     pairs: &[(usize, usize)],
@@ -366,7 +367,7 @@ pub fn reconstruct_from_hull_depths(
 fn second_pass(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     pairs: &[(usize, usize)],
     hull_points: &[OrientedSample],
     proxy: &TriMesh,
