@@ -1,3 +1,7 @@
+use super::assembly::*;
+use super::grid::*;
+use super::samples::*;
+use super::solve::*;
 use super::*;
 use skin_core::mesh::EdgeTopology;
 
