@@ -33,14 +33,17 @@ use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
 use skin_core::image::Mask;
-use skin_core::math::{DVec3, Ray};
-use skin_core::mesh::{one_sided_distance, vertex_normals, MeshQuery, NormalWeighting, TriMesh};
+use skin_core::math::DVec3;
+#[cfg(feature = "validation")]
+use skin_core::math::Ray;
+#[cfg(feature = "validation")]
+use skin_core::mesh::MeshQuery;
+use skin_core::mesh::{one_sided_distance, vertex_normals, NormalWeighting, TriMesh};
 use skin_core::raster::{Rasterizer, RenderParams};
 
-use crate::{
-    depth_jumps, rendered_normals, Context, DepthMap, Error, IntegrationParams, NormalMap, Result,
-    ResultExt, ViewSurfaces,
-};
+#[cfg(feature = "validation")]
+use crate::{depth_jumps, IntegrationParams, ViewSurfaces};
+use crate::{rendered_normals, Context, DepthMap, Error, NormalMap, Result, ResultExt};
 
 /// Parameters of [`table_metrics`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -562,6 +565,7 @@ pub fn vertex_normal_samples(
 /// Where the measured normals that a mesh does not cover were lost ([`coverage_budget`]):
 /// pixel counts over all cameras, each measured normal in exactly one class, in the order
 /// of the pipeline.
+#[cfg(feature = "validation")]
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct CoverageBudget {
     /// Measured normals (as [`TableMetrics::measured_px`]).
@@ -592,6 +596,7 @@ pub struct CoverageBudget {
     pub merge_hole_px: usize,
 }
 
+#[cfg(feature = "validation")]
 impl CoverageBudget {
     fn add(self, o: Self) -> Self {
         Self {
@@ -629,6 +634,7 @@ impl CoverageBudget {
 }
 
 /// The inputs of one pass that [`coverage_budget`] traces.
+#[cfg(feature = "validation")]
 #[derive(Debug, Clone, Copy)]
 pub struct BudgetInputs<'a> {
     /// The pass's proxy depth per camera.
@@ -642,7 +648,7 @@ pub struct BudgetInputs<'a> {
     pub reference: &'a [DepthMap],
 }
 
-/// Coverage budget of `mesh` (issue 14): every measured normal that Table 3.1's coverage
+/// Coverage budget of `mesh`: every measured normal that Table 3.1's coverage
 /// ([`table_metrics`]) does not count is assigned to the first stage that lost it — cut from
 /// Eq. 3.3 at a proxy jump or a matched discontinuity, dropped with its region, discarded by
 /// Eq. 3.4, a per-view surface more than `near_m` from the reference (gross error), or a
@@ -651,6 +657,7 @@ pub struct BudgetInputs<'a> {
 /// # Errors
 /// [`Error::SizeMismatch`] for counts or image sizes that differ; [`Error::InvalidParam`] for
 /// a non-positive `near_m`; errors of the rasteriser (named by camera).
+#[cfg(feature = "validation")]
 pub fn coverage_budget(
     cameras: &[Camera],
     normals: &[NormalMap],
@@ -781,6 +788,7 @@ pub fn surface_distance(mesh: &TriMesh, truth: &TriMesh) -> Result<SurfaceDistan
 /// How much of a known displacement of a surface (e.g. the studio's wrinkles) a reconstructed
 /// mesh keeps ([`displacement_survival`]). Displacements are signed heights along the smooth
 /// surface's normal; the figures are over the measured vertices.
+#[cfg(feature = "validation")]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DisplacementSurvival {
     /// Vertices in the region (with a non-zero displacement asked for).
@@ -804,8 +812,8 @@ pub struct DisplacementSurvival {
     pub heights_mm: Vec<[f64; 2]>,
 }
 
-/// How much of a known surface displacement a reconstruction keeps (beyond the thesis; the
-/// issue's "wrinkle amplitude that survives").
+/// How much of a known surface displacement a reconstruction keeps (beyond the thesis: the
+/// wrinkle amplitude that survives).
 ///
 /// `smooth` is the surface without the displacement; `displacement[i]` moves its vertex `i`
 /// to the displaced (true) surface; `region[i]` selects the vertices measured. Per selected
@@ -819,6 +827,7 @@ pub struct DisplacementSurvival {
 /// Size mismatches of `displacement` and `region` with `smooth`; a non-positive or NaN
 /// `reach_m`; [`Error::Empty`] when fewer than 3 vertices are measured or the true heights
 /// do not vary; mesh errors (non-finite vertices, empty meshes).
+#[cfg(feature = "validation")]
 pub fn displacement_survival(
     smooth: &TriMesh,
     displacement: &[DVec3],

@@ -68,7 +68,7 @@ use skin_core::lsq::{pcg, PcgParams, Preconditioner, Reduction, Reference, Resid
 use crate::{Error, Result};
 
 /// Levels stop coarsening at this many unknowns; the coarsest is solved by dense Cholesky.
-pub const COARSEST_UNKNOWNS: usize = 256;
+pub(crate) const COARSEST_UNKNOWNS: usize = 256;
 
 /// Knobs of the multigrid-preconditioned conjugate gradients solve of Eq. 3.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -12,6 +12,7 @@
 
 use std::time::Instant;
 
+use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
 use skin_core::mesh::TriMesh;
@@ -38,7 +39,7 @@ pub struct ReconstructParams {
     /// Volumetric merging (thesis: 2 mm voxels, 6 cm ramps).
     pub merge: MergeParams,
     /// Read the merge's [`MergeParams::max_depth_jump_m`] as a threshold per pixel at
-    /// [`crate::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
+    /// [`crate::IntegrationParams::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
     /// thresholds are. Default false (1 cm at every width, as before). Ours (issue 14): at
     /// 512² the unscaled 1 cm cuts the views into boundary wherever a slope is steeper than
     /// 63°; scaled, pass 2's coverage rose 80.8 → 83.6 % (exact normals) but the merged
@@ -60,7 +61,7 @@ pub struct ReconstructParams {
     /// Weight of the visual hull's samples in the hole filling. Thesis: 0.01 (the merged
     /// mesh's samples weigh 1).
     pub hull_weight: f64,
-    /// Largest depth step (m, at [`crate::THESIS_WIDTH_PX`]; scaled to the image width) that
+    /// Largest depth step (m, at [`crate::IntegrationParams::THESIS_WIDTH_PX`]; scaled to the image width) that
     /// the hull's per-view meshes bridge when they are turned into samples. Default 4 cm.
     pub hull_jump_m: f64,
     /// Refine pass 2's merged mesh with the measured normals before the metrics and the
@@ -96,12 +97,14 @@ impl Default for ReconstructParams {
 impl ReconstructParams {
     /// The merge's parameters for views as wide as `surfaces` (the first one's width): with
     /// [`ReconstructParams::scale_merge_jump`], [`MergeParams::max_depth_jump_m`] scaled
-    /// from [`crate::THESIS_WIDTH_PX`] to it; else [`ReconstructParams::merge`] as it is.
+    /// from [`crate::IntegrationParams::THESIS_WIDTH_PX`] to it; else [`ReconstructParams::merge`] as it is.
     pub fn merge_at_width(&self, surfaces: &[DepthMap]) -> MergeParams {
         if !self.scale_merge_jump {
             return self.merge;
         }
-        let width = surfaces.first().map_or(crate::THESIS_WIDTH_PX, |s| s.width);
+        let width = surfaces
+            .first()
+            .map_or(crate::IntegrationParams::THESIS_WIDTH_PX, |s| s.width);
         self.merge
             .with_max_depth_jump_m(IntegrationParams::jump_threshold_m(
                 self.merge.max_depth_jump_m,
@@ -123,7 +126,7 @@ impl ReconstructParams {
 }
 
 /// Wall times of one pass, s.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct PassTimes {
     /// Rendering the proxy per camera.
     pub proxy_s: f64,

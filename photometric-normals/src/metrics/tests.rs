@@ -1,4 +1,5 @@
 use super::*;
+#[cfg(feature = "validation")]
 use crate::SurfaceTimes;
 use skin_core::camera::{Intrinsics, Rig};
 use skin_core::mesh::shapes::uv_sphere;
@@ -81,6 +82,7 @@ fn covered_pixels_are_the_pixels_table_3_1_counts() {
 }
 
 #[test]
+#[cfg(feature = "validation")]
 fn the_coverage_budget_puts_every_uncovered_normal_in_one_class() {
     let (rig, sphere, normals, masks, depths) = sphere_views();
     let no_breaks: Vec<Mask> = (0..3).map(|_| Mask::new(96, 96)).collect();
@@ -174,6 +176,7 @@ fn the_coverage_budget_puts_every_uncovered_normal_in_one_class() {
 }
 
 #[test]
+#[cfg(feature = "validation")]
 fn displacement_survival_measures_the_kept_share_of_a_known_relief() {
     // A sphere with a 2 mm, 2 cm-wavelength relief along its normals (as the studio's
     // wrinkles), reconstructed in full, at half amplitude, and not at all.
