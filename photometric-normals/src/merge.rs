@@ -116,7 +116,7 @@ impl MergeParams {
             return Err(Error::InvalidParam {
                 name: "ramp_m",
                 reason: format!(
-                    "{} m is shorter than two voxels ({} m each)",
+                    "{} m is shorter than two voxels ({} m each); raise ramp_m or lower voxel_m",
                     self.ramp_m, self.voxel_m
                 ),
             });

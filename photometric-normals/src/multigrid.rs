@@ -453,7 +453,8 @@ impl Hierarchy {
             .ok_or(Error::InvalidParam {
                 name: "integration system",
                 reason: "the coarsest multigrid operator is not positive definite (a region \
-                         without proxy depth, or alpha = 0)"
+                         without proxy depth, or alpha = 0); give every region a proxy depth \
+                         and alpha > 0, or use IntegrationSolver::Direct"
                     .into(),
             })?;
         Ok(Self {
@@ -581,7 +582,10 @@ fn scaled_level(system: &GridSystem<'_>, scale: &[f64]) -> Result<(Level, Vec<f6
     if fine.diag.iter().any(|d| *d <= 0.0 || !d.is_finite()) {
         return Err(Error::InvalidParam {
             name: "integration system",
-            reason: "an unknown has no constraint (zero diagonal of the normal matrix)".into(),
+            reason:
+                "an unknown has no constraint (zero diagonal of the normal matrix); give every \
+                     foreground pixel a valid normal or a proxy depth"
+                    .into(),
         });
     }
     Ok((fine, b))

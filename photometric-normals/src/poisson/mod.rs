@@ -275,7 +275,7 @@ pub fn screened_poisson(
         if s.normal.length_squared() == 0.0 {
             return Err(Error::InvalidParam {
                 name: "normal",
-                reason: format!("sample {i} has a zero normal"),
+                reason: format!("sample {i} has a zero normal; drop it or give it an orientation"),
             });
         }
         check::positive("weight", s.weight)?;
