@@ -24,7 +24,7 @@ pub enum Pattern {
     ZBar,
 }
 
-/// The seven distinct conditions, in the order of [`PatternImages`].
+/// The seven distinct conditions, in the order of [`PatternImages`](crate::PatternImages).
 pub const PATTERNS: [Pattern; 7] = [
     Pattern::X,
     Pattern::Y,

@@ -38,7 +38,7 @@ pub fn pattern_weights(
         .collect())
 }
 
-/// The weights of [`pattern_weights`] for each pattern of `patterns` (e.g. [`CYCLE`] for a
+/// The weights of [`pattern_weights`] for each pattern of `patterns` (e.g. [`CYCLE`](crate::CYCLE) for a
 /// time-multiplexed capture, [`PATTERNS`] for a static one).
 ///
 /// # Errors

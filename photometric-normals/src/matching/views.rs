@@ -50,7 +50,7 @@ pub struct MatchStats {
     pub cells_evaluated: usize,
     /// Matches on the lowest-cost paths.
     pub matches: usize,
-    /// Of which good (cost within [`MatchingParams::good_cost`]).
+    /// Of which good (cost within [`MatchingParams::good_cost`](crate::MatchingParams::good_cost)).
     pub good_matches: usize,
     /// Discontinuities found (matched depth jumps).
     pub discontinuities: usize,

@@ -1,35 +1,7 @@
 //! Matrix-free preconditioned conjugate gradients for symmetric positive definite systems.
 //!
-//! [`pcg`] solves `A x = b` from a start `x₀`, with the operator `A` given as a
-//! [`LinearOperator`] (any `Fn(&[f64], &mut [f64])` is one) and the preconditioner `M⁻¹` as a
-//! [`Preconditioner`] (the diagonal, or any symmetric positive definite map, e.g. a multigrid
-//! cycle). It is hand-written rather than faer's `matrix_free::conjugate_gradient` because
-//! faer's measures the residual only relative to `‖b‖` and sums its dot products in its own
-//! (SIMD) order, while the callers here need a residual relative to the start's, measured in
-//! unscaled units, and sums in a fixed order that does not depend on the thread count.
-//!
-//! **Iteration.** The textbook loop (Saad, *Iterative Methods for Sparse Linear Systems*,
-//! Alg. 9.1): `r = b − A x`, `z = M⁻¹ r`, `p = z`; then per iteration `q = A p`,
-//! `α = rᵀz / pᵀq`, `x += α p`, `r −= α q`, the stopping test, `z = M⁻¹ r`,
-//! `β = rᵀz_new / rᵀz_old`, `p = z + β p`.
-//!
-//! **Stopping rule.** The residual is measured as `‖r‖₂` or, with
-//! [`ResidualNorm::DividedBy`]`(s)`, as `‖r ⊘ s‖₂` (each entry divided by its scale: the
-//! residual of the original unknowns when the system is solved in scaled ones), relative to
-//! a [`Reference`]: `‖b‖` (floored at 10⁻³⁰⁰; the start is tested too, so a start that
-//! already meets the tolerance takes no iteration) or the start's residual (the start's
-//! relative residual is 1 by definition and is not tested; a zero start residual returns at
-//! once). The loop stops when the relative residual after an update is at most
-//! [`PcgParams::tolerance`] (or is NaN), after [`PcgParams::max_iterations`] updates, or when
-//! the curvature `pᵀ A p` is not positive and finite (the operator or the preconditioner is
-//! not positive definite, or the iterates overflowed); the iterate of the last full update is
-//! kept.
-//!
-//! **Sums.** Every dot product and norm is summed in the order [`Reduction`] names: serially
-//! front to back, or in parallel over fixed chunks (each chunk summed front to back, the
-//! chunks' sums added in chunk order), so the result never depends on the thread count. With
-//! [`Reduction::Chunked`] the vector updates run in parallel too and are fused (one pass for
-//! `x`, `r` and the residual's sum; with the Jacobi preconditioner `z` is never stored).
+//! [`pcg`] (its doc has the iteration, the stopping rule and the order of the sums), its
+//! operator trait, preconditioners and parameters.
 
 use rayon::prelude::*;
 
@@ -181,9 +153,37 @@ pub struct PcgStats {
     pub stop: PcgStop,
 }
 
-/// Solves `A x = b` by preconditioned conjugate gradients from the start in `x` (overwritten
-/// by the solution); see the [module docs](self) for the iteration, the stopping rule and
-/// the order of the sums.
+/// Solves `A x = b` by preconditioned conjugate gradients from the start `x₀` in `x`
+/// (overwritten by the solution), with the operator `A` given as a
+/// [`LinearOperator`] (any `Fn(&[f64], &mut [f64])` is one) and the preconditioner `M⁻¹` as a
+/// [`Preconditioner`] (the diagonal, or any symmetric positive definite map, e.g. a multigrid
+/// cycle). It is hand-written rather than faer's `matrix_free::conjugate_gradient` because
+/// faer's measures the residual only relative to `‖b‖` and sums its dot products in its own
+/// (SIMD) order, while the callers here need a residual relative to the start's, measured in
+/// unscaled units, and sums in a fixed order that does not depend on the thread count.
+///
+/// **Iteration.** The textbook loop (Saad, *Iterative Methods for Sparse Linear Systems*,
+/// Alg. 9.1): `r = b − A x`, `z = M⁻¹ r`, `p = z`; then per iteration `q = A p`,
+/// `α = rᵀz / pᵀq`, `x += α p`, `r −= α q`, the stopping test, `z = M⁻¹ r`,
+/// `β = rᵀz_new / rᵀz_old`, `p = z + β p`.
+///
+/// **Stopping rule.** The residual is measured as `‖r‖₂` or, with
+/// [`ResidualNorm::DividedBy`]`(s)`, as `‖r ⊘ s‖₂` (each entry divided by its scale: the
+/// residual of the original unknowns when the system is solved in scaled ones), relative to
+/// a [`Reference`]: `‖b‖` (floored at 10⁻³⁰⁰; the start is tested too, so a start that
+/// already meets the tolerance takes no iteration) or the start's residual (the start's
+/// relative residual is 1 by definition and is not tested; a zero start residual returns at
+/// once). The loop stops when the relative residual after an update is at most
+/// [`PcgParams::tolerance`] (or is NaN), after [`PcgParams::max_iterations`] updates, or when
+/// the curvature `pᵀ A p` is not positive and finite (the operator or the preconditioner is
+/// not positive definite, or the iterates overflowed); the iterate of the last full update is
+/// kept.
+///
+/// **Sums.** Every dot product and norm is summed in the order [`Reduction`] names: serially
+/// front to back, or in parallel over fixed chunks (each chunk summed front to back, the
+/// chunks' sums added in chunk order), so the result never depends on the thread count. With
+/// [`Reduction::Chunked`] the vector updates run in parallel too and are fused (one pass for
+/// `x`, `r` and the residual's sum; with the Jacobi preconditioner `z` is never stored).
 ///
 /// # Errors
 /// [`Error::SizeMismatch`] if `x`, the Jacobi diagonal or the residual scales differ in
