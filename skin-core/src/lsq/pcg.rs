@@ -227,7 +227,7 @@ pub fn pcg<A: LinearOperator + ?Sized>(
         relative_residual: rel,
         stop: PcgStop::MaxIterations,
     };
-    if params.reference == Reference::RightHandSide && !(rel > tolerance) {
+    if params.reference == Reference::RightHandSide && (rel <= tolerance || rel.is_nan()) {
         stats.stop = PcgStop::Converged;
         return Ok(stats);
     }
@@ -256,7 +256,7 @@ pub fn pcg<A: LinearOperator + ?Sized>(
             None => reduction.norm(&r, norm) / reference,
         };
         stats.relative_residual = rel;
-        if !(rel > tolerance) {
+        if rel <= tolerance || rel.is_nan() {
             stats.stop = PcgStop::Converged;
             break;
         }
