@@ -24,8 +24,8 @@ use dynamic_shapes::photometric::truth::{
 use dynamic_shapes::photometric::{
     depth_map_mesh, depth_offsets, merge_views, per_view_surfaces, rendered_normals,
     surface_distance, table_metrics, DepthMap, IntegrationParams, MergeParams, MergeView,
-    MetricParams, NormalMap, OffsetOutliers, OffsetParams, RobustWeights, SubPixel, SurfaceParams,
-    VisualHullParams,
+    MetricParams, NormalMap, OffsetOutliers, OffsetParams, PolygonalHullParams, RobustWeights,
+    SubPixel, SurfaceParams,
 };
 use dynamic_shapes_studio::DeformationParams;
 
@@ -233,7 +233,7 @@ fn trace_normal_deviation_through_the_stages() {
         std::env::var("TRACE_SUBJECT").unwrap_or_else(|_| "skirt".into())
     );
     let cams = &scene.ring.cameras;
-    let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
+    let proxies = hull.depth_maps(&PolygonalHullParams::default()).unwrap();
     println!("TRACE setup {:.1} s at {size}²", t0.elapsed().as_secs_f64());
     let t = Instant::now();
     let out = per_view_surfaces(

@@ -19,8 +19,8 @@ use dynamic_shapes::photometric::{
     coverage_budget, depth_errors, estimate_normals, hull_samples, match_pair, matching_images,
     merge_views, per_view_surfaces, reconstruct, reconstruct_from_hull_depths, rendered_normals,
     surface_distance, table_metrics, BudgetInputs, DepthMap, MatchMetric, MatchView,
-    MatchingParams, MergeView, MetricParams, NormalMap, ReconstructParams, SurfaceParams,
-    VisualHull, VisualHullParams,
+    MatchingParams, MergeView, MetricParams, NormalMap, PolygonalHull, PolygonalHullParams,
+    ReconstructParams, SurfaceParams,
 };
 
 /// Linear intensity at which the cameras saturate (the exposure of the capture).
@@ -60,8 +60,8 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     // Proxy: the visual hull of the 8 silhouettes.
     let t = Instant::now();
     let silhouettes: Vec<Mask> = views.iter().map(RenderedView::silhouette).collect();
-    let hull = VisualHull::new(&ring.cameras, &silhouettes).unwrap();
-    let proxies = hull.depth_maps(&VisualHullParams::default()).unwrap();
+    let hull = PolygonalHull::new(&ring.cameras, &silhouettes).unwrap();
+    let proxies = hull.depth_maps(&PolygonalHullParams::default()).unwrap();
     let t_hull = t.elapsed().as_secs_f64();
     let truths: Vec<DepthMap> = views
         .iter()

@@ -76,8 +76,9 @@ use dynamic_shapes::photometric::{
     matching_images, merge_views, per_view_surfaces, reconstruct_from_hull_depths,
     rendered_normals, surface_distance, table_metrics, BudgetInputs, DepthMap, IntegrationParams,
     MatchMetric, MatchView, MatchingParams, MergeView, MetricParams, NormalMap, OffsetOutliers,
-    ReconstructParams, Reconstruction, RefineParams, RobustWeights, SubPixel, SurfaceDistance,
-    SurfaceErrors, SurfaceParams, TargetNormals, ViewSurfaces, VisualHull, VisualHullParams,
+    PolygonalHull, PolygonalHullParams, ReconstructParams, Reconstruction, RefineParams,
+    RobustWeights, SubPixel, SurfaceDistance, SurfaceErrors, SurfaceParams, TargetNormals,
+    ViewSurfaces,
 };
 use dynamic_shapes_studio::shading::DomeParams;
 use dynamic_shapes_studio::{DeformationParams, FineSurface, WrinkleParams};
@@ -923,7 +924,7 @@ struct Observed {
     /// truth without them is not kept: nothing reads it, and at 1024² it is ≈ 0.2 GB).
     fine: Option<FineSurface>,
     silhouettes: Vec<Mask>,
-    hull: VisualHull,
+    hull: PolygonalHull,
     proxies: Vec<DepthMap>,
     t_hull: f64,
     /// Wall time of the capture (posing, rendering, shading), s.
@@ -992,8 +993,8 @@ fn observe(
 
     let stage = run.stage(&format!("{name}: visual hull proxy"), None);
     let silhouettes: Vec<Mask> = frame.observations.iter().map(|o| o.mask.clone()).collect();
-    let hull = VisualHull::new(&cameras, &silhouettes)?;
-    let proxies = hull.depth_maps(&VisualHullParams::default())?;
+    let hull = PolygonalHull::new(&cameras, &silhouettes)?;
+    let proxies = hull.depth_maps(&PolygonalHullParams::default())?;
     let t_hull = stage.finish(format!("{} views", proxies.len()));
 
     let stage = run.stage(

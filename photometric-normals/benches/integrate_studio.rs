@@ -20,7 +20,7 @@ use common::{cpu_seconds, max_rms_diff};
 use photometric_normals::truth::{render_both_faces, skirt_subject, StudioScene};
 use photometric_normals::{
     integrate_normals, rendered_normals, Integrated, IntegrationParams, IntegrationSolver,
-    MultigridParams, VisualHull, VisualHullParams,
+    MultigridParams, PolygonalHull, PolygonalHullParams,
 };
 use skin_core::camera::Camera;
 use skin_core::image::Mask;
@@ -52,7 +52,7 @@ fn main() {
     let cams: &[Camera] = &scene.ring.cameras;
     let rendered = render_both_faces(cams, &mesh).unwrap();
     let silhouettes: Vec<Mask> = rendered.iter().map(RenderedView::silhouette).collect();
-    let hull = VisualHull::new(cams, &silhouettes).unwrap();
+    let hull = PolygonalHull::new(cams, &silhouettes).unwrap();
     println!(
         "{{\"setup_s\":{:.1},\"size\":{size}}}",
         t0.elapsed().as_secs_f64()
@@ -79,7 +79,7 @@ fn main() {
     println!("{{\"multigrid\":\"{mg:?}\"}}");
     let (mut direct_cpu, mut mg_cpu, mut max_iter, mut max_diff) = (0.0, 0.0, 0, 0.0f64);
     for &v in &views {
-        let proxy = hull.depth_map(v, &VisualHullParams::default()).unwrap();
+        let proxy = hull.depth_map(v, &PolygonalHullParams::default()).unwrap();
         let normals = rendered_normals(&cams[v], &rendered[v]).unwrap();
         for alpha in [1e-6, 1e-5] {
             let base = IntegrationParams {

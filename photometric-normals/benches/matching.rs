@@ -14,7 +14,7 @@ mod common;
 use common::cpu_seconds;
 
 use photometric_normals::{
-    depth_errors, match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, VisualHull,
+    depth_errors, match_pair, mesh_proxy_depth, DepthMap, MatchView, MatchingParams, PolygonalHull,
 };
 use skin_core::camera::{Camera, Intrinsics, Rig};
 use skin_core::image::Mask;
@@ -58,7 +58,7 @@ fn main() {
                 })
             })
             .collect();
-        let hull = VisualHull::new(&cams, &masks).expect("hull");
+        let hull = PolygonalHull::new(&cams, &masks).expect("hull");
         for (with_hull, coarse_to_fine) in [(false, false), (true, false), (true, true)] {
             let view = |c: usize| MatchView {
                 camera: &cams[c],

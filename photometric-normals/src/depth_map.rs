@@ -137,7 +137,7 @@ impl DepthMap {
             return Err(Error::InvalidParam {
                 name: "camera",
                 reason: format!(
-                    "images {w} x {h} but the depth map is {} x {}",
+                    "images {w} x {h} but the depth map is {} x {}; pass the camera's image size",
                     self.width, self.height
                 ),
             });

@@ -27,11 +27,11 @@
 //! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
 //! | `marching_cubes.rs` | marching cubes over sparse cells (face-walking loops, asymptotic decider; watertight where observed) | (internal) | §3.3.3 |
 //! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
-//! | `poisson.rs` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
-//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`VisualHull`], [`VisualHullParams`], [`mesh_proxy_depth`] | §3.3 |
-//! | `multigrid.rs` | the O(n) solver of Eq. 3.3: conjugate gradients preconditioned by a V-cycle of smoothed aggregation (3 × 3 blocks, Galerkin), scaled by and warm-started from the proxy depth | [`MultigridParams`], [`COARSEST_UNKNOWNS`] | §3.3.1 Eq. 3.3 |
+//! | `poisson/` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG; files grid, samples, solve, assembly, extract) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
+//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`PolygonalHull`], [`PolygonalHullParams`], [`mesh_proxy_depth`] | §3.3 |
+//! | `multigrid.rs` | the O(n) solver of Eq. 3.3: conjugate gradients (`skin_core::lsq::pcg`) preconditioned by a V-cycle of smoothed aggregation (3 × 3 blocks, Galerkin), scaled by and warm-started from the proxy depth | [`MultigridParams`] | §3.3.1 Eq. 3.3 |
 //! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`IntegrationSolver`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
-//! | `matching.rs` | pairwise matching: four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
+//! | `matching/` | pairwise matching (one file per stage: params, views, mesh, epipolar, horn, metrics, epipolar_dp, plane, pair, coarse_to_fine): four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
 //! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
 //! | `reconstruct.rs` | the two passes: per-view surfaces against the hull, merge, Poisson with hull samples at 0.01; again with the hole-filled mesh as proxy | [`reconstruct`], [`ReconstructParams`], [`Reconstruction`], [`Pass`] | §3.3, §3.3.3 |
 //! | `refine.rs` | the merged mesh moved along its normals to agree with the measured normals (Nehab et al. 2005's positions-and-normals energy, one sparse solve; beyond the thesis) | [`refine_mesh`], [`RefineParams`], [`target_normals`] | beyond (§3.1 ref. \[104\]) |
@@ -131,20 +131,23 @@ pub use flow::{dense_flow, warp, Flow, FlowParams};
 pub use integrate::{
     depth_errors, depth_jumps, integrate_normals, integrate_normals_with_evidence,
     rendered_normals, DepthErrors, Integrated, IntegrationParams, IntegrationReport,
-    IntegrationSolver, THESIS_WIDTH_PX,
+    IntegrationSolver,
 };
 pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
     MatchingParams, PairMatches, SubPixel, ViewMatches,
 };
-pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface, BLOCK_VOXELS};
+pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface};
+#[cfg(feature = "validation")]
 pub use metrics::{
-    coverage_budget, covered_pixels, displacement_survival, surface_distance, table_metrics,
-    vertex_normal_samples, BudgetInputs, CoverageBudget, DisplacementSurvival, MetricParams,
+    coverage_budget, displacement_survival, BudgetInputs, CoverageBudget, DisplacementSurvival,
+};
+pub use metrics::{
+    covered_pixels, surface_distance, table_metrics, vertex_normal_samples, MetricParams,
     SurfaceDistance, TableMetrics, VertexNormalSample,
 };
 pub use motion::{compensate_motion, CompensatedFrame, MotionParams};
-pub use multigrid::{MultigridParams, COARSEST_UNKNOWNS};
+pub use multigrid::MultigridParams;
 pub use normals::{estimate_normals, estimate_normals_on_proxy, NormalMap, NormalParams};
 pub use offsets::{
     depth_offsets, depth_offsets_guided, per_view_surfaces, OffsetOutliers, OffsetParams,
@@ -153,7 +156,7 @@ pub use offsets::{
 };
 pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
 pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
-pub use proxy::{mesh_proxy_depth, VisualHull, VisualHullParams};
+pub use proxy::{mesh_proxy_depth, PolygonalHull, PolygonalHullParams};
 pub use reconstruct::{
     hull_samples, reconstruct, reconstruct_from_hull_depths, Pass, PassTimes, ReconstructParams,
     Reconstruction,

@@ -38,7 +38,7 @@ use crate::marching_cubes::{cell_straddles, march_cells, Node, NodeMap, NodeSet}
 use crate::{Context, DepthMap, Error, Result, ResultExt};
 
 /// Voxels along each side of a block of the sparse volume.
-pub const BLOCK_VOXELS: usize = 8;
+pub(crate) const BLOCK_VOXELS: usize = 8;
 const BLOCK: i64 = BLOCK_VOXELS as i64;
 const BLOCK_LEN: usize = BLOCK_VOXELS * BLOCK_VOXELS * BLOCK_VOXELS;
 
@@ -116,7 +116,7 @@ impl MergeParams {
             return Err(Error::InvalidParam {
                 name: "ramp_m",
                 reason: format!(
-                    "{} m is shorter than two voxels ({} m each)",
+                    "{} m is shorter than two voxels ({} m each); raise ramp_m or lower voxel_m",
                     self.ramp_m, self.voxel_m
                 ),
             });

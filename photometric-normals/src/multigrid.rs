@@ -54,20 +54,21 @@
 //! [`crate::IntegrationSolver::Direct`] stays the default. The multigrid wins on large
 //! compact foregrounds (the 1024² sphere view of `benches/integrate.rs`).
 //!
-//! **Stopping.** CG stops when the residual of the normal equations (in depth units, i.e. the
-//! scaled residual divided by `z₀`) falls to [`MultigridParams::tolerance`] times the warm
-//! start's residual (the proxy's disagreement with the normals), or after
-//! [`MultigridParams::max_iterations`].
+//! **Stopping.** CG ([`skin_core::lsq::pcg`], its sums serial) stops when the residual of
+//! the normal equations (in depth units, i.e. the scaled residual divided by `z₀`) falls to
+//! [`MultigridParams::tolerance`] times the warm start's residual (the proxy's disagreement
+//! with the normals), or after [`MultigridParams::max_iterations`].
 
 use nalgebra::{DMatrix, DVector};
 use nalgebra_sparse::{CooMatrix, CsrMatrix};
 use serde::{Deserialize, Serialize};
 use skin_core::check;
+use skin_core::lsq::{pcg, PcgParams, Preconditioner, Reduction, Reference, ResidualNorm};
 
 use crate::{Error, Result};
 
 /// Levels stop coarsening at this many unknowns; the coarsest is solved by dense Cholesky.
-pub const COARSEST_UNKNOWNS: usize = 256;
+pub(crate) const COARSEST_UNKNOWNS: usize = 256;
 
 /// Knobs of the multigrid-preconditioned conjugate gradients solve of Eq. 3.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -452,7 +453,8 @@ impl Hierarchy {
             .ok_or(Error::InvalidParam {
                 name: "integration system",
                 reason: "the coarsest multigrid operator is not positive definite (a region \
-                         without proxy depth, or alpha = 0)"
+                         without proxy depth, or alpha = 0); give every region a proxy depth \
+                         and alpha > 0, or use IntegrationSolver::Direct"
                     .into(),
             })?;
         Ok(Self {
@@ -498,10 +500,6 @@ impl Hierarchy {
     }
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// Eq. 3.3 on a masked image grid, as [`crate::integrate`] assembles it.
 pub(crate) struct GridSystem<'a> {
     /// Image width and height, px.
@@ -532,12 +530,28 @@ pub(crate) fn solve(
     check::same_size("multigrid warm start", system.pixels.len(), z0.len())?;
     let (fine, b) = scaled_level(system, z0)?;
     let mg = Hierarchy::new(fine, system.height as usize, *params)?;
-    let t0 = vec![1.0; z0.len()];
-    let (t, iterations, relative_residual) =
-        pcg(&mg, &b, t0, z0, params.tolerance, params.max_iterations);
+    // CG on the finest level from t = 1, its residual measured unscaled (`r / z₀`: the
+    // residual of the normal equations of the depths) relative to the start's, every sum
+    // serial.
+    let mut t = vec![1.0; z0.len()];
+    let fine = &mg.levels[0];
+    let mut cycle = |r: &[f64], z: &mut [f64]| mg.cycle(0, r, z);
+    let cg = pcg(
+        &|x: &[f64], y: &mut [f64]| fine.apply(x, y),
+        Preconditioner::Apply(&mut cycle),
+        &b,
+        &mut t,
+        ResidualNorm::DividedBy(z0),
+        &PcgParams {
+            tolerance: params.tolerance,
+            max_iterations: params.max_iterations,
+            reference: Reference::Start,
+            reduction: Reduction::Serial,
+        },
+    )?;
     let stats = MultigridStats {
-        iterations,
-        relative_residual,
+        iterations: cg.iterations,
+        relative_residual: cg.relative_residual,
         levels: mg.levels.len(),
     };
     Ok((t.iter().zip(z0).map(|(t, z)| t * z).collect(), stats))
@@ -568,71 +582,11 @@ fn scaled_level(system: &GridSystem<'_>, scale: &[f64]) -> Result<(Level, Vec<f6
     if fine.diag.iter().any(|d| *d <= 0.0 || !d.is_finite()) {
         return Err(Error::InvalidParam {
             name: "integration system",
-            reason: "an unknown has no constraint (zero diagonal of the normal matrix)".into(),
+            reason:
+                "an unknown has no constraint (zero diagonal of the normal matrix); give every \
+                     foreground pixel a valid normal or a proxy depth"
+                    .into(),
         });
     }
     Ok((fine, b))
-}
-
-/// Preconditioned CG on the finest level of `mg` from `t`. Residuals are measured unscaled
-/// (`r / scale`: the residual of the normal equations of the depths), relative to the
-/// start's. Returns (t, iterations, relative residual).
-fn pcg(
-    mg: &Hierarchy,
-    b: &[f64],
-    mut t: Vec<f64>,
-    scale: &[f64],
-    tolerance: f64,
-    max_iterations: usize,
-) -> (Vec<f64>, usize, f64) {
-    let n = b.len();
-    let a = &mg.levels[0];
-    let unscaled = |r: &[f64]| {
-        r.iter()
-            .zip(scale)
-            .map(|(r, s)| (r / s).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let mut r = vec![0.0; n];
-    a.apply(&t, &mut r);
-    for (ri, bi) in r.iter_mut().zip(b) {
-        *ri = bi - *ri;
-    }
-    let r0 = unscaled(&r);
-    let mut iterations = 0;
-    if r0 == 0.0 {
-        return (t, iterations, 0.0);
-    }
-    let mut rel = 1.0;
-    let mut zr = vec![0.0; n];
-    mg.cycle(0, &r, &mut zr);
-    let mut p = zr.clone();
-    let mut rz = dot(&r, &zr);
-    let mut ap = vec![0.0; n];
-    while iterations < max_iterations {
-        a.apply(&p, &mut ap);
-        let pap = dot(&p, &ap);
-        if pap <= 0.0 || !pap.is_finite() {
-            break;
-        }
-        let step = rz / pap;
-        for k in 0..n {
-            t[k] += step * p[k];
-            r[k] -= step * ap[k];
-        }
-        iterations += 1;
-        rel = unscaled(&r) / r0;
-        if rel <= tolerance {
-            break;
-        }
-        mg.cycle(0, &r, &mut zr);
-        let rz_next = dot(&r, &zr);
-        let beta = rz_next / rz;
-        rz = rz_next;
-        for k in 0..n {
-            p[k] = zr[k] + beta * p[k];
-        }
-    }
-    (t, iterations, rel)
 }

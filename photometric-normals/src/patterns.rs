@@ -148,7 +148,7 @@ impl PatternImages {
             if slot.is_some() {
                 return Err(Error::InvalidParam {
                     name: "pattern images",
-                    reason: format!("{p:?} given more than once"),
+                    reason: format!("{p:?} given more than once; give each condition one image"),
                 });
             }
             *slot = Some(im);

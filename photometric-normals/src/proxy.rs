@@ -10,9 +10,9 @@
 //! centres, so the cone's boundary is continuous). The ray is **sphere-traced**: at a point
 //! outside the hull some camera `j` has `sd_j(π_j(p)) = s > 0`, and a 3D move shorter than
 //! `s · z_j / f_j` (its camera depth `z_j`, focal length `f_j`) keeps the projection outside,
-//! so the march steps `κ · max_j s · z_j / f_j` (κ = [`VisualHullParams::step_safety`]) and
+//! so the march steps `κ · max_j s · z_j / f_j` (κ = [`PolygonalHullParams::step_safety`]) and
 //! never jumps over a part of the hull thicker than a pixel; the entry is then refined by
-//! bisection of `max_j sd_j = 0` to [`VisualHullParams::tolerance_m`]. Outside a camera's
+//! bisection of `max_j sd_j = 0` to [`PolygonalHullParams::tolerance_m`]. Outside a camera's
 //! image the signed distance continues as the distance to the image border plus the value at
 //! the border (the image edge bounds the cone, as the silhouette does).
 
@@ -33,7 +33,7 @@ use crate::{DepthMap, Error, Result, ResultExt};
 /// Knobs of the image-based visual hull. The thesis does not describe how its visual hull
 /// is computed; these are this implementation's.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct VisualHullParams {
+pub struct PolygonalHullParams {
     /// Where the march along a pixel ray starts, m from the camera centre. Default 0.05.
     pub near_m: f64,
     /// Where it gives up, m. Default 30 (a studio is a few metres across).
@@ -47,7 +47,7 @@ pub struct VisualHullParams {
     pub min_step_m: f64,
 }
 
-impl Default for VisualHullParams {
+impl Default for PolygonalHullParams {
     fn default() -> Self {
         Self {
             near_m: 0.05,
@@ -59,7 +59,7 @@ impl Default for VisualHullParams {
     }
 }
 
-impl VisualHullParams {
+impl PolygonalHullParams {
     fn validate(&self) -> Result<()> {
         check::positive("near_m", self.near_m)?;
         check::positive("far_m", self.far_m)?;
@@ -76,14 +76,15 @@ impl VisualHullParams {
     }
 }
 
-/// The silhouettes of a calibrated rig with their signed distances, ready to answer
-/// inside/outside queries and to render the hull's depth in any of its cameras.
+/// The visual hull of §3.3 as a proxy surface: the silhouettes of a calibrated rig with their
+/// signed distances, ready to answer inside/outside queries and to render the hull's depth in
+/// any of its cameras.
 #[derive(Debug, Clone)]
-pub struct VisualHull {
+pub struct PolygonalHull {
     cameras: Vec<Camera>,
     silhouettes: Vec<Mask>,
     signed: Vec<GrayF32Image>,
-    /// Per camera, the gain `G` of [`VisualHull::contains`]'s certificates (px of signed
+    /// Per camera, the gain `G` of [`PolygonalHull::contains`]'s certificates (px of signed
     /// distance per unit of `‖δ‖ / z` at the image centre); `None` where certificates do not
     /// apply (radial distortion, a non-finite or degenerate signed-distance image).
     gains: Vec<Option<f64>>,
@@ -91,11 +92,11 @@ pub struct VisualHull {
     id: u64,
 }
 
-/// Source of [`VisualHull`] identities.
+/// Source of [`PolygonalHull`] identities.
 static NEXT_HULL_ID: AtomicU64 = AtomicU64::new(1);
 
 /// A ball of world points around `centre` that camera `c` sees all inside (`inside`) or all
-/// outside its silhouette: see [`VisualHull::contains`].
+/// outside its silhouette: see [`PolygonalHull::contains`].
 #[derive(Debug, Clone, Copy)]
 struct Certificate {
     centre: DVec3,
@@ -112,7 +113,7 @@ impl Certificate {
     };
 }
 
-/// The certificate gain of a camera (see [`VisualHull::contains`]): `(L + 1) · max(fx, fy)`
+/// The certificate gain of a camera (see [`PolygonalHull::contains`]): `(L + 1) · max(fx, fy)`
 /// with `L` the Lipschitz constant (px per px) of the bilinear signed distance, which is at
 /// most `√(Lx² + Ly²)` for the largest differences `Lx`, `Ly` of horizontally and vertically
 /// adjacent samples (the bilinear gradient's components are convex combinations of those
@@ -151,7 +152,7 @@ fn certificate_gain(camera: &Camera, signed: &GrayF32Image) -> Option<f64> {
     (gain.is_finite() && gain > 0.0).then_some(gain)
 }
 
-impl VisualHull {
+impl PolygonalHull {
     /// The hull of `silhouettes[c]` seen by `cameras[c]`.
     ///
     /// # Errors
@@ -215,8 +216,8 @@ impl VisualHull {
     /// Signed distance (px, negative inside) of `p`'s projection to camera `c`'s silhouette,
     /// and the point's camera depth; `None` behind the camera.
     ///
-    /// The hot loop of the hull (every march step of [`VisualHull::depth_map`], every cell of
-    /// the matching grids through [`VisualHull::contains`]): the camera point is transformed
+    /// The hot loop of the hull (every march step of [`PolygonalHull::depth_map`], every cell of
+    /// the matching grids through [`PolygonalHull::contains`]): the camera point is transformed
     /// once and projected term for term as [`Camera::project`] does (the same values bit for
     /// bit, without the second transform and the `Result`), then looked up by
     /// [`sample_bilinear`], which reads the samples from the raw buffer.
@@ -225,8 +226,8 @@ impl VisualHull {
         self.camera_distance_n2(c, p).map(|(sd, z, _)| (sd, z))
     }
 
-    /// [`VisualHull::camera_distance`] with the squared length of the point's normalised
-    /// image coordinates `(x/z, y/z)` (for the certificates of [`VisualHull::contains`]).
+    /// [`PolygonalHull::camera_distance`] with the squared length of the point's normalised
+    /// image coordinates `(x/z, y/z)` (for the certificates of [`PolygonalHull::contains`]).
     #[inline]
     fn camera_distance_n2(&self, c: usize, p: DVec3) -> Option<(f64, f64, f64)> {
         let cam = &self.cameras[c];
@@ -335,7 +336,7 @@ impl VisualHull {
         })
     }
 
-    /// [`VisualHull::contains`] without the certificates: every camera evaluated (the
+    /// [`PolygonalHull::contains`] without the certificates: every camera evaluated (the
     /// reference of the unit test).
     #[cfg(test)]
     fn contains_evaluated(&self, p: DVec3) -> bool {
@@ -350,7 +351,7 @@ impl VisualHull {
     ///
     /// # Errors
     /// [`Error::IndexOutOfRange`] for a bad view; [`Error::InvalidParam`] for bad params.
-    pub fn depth_map(&self, view: usize, params: &VisualHullParams) -> Result<DepthMap> {
+    pub fn depth_map(&self, view: usize, params: &PolygonalHullParams) -> Result<DepthMap> {
         params.validate()?;
         check::index("visual hull view", view, self.cameras.len())?;
         let cam = &self.cameras[view];
@@ -372,11 +373,11 @@ impl VisualHull {
         DepthMap::new(w, h, depth)
     }
 
-    /// [`VisualHull::depth_map`] of every camera.
+    /// [`PolygonalHull::depth_map`] of every camera.
     ///
     /// # Errors
-    /// As [`VisualHull::depth_map`], with [`Error::At`] naming the camera.
-    pub fn depth_maps(&self, params: &VisualHullParams) -> Result<Vec<DepthMap>> {
+    /// As [`PolygonalHull::depth_map`], with [`Error::At`] naming the camera.
+    pub fn depth_maps(&self, params: &PolygonalHullParams) -> Result<Vec<DepthMap>> {
         (0..self.cameras.len())
             .map(|c| self.depth_map(c, params).at(crate::Context::Camera(c)))
             .collect()
@@ -388,7 +389,7 @@ impl VisualHull {
         origin: DVec3,
         dir: DVec3,
         view: usize,
-        params: &VisualHullParams,
+        params: &PolygonalHullParams,
     ) -> Option<f64> {
         let at = |t: f64| self.hull_distance(origin + dir * t, Some(view));
         let mut t_prev = params.near_m;
@@ -419,7 +420,7 @@ impl VisualHull {
 }
 
 thread_local! {
-    /// The camera that last found a [`VisualHull::contains`] query outside, per thread.
+    /// The camera that last found a [`PolygonalHull::contains`] query outside, per thread.
     static LAST_REJECTING: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
     /// Per thread, the hull whose certificates these are and one certificate per camera.
     static CERTIFICATES: RefCell<(u64, Vec<Certificate>)> = const { RefCell::new((0, Vec::new())) };
@@ -433,7 +434,7 @@ thread_local! {
 
 /// The certificate of a point evaluated in a camera with signed distance `sd` (px), camera
 /// depth `z` and squared normalised image radius `n2`, for the camera's `gain` (see
-/// [`VisualHull::contains`]); [`Certificate::NONE`] where the margin leaves nothing.
+/// [`PolygonalHull::contains`]); [`Certificate::NONE`] where the margin leaves nothing.
 fn certificate(p: DVec3, sd: f64, z: f64, n2: f64, gain: f64) -> Certificate {
     let a = sd.abs() * (1.0 - 1e-9) - 1e-6;
     let k = gain * (1.0 + n2).sqrt();
@@ -483,7 +484,7 @@ mod tests {
     }
 
     /// [`sphere_rig`] and the visual hull of its rendered silhouettes.
-    fn sphere_hull(n: usize) -> (Vec<Camera>, TriMesh, VisualHull) {
+    fn sphere_hull(n: usize) -> (Vec<Camera>, TriMesh, PolygonalHull) {
         let (cams, mesh) = sphere_rig(n);
         let masks: Vec<Mask> = cams
             .iter()
@@ -494,14 +495,14 @@ mod tests {
                     .silhouette()
             })
             .collect();
-        let hull = VisualHull::new(&cams, &masks).unwrap();
+        let hull = PolygonalHull::new(&cams, &masks).unwrap();
         (cams, mesh, hull)
     }
 
     #[test]
     fn hull_of_a_sphere_lies_on_or_outside_it_and_close() {
         let (cams, mesh, hull) = sphere_hull(6);
-        let vh = hull.depth_map(0, &VisualHullParams::default()).unwrap();
+        let vh = hull.depth_map(0, &PolygonalHullParams::default()).unwrap();
         let truth = mesh_proxy_depth(&cams[0], &mesh).unwrap();
         // Gap between the hull and the sphere along the rays (m; > 0 in front of it).
         let mut gap: Vec<f64> = vh
@@ -631,14 +632,14 @@ mod tests {
     fn rejects_bad_input() {
         let (cams, _) = sphere_rig(2);
         let empty = Mask::new(128, 128);
-        assert!(VisualHull::new(&cams[..1], std::slice::from_ref(&empty)).is_err());
-        assert!(VisualHull::new(&cams, &[empty.clone(), empty.clone()]).is_err());
+        assert!(PolygonalHull::new(&cams[..1], std::slice::from_ref(&empty)).is_err());
+        assert!(PolygonalHull::new(&cams, &[empty.clone(), empty.clone()]).is_err());
         let small = Mask::from_fn(8, 8, |_, _| true);
-        assert!(VisualHull::new(&cams, &[small.clone(), small]).is_err());
+        assert!(PolygonalHull::new(&cams, &[small.clone(), small]).is_err());
         let full = Mask::from_fn(128, 128, |x, _| x > 10);
-        let hull = VisualHull::new(&cams, &[full.clone(), full]).unwrap();
-        assert!(hull.depth_map(2, &VisualHullParams::default()).is_err());
-        let bad = VisualHullParams {
+        let hull = PolygonalHull::new(&cams, &[full.clone(), full]).unwrap();
+        assert!(hull.depth_map(2, &PolygonalHullParams::default()).is_err());
+        let bad = PolygonalHullParams {
             far_m: 0.01,
             ..Default::default()
         };

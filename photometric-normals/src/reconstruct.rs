@@ -12,6 +12,7 @@
 
 use std::time::Instant;
 
+use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::check;
 use skin_core::mesh::TriMesh;
@@ -19,15 +20,16 @@ use skin_core::mesh::TriMesh;
 use crate::{
     depth_map_mesh, merge_views, mesh_proxy_depth, per_view_surfaces, refine_mesh,
     screened_poisson, Context, DepthMap, Error, IntegrationParams, MergeParams, MergeView,
-    MergedSurface, NormalMap, OrientedSample, PoissonParams, PoissonSurface, RefineParams,
-    RefineReport, Result, ResultExt, SurfaceParams, ViewSurfaces, VisualHull, VisualHullParams,
+    MergedSurface, NormalMap, OrientedSample, PoissonParams, PoissonSurface, PolygonalHull,
+    PolygonalHullParams, RefineParams, RefineReport, Result, ResultExt, SurfaceParams,
+    ViewSurfaces,
 };
 
 /// Parameters of the two-pass pipeline ([`reconstruct`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReconstructParams {
     /// The visual hull's rendering as the pass-1 proxy.
-    pub hull: VisualHullParams,
+    pub hull: PolygonalHullParams,
     /// The per-view stage of pass 1. Default [`SurfaceParams::pass1`] (α = 10⁻⁶, ±20 cm
     /// band, coarse-to-fine matching).
     pub pass1: SurfaceParams,
@@ -37,7 +39,7 @@ pub struct ReconstructParams {
     /// Volumetric merging (thesis: 2 mm voxels, 6 cm ramps).
     pub merge: MergeParams,
     /// Read the merge's [`MergeParams::max_depth_jump_m`] as a threshold per pixel at
-    /// [`crate::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
+    /// [`crate::IntegrationParams::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
     /// thresholds are. Default false (1 cm at every width, as before). Ours (issue 14): at
     /// 512² the unscaled 1 cm cuts the views into boundary wherever a slope is steeper than
     /// 63°; scaled, pass 2's coverage rose 80.8 → 83.6 % (exact normals) but the merged
@@ -59,7 +61,7 @@ pub struct ReconstructParams {
     /// Weight of the visual hull's samples in the hole filling. Thesis: 0.01 (the merged
     /// mesh's samples weigh 1).
     pub hull_weight: f64,
-    /// Largest depth step (m, at [`crate::THESIS_WIDTH_PX`]; scaled to the image width) that
+    /// Largest depth step (m, at [`crate::IntegrationParams::THESIS_WIDTH_PX`]; scaled to the image width) that
     /// the hull's per-view meshes bridge when they are turned into samples. Default 4 cm.
     pub hull_jump_m: f64,
     /// Refine pass 2's merged mesh with the measured normals before the metrics and the
@@ -77,7 +79,7 @@ pub struct ReconstructParams {
 impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
-            hull: VisualHullParams::default(),
+            hull: PolygonalHullParams::default(),
             pass1: SurfaceParams::pass1(),
             pass2: SurfaceParams::pass2(),
             merge: MergeParams::default(),
@@ -95,12 +97,14 @@ impl Default for ReconstructParams {
 impl ReconstructParams {
     /// The merge's parameters for views as wide as `surfaces` (the first one's width): with
     /// [`ReconstructParams::scale_merge_jump`], [`MergeParams::max_depth_jump_m`] scaled
-    /// from [`crate::THESIS_WIDTH_PX`] to it; else [`ReconstructParams::merge`] as it is.
+    /// from [`crate::IntegrationParams::THESIS_WIDTH_PX`] to it; else [`ReconstructParams::merge`] as it is.
     pub fn merge_at_width(&self, surfaces: &[DepthMap]) -> MergeParams {
         if !self.scale_merge_jump {
             return self.merge;
         }
-        let width = surfaces.first().map_or(crate::THESIS_WIDTH_PX, |s| s.width);
+        let width = surfaces
+            .first()
+            .map_or(crate::IntegrationParams::THESIS_WIDTH_PX, |s| s.width);
         self.merge
             .with_max_depth_jump_m(IntegrationParams::jump_threshold_m(
                 self.merge.max_depth_jump_m,
@@ -122,7 +126,7 @@ impl ReconstructParams {
 }
 
 /// Wall times of one pass, s.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct PassTimes {
     /// Rendering the proxy per camera.
     pub proxy_s: f64,
@@ -222,7 +226,7 @@ fn run_pass(
     proxies: Vec<DepthMap>,
     proxy_s: f64,
     pairs: &[(usize, usize)],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     hull_samples: &[OrientedSample],
     surface: &SurfaceParams,
     poisson: &PoissonParams,
@@ -292,7 +296,7 @@ fn run_pass(
 pub fn reconstruct(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     pairs: &[(usize, usize)],
     params: &ReconstructParams,
 ) -> Result<Reconstruction> {
@@ -305,7 +309,7 @@ pub fn reconstruct(
 }
 
 /// [`reconstruct`] with the visual hull's depth maps already rendered (`hull_depths`, one per
-/// camera, from [`VisualHull::depth_maps`] with [`ReconstructParams::hull`]; `proxy_s` their
+/// camera, from [`PolygonalHull::depth_maps`] with [`ReconstructParams::hull`]; `proxy_s` their
 /// wall time, reported as pass 1's proxy time): a caller that renders them anyway (to score
 /// them, or to show them) does not pay for them twice (issue 14: 2.6 s of the 1024² frame).
 ///
@@ -315,7 +319,7 @@ pub fn reconstruct(
 pub fn reconstruct_from_hull_depths(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     hull_depths: Vec<DepthMap>,
     proxy_s: f64,
     pairs: &[(usize, usize)],
@@ -366,7 +370,7 @@ pub fn reconstruct_from_hull_depths(
 fn second_pass(
     cameras: &[Camera],
     normals: &[NormalMap],
-    hull: &VisualHull,
+    hull: &PolygonalHull,
     pairs: &[(usize, usize)],
     hull_points: &[OrientedSample],
     proxy: &TriMesh,

@@ -1,3 +1,4 @@
+//! (over 1,000 lines: validation equipment for every part-1 stage around one studio scene.)
 //! Validation equipment (feature `validation`): the studio's light patterns and calibration
 //! spheres, ground-truth scoring of normal maps (angular error, shadowed concavities,
 //! wrinkled regions) and the distant-light baseline (the analytic solution the thesis

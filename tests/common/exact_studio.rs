@@ -8,7 +8,7 @@ use dynamic_shapes::core::raster::RenderedView;
 use dynamic_shapes::photometric::truth::{
     render_both_faces, skirt_subject, StudioScene, TrueSurface, STUDIO_FRAME,
 };
-use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, VisualHull};
+use dynamic_shapes::photometric::{rendered_normals, DepthMap, NormalMap, PolygonalHull};
 use dynamic_shapes_studio::DeformationParams;
 
 /// The studio scene with exact normals.
@@ -24,7 +24,7 @@ pub struct ExactStudio {
     /// Exact (rendered) normals per camera.
     pub exact: Vec<NormalMap>,
     /// The visual hull of the silhouettes.
-    pub hull: VisualHull,
+    pub hull: PolygonalHull,
     /// The ring's neighbouring pairs.
     pub pairs: Vec<(usize, usize)>,
 }
@@ -64,7 +64,7 @@ pub fn exact_studio_of(
         .zip(&views)
         .map(|(c, v)| rendered_normals(c, v).unwrap())
         .collect();
-    let hull = VisualHull::new(cams, &sil).unwrap();
+    let hull = PolygonalHull::new(cams, &sil).unwrap();
     let pairs = (0..cameras).map(|c| (c, (c + 1) % cameras)).collect();
     ExactStudio {
         scene,

@@ -27,12 +27,22 @@
 //! [`LsqSolver::solve`] solves all right-hand sides at once. [`SparseCholesky`] exposes the
 //! same machinery for symmetric positive definite systems that are not in least-squares form
 //! (e.g. the bone-heat system of [`crate::mesh::bone_heat_weights`]).
+//!
+//! Systems too large to factorise, or solved only approximately, go to [`pcg`]: matrix-free
+//! preconditioned conjugate gradients with the operator and the preconditioner given as
+//! closures (e.g. a multigrid cycle), its stopping rule and its order of summation chosen by
+//! the caller ([`PcgParams`]).
 
 mod cholesky;
 mod normal;
+mod pcg;
 mod problem;
 
 pub use cholesky::{CholeskyParams, CholeskyStats, FactorKind, FillOrdering, SparseCholesky};
+pub use pcg::{
+    pcg, LinearOperator, PcgParams, PcgStats, PcgStop, Preconditioner, Reduction, Reference,
+    ResidualNorm,
+};
 pub use problem::{LsqDiagnostics, LsqParams, LsqProblem, LsqSolver, LsqStats};
 
 #[cfg(test)]

@@ -1,0 +1,179 @@
+//! The cascade: each level's system assembled from the samples (flux and screening splats)
+//! and the coarser levels (start and Dirichlet values), then solved.
+
+use rayon::prelude::*;
+use skin_core::math::DVec3;
+
+use crate::marching_cubes::{Node, NodeMap};
+use crate::Result;
+
+use super::grid::{add, cell_of, trilinear, Composite, Level, AXES, B, NONE};
+use super::samples::{band_blocks, UnitSample};
+use super::solve::{level_cg, parents, COARSEST_DEPTH};
+use super::{PoissonLevel, PoissonParams};
+
+/// Every level from the coarsest (dense down to `params.dense_depth`, then the band around
+/// the samples) to `params.depth`, each solved from the coarser ones, with its figures.
+pub(super) fn solve_hierarchy(
+    unit: &[UnitSample],
+    params: &PoissonParams,
+) -> Result<(Vec<Level>, Vec<PoissonLevel>)> {
+    let mut levels: Vec<Level> = Vec::new();
+    let mut figures = Vec::new();
+    for depth in COARSEST_DEPTH.min(params.dense_depth)..=params.depth {
+        let nb = (1i64 << depth) / B + 1;
+        let active = if depth <= params.dense_depth {
+            vec![true; (nb * nb * nb) as usize]
+        } else {
+            band_blocks(unit, depth, i64::from(params.band_blocks))
+        };
+        let mut level = Level::new(depth, &active);
+        figures.push(solve_level(&mut level, &levels, unit, params)?);
+        levels.push(level);
+    }
+    Ok((levels, figures))
+}
+
+/// Builds and solves one level's system; `prev` (the coarser levels) gives the start and the
+/// Dirichlet values where the band ends.
+pub(super) fn solve_level(
+    level: &mut Level,
+    coarser: &[Level],
+    samples: &[UnitSample],
+    params: &PoissonParams,
+) -> Result<PoissonLevel> {
+    let nn = level.nodes.len();
+    let h = level.h();
+    let n = level.n;
+    // Splat flux and screening mass: each chunk of samples finds its nodes and weights in
+    // parallel, then the sums are taken serially in sample order (the same sums, bit for
+    // bit, as one serial loop).
+    let contributions: Vec<Vec<(u32, u32, f64)>> = samples
+        .par_chunks(SPLAT_CHUNK)
+        .enumerate()
+        .map(|(ci, chunk)| {
+            let mut out = Vec::with_capacity(chunk.len() * 8);
+            for (k, s) in chunk.iter().enumerate() {
+                let (c, t) = cell_of(s.q, n);
+                for o in 0..8 {
+                    let off = [(o & 1) as i64, ((o >> 1) & 1) as i64, ((o >> 2) & 1) as i64];
+                    if let Some(i) = level.index(add(c, off, 1)) {
+                        out.push((i as u32, (ci * SPLAT_CHUNK + k) as u32, trilinear(t, off)));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    let mut v = vec![DVec3::ZERO; nn];
+    let mut mass = vec![0.0; nn];
+    for &(i, k, w) in contributions.iter().flatten() {
+        let s = &samples[k as usize];
+        v[i as usize] += s.flux * (w / (h * h * h));
+        mass[i as usize] += s.mass * w;
+    }
+    drop(contributions);
+    // Start values and Dirichlet values from the coarser levels.
+    let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
+        match coarser.len() {
+            0 => 0.0,
+            n => comp.interpolated_from(n - 1, p),
+        }
+    };
+    // Per node, independently (in parallel; each chunk of nodes memoises the coarser
+    // levels' values in its own `Composite`, a cache that does not change any value): the
+    // start value, the diagonal, the right-hand side and the neighbour table (`NONE` =
+    // outside the domain or the band), written in place.
+    let mut x = vec![0.0; nn];
+    let mut diag = vec![0.0; nn];
+    let mut b = vec![0.0; nn];
+    let mut nbr = vec![[NONE; 6]; nn];
+    level
+        .nodes
+        .par_chunks(ASSEMBLY_CHUNK)
+        .zip(x.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(diag.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(b.par_chunks_mut(ASSEMBLY_CHUNK))
+        .zip(nbr.par_chunks_mut(ASSEMBLY_CHUNK))
+        .enumerate()
+        .for_each(|(ci, ((((chunk, xc), dc), bc), nc))| {
+            let mut comp = Composite {
+                levels: coarser,
+                memo: NodeMap::default(),
+                outside: 0.0,
+            };
+            for (k, &p) in chunk.iter().enumerate() {
+                let i = ci * ASSEMBLY_CHUNK + k;
+                xc[k] = start_and_boundary(p, &mut comp);
+                let mut d = params.screening / h * mass[i];
+                let mut rhs = 0.0;
+                for (ai, axis) in AXES.iter().enumerate() {
+                    for (si, s) in [-1i64, 1].into_iter().enumerate() {
+                        let m = add(p, *axis, s);
+                        if !level.in_domain(m) {
+                            continue;
+                        }
+                        d += 1.0;
+                        let a = axis.iter().position(|&c| c == 1).unwrap_or(0);
+                        let (vm, known) = match level.index(m) {
+                            Some(j) => {
+                                nc[k][2 * ai + si] = j as u32;
+                                (v[j][a], None)
+                            }
+                            None => (0.0, Some(start_and_boundary(m, &mut comp))),
+                        };
+                        let ve = 0.5 * (v[i][a] + vm);
+                        // Edge below (s = −1) adds +h·V_e, edge above subtracts it.
+                        rhs -= s as f64 * h * ve;
+                        if let Some(val) = known {
+                            rhs += val;
+                        }
+                    }
+                }
+                dc[k] = d;
+                bc[k] = rhs;
+            }
+        });
+    drop(v);
+    drop(mass);
+    level.diag = diag;
+    level.nbr = nbr;
+    // The coarse parents are needed only where this level takes part in a V-cycle: a
+    // complete level, or a band level when the bands are multigrid-preconditioned (ours,
+    // issue 14: at depth 9 the table is 32 bytes per band node, unused by Jacobi).
+    let in_v_cycle = level.complete || params.multigrid_bands;
+    if let Some(coarse) = coarser.last().filter(|_| in_v_cycle) {
+        level.up = level
+            .nodes
+            .par_iter()
+            .map(|&p| {
+                let mut out = [NONE; 8];
+                for (k, (q, _)) in parents(p).enumerate() {
+                    if coarse.in_domain(q) {
+                        if let Some(j) = coarse.index(q) {
+                            out[k] = j as u32;
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+    }
+    // Complete levels: a V-cycle. Band levels: Jacobi unless asked (see
+    // `PoissonParams::multigrid_bands`).
+    let multigrid = level.complete || params.multigrid_bands;
+    let cg = level_cg(level, coarser, multigrid, &b, &mut x, params)?;
+    level.x = x;
+    Ok(PoissonLevel {
+        depth: level.depth,
+        nodes: nn,
+        iterations: cg.iterations,
+        residual: cg.relative_residual,
+    })
+}
+
+/// Samples per parallel task of a level's splat.
+pub(super) const SPLAT_CHUNK: usize = 65_536;
+
+/// Nodes per parallel task of a level's assembly (each task memoises its own coarser values).
+pub(super) const ASSEMBLY_CHUNK: usize = 16_384;
