@@ -12,7 +12,7 @@
 //!   a lagging hip flap) that linear blend skinning cannot produce; [`Performer::pose`] →
 //!   [`PosedFrame`] with LBS and true vertices and each effect's displacement separately.
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
-//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
+//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching tetrahedra.
 //! * Motions ([`skin_core::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
 //!   [`exercise_motion`] (every limited DOF at once through 90 % of its range, turning on the
 //!   spot), and BVH playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads,

@@ -12,7 +12,7 @@ mod decimate;
 mod gltf;
 mod heat_weights;
 mod laplacian;
-mod marching_cubes;
+mod marching_tetrahedra;
 mod metrics;
 mod normals;
 mod obj;
@@ -40,7 +40,7 @@ pub use laplacian::{
     cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
     MassKind, DEFAULT_DEGENERATE_TOL,
 };
-pub use marching_cubes::{marching_cubes, ScalarGrid};
+pub use marching_tetrahedra::{marching_tetrahedra, ScalarGrid};
 pub use metrics::{
     mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
     OneSidedDistance,
