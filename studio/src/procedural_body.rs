@@ -40,7 +40,7 @@ pub struct ProceduralBodyParams {
 impl Default for ProceduralBodyParams {
     fn default() -> Self {
         ProceduralBodyParams {
-            height_m: skin_core::skeleton::DEFAULT_HEIGHT_M,
+            height_m: skin_core::skeleton::HumanParams::DEFAULT_HEIGHT_M,
             grid_spacing_m: 0.02,
             blend_m: 0.015,
             weight_falloff_m: 0.02,
@@ -79,7 +79,7 @@ fn smin(a: f64, b: f64, k: f64) -> f64 {
 fn capsules(s: &Skeleton, height_m: f64) -> Result<Vec<Capsule>> {
     let fk = s.forward_kinematics(&s.rest_pose())?;
     let w = fk.world_from_joint();
-    let k = height_m / skin_core::skeleton::DEFAULT_HEIGHT_M;
+    let k = height_m / skin_core::skeleton::HumanParams::DEFAULT_HEIGHT_M;
     let j = |n: &str| {
         s.joint_index(n).ok_or_else(|| Error::InvalidParam {
             name: "skeleton",

@@ -151,7 +151,7 @@ pub struct WrinkleParams {
     /// [`DEFAULT_WRINKLE_MAX_EDGE_M`].
     pub max_edge_m: f64,
     /// Phong tessellation factor of the smooth fine surface, in `[0, 1]`. Default:
-    /// [`skin_core::mesh::DEFAULT_PHONG_ALPHA`].
+    /// [`skin_core::mesh::RefineParams::DEFAULT_PHONG_ALPHA`].
     pub phong_alpha: f64,
     /// Joint creases.
     pub creases: Vec<CreaseWrinkles>,
@@ -214,7 +214,7 @@ impl Default for WrinkleParams {
         }
         Self {
             max_edge_m: DEFAULT_WRINKLE_MAX_EDGE_M,
-            phong_alpha: skin_core::mesh::DEFAULT_PHONG_ALPHA,
+            phong_alpha: skin_core::mesh::RefineParams::DEFAULT_PHONG_ALPHA,
             creases,
             garment: GarmentWrinkles::default(),
             refine_all_faces: false,

@@ -31,45 +31,52 @@ use super::distance::GrayF32Image;
 use super::mask::Mask;
 use crate::error::{Error, Result};
 
-/// Default multiple of the per-pixel deviation in the threshold. Not given by Sand; 3σ is the
-/// usual choice (it passes 99.7 % of Gaussian noise per channel; Stauffer–Grimson use 2.5σ,
-/// OpenCV MOG2 4σ).
-pub const DEFAULT_K_SIGMA: f32 = 3.0;
-/// Default floor of the per-pixel threshold, in intensity units on `[0, 1]` (≈ 25/255). Sand
-/// §4.2 uses "a large subtraction threshold to overcome shadows and video compression
-/// artifacts" without a value; 0.1 rejects 8-bit compression noise and soft shadows while
-/// keeping clothing that differs from the backdrop by a tenth of full scale.
-pub const DEFAULT_MIN_THRESHOLD: f32 = 0.1;
-/// Default minimum area of a kept foreground component, pixels (a 4×4 speck). Not in Sand.
-pub const DEFAULT_MIN_COMPONENT_PX: usize = 16;
-/// Default largest hole that is filled, pixels (Vlasic §3.2.1 fills "small gaps"; no value).
-pub const DEFAULT_MAX_HOLE_PX: usize = 16;
+impl BackgroundParams {
+    /// Default multiple of the per-pixel deviation in the threshold. Not given by Sand; 3σ is the
+    /// usual choice (it passes 99.7 % of Gaussian noise per channel; Stauffer–Grimson use 2.5σ,
+    /// OpenCV MOG2 4σ).
+    pub const DEFAULT_K_SIGMA: f32 = 3.0;
+
+    /// Default floor of the per-pixel threshold, in intensity units on `[0, 1]` (≈ 25/255). Sand
+    /// §4.2 uses "a large subtraction threshold to overcome shadows and video compression
+    /// artifacts" without a value; 0.1 rejects 8-bit compression noise and soft shadows while
+    /// keeping clothing that differs from the backdrop by a tenth of full scale.
+    pub const DEFAULT_MIN_THRESHOLD: f32 = 0.1;
+
+    /// Default minimum area of a kept foreground component, pixels (a 4×4 speck). Not in Sand.
+    pub const DEFAULT_MIN_COMPONENT_PX: usize = 16;
+
+    /// Default largest hole that is filled, pixels (Vlasic §3.2.1 fills "small gaps"; no value).
+    pub const DEFAULT_MAX_HOLE_PX: usize = 16;
+}
 
 /// Knobs of background learning and classification.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BackgroundParams {
     /// Multiple `k` of the per-pixel deviation σᵢ in the threshold `tᵢ = max(t_min, k·σᵢ)`,
     /// dimensionless. Source: standard practice (Sand §4.2 gives no value).
-    /// Default: [`DEFAULT_K_SIGMA`] = 3.
+    /// Default: [`BackgroundParams::DEFAULT_K_SIGMA`] = 3.
     pub k_sigma: f32,
     /// Threshold floor `t_min`, intensity units on `[0, 1]`. Source: Sand §4.2 ("large
-    /// subtraction threshold", no value). Default: [`DEFAULT_MIN_THRESHOLD`] = 0.1.
+    /// subtraction threshold", no value). Default: [`BackgroundParams::DEFAULT_MIN_THRESHOLD`] =
+    /// 0.1.
     pub min_threshold: f32,
     /// Foreground 8-connected components smaller than this many pixels are removed after
-    /// classification; 0 disables. Default: [`DEFAULT_MIN_COMPONENT_PX`] = 16.
+    /// classification; 0 disables. Default: [`BackgroundParams::DEFAULT_MIN_COMPONENT_PX`] = 16.
     pub min_component_px: usize,
     /// Enclosed 4-connected background holes of at most this many pixels are filled after
-    /// classification (Vlasic 2010 §3.2.1); 0 disables. Default: [`DEFAULT_MAX_HOLE_PX`] = 16.
+    /// classification (Vlasic 2010 §3.2.1); 0 disables. Default:
+    /// [`BackgroundParams::DEFAULT_MAX_HOLE_PX`] = 16.
     pub max_hole_px: usize,
 }
 
 impl Default for BackgroundParams {
     fn default() -> Self {
         BackgroundParams {
-            k_sigma: DEFAULT_K_SIGMA,
-            min_threshold: DEFAULT_MIN_THRESHOLD,
-            min_component_px: DEFAULT_MIN_COMPONENT_PX,
-            max_hole_px: DEFAULT_MAX_HOLE_PX,
+            k_sigma: BackgroundParams::DEFAULT_K_SIGMA,
+            min_threshold: BackgroundParams::DEFAULT_MIN_THRESHOLD,
+            min_component_px: BackgroundParams::DEFAULT_MIN_COMPONENT_PX,
+            max_hole_px: BackgroundParams::DEFAULT_MAX_HOLE_PX,
         }
     }
 }

@@ -19,18 +19,23 @@ use super::mask::{Mask, MASK_FOREGROUND_GREY};
 use crate::error::{Error, Result};
 use crate::math::DVec2;
 
-/// Default half-width of the tangent window, in contour points (see
-/// [`ContourParams::tangent_half_window`]).
-pub const DEFAULT_TANGENT_HALF_WINDOW: usize = 3;
-/// Default offset of contour points along their normal, pixels: half a pixel puts the points
-/// on the pixel edges between foreground and background, the zero level set of
-/// [`crate::image::signed_distance`].
-pub const DEFAULT_OUTWARD_OFFSET_PX: f64 = 0.5;
-/// Default arc-length spacing of contour samples, pixels: Vlasic 2010 §2.4.2 "we sample the
-/// contours (every 10 pixels)".
-pub const DEFAULT_SAMPLE_STEP_PX: f64 = 10.0;
-/// Default minimum number of traced boundary pixels for a contour to be kept.
-pub const DEFAULT_MIN_POINTS: usize = 1;
+impl ContourParams {
+    /// Default half-width of the tangent window, in contour points (see
+    /// [`ContourParams::tangent_half_window`]).
+    pub const DEFAULT_TANGENT_HALF_WINDOW: usize = 3;
+
+    /// Default offset of contour points along their normal, pixels: half a pixel puts the points
+    /// on the pixel edges between foreground and background, the zero level set of
+    /// [`crate::image::signed_distance`].
+    pub const DEFAULT_OUTWARD_OFFSET_PX: f64 = 0.5;
+
+    /// Default arc-length spacing of contour samples, pixels: Vlasic 2010 §2.4.2 "we sample the
+    /// contours (every 10 pixels)".
+    pub const DEFAULT_SAMPLE_STEP_PX: f64 = 10.0;
+
+    /// Default minimum number of traced boundary pixels for a contour to be kept.
+    pub const DEFAULT_MIN_POINTS: usize = 1;
+}
 
 /// Below this length a smoothed tangent (or fallback direction) is treated as zero.
 const DIRECTION_EPS: f64 = 1e-9;
@@ -47,28 +52,28 @@ pub struct ContourParams {
     /// Traced 8-connected borders are staircases; `w = 3` smooths the staircase over about
     /// seven pixels, which keeps normal errors on straight edges of any slope within a few
     /// degrees while following corners of a human silhouette. Not from a paper.
-    /// Default: [`DEFAULT_TANGENT_HALF_WINDOW`] = 3.
+    /// Default: [`ContourParams::DEFAULT_TANGENT_HALF_WINDOW`] = 3.
     pub tangent_half_window: usize,
     /// Offset of each returned point along its outward normal, pixels. 0 returns the centres
     /// of the traced boundary pixels (which lie inside the foreground); 0.5 moves them onto
-    /// the pixel-edge boundary. Default: [`DEFAULT_OUTWARD_OFFSET_PX`] = 0.5.
+    /// the pixel-edge boundary. Default: [`ContourParams::DEFAULT_OUTWARD_OFFSET_PX`] = 0.5.
     pub outward_offset_px: f64,
     /// Contours with fewer traced pixels are dropped (1 keeps single-pixel specks).
-    /// Default: [`DEFAULT_MIN_POINTS`] = 1.
+    /// Default: [`ContourParams::DEFAULT_MIN_POINTS`] = 1.
     pub min_points: usize,
     /// If `> 0`, each contour is resampled every `sample_step_px` pixels of arc length
     /// ([`Contour::resample`]); 0 keeps one point per boundary pixel. Source: Vlasic 2010
-    /// §2.4.2. Default: [`DEFAULT_SAMPLE_STEP_PX`] = 10.
+    /// §2.4.2. Default: [`ContourParams::DEFAULT_SAMPLE_STEP_PX`] = 10.
     pub sample_step_px: f64,
 }
 
 impl Default for ContourParams {
     fn default() -> Self {
         ContourParams {
-            tangent_half_window: DEFAULT_TANGENT_HALF_WINDOW,
-            outward_offset_px: DEFAULT_OUTWARD_OFFSET_PX,
-            min_points: DEFAULT_MIN_POINTS,
-            sample_step_px: DEFAULT_SAMPLE_STEP_PX,
+            tangent_half_window: ContourParams::DEFAULT_TANGENT_HALF_WINDOW,
+            outward_offset_px: ContourParams::DEFAULT_OUTWARD_OFFSET_PX,
+            min_points: ContourParams::DEFAULT_MIN_POINTS,
+            sample_step_px: ContourParams::DEFAULT_SAMPLE_STEP_PX,
         }
     }
 }

@@ -28,9 +28,11 @@ use crate::error::{Error, Result};
 
 /// Grey level at or above which a read mask pixel is foreground.
 pub const MASK_READ_THRESHOLD: u8 = 128;
-/// Default depth quantum, metres per 16-bit unit: 0.1 mm, so the 16-bit range covers
-/// 0.1 mm – 6.55 m, a capture volume with sub-millimetre steps.
-pub const DEFAULT_DEPTH_SCALE_M: f64 = 1e-4;
+impl DepthEncoding {
+    /// Default depth quantum, metres per 16-bit unit: 0.1 mm, so the 16-bit range covers
+    /// 0.1 mm – 6.55 m, a capture volume with sub-millimetre steps.
+    pub const DEFAULT_SCALE_M: f64 = 1e-4;
+}
 /// 16-bit value marking "no data" in depth PNGs.
 pub const DEPTH_NO_DATA: u16 = 0;
 /// Norm below which a normal is treated as missing.
@@ -47,7 +49,7 @@ pub type Rgb16Image = ImageBuffer<Rgb<u16>, Vec<u16>>;
 /// `scale_m / 2` (plus `f32` rounding).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DepthEncoding {
-    /// Metres per 16-bit unit. Default: [`DEFAULT_DEPTH_SCALE_M`] = 1e-4 (0.1 mm).
+    /// Metres per 16-bit unit. Default: [`DepthEncoding::DEFAULT_SCALE_M`] = 1e-4 (0.1 mm).
     pub scale_m: f64,
     /// Depth of value 0, metres (value 0 itself is reserved for no data). Default: 0.
     pub offset_m: f64,
@@ -56,7 +58,7 @@ pub struct DepthEncoding {
 impl Default for DepthEncoding {
     fn default() -> Self {
         DepthEncoding {
-            scale_m: DEFAULT_DEPTH_SCALE_M,
+            scale_m: DepthEncoding::DEFAULT_SCALE_M,
             offset_m: 0.0,
         }
     }

@@ -47,7 +47,7 @@ use rayon::prelude::*;
 
 use crate::lsq::{CholeskyParams, SparseCholesky};
 use crate::math::DVec3;
-use crate::mesh::skinning::{SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW};
+use crate::mesh::skinning::SkinWeights;
 use crate::mesh::{
     cotangent_laplacian, mass_matrix, vertex_normals, EdgeTopology, LaplacianParams, MassKind,
     MeshQuery, NormalWeighting, TriMesh, WindingNumber,
@@ -158,32 +158,46 @@ pub fn rest_bones(skeleton: &Skeleton) -> Result<Vec<Bone>> {
         .collect())
 }
 
-/// Default heat constant `c` in this crate's `(−L + M H)` form: 3, Pinocchio's effective
-/// value. Baran & Popović 2007 §4 write `c = 1` for `−Δ + H`; their reference
-/// implementation (`attachment.cpp`) builds `Δ` from cotangent sums `Σ(cot α + cot β)`
-/// divided by the sum of the one-ring's `|e₁ × e₂|` (twice its area), which is one third of
-/// the cotangent operator `M⁻¹L` with barycentric mass used here (`L` with `½ Σ cot`, `M` a
-/// third of the one-ring area). Their `c = 1` is therefore `c = 3` here. Measured on the
-/// MakeHuman body (the skeleton's rest bones, visibility on), one studio exercise frame:
-/// LBS of the default against `c = 1` with Voronoi mass closer to the performer by
-/// frame (9.0 → 7.9 mm, both with barycentric mass here, Voronoi before), 1,257 more
-/// vertices nearly rigid (weight ≥ 0.95).
-pub const DEFAULT_HEAT_CONSTANT: f64 = 3.0;
-/// Default relative tolerance under which bones count as equidistant.
-pub const DEFAULT_TIE_TOLERANCE: f64 = 1e-9;
-/// Default distance floor as a fraction of the bounding-box diagonal.
-pub const DEFAULT_MIN_DISTANCE_REL: f64 = 1e-6;
+impl HeatWeightsParams {
+    /// Default threshold below which weights are dropped before renormalising.
+    pub const DEFAULT_PRUNE_BELOW: f64 = 0.01;
 
-/// Default tolerance of the visibility test, as a fraction of the model's largest extent
-/// (Pinocchio's `attachment.cpp`: 0.002 on its unit-normalised model).
-pub const DEFAULT_VISIBILITY_TOLERANCE_REL: f64 = 0.002;
-/// Default spacing of the visibility test's samples along a segment, as a fraction of the
-/// model's largest extent (ours: equal to the tolerance, so an excursion the tolerance would
-/// reject is about one sample wide).
-pub const DEFAULT_VISIBILITY_STEP_REL: f64 = 0.002;
-/// Default cosine of the cone about the vertex normal in which its bone must lie
-/// (Pinocchio's `attachment.cpp`: 0.5, i.e. within 60°).
-pub const DEFAULT_VISIBILITY_CONE_COS: f64 = 0.5;
+    /// Default maximum number of influences per vertex.
+    pub const DEFAULT_MAX_INFLUENCES: usize = 4;
+
+    /// Default heat constant `c` in this crate's `(−L + M H)` form: 3, Pinocchio's effective
+    /// value. Baran & Popović 2007 §4 write `c = 1` for `−Δ + H`; their reference
+    /// implementation (`attachment.cpp`) builds `Δ` from cotangent sums `Σ(cot α + cot β)`
+    /// divided by the sum of the one-ring's `|e₁ × e₂|` (twice its area), which is one third of
+    /// the cotangent operator `M⁻¹L` with barycentric mass used here (`L` with `½ Σ cot`, `M` a
+    /// third of the one-ring area). Their `c = 1` is therefore `c = 3` here. Measured on the
+    /// MakeHuman body (the skeleton's rest bones, visibility on), one studio exercise frame:
+    /// LBS of the default against `c = 1` with Voronoi mass closer to the performer by
+    /// frame (9.0 → 7.9 mm, both with barycentric mass here, Voronoi before), 1,257 more
+    /// vertices nearly rigid (weight ≥ 0.95).
+    pub const DEFAULT_HEAT_CONSTANT: f64 = 3.0;
+
+    /// Default relative tolerance under which bones count as equidistant.
+    pub const DEFAULT_TIE_TOLERANCE: f64 = 1e-9;
+
+    /// Default distance floor as a fraction of the bounding-box diagonal.
+    pub const DEFAULT_MIN_DISTANCE_REL: f64 = 1e-6;
+}
+
+impl VisibilityParams {
+    /// Default tolerance of the visibility test, as a fraction of the model's largest extent
+    /// (Pinocchio's `attachment.cpp`: 0.002 on its unit-normalised model).
+    pub const DEFAULT_TOLERANCE_REL: f64 = 0.002;
+
+    /// Default spacing of the visibility test's samples along a segment, as a fraction of the
+    /// model's largest extent (ours: equal to the tolerance, so an excursion the tolerance would
+    /// reject is about one sample wide).
+    pub const DEFAULT_STEP_REL: f64 = 0.002;
+
+    /// Default cosine of the cone about the vertex normal in which its bone must lie
+    /// (Pinocchio's `attachment.cpp`: 0.5, i.e. within 60°).
+    pub const DEFAULT_NORMAL_CONE_COS: f64 = 0.5;
+}
 
 /// Pinocchio's visibility test (module docs): a vertex is heated by its nearest bone only if
 /// the segment to it stays inside the volume and points within a cone about the normal.
@@ -191,23 +205,23 @@ pub const DEFAULT_VISIBILITY_CONE_COS: f64 = 0.5;
 pub struct VisibilityParams {
     /// A sample of the segment counts as inside when its generalised winding number is at
     /// least ½ or it lies within this fraction of the model's largest extent of the surface.
-    /// Default: [`DEFAULT_VISIBILITY_TOLERANCE_REL`] = 0.002 (Pinocchio).
+    /// Default: [`VisibilityParams::DEFAULT_TOLERANCE_REL`] = 0.002 (Pinocchio).
     pub tolerance_rel: f64,
     /// Spacing of the samples along the segment, fraction of the model's largest extent.
-    /// Default: [`DEFAULT_VISIBILITY_STEP_REL`] = 0.002 (ours; 3.6 mm on a 1.8 m body).
+    /// Default: [`VisibilityParams::DEFAULT_STEP_REL`] = 0.002 (ours; 3.6 mm on a 1.8 m body).
     pub step_rel: f64,
     /// The direction from the bone's closest point to the vertex must have at least this
     /// cosine with the vertex normal (area-weighted); −1 switches the cone off. Default:
-    /// [`DEFAULT_VISIBILITY_CONE_COS`] = 0.5 (Pinocchio).
+    /// [`VisibilityParams::DEFAULT_NORMAL_CONE_COS`] = 0.5 (Pinocchio).
     pub normal_cone_cos: f64,
 }
 
 impl Default for VisibilityParams {
     fn default() -> Self {
         Self {
-            tolerance_rel: DEFAULT_VISIBILITY_TOLERANCE_REL,
-            step_rel: DEFAULT_VISIBILITY_STEP_REL,
-            normal_cone_cos: DEFAULT_VISIBILITY_CONE_COS,
+            tolerance_rel: VisibilityParams::DEFAULT_TOLERANCE_REL,
+            step_rel: VisibilityParams::DEFAULT_STEP_REL,
+            normal_cone_cos: VisibilityParams::DEFAULT_NORMAL_CONE_COS,
         }
     }
 }
@@ -220,21 +234,21 @@ fn default_visibility() -> Option<VisibilityParams> {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct HeatWeightsParams {
     /// Heat constant `c` in `H_jj = c / d_j²`, dimensionless (Baran & Popović 2007 §4).
-    /// Default: [`DEFAULT_HEAT_CONSTANT`] = 3 (the paper's 1 in its implementation's
-    /// discretisation).
+    /// Default: [`HeatWeightsParams::DEFAULT_HEAT_CONSTANT`] = 3 (the paper's 1 in its
+    /// implementation's discretisation).
     pub heat_constant: f64,
     /// Weights below this are dropped before renormalising (Pinocchio output is dense;
     /// sparse weights are what real-time skinning consumes). Default:
-    /// [`DEFAULT_PRUNE_BELOW`] = 0.01.
+    /// [`HeatWeightsParams::DEFAULT_PRUNE_BELOW`] = 0.01.
     pub prune_below: f64,
     /// Maximum influences kept per vertex (GPU skinning convention). Default:
-    /// [`DEFAULT_MAX_INFLUENCES`] = 4.
+    /// [`HeatWeightsParams::DEFAULT_MAX_INFLUENCES`] = 4.
     pub max_influences: usize,
     /// Relative distance tolerance under which bones are equidistant and share the vertex.
-    /// Default: [`DEFAULT_TIE_TOLERANCE`].
+    /// Default: [`HeatWeightsParams::DEFAULT_TIE_TOLERANCE`].
     pub tie_tolerance: f64,
     /// Distances are floored at this fraction of the bounding-box diagonal, so vertices on a
-    /// bone get a large but finite `H`. Default: [`DEFAULT_MIN_DISTANCE_REL`].
+    /// bone get a large but finite `H`. Default: [`HeatWeightsParams::DEFAULT_MIN_DISTANCE_REL`].
     pub min_distance_rel: f64,
     /// Laplacian construction (degenerate triangles). Default: [`LaplacianParams::default`].
     pub laplacian: LaplacianParams,
@@ -252,11 +266,11 @@ pub struct HeatWeightsParams {
 impl Default for HeatWeightsParams {
     fn default() -> Self {
         Self {
-            heat_constant: DEFAULT_HEAT_CONSTANT,
-            prune_below: DEFAULT_PRUNE_BELOW,
-            max_influences: DEFAULT_MAX_INFLUENCES,
-            tie_tolerance: DEFAULT_TIE_TOLERANCE,
-            min_distance_rel: DEFAULT_MIN_DISTANCE_REL,
+            heat_constant: HeatWeightsParams::DEFAULT_HEAT_CONSTANT,
+            prune_below: HeatWeightsParams::DEFAULT_PRUNE_BELOW,
+            max_influences: HeatWeightsParams::DEFAULT_MAX_INFLUENCES,
+            tie_tolerance: HeatWeightsParams::DEFAULT_TIE_TOLERANCE,
+            min_distance_rel: HeatWeightsParams::DEFAULT_MIN_DISTANCE_REL,
             laplacian: LaplacianParams::default(),
             mass: MassKind::Barycentric,
             cholesky: CholeskyParams::default(),

@@ -27,8 +27,10 @@ pub enum DegenerateFaces {
     Error,
 }
 
-/// Default relative area threshold for degenerate triangles (`DEFAULT_DEGENERATE_TOL`).
-pub const DEFAULT_DEGENERATE_TOL: f64 = 1e-12;
+impl LaplacianParams {
+    /// Default relative area threshold for degenerate triangles.
+    pub const DEFAULT_DEGENERATE_TOL: f64 = 1e-12;
+}
 
 /// Knobs of the cotangent Laplacian and mass matrix.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -37,7 +39,8 @@ pub struct LaplacianParams {
     pub degenerate_faces: DegenerateFaces,
     /// A triangle is degenerate when `|e₁ × e₂| ≤ tol · (longest edge)²` (twice its area
     /// relative to the square of its size; 0 for collinear corners), dimensionless. With 1e-12
-    /// the largest cotangent kept is about 10¹². Default: [`DEFAULT_DEGENERATE_TOL`].
+    /// the largest cotangent kept is about 10¹². Default:
+    /// [`LaplacianParams::DEFAULT_DEGENERATE_TOL`].
     pub degenerate_tol: f64,
 }
 
@@ -45,7 +48,7 @@ impl Default for LaplacianParams {
     fn default() -> Self {
         Self {
             degenerate_faces: DegenerateFaces::Skip,
-            degenerate_tol: DEFAULT_DEGENERATE_TOL,
+            degenerate_tol: LaplacianParams::DEFAULT_DEGENERATE_TOL,
         }
     }
 }

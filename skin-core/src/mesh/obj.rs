@@ -32,8 +32,10 @@ use std::collections::HashMap;
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// Group name given to faces that precede any `g` line, and to a bare `g` line.
-pub const DEFAULT_GROUP: &str = "default";
+impl ObjFile {
+    /// Group name given to faces that precede any `g` line, and to a bare `g` line.
+    pub const DEFAULT_GROUP: &str = "default";
+}
 
 /// A parsed OBJ file: all vertices and all polygons with their group membership.
 ///
@@ -131,7 +133,7 @@ impl GroupState {
             return id;
         }
         if self.g.is_empty() {
-            let d = self.name_id(DEFAULT_GROUP, names);
+            let d = self.name_id(ObjFile::DEFAULT_GROUP, names);
             self.g.push(d);
         }
         let mut set = self.g.clone();
@@ -614,7 +616,11 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            rel.group_mesh(DEFAULT_GROUP).unwrap().uvs.unwrap().faces,
+            rel.group_mesh(ObjFile::DEFAULT_GROUP)
+                .unwrap()
+                .uvs
+                .unwrap()
+                .faces,
             vec![[0, 1, 2]]
         );
         for (bad, line) in [

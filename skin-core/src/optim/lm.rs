@@ -15,16 +15,22 @@ use super::numeric::numeric_jacobian;
 use crate::check::all_finite;
 use crate::error::{Error, Result};
 
-/// Default iteration limit. Default: 200.
-pub const DEFAULT_MAX_ITERATIONS: usize = 200;
-/// Default relative cost tolerance. Default: 1e-12.
-pub const DEFAULT_COST_TOLERANCE: f64 = 1e-12;
-/// Default relative step tolerance. Default: 1e-10.
-pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-10;
-/// Default gradient tolerance. Default: 1e-12.
-pub const DEFAULT_GRADIENT_TOLERANCE: f64 = 1e-12;
-/// Default initial damping relative to the scaling. Default: 1e-3 (Madsen et al. 2004, §3.2).
-pub const DEFAULT_INITIAL_LAMBDA: f64 = 1e-3;
+impl LmParams {
+    /// Default iteration limit. Default: 200.
+    pub const DEFAULT_MAX_ITERATIONS: usize = 200;
+
+    /// Default relative cost tolerance. Default: 1e-12.
+    pub const DEFAULT_COST_TOLERANCE: f64 = 1e-12;
+
+    /// Default relative step tolerance. Default: 1e-10.
+    pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-10;
+
+    /// Default gradient tolerance. Default: 1e-12.
+    pub const DEFAULT_GRADIENT_TOLERANCE: f64 = 1e-12;
+
+    /// Default initial damping relative to the scaling. Default: 1e-3 (Madsen et al. 2004, §3.2).
+    pub const DEFAULT_INITIAL_LAMBDA: f64 = 1e-3;
+}
 
 /// Damping beyond which no step can make progress; the method stops.
 const MAX_LAMBDA: f64 = 1e32;
@@ -54,11 +60,11 @@ pub struct LmParams {
 impl Default for LmParams {
     fn default() -> Self {
         Self {
-            max_iterations: DEFAULT_MAX_ITERATIONS,
-            cost_tolerance: DEFAULT_COST_TOLERANCE,
-            step_tolerance: DEFAULT_STEP_TOLERANCE,
-            gradient_tolerance: DEFAULT_GRADIENT_TOLERANCE,
-            initial_lambda: DEFAULT_INITIAL_LAMBDA,
+            max_iterations: LmParams::DEFAULT_MAX_ITERATIONS,
+            cost_tolerance: LmParams::DEFAULT_COST_TOLERANCE,
+            step_tolerance: LmParams::DEFAULT_STEP_TOLERANCE,
+            gradient_tolerance: LmParams::DEFAULT_GRADIENT_TOLERANCE,
+            initial_lambda: LmParams::DEFAULT_INITIAL_LAMBDA,
         }
     }
 }
