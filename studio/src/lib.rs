@@ -79,12 +79,9 @@ pub use markers::{
 pub use motion::{
     exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
     DofCoverage, ExerciseParams, FastMotionParams, PoseShare, RangeOfMotionParams,
-    DEFAULT_EXERCISE_DURATION_S, DEFAULT_EXERCISE_TURN_DEG_PER_S,
 };
 pub use muscles::{
     activation_ramp, Bump, EffectAxis, EffectSide, PoseDeformParams, PoseEffect, Push,
-    DEFAULT_BICEPS_M, DEFAULT_BRACHIORADIALIS_M, DEFAULT_CALF_M, DEFAULT_DELTOID_M,
-    DEFAULT_ELBOW_VOLUME_M, DEFAULT_HAMSTRINGS_M, DEFAULT_KNEE_VOLUME_M, DEFAULT_TRUNK_M,
 };
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
@@ -93,6 +90,4 @@ pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Reta
 pub use texture::{AlbedoTexture, Material, Print, TextureParams};
 pub use wrinkles::{
     CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams, CREASE_LOBE_RAD,
-    DEFAULT_FULL_COMPRESSION, DEFAULT_GARMENT_WAVELENGTH_M, DEFAULT_WRINKLE_AMPLITUDE_M,
-    DEFAULT_WRINKLE_MAX_EDGE_M, DEFAULT_WRINKLE_WAVELENGTH_M, WRINKLE_EDGE_MARGIN,
 };

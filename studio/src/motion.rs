@@ -240,18 +240,20 @@ const EXERCISE_COMPONENTS: usize = 3;
 /// frames in the knee's fullest 5° cell).
 const EXERCISE_WARP_KNOTS: usize = 64;
 
-/// Default duration of [`exercise_motion`], seconds: the 5-minute acceptance run.
-pub const DEFAULT_EXERCISE_DURATION_S: f64 = 300.0;
+impl ExerciseParams {
+    /// Default duration of [`exercise_motion`], seconds: the 5-minute acceptance run.
+    pub const DEFAULT_DURATION_S: f64 = 300.0;
 
-/// Default turn rate of [`exercise_motion`], degrees per second: one turn every 30 s.
-pub const DEFAULT_EXERCISE_TURN_DEG_PER_S: f64 = 12.0;
+    /// Default turn rate of [`exercise_motion`], degrees per second: one turn every 30 s.
+    pub const DEFAULT_TURN_DEG_PER_S: f64 = 12.0;
+}
 
 /// Parameters of [`exercise_motion`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ExerciseParams {
     /// Frame time, seconds. Default: 1/30 (the studio's video rate).
     pub frame_time_s: f64,
-    /// Duration, seconds. Default: [`DEFAULT_EXERCISE_DURATION_S`] = 300 (the 5 minutes over
+    /// Duration, seconds. Default: [`ExerciseParams::DEFAULT_DURATION_S`] = 300 (the 5 minutes over
     /// which the acceptance figures are measured).
     pub duration_s: f64,
     /// Lowest and highest frequency of a DOF's sinusoids, Hz; the lower must be below the
@@ -263,7 +265,7 @@ pub struct ExerciseParams {
     pub reach: f64,
     /// Rate at which the performer turns on the spot (root yaw, `pelvis.yaw`), degrees per
     /// second, as [`RangeOfMotionParams::turn_deg_per_s`]. Default:
-    /// [`DEFAULT_EXERCISE_TURN_DEG_PER_S`] = 12 — one turn every 30 s, ten in 5 minutes;
+    /// [`ExerciseParams::DEFAULT_TURN_DEG_PER_S`] = 12 — one turn every 30 s, ten in 5 minutes;
     /// below the frequency band, so every limb pose is seen from many directions by fixed
     /// cameras. It does not enter [`range_coverage`] or [`max_pose_share`] (the root is not
     /// counted), so any rate meets the acceptance.
@@ -277,10 +279,10 @@ impl Default for ExerciseParams {
     fn default() -> Self {
         ExerciseParams {
             frame_time_s: 1.0 / 30.0,
-            duration_s: DEFAULT_EXERCISE_DURATION_S,
+            duration_s: ExerciseParams::DEFAULT_DURATION_S,
             frequency_hz: (0.05, 0.3),
             reach: 0.9,
-            turn_deg_per_s: DEFAULT_EXERCISE_TURN_DEG_PER_S,
+            turn_deg_per_s: ExerciseParams::DEFAULT_TURN_DEG_PER_S,
             seed: 11,
         }
     }

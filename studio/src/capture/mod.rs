@@ -34,8 +34,7 @@ pub use frame::{
 };
 pub use spec::{
     studio_ring, CaptureLighting, CaptureSpec, LightPatterns, PatternSchedule, PixelNoise,
-    DEFAULT_FRAME_RATE_HZ, STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
-    STUDIO_RING_TARGET_M,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
 };
 
 use rayon::prelude::*;
