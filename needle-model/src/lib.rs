@@ -140,14 +140,8 @@ pub use config::{resolve_marker, ConfigSpace, MAX_CONFIG_DIM};
 pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};
 pub use error::{Context, Error, Result, ResultExt};
 pub use nrbf::{Nrbf, NrbfFit};
-pub use observe::{
-    Accumulation, Discard, FrameInput, ObserveParams, ObserveStats, Observer, Walk,
-    DEFAULT_MAX_KNOT_SPACING_PX, DEFAULT_MIN_RAY_ANGLE_DEG,
-};
-pub use params::{
-    Neighbourhood, ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W,
-    DEFAULT_MIN_NEAR, DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_RADIUS_FACTOR, DEFAULT_SEED,
-};
+pub use observe::{Accumulation, Discard, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
+pub use params::{Neighbourhood, ReconstructionParams};
 pub use pose_space::{PoseSpaceModel, PoseSpaceReconstruction, SkinnedNeedles};
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
@@ -169,7 +163,4 @@ pub use store::{
 pub use surface::{
     merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,
 };
-pub use sync::{
-    estimate_sync_offset, sample_motion, SyncParams, SyncResult, VideoFrame, DEFAULT_SYNC_CAP_PX,
-    DEFAULT_SYNC_INITIAL_STEP_S,
-};
+pub use sync::{estimate_sync_offset, sample_motion, SyncParams, SyncResult, VideoFrame};
