@@ -19,30 +19,31 @@ use serde::{Deserialize, Serialize};
 use skin_core::check::{finite, positive};
 
 /// Channels per board: gyroscope x, y, z, accelerometer x, y, z.
-pub const CHANNELS: usize = 6;
+pub(crate) const CHANNELS: usize = 6;
 /// Bits per encoded board frame.
-pub const FRAME_BITS: usize = CHANNELS * 11;
+pub(crate) const FRAME_BITS: usize = CHANNELS * 11;
 /// Largest 12-bit count.
 const MAX_COUNT: i32 = 4095;
 /// Largest delta of the 6-bit code (two's complement, −32..=31 counts per frame).
-pub const DELTA_MAX: i32 = 31;
+pub(crate) const DELTA_MAX: i32 = 31;
 /// Smallest delta of the 6-bit code.
-pub const DELTA_MIN: i32 = -32;
+pub(crate) const DELTA_MIN: i32 = -32;
 /// The shortest key interval ([`DeltaCodec::with_key_interval`]): two key frames per channel.
-pub const MIN_KEY_INTERVAL: u32 = 2 * CHANNELS as u32;
+pub(crate) const MIN_KEY_INTERVAL: u32 = 2 * CHANNELS as u32;
 /// A decoded count at or above this is at full scale: 4092 = 4 × 1023 is the largest sum of
 /// four 10-bit samples (§4.2.3's accumulation), 4095 the largest 12-bit count.
-pub const FULL_SCALE_HIGH: i32 = 4 * 1023;
+pub(crate) const FULL_SCALE_HIGH: i32 = 4 * 1023;
 /// A decoded count at or below this is at the bottom of the scale.
-pub const FULL_SCALE_LOW: i32 = 0;
+pub(crate) const FULL_SCALE_LOW: i32 = 0;
 
 /// Why a decoded channel is a bound rather than a reading (beyond the thesis, which does not
 /// discuss either: what a decoder of a real suit has to know).
 ///
-/// - **Clipped**: the decoded count is at the converter's full scale ([`FULL_SCALE_LOW`],
-///   [`FULL_SCALE_HIGH`]); the quantity may be anywhere beyond it.
-/// - **Slew-saturated**: the frame's delta is at the 6-bit code's extreme ([`DELTA_MIN`] or
-///   [`DELTA_MAX`]); the encoder clamps larger changes, so the true count may be further
+/// - **Clipped**: the decoded count is at the converter's full scale (at or below 0, at or
+///   above 4092 = 4 × 1023, the largest sum of four 10-bit samples); the quantity may be
+///   anywhere beyond it.
+/// - **Slew-saturated**: the frame's delta is at the 6-bit code's extreme (−32 or +31 code units);
+///   the encoder clamps larger changes, so the true count may be further
 ///   still and the reconstruction lags it. A delta inside the code's range means the
 ///   decoder's count is the encoder's exactly, so only the extremes are flagged.
 /// - **Unsynced** (issue 15, ninth session; only with key frames,
@@ -413,8 +414,8 @@ impl DeltaCodec {
         }
     }
 
-    /// Encodes one frame of six 12-bit counts into [`FRAME_BITS`] scrambled, interleaved,
-    /// error-protected bits; the 6-bit deltas saturate at −32..=31 counts per frame and carry
+    /// Encodes one frame of six 12-bit counts into 66 scrambled, interleaved, error-protected
+    /// bits (six 11-bit codes); the 6-bit deltas saturate at −32..=31 counts per frame and carry
     /// their round-off into the next frame.
     ///
     /// # Errors

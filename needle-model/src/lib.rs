@@ -134,8 +134,6 @@ mod sync;
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
-#[cfg(feature = "validation")]
-pub use baseline::SkinnedShape;
 pub use config::{resolve_marker, ConfigSpace, MAX_CONFIG_DIM};
 pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};
 pub use error::{Context, Error, Result, ResultExt};
@@ -157,8 +155,7 @@ pub use silhouette_error::{
     FrameSilhouetteError, SilhouetteError, SilhouetteErrorParams, SilhouetteScorer,
 };
 pub use store::{
-    NeedleObservations, Observation, ObservationStore, PackedObservation, PrimitiveShape,
-    MAX_NEEDLES_PER_PRIMITIVE,
+    NeedleObservations, Observation, ObservationStore, PrimitiveShape, MAX_NEEDLES_PER_PRIMITIVE,
 };
 pub use surface::{
     merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,

@@ -30,7 +30,7 @@ const LENGTH_STEPS: f32 = ((1u32 << (24 - NEEDLE_BITS)) - 1) as f32;
 /// primitive's maximum length.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[repr(transparent)]
-pub struct PackedObservation([u8; 3]);
+pub(crate) struct PackedObservation([u8; 3]);
 
 impl PackedObservation {
     /// Packs a needle index below [`MAX_NEEDLES_PER_PRIMITIVE`] and a length step count of
@@ -47,12 +47,12 @@ impl PackedObservation {
     }
 
     /// Needle index within the primitive (ring-major order, see `primitive` module).
-    pub fn needle(self) -> u16 {
+    pub(crate) fn needle(self) -> u16 {
         (self.unpacked() & 0xfff) as u16
     }
 
     /// Length in units of the primitive's [`ObservationStore::length_step_m`].
-    pub fn length_q(self) -> u16 {
+    pub(crate) fn length_q(self) -> u16 {
         (self.unpacked() >> NEEDLE_BITS) as u16
     }
 }
@@ -270,7 +270,7 @@ impl<'de> Deserialize<'de> for NeedleObservations {
 /// * the configuration point of a primitive is stored **once per sample** — one sample is one
 ///   (frame, camera) pair in which the primitive produced at least one observation — as a
 ///   row of `config_dim` `f32` values (row-major);
-/// * each observation is **3 bytes** ([`PackedObservation`]): the needle index within its
+/// * each observation is **3 bytes** (a private packed record): the needle index within its
 ///   primitive (12 bits) and the length quantised to 12 bits with a per-primitive scale
 ///   `length_step_m = max_length_m / 4095` (see [`ObservationStore::length_step_m`]); with the
 ///   Table 3.1 maxima (10–30 cm) the step is 0.02–0.07 mm, far below a pixel's footprint;
@@ -377,13 +377,8 @@ impl ObservationStore {
         }
     }
 
-    /// Packed observations of primitive `p`, grouped by sample (empty if out of range).
-    pub fn packed(&self, p: usize) -> &[PackedObservation] {
-        self.primitives.get(p).map_or(&[], |t| &t.obs)
-    }
-
-    /// CSR offsets of primitive `p`'s samples into [`Self::packed`]: `sample_count(p) + 1`
-    /// entries (empty if out of range).
+    /// CSR offsets of primitive `p`'s samples into its observations (in the order of
+    /// [`Self::observations`]): `sample_count(p) + 1` entries (empty if out of range).
     pub fn sample_offsets(&self, p: usize) -> &[u32] {
         self.primitives.get(p).map_or(&[], |t| &t.sample_start)
     }

@@ -23,7 +23,6 @@
 
 pub mod camera;
 pub mod check;
-pub mod error;
 pub mod image;
 pub mod lsq;
 pub mod markers;
@@ -36,6 +35,7 @@ pub mod skeleton;
 pub mod stats;
 pub mod tensor;
 
+mod error;
 mod faer_bridge;
 mod method_error;
 

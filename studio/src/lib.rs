@@ -22,7 +22,7 @@
 //! * Rendering is [`skin_core::raster`] (in skin-core: methods use it at run time).
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
-//! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
+//! * [`preview`]: front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
 //! * Garments ([`Garment`], [`DeformationParams::garment`]): a skirt and a draped sheet
 //!   ("Ghost") as their own cloth surfaces with second-order dynamics (XPBD), driven by the
@@ -34,15 +34,14 @@
 //!   separately; [`AlbedoTexture`] is a non-uniform albedo (skin variation, a printed garment
 //!   pattern) evaluated at rest positions, shaded through
 //!   [`shading::Albedo::Textured`].
-//! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
+//! * [`Capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 //! * Markers ([`MarkerSet`]): retro-reflective skin markers (Fua et al. §2) that follow the
 //!   true surface, drawn into grey frames with occlusion by the body ([`draw_markers`]).
 
-pub mod capture;
-pub mod preview;
 pub mod shading;
 
+mod capture;
 mod deformation;
 mod garment;
 mod makehuman;
@@ -50,6 +49,7 @@ mod markers;
 mod motion;
 mod muscles;
 mod performer;
+mod preview;
 mod procedural_body;
 mod retarget;
 #[cfg(test)]

@@ -5,9 +5,9 @@ use serde::{Deserialize, Serialize};
 use crate::shading::{Light, LightVisibility};
 use crate::TextureParams;
 use skin_core::camera::{Intrinsics, Rig};
-use skin_core::error::{Error, Result};
 use skin_core::math::DVec3;
 use skin_core::raster::{Buffers, RenderParams};
+use skin_core::{Error, Result};
 
 /// Lighting of the shaded observations: Lambertian shading ([`crate::shading::shade`])
 /// of a uniform albedo, or of a texture, under a set of lights, optionally with cast shadows.
