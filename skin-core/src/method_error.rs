@@ -10,6 +10,8 @@
 ///
 /// The calling crate must depend on `thiserror`.
 ///
+/// For the workspace's method crates (hidden from the docs; not a stable API for others).
+///
 /// ```
 /// mod error {
 ///     pub use skin_core::Context;
@@ -29,6 +31,7 @@
 /// assert!(matches!(e.root(), Error::NoSignal { .. }));
 /// assert_eq!(e.contexts(), [skin_core::Context::Frame(7)]);
 /// ```
+#[doc(hidden)]
 #[macro_export]
 macro_rules! method_error {
     ($krate:literal, $context:ty, { $($variants:tt)* }) => {
