@@ -366,7 +366,8 @@ mod tests {
         assert!(matches!(e.root(), Error::NoObservations { .. }));
         assert_eq!(
             e.to_string(),
-            "primitive 0: no observations: the primitive has no samples"
+            "primitive 0: no observations: the primitive has no samples; capture more frames or \
+             cameras that see it"
         );
         let rec = NeedleModel::reconstruct_grids(&store, &grids, &p).unwrap();
         assert!(matches!(
