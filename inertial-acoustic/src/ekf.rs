@@ -1,4 +1,4 @@
-// Over 1,000 lines: one `SkeletalEkf`, whose time update and three observation models share its private buffers.
+// Over 1,000 lines: one `SkeletalEkf`; its time update and observation models share its buffers.
 //! The skeletal extended Kalman filter (§4.4): state `x = (θ, θ̇, θ̈)` of the skeleton's free
 //! DOFs, dynamics Eq. 4.1 (`θ += Δt θ̇`, `θ̇ += Δt θ̈`, `θ̈ += w`), observations of
 //! gyroscopes (Eq. 4.3), accelerometers (Eq. 4.2) and distances (Eq. 4.4) processed

@@ -12,7 +12,7 @@ use crate::error::{Context, Error, Result, ResultExt};
 const NEEDLE_BITS: u32 = 12;
 
 /// Most needles a primitive can have (radial × axial): the store packs a needle index in
-/// 12 bits of a [`PackedObservation`], a fact of the storage format;
+/// 12 bits of its 3-byte observations, a fact of the storage format;
 /// Table 3.1's largest primitive has 900.
 pub const MAX_NEEDLES_PER_PRIMITIVE: usize = 1 << NEEDLE_BITS;
 

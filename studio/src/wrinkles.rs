@@ -4,7 +4,7 @@
 //!
 //! [`WrinkleModel::new`] selects the coarse faces that can wrinkle — the joint creases of
 //! [`WrinkleParams::creases`] and the garment's vertex range — and refines them once, at rest,
-//! with [`Refinement`] until every edge there is at most [`WRINKLE_EDGE_MARGIN`] ·
+//! with [`Refinement`] until every edge there is at most `WRINKLE_EDGE_MARGIN` ·
 //! [`WrinkleParams::max_edge_m`] long (the margin leaves room for the stretch of posing and
 //! for the wrinkles' slope, so the posed, wrinkled edges stay within `max_edge_m`). The
 //! refinement is crack-free and evaluated by Phong tessellation, so the fine surface is
@@ -255,8 +255,9 @@ impl WrinkleParams {
     }
 
     /// A smooth fine surface without wrinkles: every face refined to edges of at most
-    /// [`WRINKLE_EDGE_MARGIN`] · `max_edge_m` at rest, all amplitudes 0 — the performer's polygonal surface made
-    /// smooth and consistent (facets close to the shading normals) at render time.
+    /// 0.7 · `max_edge_m` at rest (a margin for the stretch of posing), all amplitudes 0 — the
+    /// performer's polygonal surface made smooth and consistent (facets close to the shading
+    /// normals) at render time.
     pub fn smooth_surface(max_edge_m: f64) -> Self {
         Self::default()
             .with_amplitude_m(0.0)
