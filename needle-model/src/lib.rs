@@ -143,9 +143,7 @@ pub use params::{Neighbourhood, ReconstructionParams};
 pub use pose_space::{PoseSpaceModel, PoseSpaceReconstruction, SkinnedNeedles};
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
-pub use prototype_shapes::{
-    grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes, POOL_POSE_CELL_DEG,
-};
+pub use prototype_shapes::{grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes};
 pub use reconstruct::{NeedleModel, PrimitiveFitReport, Reconstruction};
 pub use select::{
     select_params, validation_error, Parameter, ParameterCurve, Selection, SelectionParams,

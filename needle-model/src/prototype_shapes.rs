@@ -97,17 +97,19 @@ pub struct NeighbourhoodStats {
     pub pool_radius_deg_median: Option<f32>,
     /// Median over the estimates (of every 4th needle) of the largest share of one pose in the
     /// pool: the observations are binned in configuration-space cells the size of a 5° turn of
-    /// the driving joints ([`POOL_POSE_CELL_DEG`]) and the fullest cell's count is divided by the
-    /// pool's size. Near 1: one held pose makes the estimate (the failure the capped
-    /// neighbourhood exists to avoid); `None` when the cell size is unknown (as
+    /// the driving joints ([`NeighbourhoodStats::POOL_POSE_CELL_DEG`]) and the fullest cell's count
+    /// is divided by the pool's size. Near 1: one held pose makes the estimate (the failure the
+    /// capped neighbourhood exists to avoid); `None` when the cell size is unknown (as
     /// [`Self::pool_radius_deg_median`]).
     #[serde(default)]
     pub pool_max_pose_share_median: Option<f32>,
 }
 
-/// Side of the pose cells of [`NeighbourhoodStats::pool_max_pose_share_median`], degrees of
-/// the driving joints (the 5° quantisation).
-pub const POOL_POSE_CELL_DEG: f64 = 5.0;
+impl NeighbourhoodStats {
+    /// Side of the pose cells of [`NeighbourhoodStats::pool_max_pose_share_median`], degrees of
+    /// the driving joints (a 5° quantisation).
+    pub const POOL_POSE_CELL_DEG: f64 = 5.0;
+}
 
 /// The pose shares of [`NeighbourhoodStats::pool_max_pose_share_median`] are counted on every
 /// this-many-th needle (a hash per pool entry; the median over a quarter of the needles is
