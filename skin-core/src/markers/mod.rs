@@ -49,5 +49,4 @@ pub use track::{
 };
 pub use triangulate::{
     reconstruct_markers, triangulate, MarkerView, ReconstructedMarker, Triangulation,
-    MAX_TRIANGULATION_ITERATIONS,
 };

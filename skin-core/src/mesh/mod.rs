@@ -43,9 +43,7 @@ pub use metrics::{
     mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
     OneSidedDistance,
 };
-pub use normals::{
-    face_areas, face_normals, triangle_normal, vertex_normals, NormalWeighting, DEGENERATE_REL_TOL,
-};
+pub use normals::{face_areas, face_normals, triangle_normal, vertex_normals, NormalWeighting};
 pub use obj::{
     read_obj, read_obj_from_reader, read_obj_from_str, read_obj_group, read_obj_group_with_map,
     write_obj, write_obj_to, ObjFile, ObjGroupMesh,
@@ -55,7 +53,7 @@ pub use query::{ClosestPoint, MeshQuery, RayHit};
 pub use skinning::{resize_rest, skin, SkinBinding, SkinWeights};
 pub use subdivide::{FaceRefinement, FinePoint, RefineParams, Refinement};
 pub use surface_point::{
-    closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,
+    closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint,
 };
 pub use topology::{
     boundary_edges, is_closed, unique_edges, vertex_faces, vertex_neighbors, Adjacency,
