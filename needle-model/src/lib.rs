@@ -107,7 +107,8 @@
 //!
 //! With the cargo feature `validation`, the public modules `truth` (ground truth of the
 //! studio: test sets, per-vertex errors) and `baseline` (linear blend skinning with bone-heat
-//! weights fitted to the same silhouettes) are compiled too.
+//! weights fitted to the same silhouettes) are compiled too. Their items are reached through
+//! the module, by that one path (`needle_model::baseline::SkinnedShape`).
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
