@@ -11,12 +11,13 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::HeatWeightsParams;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
+use dynamic_shapes::needle::baseline::SkinnedShape;
 use dynamic_shapes::needle::truth::{
     EffectAttribution, EffectErrors, HullOracle, NeedleTruth, TestSet,
 };
 use dynamic_shapes::needle::{
     animate, union_mesh, BodyLayout, FrameInput, NeedleBody, NeedleModel, ObserveParams, Observer,
-    ReconstructionParams, SkinnedShape, SurfaceParams,
+    ReconstructionParams, SurfaceParams,
 };
 use dynamic_shapes_studio::{
     exercise_motion, play_bvh, procedural_performer, studio_ring, Capture, CaptureFrame,

@@ -276,8 +276,8 @@ struct Args {
     #[command(flatten)]
     common: example_kit::cli::Common,
     /// The inertial link's code unit in counts for the noise-shaped delta code
-    /// (`SimulationParams::delta_step`; default `DEFAULT_DELTA_STEP`, 16); 0 for the
-    /// whole-count code (the default until issue 15's eighth session).
+    /// (`SimulationParams::delta_step`; default `SimulationParams::DEFAULT_DELTA_STEP`, 16); 0 for
+    /// the whole-count code (the default until issue 15's eighth session).
     #[arg(long)]
     delta_step: Option<i32>,
     /// Do not add the delta code's per-frame error to the filter's σ_g and σ_a
@@ -290,8 +290,8 @@ struct Args {
     #[arg(long)]
     ber: Option<f64>,
     /// Frames between a channel's key frames on the inertial link
-    /// (`SimulationParams::key_interval`, default `DEFAULT_KEY_INTERVAL`); 0 for none (the
-    /// thesis's code, the default until issue 15's ninth session).
+    /// (`SimulationParams::key_interval`, default `SimulationParams::DEFAULT_KEY_INTERVAL`); 0 for
+    /// none (the thesis's code, the default until issue 15's ninth session).
     #[arg(long)]
     key_interval: Option<u32>,
     /// Only the bit-error sweep of issue 15's ninth session: the exercise clip (10 s with

@@ -67,6 +67,7 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::mesh::{HeatWeightsParams, TriMesh};
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, median};
+use dynamic_shapes::needle::baseline::SkinnedShape;
 use dynamic_shapes::needle::truth::{
     EffectAttribution, EffectErrors, Errors, HullOracle, NeedleTruth, TestSet,
 };
@@ -74,7 +75,7 @@ use dynamic_shapes::needle::{
     animate, merged_mesh, primitive_meshes, select_params, union_mesh, BodyLayout, FrameInput,
     NeedleBody, NeedleModel, Neighbourhood, ObservationStore, ObserveParams, Observer, Parameter,
     PoseSpaceModel, PrimitiveFitReport, ReconstructionParams, SelectionParams,
-    SilhouetteErrorParams, SilhouetteScorer, SkinnedShape, SurfaceParams, ValidationFrame,
+    SilhouetteErrorParams, SilhouetteScorer, SurfaceParams, ValidationFrame,
 };
 use dynamic_shapes_studio::{
     exercise_motion, makehuman_performer, play_bvh, preview, procedural_performer, studio_ring,

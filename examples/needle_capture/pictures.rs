@@ -2,10 +2,9 @@
 //! its scale drawn by `example_kit::plot::with_colour_bar`), and the flexed-elbow figure.
 
 use dynamic_shapes::core::mesh::TriMesh;
+use dynamic_shapes::needle::baseline::SkinnedShape;
 use dynamic_shapes::needle::truth::TestSet;
-use dynamic_shapes::needle::{
-    animate, merged_mesh, primitive_meshes, NeedleBody, NeedleModel, SkinnedShape,
-};
+use dynamic_shapes::needle::{animate, merged_mesh, primitive_meshes, NeedleBody, NeedleModel};
 use dynamic_shapes_studio::{preview, DeformationState, Paint, Performer, PreviewPanel};
 use example_kit::plot::{self as kplot, error_colour, ColourBar};
 use example_kit::Run;

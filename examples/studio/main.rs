@@ -60,7 +60,6 @@ use dynamic_shapes::core::skeleton::{
 use dynamic_shapes::core::stats::median;
 use dynamic_shapes_studio::shading::{
     dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
-    DEFAULT_SHADOW_BIAS_M,
 };
 use dynamic_shapes_studio::{
     makehuman_performer, play_bvh, Capture, CaptureLighting, CaptureSpec, DeformationParams,
@@ -510,8 +509,13 @@ fn shade_timing(
     // sees (about half the mesh).
     let seen = vertices_seen(mesh, &[&view])?;
     let t = Instant::now();
-    let vis =
-        LightVisibility::compute_for(mesh, &query, lights, DEFAULT_SHADOW_BIAS_M, Some(&seen))?;
+    let vis = LightVisibility::compute_for(
+        mesh,
+        &query,
+        lights,
+        LightVisibility::DEFAULT_SHADOW_BIAS_M,
+        Some(&seen),
+    )?;
     let visibility_ms = t.elapsed().as_secs_f64() * 1e3;
     let alb = Albedo::Uniform([0.8, 0.6, 0.5]);
     let shade_ms = median_ms(reps, || {

@@ -4,7 +4,7 @@
 
 skin_core::method_error!("inertial-acoustic", Context, {
     /// A sensor or source is attached to a joint the skeleton does not have.
-    #[error("missing bone: {what} '{name}' is not a joint of the skeleton")]
+    #[error("missing bone: {what} '{name}' is not a joint of the skeleton; attach it to one of the skeleton's joints")]
     MissingBone {
         /// Which attachment.
         what: &'static str,
@@ -13,7 +13,7 @@ skin_core::method_error!("inertial-acoustic", Context, {
     },
     /// An encoded inertial frame could not be decoded (more bit errors than the code
     /// corrects).
-    #[error("corrupted inertial frame: {what}")]
+    #[error("corrupted inertial frame: {what}; treat the frame as lost, or lower the link's bit error rate")]
     Corrupted {
         /// What failed.
         what: &'static str,

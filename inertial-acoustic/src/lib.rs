@@ -95,10 +95,7 @@ pub use ekf::{
 };
 pub use error::{Context, Error, Result, ResultExt};
 pub use evaluate::{joint_orientation_errors_deg, joint_swing_twist_errors_deg, ErrorStats};
-pub use inertial::{
-    AxisCalibration, DeltaCodec, Saturation, CHANNELS, DELTA_MAX, DELTA_MIN, FRAME_BITS,
-    FULL_SCALE_HIGH, FULL_SCALE_LOW, MIN_KEY_INTERVAL,
-};
+pub use inertial::{AxisCalibration, DeltaCodec, Saturation};
 pub use initialise::{
     board_axis_noise_from_innovations, board_noise_from_innovations, initialise, refine_headings,
     HeadingRefinement, Initialisation, MIN_HEADING_RATE_RAD_S,

@@ -92,15 +92,16 @@ pub struct SimulationParams {
     /// `step` counts ([`DeltaCodec::noise_shaped`]: the thesis's "compensate by
     /// overestimating in the next frame", slew `31 · step` counts per frame; issue 15, seventh
     /// session), `None` for whole-count deltas without feedback ([`DeltaCodec::new`], the
-    /// default until the eighth session). Default: `Some(`[`DEFAULT_DELTA_STEP`]`)`. The
-    /// filter must be told the code's per-frame error: [`SimulationParams::with_code_noise`].
+    /// default until the eighth session). Default:
+    /// `Some(`[`SimulationParams::DEFAULT_DELTA_STEP`]`)`. The filter must be told the code's
+    /// per-frame error: [`SimulationParams::with_code_noise`].
     #[serde(default = "default_delta_step")]
     pub delta_step: Option<i32>,
     /// Frames between a channel's key frames on the inertial link (its absolute count in two
     /// 6-bit halves, [`DeltaCodec::with_key_interval`]; issue 15, ninth session, beyond the
     /// thesis): after a lost frame the decoder flags the channel unsynced (the filter skips
     /// it, [`crate::FilterParams::skip_saturated`]) until its next key frame restores it.
-    /// 0: no key frames (the thesis's code). Default: [`DEFAULT_KEY_INTERVAL`].
+    /// 0: no key frames (the thesis's code). Default: [`SimulationParams::DEFAULT_KEY_INTERVAL`].
     #[serde(default = "default_key_interval")]
     pub key_interval: u32,
     /// Bit error rate of the digital inertial link. Default: 2·10⁻⁴.
@@ -263,29 +264,31 @@ impl SimulationParams {
     }
 }
 
-/// The noise-shaped delta code's default unit, counts (issue 15, eighth session). The
-/// thesis gives no step size; 16 is chosen from data (docs, "The noise-shaped code as the
-/// default"): its slew, `31 · 16` counts per frame (4.8 rad/s per frame, 680 rad/s², at ±20 rad/s;
-/// 14 m/s² per frame at ±6 g), covers the walk's arm (99th percentile 541 rad/s²) where
-/// 8-count units still slew, and its per-frame error (σ 16/√6 = 6.5 counts: 0.064 rad/s,
-/// 0.19 m/s²) is half of 32-count units'.
-pub const DEFAULT_DELTA_STEP: i32 = 16;
+impl SimulationParams {
+    /// The noise-shaped delta code's default unit, counts. The
+    /// thesis gives no step size; 16 is chosen from data (docs, "The noise-shaped code as the
+    /// default"): its slew, `31 · 16` counts per frame (4.8 rad/s per frame, 680 rad/s², at ±20
+    /// rad/s; 14 m/s² per frame at ±6 g), covers the walk's arm (99th percentile 541 rad/s²) where
+    /// 8-count units still slew, and its per-frame error (σ 16/√6 = 6.5 counts: 0.064 rad/s,
+    /// 0.19 m/s²) is half of 32-count units'.
+    pub const DEFAULT_DELTA_STEP: i32 = 16;
 
-/// The inertial link's default key interval, frames (issue 15, ninth session; see
-/// [`SimulationParams::key_interval`] and the docs, "A resynchronising code"): 0.2 s at
-/// 140 Hz. Chosen from data: per channel it costs 2/K of the readings (7 %) and leaves a
-/// lost code flagged for K/2 frames on average; at a bit error rate of 10⁻² (a code lost
-/// every ≈ 190 frames per channel) 28 held the 30 s exercise within 8° on every joint where
-/// 70 let the shoulder go to 33°, and at the default rate the exercise and the walk were no
-/// worse than without keys.
-pub const DEFAULT_KEY_INTERVAL: u32 = 28;
+    /// The inertial link's default key interval, frames (see
+    /// [`SimulationParams::key_interval`] and the docs, "A resynchronising code"): 0.2 s at
+    /// 140 Hz. Chosen from data: per channel it costs 2/K of the readings (7 %) and leaves a
+    /// lost code flagged for K/2 frames on average; at a bit error rate of 10⁻² (a code lost
+    /// every ≈ 190 frames per channel) 28 held the 30 s exercise within 8° on every joint where
+    /// 70 let the shoulder go to 33°, and at the default rate the exercise and the walk were no
+    /// worse than without keys.
+    pub const DEFAULT_KEY_INTERVAL: u32 = 28;
+}
 
 fn default_key_interval() -> u32 {
-    DEFAULT_KEY_INTERVAL
+    SimulationParams::DEFAULT_KEY_INTERVAL
 }
 
 fn default_delta_step() -> Option<i32> {
-    Some(DEFAULT_DELTA_STEP)
+    Some(SimulationParams::DEFAULT_DELTA_STEP)
 }
 
 fn default_analog_noise_lsb() -> f64 {
@@ -2054,7 +2057,7 @@ mod tests {
         // frames) to the bounds the whole-count code meets per frame (0.05 rad/s, 0.3 m/s²):
         // a biased code or calibration would still fail them.
         let (sg, sa) = SimulationParams::default().code_noise().unwrap();
-        let step = f64::from(DEFAULT_DELTA_STEP);
+        let step = f64::from(SimulationParams::DEFAULT_DELTA_STEP);
         let (gyro_count, accel_count) = (40.0 / 4096.0, 6.0 * GRAVITY_M_S2 * 2.0 / 4096.0);
         assert!((sg - step / 6f64.sqrt() * gyro_count).abs() < 1e-12);
         assert!((sa - step / 6f64.sqrt() * accel_count).abs() < 1e-12);
@@ -2078,7 +2081,7 @@ mod tests {
             }
         }
         let flagged = CHANNELS * window.len() - used.iter().sum::<usize>();
-        let keys = 2 * CHANNELS * window.len() / DEFAULT_KEY_INTERVAL as usize;
+        let keys = 2 * CHANNELS * window.len() / SimulationParams::DEFAULT_KEY_INTERVAL as usize;
         assert!(
             flagged.abs_diff(keys) <= CHANNELS,
             "{flagged} flagged, {keys} key frames"

@@ -7,7 +7,7 @@ pub use skin_core::Context;
 skin_core::method_error!("multilinear-face", Context, {
     /// Video tracking lost the face: too few tracked vertices passed the KLT checks (the
     /// face left the frame, was covered, or the motion was too fast).
-    #[error("face lost: {tracked_fraction:.2} of the visible tracked vertices followed (minimum {min})")]
+    #[error("face lost: {tracked_fraction:.2} of the visible tracked vertices followed (minimum {min}); restart tracking on a frame that shows the face, or lower min_tracked_fraction")]
     FaceLost {
         /// Fraction of the visible tracked vertices that passed the KLT checks.
         tracked_fraction: f64,
@@ -16,7 +16,7 @@ skin_core::method_error!("multilinear-face", Context, {
     },
     /// A name the data does not hold: a blendshape that an attribute recipe uses and the
     /// face basis lacks.
-    #[error("{what} {name:?} (used by {used_by:?}) is not in the basis")]
+    #[error("{what} {name:?} (used by {used_by:?}) is not in the basis; add it to the basis or remove it from {used_by}")]
     UnknownName {
         /// What kind of name (e.g. "blendshape").
         what: &'static str,

@@ -19,14 +19,14 @@
 //! assert_eq!(
 //!     e.to_string(),
 //!     "needle 1: no observations: never observed and no observed needle reachable \
-//!      through the adjacency"
+//!      through the adjacency; capture more frames or cameras that see it"
 //! );
 //! # Ok::<(), Error>(())
 //! ```
 
 skin_core::method_error!("needle-model", Context, {
     /// A needle or primitive has no usable observation (see §5.3 hole filling).
-    #[error("no observations: {what}")]
+    #[error("no observations: {what}; capture more frames or cameras that see it")]
     NoObservations {
         /// Why, e.g. "never observed and no observed needle reachable through the adjacency";
         /// which needle or primitive is in the enclosing [`Error::At`].

@@ -107,7 +107,8 @@
 //!
 //! With the cargo feature `validation`, the public modules `truth` (ground truth of the
 //! studio: test sets, per-vertex errors) and `baseline` (linear blend skinning with bone-heat
-//! weights fitted to the same silhouettes) are compiled too.
+//! weights fitted to the same silhouettes) are compiled too. Their items are reached through
+//! the module, by that one path (`needle_model::baseline::SkinnedShape`).
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
@@ -134,26 +135,16 @@ mod sync;
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
-#[cfg(feature = "validation")]
-pub use baseline::SkinnedShape;
 pub use config::{resolve_marker, ConfigSpace, MAX_CONFIG_DIM};
 pub use device::{calibrate_device, DeviceCalibration, DeviceParams, DeviceTrack, DeviceVideo};
 pub use error::{Context, Error, Result, ResultExt};
 pub use nrbf::{Nrbf, NrbfFit};
-pub use observe::{
-    Accumulation, Discard, FrameInput, ObserveParams, ObserveStats, Observer, Walk,
-    DEFAULT_MAX_KNOT_SPACING_PX, DEFAULT_MIN_RAY_ANGLE_DEG,
-};
-pub use params::{
-    Neighbourhood, ReconstructionParams, DEFAULT_F_MIN, DEFAULT_F_NEAR, DEFAULT_KERNEL_WIDTH_W,
-    DEFAULT_MIN_NEAR, DEFAULT_PROTOTYPE_COUNT_N, DEFAULT_RADIUS_FACTOR, DEFAULT_SEED,
-};
+pub use observe::{Accumulation, Discard, FrameInput, ObserveParams, ObserveStats, Observer, Walk};
+pub use params::{Neighbourhood, ReconstructionParams};
 pub use pose_space::{PoseSpaceModel, PoseSpaceReconstruction, SkinnedNeedles};
 pub use primitive::{BodyLayout, NeedleBody, Primitive, PrimitiveSpec};
 pub use prototype_locations::{farthest_point_prototypes, PrototypeLocations};
-pub use prototype_shapes::{
-    grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes, POOL_POSE_CELL_DEG,
-};
+pub use prototype_shapes::{grid_adjacency, prototype_shapes, NeighbourhoodStats, PrototypeShapes};
 pub use reconstruct::{NeedleModel, PrimitiveFitReport, Reconstruction};
 pub use select::{
     select_params, validation_error, Parameter, ParameterCurve, Selection, SelectionParams,
@@ -163,13 +154,9 @@ pub use silhouette_error::{
     FrameSilhouetteError, SilhouetteError, SilhouetteErrorParams, SilhouetteScorer,
 };
 pub use store::{
-    NeedleObservations, Observation, ObservationStore, PackedObservation, PrimitiveShape,
-    MAX_NEEDLES_PER_PRIMITIVE,
+    NeedleObservations, Observation, ObservationStore, PrimitiveShape, MAX_NEEDLES_PER_PRIMITIVE,
 };
 pub use surface::{
     merged_mesh, primitive_implicit, primitive_mesh, primitive_meshes, union_mesh, SurfaceParams,
 };
-pub use sync::{
-    estimate_sync_offset, sample_motion, SyncParams, SyncResult, VideoFrame, DEFAULT_SYNC_CAP_PX,
-    DEFAULT_SYNC_INITIAL_STEP_S,
-};
+pub use sync::{estimate_sync_offset, sample_motion, SyncParams, SyncResult, VideoFrame};

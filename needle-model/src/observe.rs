@@ -14,10 +14,13 @@ use crate::error::{Context, Error, Result, ResultExt};
 use crate::primitive::NeedleBody;
 use crate::store::ObservationStore;
 
-/// Default of [`ObserveParams::min_ray_angle_deg`].
-pub const DEFAULT_MIN_RAY_ANGLE_DEG: f64 = 60.0;
-/// Default of [`ObserveParams::max_knot_spacing_px`].
-pub const DEFAULT_MAX_KNOT_SPACING_PX: f64 = 8.0;
+impl ObserveParams {
+    /// Default of [`ObserveParams::min_ray_angle_deg`].
+    pub const DEFAULT_MIN_RAY_ANGLE_DEG: f64 = 60.0;
+
+    /// Default of [`ObserveParams::max_knot_spacing_px`].
+    pub const DEFAULT_MAX_KNOT_SPACING_PX: f64 = 8.0;
+}
 
 /// Knobs of the silhouette walk.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -44,8 +47,8 @@ pub struct ObserveParams {
 impl Default for ObserveParams {
     fn default() -> Self {
         Self {
-            min_ray_angle_deg: DEFAULT_MIN_RAY_ANGLE_DEG,
-            max_knot_spacing_px: DEFAULT_MAX_KNOT_SPACING_PX,
+            min_ray_angle_deg: ObserveParams::DEFAULT_MIN_RAY_ANGLE_DEG,
+            max_knot_spacing_px: ObserveParams::DEFAULT_MAX_KNOT_SPACING_PX,
         }
     }
 }

@@ -9,25 +9,34 @@ use skin_core::check;
 
 use crate::{Error, Result};
 
-/// Default `F_near`: fraction of a needle's observations used for each prototype.
-/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
-pub const DEFAULT_F_NEAR: f64 = 0.022;
-/// Default `F_min`: percentile (as a fraction) taken as the robust minimum.
-/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
-pub const DEFAULT_F_MIN: f64 = 0.10;
-/// Default kernel width `W` of the NRBF Gaussian (see [`crate::Nrbf`] for its exact meaning).
-/// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
-pub const DEFAULT_KERNEL_WIDTH_W: f64 = 7.0;
-/// Default number of prototypes per deformable primitive `N`. Sand 2003 §6.3.
-pub const DEFAULT_PROTOTYPE_COUNT_N: usize = 100;
-/// Default floor on the number of observations behind each prototype estimate (see
-/// [`ReconstructionParams::min_near`]).
-pub const DEFAULT_MIN_NEAR: usize = 50;
-/// Default seed of the random first prototype location (§5.2 picks it "at random").
-pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
-/// Default `radius_factor` of [`Neighbourhood::Capped`]: a prototype's neighbourhood reaches
-/// at most one prototype spacing (the median nearest-prototype distance) from it.
-pub const DEFAULT_RADIUS_FACTOR: f64 = 1.0;
+impl ReconstructionParams {
+    /// Default `F_near`: fraction of a needle's observations used for each prototype.
+    /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+    pub const DEFAULT_F_NEAR: f64 = 0.022;
+
+    /// Default `F_min`: percentile (as a fraction) taken as the robust minimum.
+    /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+    pub const DEFAULT_F_MIN: f64 = 0.10;
+
+    /// Default kernel width `W` of the NRBF Gaussian (see [`crate::Nrbf`] for its exact meaning).
+    /// Sand 2003 §6.3 (thesis §5.5, Figure 5-4).
+    pub const DEFAULT_KERNEL_WIDTH_W: f64 = 7.0;
+
+    /// Default number of prototypes per deformable primitive `N`. Sand 2003 §6.3.
+    pub const DEFAULT_PROTOTYPE_COUNT_N: usize = 100;
+
+    /// Default floor on the number of observations behind each prototype estimate (see
+    /// [`ReconstructionParams::min_near`]).
+    pub const DEFAULT_MIN_NEAR: usize = 50;
+
+    /// Default seed of the random first prototype location (§5.2 picks it "at random").
+    pub const DEFAULT_SEED: u64 = 0x5a4d_2003;
+}
+impl Neighbourhood {
+    /// Default `radius_factor` of [`Neighbourhood::Capped`]: a prototype's neighbourhood reaches
+    /// at most one prototype spacing (the median nearest-prototype distance) from it.
+    pub const DEFAULT_RADIUS_FACTOR: f64 = 1.0;
+}
 
 /// Which observations a prototype's shape is estimated from (§5.3 and our departure from it).
 ///
@@ -63,7 +72,7 @@ pub enum Neighbourhood {
     Fraction,
     /// The fraction walk stopped at `radius_factor ×` the prototype spacing (median
     /// nearest-prototype distance); `min_near` a floor only for sparse balls. `radius_factor`
-    /// must be finite and > 0. Default [`DEFAULT_RADIUS_FACTOR`].
+    /// must be finite and > 0. Default [`Neighbourhood::DEFAULT_RADIUS_FACTOR`].
     Capped {
         /// Cap radius in units of the prototype spacing.
         radius_factor: f64,
@@ -73,7 +82,7 @@ pub enum Neighbourhood {
 impl Default for Neighbourhood {
     fn default() -> Self {
         Self::Capped {
-            radius_factor: DEFAULT_RADIUS_FACTOR,
+            radius_factor: Neighbourhood::DEFAULT_RADIUS_FACTOR,
         }
     }
 }
@@ -137,12 +146,12 @@ pub struct ReconstructionParams {
 impl Default for ReconstructionParams {
     fn default() -> Self {
         Self {
-            f_near: DEFAULT_F_NEAR,
-            f_min: DEFAULT_F_MIN,
-            kernel_width_w: DEFAULT_KERNEL_WIDTH_W,
-            prototype_count_n: DEFAULT_PROTOTYPE_COUNT_N,
-            min_near: DEFAULT_MIN_NEAR,
-            seed: DEFAULT_SEED,
+            f_near: ReconstructionParams::DEFAULT_F_NEAR,
+            f_min: ReconstructionParams::DEFAULT_F_MIN,
+            kernel_width_w: ReconstructionParams::DEFAULT_KERNEL_WIDTH_W,
+            prototype_count_n: ReconstructionParams::DEFAULT_PROTOTYPE_COUNT_N,
+            min_near: ReconstructionParams::DEFAULT_MIN_NEAR,
+            seed: ReconstructionParams::DEFAULT_SEED,
             neighbourhood: Neighbourhood::default(),
         }
     }
@@ -222,11 +231,11 @@ mod tests {
         assert_eq!(p.f_min, 0.10);
         assert_eq!(p.kernel_width_w, 7.0);
         assert_eq!(p.prototype_count_n, 100);
-        assert_eq!(p.min_near, DEFAULT_MIN_NEAR);
+        assert_eq!(p.min_near, ReconstructionParams::DEFAULT_MIN_NEAR);
         assert_eq!(
             p.neighbourhood,
             Neighbourhood::Capped {
-                radius_factor: DEFAULT_RADIUS_FACTOR
+                radius_factor: Neighbourhood::DEFAULT_RADIUS_FACTOR
             }
         );
         p.validate().unwrap();

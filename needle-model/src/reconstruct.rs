@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::nrbf::Nrbf;
 use crate::params::ReconstructionParams;
 use crate::primitive::NeedleBody;
-use crate::prototype_shapes::{grid_adjacency, POOL_POSE_CELL_DEG};
+use crate::prototype_shapes::{grid_adjacency, NeighbourhoodStats};
 use crate::store::{NeedleObservations, ObservationStore};
 use crate::{Context, Error, Result, ResultExt};
 
@@ -212,7 +212,8 @@ fn fit_primitive(
     let obs = observations(p)?;
     let adjacency = grid_adjacency(radial, axial)?;
     let prim_params = params.with_seed(params.seed.wrapping_add(p as u64));
-    let cell = units_per_radian.map(|u| (u * POOL_POSE_CELL_DEG.to_radians()) as f32);
+    let cell =
+        units_per_radian.map(|u| (u * NeighbourhoodStats::POOL_POSE_CELL_DEG.to_radians()) as f32);
     let mut fit = Nrbf::fit_in_cells(
         store.samples(p),
         store.config_dim(p),
@@ -366,7 +367,8 @@ mod tests {
         assert!(matches!(e.root(), Error::NoObservations { .. }));
         assert_eq!(
             e.to_string(),
-            "primitive 0: no observations: the primitive has no samples"
+            "primitive 0: no observations: the primitive has no samples; capture more frames or \
+             cameras that see it"
         );
         let rec = NeedleModel::reconstruct_grids(&store, &grids, &p).unwrap();
         assert!(matches!(

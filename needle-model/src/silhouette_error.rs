@@ -206,7 +206,7 @@ pub(crate) mod tests {
     use super::*;
     use skin_core::camera::Intrinsics;
     use skin_core::math::DVec3;
-    use skin_core::mesh::{marching_cubes, ScalarGrid};
+    use skin_core::mesh::{marching_tetrahedra, ScalarGrid};
 
     /// Two small cameras looking at the origin from the front and the side.
     pub(crate) fn cameras() -> Vec<Camera> {
@@ -219,7 +219,7 @@ pub(crate) mod tests {
 
     fn sphere(r: f64) -> TriMesh {
         let g = ScalarGrid::sample(DVec3::splat(-0.6), 0.05, [25; 3], |p| p.length() - r).unwrap();
-        marching_cubes(&g, 0.0).unwrap()
+        marching_tetrahedra(&g, 0.0).unwrap()
     }
 
     #[test]

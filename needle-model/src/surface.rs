@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::check;
 use skin_core::math::DVec3;
-use skin_core::mesh::{marching_cubes, ScalarGrid, TriMesh};
+use skin_core::mesh::{marching_tetrahedra, ScalarGrid, TriMesh};
 
 use crate::animate::{AnimatedBody, AnimatedPrimitive};
 use crate::{Context, Error, Result, ResultExt};
@@ -177,7 +177,7 @@ pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
     (r - radius).max(-t).max(t - len)
 }
 
-/// One watertight surface of the union of all primitives (§3.2), by marching cubes over
+/// One watertight surface of the union of all primitives (§3.2), by marching tetrahedra over
 /// `min_p f_p` (see below) on a grid of spacing `params.voxel_m`.
 ///
 /// Surfaces of the animated body (Sand, McMillan and Popović 2003 §3.1–3.2 and §5.4).
@@ -196,7 +196,7 @@ pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
 ///   its position along the axis of length `L`, and `R(φ, t)` the needle radial profile
 ///   (bilinear in the needle angle and the ring coordinate, constant beyond the end rings).
 ///   `f < 0` inside. The body is `min_p f_p`, sampled on a regular grid and polygonised by
-///   [`skin_core::mesh::marching_cubes`] (watertight marching tetrahedra). `f` is a distance
+///   [`skin_core::mesh::marching_tetrahedra`] (watertight). `f` is a distance
 ///   in the radial and axial directions (not a Euclidean distance), which is all the linear
 ///   iso-surface interpolation needs near the surface.
 ///
@@ -276,7 +276,7 @@ pub fn union_mesh(body: &AnimatedBody, params: &SurfaceParams) -> Result<TriMesh
         dims,
         values,
     };
-    Ok(marching_cubes(&grid, 0.0)?)
+    Ok(marching_tetrahedra(&grid, 0.0)?)
 }
 
 #[cfg(test)]

@@ -13,10 +13,13 @@ use skin_core::skeleton::{AttachedPoint, ForwardKinematics, Motion, Skeleton};
 use crate::config::resolve_marker;
 use crate::error::{Error, Result};
 
-/// Default of [`SyncParams::cap_px`].
-pub const DEFAULT_SYNC_CAP_PX: f64 = 20.0;
-/// Default of [`SyncParams::initial_step_s`].
-pub const DEFAULT_SYNC_INITIAL_STEP_S: f64 = 0.1;
+impl SyncParams {
+    /// Default of [`SyncParams::cap_px`].
+    pub const DEFAULT_CAP_PX: f64 = 20.0;
+
+    /// Default of [`SyncParams::initial_step_s`].
+    pub const DEFAULT_INITIAL_STEP_S: f64 = 0.1;
+}
 
 /// Knobs of [`estimate_sync_offset`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -51,8 +54,8 @@ impl Default for SyncParams {
         ];
         Self {
             markers: markers.iter().map(|s| s.to_string()).collect(),
-            cap_px: DEFAULT_SYNC_CAP_PX,
-            initial_step_s: DEFAULT_SYNC_INITIAL_STEP_S,
+            cap_px: SyncParams::DEFAULT_CAP_PX,
+            initial_step_s: SyncParams::DEFAULT_INITIAL_STEP_S,
             max_evaluations: 400,
         }
     }

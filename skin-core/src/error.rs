@@ -7,7 +7,7 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum Error {
     /// A file could not be read or written.
-    #[error("I/O error on {path}: {source}")]
+    #[error("I/O error on {path}: {source}; check that the path exists and can be read (or its folder written)")]
     Io {
         /// The file concerned.
         path: PathBuf,
@@ -16,7 +16,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// A file or string is malformed.
-    #[error("malformed {format} input at line {line}: {message}")]
+    #[error("malformed {format} input at line {line}: {message}; correct the input there or export it again")]
     Parse {
         /// Format name, e.g. "OBJ", "PLY", "BVH".
         format: &'static str,
@@ -26,7 +26,9 @@ pub enum Error {
         message: String,
     },
     /// Two inputs that must agree in size do not.
-    #[error("size mismatch in {what}: expected {expected}, got {got}")]
+    #[error(
+        "size mismatch in {what}: expected {expected}, got {got}; give inputs whose sizes agree"
+    )]
     SizeMismatch {
         /// What was being compared.
         what: &'static str,
@@ -36,13 +38,13 @@ pub enum Error {
         got: usize,
     },
     /// An input contained NaN or infinity.
-    #[error("non-finite value in {what}")]
+    #[error("non-finite value in {what}; replace NaN and infinite values with finite ones")]
     NonFinite {
         /// Which input.
         what: &'static str,
     },
     /// An index points outside its array.
-    #[error("index {index} out of range in {what} (length {len})")]
+    #[error("index {index} out of range in {what} (length {len}); use an index below {len}")]
     IndexOutOfRange {
         /// Which index array.
         what: &'static str,
@@ -52,25 +54,25 @@ pub enum Error {
         len: usize,
     },
     /// Geometry is degenerate (zero-area triangle, coincident points, zero-length axis...).
-    #[error("degenerate input: {what}")]
+    #[error("degenerate input: {what}; remove or repair the degenerate elements")]
     Degenerate {
         /// What is degenerate.
         what: String,
     },
     /// An input that must not be empty is empty (mask, point set, mesh...).
-    #[error("empty input: {what}")]
+    #[error("empty input: {what}; give at least one element")]
     Empty {
         /// Which input.
         what: &'static str,
     },
     /// A linear system or calibration problem is singular or ill-posed.
-    #[error("singular problem: {what}")]
+    #[error("singular problem: {what}; add data that determines every unknown")]
     Singular {
         /// Why it is singular, e.g. "coplanar calibration points".
         what: String,
     },
     /// A parameter is outside its valid range.
-    #[error("invalid parameter {name}: {reason}")]
+    #[error("invalid parameter {name}: {reason}; set {name} within its documented range")]
     InvalidParam {
         /// Parameter name.
         name: &'static str,
@@ -78,13 +80,13 @@ pub enum Error {
         reason: String,
     },
     /// Nothing relevant is visible (a camera that sees no point, a ray that hits nothing...).
-    #[error("nothing visible: {what}")]
+    #[error("nothing visible: {what}; point the cameras at the subject or move it into view")]
     NotVisible {
         /// What could not be seen.
         what: String,
     },
     /// An iterative method failed to converge.
-    #[error("no convergence in {what} after {iterations} iterations")]
+    #[error("no convergence in {what} after {iterations} iterations; raise the iteration limit or start nearer the solution")]
     NoConvergence {
         /// Which method.
         what: &'static str,
@@ -92,7 +94,7 @@ pub enum Error {
         iterations: usize,
     },
     /// An image could not be encoded or decoded.
-    #[error("image error: {0}")]
+    #[error("image error: {0}; check the image file's format, size and channels")]
     Image(#[from] ::image::ImageError),
     /// An error that happened while handling one element (a frame, a camera, a vertex...);
     /// nested contexts read outside in, e.g. "frame 12: camera 3: nothing visible: ...".

@@ -17,25 +17,25 @@
 //! | [`stats`] | mean, median, percentiles (NumPy's interpolation), RMS of samples | |
 //! | [`tensor`] | dense N-mode tensors, unfolding, mode-n products, truncated HOSVD and HOOI (Tucker) | Vlasic Eq. 5.1–5.4 |
 //! | [`check`] | input checks: finite, positive, in range, index in bounds | |
-//! | [`random`] | the counter-based SplitMix64 stream of the peer benchmarks (bit-exact inputs, order-independent noise) | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
 #![warn(missing_docs)]
 
 pub mod camera;
 pub mod check;
-pub mod error;
 pub mod image;
 pub mod lsq;
 pub mod markers;
 pub mod math;
 pub mod mesh;
 pub mod optim;
+#[doc(hidden)]
 pub mod random;
 pub mod raster;
 pub mod skeleton;
 pub mod stats;
 pub mod tensor;
 
+mod error;
 mod faer_bridge;
 mod method_error;
 

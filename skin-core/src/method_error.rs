@@ -10,6 +10,8 @@
 ///
 /// The calling crate must depend on `thiserror`.
 ///
+/// For the workspace's method crates (hidden from the docs; not a stable API for others).
+///
 /// ```
 /// mod error {
 ///     pub use skin_core::Context;
@@ -29,6 +31,7 @@
 /// assert!(matches!(e.root(), Error::NoSignal { .. }));
 /// assert_eq!(e.contexts(), [skin_core::Context::Frame(7)]);
 /// ```
+#[doc(hidden)]
 #[macro_export]
 macro_rules! method_error {
     ($krate:literal, $context:ty, { $($variants:tt)* }) => {
@@ -40,7 +43,7 @@ macro_rules! method_error {
             #[error(transparent)]
             Core(#[from] $crate::Error),
             /// A parameter is outside its valid range.
-            #[error("invalid parameter {name}: {reason}")]
+            #[error("invalid parameter {name}: {reason}; set {name} within its documented range")]
             InvalidParam {
                 /// Parameter name.
                 name: &'static str,
@@ -48,7 +51,7 @@ macro_rules! method_error {
                 reason: String,
             },
             /// Two inputs that must agree in size do not.
-            #[error("size mismatch in {what}: expected {expected}, got {got}")]
+            #[error("size mismatch in {what}: expected {expected}, got {got}; give inputs whose sizes agree")]
             SizeMismatch {
                 /// What was being compared.
                 what: &'static str,
@@ -58,19 +61,19 @@ macro_rules! method_error {
                 got: usize,
             },
             /// An input contained NaN or infinity.
-            #[error("non-finite value in {what}")]
+            #[error("non-finite value in {what}; replace NaN and infinite values with finite ones")]
             NonFinite {
                 /// Which input.
                 what: &'static str,
             },
             /// An input that must not be empty is empty.
-            #[error("empty input: {what}")]
+            #[error("empty input: {what}; give at least one element")]
             Empty {
                 /// Which input.
                 what: &'static str,
             },
             /// An index points outside its array.
-            #[error("index {index} out of range in {what} (length {len})")]
+            #[error("index {index} out of range in {what} (length {len}); use an index below {len}")]
             IndexOutOfRange {
                 /// Which index.
                 what: &'static str,
@@ -81,7 +84,7 @@ macro_rules! method_error {
             },
             $($variants)*
             /// An error that happened while handling one element of a loop; nested contexts
-            /// read outside in, e.g. "frame 3: camera 5: empty input: ...".
+            /// read outside in, e.g. "frame 3: camera 5: empty input: ...; give at least one element".
             #[error("{at}: {source}")]
             At {
                 /// Which element was being handled.

@@ -3,6 +3,8 @@
 //! the peers' inputs bit-exactly, and so per-pixel noise can be drawn in any order (deviate
 //! `i` depends on `i` only). Everything else draws from a generic [`rand::Rng`] (seeded
 //! `rand_chacha` in tests) with [`rand_distr`] distributions.
+//!
+//! For the workspace's crates, tests, examples and peer benchmarks: hidden from the docs.
 
 use crate::{Error, Result};
 
@@ -15,6 +17,10 @@ const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 /// `u64(seed, i) = mix(seed + (i + 1)·GOLDEN)` with wrapping arithmetic. Uniform and normal
 /// deviates and "choose m of n" follow `peerlib.py` exactly (uniforms bit-exact, normals to
 /// the last ulp of libm).
+///
+/// For the workspace's crates, tests, examples and peer benchmarks (hidden from the docs; not
+/// a stable API for others).
+#[doc(hidden)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SplitMix64 {
     /// Seed of the stream.

@@ -10,7 +10,6 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use dynamic_shapes_studio::shading::{
     dome_lights, shade, vertices_seen, Albedo, DomeParams, LightVisibility, Shadows,
-    DEFAULT_SHADOW_BIAS_M,
 };
 use skin_core::camera::{Camera, Intrinsics, RadialDistortion};
 use skin_core::math::{DVec2, DVec3};
@@ -100,14 +99,25 @@ fn bench_shade(c: &mut Criterion) {
     let seen = vertices_seen(&mesh, &[&view]).expect("triangle buffer");
     g.bench_function("visibility_per_vertex_seen_by_view", |b| {
         b.iter(|| {
-            LightVisibility::compute_for(&mesh, &query, &lights, DEFAULT_SHADOW_BIAS_M, Some(&seen))
-                .expect("lights outside")
+            LightVisibility::compute_for(
+                &mesh,
+                &query,
+                &lights,
+                LightVisibility::DEFAULT_SHADOW_BIAS_M,
+                Some(&seen),
+            )
+            .expect("lights outside")
         })
     });
     g.bench_function("shade_per_vertex_shadows", |b| {
         // Visibility is computed once per frame and shared by every camera.
-        let vis = LightVisibility::compute(&mesh, &query, &lights, DEFAULT_SHADOW_BIAS_M)
-            .expect("lights outside");
+        let vis = LightVisibility::compute(
+            &mesh,
+            &query,
+            &lights,
+            LightVisibility::DEFAULT_SHADOW_BIAS_M,
+        )
+        .expect("lights outside");
         b.iter(|| shade(&view, &mesh, &lights, &alb, &Shadows::PerVertex(&vis)).expect("ok"))
     });
     g.bench_function("shade_unshadowed", |b| {

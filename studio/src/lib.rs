@@ -12,7 +12,7 @@
 //!   a lagging hip flap) that linear blend skinning cannot produce; [`Performer::pose`] →
 //!   [`PosedFrame`] with LBS and true vertices and each effect's displacement separately.
 //! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
-//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching cubes.
+//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching tetrahedra.
 //! * Motions ([`skin_core::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
 //!   [`exercise_motion`] (every limited DOF at once through 90 % of its range, turning on the
 //!   spot), and BVH playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads,
@@ -22,7 +22,7 @@
 //! * Rendering is [`skin_core::raster`] (in skin-core: methods use it at run time).
 //! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
 //!   Lambertian shading with albedo, cast shadows by ray casts.
-//! * [`preview`](mod@preview): front-view preview pictures of meshes side by side (flat or per-vertex
+//! * [`preview`]: front-view preview pictures of meshes side by side (flat or per-vertex
 //!   colours), for looking at results by eye.
 //! * Garments ([`Garment`], [`DeformationParams::garment`]): a skirt and a draped sheet
 //!   ("Ghost") as their own cloth surfaces with second-order dynamics (XPBD), driven by the
@@ -34,15 +34,14 @@
 //!   separately; [`AlbedoTexture`] is a non-uniform albedo (skin variation, a printed garment
 //!   pattern) evaluated at rest positions, shaded through
 //!   [`shading::Albedo::Textured`].
-//! * [`capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
+//! * [`Capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
 //!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
 //! * Markers ([`MarkerSet`]): retro-reflective skin markers (Fua et al. §2) that follow the
 //!   true surface, drawn into grey frames with occlusion by the body ([`draw_markers`]).
 
-pub mod capture;
-pub mod preview;
 pub mod shading;
 
+mod capture;
 mod deformation;
 mod garment;
 mod makehuman;
@@ -50,6 +49,7 @@ mod markers;
 mod motion;
 mod muscles;
 mod performer;
+mod preview;
 mod procedural_body;
 mod retarget;
 #[cfg(test)]
@@ -79,12 +79,9 @@ pub use markers::{
 pub use motion::{
     exercise_motion, fast_motion, max_pose_share, pose_shares, range_coverage, range_of_motion,
     DofCoverage, ExerciseParams, FastMotionParams, PoseShare, RangeOfMotionParams,
-    DEFAULT_EXERCISE_DURATION_S, DEFAULT_EXERCISE_TURN_DEG_PER_S,
 };
 pub use muscles::{
     activation_ramp, Bump, EffectAxis, EffectSide, PoseDeformParams, PoseEffect, Push,
-    DEFAULT_BICEPS_M, DEFAULT_BRACHIORADIALIS_M, DEFAULT_CALF_M, DEFAULT_DELTOID_M,
-    DEFAULT_ELBOW_VOLUME_M, DEFAULT_HAMSTRINGS_M, DEFAULT_KNEE_VOLUME_M, DEFAULT_TRUNK_M,
 };
 pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
@@ -93,6 +90,4 @@ pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Reta
 pub use texture::{AlbedoTexture, Material, Print, TextureParams};
 pub use wrinkles::{
     CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams, CREASE_LOBE_RAD,
-    DEFAULT_FULL_COMPRESSION, DEFAULT_GARMENT_WAVELENGTH_M, DEFAULT_WRINKLE_AMPLITUDE_M,
-    DEFAULT_WRINKLE_MAX_EDGE_M, DEFAULT_WRINKLE_WAVELENGTH_M, WRINKLE_EDGE_MARGIN,
 };

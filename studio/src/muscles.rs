@@ -155,21 +155,21 @@ impl PoseEffect {
 }
 
 /// Default biceps/brachialis swelling at the reference elbow flexion, metres.
-pub const DEFAULT_BICEPS_M: f64 = 0.020;
+const DEFAULT_BICEPS_M: f64 = 0.020;
 /// Default brachioradialis swelling on the forearm, metres.
-pub const DEFAULT_BRACHIORADIALIS_M: f64 = 0.008;
+const DEFAULT_BRACHIORADIALIS_M: f64 = 0.008;
 /// Default deltoid swelling with shoulder abduction, metres.
-pub const DEFAULT_DELTOID_M: f64 = 0.012;
+const DEFAULT_DELTOID_M: f64 = 0.012;
 /// Default calf (gastrocnemius) swelling with plantarflexion, metres.
-pub const DEFAULT_CALF_M: f64 = 0.010;
+const DEFAULT_CALF_M: f64 = 0.010;
 /// Default hamstring swelling with knee flexion, metres.
-pub const DEFAULT_HAMSTRINGS_M: f64 = 0.010;
+const DEFAULT_HAMSTRINGS_M: f64 = 0.010;
 /// Default abdomen compression and back stretch on forward bending, metres.
-pub const DEFAULT_TRUNK_M: f64 = 0.015;
+const DEFAULT_TRUNK_M: f64 = 0.015;
 /// Default elbow crease depth and outside rounding, metres.
-pub const DEFAULT_ELBOW_VOLUME_M: f64 = 0.010;
+const DEFAULT_ELBOW_VOLUME_M: f64 = 0.010;
 /// Default knee crease depth and outside rounding, metres.
-pub const DEFAULT_KNEE_VOLUME_M: f64 = 0.012;
+const DEFAULT_KNEE_VOLUME_M: f64 = 0.012;
 
 /// Parameters of the pose-driven deformation: a list of effects.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

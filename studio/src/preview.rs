@@ -32,7 +32,13 @@ pub struct PreviewPanel<'a> {
     pub paint: Paint<'a>,
 }
 
-/// Front views of `panels` side by side, each `size × size` pixels, on white.
+/// Front views of `panels` side by side, each `size × size` pixels, on white: rendered by
+/// the [`Rasterizer`] and shaded with a headlight (Lambert on the camera-space normal), each
+/// panel painted in one colour or with per-vertex colours (e.g. an error map).
+///
+/// All panels share one nearly orthographic camera (a long lens far away on the +z axis,
+/// framing the union of the meshes' bounding boxes), so sizes and positions compare across
+/// panels. For looking at results by eye, not for measurement.
 ///
 /// # Errors
 /// [`Error::Empty`] for no panels or a mesh without vertices; [`Error::InvalidParam`] for

@@ -1,5 +1,5 @@
 //! The procedural performer: a smooth union of tapered capsules, one or two per bone of
-//! [`human_skeleton`], meshed by [`marching_cubes`], with skin weights from distance to the
+//! [`human_skeleton`], meshed by [`marching_tetrahedra`], with skin weights from distance to the
 //! bones. A second, simpler body than the MakeHuman mesh: closed, smooth, any size, no data
 //! files — for fast tests and for methods that want a clean watertight surface.
 //!
@@ -17,7 +17,7 @@ use super::deformation::DeformationParams;
 use super::performer::Performer;
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
-use skin_core::mesh::{marching_cubes, ScalarGrid, SkinWeights};
+use skin_core::mesh::{marching_tetrahedra, ScalarGrid, SkinWeights};
 use skin_core::skeleton::{human_skeleton, HumanParams, Skeleton};
 use skin_core::{Error, Result};
 
@@ -26,7 +26,7 @@ use skin_core::{Error, Result};
 pub struct ProceduralBodyParams {
     /// Stature, metres; the skeleton and every radius scale with it. Default: 1.75.
     pub height_m: f64,
-    /// Marching-cubes grid spacing, metres (the mesh's edge length is about this). Default:
+    /// Marching-tetrahedra grid spacing, metres (the mesh's edge length is about this). Default:
     /// 0.02 (≈ 10⁴ vertices).
     pub grid_spacing_m: f64,
     /// Smooth-union blend distance, metres. Default: 0.015.
@@ -40,7 +40,7 @@ pub struct ProceduralBodyParams {
 impl Default for ProceduralBodyParams {
     fn default() -> Self {
         ProceduralBodyParams {
-            height_m: skin_core::skeleton::DEFAULT_HEIGHT_M,
+            height_m: skin_core::skeleton::HumanParams::DEFAULT_HEIGHT_M,
             grid_spacing_m: 0.02,
             blend_m: 0.015,
             weight_falloff_m: 0.02,
@@ -79,7 +79,7 @@ fn smin(a: f64, b: f64, k: f64) -> f64 {
 fn capsules(s: &Skeleton, height_m: f64) -> Result<Vec<Capsule>> {
     let fk = s.forward_kinematics(&s.rest_pose())?;
     let w = fk.world_from_joint();
-    let k = height_m / skin_core::skeleton::DEFAULT_HEIGHT_M;
+    let k = height_m / skin_core::skeleton::HumanParams::DEFAULT_HEIGHT_M;
     let j = |n: &str| {
         s.joint_index(n).ok_or_else(|| Error::InvalidParam {
             name: "skeleton",
@@ -211,7 +211,7 @@ pub fn procedural_performer(params: &ProceduralBodyParams) -> Result<Performer> 
     hi += DVec3::splat(2.0 * h);
     let dims = ((hi - lo) / h).ceil().to_array().map(|d| d as usize + 1);
     let grid = ScalarGrid::sample(lo, h, dims, field)?;
-    let mesh = marching_cubes(&grid, 0.0)?;
+    let mesh = marching_tetrahedra(&grid, 0.0)?;
     let sigma = params.weight_falloff_m;
     let lists: Vec<Vec<(u32, f64)>> = mesh
         .vertices

@@ -4,7 +4,7 @@
 //!
 //! [`WrinkleModel::new`] selects the coarse faces that can wrinkle — the joint creases of
 //! [`WrinkleParams::creases`] and the garment's vertex range — and refines them once, at rest,
-//! with [`Refinement`] until every edge there is at most [`WRINKLE_EDGE_MARGIN`] ·
+//! with [`Refinement`] until every edge there is at most `WRINKLE_EDGE_MARGIN` ·
 //! [`WrinkleParams::max_edge_m`] long (the margin leaves room for the stretch of posing and
 //! for the wrinkles' slope, so the posed, wrinkled edges stay within `max_edge_m`). The
 //! refinement is crack-free and evaluated by Phong tessellation, so the fine surface is
@@ -58,25 +58,33 @@ use skin_core::mesh::{
 use skin_core::skeleton::Skeleton;
 use skin_core::{Error, Result};
 
-/// Default wrinkle amplitude (peak height of a fold above the smooth surface), metres: 2 mm,
-/// the middle of the 1–3 mm of skin creases and cloth folds.
-pub const DEFAULT_WRINKLE_AMPLITUDE_M: f64 = 0.002;
-/// Default crease wrinkle wavelength (fold to fold), metres: 2 cm, the middle of 1–3 cm.
-pub const DEFAULT_WRINKLE_WAVELENGTH_M: f64 = 0.020;
-/// Default garment fold wavelength, metres: 2.5 cm (cloth folds are a little wider than
-/// skin creases).
-pub const DEFAULT_GARMENT_WAVELENGTH_M: f64 = 0.025;
-/// Default longest edge of the fine mesh where wrinkles are, metres: 3 mm, 6–7 edges per
-/// 2 cm fold.
-pub const DEFAULT_WRINKLE_MAX_EDGE_M: f64 = 0.003;
-/// Default garment compression (`1 − posed / rest` edge length) at which garment folds reach
-/// their full amplitude: 10 %.
-pub const DEFAULT_FULL_COMPRESSION: f64 = 0.10;
+impl WrinkleParams {
+    /// Default wrinkle amplitude (peak height of a fold above the smooth surface), metres: 2 mm,
+    /// the middle of the 1–3 mm of skin creases and cloth folds.
+    pub const DEFAULT_AMPLITUDE_M: f64 = 0.002;
+
+    /// Default longest edge of the fine mesh where wrinkles are, metres: 3 mm, 6–7 edges per
+    /// 2 cm fold.
+    pub const DEFAULT_MAX_EDGE_M: f64 = 0.003;
+}
+impl CreaseWrinkles {
+    /// Default crease wrinkle wavelength (fold to fold), metres: 2 cm, the middle of 1–3 cm.
+    pub const DEFAULT_WAVELENGTH_M: f64 = 0.020;
+}
+impl GarmentWrinkles {
+    /// Default garment fold wavelength, metres: 2.5 cm (cloth folds are a little wider than
+    /// skin creases).
+    pub const DEFAULT_WAVELENGTH_M: f64 = 0.025;
+
+    /// Default garment compression (`1 − posed / rest` edge length) at which garment folds reach
+    /// their full amplitude: 10 %.
+    pub const DEFAULT_FULL_COMPRESSION: f64 = 0.10;
+}
 /// The rest refinement targets this share of [`WrinkleParams::max_edge_m`], so that the
 /// stretch of posing (folds fade out from a principal stretch of 1.15) and the slope of the
 /// folds (`2πA/λ ≈ 0.6` at the defaults, i.e. edges across a fold up to ≈ 17 % longer) keep
 /// the posed wrinkled edges within the bound: `0.7 · 1.15 · 1.17 ≈ 0.94`.
-pub const WRINKLE_EDGE_MARGIN: f64 = 0.7;
+pub(crate) const WRINKLE_EDGE_MARGIN: f64 = 0.7;
 
 /// Default angular half-width of the crease folds around the limb, radians: 110° from the
 /// inner side (`cos²(90° · φ / 110°)`, half strength at 55°), wider than the lobe
@@ -95,10 +103,10 @@ pub struct CreaseWrinkles {
     /// for the other sign), finite and non-zero. Default: 90°.
     pub reference_rad: f64,
     /// Fold amplitude at full activation and envelope, metres, finite and ≥ 0. Default:
-    /// [`DEFAULT_WRINKLE_AMPLITUDE_M`].
+    /// [`WrinkleParams::DEFAULT_AMPLITUDE_M`].
     pub amplitude_m: f64,
     /// Fold wavelength along the limb, metres, finite and > 0. Default:
-    /// [`DEFAULT_WRINKLE_WAVELENGTH_M`].
+    /// [`CreaseWrinkles::DEFAULT_WAVELENGTH_M`].
     pub wavelength_m: f64,
     /// Joint whose segment ends at the crease's joint (e.g. `"l_shoulder"` for the elbow: the
     /// upper arm); it must have exactly one child joint.
@@ -121,12 +129,12 @@ pub struct CreaseWrinkles {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GarmentWrinkles {
     /// Fold amplitude at full compression, metres, finite and ≥ 0. Default:
-    /// [`DEFAULT_WRINKLE_AMPLITUDE_M`].
+    /// [`WrinkleParams::DEFAULT_AMPLITUDE_M`].
     pub amplitude_m: f64,
-    /// Fold wavelength, metres, finite and > 0. Default: [`DEFAULT_GARMENT_WAVELENGTH_M`].
+    /// Fold wavelength, metres, finite and > 0. Default: [`GarmentWrinkles::DEFAULT_WAVELENGTH_M`].
     pub wavelength_m: f64,
     /// Compression (`1 − l/L`) giving full amplitude, finite and > 0. Default:
-    /// [`DEFAULT_FULL_COMPRESSION`].
+    /// [`GarmentWrinkles::DEFAULT_FULL_COMPRESSION`].
     pub full_compression: f64,
     /// Joint whose rest vertical line is the garment's axis (azimuth of the vertical folds).
     /// Default: `"pelvis"`.
@@ -136,9 +144,9 @@ pub struct GarmentWrinkles {
 impl Default for GarmentWrinkles {
     fn default() -> Self {
         Self {
-            amplitude_m: DEFAULT_WRINKLE_AMPLITUDE_M,
-            wavelength_m: DEFAULT_GARMENT_WAVELENGTH_M,
-            full_compression: DEFAULT_FULL_COMPRESSION,
+            amplitude_m: WrinkleParams::DEFAULT_AMPLITUDE_M,
+            wavelength_m: GarmentWrinkles::DEFAULT_WAVELENGTH_M,
+            full_compression: GarmentWrinkles::DEFAULT_FULL_COMPRESSION,
             axis_joint: "pelvis".into(),
         }
     }
@@ -148,10 +156,10 @@ impl Default for GarmentWrinkles {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WrinkleParams {
     /// Longest fine edge where wrinkles are, metres, finite and > 0. Default:
-    /// [`DEFAULT_WRINKLE_MAX_EDGE_M`].
+    /// [`WrinkleParams::DEFAULT_MAX_EDGE_M`].
     pub max_edge_m: f64,
     /// Phong tessellation factor of the smooth fine surface, in `[0, 1]`. Default:
-    /// [`skin_core::mesh::DEFAULT_PHONG_ALPHA`].
+    /// [`skin_core::mesh::RefineParams::DEFAULT_PHONG_ALPHA`].
     pub phong_alpha: f64,
     /// Joint creases.
     pub creases: Vec<CreaseWrinkles>,
@@ -194,8 +202,8 @@ impl Default for WrinkleParams {
                     name: format!("{s}_{joint}"),
                     dof: format!("{s}_{joint}.flexion"),
                     reference_rad: 90f64.to_radians(),
-                    amplitude_m: DEFAULT_WRINKLE_AMPLITUDE_M,
-                    wavelength_m: DEFAULT_WRINKLE_WAVELENGTH_M,
+                    amplitude_m: WrinkleParams::DEFAULT_AMPLITUDE_M,
+                    wavelength_m: CreaseWrinkles::DEFAULT_WAVELENGTH_M,
                     bone: format!("{s}_{bone}"),
                     region: region.iter().map(|r| format!("{s}_{r}")).collect(),
                     along: Bump {
@@ -213,8 +221,8 @@ impl Default for WrinkleParams {
             }
         }
         Self {
-            max_edge_m: DEFAULT_WRINKLE_MAX_EDGE_M,
-            phong_alpha: skin_core::mesh::DEFAULT_PHONG_ALPHA,
+            max_edge_m: WrinkleParams::DEFAULT_MAX_EDGE_M,
+            phong_alpha: skin_core::mesh::RefineParams::DEFAULT_PHONG_ALPHA,
             creases,
             garment: GarmentWrinkles::default(),
             refine_all_faces: false,
@@ -247,8 +255,9 @@ impl WrinkleParams {
     }
 
     /// A smooth fine surface without wrinkles: every face refined to edges of at most
-    /// [`WRINKLE_EDGE_MARGIN`] · `max_edge_m` at rest, all amplitudes 0 — the performer's polygonal surface made
-    /// smooth and consistent (facets close to the shading normals) at render time.
+    /// 0.7 · `max_edge_m` at rest (a margin for the stretch of posing), all amplitudes 0 — the
+    /// performer's polygonal surface made smooth and consistent (facets close to the shading
+    /// normals) at render time.
     pub fn smooth_surface(max_edge_m: f64) -> Self {
         Self::default()
             .with_amplitude_m(0.0)

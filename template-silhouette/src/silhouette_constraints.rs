@@ -30,7 +30,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
-use skin_core::image::{extract_contours, ContourParams, Mask, DEFAULT_SAMPLE_STEP_PX};
+use skin_core::image::{extract_contours, ContourParams, Mask};
 use skin_core::math::{DVec2, DVec3, Ray};
 use skin_core::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 
@@ -60,7 +60,7 @@ pub struct SilhouetteParams {
 impl Default for SilhouetteParams {
     fn default() -> Self {
         SilhouetteParams {
-            sample_step_px: DEFAULT_SAMPLE_STEP_PX,
+            sample_step_px: ContourParams::DEFAULT_SAMPLE_STEP_PX,
             normal_scale: Self::DEFAULT_NORMAL_SCALE,
             max_distance_m: Self::DEFAULT_MAX_DISTANCE_M,
             max_normal_angle_deg: Self::DEFAULT_MAX_NORMAL_ANGLE_DEG,

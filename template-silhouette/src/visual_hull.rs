@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 use skin_core::camera::Camera;
 use skin_core::image::{extract_contours, ContourParams, Mask, PixelRect};
 use skin_core::math::{DVec2, DVec3};
-use skin_core::mesh::{marching_cubes, BoundingBox, MeshQuery, ScalarGrid, TriMesh};
+use skin_core::mesh::{marching_tetrahedra, BoundingBox, MeshQuery, ScalarGrid, TriMesh};
 
 use crate::error::{Context, Error, Result, ResultExt};
 
@@ -598,7 +598,7 @@ fn extract_polygon(cones: &[ConeDistance], params: &ContourRayHullParams) -> Res
         dims: fdims,
         values,
     };
-    let mesh = marching_cubes(&grid, 0.0)?;
+    let mesh = marching_tetrahedra(&grid, 0.0)?;
     if mesh.faces.is_empty() {
         return Err(Error::Empty {
             what: "polygonal visual hull (no grid node inside every silhouette at the polygon \

@@ -31,9 +31,11 @@ use crate::optim::{
     levenberg_marquardt, nelder_mead_with_steps, numeric_jacobian, LmParams, NelderMeadParams,
 };
 
-/// Default coplanarity tolerance: world points whose smallest principal spread is below 1e-3 of
-/// the largest (1 mm of depth over 1 m) give a DLT too ill-conditioned to trust.
-pub const DEFAULT_COPLANARITY_TOLERANCE: f64 = 1e-3;
+impl CalibrationParams {
+    /// Default coplanarity tolerance: world points whose smallest principal spread is below 1e-3 of
+    /// the largest (1 mm of depth over 1 m) give a DLT too ill-conditioned to trust.
+    pub const DEFAULT_COPLANARITY_TOLERANCE: f64 = 1e-3;
+}
 /// Initial-simplex step, in rescaled units (one unit ≈ 0.7 px change of the RMS error).
 const DEFAULT_SIMPLEX_STEP: f64 = 2.0;
 /// Scale (px) of the distortion-centre parameters when `k1 = 0` makes them unobservable at the
@@ -86,7 +88,7 @@ impl Default for CalibrationParams {
         Self {
             method: CalibrationMethod::LevenbergMarquardt,
             refine_distortion: true,
-            coplanarity_tolerance: DEFAULT_COPLANARITY_TOLERANCE,
+            coplanarity_tolerance: CalibrationParams::DEFAULT_COPLANARITY_TOLERANCE,
             lm: LmParams::default(),
             nelder_mead: NelderMeadParams {
                 initial_step: DEFAULT_SIMPLEX_STEP,

@@ -36,7 +36,6 @@ mod time_offset;
 
 pub use calibrate::{
     calibrate, CalibrationMethod, CalibrationParams, CalibrationReport, SimplexObjective,
-    DEFAULT_COPLANARITY_TOLERANCE,
 };
 pub use distortion::RadialDistortion;
 pub use dlt::{

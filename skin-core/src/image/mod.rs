@@ -45,23 +45,17 @@ mod io;
 mod mask;
 mod sample;
 
-pub use background::{
-    BackgroundFrame, BackgroundModel, BackgroundParams, Segmentation, DEFAULT_K_SIGMA,
-    DEFAULT_MAX_HOLE_PX, DEFAULT_MIN_COMPONENT_PX, DEFAULT_MIN_THRESHOLD,
-};
+pub use background::{BackgroundFrame, BackgroundModel, BackgroundParams, Segmentation};
 pub use cleanup::{
     fill_small_holes, label_components, remove_small_components, Components, Neighbourhood,
 };
-pub use contour::{
-    extract_contours, Contour, ContourParams, DEFAULT_MIN_POINTS, DEFAULT_OUTWARD_OFFSET_PX,
-    DEFAULT_SAMPLE_STEP_PX, DEFAULT_TANGENT_HALF_WINDOW,
-};
+pub use contour::{extract_contours, Contour, ContourParams};
 pub use distance::{distance_to_background, distance_to_foreground, signed_distance, GrayF32Image};
 pub use io::{
     decode_depth_u16, depth_false_colour, encode_depth_u16, is_valid_depth, normals_rgb8,
     read_depth_png16, read_mask_png, read_normal_png, write_depth_false_colour_png,
     write_depth_png16, write_mask_png, write_normal_png, DepthEncoding, DepthRange, Gray16Image,
-    NormalBits, Rgb16Image, DEFAULT_DEPTH_SCALE_M, DEPTH_NO_DATA, MASK_READ_THRESHOLD,
+    NormalBits, Rgb16Image, DEPTH_NO_DATA, MASK_READ_THRESHOLD,
 };
 pub use mask::{Mask, PixelRect, MASK_FOREGROUND_GREY};
 pub use sample::{sample_bilinear, sample_bilinear_with_gradient, BilinearSample};

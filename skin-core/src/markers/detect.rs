@@ -9,15 +9,19 @@ use imageproc::region_labelling::{connected_components, Connectivity};
 use crate::math::DVec2;
 use crate::{Error, Result};
 
-/// Default half-width of the box blur whose subtraction is the high-pass filter, px. The box
-/// (2·7 + 1 = 15 px) is several times wider than a marker image (a few px across), so the blur
-/// estimates the local background around a marker.
-pub const DEFAULT_BLUR_RADIUS_PX: u32 = 7;
-/// Default high-pass threshold, grey levels of an 8-bit image (the paper's 8-bit frames).
-pub const DEFAULT_HIGH_PASS_THRESHOLD: u8 = 40;
-/// Default largest accepted blob, px: larger bright regions (specular body parts) are not
-/// markers.
-pub const DEFAULT_MAX_AREA_PX: usize = 200;
+impl MarkerDetectParams {
+    /// Default half-width of the box blur whose subtraction is the high-pass filter, px. The box
+    /// (2·7 + 1 = 15 px) is several times wider than a marker image (a few px across), so the blur
+    /// estimates the local background around a marker.
+    pub const DEFAULT_BLUR_RADIUS_PX: u32 = 7;
+
+    /// Default high-pass threshold, grey levels of an 8-bit image (the paper's 8-bit frames).
+    pub const DEFAULT_THRESHOLD: u8 = 40;
+
+    /// Default largest accepted blob, px: larger bright regions (specular body parts) are not
+    /// markers.
+    pub const DEFAULT_MAX_AREA_PX: usize = 200;
+}
 
 /// Parameters of [`detect_markers`]. The paper gives no numbers ("high pass filter and then
 /// thresholding ... centroid operations"); the defaults suit markers a few pixels across.
@@ -36,10 +40,10 @@ pub struct MarkerDetectParams {
 impl Default for MarkerDetectParams {
     fn default() -> Self {
         Self {
-            blur_radius_px: DEFAULT_BLUR_RADIUS_PX,
-            threshold: DEFAULT_HIGH_PASS_THRESHOLD,
+            blur_radius_px: MarkerDetectParams::DEFAULT_BLUR_RADIUS_PX,
+            threshold: MarkerDetectParams::DEFAULT_THRESHOLD,
             min_area_px: 1,
-            max_area_px: DEFAULT_MAX_AREA_PX,
+            max_area_px: MarkerDetectParams::DEFAULT_MAX_AREA_PX,
         }
     }
 }
@@ -203,7 +207,9 @@ mod tests {
             Luma([if inside { 250 } else { (40 + x) as u8 }])
         });
         let blobs = detect_markers(&img, &MarkerDetectParams::default()).unwrap();
-        assert!(blobs.iter().all(|b| b.area_px <= DEFAULT_MAX_AREA_PX));
+        assert!(blobs
+            .iter()
+            .all(|b| b.area_px <= MarkerDetectParams::DEFAULT_MAX_AREA_PX));
         // Edges of the square pass the high-pass, but only as large connected rims.
         assert!(blobs.is_empty(), "{blobs:?}");
     }

@@ -42,15 +42,11 @@ pub use bar_calibration::{
     bar_length_rms_m, calibrate_with_bar, synthetic_bar_calibration, BarCalibration,
     BarCalibrationParams, SyntheticBarCalibration,
 };
-pub use detect::{
-    detect_markers, MarkerBlob, MarkerDetectParams, DEFAULT_BLUR_RADIUS_PX,
-    DEFAULT_HIGH_PASS_THRESHOLD, DEFAULT_MAX_AREA_PX,
-};
+pub use detect::{detect_markers, MarkerBlob, MarkerDetectParams};
 pub use track::{
     id_switches, track_markers, TrackParams, Trajectory, HUMAN_MAX_ACCELERATION_M_PER_S2,
     HUMAN_MAX_SPEED_M_PER_S,
 };
 pub use triangulate::{
     reconstruct_markers, triangulate, MarkerView, ReconstructedMarker, Triangulation,
-    MAX_TRIANGULATION_ITERATIONS,
 };

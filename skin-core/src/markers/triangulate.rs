@@ -7,7 +7,7 @@ use crate::math::{DMat3, DVec2, DVec3};
 use crate::{Context, Error, Result, ResultExt};
 
 /// Gauss–Newton iterations of [`triangulate`] at most.
-pub const MAX_TRIANGULATION_ITERATIONS: usize = 20;
+const MAX_TRIANGULATION_ITERATIONS: usize = 20;
 /// Gauss–Newton stops when a step is shorter than this, m.
 const STEP_TOLERANCE_M: f64 = 1e-12;
 /// Smallest accepted `det(A) / (tr(A)/3)³` of the linear system: below it the rays are

@@ -12,7 +12,7 @@ mod decimate;
 mod gltf;
 mod heat_weights;
 mod laplacian;
-mod marching_cubes;
+mod marching_tetrahedra;
 mod metrics;
 mod normals;
 mod obj;
@@ -33,33 +33,27 @@ pub use decimate::{decimate, Decimation};
 pub use gltf::{save_gltf_animation, write_gltf_animation, MeshSequence};
 pub use heat_weights::{
     bone_heat_weights, bone_heat_weights_dense, rest_bones, Bone, BoneSegment, HeatWeightsParams,
-    VisibilityParams, DEFAULT_HEAT_CONSTANT, DEFAULT_MIN_DISTANCE_REL, DEFAULT_TIE_TOLERANCE,
-    DEFAULT_VISIBILITY_CONE_COS, DEFAULT_VISIBILITY_STEP_REL, DEFAULT_VISIBILITY_TOLERANCE_REL,
+    VisibilityParams,
 };
 pub use laplacian::{
-    cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams,
-    MassKind, DEFAULT_DEGENERATE_TOL,
+    cotangent_laplacian, mass_matrix, uniform_laplacian, DegenerateFaces, LaplacianParams, MassKind,
 };
-pub use marching_cubes::{marching_cubes, ScalarGrid};
+pub use marching_tetrahedra::{marching_tetrahedra, ScalarGrid};
 pub use metrics::{
     mesh_distance, one_sided_distance, points_to_surface, DistanceStats, MeshDistance,
     OneSidedDistance,
 };
-pub use normals::{
-    face_areas, face_normals, triangle_normal, vertex_normals, NormalWeighting, DEGENERATE_REL_TOL,
-};
+pub use normals::{face_areas, face_normals, triangle_normal, vertex_normals, NormalWeighting};
 pub use obj::{
     read_obj, read_obj_from_reader, read_obj_from_str, read_obj_group, read_obj_group_with_map,
-    write_obj, write_obj_to, ObjFile, ObjGroupMesh, DEFAULT_GROUP,
+    write_obj, write_obj_to, ObjFile, ObjGroupMesh,
 };
 pub use ply::{read_ply, read_ply_from_reader, write_ply, write_ply_to, PlyEncoding};
 pub use query::{ClosestPoint, MeshQuery, RayHit};
-pub use skinning::{
-    resize_rest, skin, SkinBinding, SkinWeights, DEFAULT_MAX_INFLUENCES, DEFAULT_PRUNE_BELOW,
-};
-pub use subdivide::{FaceRefinement, FinePoint, RefineParams, Refinement, DEFAULT_PHONG_ALPHA};
+pub use skinning::{resize_rest, skin, SkinBinding, SkinWeights};
+pub use subdivide::{FaceRefinement, FinePoint, RefineParams, Refinement};
 pub use surface_point::{
-    closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint, BARY_SUM_TOL,
+    closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint,
 };
 pub use topology::{
     boundary_edges, is_closed, unique_edges, vertex_faces, vertex_neighbors, Adjacency,
@@ -67,4 +61,4 @@ pub use topology::{
 };
 pub use trimesh::{triangle_area, BoundingBox, TriMesh};
 pub use uv::{UvLayout, UvSplit};
-pub use winding_number::{WindingNumber, DEFAULT_ACCURACY_BETA, LEAF_TRIANGLES};
+pub use winding_number::WindingNumber;

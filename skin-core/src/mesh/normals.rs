@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 /// largest-scale angle is below this value. Scale-free, so it works in metres or decimetres.
 /// Default: `1e-12` (well above f64 rounding noise of a cross product, ~1e-16, yet far below
 /// any triangle a scanner or an artist produces on purpose).
-pub const DEGENERATE_REL_TOL: f64 = 1e-12;
+pub(crate) const DEGENERATE_REL_TOL: f64 = 1e-12;
 
 /// How face normals are weighted when accumulated into vertex normals.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -36,7 +36,8 @@ pub enum NormalWeighting {
 }
 
 /// The unit normal of triangle `[a, b, c]` (counter-clockwise seen from outside), or `None`
-/// when it is degenerate (see [`DEGENERATE_REL_TOL`]) or non-finite.
+/// when it is degenerate (twice its area at most 1e-12 of its longest edge squared) or
+/// non-finite.
 pub fn triangle_normal(tri: [DVec3; 3]) -> Option<DVec3> {
     let [a, b, c] = tri;
     let n = (b - a).cross(c - a);

@@ -7,7 +7,7 @@
 //! bounding-volume hierarchy; a [`MeshQuery`] is built once per mesh state (one frame) in
 //! O(F log F) and answers each query in roughly O(log F).
 //!
-//! **Degenerate triangles** (see [`crate::mesh::DEGENERATE_REL_TOL`]) are left out of the
+//! **Degenerate triangles** (see [`crate::mesh::triangle_normal`]) are left out of the
 //! hierarchy: they have no normal, no interior and no well-defined barycentric coordinates.
 //! Where they are embedded in a surface their edges belong to neighbouring faces, so closest
 //! points are unchanged; an isolated degenerate face is invisible to the queries.

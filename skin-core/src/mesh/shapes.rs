@@ -1,6 +1,6 @@
 //! Procedural meshes of the peer benchmarks, so tests, benches and examples can regenerate
 //! bit-identical inputs to the Python peers in `bench/peers/` (see its README, "Deterministic
-//! inputs", and `laplacian.py`); their random inputs come from [`crate::random::SplitMix64`].
+//! inputs", and `laplacian.py`); their random inputs come from `skin_core::random::SplitMix64`.
 
 use crate::math::DVec3;
 use crate::mesh::TriMesh;

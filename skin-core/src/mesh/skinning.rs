@@ -89,11 +89,6 @@ pub struct SkinWeights {
     bone_count: usize,
 }
 
-/// Default threshold below which weights are dropped before renormalising.
-pub const DEFAULT_PRUNE_BELOW: f64 = 0.01;
-/// Default maximum number of influences per vertex.
-pub const DEFAULT_MAX_INFLUENCES: usize = 4;
-
 impl SkinWeights {
     /// Builds weights from per-vertex `(bone, weight)` lists, merging repeated bones and
     /// normalising each list to sum one. Zero weights are dropped.

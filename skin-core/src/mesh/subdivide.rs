@@ -28,8 +28,8 @@
 //! **Smooth evaluation.** Points are placed by Phong tessellation (Boubekeur & Alexa 2008):
 //! with the flat point `p = Σ λᵢ Pᵢ` and the area-weighted vertex normals `nᵢ`,
 //! `p* = (1 − α) p + α Σ λᵢ πᵢ(p)`, `πᵢ(p) = p − ((p − Pᵢ)·nᵢ) nᵢ`; `α` =
-//! [`DEFAULT_PHONG_ALPHA`] as the paper recommends, 0 gives the flat facets. A point on an
-//! edge depends only on that edge's two ends, so the evaluation is crack-free too.
+//! [`RefineParams::DEFAULT_PHONG_ALPHA`] as the paper recommends, 0 gives the flat facets. A point
+//! on an edge depends only on that edge's two ends, so the evaluation is crack-free too.
 
 use std::collections::HashMap;
 
@@ -43,9 +43,11 @@ use crate::check;
 use crate::math::DVec3;
 use crate::{Error, Result};
 
-/// Phong tessellation shape factor `α` of [`RefineParams::new`]: 3/4, the value Boubekeur &
-/// Alexa (2008) recommend.
-pub const DEFAULT_PHONG_ALPHA: f64 = 0.75;
+impl RefineParams {
+    /// Phong tessellation shape factor `α` of [`RefineParams::new`]: 3/4, the value Boubekeur &
+    /// Alexa (2008) recommend.
+    pub const DEFAULT_PHONG_ALPHA: f64 = 0.75;
+}
 
 /// Parameters of [`Refinement::new`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -54,16 +56,16 @@ pub struct RefineParams {
     /// surface of the input mesh), metres (mesh units), finite and > 0.
     pub max_edge_m: f64,
     /// Phong tessellation shape factor `α` in `[0, 1]`: 0 flat, default
-    /// [`DEFAULT_PHONG_ALPHA`].
+    /// [`RefineParams::DEFAULT_PHONG_ALPHA`].
     pub phong_alpha: f64,
 }
 
 impl RefineParams {
-    /// Edges at most `max_edge_m`, Phong `α` = [`DEFAULT_PHONG_ALPHA`].
+    /// Edges at most `max_edge_m`, Phong `α` = [`RefineParams::DEFAULT_PHONG_ALPHA`].
     pub fn new(max_edge_m: f64) -> Self {
         Self {
             max_edge_m,
-            phong_alpha: DEFAULT_PHONG_ALPHA,
+            phong_alpha: RefineParams::DEFAULT_PHONG_ALPHA,
         }
     }
 

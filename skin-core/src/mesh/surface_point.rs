@@ -16,9 +16,11 @@ use crate::mesh::TriMesh;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// Tolerance on `|b0 + b1 + b2 - 1|` accepted by [`SurfacePoint::new`]. Default: `1e-9`
-/// (coordinates computed in f64 and stored in text files with ≥ 10 digits pass).
-pub const BARY_SUM_TOL: f64 = 1e-9;
+impl SurfacePoint {
+    /// Tolerance on `|b0 + b1 + b2 - 1|` accepted by [`SurfacePoint::new`]. Default: `1e-9`
+    /// (coordinates computed in f64 and stored in text files with ≥ 10 digits pass).
+    pub const BARY_SUM_TOL: f64 = 1e-9;
+}
 
 /// A point on a triangle mesh: a face and barycentric weights of its three corners.
 ///
@@ -45,7 +47,7 @@ pub struct TrianglePoint {
 
 impl SurfacePoint {
     /// Builds a surface point, checking that the weights are finite and sum to one within
-    /// [`BARY_SUM_TOL`]. Weights may be negative (a point extrapolated outside its face).
+    /// [`SurfacePoint::BARY_SUM_TOL`]. Weights may be negative (a point extrapolated outside its face).
     ///
     /// # Errors
     /// [`Error::NonFinite`] for NaN/inf weights, [`Error::InvalidParam`] when they do not sum
@@ -57,7 +59,7 @@ impl SurfacePoint {
             });
         }
         let sum: f64 = bary.iter().sum();
-        if (sum - 1.0).abs() > BARY_SUM_TOL {
+        if (sum - 1.0).abs() > SurfacePoint::BARY_SUM_TOL {
             return Err(Error::InvalidParam {
                 name: "bary",
                 reason: format!("weights must sum to 1, got {sum}"),
@@ -178,7 +180,7 @@ fn segment_parameter(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 /// The exact closest point to `p` on triangle `tri` (Ericson, *Real-Time Collision Detection*,
 /// §5.1.5, Voronoi-region walk).
 ///
-/// Degenerate triangles (see [`crate::mesh::DEGENERATE_REL_TOL`]) are handled as the union of
+/// Degenerate triangles (see [`crate::mesh::triangle_normal`]) are handled as the union of
 /// their three edges, so the result is always finite for finite input.
 pub fn closest_point_on_triangle(p: DVec3, tri: [DVec3; 3]) -> TrianglePoint {
     let [a, b, c] = tri;

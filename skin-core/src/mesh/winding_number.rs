@@ -12,7 +12,7 @@
 //! (c·a)|b|)` with `a, b, c` its corners relative to `q`.
 //!
 //! **Fast evaluation.** The triangles sit in a bounding-volume tree (median splits on the
-//! longest axis of the centroids, at most [`LEAF_TRIANGLES`] per leaf). Each node stores its
+//! longest axis of the centroids, at most `LEAF_TRIANGLES` per leaf). Each node stores its
 //! area-weighted centroid `p̃`, its area vector `N = Σ_t a_t n_t` (`a_t n_t = ½ (b−a)×(c−a)`),
 //! its second moment `M = Σ_t a_t n_t ⊗ (c_t − p̃)` (`c_t` the triangle's centroid; exact,
 //! since the integrand is linear over a triangle) and the radius `ρ` of the ball about `p̃`
@@ -27,8 +27,8 @@
 //! matters: a ring of a tube (a sleeve, a skirt) has `N ≈ 0`, and at first order it would
 //! vanish. Barill et al. take β = 2 with a third-order expansion; at second order β = 2
 //! leaves errors of up to 0.05 in a winding number (measured on a 14k-triangle sphere, 400
-//! points inside and out) and β = 4 ([`DEFAULT_ACCURACY_BETA`]) 0.012 (0.004 on a sleeve-like
-//! tube), a few microseconds a query either way — far from the ½ of an inside test.
+//! points inside and out) and β = 4 ([`WindingNumber::DEFAULT_ACCURACY_BETA`]) 0.012 (0.004 on a
+//! sleeve-like tube), a few microseconds a query either way — far from the ½ of an inside test.
 
 use rayon::prelude::*;
 
@@ -36,11 +36,13 @@ use crate::math::{DMat3, DVec3};
 use crate::mesh::TriMesh;
 use crate::{Error, Result};
 
-/// Default far-field threshold β: a node is expanded beyond β × its radius (ours, for the
-/// second-order expansion: module docs; Barill et al. 2018 use 2 at third order).
-pub const DEFAULT_ACCURACY_BETA: f64 = 4.0;
+impl WindingNumber {
+    /// Default far-field threshold β: a node is expanded beyond β × its radius (ours, for the
+    /// second-order expansion: module docs; Barill et al. 2018 use 2 at third order).
+    pub const DEFAULT_ACCURACY_BETA: f64 = 4.0;
+}
 /// Most triangles in a leaf of the tree.
-pub const LEAF_TRIANGLES: usize = 8;
+const LEAF_TRIANGLES: usize = 8;
 
 /// One node of the tree: a leaf holds `count > 0` triangles from `start`; an inner node has
 /// children `left` and `left + 1`… stored at `left` and `right`.
@@ -65,8 +67,9 @@ pub struct WindingNumber {
 }
 
 impl WindingNumber {
-    /// Builds the tree of `mesh`'s triangles with the default β ([`DEFAULT_ACCURACY_BETA`]).
-    /// Degenerate triangles are kept (they subtend no solid angle).
+    /// Builds the tree of `mesh`'s triangles with the default β
+    /// ([`WindingNumber::DEFAULT_ACCURACY_BETA`]). Degenerate triangles are kept (they subtend no
+    /// solid angle).
     ///
     /// # Errors
     /// [`Error::Empty`] for a mesh without faces; [`Error::NonFinite`] /
@@ -87,7 +90,7 @@ impl WindingNumber {
     /// # Ok::<(), skin_core::Error>(())
     /// ```
     pub fn new(mesh: &TriMesh) -> Result<Self> {
-        Self::with_beta(mesh, DEFAULT_ACCURACY_BETA)
+        Self::with_beta(mesh, WindingNumber::DEFAULT_ACCURACY_BETA)
     }
 
     /// As [`WindingNumber::new`] with far-field threshold `beta` (larger: more exact, slower;

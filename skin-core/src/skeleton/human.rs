@@ -23,8 +23,10 @@ use crate::math::DVec3;
 use crate::Result;
 use serde::{Deserialize, Serialize};
 
-/// Default stature of [`human_skeleton`], metres (a typical adult).
-pub const DEFAULT_HEIGHT_M: f64 = 1.75;
+impl HumanParams {
+    /// Default stature of [`human_skeleton`], metres (a typical adult).
+    pub const DEFAULT_HEIGHT_M: f64 = 1.75;
+}
 
 /// Parameters of [`human_skeleton`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -37,7 +39,7 @@ pub struct HumanParams {
 impl Default for HumanParams {
     fn default() -> Self {
         HumanParams {
-            height_m: DEFAULT_HEIGHT_M,
+            height_m: HumanParams::DEFAULT_HEIGHT_M,
         }
     }
 }

@@ -52,7 +52,7 @@ pub use bvh::{parse_bvh, read_bvh, Bvh, BvhParams, CMU_METRES_PER_UNIT};
 pub use bvh_export::{to_bvh_string, write_bvh};
 pub use dof::{Dof, DofKind, DofLimits};
 pub use fk::{AttachedFrame, AttachedPoint, ForwardKinematics};
-pub use human::{human_skeleton, HumanParams, DEFAULT_HEIGHT_M};
+pub use human::{human_skeleton, HumanParams};
 pub use jacobian::{AngularFrame, JointRates};
 pub use model::{Joint, Skeleton};
 pub use motion::Motion;

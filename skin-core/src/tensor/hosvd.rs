@@ -34,7 +34,7 @@ pub struct RandomizedParams {
     pub oversample: usize,
     /// Power (subspace) iterations `q`, each re-orthonormalised. Default 2.
     pub power_iterations: usize,
-    /// Seed of the Gaussian test matrix ([`SplitMix64`] normals). Default 0.
+    /// Seed of the Gaussian test matrix (SplitMix64 normals). Default 0.
     pub seed: u64,
 }
 

@@ -34,8 +34,7 @@ pub use frame::{
 };
 pub use spec::{
     studio_ring, CaptureLighting, CaptureSpec, LightPatterns, PatternSchedule, PixelNoise,
-    DEFAULT_FRAME_RATE_HZ, STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M,
-    STUDIO_RING_TARGET_M,
+    STUDIO_RING_HEIGHT_M, STUDIO_RING_HFOV_DEG, STUDIO_RING_RADIUS_M, STUDIO_RING_TARGET_M,
 };
 
 use rayon::prelude::*;
@@ -52,6 +51,24 @@ use skin_core::{Context, Error, Result, ResultExt};
 
 /// A capture ready to run: the performer, its motion resampled to the capture's frame rate,
 /// and one rasteriser per camera (their per-pixel rays are computed once, in [`Capture::new`]).
+///
+/// **Streaming.** [`Capture::frames`] is an iterator: one [`CaptureFrame`] at a time, nothing
+/// kept, so a long capture needs the memory of one frame. The flap of the non-skinning
+/// deformation ([`crate::DeformationModel`]) has dynamics, so frame `k`'s truth
+/// depends on every earlier pose: frames are produced in order, and
+/// [`Capture::frames_in`] poses (without rendering) the frames before its range to carry the
+/// dynamics exactly. The result of any range is therefore identical to the same frames of a
+/// full run.
+///
+/// **Determinism.** Cameras of a frame are rendered in parallel with rayon; each camera's
+/// output depends only on the frame and its index (pixel noise is keyed by `(seed, frame,
+/// camera, pixel)`, see [`PixelNoise`]), so frames are bit-identical for any thread count.
+///
+/// **Checks per frame.** A camera centre inside the performer's body (parity rays through the
+/// posed mesh) is an [`Error::InvalidParam`] naming the camera and frame; a camera that sees
+/// none of the body is an [`Error::NotVisible`] naming them (unless
+/// [`skin_core::raster::RenderParams::allow_empty`]); lights inside the body are rejected as in
+/// [`crate::shading::check_lights_outside`].
 ///
 /// # Example
 /// ```

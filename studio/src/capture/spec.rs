@@ -2,12 +2,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::shading::{Light, DEFAULT_SHADOW_BIAS_M};
+use crate::shading::{Light, LightVisibility};
 use crate::TextureParams;
 use skin_core::camera::{Intrinsics, Rig};
-use skin_core::error::{Error, Result};
 use skin_core::math::DVec3;
 use skin_core::raster::{Buffers, RenderParams};
+use skin_core::{Error, Result};
 
 /// Lighting of the shaded observations: Lambertian shading ([`crate::shading::shade`])
 /// of a uniform albedo, or of a texture, under a set of lights, optionally with cast shadows.
@@ -28,7 +28,7 @@ pub struct CaptureLighting {
     /// computed once per frame for the vertices any camera sees). Default: true.
     pub shadows: bool,
     /// Offset of shadow-ray origins along the normal, m. Default:
-    /// [`DEFAULT_SHADOW_BIAS_M`].
+    /// [`LightVisibility::DEFAULT_SHADOW_BIAS_M`].
     pub shadow_bias_m: f64,
     /// Approximate the cast shadows with about this many light direction bins, one shadow
     /// ray per bin and vertex ([`crate::shading::LightVisibility::compute_binned`]);
@@ -73,7 +73,7 @@ impl CaptureLighting {
             albedo: [0.8, 0.6, 0.5],
             texture: None,
             shadows: true,
-            shadow_bias_m: DEFAULT_SHADOW_BIAS_M,
+            shadow_bias_m: LightVisibility::DEFAULT_SHADOW_BIAS_M,
             shadow_light_bins: None,
             patterns: None,
         }
@@ -123,10 +123,12 @@ impl Default for PixelNoise {
     }
 }
 
-/// Frame rate of [`CaptureSpec::new`], Hz: Vlasic thesis §2.5.1 captures "video at 1600 by
-/// 1200 resolution also at 25 FPS" with "a ring of eight cameras" (Sand et al. 2003 §6.1 record
-/// 30 frames per second).
-pub const DEFAULT_FRAME_RATE_HZ: f64 = 25.0;
+impl CaptureSpec {
+    /// Frame rate of [`CaptureSpec::new`], Hz: Vlasic thesis §2.5.1 captures "video at 1600 by
+    /// 1200 resolution also at 25 FPS" with "a ring of eight cameras" (Sand et al. 2003 §6.1 record
+    /// 30 frames per second).
+    pub const DEFAULT_FRAME_RATE_HZ: f64 = 25.0;
+}
 
 /// Everything that defines a capture besides the performer and the motion.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -134,7 +136,8 @@ pub struct CaptureSpec {
     /// The cameras. Must not be empty.
     pub rig: Rig,
     /// Frame rate of the capture, Hz; the motion is resampled to it
-    /// ([`skin_core::skeleton::Motion::resample`]). Default: [`DEFAULT_FRAME_RATE_HZ`].
+    /// ([`skin_core::skeleton::Motion::resample`]). Default:
+    /// [`CaptureSpec::DEFAULT_FRAME_RATE_HZ`].
     pub frame_rate_hz: f64,
     /// Seed of everything random in the capture (pixel noise). Default: 0.
     pub seed: u64,
@@ -153,7 +156,7 @@ impl CaptureSpec {
     pub fn new(rig: Rig) -> Self {
         Self {
             rig,
-            frame_rate_hz: DEFAULT_FRAME_RATE_HZ,
+            frame_rate_hz: CaptureSpec::DEFAULT_FRAME_RATE_HZ,
             seed: 0,
             render: RenderParams::default(),
             lighting: None,

@@ -408,7 +408,7 @@ fn bad_input_is_named() {
     assert_eq!(
         e,
         "invalid parameter pose.effects: effect 'l_biceps': amplitude_m must be finite and ≥ 0, \
-         got -0.01"
+         got -0.01; set pose.effects within its documented range"
     );
     let e = edit(&|e| e.amplitude_m = f64::NAN);
     assert!(e.contains("amplitude_m"), "{e}");

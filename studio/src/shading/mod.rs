@@ -29,6 +29,4 @@ pub use dome::{dome_lights, DomeParams};
 pub use lights::Light;
 pub(crate) use shade::check_patterns;
 pub use shade::{shade, shade_patterns, srgb8, Albedo, ShadedView, Shadows};
-pub use visibility::{
-    check_lights_outside, light_bins, vertices_seen, LightVisibility, DEFAULT_SHADOW_BIAS_M,
-};
+pub use visibility::{check_lights_outside, light_bins, vertices_seen, LightVisibility};

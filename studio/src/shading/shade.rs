@@ -81,7 +81,8 @@ pub enum Shadows<'a> {
     PerPixel {
         /// BVH of the posed mesh.
         query: &'a MeshQuery,
-        /// Ray origin offset along the normal, m (e.g. [`super::DEFAULT_SHADOW_BIAS_M`]).
+        /// Ray origin offset along the normal, m (e.g.
+        /// [`super::LightVisibility::DEFAULT_SHADOW_BIAS_M`]).
         bias_m: f64,
     },
 }

@@ -18,9 +18,11 @@ use skin_core::mesh::{vertex_normals, MeshQuery, NormalWeighting, TriMesh};
 use skin_core::raster::{RenderedView, NO_TRIANGLE};
 use skin_core::{Error, Result};
 
-/// Offset of shadow-ray origins along the surface normal, m: 0.1 mm, far above the f64
-/// rounding of body-sized meshes and far below the size of any feature that casts a shadow.
-pub const DEFAULT_SHADOW_BIAS_M: f64 = 1e-4;
+impl LightVisibility {
+    /// Offset of shadow-ray origins along the surface normal, m: 0.1 mm, far above the f64
+    /// rounding of body-sized meshes and far below the size of any feature that casts a shadow.
+    pub const DEFAULT_SHADOW_BIAS_M: f64 = 1e-4;
+}
 
 /// Which lights each vertex sees: bit `l` of vertex `v` is set when light `l` is above the
 /// vertex's tangent plane and the segment to it is unoccluded.

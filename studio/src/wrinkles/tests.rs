@@ -246,7 +246,7 @@ fn fine_edges_are_within_the_bound_where_wrinkles_are() {
         longest * 1e3
     );
     assert!(n > 10_000);
-    assert!(longest <= DEFAULT_WRINKLE_MAX_EDGE_M, "{longest}");
+    assert!(longest <= WrinkleParams::DEFAULT_MAX_EDGE_M, "{longest}");
     // At rest every refined edge is within the margin.
     let rest = m
         .refinement()
@@ -261,7 +261,7 @@ fn fine_edges_are_within_the_bound_where_wrinkles_are() {
             }
         }
     }
-    assert!(longest_rest <= WRINKLE_EDGE_MARGIN * DEFAULT_WRINKLE_MAX_EDGE_M + 1e-12);
+    assert!(longest_rest <= WRINKLE_EDGE_MARGIN * WrinkleParams::DEFAULT_MAX_EDGE_M + 1e-12);
     // Every wrinkle vertex lies on a refined face.
     let mut on_refined = vec![false; m.fine_vertex_count()];
     for (k, face) in m.fine_faces().iter().enumerate() {

@@ -47,7 +47,7 @@ fn selected_edges_meet_the_bound() {
         ),
     ] {
         let selected = half(&mesh, mesh.bounding_box().unwrap().center().x);
-        for alpha in [0.0, DEFAULT_PHONG_ALPHA] {
+        for alpha in [0.0, RefineParams::DEFAULT_PHONG_ALPHA] {
             let r = Refinement::new(
                 &mesh,
                 &selected,
@@ -248,7 +248,7 @@ fn phong_points_lie_on_the_smooth_sphere() {
             .map(|v| (v.distance(centre) - 0.05).abs())
             .fold(0.0, f64::max)
     };
-    let (flat, smooth) = (dev(0.0), dev(DEFAULT_PHONG_ALPHA));
+    let (flat, smooth) = (dev(0.0), dev(RefineParams::DEFAULT_PHONG_ALPHA));
     assert!(smooth < 0.5 * flat, "Phong {smooth} vs flat {flat}");
 }
 

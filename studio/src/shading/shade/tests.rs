@@ -1,5 +1,5 @@
 use super::*;
-use crate::shading::{dome_lights, vertices_seen, DomeParams, DEFAULT_SHADOW_BIAS_M};
+use crate::shading::{dome_lights, vertices_seen, DomeParams};
 use skin_core::camera::{Camera, Intrinsics};
 use skin_core::math::DVec3;
 use skin_core::mesh::TriMesh;
@@ -161,7 +161,13 @@ fn cast_shadows_match_analytic_sphere_shadow() {
     }];
     let cam = top_camera(64);
     let view = render_all(&cam, &scene);
-    let vis = LightVisibility::compute(&scene, &query, &lights, DEFAULT_SHADOW_BIAS_M).unwrap();
+    let vis = LightVisibility::compute(
+        &scene,
+        &query,
+        &lights,
+        LightVisibility::DEFAULT_SHADOW_BIAS_M,
+    )
+    .unwrap();
     let alb = Albedo::Uniform([1.0; 3]);
     let per_vertex = shade(&view, &scene, &lights, &alb, &Shadows::PerVertex(&vis)).unwrap();
     let per_pixel = shade(
@@ -171,7 +177,7 @@ fn cast_shadows_match_analytic_sphere_shadow() {
         &alb,
         &Shadows::PerPixel {
             query: &query,
-            bias_m: DEFAULT_SHADOW_BIAS_M,
+            bias_m: LightVisibility::DEFAULT_SHADOW_BIAS_M,
         },
     )
     .unwrap();
@@ -225,9 +231,14 @@ fn cast_shadows_match_analytic_sphere_shadow() {
     // Rays from the vertices the view sees only: fewer rays, identical shading.
     let seen = vertices_seen(&scene, &[&view]).unwrap();
     assert!(seen.iter().filter(|&&s| s).count() < scene.vertex_count());
-    let part =
-        LightVisibility::compute_for(&scene, &query, &lights, DEFAULT_SHADOW_BIAS_M, Some(&seen))
-            .unwrap();
+    let part = LightVisibility::compute_for(
+        &scene,
+        &query,
+        &lights,
+        LightVisibility::DEFAULT_SHADOW_BIAS_M,
+        Some(&seen),
+    )
+    .unwrap();
     assert_eq!(
         shade(&view, &scene, &lights, &alb, &Shadows::PerVertex(&part)).unwrap(),
         per_vertex

@@ -1,8 +1,8 @@
-//! Iso-surface extraction from a scalar field sampled on a regular grid ("marching cubes").
+//! Iso-surface extraction from a scalar field sampled on a regular grid by marching tetrahedra.
 //!
-//! Implemented as **marching tetrahedra**: every grid cell is split into the six tetrahedra of
-//! the Kuhn (Freudenthal) subdivision around its main diagonal, and each tetrahedron is
-//! polygonised on its own (one or two triangles). Because the split is the same in every cell,
+//! Every grid cell is split into the six tetrahedra of the Kuhn (Freudenthal) subdivision
+//! around its main diagonal, and each tetrahedron is polygonised on its own (one or two
+//! triangles). Because the split is the same in every cell,
 //! neighbouring cells share their face triangulations, so the output is **watertight** and free
 //! of the face ambiguities of the 256-case cube table (Lorensen & Cline 1987; see Treece et al.
 //! 1999 for the tetrahedral variant), at the price of about twice as many triangles. Vertices on
@@ -144,13 +144,13 @@ const TETS: [[usize; 4]; 6] = [
 /// # Example
 /// ```
 /// use skin_core::math::DVec3;
-/// use skin_core::mesh::{marching_cubes, ScalarGrid};
+/// use skin_core::mesh::{marching_tetrahedra, ScalarGrid};
 /// let g = ScalarGrid::sample(DVec3::splat(-1.0), 0.1, [21; 3], |p| p.length() - 0.5)?;
-/// let sphere = marching_cubes(&g, 0.0)?;
+/// let sphere = marching_tetrahedra(&g, 0.0)?;
 /// assert!(sphere.vertices.iter().all(|v| (v.length() - 0.5).abs() < 0.01));
 /// # Ok::<(), skin_core::Error>(())
 /// ```
-pub fn marching_cubes(grid: &ScalarGrid, iso: f64) -> Result<TriMesh> {
+pub fn marching_tetrahedra(grid: &ScalarGrid, iso: f64) -> Result<TriMesh> {
     grid.validate()?;
     if !iso.is_finite() {
         return Err(Error::NonFinite { what: "iso value" });
@@ -261,7 +261,7 @@ mod tests {
             |p| p.length() - r,
         )
         .unwrap();
-        let m = marching_cubes(&g, 0.0).unwrap();
+        let m = marching_tetrahedra(&g, 0.0).unwrap();
         let (a, v) = area_volume(&m);
         let a_true = 4.0 * std::f64::consts::PI * r * r;
         let v_true = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
@@ -294,7 +294,7 @@ mod tests {
     fn boundary_cut_and_empty_fields() {
         // A plane crossing the grid: open, but each interior edge still shared twice.
         let g = ScalarGrid::sample(DVec3::ZERO, 0.1, [5, 5, 5], |p| p.z - 0.21).unwrap();
-        let m = marching_cubes(&g, 0.0).unwrap();
+        let m = marching_tetrahedra(&g, 0.0).unwrap();
         let (a, _) = area_volume(&m);
         assert!((a - 0.16).abs() < 1e-9, "plane area {a}");
         assert!(m.faces.iter().all(|f| {
@@ -303,31 +303,31 @@ mod tests {
         }));
         // No crossing: empty mesh.
         let g = ScalarGrid::sample(DVec3::ZERO, 0.1, [3, 3, 3], |_| 1.0).unwrap();
-        assert_eq!(marching_cubes(&g, 0.0).unwrap().face_count(), 0);
+        assert_eq!(marching_tetrahedra(&g, 0.0).unwrap().face_count(), 0);
     }
 
     #[test]
     fn rejects_bad_grids() {
         let ok = ScalarGrid::sample(DVec3::ZERO, 0.1, [2, 2, 2], |p| p.x).unwrap();
-        assert!(marching_cubes(&ok, f64::NAN).is_err());
+        assert!(marching_tetrahedra(&ok, f64::NAN).is_err());
         let mut g = ok.clone();
         g.values.pop();
         assert!(matches!(
-            marching_cubes(&g, 0.0),
+            marching_tetrahedra(&g, 0.0),
             Err(Error::SizeMismatch { .. })
         ));
         let mut g = ok.clone();
         g.values[3] = f64::NAN;
         assert!(matches!(
-            marching_cubes(&g, 0.0),
+            marching_tetrahedra(&g, 0.0),
             Err(Error::NonFinite { .. })
         ));
         let mut g = ok.clone();
         g.spacing_m = 0.0;
-        assert!(marching_cubes(&g, 0.0).is_err());
+        assert!(marching_tetrahedra(&g, 0.0).is_err());
         let mut g = ok;
         g.dims = [1, 2, 4];
-        assert!(marching_cubes(&g, 0.0).is_err());
+        assert!(marching_tetrahedra(&g, 0.0).is_err());
         assert!(ScalarGrid::sample(DVec3::ZERO, 0.1, [usize::MAX, 2, 2], |_| 0.0).is_err());
     }
 }
