@@ -49,15 +49,15 @@ pub struct IntegrationParams {
     /// thesis' pass-1 value ("approximately the inverse of the number of our surface
     /// points", §3.3.1); [`IntegrationParams::pass2`] uses 10⁻⁵.
     pub alpha: f64,
-    /// A proxy depth jump between 4-neighbours above this (m, at [`IntegrationParams::THESIS_WIDTH_PX`]) marks
-    /// both pixels as straddling a discontinuity. The thesis removes pixels along "large
+    /// A proxy depth jump between 4-neighbours above this (m, at
+    /// [`IntegrationParams::THESIS_WIDTH_PX`]) marks both pixels as straddling a discontinuity. The thesis removes pixels along "large
     /// visual hull discontinuities" without a number; default 0.02 (ours: twice its matching
     /// threshold; on the studio's 8-view hull at 256² it keeps 97 % of the pixels and,
     /// after matching, gives 9 mm median error where 0.05 gives 12 mm).
     pub proxy_jump_m: f64,
     /// A jump of the matched depth between neighbours above this (m, at
-    /// [`IntegrationParams::THESIS_WIDTH_PX`]) is a discontinuity found by matching. Default 0.01 (§3.3.1:
-    /// "jumps by more than 1 cm per pixel").
+    /// [`IntegrationParams::THESIS_WIDTH_PX`]) is a discontinuity found by matching. Default
+    /// 0.01 (§3.3.1: "jumps by more than 1 cm per pixel").
     pub match_jump_m: f64,
     /// Connected regions with fewer pixels are left out (their normals alone say little).
     /// Default 20 (ours).
@@ -164,8 +164,8 @@ impl IntegrationParams {
         }
     }
 
-    /// A per-pixel jump threshold given at [`IntegrationParams::THESIS_WIDTH_PX`] scaled to an image `width_px`
-    /// wide (with the same field of view a pixel covers `THESIS_WIDTH_PX / width_px` times
+    /// A per-pixel jump threshold given at [`IntegrationParams::THESIS_WIDTH_PX`] scaled to an
+    /// image `width_px` wide (with the same field of view a pixel covers `THESIS_WIDTH_PX / width_px` times
     /// more surface, and a continuous slope jumps that much more per pixel).
     pub fn jump_threshold_m(threshold_m: f64, width_px: u32) -> f64 {
         threshold_m * f64::from(Self::THESIS_WIDTH_PX) / f64::from(width_px.max(1))

@@ -63,7 +63,9 @@ pub(super) fn match_views(
     if baseline.length() < 1e-9 {
         return Err(Error::InvalidParam {
             name: "right",
-            reason: "the two cameras share a centre (no baseline); match views of cameras at different positions".into(),
+            reason: "the two cameras share a centre (no baseline); match views of cameras at \
+                     different positions"
+                .into(),
         });
     }
     let half = (params.window_px / 2) as i64;
