@@ -1,3 +1,5 @@
+// Over 1,000 lines: the motion, suit physics, recorder and filter run of one simulated recording
+// share its private state.
 //! Validation equipment: the suit simulated on a studio motion, down to the raw signals the
 //! thesis's hardware records, then processed by this crate's own signal processing.
 //!
