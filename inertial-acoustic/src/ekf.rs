@@ -260,7 +260,7 @@ pub struct SkeletalEkf {
     npend: usize,
     /// Per sensor type (gyroscope, accelerometer, distance) and board.
     innovations: [Vec<InnovationStats>; 3],
-    /// Per board and sensor axis, gyroscope and accelerometer (issue 15, seventh session).
+    /// Per board and sensor axis, gyroscope and accelerometer.
     axis_innovations: [Vec<[InnovationStats; 3]>; 2],
     /// Where the current scalar update's innovation is counted: (type, board, axis).
     counting: (usize, usize, usize),

@@ -46,7 +46,7 @@ pub(crate) const FULL_SCALE_LOW: i32 = 0;
 ///   the encoder clamps larger changes, so the true count may be further
 ///   still and the reconstruction lags it. A delta inside the code's range means the
 ///   decoder's count is the encoder's exactly, so only the extremes are flagged.
-/// - **Unsynced** (issue 15, ninth session; only with key frames,
+/// - **Unsynced** (only with key frames,
 ///   [`DeltaCodec::with_key_interval`]): the decoder's count may be off the encoder's — a
 ///   code of the channel was lost (uncorrectable) since the channel's last key frame, or the
 ///   frame is one of the channel's two key frames (which carry its absolute count, not a
@@ -178,7 +178,7 @@ fn scramble(bits: &mut [bool]) {
 ///   eighth session): each code is the change of the 12-bit count in whole
 ///   counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
 ///   per frame slews (42 rad/s² at ±20 rad/s), and the reconstruction lags until it catches up.
-/// - [`DeltaCodec::noise_shaped`] (issue 15, seventh session; with 16-count units the
+/// - [`DeltaCodec::noise_shaped`] (with 16-count units the
 ///   simulator's default since the eighth, `SimulationParams::delta_step`): each code
 ///   counts `step` counts and the encoder feeds its round-off back, so a frame that
 ///   under-reads is followed by one that over-reads — the thesis's own description ("if the
@@ -190,7 +190,7 @@ fn scramble(bits: &mut [bool]) {
 ///   change slews; the whole-count code keeps no feedback, so a slewed change is not made up
 ///   later.
 ///
-/// **The noise-shaped code's per-frame error** (issue 15, eighth session; what the filter
+/// **The noise-shaped code's per-frame error** (what the filter
 /// must be told, [`DeltaCodec::frame_error_sigma_counts`]). Write `c_k` for the count the
 /// encoder is given in frame k, `r_k` for the reconstruction both ends hold after it, and
 /// `E_k = Σ_{i≤k} (c_i − r_i)` for the encoder's accumulated error. The encoder sends
@@ -210,7 +210,7 @@ fn scramble(bits: &mut [bool]) {
 ///   treats the error as white is conservative about the integrated reading, and the mean of
 ///   two successive frames has σ = step/(2√6), half a frame's, not 1/√2 of it.
 ///
-/// **Key frames** (issue 15, ninth session; beyond the thesis, which describes no
+/// **Key frames** (beyond the thesis, which describes no
 /// resynchronisation — [`DeltaCodec::with_key_interval`]). A lost frame (an uncorrectable
 /// code) leaves the decoder's reconstruction off the encoder's for good: it can only repeat
 /// the previous delta, and successive noise-shaped deltas differ by the round-offs' second

@@ -264,7 +264,7 @@ fn nis_scale(st: &InnovationStats) -> f64 {
 }
 
 /// Per-board, per-axis measurement noise from a first pass's innovation statistics split by
-/// sensor axis ([`crate::SkeletalEkf::axis_innovation_stats`]; issue 15, seventh session, not in
+/// sensor axis ([`crate::SkeletalEkf::axis_innovation_stats`]; not in
 /// the thesis): the rule of [`board_noise_from_innovations`] applied to each of a board's
 /// three gyroscope and three accelerometer axes, `σ_{b,k} = σ · √max(1, NIS_{b,k})`. The
 /// board's own σ (`gyroscope_sigma`, `accelerometer_sigma`) is the per-board rule on the

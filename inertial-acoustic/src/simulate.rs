@@ -100,7 +100,7 @@ pub struct SimulationParams {
     #[serde(default = "default_delta_step")]
     pub delta_step: Option<i32>,
     /// Frames between a channel's key frames on the inertial link (its absolute count in two
-    /// 6-bit halves, [`DeltaCodec::with_key_interval`]; issue 15, ninth session, beyond the
+    /// 6-bit halves, [`DeltaCodec::with_key_interval`]; beyond the
     /// thesis): after a lost frame the decoder flags the channel unsynced (the filter skips
     /// it, [`crate::FilterParams::skip_saturated`]) until its next key frame restores it.
     /// 0: no key frames (the thesis's code). Default: [`SimulationParams::DEFAULT_KEY_INTERVAL`].
@@ -185,7 +185,7 @@ impl SimulationParams {
 
     /// The delta code's per-frame reading error as a σ per axis in physical units,
     /// `(gyroscope rad/s, accelerometer m/s²)` — what a filter must add to the sensors' own
-    /// noise (issue 15, eighth session). In counts it is
+    /// noise. In counts it is
     /// [`DeltaCodec::frame_error_sigma_counts`]: step/√6 for the noise-shaped code (the
     /// difference of two successive round-offs of at most step/2 each; derivation in
     /// [`DeltaCodec`]'s docs), 0 for the whole-count code. A count is `2 · range / 4096` units
@@ -2051,7 +2051,7 @@ mod tests {
         let motion = prepare_motion(&s, &still, &SimulationParams::default()).unwrap();
         let rec = sim.record(&motion, &cal.offsets).unwrap();
         assert!(rec.pulses_heard > 0);
-        // The default front end is the noise-shaped 16-count code (issue 15, eighth session):
+        // The default front end is the noise-shaped 16-count code:
         // one frame's reading is off by the difference of two round-offs, up to 16 counts per
         // axis (0.16 rad/s, 0.46 m/s²) by design, σ 16/√6 counts (`code_noise`), and the mean
         // over frames is exact to a step over their number. So a single frame is held to the
@@ -2063,7 +2063,7 @@ mod tests {
         let (gyro_count, accel_count) = (40.0 / 4096.0, 6.0 * GRAVITY_M_S2 * 2.0 / 4096.0);
         assert!((sg - step / 6f64.sqrt() * gyro_count).abs() < 1e-12);
         assert!((sa - step / 6f64.sqrt() * accel_count).abs() < 1e-12);
-        // With key frames (issue 15, ninth session) each channel's two key frames of every
+        // With key frames each channel's two key frames of every
         // `key_interval` are flagged unsynced (extrapolated, not readings): skipped here as
         // the filter skips them, and counted.
         let window = 10..80;

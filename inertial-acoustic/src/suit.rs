@@ -64,7 +64,7 @@ impl UltrasonicSource {
 
 /// One board's measurement noise (the filter's per-board R, beyond §4.4.2's one σ per sensor
 /// type): e.g. estimated from the data by [`crate::board_noise_from_innovations`]. Optionally
-/// one σ per sensor axis (issue 15, seventh session: a board over blended skin turns against
+/// one σ per sensor axis (a board over blended skin turns against
 /// its bone more about some axes than others; [`crate::board_axis_noise_from_innovations`]),
 /// which then replaces the board's σ on those rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

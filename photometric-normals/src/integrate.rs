@@ -78,12 +78,12 @@ pub struct IntegrationParams {
     pub solver: IntegrationSolver,
     /// At a proxy jump, cut the neighbour constraint across it instead of removing both
     /// pixels that straddle it (regions are then connected only through the links kept).
-    /// Default false (the thesis: "pixels straddling depth discontinuities removed"). Ours
-    /// (issue 14): the straddling pixels are each on a surface of their own, and only the
+    /// Default false (the thesis: "pixels straddling depth discontinuities removed"). Ours:
+    /// the straddling pixels are each on a surface of their own, and only the
     /// link between them is wrong.
     #[serde(default)]
     pub cut_proxy_links: bool,
-    /// Layers at the proxy's jumps (ours, issue 14): the pixels straddling a proxy jump are
+    /// Layers at the proxy's jumps (ours): the pixels straddling a proxy jump are
     /// not removed but each assigned to one side of it — a *layer*, the proxy depth of the
     /// pixel itself or of a 4-neighbour across the jump — and linked by Eq. 3.3 only to
     /// neighbours on the same layer (layer depths within the jump threshold), anchored by α

@@ -172,7 +172,7 @@ pub fn estimate_normals(
 /// taken where its ray meets `proxy` (e.g. the visual hull rendered for `camera`), and on
 /// the vertical plane of [`NormalParams::performance_centre`] where the proxy has no depth.
 ///
-/// Ours (issue 14: the thesis's optional ninth camera "looks down onto the performer from
+/// Ours (for the thesis's optional ninth camera that "looks down onto the performer from
 /// the top of the dome", §3.2.1): the thesis does not say how a pixel's height is found. The
 /// plane through the performance centre facing the camera serves the ring, whose cameras are
 /// almost level, but a camera above the centre has no such plane, and the surfaces it sees

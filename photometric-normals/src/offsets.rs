@@ -50,12 +50,12 @@ pub struct OffsetParams {
     /// (p the proxy's depth, z the integrated one), relative to one neighbour difference.
     /// 0 (the default, the thesis's Eq. 3.4) leaves it out. With γ > 0 ([`depth_offsets_guided`]
     /// with a proxy) a pixel with a proxy depth is never discarded: far from every match its
-    /// offset relaxes to the proxy instead (pass 2's proxy is the pass-1 mesh). Ours (issue 14).
+    /// offset relaxes to the proxy instead (pass 2's proxy is the pass-1 mesh). Ours.
     #[serde(default)]
     pub proxy_weight: f64,
     /// Matches farther than this from the proxy depth along the ray (m) are dropped before
     /// Eq. 3.4 ([`depth_offsets_guided`] with a proxy). `None` (default) keeps every match.
-    /// Ours (issue 14).
+    /// Ours.
     #[serde(default)]
     pub proxy_gate_m: Option<f64>,
     /// Rejects matches whose asked offset is an outlier of the offsets asked around it
@@ -67,12 +67,12 @@ pub struct OffsetParams {
     pub outliers: Option<OffsetOutliers>,
     /// Down-weights, rather than rejects, the matches the membrane cannot follow
     /// ([`RobustWeights`], iteratively reweighted solves). `None` (default, the thesis's
-    /// Eq. 3.4) weights every match by β. Ours (issue 14, eighth session).
+    /// Eq. 3.4) weights every match by β. Ours.
     #[serde(default)]
     pub robust: Option<RobustWeights>,
 }
 
-/// Rejection of unreliable matches before Eq. 3.4 (ours, issue 14): the offset field
+/// Rejection of unreliable matches before Eq. 3.4 (ours): the offset field
 /// `d̄` must be smooth (it corrects the integrated surface's low-frequency error), so a match
 /// whose asked offset differs from the median of the offsets asked by the matches within
 /// [`OffsetOutliers::radius_px`] (on the same connected part of the surface, every
@@ -102,7 +102,7 @@ impl Default for OffsetOutliers {
     }
 }
 
-/// Iteratively reweighted least squares on Eq. 3.4's data term (ours, issue 14): after each
+/// Iteratively reweighted least squares on Eq. 3.4's data term (ours): after each
 /// solve, a match whose residual `r = d_i − d̄_i` is large is weighted by the Cauchy weight
 /// `β / (1 + (r / scale_m)²)` in the next solve (same sparsity, numeric refactorisation only).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -177,7 +177,7 @@ pub fn depth_offsets(
     depth_offsets_guided(surface, targets, None, params)
 }
 
-/// [`depth_offsets`] with the view's proxy depth map (ours, issue 14): matches farther than
+/// [`depth_offsets`] with the view's proxy depth map (ours): matches farther than
 /// [`OffsetParams::proxy_gate_m`] from the proxy are dropped, and with
 /// [`OffsetParams::proxy_weight`] γ > 0 every pixel's offset is also pulled toward the proxy,
 /// `γ Σ_i (d_i − (p_i − z_i))²`, so that pixels far from every match follow the proxy instead
@@ -228,7 +228,7 @@ pub fn depth_offsets_guided(
         !d.is_nan() && gate.is_none_or(|g| p.is_nan() || (d - p).abs() <= g)
     };
     // With `outliers`, each view's match is kept only if its offset agrees with its
-    // neighbourhood's (ours, issue 14).
+    // neighbourhood's (ours).
     let (keep, rejected) = match &params.outliers {
         Some(o) => {
             let (keep, rejected) = outlier_matches(surface, targets, &admitted, o)?;
@@ -335,7 +335,7 @@ pub fn depth_offsets_guided(
     let mut solver = problem.factor(&LsqParams::default())?;
     let zeros = DMatrix::zeros(edges.len(), 1);
     let mut off = solver.solve(&zeros, &rhs)?;
-    // IRLS (ours, issue 14): each match's row scaled by the square root of its Cauchy
+    // IRLS (ours): each match's row scaled by the square root of its Cauchy
     // weight, the same sparsity refactorised numerically.
     let mut down_weighted = 0;
     if let Some(rw) = &params.robust {

@@ -40,7 +40,7 @@ pub struct ReconstructParams {
     pub merge: MergeParams,
     /// Read the merge's [`MergeParams::max_depth_jump_m`] as a threshold per pixel at
     /// [`crate::IntegrationParams::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
-    /// thresholds are. Default false (1 cm at every width, as before). Ours (issue 14): at
+    /// thresholds are. Default false (1 cm at every width, as before). Ours: at
     /// 512² the unscaled 1 cm cuts the views into boundary wherever a slope is steeper than
     /// 63°; scaled, pass 2's coverage rose 80.8 → 83.6 % (exact normals) but the merged
     /// mesh's p95 distance to the truth rose 38.1 → 40.3 mm, so it is not the default. No
@@ -48,7 +48,7 @@ pub struct ReconstructParams {
     pub scale_merge_jump: bool,
     /// Hole filling. Default depth 9 (≈ 4 mm cells over a 2 m performer).
     pub poisson: PoissonParams,
-    /// Pass 1's hole-filling depth, if not [`ReconstructParams::poisson`]'s (ours, issue 14:
+    /// Pass 1's hole-filling depth, if not [`ReconstructParams::poisson`]'s (ours:
     /// pass 1's closed mesh is only pass 2's proxy, which guides pass 2's integration and
     /// matching band; a coarser octree costs a fraction of the time). Default `None` (the
     /// same depth in both passes, as the thesis repeats "all three stages"): measured at
@@ -311,7 +311,7 @@ pub fn reconstruct(
 /// [`reconstruct`] with the visual hull's depth maps already rendered (`hull_depths`, one per
 /// camera, from [`PolygonalHull::depth_maps`] with [`ReconstructParams::hull`]; `proxy_s` their
 /// wall time, reported as pass 1's proxy time): a caller that renders them anyway (to score
-/// them, or to show them) does not pay for them twice (issue 14: 2.6 s of the 1024² frame).
+/// them, or to show them) does not pay for them twice (measured: 2.6 s of the 1024² frame).
 ///
 /// # Errors
 /// As [`reconstruct`]; [`Error::SizeMismatch`] also for a count of hull depth maps that is

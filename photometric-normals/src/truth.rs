@@ -165,7 +165,7 @@ pub fn ghost_subject() -> DeformationParams {
 /// true depth maps and the distances to the truth are taken from (all from
 /// [`dynamic_shapes_studio::FrameTruth::rendered_mesh`], one mesh).
 ///
-/// **Why (issue 14, sixth session).** The performer's template is polygonal (MakeHuman's
+/// **Why.** The performer's template is polygonal (MakeHuman's
 /// 13,380 body vertices, edges of 1–3 cm; the skirt's 2,304). Rendered as it is, its depth,
 /// silhouettes and parallax are the flat facets while its shading normals — the "exact"
 /// normals, and the normals the shaded images (hence part 1's normal maps) carry — are the

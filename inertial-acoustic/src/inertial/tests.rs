@@ -224,7 +224,7 @@ fn lose(bits: &mut [bool; FRAME_BITS], c: usize) {
     bits[CHANNELS + c] ^= true;
 }
 
-/// Key frames (issue 15, ninth session): random counts through the 16-count code with
+/// Key frames: random counts through the 16-count code with
 /// codes lost at random (single channels and whole frames). A lost channel is flagged
 /// unsynced on every frame until its next key frame whose halves both arrive; from then
 /// on the decoder equals the encoder exactly; every unflagged reading is the encoder's

@@ -517,7 +517,7 @@ pub fn hold_out(attribute_sizes: &[usize], fraction: f64, seed: u64) -> Result<K
 
 /// The RMS distance from `face`'s vertices to `truth`'s after the least-squares similarity
 /// alignment (Umeyama) of `face` onto `truth`, in `truth`'s units: the 3D tracking error
-/// of issue 16 before it is divided by [`face_width`].
+/// before it is divided by [`face_width`].
 ///
 /// # Errors
 /// As [`skin_core::math::fit_similarity`] (lists of different lengths, fewer than three

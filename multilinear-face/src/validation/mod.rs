@@ -1,6 +1,6 @@
 //! Validation equipment (feature `validation`): the face data-set generator from the real ICT
 //! face basis with a documented identity × expression interaction, hold-out masks, the
-//! imputation metric of issue 16, re-meshed noisy scans with feature vertices (§5.3.2) and
+//! imputation metric, re-meshed noisy scans with feature vertices (§5.3.2) and
 //! synthetic point-track sequences under head motion (§5.4.1), and the same sequences
 //! rendered into textured 640 × 480 videos ([`render_face_video`]).
 //!

@@ -31,7 +31,7 @@ use crate::{Context, Error, Result, ResultExt};
 /// Parameters of [`render_face_video`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct FaceVideoParams {
-    /// Frame size, px. Default 640 × 480 (issue 16).
+    /// Frame size, px. Default 640 × 480.
     pub size: (u32, u32),
     /// The skin texture (module docs). Default: freckled skin.
     pub texture: TextureParams,

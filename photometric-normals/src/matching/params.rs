@@ -71,7 +71,7 @@ pub struct MatchingParams {
     /// coarse pass costs about an eighth, and the narrow band cuts the full-resolution cells
     /// several times. Applied to images of at least 128 × 128 pixels. Default false here
     /// (the thesis's matching); pass 1 of the two-pass pipeline turns it on
-    /// ([`SurfaceParams::pass1`](crate::SurfaceParams::pass1), issue 14, tenth session: with
+    /// ([`SurfaceParams::pass1`](crate::SurfaceParams::pass1): with
     /// the ±20 cm band, at 1024² pass 2's figures stayed within 0.26 point / 0.02° and the
     /// example's CPU fell 12 %; with the ±10 cm band of the sixth session it had cost the
     /// 1024² merged median its goal; `docs/photometric-normals.md`, *Tenth session: pass-1
@@ -81,14 +81,14 @@ pub struct MatchingParams {
     /// (depth / focal length) along each ray. Default 4 (ours: a coarse pixel is two, and
     /// its match is quantised to it).
     pub coarse_band_px: f64,
-    /// Sub-pixel matches (ours, issue 14; standard in stereo, not in the thesis): see
+    /// Sub-pixel matches (ours; standard in stereo, not in the thesis): see
     /// [`SubPixel`]. Default [`SubPixel::Off`] (the thesis: matches at whole samples).
     #[serde(default)]
     pub subpixel: SubPixel,
     /// [`SubPixel::PathFit`]: path steps each side of a match in its line fit. Default 3.
     #[serde(default = "default_subpixel_window")]
     pub subpixel_window: usize,
-    /// Contour-aware surface windows (ours, issue 14, tenth session; beyond the thesis, whose
+    /// Contour-aware surface windows (ours; beyond the thesis, whose
     /// §3.3.2 compares whole 5 × 5 windows): `Some(j)` leaves out of a surface-metric window
     /// every point whose depth along its ray differs from the window centre's by more than `j`
     /// per pixel of (Chebyshev) distance from the centre (m at the thesis's width, scaled like

@@ -140,7 +140,7 @@ pub(super) fn solve_level(
     level.nbr = nbr;
     // The coarse parents are needed only where this level takes part in a V-cycle: a
     // complete level, or a band level when the bands are multigrid-preconditioned (ours,
-    // issue 14: at depth 9 the table is 32 bytes per band node, unused by Jacobi).
+    // measured: at depth 9 the table is 32 bytes per band node, unused by Jacobi).
     let in_v_cycle = level.complete || params.multigrid_bands;
     if let Some(coarse) = coarser.last().filter(|_| in_v_cycle) {
         level.up = level

@@ -66,7 +66,7 @@ pub(super) const DENSITY_NEIGHBOURS: usize = 40;
 ///
 /// The neighbours are found on a uniform grid of cells `r / 2` wide ([`grid_kernel_areas`]),
 /// which gives the kd-tree's neighbours ([`tree_kernel_areas`], kept as the reference) at a
-/// fraction of its cost (issue 14: the kd-tree's 40-nearest queries were a quarter of each
+/// fraction of its cost (measured: the kd-tree's 40-nearest queries were a quarter of each
 /// 1024² hole filling).
 pub(super) fn kernel_areas(qs: &[DVec3], depth: u32) -> Option<Vec<f64>> {
     grid_kernel_areas(qs, depth).or_else(|| tree_kernel_areas(qs, depth))

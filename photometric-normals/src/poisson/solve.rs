@@ -140,7 +140,7 @@ pub(super) fn v_cycle(top: &Level, coarser: &[Level], r: &[f64]) -> Vec<f64> {
 /// The Jacobi iteration runs in three fused passes over the vectors (`q = A p` with `p · q`;
 /// `x`, `r` updated with `r · z` and `r · r`, `z = r / diag` not stored; `p = z + β p`), with
 /// no allocation per iteration: the same arithmetic per element as the textbook loop (ours,
-/// issue 14: the separate loops, and a fresh preconditioned vector each iteration — fresh
+/// measured: the separate loops, and a fresh preconditioned vector each iteration — fresh
 /// pages from the kernel at the band levels' millions of nodes — were most of the hole
 /// filling's time).
 pub(super) fn level_cg(
