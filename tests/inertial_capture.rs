@@ -7,15 +7,17 @@
 
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::skeleton::{human_skeleton, HumanParams, Skeleton};
+use dynamic_shapes::inertial::pipeline::{self, PipelineParams};
+use dynamic_shapes::inertial::score::{run_filter, run_filter_board_noise, table_4_1, FilterRun};
 use dynamic_shapes::inertial::simulate::{
-    estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
-    prepare_motion, run_filter, run_filter_board_noise, table_4_1, FilterRun, SimulatedRecording,
-    SimulationParams, SmoothMotion, SuitSimulator,
+    model_recording, prepare_motion, SimulatedRecording, SimulationParams, SmoothMotion,
+    SuitSimulator,
 };
+use dynamic_shapes::inertial::tuning::{estimate_board_axis_noise, estimate_board_noise};
 use dynamic_shapes::inertial::{
     refine_headings, BoardNoise, Context, DistanceMeasurement, Error, FilterParams,
-    FrameObservations, InertialReading, InnovationStats, RobustLoss, SensorSet, SkeletalEkf, Suit,
-    INNOVATION_TYPES,
+    FrameObservations, InertialReading, InnovationStats, Recording, RobustLoss, SensorSet,
+    SkeletalEkf, Suit, INNOVATION_TYPES,
 };
 use dynamic_shapes_studio::{
     exercise_motion, makehuman_performer, DeformationParams, ExerciseParams,
@@ -91,6 +93,24 @@ fn exercise_motion_table_4_1_from_raw_signals() {
         los.len()
     );
 
+    // The recording as a user's file: written, read back exactly, and the public pipeline
+    // gives the same poses from the file as from memory.
+    let dir = std::env::temp_dir().join(format!("ia-exercise-recording-{}", std::process::id()));
+    rec.recording.write(&dir, &s).unwrap();
+    let read = Recording::read(&dir, &s).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        read == rec.recording,
+        "the recording file must read back exactly"
+    );
+    let p = PipelineParams::default().with_filter(tuned());
+    let from_file = pipeline::run(&s, &read, &p).unwrap();
+    assert_eq!(
+        from_file.theta,
+        pipeline::run(&s, &rec.recording, &p).unwrap().theta
+    );
+    assert_eq!(from_file.theta.len(), rec.truth.len());
+
     let j = joints(&s);
     let table: Vec<_> = table_4_1(&s, &rec, tuned(), &j, None)
         .unwrap()
@@ -141,7 +161,7 @@ fn exercise_motion_table_4_1_from_raw_signals() {
 
     // A source that is never heard (the hat's): the filter runs on the other seven.
     let mut deaf = rec.clone();
-    for f in &mut deaf.frames {
+    for f in &mut deaf.recording.frames {
         f.distances.retain(|m| m.source != 7);
     }
     let r = run_filter(&s, &deaf, tuned(), true, &j).unwrap();
@@ -476,13 +496,13 @@ const GYRO_ONLY: SensorSet = SensorSet {
 /// worse) fails.
 #[test]
 fn broad_gain_tuned_on_trial_09_beats_gyro_integration_on_trial_07() {
-    use dynamic_shapes::inertial::recordings::{read_broad_csv, run_orientation, ImuRecording};
+    use dynamic_shapes::inertial::imu_log::{read_broad_csv, run_orientation, ImuLog};
     use dynamic_shapes::inertial::{heading_inclination_rmse, HeadingInclinationRmse};
     let read = |f: &str| read_broad_csv(example_kit::data_path(f).unwrap()).unwrap();
     let tuning = read("imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv");
     let test = read("imu-broad/07_undisturbed_fast_rotation_B_first60s.csv");
     assert_eq!((tuning.len(), test.len()), (17_142, 17_142));
-    let score = |rec: &ImuRecording, p: FilterParams| -> HeadingInclinationRmse {
+    let score = |rec: &ImuLog, p: FilterParams| -> HeadingInclinationRmse {
         let run = run_orientation(rec, p, 20.0).unwrap();
         assert_eq!(run.diverged, 0);
         heading_inclination_rmse(&run.orientation, &rec.reference, &rec.movement, DVec3::Z).unwrap()
@@ -533,7 +553,7 @@ fn broad_gain_tuned_on_trial_09_beats_gyro_integration_on_trial_07() {
 /// accelerometer at the end as at the start.
 #[test]
 fn xio_recording_stays_finite_and_stable() {
-    use dynamic_shapes::inertial::recordings::{read_xio_csv, run_orientation};
+    use dynamic_shapes::inertial::imu_log::{read_xio_csv, run_orientation};
     let rec = read_xio_csv(example_kit::data_path("imu-xio/sensor_data.csv").unwrap()).unwrap();
     assert!(rec.time_s.last().unwrap() - rec.time_s[0] > 135.0);
     let run = run_orientation(&rec, broad_params(BROAD_TUNED_SIGMA), 1.0).unwrap();
@@ -586,11 +606,11 @@ fn heading_fit_recovers_turns_about_gravity() {
             .unwrap();
     }
     let rec = model_recording(&s, &truth_suit, &smooth, params.rest_s).unwrap();
-    let poses: Vec<Vec<f64>> = rec.truth[rec.rest_frames..]
+    let poses: Vec<Vec<f64>> = rec.truth[rec.recording.rest_frames..]
         .iter()
         .map(|t| t.theta.clone())
         .collect();
-    let readings: Vec<_> = rec.frames[rec.rest_frames..]
+    let readings: Vec<_> = rec.recording.frames[rec.recording.rest_frames..]
         .iter()
         .map(|f| f.inertial.clone())
         .collect();
@@ -780,17 +800,18 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     // 1. Skin twist on the neck board's gyroscope (its axes: the bone's; y along the neck).
     let mut twisted = clean.clone();
     for (k, f) in twisted
+        .recording
         .frames
         .iter_mut()
         .enumerate()
-        .skip(clean.rest_frames)
+        .skip(clean.recording.rest_frames)
     {
         if let Some(r) = f.inertial[neck_board].as_mut() {
             let t = k as f64 / 140.0;
             r.gyro_rad_s.y += 0.6 * (std::f64::consts::TAU * 0.7 * t).sin();
         }
     }
-    let noise = estimate_recording_board_noise(&s, &twisted, filter, true, 4.0).unwrap();
+    let noise = estimate_board_noise(&s, &twisted.recording, filter, true, 4.0).unwrap();
     let sg: Vec<f64> = noise.iter().map(|n| n.gyroscope_sigma).collect();
     let others = sg
         .iter()
@@ -806,7 +827,7 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     );
     let global = run_filter(&s, &twisted, filter, true, &j).unwrap();
     let mut per_board = twisted.clone();
-    per_board.nominal_suit = per_board.nominal_suit.with_board_noise(noise).unwrap();
+    per_board.recording.suit = per_board.recording.suit.with_board_noise(noise).unwrap();
     let adapted = run_filter(&s, &per_board, filter, true, &j).unwrap();
     eprintln!(
         "skin twist on the neck board: global σ {:?}, per-board σ {:?}",
@@ -821,12 +842,16 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     assert!(mean(&adapted) < mean(&global));
     // Seventh session: one σ per board axis finds the twisted axis (y) of the neck board
     // and leaves its other two near the rating; the neck still beats the global σ.
-    let axis_noise = estimate_recording_board_axis_noise(&s, &twisted, filter, true, 4.0).unwrap();
+    let axis_noise = estimate_board_axis_noise(&s, &twisted.recording, filter, true, 4.0).unwrap();
     let g = axis_noise[neck_board].gyroscope_axes();
     eprintln!("neck board per-axis σ_g {g:?}");
     assert!(g[1] > 3.0 * g[0].max(g[2]), "neck board per-axis σ_g {g:?}");
     let mut per_axis = twisted.clone();
-    per_axis.nominal_suit = per_axis.nominal_suit.with_board_noise(axis_noise).unwrap();
+    per_axis.recording.suit = per_axis
+        .recording
+        .suit
+        .with_board_noise(axis_noise)
+        .unwrap();
     let axis_run = run_filter(&s, &per_axis, filter, true, &j).unwrap();
     eprintln!("per-axis σ {:?}", axis_run.stats);
     // Measured: neck 12.69° (global σ), 1.62° (per-board), 0.11° (per-axis): a twist about
@@ -844,7 +869,7 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     // 2. Echoes: every fourth distance 0.3 m long, no gate.
     let mut echoes = clean.clone();
     let mut n = 0usize;
-    for f in &mut echoes.frames {
+    for f in &mut echoes.recording.frames {
         for d in &mut f.distances {
             n += 1;
             if n.is_multiple_of(4) {

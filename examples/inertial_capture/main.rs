@@ -27,6 +27,10 @@
 //!   limited to 10 rad/s: the capture's right humerus twists at 35 rad/s) with and without
 //!   distances, simulated suit and oracle measurements: left-shoulder error over the last 5 s
 //!   (`drift_*_deg`, `treadmill` with the left-arm boards' distance innovations, `drift.png`).
+//! * The pipeline as a user runs it: every simulated recording is written in the crate's
+//!   recording format (a JSON manifest and CSV streams, `Recording::write`), read back
+//!   (checked exact) and run through the public `pipeline` (Table 4.1's runs with its
+//!   default per-board noise); the exercise recording stays in `recording_exercise/`.
 //! * Speed: `realtime_factor` = seconds of motion per second of compute for ultrasonic
 //!   processing + inertial decoding + EKF (A+G+D, root supplied), one core, per stage too.
 //!
@@ -60,13 +64,15 @@ use serde_json::{json, Value};
 
 use dynamic_shapes::core::math::DQuat;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton};
+use dynamic_shapes::inertial::pipeline::fit_headings;
+use dynamic_shapes::inertial::score::{run_filter, table_4_1, tune, FilterRun, TuningPoint};
 use dynamic_shapes::inertial::simulate::{
-    estimate_recording_board_axis_noise, estimate_recording_board_noise, model_recording,
-    prepare_motion, refine_recording_headings, run_filter, table_4_1, treadmill_motion, tune,
-    FilterRun, SimulatedRecording, SimulationParams, SuitSimulator, TuningPoint,
+    model_recording, prepare_motion, treadmill_motion, SimulatedRecording, SimulationParams,
+    SuitSimulator,
 };
+use dynamic_shapes::inertial::tuning::{estimate_board_axis_noise, estimate_board_noise};
 use dynamic_shapes::inertial::{
-    FilterParams, InnovationStats, RobustLoss, SensorSet, INNOVATION_TYPES,
+    FilterParams, InnovationStats, Recording, RobustLoss, SensorSet, INNOVATION_TYPES,
 };
 use dynamic_shapes_studio::{
     exercise_motion, makehuman_performer, play_bvh, range_of_motion, DeformationParams,
@@ -92,9 +98,9 @@ fn variants(
     params: FilterParams,
     joints: &[usize],
 ) -> Result<Value, Box<dyn std::error::Error>> {
-    let h = refine_recording_headings(skeleton, rec, params, true, HEADING_FIT_S)?;
+    let h = fit_headings(skeleton, &rec.recording, params, true, HEADING_FIT_S)?;
     let mut refined = rec.clone();
-    refined.nominal_suit = h.suit;
+    refined.recording.suit = h.suit;
     let stats = |r: &FilterRun| {
         json!({"neck": r.stats[0].mean_deg, "right_shoulder": r.stats[1].mean_deg,
                "left_hip": r.stats[2].mean_deg, "nees": r.nees_mean,
@@ -110,9 +116,9 @@ fn variants(
     // fit), robust distance updates, and the neck board's readings left out.
     let with_noise =
         |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
-            let n = estimate_recording_board_noise(skeleton, r, params, true, HEADING_FIT_S)?;
+            let n = estimate_board_noise(skeleton, &r.recording, params, true, HEADING_FIT_S)?;
             let mut out = r.clone();
-            out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+            out.recording.suit = out.recording.suit.with_board_noise(n)?;
             Ok(out)
         };
     let noisy = with_noise(rec)?;
@@ -120,9 +126,9 @@ fn variants(
     // Issue 15, seventh session: one σ per board axis from the same first pass.
     let with_axis_noise =
         |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
-            let n = estimate_recording_board_axis_noise(skeleton, r, params, true, HEADING_FIT_S)?;
+            let n = estimate_board_axis_noise(skeleton, &r.recording, params, true, HEADING_FIT_S)?;
             let mut out = r.clone();
-            out.nominal_suit = out.nominal_suit.with_board_noise(n)?;
+            out.recording.suit = out.recording.suit.with_board_noise(n)?;
             Ok(out)
         };
     let axis_noisy = with_axis_noise(rec)?;
@@ -130,7 +136,7 @@ fn variants(
     // Each board's σ from its worst axis (`BoardNoise::worst_axis`).
     let worst = |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
         let mut out = r.clone();
-        out.nominal_suit = out.nominal_suit.with_worst_axis_noise()?;
+        out.recording.suit = out.recording.suit.with_worst_axis_noise()?;
         Ok(out)
     };
     let worst_noisy = worst(&axis_noisy)?;
@@ -141,24 +147,27 @@ fn variants(
     );
     let mut no_neck = rec.clone();
     if let Some(b) = rec
-        .nominal_suit
+        .recording
+        .suit
         .boards()
         .iter()
         .position(|b| b.name == "neck")
     {
-        for f in &mut no_neck.frames[rec.rest_frames..] {
+        for f in &mut no_neck.recording.frames[rec.recording.rest_frames..] {
             f.inertial[b] = None;
         }
     }
     let sigmas = |r: &SimulatedRecording| {
-        r.nominal_suit
+        r.recording
+            .suit
             .board_noise()
             .iter()
             .map(|n| json!([n.gyroscope_sigma, n.accelerometer_sigma]))
             .collect::<Vec<_>>()
     };
     let axis_sigmas = |r: &SimulatedRecording| {
-        r.nominal_suit
+        r.recording
+            .suit
             .board_noise()
             .iter()
             .map(|n| json!([n.gyroscope_axes(), n.accelerometer_axes()]))
@@ -225,15 +234,27 @@ fn max_world_speed(skeleton: &Skeleton, motion: &Motion, j: usize) -> f64 {
     worst
 }
 
+/// The suit simulated along `motion`, its recording written to `dir` in the crate's
+/// recording format and read back, so that every run scores what a user's file gives the
+/// pipeline (the round trip is checked to be exact).
 fn record(
     sim: &SuitSimulator,
     skeleton: &Skeleton,
     motion: &Motion,
     params: &SimulationParams,
     offsets: &[f64],
+    dir: &std::path::Path,
 ) -> SimulatedRecording {
     let smooth = prepare_motion(skeleton, motion, params).unwrap();
-    sim.record(&smooth, offsets).unwrap()
+    let mut rec = sim.record(&smooth, offsets).unwrap();
+    rec.recording.write(dir, skeleton).unwrap();
+    let read = Recording::read(dir, skeleton).unwrap();
+    assert!(
+        read == rec.recording,
+        "the recording file must read back exactly"
+    );
+    rec.recording = read;
+    rec
 }
 
 fn run_json(r: &FilterRun) -> Value {
@@ -392,6 +413,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let with_code = |sensor: f64, code: f64| sensor.hypot(code);
     let sim = SuitSimulator::on_performer(&performer, &deformation, sim_params)?;
+    // Every simulated recording goes through a file (`record`); this folder is scratch.
+    let scratch = run.path("recording_scratch");
     let rigid = sim.clone().with_rigid_attachment();
 
     // §4.3.3: offsets from static placements; leave-one-out distance errors.
@@ -432,8 +455,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ] {
             for &key in keys {
                 let sim_b = sim.clone().with_link(ber, key)?;
-                let rec = record(&sim_b, &skeleton, motion, &sim_params, &cal.offsets);
-                let r = dynamic_shapes::inertial::simulate::run_filter_board_noise(
+                let rec = record(
+                    &sim_b,
+                    &skeleton,
+                    motion,
+                    &sim_params,
+                    &cal.offsets,
+                    &scratch,
+                );
+                let r = dynamic_shapes::inertial::score::run_filter_board_noise(
                     &skeleton,
                     &rec,
                     params,
@@ -474,7 +504,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .with_duration_s(if quick { 6.0 } else { 10.0 })
                 .with_seed(seed),
         )?;
-        let tune_rec = record(&sim, &skeleton, &tune_motion, &sim_params, &cal.offsets);
+        let tune_rec = record(
+            &sim,
+            &skeleton,
+            &tune_motion,
+            &sim_params,
+            &cal.offsets,
+            &scratch,
+        );
         // The 3-DOF joints are re-centred (local chart): fed perfect measurements from its
         // own models (`model_recording`), the filter in Euler angles throughout loses the
         // right shoulder near gimbal lock while the local chart tracks it (docs, test
@@ -576,9 +613,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("range_of_motion", &rom),
         ("cmu_walk", &walk),
     ] {
-        let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets);
+        // The exercise recording stays in the output folder, for a user to open.
+        let dir = if name == "exercise" {
+            run.path("recording_exercise")
+        } else {
+            scratch.clone()
+        };
+        let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets, &dir);
         let table = table_4_1(&skeleton, &rec, params, &joints, Some(BOARD_NOISE_S))?;
-        let seconds = (rec.frames.len() - 1) as f64 / 140.0;
+        let seconds = (rec.recording.frames.len() - 1) as f64 / 140.0;
         let agd = table
             .iter()
             .find(|r| r.sensors == "A+G+D" && r.root_supplied)
@@ -603,7 +646,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if name == "exercise" {
             main_table = table.clone();
             skin_motion = rec.skin_motion.clone();
-            let rec_rigid = record(&rigid, &skeleton, motion, &sim_params, &cal.offsets);
+            let rec_rigid = record(
+                &rigid,
+                &skeleton,
+                motion,
+                &sim_params,
+                &cal.offsets,
+                &scratch,
+            );
             rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints, Some(BOARD_NOISE_S))?;
             // Before issue 15's sixth session: the global σ for every board.
             global_table = table_4_1(&skeleton, &rec, params, &joints, None)?;
@@ -709,7 +759,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|n| max_world_speed(&skeleton, &tread, skeleton.joint_index(n).unwrap()))
         .collect();
-    let rec = record(&sim, &skeleton, &tread, &sim_params, &cal.offsets);
+    let rec = record(&sim, &skeleton, &tread, &sim_params, &cal.offsets, &scratch);
     let smooth = prepare_motion(&skeleton, &tread, &sim_params)?;
     let oracle = model_recording(&skeleton, sim.nominal_suit(), &smooth, sim_params.rest_s)?;
     let l_shoulder = [skeleton.joint_index("l_shoulder").unwrap()];
@@ -739,7 +789,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .iter()
                     .filter_map(|name| {
                         let b = recording
-                            .nominal_suit
+                            .recording
+                            .suit
                             .boards()
                             .iter()
                             .position(|b| b.name == *name)?;
@@ -1041,6 +1092,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let (Some(f), Value::Object(r)) = (figures.as_object_mut(), real) {
         f.extend(r);
     }
+    std::fs::remove_dir_all(&scratch)?;
     run.finish(figures)?;
     Ok(())
 }

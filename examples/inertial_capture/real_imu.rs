@@ -17,9 +17,7 @@
 //! and scores it and our estimate (`broad_ours.csv`) on trial 07 with the same metric.
 
 use dynamic_shapes::core::math::{DQuat, DVec3};
-use dynamic_shapes::inertial::recordings::{
-    read_broad_csv, read_xio_csv, run_orientation, ImuRecording,
-};
+use dynamic_shapes::inertial::imu_log::{read_broad_csv, read_xio_csv, run_orientation, ImuLog};
 use dynamic_shapes::inertial::{
     heading_inclination_rmse, FilterParams, HeadingInclinationRmse, SensorSet,
 };
@@ -89,7 +87,7 @@ pub fn headlines() -> [Headline; 4] {
 
 /// Orientation error of `p` on `rec` over its movement samples.
 fn score(
-    rec: &ImuRecording,
+    rec: &ImuLog,
     p: FilterParams,
 ) -> Result<(HeadingInclinationRmse, Vec<DQuat>, f64), Box<dyn std::error::Error>> {
     let r = run_orientation(rec, p, BROAD_REST_S)?;

@@ -452,7 +452,7 @@ impl SkeletalEkf {
 
     /// The gyroscope and accelerometer innovation statistics of [`SkeletalEkf::innovation_stats`]
     /// split by the board's sensor axis: `[gyroscope, accelerometer][board][axis]` (for
-    /// per-axis noise, [`crate::board_axis_noise_from_innovations`]).
+    /// per-axis noise, [`crate::tuning::board_axis_noise_from_innovations`]).
     pub fn axis_innovation_stats(&self) -> &[Vec<[InnovationStats; 3]>; 2] {
         &self.axis_innovations
     }

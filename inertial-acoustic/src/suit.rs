@@ -63,9 +63,9 @@ impl UltrasonicSource {
 }
 
 /// One board's measurement noise (the filter's per-board R, beyond §4.4.2's one σ per sensor
-/// type): e.g. estimated from the data by [`crate::board_noise_from_innovations`]. Optionally
+/// type): e.g. estimated from the data by [`crate::tuning::board_noise_from_innovations`]. Optionally
 /// one σ per sensor axis (a board over blended skin turns against
-/// its bone more about some axes than others; [`crate::board_axis_noise_from_innovations`]),
+/// its bone more about some axes than others; [`crate::tuning::board_axis_noise_from_innovations`]),
 /// which then replaces the board's σ on those rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BoardNoise {
@@ -221,7 +221,35 @@ impl Suit {
         boards: Vec<SensorBoard>,
         sources: Vec<UltrasonicSource>,
     ) -> Result<Self> {
+        Self::checked(skeleton, boards, sources, false)
+    }
+
+    /// A suit whose board orientations and source normals are already of unit length (within
+    /// 10⁻⁹), kept bit for bit rather than normalised again — so that a suit written to a
+    /// file ([`crate::Recording::write`]) reads back identical.
+    ///
+    /// # Errors
+    /// As [`Suit::new`]; [`Error::InvalidParam`] (in [`Error::At`] naming the board or
+    /// source) for an orientation or normal that is not of unit length.
+    pub fn from_unit_parts(
+        skeleton: &Skeleton,
+        boards: Vec<SensorBoard>,
+        sources: Vec<UltrasonicSource>,
+    ) -> Result<Self> {
+        Self::checked(skeleton, boards, sources, true)
+    }
+
+    fn checked(
+        skeleton: &Skeleton,
+        boards: Vec<SensorBoard>,
+        sources: Vec<UltrasonicSource>,
+        unit: bool,
+    ) -> Result<Self> {
         use crate::{Context, ResultExt};
+        let not_unit = |len: f64, name: &'static str| Error::InvalidParam {
+            name,
+            reason: format!("length {len}: give a unit vector or quaternion"),
+        };
         if boards.is_empty() {
             return Err(Error::Empty {
                 what: "sensor boards",
@@ -247,6 +275,9 @@ impl Suit {
                 .at(Context::Source(i));
             }
             let len = s.normal.length();
+            if unit && (len - 1.0).abs() > 1e-9 {
+                return Err(not_unit(len, "source.normal")).at(Context::Source(i));
+            }
             if len < 1e-9 {
                 return Err(Error::InvalidParam {
                     name: "source.normal",
@@ -254,12 +285,26 @@ impl Suit {
                 })
                 .at(Context::Source(i));
             }
-            s.normal /= len;
+            if !unit {
+                s.normal /= len;
+            }
+        }
+        if unit {
+            for (i, b) in boards.iter().enumerate() {
+                let len = b.joint_from_sensor.length();
+                if (len - 1.0).abs() > 1e-9 {
+                    return Err(not_unit(len, "board.joint_from_sensor")).at(Context::Sensor(i));
+                }
+            }
         }
         let boards = boards
             .into_iter()
             .map(|b| SensorBoard {
-                joint_from_sensor: b.joint_from_sensor.normalize(),
+                joint_from_sensor: if unit {
+                    b.joint_from_sensor
+                } else {
+                    b.joint_from_sensor.normalize()
+                },
                 ..b
             })
             .collect();

@@ -18,7 +18,7 @@ use skin_core::math::{DQuat, DVec3};
 /// A recording of one IMU: readings in the board's axes, their times, and (where the data set
 /// has one) a reference orientation and the samples to score.
 #[derive(Debug, Clone)]
-pub struct ImuRecording {
+pub struct ImuLog {
     /// Sample times, seconds.
     pub time_s: Vec<f64>,
     /// Readings, SI units.
@@ -30,7 +30,7 @@ pub struct ImuRecording {
     pub movement: Vec<bool>,
 }
 
-impl ImuRecording {
+impl ImuLog {
     /// Mean sample interval, seconds.
     pub fn sample_time_s(&self) -> f64 {
         match (self.time_s.first(), self.time_s.last()) {
@@ -50,9 +50,9 @@ impl ImuRecording {
     }
 
     /// The first `n` samples (all if fewer).
-    pub fn head(&self, n: usize) -> ImuRecording {
+    pub fn head(&self, n: usize) -> ImuLog {
         let cut = |v: usize| v.min(n);
-        ImuRecording {
+        ImuLog {
             time_s: self.time_s[..cut(self.time_s.len())].to_vec(),
             readings: self.readings[..cut(self.readings.len())].to_vec(),
             reference: self.reference[..cut(self.reference.len())].to_vec(),
@@ -115,9 +115,9 @@ fn vec3(r: &[f64], at: usize) -> DVec3 {
 /// # Errors
 /// [`Error::Core`] I/O or parse error (with the line); [`Error::Empty`] without rows;
 /// [`Error::NonFinite`] (at the frame) for a non-finite time or inertial value.
-pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
+pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuLog> {
     let rows = read_rows(path.as_ref(), "BROAD CSV", 18)?;
-    let mut rec = ImuRecording {
+    let mut rec = ImuLog {
         time_s: Vec::with_capacity(rows.len()),
         readings: Vec::with_capacity(rows.len()),
         reference: Vec::with_capacity(rows.len()),
@@ -142,9 +142,9 @@ pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
 ///
 /// # Errors
 /// As [`read_broad_csv`].
-pub fn read_xio_csv(path: impl AsRef<Path>) -> Result<ImuRecording> {
+pub fn read_xio_csv(path: impl AsRef<Path>) -> Result<ImuLog> {
     let rows = read_rows(path.as_ref(), "x-io CSV", 7)?;
-    let mut rec = ImuRecording {
+    let mut rec = ImuLog {
         time_s: Vec::with_capacity(rows.len()),
         readings: Vec::with_capacity(rows.len()),
         reference: Vec::new(),
@@ -183,11 +183,7 @@ pub struct OrientationRun {
 /// [`Error::Empty`] for an empty recording or no sample in the rest interval; as
 /// [`RestAlignment::from_rest`], [`OrientationEkf::new`], [`OrientationEkf::step`] (at the
 /// frame).
-pub fn run_orientation(
-    rec: &ImuRecording,
-    params: FilterParams,
-    rest_s: f64,
-) -> Result<OrientationRun> {
+pub fn run_orientation(rec: &ImuLog, params: FilterParams, rest_s: f64) -> Result<OrientationRun> {
     if rec.is_empty() {
         return Err(Error::Empty { what: "recording" });
     }
