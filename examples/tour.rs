@@ -4,7 +4,9 @@
 //! not). Each example says what these are in the `manifest.json` it writes beside its
 //! `figures.json` (`example_kit::report`); the full JSON stays in `figures.json`.
 //!
-//! Run with `cargo run --release --example tour [-- --full] [-- --out DIR]`. Examples are
+//! Run with `cargo run --release --example tour [-- --full] [-- --out DIR] [-- --record]
+//! [-- --only a,b]`; `--record` commits each example's figures under `results/` (see
+//! `example_kit::record`), from which `--example results` writes `docs/results.md`. Examples are
 //! discovered from `examples/*.rs` and `examples/*/main.rs` so a new example joins the tour by
 //! existing. `--full` runs them at full size. The examples' progress goes to stderr as they
 //! run; the last stdout line is one JSON object with every example's figures.
@@ -16,6 +18,7 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use clap::Parser;
+use example_kit::record::{Machine, Record};
 use example_kit::report::{read_manifest, Manifest};
 use example_kit::Run;
 use serde_json::{Map, Value};
@@ -29,6 +32,13 @@ struct Args {
     /// Folder of the page [default: out/tour].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Commit each example's figures, with the commit, machine and date, under `results/`
+    /// (full runs) or `results/quick/` (quick runs): the records the results page is made from.
+    #[arg(long)]
+    record: bool,
+    /// Run only these examples (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
 }
 
 struct Outcome {
@@ -68,7 +78,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .then(|| p.file_stem()?.to_str().map(str::to_owned))
                 .flatten()
         })
-        .filter(|n| n != "tour")
+        .filter(|n| n != "tour" && n != "results")
+        .filter(|n| args.only.is_empty() || args.only.contains(n))
         .collect();
     names.sort();
 
@@ -82,6 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if args.full { "" } else { " --quick" }
         );
         let dir = root.join("out").join(name);
+        let load_start = example_kit::record::load_1min();
         let start = Instant::now();
         let mut cmd = Command::new(&cargo);
         cmd.current_dir(root)
@@ -111,6 +123,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .filter(|p| !captioned.contains(p))
             .collect();
         let ok = output.status.success() && figures.is_some();
+        if let (true, true, Some(m), Some(f)) = (args.record, ok, &manifest, &figures) {
+            let machine = Machine {
+                load_1min_start: load_start,
+                ..Machine::now()
+            };
+            let path = Record::new(m, f.clone(), machine, seconds).write(&root.join("results"))?;
+            eprintln!("tour: recorded {}", path.display());
+        }
         eprintln!(
             "tour: {name} {} in {seconds:.1} s",
             if ok { "ok" } else { "FAILED" }

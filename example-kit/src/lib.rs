@@ -8,7 +8,8 @@
 //! The examples share their contract through it (`DESIGN.md`, "Examples contract"):
 //! [`cli`] (`--quick`, `--out DIR` with `clap`), [`report`] (out folder, timings,
 //! `figures.json`, `manifest.json` for `tour`, the last-line JSON), [`progress`]
-//! (`indicatif` bars on stderr) and [`plot`] (`plotters` charts with titles, axis labels with
+//! (`indicatif` bars on stderr), [`record`] (the committed records under `results/`) and
+//! [`plot`] (`plotters` charts with titles, axis labels with
 //! units, legends and colour bars, in the bundled DejaVu Sans font).
 
 use std::path::PathBuf;
@@ -16,6 +17,7 @@ use std::path::PathBuf;
 pub mod cli;
 pub mod plot;
 pub mod progress;
+pub mod record;
 pub mod report;
 
 pub use cli::Common;
