@@ -99,6 +99,7 @@ mod recording;
 pub mod score;
 #[cfg(feature = "validation")]
 pub mod simulate;
+mod start;
 mod suit;
 pub mod tuning;
 mod ultrasound;

@@ -20,13 +20,15 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use skin_core::skeleton::Skeleton;
 
-use crate::ekf::{InnovationStats, SkeletalEkf};
-use crate::initialise::{initialise, refine_headings, HeadingRefinement, Initialisation};
+use crate::ekf::InnovationStats;
+use crate::initialise::{refine_headings, HeadingRefinement};
 use crate::params::FilterParams;
 use crate::recording::Recording;
+use crate::start::first_pass;
+pub use crate::start::start;
 use crate::suit::Suit;
 use crate::tuning::{estimate_board_axis_noise, estimate_board_noise};
-use crate::{Context, Error, Result, ResultExt};
+use crate::{Context, Result, ResultExt};
 
 /// How the per-board measurement noise is set before the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -113,7 +115,7 @@ pub struct PipelineRun {
     /// θ after every frame (rest hold included), one value per skeleton DOF.
     pub theta: Vec<Vec<f64>>,
     /// Per frame, per joint of [`PipelineParams::covariance_joints`]: the covariance of its
-    /// angles, row-major ([`SkeletalEkf::theta_covariance`]).
+    /// angles, row-major ([`crate::SkeletalEkf::theta_covariance`]).
     pub covariances: Vec<Vec<Vec<f64>>>,
     /// Frames at which the filter diverged and was reset.
     pub diverged_frames: usize,
@@ -145,79 +147,6 @@ pub(crate) fn thread_cpu_s() -> f64 {
     cpu_time::ThreadTime::try_now().map_or(0.0, |t| t.as_duration().as_secs_f64())
 }
 
-/// The recording's frame interval on `filter`.
-fn at_rate(filter: FilterParams, recording: &Recording) -> FilterParams {
-    FilterParams {
-        frame_time_s: 1.0 / recording.rate_hz,
-        ..filter
-    }
-}
-
-/// The §4.4.4 start of a filter run on `recording`: the initialisation from the rest hold's
-/// readings in the recording's rest pose, and the filter so started, with the recording's
-/// known DOFs if `use_known_dofs` and it has them.
-///
-/// # Errors
-/// As [`Recording::check`], [`crate::initialise`] and [`SkeletalEkf::new`].
-pub fn start(
-    skeleton: &Skeleton,
-    recording: &Recording,
-    filter: FilterParams,
-    use_known_dofs: bool,
-) -> Result<(SkeletalEkf, Initialisation)> {
-    recording.check(skeleton)?;
-    let rest: Vec<_> = recording.frames[..recording.rest_frames.max(1)]
-        .iter()
-        .map(|f| f.inertial.clone())
-        .collect();
-    let init = initialise(skeleton, &recording.suit, &recording.rest_pose, &rest)?;
-    let known: &[usize] = if use_known_dofs {
-        &recording.known_dofs
-    } else {
-        &[]
-    };
-    let ekf = SkeletalEkf::new(
-        skeleton.clone(),
-        init.suit.clone(),
-        &recording.rest_pose,
-        at_rate(filter, recording),
-        known,
-    )?
-    .with_gyro_offsets(init.gyro_offsets.clone())?;
-    Ok((ekf, init))
-}
-
-/// A first filter pass over the rest hold and the first `seconds` of motion: the filter at
-/// its end, the §4.4.4 initialisation, the estimated poses after the rest hold and the frame
-/// it stopped at.
-pub(crate) fn first_pass(
-    skeleton: &Skeleton,
-    recording: &Recording,
-    filter: FilterParams,
-    use_known_dofs: bool,
-    seconds: f64,
-) -> Result<(SkeletalEkf, Initialisation, Vec<Vec<f64>>, usize)> {
-    if recording.frames.len() <= recording.rest_frames + 2 {
-        return Err(Error::Empty {
-            what: "frames after the rest hold (a first pass needs at least three)",
-        });
-    }
-    skin_core::check::non_negative("seconds", seconds)?;
-    let (mut ekf, init) = start(skeleton, recording, filter, use_known_dofs)?;
-    let known = use_known_dofs && !recording.known_dofs.is_empty();
-    let end = (recording.rest_frames + (seconds * recording.rate_hz).round() as usize)
-        .min(recording.frames.len());
-    let mut poses = Vec::with_capacity(end - recording.rest_frames);
-    for (k, f) in recording.frames[..end].iter().enumerate() {
-        ekf.step(f, known.then(|| &recording.known[k]))
-            .at(Context::Frame(k))?;
-        if k >= recording.rest_frames {
-            poses.push(ekf.theta().to_vec());
-        }
-    }
-    Ok((ekf, init, poses, end))
-}
-
 /// The per-board heading step beyond §4.4.4 ([`crate::refine_headings`]) on a recording: a
 /// first filter pass over the rest hold and the first `seconds` of motion, the heading fit
 /// on its estimated poses, and the suit so refined (its `suit` replaces the recording's for
@@ -225,7 +154,7 @@ pub(crate) fn first_pass(
 /// measured up axis).
 ///
 /// # Errors
-/// [`Error::Empty`] for a recording with fewer than three frames after its rest hold; as
+/// [`crate::Error::Empty`] for a recording with fewer than three frames after its rest hold; as
 /// [`run`] and [`crate::refine_headings`].
 pub fn fit_headings(
     skeleton: &Skeleton,
@@ -255,10 +184,10 @@ pub fn fit_headings(
 /// from the rest hold (§4.4.4).
 ///
 /// # Errors
-/// As [`Recording::check`], [`crate::initialise`], [`SkeletalEkf::new`] and
-/// [`SkeletalEkf::step`] (with the frame in [`Error::At`]); [`Error::Empty`] when a first
+/// As [`Recording::check`], [`crate::initialise`], [`crate::SkeletalEkf::new`] and
+/// [`crate::SkeletalEkf::step`] (with the frame in [`crate::Error::At`]); [`crate::Error::Empty`] when a first
 /// pass is asked of a recording with fewer than three frames after its rest hold;
-/// [`Error::IndexOutOfRange`] for a covariance joint the skeleton lacks.
+/// [`crate::Error::IndexOutOfRange`] for a covariance joint the skeleton lacks.
 pub fn run(
     skeleton: &Skeleton,
     recording: &Recording,

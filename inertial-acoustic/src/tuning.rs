@@ -7,8 +7,8 @@
 
 use crate::ekf::InnovationStats;
 use crate::params::FilterParams;
-use crate::pipeline::first_pass;
 use crate::recording::Recording;
+use crate::start::first_pass;
 use crate::suit::BoardNoise;
 use crate::Result;
 use skin_core::skeleton::Skeleton;
