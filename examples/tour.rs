@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use example_kit::record::{Machine, Record};
-use example_kit::report::{read_manifest, Manifest};
+use example_kit::report::{read_manifest, round3, with_unit, Manifest};
 use example_kit::Run;
 use serde_json::{Map, Value};
 
@@ -207,48 +207,6 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// `v` rounded to 3 significant digits for a person: thousands separated, no exponent
-/// between 0.001 and 10⁶, `a × 10ⁿ` outside.
-fn round3(v: f64) -> String {
-    if !v.is_finite() {
-        return "—".into();
-    }
-    if v == 0.0 {
-        return "0".into();
-    }
-    let a = v.abs();
-    if !(1e-3..1e6).contains(&a) {
-        let e = a.log10().floor() as i32;
-        let m = v / 10f64.powi(e);
-        let sup: String = e
-            .to_string()
-            .chars()
-            .map(|c| match c {
-                '-' => '⁻',
-                d => ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'][d as usize - '0' as usize],
-            })
-            .collect();
-        return format!("{m:.2} × 10{sup}");
-    }
-    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
-    let s = format!("{:.*}", decimals, v);
-    // Thousands separators in the integer part.
-    let (int, frac) = s.split_once('.').map_or((s.as_str(), ""), |(i, f)| (i, f));
-    let (sign, digits) = int.strip_prefix('-').map_or(("", int), |d| ("-", d));
-    let mut grouped = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            grouped.push(',');
-        }
-        grouped.push(c);
-    }
-    if frac.is_empty() {
-        format!("{sign}{grouped}")
-    } else {
-        format!("{sign}{grouped}.{frac}")
-    }
-}
-
 /// A duration for a person: ms below a second, s above.
 fn duration(s: f64) -> String {
     if s < 1.0 {
@@ -258,12 +216,14 @@ fn duration(s: f64) -> String {
     }
 }
 
-fn with_unit(v: &str, unit: &str) -> String {
-    match unit {
-        "" => v.to_owned(),
-        "×" => format!("{v}×"),
-        u => format!("{v} {u}"),
-    }
+/// The repository's root for a page written under its `out/` folder (the page's folder with
+/// its `out/...` tail removed; the folder itself when it is not under an `out/`).
+fn root_dir(page_dir: &Path) -> PathBuf {
+    page_dir
+        .ancestors()
+        .find(|p| p.file_name().is_some_and(|n| n == "out"))
+        .and_then(Path::parent)
+        .map_or_else(|| page_dir.to_path_buf(), Path::to_path_buf)
 }
 
 /// `path` relative to the page's folder `from` (both under the repository's `out/`).
@@ -297,11 +257,17 @@ fn render_html(outcomes: &[Outcome], page_dir: &Path, quick: bool) -> String {
         h,
         "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">\
          <title>dynamic-shapes tour</title><style>{STYLE}</style></head><body>\
-         <h1>dynamic-shapes tour</h1><p class=\"note\">Every example of the workspace{}. \
-         Figures are rounded to 3 significant digits; each example's full figures are in its \
-         <code>figures.json</code>. Goals are those the issues and the method guides \
-         (<code>docs/</code>) state; most are stated for the full-size run, so a quick run \
-         can miss a speed or accuracy goal that the full run meets.</p>",
+         <h1>dynamic-shapes tour</h1><p>dynamic-shapes captures, reconstructs and \
+         re-animates moving human bodies and faces: five published methods (Sand 2003; \
+         Vlasic 2010, Chapters 2–5), each validated against the ground truth of a synthetic \
+         capture studio beside the baselines a user could have chosen instead.</p>\
+         <p class=\"note\">Every example of the workspace{}. Figures are rounded to 3 \
+         significant digits; each example's full figures are in its <code>figures.json</code>. \
+         Goals are those the method's reference page (<code>docs/&lt;crate&gt;.md</code>) \
+         states; most are stated for the full-size run, so a quick run can miss a speed or \
+         accuracy goal that the full run meets. Each example links to its method's section of \
+         the results page (<code>docs/results.md</code>), made from the committed full-run \
+         records.</p>",
         if quick {
             ", each run in its quick (CI-sized) form"
         } else {
@@ -334,6 +300,17 @@ fn render_html(outcomes: &[Outcome], page_dir: &Path, quick: bool) -> String {
 
     for o in outcomes {
         let _ = write!(h, "<h2 id=\"{0}\">{0}</h2>", escape(&o.name));
+        if let Some(krate) = example_kit::record::method_of(&o.name) {
+            let page = relative(
+                &root_dir(page_dir).join("docs").join("results.md"),
+                page_dir,
+            );
+            let _ = write!(
+                h,
+                "<p class=\"note\">Method: <code>{krate}</code> — its figures from the full-run \
+                 records: <a href=\"{page}#{krate}\">results page, {krate}</a>.</p>",
+            );
+        }
         if !o.ok {
             let _ = write!(
                 h,
@@ -393,7 +370,11 @@ fn render_html(outcomes: &[Outcome], page_dir: &Path, quick: bool) -> String {
                     "<tr><td>{}<br><span class=\"note\"><code>{}</code></span></td>\
                      <td class=\"num\">{}</td>",
                     escape(&hl.label),
-                    escape(&hl.key),
+                    match hl.role {
+                        example_kit::Role::Method => escape(&hl.key),
+                        example_kit::Role::Baseline => format!("{} · baseline", escape(&hl.key)),
+                        example_kit::Role::Oracle => format!("{} · oracle", escape(&hl.key)),
+                    },
                     escape(&value),
                 );
                 if any_goal {

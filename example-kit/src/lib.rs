@@ -22,7 +22,7 @@ pub mod report;
 
 pub use cli::Common;
 pub use progress::Stage;
-pub use report::{Goal, Headline, Run};
+pub use report::{Goal, Headline, Role, Run};
 
 /// An error of the examples' support code.
 #[derive(Debug, thiserror::Error)]

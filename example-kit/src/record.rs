@@ -148,6 +148,53 @@ impl Record {
     }
 }
 
+/// The methods in order, each with its crate (its reference page is `docs/<crate>.md`, its
+/// section of the results page `docs/results.md#<crate>`), what it does and its examples.
+pub const METHODS: [(&str, &str, &[&str]); 6] = [
+    (
+        "needle-model",
+        "Skin deformation from silhouettes (Sand 2003)",
+        &["needle_capture"],
+    ),
+    (
+        "template-silhouette",
+        "Skeleton tracking and template molding to silhouettes (Vlasic thesis Ch. 2; Fua et al.)",
+        &["template_capture", "ellipsoid_fit"],
+    ),
+    (
+        "photometric-normals",
+        "Normals from spherical lighting, integration, matching, merging (Ch. 3)",
+        &[
+            "photometric_normals",
+            "photometric_reconstruction",
+            "surface_merge",
+        ],
+    ),
+    (
+        "inertial-acoustic",
+        "Wearable capture: inertial and ultrasonic sensing, skeletal EKF (Ch. 4)",
+        &["inertial_capture"],
+    ),
+    (
+        "multilinear-face",
+        "Multilinear face models, tracking and transfer (Ch. 5)",
+        &["face_transfer"],
+    ),
+    (
+        "skin-core",
+        "Foundations and the studio: cameras, markers, skeletons, meshes",
+        &["studio", "calibrate", "markers", "laplacian_edit"],
+    ),
+];
+
+/// The crate whose section of the results page holds `example`.
+pub fn method_of(example: &str) -> Option<&'static str> {
+    METHODS
+        .iter()
+        .find(|(_, _, examples)| examples.contains(&example))
+        .map(|(krate, _, _)| *krate)
+}
+
 /// Whether a figure's key names a timing, a speed, a memory size or a machine load: those
 /// vary from run to run and are not accuracy figures.
 pub fn is_timing_key(key: &str) -> bool {

@@ -48,6 +48,26 @@ pub struct Headline {
     pub goal: Option<Goal>,
     /// Where the goal is stated or under which conditions it applies (e.g. "at 1600×1200").
     pub note: Option<String>,
+    /// What the figure measures: the method, a baseline or an oracle.
+    #[serde(default)]
+    pub role: Role,
+    /// The paper's own figure for this quantity, with its source (e.g. "6.1–14.1 %, Table
+    /// 2.1"), where the paper reports one.
+    #[serde(default)]
+    pub paper: Option<String>,
+}
+
+/// What a headline figure measures.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// The method (accuracy, or its speed and memory).
+    #[default]
+    Method,
+    /// A baseline: what a user of another method would have, with the same information.
+    Baseline,
+    /// An oracle: something that sees the truth (a floor or a control, not a competitor).
+    Oracle,
 }
 
 impl Headline {
@@ -59,7 +79,27 @@ impl Headline {
             unit: unit.into(),
             goal: None,
             note: None,
+            role: Role::Method,
+            paper: None,
         }
+    }
+
+    /// Marked as a baseline.
+    pub fn baseline(mut self) -> Self {
+        self.role = Role::Baseline;
+        self
+    }
+
+    /// Marked as an oracle.
+    pub fn oracle(mut self) -> Self {
+        self.role = Role::Oracle;
+        self
+    }
+
+    /// With the paper's own figure and its source.
+    pub fn paper(mut self, figure: &str) -> Self {
+        self.paper = Some(figure.into());
+        self
     }
 
     /// With a goal.
@@ -251,4 +291,55 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     let p = dir.join("manifest.json");
     let s = std::fs::read_to_string(&p).map_err(|e| Error::Io(format!("{}: {e}", p.display())))?;
     serde_json::from_str(&s).map_err(|e| Error::Json(format!("{}: {e}", p.display())))
+}
+
+/// `v` rounded to 3 significant digits for a person: thousands separated, no exponent
+/// between 0.001 and 10⁶, `a × 10ⁿ` outside.
+pub fn round3(v: f64) -> String {
+    if !v.is_finite() {
+        return "—".into();
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        let e = a.log10().floor() as i32;
+        let m = v / 10f64.powi(e);
+        let sup: String = e
+            .to_string()
+            .chars()
+            .map(|c| match c {
+                '-' => '⁻',
+                d => ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'][d as usize - '0' as usize],
+            })
+            .collect();
+        return format!("{m:.2} × 10{sup}");
+    }
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{:.*}", decimals, v);
+    // Thousands separators in the integer part.
+    let (int, frac) = s.split_once('.').map_or((s.as_str(), ""), |(i, f)| (i, f));
+    let (sign, digits) = int.strip_prefix('-').map_or(("", int), |d| ("-", d));
+    let mut grouped = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            grouped.push(',');
+        }
+        grouped.push(c);
+    }
+    if frac.is_empty() {
+        format!("{sign}{grouped}")
+    } else {
+        format!("{sign}{grouped}.{frac}")
+    }
+}
+
+/// A figure with its unit for a person: `"3.2 mm"`, `"2.0×"`, `"0.5"` without a unit.
+pub fn with_unit(v: &str, unit: &str) -> String {
+    match unit {
+        "" => v.to_owned(),
+        "×" => format!("{v}×"),
+        u => format!("{v} {u}"),
+    }
 }

@@ -593,12 +593,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "no_irls_width_error_mm",
             "half-width error without IRLS",
             "mm",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "no_irls_joint_angle_error_deg",
             "bone direction error without IRLS",
             "°",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "fit_ms_per_frame",
             "fit time per frame (eight-frame fit)",
@@ -614,18 +616,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "no_irls_bone_length_error_mm",
             "bone length error without IRLS",
             "mm",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "limbs_only_bone_length_error_mm",
             "bone length error, limb model (no end sites)",
             "mm",
-        ),
-        Headline::new("single_fit_ms_per_frame", "fit time, one frame alone", "ms"),
+        )
+        .baseline(),
+        Headline::new("single_fit_ms_per_frame", "fit time, one frame alone", "ms").baseline(),
         Headline::new(
             "single_joint_angle_error_deg",
             "bone direction error, each frame alone",
             "°",
-        ),
+        )
+        .baseline(),
     ] {
         run.headline(h);
     }

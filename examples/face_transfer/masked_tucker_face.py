@@ -8,7 +8,7 @@ where our imputation starts). Runs TensorLy's masked partial_tucker over the att
 (the vertex mode not factored, Eq. 5.4) from that fill (else from 0 in the missing entries)
 until its own stopping rule (the change of the reconstruction error below --tol, checked from
 the third sweep) or --max-seconds of wall time, whichever comes first, and prints one JSON
-line per rank setting with issue 16's metric:
+line per rank setting with the example's metric:
 ||(Xhat - X)(1 - M)|| / ||(X - mean face)(1 - M)||, the mean face over all faces of X.
 
 The sweeps run one call at a time (init = the previous call's core and factors, n_iter_max 1,

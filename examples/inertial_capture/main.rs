@@ -52,7 +52,7 @@
 //! `--delta-step N`: the noise-shaped delta code's unit, default 16, 0 for the whole-count
 //! code; `--no-code-noise`: the filter is not told the code's per-frame error; `--ber R`: the
 //! link's bit error rate; `--key-interval K`: key frames every K frames, 0 for none;
-//! `--ber-sweep K1,K2,…`: only the bit-error sweep of issue 15's ninth session;
+//! `--ber-sweep K1,K2,…`: only the bit-error sweep over key intervals;
 //! `--real-only`: only the real recordings and the FilterPy workload, seconds).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
@@ -84,14 +84,15 @@ use example_kit::{Goal, Headline, Run};
 const JOINTS: [&str; 3] = ["neck", "r_shoulder", "l_hip"];
 /// Seconds of motion the per-board heading fit (beyond §4.4.4) uses from the recording's start.
 const HEADING_FIT_S: f64 = 6.0;
-/// Seconds of motion the first pass that estimates the per-board noise (beyond §4.4.2; issue
-/// 15, sixth session) uses from the recording's start — the pipeline's default since then.
+/// Seconds of motion the first pass that estimates the per-board noise (beyond §4.4.2) uses
+/// from the recording's start — the pipeline's default
+/// (`PipelineParams::DEFAULT_FIRST_PASS_S`).
 const BOARD_NOISE_S: f64 = 6.0;
 
 /// A+G+D with the root supplied after the per-board heading step beyond §4.4.4
 /// (`refine_recording_headings` over the first `HEADING_FIT_S` of motion), and with the
 /// distance σ widened by the garment's unknown placement and skin motion (1 cm and up to
-/// 1.4 cm: σ = 12 mm instead of 2.5 mm) — issue 15, items 2 and 3.
+/// 1.4 cm: σ = 12 mm instead of 2.5 mm).
 fn variants(
     skeleton: &Skeleton,
     rec: &SimulatedRecording,
@@ -112,7 +113,7 @@ fn variants(
         params.with_measurement_sigmas(params.accelerometer_sigma, params.gyroscope_sigma, 0.012);
     let inflated = run_filter(skeleton, rec, wide, true, joints)?;
     let both = run_filter(skeleton, &refined, wide, true, joints)?;
-    // Issue 15, sixth session: per-board R from a first pass (same seconds as the heading
+    // Per-board R from a first pass (same seconds as the heading
     // fit), robust distance updates, and the neck board's readings left out.
     let with_noise =
         |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
@@ -123,7 +124,7 @@ fn variants(
         };
     let noisy = with_noise(rec)?;
     let refined_noisy = with_noise(&refined)?;
-    // Issue 15, seventh session: one σ per board axis from the same first pass.
+    // One σ per board axis from the same first pass.
     let with_axis_noise =
         |r: &SimulatedRecording| -> Result<SimulatedRecording, Box<dyn std::error::Error>> {
             let n = estimate_board_axis_noise(skeleton, &r.recording, params, true, HEADING_FIT_S)?;
@@ -298,12 +299,12 @@ struct Args {
     common: example_kit::cli::Common,
     /// The inertial link's code unit in counts for the noise-shaped delta code
     /// (`SimulationParams::delta_step`; default `SimulationParams::DEFAULT_DELTA_STEP`, 16); 0 for
-    /// the whole-count code (the default until issue 15's eighth session).
+    /// the whole-count code (the thesis's).
     #[arg(long)]
     delta_step: Option<i32>,
     /// Do not add the delta code's per-frame error to the filter's σ_g and σ_a
     /// (`SimulationParams::with_code_noise`, the default); the per-board σ estimate then
-    /// has to find it (the comparison of issue 15's eighth session).
+    /// has to find it (a comparison).
     #[arg(long)]
     no_code_noise: bool,
     /// Bit error rate of the inertial link (`SimulationParams::bit_error_rate`; default
@@ -312,10 +313,10 @@ struct Args {
     ber: Option<f64>,
     /// Frames between a channel's key frames on the inertial link
     /// (`SimulationParams::key_interval`, default `SimulationParams::DEFAULT_KEY_INTERVAL`); 0 for
-    /// none (the thesis's code, the default until issue 15's ninth session).
+    /// none (the thesis's code).
     #[arg(long)]
     key_interval: Option<u32>,
-    /// Only the bit-error sweep of issue 15's ninth session: the exercise clip (10 s with
+    /// Only the bit-error sweep: the exercise clip (10 s with
     /// `--quick`, else 30 s), A+G+D with the root supplied at the full run's frozen point
     /// (q 20, σ_a 0.3, σ_g 0.002 m/s² / rad/s with the code's σ, gate 4σ, re-centring 0.3),
     /// at the default bit error rate (and the CMU walk there) and at 10⁻³, 3·10⁻³, 10⁻², for
@@ -404,7 +405,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .unwrap_or(SimulationParams::default().key_interval),
         ..SimulationParams::default()
     };
-    // Issue 15, eighth session: the filter's σ_g and σ_a are the sensor's noise (the grid's
+    // The filter's σ_g and σ_a are the sensor's noise (the grid's
     // values) and the delta code's per-frame error in quadrature.
     let (code_gyro, code_accel) = if args.no_code_noise {
         (0.0, 0.0)
@@ -427,7 +428,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     stage.finish(format!("{dist_mean:.2} ± {dist_sd:.2} mm"));
 
     if let Some(keys) = &args.ber_sweep {
-        // Issue 15, ninth session: the lost-frame weakness of the noise-shaped code and the
+        // The lost-frame weakness of the noise-shaped code and the
         // key frames that resynchronise it, at the full run's frozen filter point.
         let params = FilterParams {
             process_sigma: 20.0,
@@ -655,7 +656,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &scratch,
             );
             rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints, Some(BOARD_NOISE_S))?;
-            // Before issue 15's sixth session: the global σ for every board.
+            // The global σ for every board (§4.4.2), the before of the per-board noise.
             global_table = table_4_1(&skeleton, &rec, params, &joints, None)?;
             // The same recording with the 3-DOF joints in the other chart (Euler angles
             // throughout, or re-centred): before and after the local parameterisation.
@@ -961,31 +962,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "distance error (LOO, static)",
             "mm",
         )
+        .paper("2.35 mm, thesis §4.3.3")
         .goal(Goal::AtMost(2.5))
         .note("thesis 2.35"),
         Headline::new("distance_error_sd_mm", "distance error SD", "mm")
+            .paper("1.92 mm, thesis §4.3.3")
             .goal(Goal::AtMost(2.0))
             .note("thesis 1.92"),
         Headline::new("agd_neck_deg", "A+G+D neck (root supplied)", "deg")
+            .paper("5.7° (σ 2.9°), Table 4.1")
             .goal(Goal::AtMost(3.0))
             .note("thesis 5.7"),
         Headline::new("agd_shoulder_deg", "A+G+D right shoulder", "deg")
+            .paper("8.0° (σ 5.0°), Table 4.1")
             .goal(Goal::AtMost(3.0))
             .note("thesis 8.0"),
         Headline::new("agd_hip_deg", "A+G+D left hip", "deg")
+            .paper("6.6° (σ 3.8°), Table 4.1")
             .goal(Goal::AtMost(3.0))
             .note("thesis 6.6"),
         Headline::new(
             "skin_motion_max_mm",
             "largest board motion relative to its bone (exercise)",
             "mm",
-        ),
+        )
+        .oracle(),
         Headline::new("drift_with_d_deg", "treadmill left shoulder, with D", "deg"),
         Headline::new(
             "drift_without_d_deg",
             "treadmill left shoulder, without D",
             "deg",
-        ),
+        )
+        .baseline(),
         broad_test,
         broad_gyro_only,
         broad_inclination,
@@ -1063,7 +1071,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "key_interval": sim_params.key_interval,
         "bit_error_rate": sim_params.bit_error_rate,
     });
-    // Issue 15, sixth session: the per-board noise now in the pipeline, and the global σ
+    // The per-board noise of the pipeline, and the global σ
     // before it.
     if let Some(f) = figures.as_object_mut() {
         f.insert(

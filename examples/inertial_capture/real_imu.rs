@@ -71,7 +71,8 @@ pub fn headlines() -> [Headline; 4] {
             "broad_gyro_only_test_rmse_deg",
             "BROAD test trial 07, gyroscope rows only",
             "deg",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "broad_inclination_rmse_deg",
             "BROAD test trial 07 inclination RMSE (one board, gyro + accel)",

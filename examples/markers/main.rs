@@ -159,7 +159,7 @@ fn main() -> AnyResult<()> {
     run.headline(
         Headline::new("bar_calibration_rms_px", "reprojection RMS", "px")
             .goal(Goal::AtMost(0.5))
-            .note("issue 12, at σ = 0.3 px"),
+            .note("goal in docs/skin-core.md, at σ = 0.3 px"),
     );
     run.headline(
         Headline::new(
@@ -168,7 +168,7 @@ fn main() -> AnyResult<()> {
             "mm",
         )
         .goal(Goal::AtMost(3.0))
-        .note("issue 12"),
+        .note("goal in docs/skin-core.md"),
     );
     run.headline(Headline::new(
         "bar_length_rms_mm",

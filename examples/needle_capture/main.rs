@@ -815,12 +815,14 @@ fn headlines(run: &mut Run, s: &Setup) {
             "static_deforming_mean_mm",
             "static model (F_near = 1) on pose-deforming needles, mean",
             "mm",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "lbs_deforming_mean_mm",
             "LBS of the captured rest shape on pose-deforming needles, mean",
             "mm",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "deforming_gain_over_static",
             "pose-deforming error of the static model ÷ that of the model",
@@ -874,6 +876,7 @@ fn headlines(run: &mut Run, s: &Setup) {
             "observation accumulation",
             "camera-frames/s",
         )
+        .paper("\"can be done in real time\" (30 fps video), Sand 2003 thesis §6.2")
         .goal(Goal::AtLeast(300.0))
         .note(&format!(
             "{doc}, at 720×480; this run {}×{}",
@@ -884,6 +887,7 @@ fn headlines(run: &mut Run, s: &Setup) {
             "reconstruction from ≥ 43,200 camera-frames",
             "s",
         )
+        .paper("< 30 min for the observations of 30 min of video, Sand 2003 thesis §6.2")
         .goal(Goal::AtMost(60.0))
         .note(doc),
         Headline::new(
@@ -898,6 +902,7 @@ fn headlines(run: &mut Run, s: &Setup) {
             "animation with the watertight union surface",
             "fps",
         )
+        .paper("≈ 0.05 fps (about 20 s per frame: FastRBF mesh), Sand 2003 thesis §6.3")
         .goal(Goal::AtLeast(2.0))
         .note(doc),
         Headline::new("bytes_per_observation", "memory per observation", "B")

@@ -98,7 +98,7 @@ struct Args {
     #[arg(long, default_value_t = 10)]
     flow_reps: usize,
     /// Render a smooth, consistent true surface (`TrueSurface::Smooth`): every face, not only
-    /// the wrinkle regions, Phong-tessellated to the wrinkles' 3 mm edges (issue 14).
+    /// the wrinkle regions, Phong-tessellated to the wrinkles' 3 mm edges.
     #[arg(long)]
     smooth_truth: bool,
 }
@@ -496,17 +496,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "moving_true_motion_median_deg",
             "moving sequence, compensated with the true motion (diagnostic)",
             "deg",
-        ),
+        )
+        .oracle(),
         Headline::new(
             "moving_static_same_pose_median_deg",
             "first tracking frame held still (diagnostic)",
             "deg",
-        ),
+        )
+        .oracle(),
         Headline::new(
             "moving_uncompensated_median_deg",
             "moving sequence, without compensation (median)",
             "deg",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "studio_flow_epe_px",
             "flow EPE against the studio's true motion",
@@ -537,7 +540,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "baseline_normal_median_deg",
             "distant-light baseline (median, outside concavities)",
             "deg",
-        ),
+        )
+        .baseline(),
         Headline::new("valid_fraction", "valid normals on the body", ""),
         Headline::new("flow_ms", "optical flow per pair (peer workload)", "ms")
             .note("goal: ≤ 2× OpenCV DIS medium at 1024² (54 ms in bench/peers)"),

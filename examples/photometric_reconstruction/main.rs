@@ -120,7 +120,7 @@ struct Args {
     #[arg(long, default_value_t = 100)]
     wrinkle_light_bins: usize,
     /// Scale the merge's depth-jump threshold with the image width
-    /// (`ReconstructParams::scale_merge_jump`; issue 14's coverage budget).
+    /// (`ReconstructParams::scale_merge_jump`; see the coverage budget in the docs).
     #[arg(long)]
     scale_merge_jump: bool,
     /// Pass 1's hole-filling depth (`ReconstructParams::pass1_poisson_depth`; default: the
@@ -131,7 +131,7 @@ struct Args {
     #[arg(long)]
     pass2_proxy_jump_m: Option<f64>,
     /// Pass 2 integrates the pixels straddling the proxy's jumps on the layer (side) their
-    /// first matching agrees with (`IntegrationParams::layers`; issue 14, seventh session).
+    /// first matching agrees with (`IntegrationParams::layers`).
     #[arg(long)]
     pass2_layers: bool,
     /// With `--pass2-layers`: how near the matched depth must be to a layer, as a fraction of
@@ -147,14 +147,14 @@ struct Args {
     #[arg(long)]
     truth_edge_mm: Option<f64>,
     /// Sub-pixel matches in both passes and the control (`MatchingParams::subpixel`: `off`,
-    /// `cost` for `SubPixel::CostParabola`, `path` for `SubPixel::PathFit`; issue 14, docs:
+    /// `cost` for `SubPixel::CostParabola`, `path` for `SubPixel::PathFit`; docs:
     /// "Sub-pixel matches and normal deviation").
     #[arg(long, default_value = "off")]
     subpixel_matches: String,
     /// Eq. 3.4 as the thesis writes it, every match kept, in both passes and the control
     /// (`OffsetParams::outliers = None`; the default rejects the matches whose offset is an
     /// outlier of their neighbourhood's, `OffsetOutliers::default()` unless the three knobs
-    /// below are given; issue 14, docs: "Reliable matches in Eq. 3.4").
+    /// below are given; docs: "Reliable matches in Eq. 3.4").
     #[arg(long)]
     thesis_offsets: bool,
     /// Outlier rejection: multiple of 1.4826 · MAD allowed (default 2).
@@ -173,7 +173,7 @@ struct Args {
     /// Only this other subject (`ghost` or `wrinkled`), not the skirt before it: its capture,
     /// both passes, Table 3.1, distances and wrinkle survival as in the full run, plus each
     /// pass's per-view stages against the truth (how many pixels are off by more than 1, 3
-    /// and 10 cm) and the exact-normal control (issue 14, eighth session: the Ghost and the
+    /// and 10 cm) and the exact-normal control (the Ghost and the
     /// wrinkles at 1024² without the skirt's run before them).
     #[arg(long)]
     subject: Option<String>,
@@ -184,21 +184,21 @@ struct Args {
     #[arg(long)]
     top_camera: bool,
     /// Pass 1's matching band about each view's integrated surface, m, also the exact-normal
-    /// control's (`MatchingParams::band_m`, default 0.2; issue 14, docs: "Ninth session: the
+    /// control's (`MatchingParams::band_m`, default 0.2; docs: "the
     /// pass-1 band").
     #[arg(long)]
     pass1_band_m: Option<f64>,
     /// Contour-aware surface windows in both passes and the control
     /// (`MatchingParams::contour_jump_m`, 0.01 m per pixel at 1024 unless `--contour-jump-m`
-    /// gives it; issue 14, docs: "Windows at occluding contours").
+    /// gives it; docs: "Windows at occluding contours").
     #[arg(long)]
     contour_windows: bool,
     /// With `--contour-windows`: the depth jump per pixel, m at 1024 (default 0.01).
     #[arg(long)]
     contour_jump_m: Option<f64>,
     /// Coarse-to-fine matching in pass 1, `true` or `false` (`MatchingParams::coarse_to_fine`
-    /// of `ReconstructParams::pass1`; default: `ReconstructParams::default()`'s; issue 14,
-    /// docs: "Tenth session: pass-1 speed").
+    /// of `ReconstructParams::pass1`; default: `ReconstructParams::default()`'s; docs:
+    /// "Pass-1 speed").
     #[arg(long)]
     pass1_coarse_to_fine: Option<bool>,
     /// Coarse-to-fine matching in pass 2, `true` or `false` (default:
@@ -211,12 +211,11 @@ struct Args {
     coarse_band_px: Option<f64>,
     /// Refine pass 2's merged mesh with the measured normals before Table 3.1 and the hole
     /// filling (`ReconstructParams::refine`: Nehab et al. 2005's positions and normals, one
-    /// sparse solve; beyond the thesis; issue 14, docs: "Fusing the merged mesh with the
-    /// normals"). The default since the tenth session; the flag is kept for old commands.
+    /// sparse solve; beyond the thesis; docs: "Fusing the merged mesh with the
+    /// normals"). On by default; the flag is kept for old commands.
     #[arg(long, conflicts_with = "no_refine")]
     refine: bool,
-    /// Do not refine (`ReconstructParams::refine = None`: the thesis's pipeline; the default
-    /// before the tenth session).
+    /// Do not refine (`ReconstructParams::refine = None`: the thesis's pipeline).
     #[arg(long)]
     no_refine: bool,
     /// Refinement (unless `--no-refine`): the position weight λ in (0, 1] (default 0.1).
@@ -241,7 +240,8 @@ struct Args {
     refine_smoothing: Option<usize>,
     /// Refinement (unless `--no-refine`): Nehab 2005's first step, rounds of 1-ring
     /// averaging that define the low frequencies the targets take from the positions
-    /// (`RefineParams::correction_rounds`; default 8; 0: the ninth session's refinement).
+    /// (`RefineParams::correction_rounds`; default 8; 0: the refinement without correction
+    /// rounds).
     #[arg(long)]
     refine_correct_rounds: Option<usize>,
 }
@@ -384,6 +384,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &format!("{name}: one frame from normal maps: proxy and both passes"),
                 "s",
             )
+            .paper("10–15 min per frame from the normal maps, thesis §3.4")
             .goal(Goal::AtMost(30.0)),
         );
         run.headline(
@@ -616,7 +617,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })),
         "hull_surface_median_mm": hull_surface_median_mm,
     });
-    // The true surface (issue 14, sixth session): its edge bound, size, capture time and how far
+    // The true surface: its edge bound, size, capture time and how far
     // its shading normals are from its facets.
     figures["truth_edge_mm"] = json!(truth_edge_mm.max(0.0));
     // Table 3.1 before the refinement and the floors in the goals' form (per vertex).
@@ -672,7 +673,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "ghost_hull_surface_median_mm",
                 "Ghost: visual hull surface to the true mesh (median)",
                 "mm",
-            ),
+            )
+            .baseline(),
             Headline::new(
                 "wrinkle_amplitude_ratio",
                 "wrinkle amplitude kept by the pass-2 merged mesh (slope)",
@@ -683,12 +685,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "wrinkle_hull_amplitude_ratio",
                 "wrinkle amplitude kept by the visual hull (slope)",
                 "",
-            ),
+            )
+            .baseline(),
             Headline::new(
                 "wrinkle_true_rms_mm",
                 "true wrinkle height RMS (wrinkle region)",
                 "mm",
             )
+            .oracle()
             .note("against pixel_footprint_mm"),
         ]);
     }
@@ -707,8 +711,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "per-view surfaces after Eq. 3.4 (p95)",
             "mm",
         ),
-        Headline::new("hull_median_mm", "visual hull proxy alone (median)", "mm"),
-        Headline::new("hull_p95_mm", "visual hull proxy alone (p95)", "mm"),
+        Headline::new("hull_median_mm", "visual hull proxy alone (median)", "mm").baseline(),
+        Headline::new("hull_p95_mm", "visual hull proxy alone (p95)", "mm").baseline(),
         Headline::new(
             "integrated_median_mm",
             "Eq. 3.3 integration alone (median)",
@@ -725,7 +729,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "exact_offset_median_mm",
             "control: exact normals after Eq. 3.4 (median)",
             "mm",
-        ),
+        )
+        .oracle(),
         Headline::new(
             "pass2_offset_median_mm",
             "pass 2 after Eq. 3.4 (median; hole-filled pass-1 mesh as proxy)",
@@ -749,12 +754,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "hull_surface_median_mm",
             "visual hull surface to the true mesh (median)",
             "mm",
-        ),
+        )
+        .baseline(),
         Headline::new(
             "seconds_per_frame",
             "one frame from normal maps: proxy and both passes",
             "s",
         )
+        .paper("10–15 min per frame from the normal maps, thesis §3.4")
         .goal(Goal::AtMost(30.0)),
         Headline::new("peak_rss_mb", "peak memory of the whole run", "MB")
             .goal(Goal::AtMost(4000.0)),
@@ -1595,7 +1602,7 @@ fn score_passes(
             None => (m, t, None),
         };
         let ud = ud.as_ref().unwrap_or(&merged_d);
-        // Where the uncovered measured normals were lost (issue 14's coverage budget).
+        // Where the uncovered measured normals were lost (the coverage budget).
         let budget = coverage_budget(
             cameras,
             estimated,
@@ -2064,12 +2071,22 @@ fn table_goal_headlines(
             &format!("{subject}Table 3.1 coverage, pass-2 merged mesh"),
             "%",
         )
+        .paper(if prefix == "ghost_" {
+            "92.26 % (Ghost), Table 3.1"
+        } else {
+            "81.27–92.26 % over four sequences, Table 3.1"
+        })
         .goal(Goal::AtLeast(90.0)),
         Headline::new(
             &key("normal_dev_deg"),
             &format!("{subject}Table 3.1 normal deviation, pass-2 merged mesh"),
             "deg",
         )
+        .paper(if prefix == "ghost_" {
+            "14.03° (Ghost), Table 3.1"
+        } else {
+            "12.18–15.00° over four sequences, Table 3.1"
+        })
         .goal(Goal::AtMost(8.0))
         .note(&floor("floor_normal_dev_deg")),
         Headline::new(
@@ -2077,6 +2094,11 @@ fn table_goal_headlines(
             &format!("{subject}Table 3.1 local normal deviation, pass-2 merged mesh"),
             "deg",
         )
+        .paper(if prefix == "ghost_" {
+            "1.26° (Ghost), Table 3.1"
+        } else {
+            "1.26–2.04° over four sequences, Table 3.1"
+        })
         .goal(Goal::AtMost(1.5))
         .note(&floor("floor_local_normal_dev_deg")),
         Headline::new(
@@ -2084,6 +2106,12 @@ fn table_goal_headlines(
             &format!("{subject}Table 3.1 normal deviation, pass 2 before the refinement"),
             "deg",
         )
+        .baseline()
+        .paper(if prefix == "ghost_" {
+            "14.03° (Ghost), Table 3.1"
+        } else {
+            "12.18–15.00° over four sequences, Table 3.1"
+        })
         .goal(Goal::AtMost(8.0))
         .note(&floor("floor_normal_dev_deg")),
         Headline::new(
@@ -2091,6 +2119,12 @@ fn table_goal_headlines(
             &format!("{subject}Table 3.1 local normal deviation, pass 2 before the refinement"),
             "deg",
         )
+        .baseline()
+        .paper(if prefix == "ghost_" {
+            "1.26° (Ghost), Table 3.1"
+        } else {
+            "1.26–2.04° over four sequences, Table 3.1"
+        })
         .goal(Goal::AtMost(1.5))
         .note(&floor("floor_local_normal_dev_deg")),
         Headline::new(
@@ -2098,12 +2132,14 @@ fn table_goal_headlines(
             &format!("{subject}floor of the normal deviation: a perfect geometry, same form"),
             "deg",
         )
+        .oracle()
         .note("what the correct geometry scores; a mesh below it fits part 1's errors"),
         Headline::new(
             &key("floor_local_normal_dev_deg"),
             &format!("{subject}floor of the local normal deviation: a perfect geometry, same form"),
             "deg",
         )
+        .oracle()
         .note("what the correct geometry scores; a mesh below it fits part 1's errors"),
         Headline::new(
             &key("surface_median_mm"),

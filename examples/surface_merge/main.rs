@@ -12,7 +12,7 @@
 //!   its cap z > 0.3, all weight 1 (Open3D takes no weights), depth 8 and 9 (`--quick`: 50,000
 //!   samples, depth 7). Errors `| ‖v‖ − 0.4 |` as the peer reports them.
 //!
-//! `--peers FILE` reads the JSON lines the peer scripts printed in the same session (one per
+//! `--peers FILE` reads the JSON lines the peer scripts printed in the same run (one per
 //! run; CI never needs Python) and reports the time ratios ours / peer.
 //!
 //! Writes under `out/surface_merge/`: `merge.png` (merged surface, its distance to the scene
@@ -50,7 +50,7 @@ use example_kit::{Headline, Run};
 struct Args {
     #[command(flatten)]
     common: example_kit::cli::Common,
-    /// JSON lines printed by bench/peers/tsdf_mc.py and poisson.py in the same session.
+    /// JSON lines printed by bench/peers/tsdf_mc.py and poisson.py in the same run.
     #[arg(long, value_name = "FILE")]
     peers: Option<PathBuf>,
 }
@@ -433,7 +433,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "poisson_depth_ms": p0["poisson_ms"],
     });
     for h in [
-        Headline::new("merge_ms", "VRIP merge, 8 views, 2 mm voxels", "ms"),
+        Headline::new("merge_ms", "VRIP merge, 8 views, 2 mm voxels", "ms")
+            .paper("2 min per frame (merging), thesis §3.4"),
         Headline::new("blocks", "allocated 8³ blocks at 2 mm", ""),
         Headline::new("volume_mb", "volume memory at 2 mm", "MB"),
         Headline::new(
