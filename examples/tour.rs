@@ -29,7 +29,8 @@ struct Args {
     /// Run the examples at full size instead of `--quick`.
     #[arg(long)]
     full: bool,
-    /// Folder of the page [default: out/tour].
+    /// Folder of the page [default: out/tour]; each example writes into a sibling folder named
+    /// after it.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Commit each example's figures, with the commit, machine and date, under `results/`
@@ -92,7 +93,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             names.len(),
             if args.full { "" } else { " --quick" }
         );
-        let dir = root.join("out").join(name);
+        // Beside the tour's own folder: `out/<name>` by default.
+        let dir = run.out().parent().unwrap_or(run.out()).join(name);
         let load_start = example_kit::record::load_1min();
         let start = Instant::now();
         let mut cmd = Command::new(&cargo);
