@@ -4,8 +4,8 @@
 #    on trial 09, both scored on trial 07 with one metric (examples/inertial_capture/fusion_broad.py);
 #  * the FilterPy EKF workload (../shared/bench/peers/ekf.py) vs its Rust regeneration
 #    (examples/inertial_capture/peer_ekf.rs): per-step time ratio.
-# Needs a Python venv with numpy, imufusion and filterpy: PY=/path/to/venv/bin/python
-# (default: the peers' venv, see ../shared/bench/peers/README.md; `pip install imufusion` there).
+# Needs a Python venv with numpy, h5py, imufusion and filterpy: PY=/path/to/venv/bin/python
+# (default: the peers' venv, see ../shared/bench/peers/README.md; `pip install imufusion h5py` there).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 peers=$(cd ../shared/bench/peers && pwd)
@@ -13,8 +13,8 @@ py=${PY:-$peers/.venv/bin/python}
 cargo build --release --example inertial_capture >/dev/null
 rust=$(target/release/examples/inertial_capture --real-only 2>/dev/null | tail -1)
 fusion=$($py examples/inertial_capture/fusion_broad.py \
-    --tuning-csv data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv \
-    --csv data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv \
+    --tuning data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5 \
+    --test data/imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5 \
     --ours out/inertial_capture/broad_ours.csv | tail -1)
 # One core for both (our figures are single-threaded; OpenBLAS threads on this shared 2-core
 # machine oversubscribe and slow FilterPy down about tenfold).

@@ -496,12 +496,17 @@ const GYRO_ONLY: SensorSet = SensorSet {
 /// worse) fails.
 #[test]
 fn broad_gain_tuned_on_trial_09_beats_gyro_integration_on_trial_07() {
-    use dynamic_shapes::inertial::imu_log::{read_broad_csv, run_orientation, ImuLog};
+    use dynamic_shapes::inertial::imu_log::{read_broad_hdf5, run_orientation, ImuLog};
     use dynamic_shapes::inertial::{heading_inclination_rmse, HeadingInclinationRmse};
-    let read = |f: &str| read_broad_csv(example_kit::data_path(f).unwrap()).unwrap();
-    let tuning = read("imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv");
-    let test = read("imu-broad/07_undisturbed_fast_rotation_B_first60s.csv");
+    let read = |f: &str| read_broad_hdf5(example_kit::data_path(f).unwrap()).unwrap();
+    let tuning = read("imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5");
+    let test = read("imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5");
     assert_eq!((tuning.len(), test.len()), (17_142, 17_142));
+    // Sample k at k / 285.714 Hz (BROAD's timing); the movement samples data/imu-broad's
+    // SOURCE.md lists.
+    assert_eq!(test.time_s[17_141], 17_141.0 / (2000.0 / 7.0));
+    let moving = |rec: &ImuLog| rec.movement.iter().filter(|m| **m).count();
+    assert_eq!((moving(&tuning), moving(&test)), (8_382, 9_569));
     let score = |rec: &ImuLog, p: FilterParams| -> HeadingInclinationRmse {
         let run = run_orientation(rec, p, 20.0).unwrap();
         assert_eq!(run.diverged, 0);

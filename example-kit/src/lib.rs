@@ -100,7 +100,7 @@ mod tests {
         for rel in [
             "makehuman/base.obj",
             "mocap-cmu/131_01.bvh",
-            "imu-broad/07_undisturbed_fast_rotation_B_first60s.csv",
+            "imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5",
             "imu-xio/sensor_data.csv",
             "ict-face/neutral_face.obj",
         ] {

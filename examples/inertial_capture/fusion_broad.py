@@ -3,13 +3,17 @@
 orientation filter of inertial-acoustic, tuned on one trial and scored on another with one
 metric in one run.
 
-Not part of CI. Needs a venv with numpy and imufusion; run through bench/inertial_vs_peers.sh,
-or by hand after `cargo run --release --example inertial_capture -- --real-only`:
+Not part of CI. Needs a venv with numpy, h5py and imufusion; run through
+bench/inertial_vs_peers.sh, or by hand after
+`cargo run --release --example inertial_capture -- --real-only`:
 
     python3 examples/inertial_capture/fusion_broad.py \
-        --tuning-csv data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv \
-        --csv data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv \
+        --tuning data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5 \
+        --test data/imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5 \
         --ours out/inertial_capture/broad_ours.csv
+
+The trials are read from BROAD's HDF5 layout (the excerpts in data/imu-broad/ or the
+published files) as the Rust reader reads them: sample k at k / sampling_rate seconds.
 
 Protocol (the same as the Rust example's, `real_imu.rs`):
 * error rotation q_ref * q_est^-1 (ENU); heading = its twist about z, inclination = the swing;
@@ -33,6 +37,7 @@ import json
 import time
 from importlib.metadata import version
 
+import h5py
 import numpy as np
 
 GAIN_GRID = [0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0]
@@ -79,30 +84,30 @@ def fusion(gyr_dps, acc_g, gain):
 
 
 def load(path):
-    """A BROAD CSV excerpt: times, gyroscope deg/s, accelerometer g, reference, movement."""
-    d = np.genfromtxt(path, delimiter=",", names=True)
-    t = d["t_s"]
-    gyr = np.degrees(np.stack([d["gyr_x_rad_s"], d["gyr_y_rad_s"], d["gyr_z_rad_s"]], 1))
-    acc = np.stack([d["acc_x_m_s2"], d["acc_y_m_s2"], d["acc_z_m_s2"]], 1) / 9.80665
-    ref = np.stack([d["opt_qw"], d["opt_qx"], d["opt_qy"], d["opt_qz"]], 1)
-    return {"t": t, "gyr": gyr, "acc": acc, "ref": ref, "mv": d["movement"] > 0,
-            "rest": t - t[0] < REST_S}
+    """A BROAD trial (HDF5): times, gyroscope deg/s, accelerometer g, reference, movement."""
+    with h5py.File(path, "r") as f:
+        gyr = np.degrees(f["imu_gyr"][:])
+        acc = f["imu_acc"][:] / 9.80665
+        ref = f["opt_quat"][:]
+        mv = f["movement"][:].astype(bool)
+        t = np.arange(len(gyr)) / float(f.attrs["sampling_rate"])
+    return {"t": t, "gyr": gyr, "acc": acc, "ref": ref, "mv": mv, "rest": t - t[0] < REST_S}
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--tuning-csv",
-                    default="data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv")
-    ap.add_argument("--csv", default="data/imu-broad/07_undisturbed_fast_rotation_B_first60s.csv")
+    ap.add_argument("--tuning",
+                    default="data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5")
+    ap.add_argument("--test", default="data/imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5")
     ap.add_argument("--ours", default="out/inertial_capture/broad_ours.csv")
     args = ap.parse_args()
-    tune, test = load(args.tuning_csv), load(args.csv)
+    tune, test = load(args.tuning), load(args.test)
 
     out = {
         "workload": "broad_orientation_tune_09_test_07",
         "peer": f"imufusion-{version('imufusion')}:Ahrs.update_no_magnetometer",
-        "tuning_csv": args.tuning_csv,
-        "test_csv": args.csv,
+        "tuning_trial": args.tuning,
+        "test_trial": args.test,
     }
     # Fusion as it is, and fed the gyroscope with the same rest offset ours removes (the mean
     # reading over each trial's first 20 s, the thesis's initialisation).

@@ -4,12 +4,12 @@
 //!
 //! BROAD, tuned on one trial and tested on another (two trials of the same kind: fast
 //! rotations by hand without translation, the same board; first 60 s of each):
-//! * tuning trial 09 (fast rotation with breaks B, [`TUNING_CSV`]): the accelerometer σ (the
+//! * tuning trial 09 (fast rotation with breaks B, [`TUNING_TRIAL`]): the accelerometer σ (the
 //!   filter's one gain here; q stays 4 rad/s², σ_g the thesis's 0.002 rad/s) is chosen on the
 //!   grid [`GAIN_GRID`] by [`HeadingInclinationRmse::combined_deg`] over its movement samples.
 //!   The grid was widened until the choice is interior; `broad_tuning_interior` reports
 //!   whether it still is.
-//! * test trial 07 (fast rotation B, [`TEST_CSV`]): `broad_test_rmse_deg` (inclination and
+//! * test trial 07 (fast rotation B, [`TEST_TRIAL`]): `broad_test_rmse_deg` (inclination and
 //!   heading split too) over all its movement samples, beside the same filter with the
 //!   gyroscope rows only (`broad_gyro_only_test_rmse_deg`).
 //!
@@ -17,7 +17,7 @@
 //! and scores it and our estimate (`broad_ours.csv`) on trial 07 with the same metric.
 
 use dynamic_shapes::core::math::{DQuat, DVec3};
-use dynamic_shapes::inertial::imu_log::{read_broad_csv, read_xio_csv, run_orientation, ImuLog};
+use dynamic_shapes::inertial::imu_log::{read_broad_hdf5, read_xio_csv, run_orientation, ImuLog};
 use dynamic_shapes::inertial::{
     heading_inclination_rmse, FilterParams, HeadingInclinationRmse, SensorSet,
 };
@@ -25,10 +25,10 @@ use example_kit::plot::{Chart, Series, Style};
 use example_kit::{Headline, Run};
 use serde_json::{json, Value};
 
-/// The tuning trial (BROAD 09, first 60 s), under `data/`.
-pub const TUNING_CSV: &str = "imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.csv";
-/// The test trial (BROAD 07, first 60 s), under `data/`.
-pub const TEST_CSV: &str = "imu-broad/07_undisturbed_fast_rotation_B_first60s.csv";
+/// The tuning trial (BROAD 09, first 60 s, in BROAD's HDF5 layout), under `data/`.
+pub const TUNING_TRIAL: &str = "imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5";
+/// The test trial (BROAD 07, first 60 s, in BROAD's HDF5 layout), under `data/`.
+pub const TEST_TRIAL: &str = "imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5";
 /// The accelerometer σ grid, m/s².
 pub const GAIN_GRID: [f64; 14] = [
     0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0,
@@ -102,8 +102,8 @@ fn score(
 /// BROAD and x-io runs; returns the figures.
 pub fn run(run: &mut Run) -> Result<Value, Box<dyn std::error::Error>> {
     let stage = run.stage("BROAD recordings", None);
-    let tuning = read_broad_csv(example_kit::data_path(TUNING_CSV)?)?;
-    let test = read_broad_csv(example_kit::data_path(TEST_CSV)?)?;
+    let tuning = read_broad_hdf5(example_kit::data_path(TUNING_TRIAL)?)?;
+    let test = read_broad_hdf5(example_kit::data_path(TEST_TRIAL)?)?;
     // The gain on the tuning trial; the test trial's figures per grid point are reported
     // beside (never used to choose).
     let mut grid = Vec::new();
@@ -236,8 +236,8 @@ pub fn run(run: &mut Run) -> Result<Value, Box<dyn std::error::Error>> {
     ));
 
     Ok(json!({
-        "broad_tuning_trial": TUNING_CSV,
-        "broad_test_trial": TEST_CSV,
+        "broad_tuning_trial": TUNING_TRIAL,
+        "broad_test_trial": TEST_TRIAL,
         "broad_accelerometer_sigma": gain,
         "broad_tuning_interior": interior,
         "broad_tuning_rmse_deg": rmse_json(&tuned),

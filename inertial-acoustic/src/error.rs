@@ -18,6 +18,15 @@ skin_core::method_error!("inertial-acoustic", Context, {
         /// What failed.
         what: &'static str,
     },
+    /// A file is not HDF5, or lacks a dataset or attribute BROAD's layout has (or has it in
+    /// another shape or type), or its datasets disagree in length.
+    #[error("cannot read {path} as a BROAD trial: {message}; give one of BROAD's HDF5 files or an excerpt in its layout (imu_gyr, imu_acc N × 3, opt_quat N × 4, movement N; root attribute sampling_rate)")]
+    Hdf5 {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
 });
 
 /// The element an [`Error::At`] happened in.

@@ -1,13 +1,14 @@
-//! Real IMU recordings shipped with the repository (`data/imu-broad/`, `data/imu-xio/`; see
-//! their SOURCE.md) as [`InertialReading`]s, and the orientation filter run over them.
+//! Real IMU recordings as [`InertialReading`]s, and the orientation filter run over them.
 //!
-//! * BROAD trials 07 and 09, first 60 s of each (Laidig, Caruso, Cereatti, Seel, *BROAD — A
-//!   Benchmark for Robust Inertial Orientation Estimation*, Data 6(7):72, 2021; CC BY 4.0):
-//!   285.7 Hz gyroscope (rad/s) and accelerometer (m/s²) with an optical reference
-//!   orientation (board-to-ENU, NaN where markers were lost) and the benchmark's `movement`
-//!   flags.
-//! * x-io Fusion's example log (MIT): 135 s at about 100 Hz, gyroscope in deg/s and
-//!   accelerometer in g, no reference.
+//! * BROAD (Laidig, Caruso, Cereatti, Seel, *BROAD — A Benchmark for Robust Inertial
+//!   Orientation Estimation*, Data 6(7):72, 2021; CC BY 4.0), read by [`read_broad_hdf5`]
+//!   from its published HDF5 files (`data_hdf5/*.hdf5`) or from excerpts in the same layout
+//!   (the repository's `data/imu-broad/` ships the first 60 s of trials 07 and 09; see its
+//!   SOURCE.md): 285.7 Hz gyroscope (rad/s) and accelerometer (m/s²) with an optical
+//!   reference orientation (board-to-ENU, NaN where markers were lost) and the benchmark's
+//!   `movement` flags.
+//! * x-io Fusion's example log (MIT, `data/imu-xio/`), read by [`read_xio_csv`]: 135 s at
+//!   about 100 Hz, gyroscope in deg/s and accelerometer in g, no reference.
 
 use std::path::Path;
 
@@ -108,31 +109,188 @@ fn vec3(r: &[f64], at: usize) -> DVec3 {
     DVec3::new(r[at], r[at + 1], r[at + 2])
 }
 
-/// Reads a BROAD CSV excerpt (`data/imu-broad/*_first60s.csv`, written by its
-/// `hdf5_to_csv.py`: time, gyroscope rad/s, accelerometer m/s², magnetometer µT (unused),
-/// reference quaternion w, x, y, z, position (unused), movement flag).
+/// A BROAD file opened for reading: the path (for errors) and the parsed file.
+struct BroadFile<'a> {
+    path: &'a Path,
+    file: hdf5_pure::File,
+}
+
+impl BroadFile<'_> {
+    fn error(&self, message: String) -> Error {
+        Error::Hdf5 {
+            path: self.path.to_path_buf(),
+            message,
+        }
+    }
+
+    /// The root attribute `sampling_rate`, Hz.
+    fn sampling_rate(&self) -> Result<f64> {
+        let attrs = self
+            .file
+            .root()
+            .attrs()
+            .map_err(|e| self.error(format!("root attributes: {e}")))?;
+        let rate = attrs
+            .get("sampling_rate")
+            .ok_or_else(|| self.error("no root attribute `sampling_rate`".into()))?
+            .as_f64()
+            .ok_or_else(|| self.error("root attribute `sampling_rate` is not a number".into()))?;
+        Ok(skin_core::check::positive(
+            "BROAD sampling_rate (Hz)",
+            rate,
+        )?)
+    }
+
+    /// The dataset `name` and its number of rows, after checking that its shape is
+    /// `[rows, columns]` (`[rows]` for `columns` = `None`).
+    fn dataset(&self, name: &str, columns: Option<u64>) -> Result<(hdf5_pure::Dataset, usize)> {
+        let ds = self
+            .file
+            .dataset(name)
+            .map_err(|e| self.error(format!("dataset `{name}`: {e}")))?;
+        let shape = ds
+            .shape()
+            .map_err(|e| self.error(format!("dataset `{name}`: {e}")))?;
+        let rows = match (columns, shape.as_slice()) {
+            (Some(c), &[n, k]) if k == c => n,
+            (None, &[n]) => n,
+            _ => {
+                let expected = columns.map_or("[N]".into(), |c| format!("[N, {c}]"));
+                return Err(self.error(format!(
+                    "dataset `{name}` has shape {shape:?}, expected {expected}"
+                )));
+            }
+        };
+        let rows = usize::try_from(rows)
+            .map_err(|_| self.error(format!("dataset `{name}` has {rows} rows")))?;
+        Ok((ds, rows))
+    }
+
+    /// The dataset `name` of shape `[n, columns]` (`[n]` for `None`), like `imu_gyr`.
+    fn same_length(
+        &self,
+        name: &str,
+        columns: Option<u64>,
+        n: usize,
+    ) -> Result<hdf5_pure::Dataset> {
+        let (ds, rows) = self.dataset(name, columns)?;
+        if rows != n {
+            return Err(self.error(format!(
+                "dataset `{name}` has {rows} samples, `imu_gyr` {n}"
+            )));
+        }
+        Ok(ds)
+    }
+
+    fn read_f64(&self, name: &str, ds: &hdf5_pure::Dataset) -> Result<Vec<f64>> {
+        ds.read_f64()
+            .map_err(|e| self.error(format!("dataset `{name}`: {e}")))
+    }
+
+    /// A flag per sample from `movement` (BROAD's bool: an 8-bit enum FALSE = 0, TRUE = 1;
+    /// any integer type is taken, non-zero as true).
+    fn read_flags(&self, ds: &hdf5_pure::Dataset) -> Result<Vec<bool>> {
+        use hdf5_pure::DType;
+        let err = |e: hdf5_pure::Error| self.error(format!("dataset `movement`: {e}"));
+        let flags = match ds.dtype().map_err(err)? {
+            DType::Enum(_) | DType::I8 | DType::U8 => ds.read_u8().map_err(err)?,
+            DType::I16 | DType::I32 | DType::I64 | DType::U16 | DType::U32 | DType::U64 => ds
+                .read_i64()
+                .map_err(err)?
+                .into_iter()
+                .map(|v| u8::from(v != 0))
+                .collect(),
+            t => {
+                return Err(self.error(format!(
+                    "dataset `movement` is of type {t}, expected a bool (8-bit enum) or an integer"
+                )))
+            }
+        };
+        Ok(flags.into_iter().map(|v| v != 0).collect())
+    }
+}
+
+/// Reads a BROAD trial in the benchmark's HDF5 layout: one of its published files
+/// (`data_hdf5/*.hdf5`) or an excerpt in the same layout (`data/imu-broad/*_first60s.hdf5`,
+/// cut by its `excerpt.py`).
+///
+/// Reads the datasets `imu_gyr` (N × 3, rad/s), `imu_acc` (N × 3, m/s²), `opt_quat` (N × 4,
+/// reference board-to-ENU rotation w, x, y, z; NaN where the markers were lost) and
+/// `movement` (N, BROAD's bool: the samples to score), and the root attribute
+/// `sampling_rate` (Hz). Sample `k` is at `k / sampling_rate` seconds, as BROAD's own tools
+/// time it. Reference quaternions are normalised where finite and kept as NaN elsewhere.
+/// `imu_mag`, `opt_pos` and `info` are not read.
 ///
 /// # Errors
-/// [`Error::Core`] I/O or parse error (with the line); [`Error::Empty`] without rows;
-/// [`Error::NonFinite`] (at the frame) for a non-finite time or inertial value.
-pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuLog> {
-    let rows = read_rows(path.as_ref(), "BROAD CSV", 18)?;
+/// [`Error::Core`] with an I/O error if the file cannot be read; [`Error::Hdf5`] if it is
+/// not HDF5, lacks one of the datasets or `sampling_rate`, has a dataset of another shape
+/// (e.g. `imu_gyr` N × 2) or type, or datasets of different lengths; [`Error::Empty`] for a
+/// trial without samples; [`Error::InvalidParam`] for a sampling rate that is not finite and
+/// positive; [`Error::NonFinite`] (at the frame) for a non-finite gyroscope or
+/// accelerometer value.
+pub fn read_broad_hdf5(path: impl AsRef<Path>) -> Result<ImuLog> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| skin_core::Error::io(path, e))?;
+    if !hdf5_pure::is_hdf5_bytes(&bytes) {
+        return Err(Error::Hdf5 {
+            path: path.to_path_buf(),
+            message: format!(
+                "not an HDF5 file ({} bytes, no HDF5 signature)",
+                bytes.len()
+            ),
+        });
+    }
+    let file = hdf5_pure::File::from_bytes(bytes).map_err(|e| Error::Hdf5 {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let f = BroadFile { path, file };
+    let (gyr, n) = f.dataset("imu_gyr", Some(3))?;
+    let acc = f.same_length("imu_acc", Some(3), n)?;
+    let quat = f.same_length("opt_quat", Some(4), n)?;
+    let movement = f.same_length("movement", None, n)?;
+    if n == 0 {
+        return Err(Error::Empty {
+            what: "BROAD trial",
+        });
+    }
+    let rate = f.sampling_rate()?;
+    let gyr = f.read_f64("imu_gyr", &gyr)?;
+    let acc = f.read_f64("imu_acc", &acc)?;
+    let quat = f.read_f64("opt_quat", &quat)?;
+    let movement = f.read_flags(&movement)?;
+    if (gyr.len(), acc.len(), quat.len(), movement.len()) != (3 * n, 3 * n, 4 * n, n) {
+        return Err(f.error(format!(
+            "decoded {} / {} / {} / {} values of imu_gyr / imu_acc / opt_quat / movement for {n} \
+             samples",
+            gyr.len(),
+            acc.len(),
+            quat.len(),
+            movement.len()
+        )));
+    }
     let mut rec = ImuLog {
-        time_s: Vec::with_capacity(rows.len()),
-        readings: Vec::with_capacity(rows.len()),
-        reference: Vec::with_capacity(rows.len()),
-        movement: Vec::with_capacity(rows.len()),
+        time_s: Vec::with_capacity(n),
+        readings: Vec::with_capacity(n),
+        reference: Vec::with_capacity(n),
+        movement,
     };
-    for (i, r) in rows.iter().enumerate() {
-        skin_core::check::all_finite("BROAD time and inertial values", r[..7].iter())
-            .at(Context::Frame(i))?;
-        rec.time_s.push(r[0]);
+    let samples = gyr
+        .chunks_exact(3)
+        .zip(acc.chunks_exact(3))
+        .zip(quat.chunks_exact(4));
+    for (i, ((g, a), q)) in samples.enumerate() {
+        skin_core::check::all_finite(
+            "BROAD gyroscope and accelerometer values",
+            g.iter().chain(a),
+        )
+        .at(Context::Frame(i))?;
+        rec.time_s.push(i as f64 / rate);
         rec.readings
-            .push(InertialReading::new(vec3(r, 1), vec3(r, 4)));
-        let q = DQuat::from_xyzw(r[11], r[12], r[13], r[10]);
+            .push(InertialReading::new(vec3(g, 0), vec3(a, 0)));
+        let q = DQuat::from_xyzw(q[1], q[2], q[3], q[0]);
         rec.reference
             .push(if q.is_finite() { q.normalize() } else { q });
-        rec.movement.push(r[17] != 0.0);
     }
     Ok(rec)
 }
@@ -141,7 +299,8 @@ pub fn read_broad_csv(path: impl AsRef<Path>) -> Result<ImuLog> {
 /// magnetometer µT (unused)), converting to rad/s and m/s² (1 g = [`GRAVITY_M_S2`]).
 ///
 /// # Errors
-/// As [`read_broad_csv`].
+/// [`Error::Core`] I/O or parse error (with the line); [`Error::Empty`] without rows;
+/// [`Error::NonFinite`] (at the frame) for a non-finite time or inertial value.
 pub fn read_xio_csv(path: impl AsRef<Path>) -> Result<ImuLog> {
     let rows = read_rows(path.as_ref(), "x-io CSV", 7)?;
     let mut rec = ImuLog {
@@ -211,3 +370,6 @@ pub fn run_orientation(rec: &ImuLog, params: FilterParams, rest_s: f64) -> Resul
     out.seconds = clock.elapsed().as_secs_f64();
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests;

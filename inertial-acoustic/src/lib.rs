@@ -24,7 +24,7 @@
 //! | pose estimation | `ekf.rs` | [`SkeletalEkf`], [`FrameObservations`] | §4.4.1–4.4.3 |
 //! | local 3-DOF joints | `local_joints.rs` | (private; [`FilterParams::recentre_rad`]) | §4.4 (not in the thesis) |
 //! | the method on a recording | [`pipeline`] | [`pipeline::run`], [`pipeline::PipelineParams`] | §4.4 |
-//! | one board's orientation | `orientation.rs`, [`imu_log`] | [`OrientationEkf`], [`RestAlignment`], [`imu_log::run_orientation`] on real logs ([`imu_log::read_broad_csv`]) | §4.4 for a single rotation |
+//! | one board's orientation | `orientation.rs`, [`imu_log`] | [`OrientationEkf`], [`RestAlignment`], [`imu_log::run_orientation`] on real logs ([`imu_log::read_broad_hdf5`]) | §4.4 for a single rotation |
 //! | evaluation | `evaluate.rs` | [`joint_orientation_errors_deg`], [`ErrorStats`] | §4.5 |
 //!
 //! The derivatives the accelerometer rows need (`∂(J̇θ̇)/∂θ`, `∂(J̇θ̇)/∂θ̇`) live in
