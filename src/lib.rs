@@ -27,3 +27,8 @@ pub use multilinear_face as face;
 #[cfg(feature = "studio")]
 #[doc(inline)]
 pub use dynamic_shapes_studio as studio;
+
+/// The code in README.md, compiled and run as a doctest so the snippet stays true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
