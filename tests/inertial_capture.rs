@@ -35,12 +35,11 @@ fn tuned_sensors() -> FilterParams {
         .with_distance_gate_sigma(4.0)
 }
 
-/// The filter noise levels for recordings of the default suit (issue 15, eighth session):
-/// its noise-shaped 16-count delta code adds a per-frame reading error of σ 16/√6 counts
-/// (0.064 rad/s, 0.19 m/s²; `SimulationParams::code_noise`), combined with the sensor σ in
-/// quadrature. The sensor part is the point the example's grid picked in the full run with
-/// that code (q 20 rad/s² per frame, σ_a 0.3 m/s², σ_g the thesis's 0.002 rad/s, gate 4σ):
-/// σ_g 0.0638 rad/s, σ_a 0.354 m/s².
+/// The filter noise levels for recordings of the default suit: its noise-shaped 16-count delta code
+/// adds a per-frame reading error of σ 16/√6 counts (0.064 rad/s, 0.19 m/s²;
+/// `SimulationParams::code_noise`), combined with the sensor σ in quadrature. The sensor part is
+/// the point the example's grid picked in the full run with that code (q 20 rad/s² per frame, σ_a
+/// 0.3 m/s², σ_g the thesis's 0.002 rad/s, gate 4σ): σ_g 0.0638 rad/s, σ_a 0.354 m/s².
 fn tuned() -> FilterParams {
     SimulationParams::default()
         .with_code_noise(
@@ -171,11 +170,11 @@ fn exercise_motion_table_4_1_from_raw_signals() {
 /// The suit on the garment over the MakeHuman performer's skin: boards and sources move with
 /// the pose-driven deformation (measured against the same suit fixed to the bones), the
 /// floor echo sits under the performer's feet, and the filter still ranks as it should.
-/// Oracle measurements (issue 15): the filter's OWN models h(θ_true) along the true
-/// trajectory, no noise. The local chart of the 3-DOF joints must track every joint to
-/// about the one-frame lag of Eq. 4.1; in Euler angles throughout the right shoulder drifts
-/// with gyroscopes alone (linearisation near gimbal lock) — the baseline that shows the
-/// test can fail — and the filter's innovations are unbiased.
+/// Oracle measurements: the filter's OWN models h(θ_true) along the true trajectory, no noise. The
+/// local chart of the 3-DOF joints must track every joint to about the one-frame lag of Eq. 4.1; in
+/// Euler angles throughout the right shoulder drifts with gyroscopes alone (linearisation near
+/// gimbal lock) — the baseline that shows the test can fail — and the filter's innovations are
+/// unbiased.
 #[test]
 fn oracle_measurements_are_tracked_in_the_local_chart() {
     let s = human_skeleton(&HumanParams::default()).unwrap();
@@ -307,8 +306,8 @@ fn garment_suit_moves_with_the_skin() {
         "A+G+D on the garment {agd:?}, re-centred {agd_local:?}, rigid {agd_rigid:?}, \
          A on the garment {a:?}"
     );
-    // Per-board noise from a first pass (issue 15, sixth session): the neck board's skin
-    // twist is trusted less, and the neck (the garment's largest error) comes down.
+    // Per-board noise from a first pass: the neck board's skin twist is trusted less, and the neck
+    // (the garment's largest error) comes down.
     let adapted = run_filter_board_noise(&s, &rec, tuned(), true, &j, 4.0).unwrap();
     eprintln!(
         "A+G+D on the garment with per-board noise {:?} (σ_g {:?})",
@@ -378,9 +377,8 @@ fn corrupted_link_and_bad_inputs() {
     let r = run_filter(&s, &rec, gyro_accel, true, &joints(&s)).unwrap();
     eprintln!("10⁻², no key frames: A+G {:.1?}°", mean(&r));
     assert!(r.stats.iter().any(|st| st.mean_deg > 20.0), "{:?}", r.stats);
-    // The whole-count code (the default before issue 15's eighth session, an option since)
-    // on a link ten times noisier, with the sensor σ alone (its per-frame error is zero
-    // between slews).
+    // The whole-count code (`delta_step: None`) on a link ten times noisier, with the sensor σ
+    // alone (its per-frame error is zero between slews).
     let whole = SimulationParams {
         delta_step: None,
         bit_error_rate: 0.01,
@@ -655,13 +653,13 @@ fn heading_fit_recovers_turns_about_gravity() {
     assert_eq!(e.contexts(), [Context::Frame(5)]);
 }
 
-/// Figure 4-7 on the filter's own measurement models (issue 15, sixth session): the 60 s
-/// treadmill (the looped CMU walk on the MakeHuman skeleton, as the example runs it), left
-/// shoulder. With the exact constant-acceleration time update the oracle holds its shoulder
-/// with distances and drifts without them; Eq. 4.1's first-order step (the baseline, the
-/// filter before the fix) drifts even with distances. (Seventh session: with the wrist
-/// retarget fixed the walk's hand is calmer and the first-order step ends at 7° instead of
-/// 52°; the bound on it was 20° and is 5° now, still ten times the exact step.)
+/// Figure 4-7 on the filter's own measurement models: the 60 s treadmill (the looped CMU walk on
+/// the MakeHuman skeleton, as the example runs it), left shoulder. With the exact
+/// constant-acceleration time update the oracle holds its shoulder with distances and drifts
+/// without them; Eq. 4.1's first-order step (the baseline) drifts even with distances. (With the
+/// wrist's rest correction taken from the hand's bone the walk's hand is calm and the first-order
+/// step ends at 7°, 52° with the wrist at its Euler singularity; the test asks it for more than 5°
+/// and ten times the exact step's drift.)
 /// The example's 60 s treadmill (the looped CMU walk) on the MakeHuman performer without the
 /// hip flap, prepared for simulation with default parameters: the performer, its deformation
 /// and the prepared motion.
@@ -748,13 +746,12 @@ fn treadmill_oracle_distances_hold_the_left_shoulder() {
     );
 }
 
-/// Figure 4-7 on the simulated suit (issue 15, seventh session): the garment suit on the
-/// 60 s treadmill, simulated down to raw signals, with the noise-shaped delta code of 16-count
-/// units (`SimulationParams::delta_step`; §4.2.3's "compensate by overestimating in the next
-/// frame"). With distances the left shoulder holds; without them it drifts. The baseline
-/// that could win is A+G on the same recording. (With the whole-count code, the default
-/// before the eighth session, the walk's arm outruns the code's slew and both runs are lost:
-/// docs, "The treadmill on the simulated suit".)
+/// Figure 4-7 on the simulated suit: the garment suit on the 60 s treadmill, simulated down to raw
+/// signals, with the noise-shaped delta code of 16-count units (`SimulationParams::delta_step`;
+/// §4.2.3's "compensate by overestimating in the next frame"). With distances the left shoulder
+/// holds; without them it drifts. The baseline that could win is A+G on the same recording. (With
+/// the whole-count code (`delta_step: None`) the walk's arm outruns the code's slew and both runs
+/// are lost: docs, "The treadmill on the simulated suit".)
 #[test]
 fn treadmill_simulated_suit_distances_hold_the_left_shoulder() {
     let (performer, deformation, smooth) = treadmill_on_makehuman();
@@ -787,12 +784,11 @@ fn treadmill_simulated_suit_distances_hold_the_left_shoulder() {
     assert!(a_last > 1.5 * d_last, "A+G {a_last} vs A+G+D {d_last}");
 }
 
-/// Issue 15, sixth session: per-board R from the data and robust distance updates, on the
-/// filter's own models (oracle measurements) with one disturbance each that the global
-/// model cannot explain: the neck board's gyroscope carries a skin twist (a 0.6 rad/s,
-/// 0.7 Hz rate about its bone axis that the bone does not have), and a quarter of the
-/// distances come from a path 0.3 m longer (an echo). Baselines that could have won: the
-/// global σ, and the plain update without a gate.
+/// Per-board R from the data and robust distance updates, on the filter's own models (oracle
+/// measurements) with one disturbance each that the global model cannot explain: the neck board's
+/// gyroscope carries a skin twist (a 0.6 rad/s, 0.7 Hz rate about its bone axis that the bone does
+/// not have), and a quarter of the distances come from a path 0.3 m longer (an echo). Baselines
+/// that could have won: the global σ, and the plain update without a gate.
 #[test]
 fn per_board_noise_and_robust_distances_beat_the_global_model() {
     let (s, params, suit, smooth) = thesis_suit_on_exercise(6.0);
@@ -845,8 +841,8 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
         global.stats[0].mean_deg
     );
     assert!(mean(&adapted) < mean(&global));
-    // Seventh session: one σ per board axis finds the twisted axis (y) of the neck board
-    // and leaves its other two near the rating; the neck still beats the global σ.
+    // One σ per board axis finds the twisted axis (y) of the neck board and leaves its other two
+    // near the rating; the neck still beats the global σ.
     let axis_noise = estimate_board_axis_noise(&s, &twisted.recording, filter, true, 4.0).unwrap();
     let g = axis_noise[neck_board].gyroscope_axes();
     eprintln!("neck board per-axis σ_g {g:?}");
@@ -861,7 +857,8 @@ fn per_board_noise_and_robust_distances_beat_the_global_model() {
     eprintln!("per-axis σ {:?}", axis_run.stats);
     // Measured: neck 12.69° (global σ), 1.62° (per-board), 0.11° (per-axis): a twist about
     // one axis that no DOF can absorb is what per-axis σ is for (on the garment the neck
-    // board's skin also swings, and that part the state absorbs: docs, seventh session).
+    // board's skin also swings, and that part the state absorbs: docs/inertial-acoustic.md,
+    // "Per-axis noise").
     assert!(
         axis_run.stats[0].mean_deg < 0.7 * global.stats[0].mean_deg
             && axis_run.stats[0].mean_deg < 0.5 * adapted.stats[0].mean_deg,

@@ -1,11 +1,11 @@
-//! Coverage budget of Table 3.1 (issue 14): of the measured normals that the merged mesh does
-//! not cover, how many have no per-view surface (cut from Eq. 3.3 at a proxy or matched jump,
-//! dropped with their region, discarded by Eq. 3.4), how many have one more than 1 cm from
-//! the truth (gross per-view errors), and how many lose in merging — on both passes with the
-//! rasteriser's exact normals (the control; the part-1 normals' budget is in the
-//! `photometric_reconstruction` example's `figures.json`, `coverage_budget`). Ignored by
-//! default (a diagnostic, not a check): `BUDGET_SIZE=512 cargo test --release --test
-//! photometric_coverage_budget -- --ignored --nocapture` (default size 512).
+//! Coverage budget of Table 3.1: of the measured normals that the merged mesh does not cover, how
+//! many have no per-view surface (cut from Eq. 3.3 at a proxy or matched jump, dropped with their
+//! region, discarded by Eq. 3.4), how many have one more than 1 cm from the truth (gross per-view
+//! errors), and how many lose in merging — on both passes with the rasteriser's exact normals (the
+//! control; the part-1 normals' budget is in the `photometric_reconstruction` example's
+//! `figures.json`, `coverage_budget`). Ignored by default (a diagnostic, not a check):
+//! `BUDGET_SIZE=512 cargo test --release --test photometric_coverage_budget -- --ignored
+//! --nocapture` (default size 512).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 
 mod common;
@@ -95,12 +95,12 @@ fn gross_breakdown(
     (pct(grazing), pct(near_jump), pct(other))
 }
 
-/// Layers at the proxy's jumps (issue 14, seventh session): the measured normals in the
-/// proxy-jump strips (both pixels of every jump of `jump_m` per pixel at 1024²) split by
-/// whether the proxy depth at the pixel is within 1 cm of the truth (its own layer is right),
-/// the depth across the jump is (the other layer is right), or neither; and by what the
-/// per-view surface did there (none, within 1 cm, gross). Also the gross errors outside the
-/// strips whose proxy was within 1 cm. Percentages of the measured normals.
+/// Layers at the proxy's jumps: the measured normals in the proxy-jump strips (both pixels of every
+/// jump of `jump_m` per pixel at 1024²) split by whether the proxy depth at the pixel is within 1
+/// cm of the truth (its own layer is right), the depth across the jump is (the other layer is
+/// right), or neither; and by what the per-view surface did there (none, within 1 cm, gross). Also
+/// the gross errors outside the strips whose proxy was within 1 cm. Percentages of the measured
+/// normals.
 fn strip_diagnostic(
     label: &str,
     normals: &[NormalMap],
@@ -292,9 +292,9 @@ fn coverage_budget_with_exact_normals() {
         );
     }
 
-    // Pass-2 variants (issue 14) on the same pass-1 mesh, without hole filling; chosen by
-    // `BUDGET_VARIANTS` (comma-separated names; default: all).
-    // Pass 2 as it was before issue 14's sixth session (proxy jumps 2 cm per pixel at 1024²).
+    // Pass-2 variants on the same pass-1 mesh, without hole filling; chosen by `BUDGET_VARIANTS`
+    // (comma-separated names; default: all). The variants' base: `SurfaceParams::pass2()` with
+    // proxy jumps of 2 cm per pixel at 1024².
     let mut pass2 = SurfaceParams::pass2();
     pass2.integration.proxy_jump_m = 0.02;
     let with_offsets = |gamma: f64, gate: Option<f64>| {

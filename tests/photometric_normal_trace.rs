@@ -1,5 +1,5 @@
 //! Trace of Table 3.1's normal deviation through the stages of §3.3 with the exact-normal
-//! control (issue 14): where are the degrees lost? Ignored by default (a diagnostic, not a
+//! control: where are the degrees lost? Ignored by default (a diagnostic, not a
 //! check): `TRACE_SIZE=512 cargo test --release --test photometric_normal_trace -- --ignored
 //! --nocapture`; `TRACE_SUBJECT=ghost` traces the Ghost instead of the skirt; `TRACE_TRUTH_MM=4` traces the smooth, consistent true surface instead of the
 //! polygonal mesh, `TRACE_SUBPIXEL=1` adds the per-view stage with sub-pixel matches, `TRACE_ROBUST=1` Eq. 3.4
@@ -172,7 +172,7 @@ fn studio_scene(surface: TrueSurface) -> StudioScene {
     .unwrap()
 }
 
-/// Issue 14's studio truth: how far the rasterised (Phong) normals of the true surface are
+/// The studio truth: how far the rasterised (Phong) normals of the true surface are
 /// from the facets the cameras' depth and silhouettes see, per pixel over the 8 views of the
 /// skirt at frame 45 (`TRACE_SIZE`, default 512²), for the polygonal mesh and the smooth
 /// surfaces of 4 and 2.5 mm edges; with each surface's vertex count and the time of a full
@@ -287,7 +287,7 @@ fn trace_normal_deviation_through_the_stages() {
     ctx.per_view("per-view: offsets β=0.1 (default)", &out.surfaces);
     let mut variants = vec![("β=0.1".to_string(), out.surfaces.clone())];
     let quick = std::env::var("TRACE_QUICK").is_ok();
-    // `TRACE_SUBPIXEL=1`: the per-view stage again with each sub-pixel refinement (issue 14).
+    // `TRACE_SUBPIXEL=1`: the per-view stage again with each sub-pixel refinement.
     if std::env::var("TRACE_SUBPIXEL").is_ok() {
         for (name, mode) in [
             ("cost parabola", SubPixel::CostParabola),
@@ -326,8 +326,8 @@ fn trace_normal_deviation_through_the_stages() {
         variants.push((name, s));
     }
     // `TRACE_ROBUST=1`: Eq. 3.4 on the same matches with unreliable ones rejected
-    // (`OffsetOutliers`) or down-weighted (`RobustWeights`) (issue 14, eighth session); merged
-    // once each (2 mm, thesis weights).
+    // (`OffsetOutliers`) or down-weighted (`RobustWeights`); merged once each (2 mm, thesis
+    // weights).
     let mut robust = Vec::new();
     if std::env::var("TRACE_ROBUST").is_ok() {
         let o = OffsetOutliers::default();

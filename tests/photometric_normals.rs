@@ -120,7 +120,7 @@ fn photometric_normals_of_a_static_frame_beat_the_distant_light_baseline() {
         t0.elapsed().as_secs_f64()
     );
     assert!(e_open.pixels > 2000 && e_shadow.pixels > 100);
-    // The goal is 3° (not met: partial shadowing and the lookup itself, see
+    // The static goal is 3° (not met: partial shadowing and the lookup itself, see
     // docs/photometric-normals.md); this bounds the measured ~4° with a margin.
     assert!(e_open.median_deg <= 6.0);
     assert!(

@@ -225,8 +225,8 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
          {t_two_pass:.1} s"
     );
     let (p1, p2) = (&rows[0], &rows[1]);
-    // Issue 14's coverage budget: every measured normal the merged mesh does not cover is in
-    // exactly one class (no per-view surface, gross per-view error, lost in merging).
+    // The coverage budget: every measured normal the merged mesh does not cover is in exactly one
+    // class (no per-view surface, gross per-view error, lost in merging).
     let budget = coverage_budget(
         &ring.cameras,
         &exact,
@@ -290,10 +290,10 @@ fn per_view_surfaces_and_two_passes_beat_the_visual_hull() {
     );
     let (m1, m2) = ((p1.1.median_mm, p1.1.p95_mm), (p2.1.median_mm, p2.1.p95_mm));
     // At 256² a pixel covers ≈ 1 cm, and the merged meshes are only slightly closer to the
-    // truth than the hull's surface in median. Pass 1's ±20 cm matching band (issue 14, ninth
-    // session; the thesis evaluates the whole grid in pass 1) reaches the surface where the
-    // hull is far off, which with ±10 cm only pass 2 reached: the old band is the baseline
-    // that could win on pass 1's p95.
+    // truth than the hull's surface in median. Pass 1's ±20 cm matching band (the thesis
+    // evaluates the whole grid in pass 1) reaches the surface where the hull is far off, which
+    // with ±10 cm only pass 2 reaches: the ±10 cm band is the baseline that could win on pass
+    // 1's p95.
     let mut narrow = rparams;
     narrow.pass1.matching.band_m = 0.1;
     // Only this run's pass 1 is compared: its pass 2 is not refined.

@@ -299,10 +299,10 @@ fn a_decimated_textured_template_takes_an_edit_to_a_posed_frame() {
     assert!((0.015..0.04).contains(&m), "edited vertices moved {m} m");
 }
 
-/// Automatic first-frame initialisation (issue 12, "use it"): `initialise_pose` from one
-/// frame's visual hull and contour rays only (no markers, no stereo points, no user
-/// constraint), scored against the true pose and against the baseline that could have won
-/// (the rest pose moved to the hull's centroid, then the same robust ellipsoid fit).
+/// Automatic first-frame initialisation: `initialise_pose` from one frame's visual hull and contour
+/// rays only (no markers, no stereo points, no user constraint), scored against the true pose and
+/// against the baseline that could have won (the rest pose moved to the hull's centroid, then the
+/// same robust ellipsoid fit).
 #[test]
 fn automatic_first_pose_beats_the_rest_pose_start() {
     use dynamic_shapes::template::{
@@ -350,10 +350,10 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
     }
 }
 
-/// Automatic sizing (issue 12, "use it") and its use by the tracker, with no user constraint:
-/// a performer whose bone lengths differ from the default by up to 10 % (the `ellipsoid_fit`
-/// scenario's, procedural body), the first half second of a swinging motion (the fast motion
-/// at 0.5–1 Hz, 30 frames at 60 Hz), 8 cameras at 400 × 300; only hulls and contour rays.
+/// Automatic sizing and its use by the tracker, with no user constraint: a performer whose bone
+/// lengths differ from the default by up to 10 % (the `ellipsoid_fit` scenario's, procedural body),
+/// the first half second of a swinging motion (the fast motion at 0.5–1 Hz, 30 frames at 60 Hz), 8
+/// cameras at 400 × 300; only hulls and contour rays.
 ///
 /// 1. The automatic first pose (`size_performer` runs `initialise_pose` on frame 0), the
 ///    template tracker at default proportions from it, then `size_from_poses`: 8 frames spread
@@ -521,7 +521,7 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
     assert!(sd < bd, "directions {sd} vs {bd}");
 }
 
-/// Issue 12's sizing studio: the body exercise (`body_exercise_studio`) with every modelled
+/// The sizing studio: the body exercise (`body_exercise_studio`) with every modelled
 /// bone of the end-site model scaled by a seeded factor in [0.9, 1.1]
 /// (`Performer::with_bone_scales`), frames 40–62 (every second) captured and observed.
 struct ResizedStudio {
@@ -573,16 +573,15 @@ fn resized_body_exercise() -> ResizedStudio {
     }
 }
 
-/// Automatic sizing on a studio performer with other bone lengths (issue 12, "use it": "report
-/// the template tracker's figures with this sizing and initialisation and no user constraints
-/// at all"): the MakeHuman body with every modelled bone scaled by a seeded factor in
-/// [0.9, 1.1] (`Performer::with_bone_scales`), the exercise motion (frames 40–62, every
-/// second), observed through the studio's `Capture` by 8 cameras at 480 × 360. The tracker's
-/// template has the default proportions; the automatic first pose, the pose tracker at default
-/// proportions, `size_from_poses` on its poses, then the tracker again with the template
-/// re-rigged to the sized skeleton and to the true one. Baseline that could have won: the
-/// default proportions (5 cm half-widths). Scored against `reference_sizes` of the true
-/// template (Eq. 3 fitted to its nearly-rigid limb vertices).
+/// Automatic sizing on a studio performer with other bone lengths, the template tracker's figures
+/// with this sizing and initialisation and no user constraint at all: the MakeHuman body with every
+/// modelled bone scaled by a seeded factor in [0.9, 1.1] (`Performer::with_bone_scales`), the
+/// exercise motion (frames 40–62, every second), observed through the studio's `Capture` by 8
+/// cameras at 480 × 360. The tracker's template has the default proportions; the automatic first
+/// pose, the pose tracker at default proportions, `size_from_poses` on its poses, then the tracker
+/// again with the template re-rigged to the sized skeleton and to the true one. Baseline that could
+/// have won: the default proportions (5 cm half-widths). Scored against `reference_sizes` of the
+/// true template (Eq. 3 fitted to its nearly-rigid limb vertices).
 #[test]
 fn a_performer_with_other_bone_lengths_is_sized_from_the_tracked_first_frames() {
     use dynamic_shapes::template::{
@@ -703,11 +702,11 @@ fn a_performer_with_other_bone_lengths_is_sized_from_the_tracked_first_frames() 
     );
 }
 
-/// Issue 12 trace (diagnostic, `--ignored`): why `size_from_poses` makes the legs too long on
-/// the MakeHuman performer with other bone lengths. Per limb bone, from the true poses: the
-/// hull samples each ellipsoid holds near its ends (within 3 cm beyond a joint along the true
-/// bone) and their distance to the true surface (phantom hull), then the per-bone length
-/// errors with the default fit, with free end-site scales and with one-sided hull samples.
+/// Trace (diagnostic, `--ignored`): why `size_from_poses` makes the legs too long on the MakeHuman
+/// performer with other bone lengths. Per limb bone, from the true poses: the hull samples each
+/// ellipsoid holds near its ends (within 3 cm beyond a joint along the true bone) and their
+/// distance to the true surface (phantom hull), then the per-bone length errors with the default
+/// fit, with free end-site scales and with one-sided hull samples.
 #[test]
 #[ignore = "diagnostic trace, ~1 min"]
 fn trace_leg_lengths() {

@@ -10,8 +10,8 @@
 //! A frame with an uncorrectable code is flagged (`None`); the decoder then assumes each lost
 //! delta equals the channel's previous delta (the signals are smooth at 140 Hz), so one lost
 //! frame costs a second difference of the deltas — for the noise-shaped code a permanent
-//! offset of about 0.7 step, which the key frames (issue 15, ninth session, beyond the
-//! thesis: [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
+//! offset of about 0.7 step, which the key frames (beyond the thesis:
+//! [`DeltaCodec::with_key_interval`]) remove by sending each channel's absolute
 //! count in place of two of its deltas every K frames.
 
 use crate::{Error, Result};
@@ -174,12 +174,12 @@ fn scramble(bits: &mut [bool]) {
 /// Two readings of §4.2.3's "6-bit values using delta modulation" (the thesis gives no
 /// step size or code layout):
 ///
-/// - [`DeltaCodec::new`] (the type's `Default`; the simulator's front end until issue 15's
-///   eighth session): each code is the change of the 12-bit count in whole
-///   counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
+/// - [`DeltaCodec::new`] (the type's `Default`; the simulator's front end with
+///   `SimulationParams::delta_step` `None`): each code is the change of the 12-bit count in
+///   whole counts, clamped to −32..=31. Small changes are sent exactly; a change beyond 31 counts
 ///   per frame slews (42 rad/s² at ±20 rad/s), and the reconstruction lags until it catches up.
 /// - [`DeltaCodec::noise_shaped`] (with 16-count units the
-///   simulator's default since the eighth, `SimulationParams::delta_step`): each code
+///   simulator's default, `SimulationParams::delta_step`): each code
 ///   counts `step` counts and the encoder feeds its round-off back, so a frame that
 ///   under-reads is followed by one that over-reads — the thesis's own description ("if the
 ///   6-bit round-off underestimates the acceleration in one frame, it will compensate by
@@ -345,10 +345,10 @@ impl DeltaCodec {
         self.shaped
     }
 
-    /// This codec with a key frame every `frames` frames per channel (issue 15, ninth session;
-    /// beyond the thesis, which describes no resynchronisation — see the type's docs, "Key
-    /// frames"); 0 turns them off. Both ends of a link must use the same interval and start
-    /// together (they count frames alike, lost ones too).
+    /// This codec with a key frame every `frames` frames per channel (beyond the thesis, which
+    /// describes no resynchronisation — see the type's docs, "Key frames"); 0 turns them off. Both
+    /// ends of a link must use the same interval and start together (they count frames alike, lost
+    /// ones too).
     ///
     /// # Errors
     /// [`Error::InvalidParam`] unless `frames` is 0 or in 12..=1,000,000 (two key frames

@@ -237,10 +237,10 @@ impl OrientationEkf {
     /// Eq. 4.1, rotation part, with the rate of the step (after the gyroscope rows): the
     /// quaternion turns by `exp(ωΔt)` and the error state follows `δ' = exp(−[ωΔt]ₓ) δ + Δt δω`.
     ///
-    /// Checked against the skeletal filter's first-order-step bias (issue 15, seventh
-    /// session): the gyroscope row reads the state's rate, and a gyroscope sample is the mean
-    /// rate over the interval that ends at its time stamp, so the rate after the rows is that
-    /// interval's mean and `Δt ω` is the interval's rotation exactly (about a fixed axis) —
+    /// Checked against the skeletal filter's first-order-step bias: the gyroscope row reads the
+    /// state's rate, and a gyroscope sample is the mean rate over the interval that ends at its
+    /// time stamp, so the rate after the rows is that interval's mean and `Δt ω` is the interval's
+    /// rotation exactly (about a fixed axis) —
     /// no `½Δt² ω̇` is missing (test `mean_rate_samples_of_a_constant_angular_acceleration_integrate_exactly`).
     /// Reading the samples as instantaneous rates instead (turning by `Δt ω − ½Δt² ω̇`, the
     /// constant-acceleration transition for that reading) made BROAD worse, 1.57° / 0.80° →

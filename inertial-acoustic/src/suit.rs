@@ -113,12 +113,11 @@ impl BoardNoise {
             .unwrap_or([self.accelerometer_sigma; 3])
     }
 
-    /// One σ per sensor type, the largest of its axes, on all three axes (issue 15, seventh
-    /// session). Per-axis NIS only sees the part of a board's misfit that no state can
-    /// absorb: over blended skin the neck board's twist about its bone (no DOF of the 2-DOF
-    /// neck turns that way) shows on one axis, while its skin's swing is followed by the
-    /// neck's own angles and stays consistent-looking on the other two. The worst axis is
-    /// then the better measure of how far the whole board can be trusted.
+    /// One σ per sensor type, the largest of its axes, on all three axes. Per-axis NIS only sees
+    /// the part of a board's misfit that no state can absorb: over blended skin the neck board's
+    /// twist about its bone (no DOF of the 2-DOF neck turns that way) shows on one axis, while its
+    /// skin's swing is followed by the neck's own angles and stays consistent-looking on the other
+    /// two. The worst axis is then the better measure of how far the whole board can be trusted.
     pub fn worst_axis(&self) -> BoardNoise {
         let max = |v: [f64; 3]| v[0].max(v[1]).max(v[2]);
         BoardNoise::new(max(self.gyroscope_axes()), max(self.accelerometer_axes()))

@@ -42,7 +42,7 @@ use crate::{Error, Result};
 
 /// Distance from a needle endpoint to an elbow or knee joint below which the needle counts as
 /// "near a joint", metres. The deformation the model must capture (bulges, creases) is
-/// concentrated there. Default of the validation: 0.10 m (the 10 cm).
+/// concentrated there. Default of the validation: 0.10 m (the goal's 10 cm).
 pub const NEAR_JOINT_M: f64 = 0.10;
 
 /// Difference between the true and the LBS length above which a needle counts as
@@ -947,7 +947,7 @@ impl Errors {
     }
 
     /// The share of the pose variance of the pose-deforming needles this predictor explains
-    /// (the needle follow-up issue's `pose_r2` and `pose_r2_centred`).
+    /// (`pose_r2` and `pose_r2_centred` in `docs/needle-model.md`).
     pub fn pose_r2(&self) -> PoseR2 {
         // Per needle: count, mean true length, mean error.
         let mut per: HashMap<NeedleKey, (f64, f64, f64)> = HashMap::new();

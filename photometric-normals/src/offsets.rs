@@ -59,10 +59,10 @@ pub struct OffsetParams {
     #[serde(default)]
     pub proxy_gate_m: Option<f64>,
     /// Rejects matches whose asked offset is an outlier of the offsets asked around it
-    /// ([`OffsetOutliers`]). Default `Some(OffsetOutliers::default())` (ours, issue 14,
-    /// eighth session): at the thesis's 1024² it improved every Table 3.1 key and distance of
-    /// both passes on the studio's skirt (docs: "Reliable matches in Eq. 3.4") for ≈ 3 % more
-    /// CPU; `None` is the thesis's Eq. 3.4, which keeps every match.
+    /// ([`OffsetOutliers`]). Default `Some(OffsetOutliers::default())` (ours): at the thesis's
+    /// 1024² it improved every Table 3.1 key and distance of both passes on the studio's skirt
+    /// (docs: "Reliable matches in Eq. 3.4") for ≈ 3 % more CPU; `None` is the thesis's Eq. 3.4,
+    /// which keeps every match.
     #[serde(default)]
     pub outliers: Option<OffsetOutliers>,
     /// Down-weights, rather than rejects, the matches the membrane cannot follow
@@ -494,7 +494,7 @@ impl SurfaceParams {
     /// resolution). Why: pass 1's only product used later is pass 2's proxy, and at 1024²
     /// (skirt, part-1 normals) the narrow band left pass 2 as accurate (coverage 86.01 →
     /// 85.75 %, normal / local deviation +0.01° / +0.02°, merged median / p95 1.728 / 21.3 →
-    /// 1.689 / 20.7 mm) for less pass-1 matching (docs: "Tenth session: pass-1 speed").
+    /// 1.689 / 20.7 mm) for less pass-1 matching (docs: "Pass-1 speed").
     pub fn pass1() -> Self {
         Self {
             matching: MatchingParams {

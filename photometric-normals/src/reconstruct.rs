@@ -53,10 +53,10 @@ pub struct ReconstructParams {
     /// matching band; a coarser octree costs a fraction of the time). Default `None` (the
     /// same depth in both passes, as the thesis repeats "all three stages"): measured at
     /// 1024² (skirt, part-1 normals), depth 8 in pass 1 saved ≈ 10 CPU s of the frame but
-    /// moved pass 2's merged median 1.994 → 2.026 mm, past the 2 mm; with the ±20 cm
-    /// band and coarse-to-fine pass 1 (tenth session) it kept pass 2 within the margins
-    /// (merged median 1.702 mm) but its CPU saving did not separate under load, and an
-    /// absolute depth would exceed pass 2's where [`ReconstructParams::poisson`] is lowered.
+    /// moved pass 2's merged median 1.994 → 2.026 mm, past the 2 mm goal; with the ±20 cm band and
+    /// coarse-to-fine pass 1 it kept pass 2 within the margins (merged median 1.702 mm) but its CPU
+    /// saving did not separate under load, and an absolute depth would exceed pass 2's where
+    /// [`ReconstructParams::poisson`] is lowered.
     pub pass1_poisson_depth: Option<u32>,
     /// Weight of the visual hull's samples in the hole filling. Thesis: 0.01 (the merged
     /// mesh's samples weigh 1).
@@ -67,9 +67,8 @@ pub struct ReconstructParams {
     /// Refine pass 2's merged mesh with the measured normals before the metrics and the
     /// hole filling ([`refine_mesh`]; ours, beyond the thesis: Nehab et al. 2005, the
     /// thesis's ref. \[104\]). Default `Some(RefineParams::default())`, with Nehab's bias
-    /// correction of the targets (tenth session: at 1024² it lowers both the normal and the
-    /// local deviation; docs "Tenth session: the local deviation traced"). `None`: the
-    /// thesis's pipeline.
+    /// correction of the targets (at 1024² it lowers both the normal and the local deviation; docs
+    /// "The local deviation traced"). `None`: the thesis's pipeline.
     pub refine: Option<RefineParams>,
     /// Also refine pass 1's merged mesh (with [`ReconstructParams::refine`]'s parameters),
     /// so pass 2's proxy comes from a refined mesh. Default false.

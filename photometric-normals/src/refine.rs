@@ -1,4 +1,4 @@
-//! Fusing the merged mesh with the measured normals (ours, beyond the thesis; issue 14).
+//! Fusing the merged mesh with the measured normals (ours, beyond the thesis).
 //!
 //! The thesis merges the per-view surfaces (§3.3.3) and stops there. Its related work (§3.1)
 //! cites Nehab, Rusinkiewicz, Davis and Ramamoorthi 2005, "Efficiently combining positions
@@ -22,7 +22,7 @@
 //! neighbourhood and each target is rotated by the rotation taking its average onto the
 //! mesh's. Without it, a target field that no surface has (part 1's per-camera biases,
 //! blended) roughens the mesh at the vertex scale and raised Table 3.1's local deviation
-//! (docs: "Tenth session: the local deviation traced").
+//! (docs: "The local deviation traced").
 //!
 //! **Energy** (Nehab 2005, Eq. 6–8, with the mesh's faces as the tangent stencil): each vertex
 //! moves along its original area-weighted vertex normal `n̂_i` by a signed distance `d_i`,
@@ -96,16 +96,15 @@ pub struct RefineParams {
     /// than the normal maps' pixels, so the targets carry the pixels' noise at the vertex
     /// scale. Default 2 (at 512², 0 → 2 rounds: true local deviation 3.31 → 3.17°).
     pub smoothing: usize,
-    /// Nehab 2005's first step, which corrects the measured normals' low-frequency bias
-    /// against the positions: rounds of 1-ring averaging that define the low frequencies.
-    /// Both the mesh's own vertex normals and the targets are averaged this many rounds, and
-    /// each target is rotated by the rotation that takes its averaged value onto the averaged
-    /// mesh normal: the targets keep their high frequencies and take the positions' low ones.
-    /// 0: no correction (the ninth session's refinement). Default 8: about 5 edges (≈ 1 cm)
-    /// on the merge's 2 mm voxels. Tenth session, 1024² skirt, pass 2: normal / local
-    /// deviation 13.28° / 4.12° unrefined → 12.24° / 3.76° (exact-normal control 11.35° /
-    /// 2.87° → 10.11° / 1.89°), where the refinement without it had raised the local figure
-    /// (docs "Tenth session: the local deviation traced").
+    /// Nehab 2005's first step, which corrects the measured normals' low-frequency bias against the
+    /// positions: rounds of 1-ring averaging that define the low frequencies. Both the mesh's own
+    /// vertex normals and the targets are averaged this many rounds, and each target is rotated by
+    /// the rotation that takes its averaged value onto the averaged mesh normal: the targets keep
+    /// their high frequencies and take the positions' low ones. 0: no correction (Nehab's energy
+    /// alone). Default 8: about 5 edges (≈ 1 cm) on the merge's 2 mm voxels. Measured on the 1024²
+    /// skirt, pass 2: normal / local deviation 13.28° / 4.12° unrefined → 12.24° / 3.76°
+    /// (exact-normal control 11.35° / 2.87° → 10.11° / 1.89°); without it the refinement raises the
+    /// local figure (docs "The local deviation traced").
     ///
     /// Why it matters on our meshes: a target field that no surface has (part 1's per-camera
     /// biases blended, a rotation of the normals) cannot be met; the least-squares residual

@@ -177,8 +177,9 @@ pub fn ghost_subject() -> DeformationParams {
 /// facets and shading normals agree to well under a degree at the pixel scale.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum TrueSurface {
-    /// The performer's polygonal mesh as posed (refined only where the subject's wrinkles
-    /// are): the scene of every figure before issue 14's sixth session.
+    /// The performer's polygonal mesh as posed (refined only where the subject's wrinkles are),
+    /// whose rasterised normals are its facets' (`docs/photometric-normals.md`, *A consistent
+    /// studio truth*, compares it with [`Self::Smooth`]).
     Polygonal,
     /// Every face of the posed true mesh (body and garment) refined by Phong tessellation
     /// (skin-core's `Refinement`, α = 0.75) to edges of at most 0.7 · `max_edge_m` at rest
@@ -725,7 +726,7 @@ fn view_of(view: &ViewTruth) -> Result<RenderedView> {
 }
 
 /// Per pixel, the fraction of its unoccluded dome irradiance that reaches it with cast
-/// shadows (1 unshadowed; NaN on background): the issue's "shadowed concavities" are the
+/// shadows (1 unshadowed; NaN on background): the validation's "shadowed concavities" are the
 /// pixels below 0.9. `mesh` is the mesh the camera saw ([`dynamic_shapes_studio::FrameTruth`]),
 /// `visibility` the frame's ([`dynamic_shapes_studio::CaptureFrame::light_visibility`]).
 ///

@@ -241,7 +241,7 @@ const EXERCISE_COMPONENTS: usize = 3;
 const EXERCISE_WARP_KNOTS: usize = 64;
 
 impl ExerciseParams {
-    /// Default duration of [`exercise_motion`], seconds: the 5-minute acceptance run.
+    /// Default duration of [`exercise_motion`], seconds: the 5-minute acceptance run.
     pub const DEFAULT_DURATION_S: f64 = 300.0;
 
     /// Default turn rate of [`exercise_motion`], degrees per second: one turn every 30 s.
@@ -596,7 +596,7 @@ pub fn pose_shares(
         .collect())
 }
 
-/// The largest share of frames any bone spends in one pose: the issue's
+/// The largest share of frames any bone spends in one pose: the studio example's
 /// `exercise_max_pose_share`.
 ///
 /// **Definition.** For each bone (a non-root joint with rotation DOFs), its pose in a frame is

@@ -7,8 +7,8 @@
 //! `a` the unit bone direction, `z = u·a` and `ρ² = |u|² − z²`,
 //! `F(u) = ρ²/w² + (z − l)²/h² − 1`, `l = s_b·L_b/2` (half the bone length, `L_b` the
 //! default skeleton's; the centre), `w` the half-width (`part_w`) and `h` the ellipsoid's
-//! half-length. Eq. 3 ties `h = l`; we keep `h` as its own unknown (the brief's "half-length
-//! and half-width unknowns"), held near its start by a prior
+//! half-length. Eq. 3 ties `h = l`; we keep `h` as its own unknown (half-length and
+//! half-width are both unknowns), held near its start by a prior
 //! ([`EllipsoidParams::sigma_half_length_prior_m`]). Measured on the studio (a limb's surface
 //! reaches both joints with non-zero radius, unlike Eq. 3's ellipsoid): with `h = l` tied
 //! the fit lowers its cost by lengthening the upper bones to the scale bound while their

@@ -87,9 +87,8 @@ pub struct SimulationParams {
     pub analog_noise_lsb: f64,
     /// The inertial link's delta code: `Some(step)` for the noise-shaped code whose unit is
     /// `step` counts ([`DeltaCodec::noise_shaped`]: the thesis's "compensate by
-    /// overestimating in the next frame", slew `31 · step` counts per frame; issue 15, seventh
-    /// session), `None` for whole-count deltas without feedback ([`DeltaCodec::new`], the
-    /// default until the eighth session). Default:
+    /// overestimating in the next frame", slew `31 · step` counts per frame), `None` for
+    /// whole-count deltas without feedback ([`DeltaCodec::new`]). Default:
     /// `Some(`[`SimulationParams::DEFAULT_DELTA_STEP`]`)`. The filter must be told the code's
     /// per-frame error: [`SimulationParams::with_code_noise`].
     #[serde(default = "default_delta_step")]

@@ -253,7 +253,7 @@ impl SuitSimulator {
 
     /// The same suit (same placements and seed) on another inertial link: its bit error rate
     /// and key interval ([`SimulationParams::bit_error_rate`],
-    /// [`SimulationParams::key_interval`]) — the bit-error sweep of issue 15's ninth session.
+    /// [`SimulationParams::key_interval`]), e.g. to sweep the bit error rate on one suit.
     ///
     /// # Errors
     /// [`Error::Core`] (invalid parameter) for a negative or non-finite rate; as

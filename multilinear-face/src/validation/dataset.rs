@@ -538,9 +538,9 @@ pub fn face_width(face: &[DVec3]) -> f64 {
     (xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)).max(0.0)
 }
 
-/// Issue 16's imputation metric: `‖X̂_held − X_held‖_F / ‖X_held − x̄‖_F` over the held-out
-/// faces, `x̄` the mean face of the full (true) data set — the Frobenius norm of the error over
-/// the norm of the held-out faces' variation from the mean face (thesis §5.3.4).
+/// The imputation metric: `‖X̂_held − X_held‖_F / ‖X_held − x̄‖_F` over the held-out faces, `x̄`
+/// the mean face of the full (true) data set — the Frobenius norm of the error over the norm of the
+/// held-out faces' variation from the mean face (thesis §5.3.4).
 ///
 /// # Errors
 /// [`Error::SizeMismatch`] if the tensors' or the mask's shapes differ; [`Error::Empty`] if

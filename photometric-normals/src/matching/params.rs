@@ -43,13 +43,13 @@ pub struct MatchingParams {
     pub metric: MatchMetric,
     /// Window side, px (odd). Default 5 (§3.3.2: "5 × 5 pixels").
     pub window_px: usize,
-    /// Half-width of the search band around each view's guide surface along its rays, m.
-    /// Default 0.2 (ours; the thesis evaluates the whole grid in pass 1 and "nearby" cells in
-    /// pass 2 without a number). Issue 14, ninth session: 0.1 → 0.2 in pass 1 reached the
-    /// surface where the visual hull is more than 10 cm off (the Ghost's folds) and improved
-    /// every pass-2 figure of the skirt at 1024² (coverage 84.98 → 86.01 %, normal deviation
-    /// 14.02 → 13.28°, merged median 1.961 → 1.728 mm, p95 33.8 → 21.3 mm) for ≈ 23 % more CPU;
-    /// 0.3 was no better (docs: "Ninth session: the pass-1 band").
+    /// Half-width of the search band around each view's guide surface along its rays, m. Default
+    /// 0.2 (ours; the thesis evaluates the whole grid in pass 1 and "nearby" cells in pass 2
+    /// without a number). Measured: 0.1 → 0.2 in pass 1 reached the surface where the visual hull
+    /// is more than 10 cm off (the Ghost's folds) and improved every pass-2 figure of the skirt at
+    /// 1024² (coverage 84.98 → 86.01 %, normal deviation 14.02 → 13.28°, merged median 1.961 →
+    /// 1.728 mm, p95 33.8 → 21.3 mm) for ≈ 23 % more CPU; 0.3 was no better
+    /// (`docs/photometric-normals.md`, *The pass-1 band*).
     pub band_m: f64,
     /// Cost of an occluded sample, in units of the grid's median cost. Default 1 (ours).
     pub occlusion_cost: f64,
@@ -73,9 +73,8 @@ pub struct MatchingParams {
     /// (the thesis's matching); pass 1 of the two-pass pipeline turns it on
     /// ([`SurfaceParams::pass1`](crate::SurfaceParams::pass1): with
     /// the ±20 cm band, at 1024² pass 2's figures stayed within 0.26 point / 0.02° and the
-    /// example's CPU fell 12 %; with the ±10 cm band of the sixth session it had cost the
-    /// 1024² merged median its goal; `docs/photometric-normals.md`, *Tenth session: pass-1
-    /// speed*).
+    /// example's CPU fell 12 %; with a ±10 cm band it cost the 1024² merged median its 2 mm
+    /// goal; `docs/photometric-normals.md`, *Pass-1 speed*).
     pub coarse_to_fine: bool,
     /// Half-width of the full-resolution band around the coarse path, in pixel footprints
     /// (depth / focal length) along each ray. Default 4 (ours: a coarse pixel is two, and

@@ -36,7 +36,7 @@ fn corners(image: &GrayF32Image, p: DVec2) -> Option<([f64; 4], f64, f64)> {
     // Cell corner: the last cell is [w−2, w−1] so that p.x = w−1 gives fx = 1. Truncation
     // equals the floor for the non-negative coordinates that passed the bounds test, without
     // the `floor` library call of the baseline x86-64 target (the visual hull's per-cell test
-    // in photometric matching samples here; issue 14, eighth session).
+    // in photometric matching samples here).
     let x0 = (p.x as u32).min(w.saturating_sub(2));
     let y0 = (p.y as u32).min(h.saturating_sub(2));
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));

@@ -258,7 +258,7 @@ fn exercise_meets_the_acceptance_on_both_performers() {
         );
         assert!(max_step < 10.0 && mean_step < 2.0, "{max_step} {mean_step}");
         assert!(max_turn < 3.0, "{max_turn}");
-        // The issue's combined poses occur often: both DOFs in the upper 40 % of their
+        // Combined poses occur often: both DOFs in the upper 40 % of their
         // ranges (the MakeHuman rest pose is abducted and bent, so degrees would mislead).
         for side in ["l", "r"] {
             let arm = together(

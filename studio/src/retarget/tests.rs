@@ -444,10 +444,10 @@ const BONES: [(&str, &str); 8] = [
     ("Head", "head"),
 ];
 
-/// Issue 15's trace: the retargeted walk spins the right upper arm at 35 rad/s because the
-/// SOURCE does — the retarget adds no spin. 3-DOF joints reproduce the source bone's world
-/// angular velocity exactly (the world rotation is `G R_src Gᵀ C`, C constant); 1- and 2-DOF
-/// joints (knee, elbow, head) stay within a small margin of it.
+/// The retargeted walk spins the right upper arm at 35 rad/s because the SOURCE does — the retarget
+/// adds no spin. 3-DOF joints reproduce the source bone's world angular velocity exactly (the world
+/// rotation is `G R_src Gᵀ C`, C constant); 1- and 2-DOF joints (knee, elbow, head) stay within a
+/// small margin of it.
 #[test]
 fn retarget_adds_no_angular_velocity_on_the_cmu_walk() {
     let bvh = cmu_walk();
@@ -598,13 +598,13 @@ fn world_rates(s: &Skeleton, m: &Motion, j: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Issue 15: the CMU rig's wrist is a zero-length joint (`LeftWrist → lhand` at offset 0, the
-/// hand's length in `lhand → LFingers`), so the wrist's rest correction used to be the
-/// identity. On the MakeHuman performer (A-pose hand ≈ 45° off the source's hanging one) the
-/// retargeted wrist then sat at the Euler singularity: flexion flipping across ±176°, the hand
-/// spinning at 364 rad/s against the source's 19. With the correction from the hand's real
-/// bone, the 2-DOF wrist (its dropped third angle is the twist about the hand) reproduces the
-/// source hand's direction exactly and turns no faster than the source's hand.
+/// The CMU rig's wrist is a zero-length joint (`LeftWrist → lhand` at offset 0, the hand's length
+/// in `lhand → LFingers`), so a rest correction from the wrist's own bone is the identity. On the
+/// MakeHuman performer (A-pose hand ≈ 45° off the source's hanging one) the retargeted wrist then
+/// sits at the Euler singularity: flexion flipping across ±176°, the hand spinning at 364 rad/s
+/// against the source's 19. With the correction from the hand's real bone, the 2-DOF wrist (its
+/// dropped third angle is the twist about the hand) reproduces the source hand's direction exactly
+/// and turns no faster than the source's hand.
 #[test]
 fn cmu_wrists_follow_the_source_hands_on_the_makehuman_performer() {
     let bvh = cmu_walk();
