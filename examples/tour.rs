@@ -251,13 +251,15 @@ const STYLE: &str = "body{font-family:system-ui,sans-serif;margin:2em auto;max-w
     .missed{color:#b3261e;font-weight:600}.fail{color:#b3261e;font-weight:600}\
     .note{color:#666;font-size:0.9em}figure{margin:1em 0}figure img{max-width:100%;\
     border:1px solid #eee}figcaption{color:#444;font-size:0.95em;margin-top:0.3em}\
-    p.caption{font-size:1.05em}";
+    p.caption{font-size:1.05em}table{display:block;max-width:100%;overflow-x:auto}\
+    @media(max-width:700px){body{margin:0.5em}td,th{padding:3px 5px}}";
 
 fn render_html(outcomes: &[Outcome], page_dir: &Path, quick: bool) -> String {
     let mut h = String::new();
     let _ = write!(
         h,
         "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\
          <title>dynamic-shapes tour</title><style>{STYLE}</style></head><body>\
          <h1>dynamic-shapes tour</h1><p>dynamic-shapes captures, reconstructs and \
          re-animates moving human bodies and faces: five published methods (Sand 2003; \
