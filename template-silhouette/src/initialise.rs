@@ -110,7 +110,7 @@ impl AutoInitParams {
         check::nonzero("axis_samples", self.axis_samples)?;
         if self.heading_offsets_deg.is_empty() {
             return Err(Error::Empty {
-                what: "heading offsets (give at least one, e.g. 0°)",
+                what: "heading offsets (0° is one)",
             });
         }
         for &h in self

@@ -94,7 +94,7 @@ pub fn capture_sequence(
 ) -> Result<SequenceCapture> {
     if observations.is_empty() {
         return Err(Error::Empty {
-            what: "frames (give at least one frame's observation)",
+            what: "frames (one observation each)",
         });
     }
     if !user.is_empty() && user.len() != observations.len() {

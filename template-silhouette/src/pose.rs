@@ -752,7 +752,7 @@ pub fn track(
 ) -> Result<PoseTrack> {
     if frames.is_empty() {
         return Err(Error::Empty {
-            what: "frames (give at least one frame's observation)",
+            what: "frames (one observation each)",
         });
     }
     let sk = &model.skeleton;

@@ -411,9 +411,7 @@ impl ShapeEstimator {
     /// [`Self::refine`] wrapped in [`Error::At`] with the frame.
     pub fn estimate(&mut self, frames: &[ShapeFrame<'_>]) -> Result<ShapeSequence> {
         if frames.is_empty() {
-            return Err(Error::Empty {
-                what: "frames (give at least one frame)",
-            });
+            return Err(Error::Empty { what: "frames" });
         }
         // Frames are independent between filter passes: solved in parallel, each thread
         // with its own clone of the factorisation (the symbolic analysis is shared).

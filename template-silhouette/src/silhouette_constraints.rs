@@ -136,8 +136,7 @@ pub fn contour_rays(
     let k = &camera.intrinsics;
     if mask.dimensions() != (k.width, k.height) {
         return Err(Error::SizeMismatch {
-            what: "silhouette pixels vs camera image pixels (give a mask of the camera's image \
-                   size)",
+            what: "silhouette pixels vs camera image pixels (a mask of the camera's image size)",
             expected: k.width as usize * k.height as usize,
             got: mask.pixel_count(),
         });

@@ -165,7 +165,7 @@ pub fn size_performer(
     check::nonzero("frames", frames.len())?;
     check::nonzero("sized frames", params.frames)?;
     let first = frames.first().ok_or(Error::Empty {
-        what: "sizing frames (give at least one frame)",
+        what: "sizing frames",
     })?;
     let init =
         initialise_pose(model, &first.hull, &first.rays, &params.init).at(Context::Frame(0))?;

@@ -123,7 +123,7 @@ impl ContourRayHullParams {
         let (lo, hi) = (self.volume.min, self.volume.max);
         if !(lo.is_finite() && hi.is_finite()) {
             return Err(Error::NonFinite {
-                what: "visual-hull volume (give finite corners)",
+                what: "visual-hull volume corners",
             });
         }
         if !(hi.cmpgt(lo).all()) {
@@ -177,8 +177,7 @@ impl ConeDistance {
         let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
         if mask.width() != w {
             return Err(Error::SizeMismatch {
-                what: "silhouette width vs camera image width (give a mask of the camera's image \
-                       size)",
+                what: "silhouette width vs camera image width (a mask of the camera's image size)",
                 expected: w as usize,
                 got: mask.width() as usize,
             });
@@ -186,8 +185,7 @@ impl ConeDistance {
         if mask.height() != h {
             return Err(Error::SizeMismatch {
                 what:
-                    "silhouette height vs camera image height (give a mask of the camera's image \
-                       size)",
+                    "silhouette height vs camera image height (a mask of the camera's image size)",
                 expected: h as usize,
                 got: mask.height() as usize,
             });
@@ -287,7 +285,7 @@ impl ConeDistance {
     pub(crate) fn sample_core(&self, p: DVec3) -> skin_core::Result<ConeSample> {
         if !p.is_finite() {
             return Err(skin_core::Error::NonFinite {
-                what: "visual-hull query point (give a finite point)",
+                what: "visual-hull query point",
             });
         }
         let Ok(pixel) = self.camera.project(p) else {
@@ -533,15 +531,13 @@ impl ContourRayHull {
 pub(crate) fn check_views(cameras: &[Camera], masks: &[Mask]) -> Result<()> {
     if cameras.len() != masks.len() {
         return Err(Error::SizeMismatch {
-            what: "silhouettes vs cameras (give one silhouette per camera)",
+            what: "silhouettes (one per camera)",
             expected: cameras.len(),
             got: masks.len(),
         });
     }
     if cameras.is_empty() {
-        return Err(Error::Empty {
-            what: "cameras (give at least one camera)",
-        });
+        return Err(Error::Empty { what: "cameras" });
     }
     Ok(())
 }
