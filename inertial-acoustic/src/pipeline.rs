@@ -26,7 +26,7 @@ use crate::params::FilterParams;
 use crate::recording::Recording;
 use crate::start::first_pass;
 pub use crate::start::start;
-use crate::suit::Suit;
+use crate::suit::{BoardNoise, Suit};
 use crate::tuning::{estimate_board_axis_noise, estimate_board_noise};
 use crate::{Context, Result, ResultExt};
 
@@ -142,6 +142,9 @@ impl PipelineRun {
     }
 }
 
+/// The signature the noise estimators of [`crate::tuning`] share.
+type EstimateNoise = fn(&Skeleton, &Recording, FilterParams, bool, f64) -> Result<Vec<BoardNoise>>;
+
 /// CPU time of the calling thread, seconds (0 where the platform cannot tell).
 pub(crate) fn thread_cpu_s() -> f64 {
     cpu_time::ThreadTime::try_now().map_or(0.0, |t| t.as_duration().as_secs_f64())
@@ -207,23 +210,14 @@ pub fn run(
         adapted.suit = h.suit;
         recording = &adapted;
     }
-    let noise = match params.board_noise {
+    let estimate = match params.board_noise {
         BoardNoiseEstimate::Suit => None,
-        BoardNoiseEstimate::PerBoard => Some(estimate_board_noise(
-            skeleton,
-            recording,
-            filter,
-            known,
-            params.first_pass_s,
-        )?),
-        BoardNoiseEstimate::PerAxis => Some(estimate_board_axis_noise(
-            skeleton,
-            recording,
-            filter,
-            known,
-            params.first_pass_s,
-        )?),
+        BoardNoiseEstimate::PerBoard => Some(estimate_board_noise as EstimateNoise),
+        BoardNoiseEstimate::PerAxis => Some(estimate_board_axis_noise as EstimateNoise),
     };
+    let noise = estimate
+        .map(|f| f(skeleton, recording, filter, known, params.first_pass_s))
+        .transpose()?;
     if let Some(noise) = noise {
         adapted = recording.clone();
         adapted.suit = adapted.suit.with_board_noise(noise)?;
