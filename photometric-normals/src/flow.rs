@@ -148,6 +148,25 @@ fn to_img(im: &GrayF32Image) -> Img {
 /// [`Error::SizeMismatch`] for images of different sizes; [`Error::Empty`] for zero-sized
 /// images; [`Error::NonFinite`] for NaN or infinite intensities; [`Error::InvalidParam`] for a
 /// patch size below 2, a zero stride or a negative smoothness.
+///
+/// # Example
+/// A smooth texture moved by (2.0, −1.0) px: the flow finds the shift, and the second image
+/// warped back by it matches the first.
+/// ```
+/// use photometric_normals::{dense_flow, warp, FlowParams};
+/// use skin_core::image::GrayF32Image;
+///
+/// let texture = |x: f32, y: f32| 0.5 + 0.2 * (0.31 * x).sin() * (0.23 * y).cos() + 0.1 * (0.17 * (x + y)).sin();
+/// let i0 = GrayF32Image::from_fn(96, 96, |x, y| image::Luma([texture(x as f32, y as f32)]));
+/// let i1 = GrayF32Image::from_fn(96, 96, |x, y| image::Luma([texture(x as f32 - 2.0, y as f32 + 1.0)]));
+/// let flow = dense_flow(&i0, &i1, &FlowParams::default())?;
+/// let centre = flow.u[48 * 96 + 48];
+/// assert!((centre[0] - 2.0).abs() < 0.1 && (centre[1] + 1.0).abs() < 0.1, "{centre:?}");
+/// // Backward warp: warped(x) = i1(x + u(x)) ≈ i0(x) away from the borders.
+/// let warped = warp(&i1, &flow, 1.0)?;
+/// assert!((warped.get_pixel(48, 48)[0] - i0.get_pixel(48, 48)[0]).abs() < 0.01);
+/// # Ok::<(), photometric_normals::Error>(())
+/// ```
 pub fn dense_flow(i0: &GrayF32Image, i1: &GrayF32Image, params: &FlowParams) -> Result<Flow> {
     if i0.dimensions() != i1.dimensions() {
         return Err(Error::SizeMismatch {

@@ -1,7 +1,8 @@
 //! # photometric-normals
 //!
-//! Multi-view photometric normal maps from binary half-on spherical lighting, after
-//! D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis, 2010), §3.2 (and Vlasic,
+//! Multi-view photometric normal maps from binary half-on spherical lighting (§3.2) and the
+//! surface built from them by integration, matching, merging and hole filling (§3.3), after
+//! D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis, 2010), Chapter 3 (and Vlasic,
 //! Peers, Baran, Debevec, Popović, Rusinkiewicz, Matusik, *Dynamic Shape Capture using
 //! Multi-View Photometric Stereo*, SIGGRAPH Asia 2009).
 //!
@@ -12,34 +13,35 @@
 //! the normals of the N best matches are blended (Eq. 3.2). Spheres at several heights
 //! compensate for the lights' finite distance (§3.2.3).
 //!
-//! ## Stages, in pipeline order (one private file each, everything re-exported here)
+//! Use it to turn multi-view images under a light stage's gradient patterns into per-camera
+//! normal maps, and those normal maps (with silhouettes) into one closed mesh per frame
+//! (§3.3). It needs calibrated cameras, the seven lighting conditions per frame and a
+//! grey-sphere calibration per camera; it is not a single-camera or distant-light photometric
+//! stereo, and it does not track a mesh over time.
 //!
-//! | file | stage | main items | paper |
-//! | --- | --- | --- | --- |
-//! | `cycle.rs` | the lighting conditions: half-on patterns and the 8-frame cycle | [`Pattern`], [`PATTERNS`], [`CYCLE`] | §3.2.2 Eq. 3.1 |
-//! | `patterns.rs` | the lights' weights under a pattern, one view under the seven conditions, exposure limits | [`pattern_weights`], [`PatternImages`], [`Exposure`] | §3.2.2, §3.2.3 |
-//! | `calibration.rs` | grey-sphere lookup tables in a kd-tree, N-best blending, heights | [`LookupTable`], [`HeightCalibration`], [`CalibrationSphere`] | §3.2.2 Eq. 3.2, §3.2.3 |
-//! | `flow.rs` | pyramidal DIS-style dense optical flow (patch inverse search, densification, Horn–Schunck refinement) and backward warps | [`dense_flow`], [`warp`], [`FlowParams`] | §3.2.3 |
-//! | `motion.rs` | forward/backward flow between tracking frames, pattern frames warped to the centre (linear motion), confidence | [`compensate_motion`], [`CompensatedFrame`], [`MotionParams`] | §3.2.3 |
-//! | `normals.rs` | per-pixel normal maps with invalid marks | [`estimate_normals`], [`estimate_normals_on_proxy`], [`NormalMap`], [`NormalParams`] | §3.2.2, §3.2.3 |
-//! | `silhouette.rs` | silhouettes: background subtraction, chroma key, holes filled by colour statistics | [`extract_silhouette`], [`Backdrop`], [`SilhouetteParams`] | §3.2.1 |
-//! | `colour.rs` | photometric calibration: 3 × 3 colour transfer matrix per camera from a colour chart (least squares) | [`ColourTransfer`], [`macbeth_reference`] | §3.2.1 |
-//! | `depth_map.rs` | per-view depth along pixel rays, the currency of §3.3's stages | [`DepthMap`] | §3.3 |
-//! | `marching_cubes.rs` | marching cubes over sparse cells (face-walking loops, asymptotic decider; watertight where observed) | (internal) | §3.3.3 |
-//! | `merge.rs` | VRIP volumetric merging on a sparse 8³-block volume: ramps along lines of sight, boundary × cosine × inverse-distance weights | [`merge_views`], [`MergeView`], [`MergeParams`], [`MergedSurface`] | §3.3.3 |
-//! | `poisson/` | screened Poisson hole filling from weighted oriented samples (sparse grid hierarchy, cascadic CG; files grid, samples, solve, assembly, extract) | [`screened_poisson`], [`OrientedSample`], [`PoissonParams`], [`PoissonSurface`] | §3.3.3 (Kazhdan & Hoppe 2013) |
-//! | `proxy.rs` | the visual hull's depth per camera (image-based, sphere-traced signed distances), a mesh proxy's depth (pass 2) | [`PolygonalHull`], [`PolygonalHullParams`], [`mesh_proxy_depth`] | §3.3 |
-//! | `multigrid.rs` | the O(n) solver of Eq. 3.3: conjugate gradients (`skin_core::lsq::pcg`) preconditioned by a V-cycle of smoothed aggregation (3 × 3 blocks, Galerkin), scaled by and warm-started from the proxy depth | [`MultigridParams`] | §3.3.1 Eq. 3.3 |
-//! | `integrate.rs` | single-view integration of a normal map into ray depths with soft proxy depths; discontinuities removed | [`integrate_normals`], [`IntegrationParams`], [`IntegrationSolver`], [`depth_jumps`], [`depth_errors`] | §3.3.1 Eq. 3.3 |
-//! | `matching/` | pairwise matching (one file per stage: params, views, mesh, epipolar, horn, metrics, epipolar_dp, plane, pair, coarse_to_fine): four metrics, epipolar-plane cost grids, four-state dynamic programming with discontinuities, proxy-guided band | [`match_pair`], [`MatchingParams`], [`MatchMetric`], [`depth_map_mesh`] | §3.3.2 |
-//! | `offsets.rs` | membrane depth offsets pulling each surface to its matches, far regions discarded; the whole per-view stage of a pass | [`depth_offsets`], [`OffsetParams`], [`per_view_surfaces`], [`SurfaceParams`] | §3.3.2 Eq. 3.4 |
-//! | `reconstruct.rs` | the two passes: per-view surfaces against the hull, merge, Poisson with hull samples at 0.01; again with the hole-filled mesh as proxy | [`reconstruct`], [`ReconstructParams`], [`Reconstruction`], [`Pass`] | §3.3, §3.3.3 |
-//! | `refine.rs` | the merged mesh moved along its normals to agree with the measured normals (Nehab et al. 2005's positions-and-normals energy, one sparse solve; beyond the thesis) | [`refine_mesh`], [`RefineParams`], [`target_normals`] | beyond (§3.1 ref. \[104\]) |
-//! | `metrics.rs` | Table 3.1: coverage, normal deviation, local normal deviation from the data alone; distance to a true mesh | [`table_metrics`], [`TableMetrics`], [`surface_distance`] | §3.4 |
-//! | `error.rs` | [`Error`], [`Context`] | | — |
+//! ## Stages
+//!
+//! | stage | thesis | main items |
+//! | --- | --- | --- |
+//! | lighting conditions and the 8-frame cycle | §3.2.2 Eq. 3.1 | [`Pattern`], [`PATTERNS`], [`CYCLE`], [`patterns_weights`] |
+//! | one view under the seven conditions, exposure limits | §3.2.2, §3.2.3 | [`PatternImages`], [`Exposure`] |
+//! | grey-sphere lookup tables, N-best blending, heights | §3.2.2 Eq. 3.2, §3.2.3 | [`LookupTable`], [`HeightCalibration`] |
+//! | normal maps | §3.2.2 | [`estimate_normals`], [`NormalMap`] |
+//! | optical flow, motion compensation | §3.2.3 | [`dense_flow`], [`compensate_motion`] |
+//! | silhouettes, colour transfer | §3.2.1 | [`extract_silhouette`], [`ColourTransfer`] |
+//! | visual-hull proxy depths | §3.3 | [`PolygonalHull`], [`mesh_proxy_depth`] |
+//! | single-view integration (Eq. 3.3) | §3.3.1 | [`integrate_normals`] |
+//! | pairwise matching | §3.3.2 | [`match_pair`] |
+//! | depth offsets (Eq. 3.4), the per-view stage | §3.3.2 | [`depth_offsets`], [`per_view_surfaces`] |
+//! | VRIP merging | §3.3.3 | [`merge_views`] |
+//! | screened Poisson hole filling | §3.3.3 | [`screened_poisson`] |
+//! | the two passes | §3.3 | [`reconstruct`] |
+//! | positions-and-normals refinement (beyond the thesis) | §3.1 ref. \[104\] | [`refine_mesh`] |
+//! | Table 3.1 metrics | §3.4 | [`table_metrics`], [`surface_distance`] |
 //!
 //! Errors are one [`Error`]; an error inside a loop over cameras or frames says where
-//! ([`Error::At`] with a [`Context`]).
+//! ([`Error::At`] with a [`Context`]). Parameters, formats, validation and limitations:
+//! `docs/photometric-normals.md` in the repository.
 //!
 //! ## Quick start
 //!
@@ -86,13 +88,14 @@
 //! # Ok::<(), photometric_normals::Error>(())
 //! ```
 //!
-//! ## Validation
+//! ## Validation equipment
 //!
 //! With the cargo feature `validation`, the public module `truth` holds the studio scene of
 //! the validation (`StudioScene`: a subject, its light stage and camera ring), the studio's
 //! light patterns and calibration spheres, ground-truth scoring (angular error, shadowed
 //! concavities, wrinkled regions) and the distant-light baseline; `peer_workloads` regenerates
 //! the peer benchmarks' merging and Poisson inputs (workloads 6a and 6b) with their truth.
+#![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
@@ -113,6 +116,7 @@ mod normals;
 mod offsets;
 mod patterns;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub mod peer_workloads;
 mod poisson;
 mod proxy;
@@ -120,6 +124,7 @@ mod reconstruct;
 mod refine;
 mod silhouette;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub mod truth;
 
 pub use calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
@@ -139,6 +144,7 @@ pub use matching::{
 };
 pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface};
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub use metrics::{
     coverage_budget, displacement_survival, BudgetInputs, CoverageBudget, DisplacementSurvival,
 };

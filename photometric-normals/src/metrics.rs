@@ -566,6 +566,7 @@ pub fn vertex_normal_samples(
 /// pixel counts over all cameras, each measured normal in exactly one class, in the order
 /// of the pipeline.
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct CoverageBudget {
     /// Measured normals (as [`TableMetrics::measured_px`]).
@@ -635,6 +636,7 @@ impl CoverageBudget {
 
 /// The inputs of one pass that [`coverage_budget`] traces.
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 #[derive(Debug, Clone, Copy)]
 pub struct BudgetInputs<'a> {
     /// The pass's proxy depth per camera.
@@ -658,6 +660,7 @@ pub struct BudgetInputs<'a> {
 /// [`Error::SizeMismatch`] for counts or image sizes that differ; [`Error::InvalidParam`] for
 /// a non-positive `near_m`; errors of the rasteriser (named by camera).
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub fn coverage_budget(
     cameras: &[Camera],
     normals: &[NormalMap],
@@ -789,6 +792,7 @@ pub fn surface_distance(mesh: &TriMesh, truth: &TriMesh) -> Result<SurfaceDistan
 /// mesh keeps ([`displacement_survival`]). Displacements are signed heights along the smooth
 /// surface's normal; the figures are over the measured vertices.
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DisplacementSurvival {
     /// Vertices in the region (with a non-zero displacement asked for).
@@ -828,6 +832,7 @@ pub struct DisplacementSurvival {
 /// `reach_m`; [`Error::Empty`] when fewer than 3 vertices are measured or the true heights
 /// do not vary; mesh errors (non-finite vertices, empty meshes).
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub fn displacement_survival(
     smooth: &TriMesh,
     displacement: &[DVec3],

@@ -35,9 +35,9 @@
 //! the mask exactly (no rediscretisation of boundaries or of the varying weights
 //! `((n_i + n_j)ᵀ r)²`, which vanish at grazing angles). The coarsest level
 //! (≤ [`COARSEST_UNKNOWNS`] unknowns, at the latest a 1 × 1 grid) is solved by dense
-//! Cholesky. (Plain 2 × 2 aggregation, this module's first hierarchy, needed 83–98 CG
-//! iterations on the studio's 1024² views against 22–31 now; 2 × 2 blocks with a smoothed
-//! prolongator widen the stencil level by level.)
+//! Cholesky. (Plain 2 × 2 aggregation needs 83–98 CG iterations on the studio's 1024² views
+//! against 22–31 with this hierarchy; 2 × 2 blocks with a smoothed prolongator widen the
+//! stencil level by level.)
 //!
 //! **The cycle and the Krylov method.** One V-cycle with symmetric Gauss–Seidel smoothing
 //! (forward before the coarse correction, backward after) is a symmetric positive definite

@@ -40,7 +40,7 @@ pub struct ReconstructParams {
     pub merge: MergeParams,
     /// Read the merge's [`MergeParams::max_depth_jump_m`] as a threshold per pixel at
     /// [`crate::IntegrationParams::THESIS_WIDTH_PX`] and scale it to the cameras' width, as the integration's
-    /// thresholds are. Default false (1 cm at every width, as before). Ours: at
+    /// thresholds are. Default false (1 cm at every width). Ours: at
     /// 512² the unscaled 1 cm cuts the views into boundary wherever a slope is steeper than
     /// 63°; scaled, pass 2's coverage rose 80.8 → 83.6 % (exact normals) but the merged
     /// mesh's p95 distance to the truth rose 38.1 → 40.3 mm, so it is not the default. No
