@@ -1,14 +1,16 @@
 // Over 1,000 lines: one `SkeletalEkf`; its time update and observation models share its buffers.
 //! The skeletal extended Kalman filter (§4.4): state `x = (θ, θ̇, θ̈)` of the skeleton's free
-//! DOFs, dynamics Eq. 4.1 (`θ += Δt θ̇`, `θ̇ += Δt θ̈`, `θ̈ += w`), observations of
+//! DOFs, dynamics Eq. 4.1 as the exact constant-acceleration transition (`θ += Δt θ̇ +
+//! ½Δt² θ̈`, `θ̇ += Δt θ̈`, `θ̈ += w`; the printed first-order `θ += Δt θ̇` with
+//! [`FilterParams::first_order_step`]), observations of
 //! gyroscopes (Eq. 4.3), accelerometers (Eq. 4.2) and distances (Eq. 4.4) processed
 //! sequentially per sensor type, each scalar reading on its own (Eq. 4.7–4.9 with a scalar
 //! `H P Hᵀ + R`), with analytic Jacobians from `skin_core::skeleton` (re-linearised once per
 //! sensor type; within a type each scalar's innovation is corrected to first order for the
 //! updates before it).
 //!
-//! **Structure.** `F = [[I, Δt I, 0], [0, I, Δt I], [0, 0, I]]` is applied to P block-wise in
-//! O(N²) (two column and two row axpys) instead of two dense products; the process noise
+//! **Structure.** `F = [[I, Δt I, ½Δt² I], [0, I, Δt I], [0, 0, I]]` is applied to P
+//! block-wise in O(N²) (column and row axpys) instead of two dense products; the process noise
 //! enters the θ̈ block only (`W = [0; 0; I]`). Observation rows are sparse (only the DOFs on
 //! the sensor's chain), so `P Hᵀ` costs O(N · chain) and each scalar update one rank-1
 //! downdate of P's lower triangle (mirrored once per frame before the time update).

@@ -9,6 +9,32 @@
 //!   `movement` flags.
 //! * x-io Fusion's example log (MIT, `data/imu-xio/`), read by [`read_xio_csv`]: 135 s at
 //!   about 100 Hz, gyroscope in deg/s and accelerometer in g, no reference.
+//!
+//! [`run_orientation`] runs [`OrientationEkf`] (the skeletal filter's equations for one free
+//! rotation) over a log, initialised from a rest interval at its start (§4.4.4).
+//!
+//! # Example
+//!
+//! BROAD's trial 07 (the shipped excerpt: rest until 26.5 s, then fast rotations by hand),
+//! with the noise levels `examples/inertial_capture` selects on trial 09, scored against the
+//! optical reference over the benchmark's `movement` samples:
+//!
+//! ```
+//! use inertial_acoustic::imu_log::{read_broad_hdf5, run_orientation};
+//! use inertial_acoustic::{heading_inclination_rmse, FilterParams};
+//! use skin_core::math::DVec3;
+//!
+//! let log = read_broad_hdf5("../data/imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5")?;
+//! let params = FilterParams::default()
+//!     .with_process_sigma(4.0)
+//!     .with_measurement_sigmas(5.0, 0.002, 0.0025);
+//! let run = run_orientation(&log, params, 20.0)?; // the first 20 s are rest
+//! assert_eq!(run.diverged, 0);
+//! let rmse = heading_inclination_rmse(&run.orientation, &log.reference, &log.movement, DVec3::Z)?;
+//! println!("inclination {:.2}°, heading {:.2}°", rmse.inclination_deg, rmse.heading_deg);
+//! assert!(rmse.combined_deg() < 3.0);
+//! # Ok::<(), inertial_acoustic::Error>(())
+//! ```
 
 use std::path::Path;
 

@@ -244,8 +244,8 @@ fn scramble(bits: &mut [bool]) {
 /// [`frame_error_bound_counts`](Self::frame_error_bound_counts) (step) still hold — the
 /// σ slightly over-states the first frame after a key, the safe side; the telescoping of
 /// the running sum restarts at each key. K = 28 (0.2 s at 140 Hz) is the simulator's
-/// default (`SimulationParams::key_interval`, chosen from data: docs, "A resynchronising
-/// code").
+/// default (`SimulationParams::key_interval`, chosen from the bit-error sweep of
+/// `examples/inertial_capture -- --ber-sweep`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeltaCodec {
     recon: [i32; CHANNELS],

@@ -244,7 +244,7 @@ impl OrientationEkf {
     /// no `½Δt² ω̇` is missing (test `mean_rate_samples_of_a_constant_angular_acceleration_integrate_exactly`).
     /// Reading the samples as instantaneous rates instead (turning by `Δt ω − ½Δt² ω̇`, the
     /// constant-acceleration transition for that reading) made BROAD worse, 1.57° / 0.80° →
-    /// 2.35° / 1.34° (inclination / heading; docs "Per-axis noise").
+    /// 2.35° / 1.34° (inclination / heading, `examples/inertial_capture`).
     fn predict_rotation(&mut self) {
         let dt = self.params.frame_time_s;
         let step = DQuat::from_scaled_axis(self.rate_rad_s() * dt);

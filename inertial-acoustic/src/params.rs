@@ -213,14 +213,15 @@ pub struct FilterParams {
     /// and its angles restart at zero, away from the Euler singularity at ±90° (module docs
     /// of the EKF). 0 keeps the skeleton's Euler angles throughout, as the thesis's filter
     /// does. Default: 0 (with the thesis's process noise the Euler chart tracked better in a
-    /// four-seed study; at the tuned, larger process noise 0.3 did — see the docs).
+    /// four-seed study; at the tuned, larger process noise 0.3 did — `docs/inertial-acoustic.md`,
+    /// Parameters).
     #[serde(default)]
     pub recentre_rad: f64,
     /// Time update of θ as Eq. 4.1 prints it, `θ + Δt θ̇` (the first-order step), instead of
     /// the exact transition of the constant-acceleration model it discretises,
     /// `θ + Δt θ̇ + ½Δt² θ̈`. The first-order step's missing `½Δt² θ̈` biases every step;
-    /// on a periodic walk that bias made even perfect measurements drift (left shoulder
-    /// 2 → 52° over 60 s, docs "The treadmill drift traced"). Default: false (exact).
+    /// on a periodic walk that bias makes even perfect measurements drift (left shoulder
+    /// 2 → 52° over 60 s of the oracle treadmill walk). Default: false (exact).
     #[serde(default)]
     pub first_order_step: bool,
     /// Down-weighting of large distance innovations (after the gate). Default:
@@ -234,9 +235,8 @@ pub struct FilterParams {
     /// as a measurement and lets the dynamics carry the state through it. Default: true —
     /// measured better on the exercise motion (`inertial_capture --quick`, garment A+G+D
     /// neck / shoulder / hip 8.03 / 5.45 / 5.14 → 6.09 / 4.77 / 3.51°); on the treadmill walk,
-    /// where the simulated front end saturates on most of the hand's frames, it does not help
-    /// (docs, "The treadmill on the simulated suit"). False: every row used, as the thesis's
-    /// filter does.
+    /// where the simulated front end saturates on most of the hand's frames, it does not help.
+    /// False: every row used, as the thesis's filter does.
     #[serde(default = "default_true")]
     pub skip_saturated: bool,
 }

@@ -144,7 +144,7 @@ struct Placement {
     surface: [f64; 3],
 }
 
-/// The 18 boards (see `docs/inertial-acoustic.md` for the table). The human skeleton faces
+/// The 18 boards (tabled in `docs/inertial-acoustic.md`, Suit). The human skeleton faces
 /// +z with its left at +x and +y up.
 const BOARDS: [Placement; 18] = [
     p("sacrum", "pelvis", 0.0, [0.0, 0.02, -0.12]),

@@ -53,6 +53,49 @@ use skin_core::skeleton::Skeleton;
 /// wrong format or version, a skeleton whose joint or DOF names differ, unknown board,
 /// source or DOF names, missing or extra columns, NaN or infinite values, out-of-order or
 /// duplicated times and times outside the recording, each with the file and line.
+///
+/// # Example
+///
+/// Two seconds of a still suit in the rest pose (gravity on the accelerometers, zero rates;
+/// the first second is the rest hold), written and read back exactly:
+///
+/// ```
+/// use inertial_acoustic::{FrameObservations, InertialReading, Recording, Suit};
+/// use skin_core::math::DVec3;
+/// use skin_core::skeleton::{human_skeleton, HumanParams};
+///
+/// let skeleton = human_skeleton(&HumanParams::default())?;
+/// let suit = Suit::vlasic(&skeleton)?;
+/// let rest_pose = skeleton.rest_pose();
+/// let fk = skeleton.forward_kinematics(&rest_pose)?;
+/// let still: Vec<Option<InertialReading>> = suit
+///     .boards()
+///     .iter()
+///     .map(|b| {
+///         let up = fk.frame_rotation(&b.frame()).map(|q| q.inverse() * DVec3::Y * 9.80665);
+///         up.map(|a| Some(InertialReading::new(DVec3::ZERO, a)))
+///     })
+///     .collect::<Result<_, _>>()?;
+/// let frame = FrameObservations { inertial: still, distances: vec![] };
+/// let recording = Recording {
+///     rate_hz: 140.0,
+///     start_s: 0.0,
+///     suit,
+///     rest_frames: 140,
+///     rest_pose,
+///     frames: vec![frame; 280],
+///     known_dofs: vec![],
+///     known: vec![],
+/// };
+/// recording.check(&skeleton)?;
+///
+/// let dir = std::env::temp_dir().join(format!("ia-recording-doc-{}", std::process::id()));
+/// recording.write(&dir, &skeleton)?; // manifest.json, boards.csv, inertial/<board>.csv, …
+/// let back = Recording::read(&dir, &skeleton)?;
+/// assert_eq!(back, recording);
+/// # std::fs::remove_dir_all(&dir).ok();
+/// # Ok::<(), inertial_acoustic::Error>(())
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
     /// Frame rate of the inertial stream, Hz (the thesis's suit: 140).
