@@ -17,6 +17,14 @@
 //! with prototype locations `p_k` chosen by farthest-point selection (§5.2) and prototype
 //! shapes `v_jk` the `F_min` percentile of the `F_near` nearest observations (§5.3).
 //!
+//! **Use it when** you have calibrated, synchronised video silhouettes and motion-capture
+//! joint angles of a performer and want a pose-driven skin model (needle lengths or a mesh for
+//! any pose) without a template mesh. Outward shape changes (muscles) are followed best;
+//! concavities and the bending of skin inside a joint are not, and head, hands and neck have
+//! no primitives. The reference page, docs/needle-model.md in the repository, has every
+//! parameter with its default and source, the validation protocol with its figures, and the
+//! limitations with the tests that show them.
+//!
 //! ## Stages, in pipeline order (one private file each, everything re-exported here)
 //!
 //! | file | stage | paper |
@@ -109,11 +117,13 @@
 //! studio: test sets, per-vertex errors) and `baseline` (linear blend skinning with bone-heat
 //! weights fitted to the same silhouettes) are compiled too. Their items are reached through
 //! the module, by that one path (`needle_model::baseline::SkinnedShape`).
+#![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
 mod animate;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub mod baseline;
 mod config;
 mod device;
@@ -132,6 +142,7 @@ mod store;
 mod surface;
 mod sync;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub mod truth;
 
 pub use animate::{animate, AnimatedBody, AnimatedPrimitive};
