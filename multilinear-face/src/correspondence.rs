@@ -59,6 +59,28 @@ pub struct TemplateFit {
 /// [`Error::SizeMismatch`] for feature lists of different lengths; [`Error::IndexOutOfRange`]
 /// for a feature index past the template; [`Error::InvalidParam`] for no stage or a negative
 /// weight; the mesh and least-squares errors of `skin-core` (empty or degenerate meshes).
+///
+/// # Example
+///
+/// A unit icosphere as the template, fitted to a scan of the same sphere scaled by 2 and moved,
+/// from six marked feature points: the fitted vertices lie on the scan.
+///
+/// ```
+/// use multilinear_face::{fit_template, CorrespondenceParams};
+/// use skin_core::math::DVec3;
+/// use skin_core::mesh::{shapes::icosphere, TriMesh};
+///
+/// let template = icosphere(2)?;
+/// let centre = DVec3::new(1.0, -2.0, 0.5);
+/// let scan_vertices: Vec<DVec3> = template.vertices.iter().map(|&p| centre + 2.0 * p).collect();
+/// let scan = TriMesh::new(scan_vertices, template.faces.clone())?;
+/// let features = [0, 5, 17, 40, 80, 120];
+/// let marked: Vec<DVec3> = features.iter().map(|&f| scan.vertices[f]).collect();
+/// let fit = fit_template(&template, &features, &scan, &marked, &CorrespondenceParams::default())?;
+/// assert!((fit.alignment.scale - 2.0).abs() < 1e-6);
+/// assert!(*fit.surface_rms.last().unwrap() < 0.01);
+/// # Ok::<(), multilinear_face::Error>(())
+/// ```
 pub fn fit_template(
     template: &TriMesh,
     template_features: &[usize],

@@ -10,6 +10,15 @@
 //! between videos with the target's lifted texture.
 //! The tensor algebra itself (HOSVD, HOOI, mode products) is `skin_core::tensor`.
 //!
+//! **Use it when** you have (or can put into correspondence) face meshes of several people ×
+//! several expressions, possibly with some combinations missing, and want a compact model to
+//! synthesise, edit, complete or track faces. Tracking from video needs a textured face, a few
+//! 2D feature points in the first frame, and a face the model's knobs span. Faces in which
+//! expression and identity simply add gain nothing over the additive model, which [`impute`]
+//! detects on the known faces. The reference page, docs/multilinear-face.md in the repository,
+//! has every parameter with its default and source, the validation protocol with its figures,
+//! and the limitations with the tests that show them.
+//!
 //! ## Stages, in pipeline order (one private file each, everything re-exported here)
 //!
 //! | file | stage | main items | paper |
@@ -61,6 +70,9 @@
 //! assert_eq!(filled.faces.face(3)?.len(), 20);
 //! # Ok::<(), multilinear_face::Error>(())
 //! ```
+//!
+//! [`track_points`] and [`fit_template`] have runnable examples too.
+#![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]
 
@@ -73,6 +85,7 @@ mod model;
 mod tracking;
 mod transfer;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub mod validation;
 mod video;
 

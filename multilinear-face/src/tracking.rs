@@ -339,6 +339,39 @@ pub(crate) fn reprojection_rms(
 /// a frame with another number of points (in [`Error::At`] with [`Context::Frame`]) or a
 /// `constant` list of the wrong length; [`Error::IndexOutOfRange`] for a tracked vertex past the
 /// model; [`Error::NonFinite`] for NaN pixels; [`Error::InvalidParam`] for a singular system.
+///
+/// # Example
+///
+/// A bilinear model of 2 expressions × 3 people; person 2's expression 1 seen by an
+/// orthographic camera (2 pixels per unit, shifted by (100, 50) px) in three frames. With the
+/// identity constant, the tracked weights reproduce the face.
+///
+/// ```
+/// use multilinear_face::{track_points, FaceTensor, ModelParams, MultilinearModel, TrackParams};
+/// use skin_core::math::DVec3;
+///
+/// let face = |e: f64, i: f64| -> Vec<DVec3> {
+///     (0..20)
+///         .map(|k| {
+///             let k = k as f64;
+///             let depth = e * (0.2 * k).cos() * (1.0 + 0.3 * i);
+///             DVec3::new(k.cos() * (1.0 + 0.1 * i), k.sin() + 0.2 * e * (0.5 * k).sin(), depth)
+///         })
+///         .collect()
+/// };
+/// let faces: Vec<Vec<DVec3>> = (0..6).map(|f| face((f / 3) as f64, (f % 3) as f64)).collect();
+/// let data = FaceTensor::from_faces(&[2, 3], &faces)?;
+/// let (model, _) = MultilinearModel::fit(&data, &ModelParams::new(&[2, 3]))?;
+///
+/// let tracked: Vec<usize> = (0..20).collect();
+/// let pixels: Vec<[f64; 2]> =
+///     faces[5].iter().map(|p| [100.0 + 2.0 * p.x, 50.0 + 2.0 * p.y]).collect();
+/// let frames = vec![pixels; 3];
+/// let track = track_points(&model, &tracked, &frames, &[false, true], &TrackParams::default())?;
+/// assert_eq!(track.cameras.len(), 3);
+/// assert!(track.reprojection_rms_px.iter().all(|&r| r < 0.05));
+/// # Ok::<(), multilinear_face::Error>(())
+/// ```
 pub fn track_points(
     model: &MultilinearModel,
     tracked: &[usize],
