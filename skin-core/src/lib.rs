@@ -18,6 +18,66 @@
 //! | [`tensor`] | dense N-mode tensors, unfolding, mode-n products, truncated HOSVD and HOOI (Tucker) | Vlasic Eq. 5.1–5.4 |
 //! | [`check`] | input checks: finite, positive, in range, index in bounds | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
+//!
+//! Cargo features: `gltf` (glTF 2.0 export of mesh sequences, [`mesh::write_gltf_animation`])
+//! and `decimate` (mesh decimation by edge collapses, [`mesh::decimate`]); both off by default.
+//!
+//! **Use it when** you build a capture method on calibrated cameras, an articulated skeleton
+//! and triangle meshes, or want one of its pieces alone: camera calibration from 2D–3D points
+//! or a waved bar, marker detection and tracking, forward kinematics with the Jacobians an
+//! EKF needs, Laplacian editing through sparse least squares, bone-heat skinning weights, or
+//! Tucker decompositions. The reference page, docs/skin-core.md in the repository, maps every
+//! module to its paper section, lists the parameters with their defaults and sources, and
+//! gives the validation figures and limitations.
+//!
+//! ## Quick start
+//!
+//! A posed skeleton seen by a camera, then a Laplacian edit (Vlasic §2.4.1) solved by sparse
+//! least squares: keep a sphere's Laplacian coordinates, pull one vertex out by 0.2, pin another.
+//!
+//! ```
+//! use nalgebra::DMatrix;
+//! use nalgebra_sparse::{CooMatrix, CscMatrix};
+//! use skin_core::camera::{Camera, Intrinsics};
+//! use skin_core::lsq::{LsqParams, LsqProblem};
+//! use skin_core::math::DVec3;
+//! use skin_core::mesh::{cotangent_laplacian, shapes, LaplacianParams};
+//! use skin_core::skeleton::{human_skeleton, AttachedPoint, HumanParams};
+//!
+//! // Forward kinematics of the human skeleton with the left elbow flexed, seen from 3 m.
+//! let s = human_skeleton(&HumanParams::default())?;
+//! let mut theta = s.rest_pose();
+//! theta[s.dof_index("l_elbow.flexion").unwrap()] = 1.2;
+//! let fk = s.forward_kinematics(&theta)?;
+//! let wrist = AttachedPoint { joint: s.joint_index("l_wrist").unwrap(), offset: DVec3::ZERO };
+//! let k = Intrinsics::new(800.0, 800.0, 320.0, 240.0, 640, 480)?;
+//! let eye = DVec3::new(0.0, 1.0, 3.0);
+//! let cam = Camera::look_at(k, eye, DVec3::new(0.0, 1.0, 0.0), DVec3::Y)?;
+//! let px = cam.project(fk.point(&wrist)?)?;
+//! assert!((0.0..640.0).contains(&px.x) && (0.0..480.0).contains(&px.y));
+//!
+//! // Laplacian editing: min ‖L X − L X₀‖² + 1000 ‖C X − D‖², one solve for x, y, z.
+//! let mesh = shapes::icosphere(2)?;
+//! let n = mesh.vertices.len();
+//! let l = cotangent_laplacian(&mesh, &LaplacianParams::default())?;
+//! let x0 = DMatrix::from_fn(n, 3, |i, c| mesh.vertices[i][c]);
+//! let mut c = CooMatrix::new(2, n);
+//! c.push(0, 0, 1.0); // vertex 0 moves
+//! c.push(1, n - 1, 1.0); // vertex n − 1 stays
+//! let mut d = DMatrix::zeros(2, 3);
+//! for k in 0..3 {
+//!     d[(0, k)] = 1.2 * x0[(0, k)];
+//!     d[(1, k)] = x0[(n - 1, k)];
+//! }
+//! let solver = LsqProblem::new(l.clone())
+//!     .with_term(CscMatrix::from(&c), 1000.0)
+//!     .factor(&LsqParams::default())?;
+//! let x = solver.solve(&(&l * &x0), &[d])?;
+//! let moved = DVec3::new(x[(0, 0)], x[(0, 1)], x[(0, 2)]);
+//! assert!((moved.length() - 1.2).abs() < 0.01);
+//! # Ok::<(), skin_core::Error>(())
+//! ```
+#![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 
 pub mod camera;

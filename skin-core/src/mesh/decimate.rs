@@ -14,6 +14,7 @@ use super::{EdgeTopology, TriMesh};
 use crate::{Error, Result};
 
 /// A decimated mesh and where its vertices came from.
+#[cfg_attr(docsrs, doc(cfg(feature = "decimate")))]
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decimation {
     /// The coarse mesh, vertices compacted in the original order.
@@ -34,6 +35,7 @@ pub struct Decimation {
 /// # Errors
 /// [`Error::InvalidParam`] if `target_vertices` is below 4 or not below the mesh's count;
 /// [`Error::Degenerate`] if the result has non-manifold edges; as [`TriMesh::validate`].
+#[cfg_attr(docsrs, doc(cfg(feature = "decimate")))]
 pub fn decimate(mesh: &TriMesh, target_vertices: usize) -> Result<Decimation> {
     mesh.validate()?;
     let n = mesh.vertex_count();

@@ -21,6 +21,7 @@ use crate::math::{DVec2, DVec3};
 use crate::{Error, Result};
 
 /// A mesh sequence to export: shared faces, one vertex list per frame.
+#[cfg_attr(docsrs, doc(cfg(feature = "gltf")))]
 #[derive(Debug, Clone, Copy)]
 pub struct MeshSequence<'a> {
     /// Triangles (vertex indices, counter-clockwise from outside).
@@ -44,6 +45,7 @@ pub struct MeshSequence<'a> {
 /// face index past the vertices; [`Error::NonFinite`] for NaN or infinite positions or
 /// coordinates; [`Error::InvalidParam`] for a frame time that is not positive or a sequence
 /// too large for glTF's 32-bit sizes; [`Error::Io`] from the writer.
+#[cfg_attr(docsrs, doc(cfg(feature = "gltf")))]
 pub fn write_gltf_animation(sequence: &MeshSequence<'_>, out: impl Write) -> Result<()> {
     let (json, bin) = encode(sequence)?;
     write_glb(&json, &bin, out)
@@ -53,6 +55,7 @@ pub fn write_gltf_animation(sequence: &MeshSequence<'_>, out: impl Write) -> Res
 ///
 /// # Errors
 /// As [`write_gltf_animation`]; [`Error::Io`] when the file cannot be created.
+#[cfg_attr(docsrs, doc(cfg(feature = "gltf")))]
 pub fn save_gltf_animation(path: impl AsRef<Path>, sequence: &MeshSequence<'_>) -> Result<()> {
     let path = path.as_ref();
     let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
