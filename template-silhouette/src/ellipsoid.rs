@@ -96,6 +96,7 @@ pub use model::{fit_half_width, Ellipsoid, EllipsoidBone, EllipsoidModel, Ellips
 pub use observations::{EllipsoidObservations, MarkerObservation};
 pub use params::EllipsoidParams;
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub use validation::{
     ellipsoid_scenario, score_ellipsoids, EllipsoidScenario, EllipsoidScenarioParams,
     EllipsoidScores, ScenarioFrame, ScenarioMotion,

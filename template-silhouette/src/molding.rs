@@ -41,6 +41,34 @@ pub struct SoftConstraint {
 /// The template's Laplacian operator, its Laplacian coordinates and a Cholesky factorisation
 /// whose symbolic analysis is made once and reused by every [`Molding::solve`]. A clone
 /// shares that analysis and refactorises on its own (one per thread).
+///
+/// Eq. 2.2 at full detail (`w_L = 1`) with three vertices moved by the same shift: the
+/// whole template follows them.
+///
+/// ```
+/// use skin_core::math::DVec3;
+/// use skin_core::mesh::shapes::uv_sphere;
+/// use skin_core::mesh::{LaplacianParams, SurfacePoint};
+/// use template_silhouette::{Molding, SoftConstraint};
+///
+/// let sphere = uv_sphere(DVec3::ZERO, 1.0, 12, 16)?;
+/// let mut molding = Molding::new(&sphere, &LaplacianParams::default())?;
+/// let shift = DVec3::new(0.1, -0.2, 0.05);
+/// let constraints = [0, 40, 80]
+///     .into_iter()
+///     .map(|f| {
+///         let point = SurfacePoint::corner(f, 0)?;
+///         let v = sphere.faces[f as usize][0] as usize;
+///         Ok(SoftConstraint { point, target: sphere.vertices[v] + shift })
+///     })
+///     .collect::<Result<Vec<_>, skin_core::Error>>()?;
+/// let coords = molding.coordinates().to_vec();
+/// let moved = molding.solve(1.0, &coords, 1000.0, &constraints)?;
+/// for (m, v) in moved.iter().zip(&sphere.vertices) {
+///     assert!((*m - (*v + shift)).length() < 1e-6);
+/// }
+/// # Ok::<(), template_silhouette::Error>(())
+/// ```
 #[derive(Clone)]
 pub struct Molding {
     faces: Vec<[u32; 3]>,

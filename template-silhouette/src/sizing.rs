@@ -71,9 +71,9 @@ pub struct SizingParams {
     /// 59 mm on average (the model has no pelvis ellipsoid; the torso's hull samples pull the
     /// spine's ellipsoid up) and the thighs lengthen to reach the knees (+37 / +67 mm); held,
     /// length error 26.5 → 17.1 mm from the true poses, 21.1 → 15.4 mm from the template
-    /// tracker's (docs/template-silhouette.md, "Sizing"). Its IRLS scale is the default's
-    /// choice ([`EllipsoidParams::kept_scale_min_rejected`]): the hull samples lose 5–9 % per
-    /// round, so the scale is taken over all of them.
+    /// tracker's (docs/template-silhouette.md, "Options and their measured trade-offs"). Its
+    /// IRLS scale is the default's choice ([`EllipsoidParams::kept_scale_min_rejected`]): the
+    /// hull samples lose 5–9 % per round, so the scale is taken over all of them.
     pub fit: EllipsoidParams,
 }
 

@@ -565,6 +565,40 @@ pub struct EllipsoidMultiFit {
 /// (§5.1, Eq. 8) with IRLS (§5.2), starting from `initial`: [`fit_ellipsoids_multi`] with
 /// one frame.
 ///
+/// Points on the limb ellipsoids of a performer in the rest pose whose half-widths are 6 cm,
+/// fitted from the default 4 cm:
+///
+/// ```
+/// use skin_core::skeleton::{human_skeleton, HumanParams};
+/// use template_silhouette::{
+///     fit_ellipsoids, EllipsoidModel, EllipsoidObservations, EllipsoidParams,
+/// };
+///
+/// let model = EllipsoidModel::limbs(human_skeleton(&HumanParams::default())?, 0.1)?;
+/// let rest = model.skeleton().rest_pose();
+/// let truth = model.initial_state(&rest, 0.06)?;
+/// let mut points = Vec::new();
+/// for e in model.ellipsoids(&truth)? {
+///     let (side, up) = e.axis.any_orthonormal_pair();
+///     for i in 0..15 {
+///         for j in 0..12 {
+///             let t = -0.9 + 1.8 * f64::from(i) / 14.0;
+///             let phi = std::f64::consts::TAU * f64::from(j) / 12.0;
+///             let r = e.half_width * (1.0 - t * t).sqrt();
+///             let around = side * phi.cos() + up * phi.sin();
+///             points.push(e.centre + e.axis * (t * e.half_length) + around * r);
+///         }
+///     }
+/// }
+/// let obs = EllipsoidObservations { points, ..Default::default() };
+/// let start = model.initial_state(&rest, 0.04)?;
+/// let fit = fit_ellipsoids(&model, &start, &obs, &EllipsoidParams::default())?;
+/// for w in &fit.state.half_width {
+///     assert!((w - 0.06).abs() < 0.005, "half-width {w} m");
+/// }
+/// # Ok::<(), template_silhouette::Error>(())
+/// ```
+///
 /// # Errors
 /// As [`fit_ellipsoids_multi`].
 pub fn fit_ellipsoids(

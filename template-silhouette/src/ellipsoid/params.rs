@@ -24,8 +24,9 @@ pub struct EllipsoidParams {
     pub sigma_theta_prior: f64,
     /// σ of the same prior on the translation DOFs (the root's position), metres; `None`:
     /// [`EllipsoidParams::sigma_theta_prior`]. Default `None`. [`crate::SizingParams`] holds
-    /// the given poses' root (docs/template-silhouette.md, "Sizing": with it free the joint
-    /// fit lifts the pelvis by 6 cm and lengthens the thighs to reach the knees).
+    /// the given poses' root (docs/template-silhouette.md, "Options and their measured
+    /// trade-offs": with it free the joint fit lifts the pelvis by 6 cm and lengthens the
+    /// thighs to reach the knees).
     pub sigma_translation_prior_m: Option<f64>,
     /// σ of the prior pulling each length scale to 1. Default 0.2.
     pub sigma_scale_prior: f64,
@@ -100,7 +101,7 @@ pub struct EllipsoidParams {
     /// every type and round (`Some(0.0)`) fits the hull samples no worse, but through the
     /// automatic initialisation it moves the template tracker's poses, and the sizing from
     /// them then fails its width claim (13.9 mm against the default proportions' 15.8; 9.0
-    /// with this default). Details in docs/template-silhouette.md ("The IRLS scale").
+    /// with this default). Details in docs/template-silhouette.md ("Options and their measured trade-offs").
     pub kept_scale_min_rejected: Option<f64>,
 }
 

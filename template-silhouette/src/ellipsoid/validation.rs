@@ -47,6 +47,7 @@ use crate::silhouette_constraints::{contour_rays, SilhouetteParams};
 
 /// Parameters of [`ellipsoid_scenario`] (the validation protocol as defaults).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub struct EllipsoidScenarioParams {
     /// Seed of every random draw. Default 12.
     pub seed: u64,
@@ -104,6 +105,7 @@ impl Default for EllipsoidScenarioParams {
 
 /// The studio motion of [`ellipsoid_scenario`].
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub enum ScenarioMotion {
     /// The fast motion (brisk swings of every DOF).
     Fast(FastMotionParams),
@@ -113,6 +115,7 @@ pub enum ScenarioMotion {
 
 /// One frame of the scenario.
 #[derive(Debug, Clone)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub struct ScenarioFrame {
     /// What the fit sees.
     pub observations: EllipsoidObservations,
@@ -128,6 +131,7 @@ pub struct ScenarioFrame {
 
 /// The scenario: the model (default skeleton), the cameras, the frames.
 #[derive(Debug, Clone)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub struct EllipsoidScenario {
     /// The ellipsoid model over the default skeleton's limbs.
     pub model: EllipsoidModel,
@@ -154,6 +158,7 @@ impl EllipsoidScenario {
 
 /// Scores of a fitted state against the truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub struct EllipsoidScores {
     /// Mean |fitted − true| bone length, mm.
     pub bone_length_error_mm: f64,
@@ -253,6 +258,7 @@ fn rigid(weights: &SkinWeights, i: usize) -> bool {
 /// # Errors
 /// Invalid parameters; errors of the studio (performer, motion, rendering) and of the
 /// silhouettes.
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidScenario> {
     check::in_range("outlier_fraction", params.outlier_fraction, 0.0..=0.9)?;
     check::positive("point_sigma_m", params.point_sigma_m)?;
@@ -575,6 +581,7 @@ pub fn ellipsoid_scenario(params: &EllipsoidScenarioParams) -> Result<EllipsoidS
 ///
 /// # Errors
 /// States of the wrong size.
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub fn score_ellipsoids(
     model: &EllipsoidModel,
     fitted: &EllipsoidState,
