@@ -32,7 +32,7 @@
 //! | `transfer.rs` | texture lifted from a frame onto tracked geometry; new geometry rendered with it into the frame | [`lift_texture`], [`render_textured`], [`FaceTexture`] | §5.4, Figures 5-1, 5-7 |
 //! | `video.rs` | tracking from video: KLT systems weighted into the model solves (Eq. 5.7), multi-scale, passes, initialisation from feature points, lost-face detection | [`track_video`], [`VideoTrackParams`], [`FeaturePoints`], [`VideoTrack`] | §5.4.1–5.4.2 |
 //! | `error.rs` | [`Error`], [`Context`] | | — |
-//! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans, rendered textured face videos | [`validation`] | §5.3.1, §5.4 |
+//! | `validation/` (feature `validation`) | data sets from the ICT face basis with a measured interaction, hold-out masks, the imputation metric, re-meshed scans, rendered textured face videos | `validation` | §5.3.1, §5.4 |
 //!
 //! Errors are one [`Error`]; an error inside a loop says where ([`Error::At`] with a
 //! [`Context`]: `Frame(i)` is the `i`-th face of a list, or the attribute mode of an

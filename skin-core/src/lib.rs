@@ -19,8 +19,8 @@
 //! | [`check`] | input checks: finite, positive, in range, index in bounds | |
 //! | [`optim`] | small dense optimisers: Levenberg–Marquardt, Nelder–Mead downhill simplex | Sand §4.1 |
 //!
-//! Cargo features: `gltf` (glTF 2.0 export of mesh sequences, [`mesh::write_gltf_animation`])
-//! and `decimate` (mesh decimation by edge collapses, [`mesh::decimate`]); both off by default.
+//! Cargo features: `gltf` (glTF 2.0 export of mesh sequences, `mesh::write_gltf_animation`)
+//! and `decimate` (mesh decimation by edge collapses, `mesh::decimate`); both off by default.
 //!
 //! **Use it when** you build a capture method on calibrated cameras, an articulated skeleton
 //! and triangle meshes, or want one of its pieces alone: camera calibration from 2D–3D points

@@ -3,8 +3,8 @@
 //! The core type is [`TriMesh`]: vertex positions (`DVec3`, metres) and faces (`[u32; 3]`,
 //! counter-clockwise seen from outside). Further submodules add IO, normals, adjacency,
 //! Laplacians (Vlasic thesis §2.4.1), surface queries, skinning (§2.5.1) and distance metrics;
-//! with the feature `gltf`, glTF 2.0 export of mesh sequences ([`write_gltf_animation`]); with
-//! the feature `decimate`, decimation by edge collapses ([`decimate`]).
+//! with the feature `gltf`, glTF 2.0 export of mesh sequences (`write_gltf_animation`); with
+//! the feature `decimate`, decimation by edge collapses (`decimate`).
 
 #[cfg(feature = "decimate")]
 mod decimate;
