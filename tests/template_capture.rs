@@ -932,3 +932,135 @@ fn trace_leg_lengths() {
         }
     }
 }
+
+/// The user of §2.3.3 who fixes hard frames during the forward pass, emulated by an oracle
+/// that sees the true pose (`OracleUser`): on the performer in the skirt walking (CMU 131_01),
+/// where the tracker loses the limbs, its rays cut the joint error; the frames it fixed are
+/// counted from the rays the tracker reports.
+#[test]
+fn an_emulated_user_fixing_frames_cuts_the_joint_error_of_the_skirt_walk() {
+    use dynamic_shapes::core::skeleton::{BvhParams, CMU_METRES_PER_UNIT};
+    use dynamic_shapes::template::{capture_sequence_corrected, OracleUser};
+    use dynamic_shapes_studio::{play_bvh, GarmentParams, RetargetParams, SkirtParams};
+
+    let performer = makehuman_performer(
+        example_kit::data_path("makehuman").unwrap(),
+        &DeformationParams::default()
+            .with_flap(None)
+            .with_garment(Some(GarmentParams::Skirt(SkirtParams::default()))),
+    )
+    .unwrap();
+    let motion = play_bvh(
+        example_kit::data_path("mocap-cmu/131_01.bvh").unwrap(),
+        &BvhParams {
+            metres_per_unit: CMU_METRES_PER_UNIT,
+        },
+        &performer.skeleton,
+        1.0 / 60.0,
+        &RetargetParams::default(),
+    )
+    .unwrap()
+    .motion;
+    let root = performer
+        .skeleton
+        .forward_kinematics(motion.frame(0))
+        .unwrap()
+        .joint_positions()[0];
+    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 480, 360).unwrap();
+    let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
+    let cameras = rig.cameras.clone();
+    let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    let capture = Capture::new(&performer, &motion, spec).unwrap();
+    let frames: Vec<_> = capture
+        .frames_stepped(0..24, 2)
+        .map(|f| f.unwrap())
+        .collect();
+    let observations: Vec<FrameObservation> = frames
+        .iter()
+        .map(|f| {
+            FrameObservation::new(
+                &cameras,
+                &f.masks(),
+                &ContourRayHullParams::default(),
+                &SilhouetteParams::default(),
+            )
+            .unwrap()
+        })
+        .collect();
+    // The template a user would rig: the rest mesh decimated to 10,000 vertices (§2.5.1),
+    // bone-heat weights.
+    let mesh = dynamic_shapes::core::mesh::decimate(&performer.template, 10_000)
+        .unwrap()
+        .mesh;
+    let weights = bone_heat_weights(
+        &mesh,
+        &rest_bones(&performer.skeleton).unwrap(),
+        &HeatWeightsParams::default(),
+    )
+    .unwrap();
+    let template = Template::new(mesh, performer.skeleton.clone(), weights).unwrap();
+    let sk = template.skeleton();
+    let true_poses: Vec<Vec<f64>> = frames.iter().map(|f| f.truth.theta.clone()).collect();
+    let joint_error_mm = |poses: &[Vec<f64>]| {
+        let per_frame: Vec<f64> = poses
+            .iter()
+            .zip(&true_poses)
+            .map(|(a, b)| {
+                let (pa, pb) = (
+                    sk.forward_kinematics(a).unwrap().joint_positions(),
+                    sk.forward_kinematics(b).unwrap().joint_positions(),
+                );
+                1e3 * mean(
+                    &pa.iter()
+                        .zip(&pb)
+                        .map(|(x, y)| x.distance(*y))
+                        .collect::<Vec<_>>(),
+                )
+            })
+            .collect();
+        mean(&per_frame)
+    };
+    let mut user = OracleUser::new(
+        sk,
+        &performer.skeleton,
+        true_poses.clone(),
+        [cameras[0].clone(), cameras[2].clone()],
+        0.05,
+    )
+    .unwrap();
+    let mut accept = |_: usize, _: &[f64]| Vec::new();
+    let run = |corrector: &mut dyn dynamic_shapes::template::FrameCorrector| {
+        capture_sequence_corrected(
+            &template,
+            &observations,
+            &true_poses[0],
+            &[],
+            corrector,
+            &PoseParams::default(),
+            &ShapeParams::default(),
+        )
+        .unwrap()
+    };
+    let (plain, fixed) = (run(&mut accept), run(&mut user));
+    let (plain_mm, fixed_mm) = (
+        joint_error_mm(&plain.poses.poses),
+        joint_error_mm(&fixed.poses.poses),
+    );
+    let fixed_frames = fixed
+        .poses
+        .added_user_rays
+        .iter()
+        .filter(|r| !r.is_empty())
+        .count();
+    println!(
+        "skirt walk, {} frames: joint error {plain_mm:.1} mm, with the emulated user {fixed_mm:.1} \
+         mm ({fixed_frames} frames fixed)",
+        frames.len()
+    );
+    assert!(plain.poses.added_user_rays.iter().all(Vec::is_empty));
+    assert!(fixed_frames > 0);
+    assert!(
+        fixed_mm < 0.7 * plain_mm,
+        "with the user {fixed_mm} mm, without {plain_mm} mm"
+    );
+}

@@ -35,6 +35,15 @@
 //! * `figures.json`, `manifest.json`; progress on stderr; last stdout line one JSON object
 //!   with per-run figures prefixed by the run's name and their mean over the skirt runs.
 //!
+//! Beside vertex RMS (which also counts sliding along the surface, §2.6's texture sliding, and
+//! twists no silhouette sees), the two-way point-to-surface distance to the true surface
+//! (`surface_*`, `skirt_surface_*`: mean and p95, for the result, for LBS with the same poses,
+//! and for the oracle `oracle_attainable_*`: the template's vertices placed on the true
+//! surface, what a template of this topology can attain). Protocol switches:
+//! `--oracle-user` (the user of §2.3.3 who fixes hard frames, emulated by an oracle that sees
+//! the true pose: `fixed_frames_pct`, `user_rays`), `--camera-height-m` (the ring looking
+//! down), `--fps` (the frame rate), `--resolution`.
+//!
 //! `cargo run --release --example template_capture [-- --quick] [-- --out DIR]` (`--quick`:
 //! 480 × 360 views, the body in 12 frames of the exercise and the skirt in 8; the full run:
 //! 1600 × 1200 views, 100 frames per run).
@@ -49,18 +58,19 @@ use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DVec3, Ray};
 use dynamic_shapes::core::mesh::{
-    bone_heat_weights, decimate, evaluate_surface_points, rest_bones, save_gltf_animation,
-    HeatWeightsParams, MeshQuery, MeshSequence, SkinWeights, SurfacePoint, TriMesh, UvLayout,
+    bone_heat_weights, decimate, evaluate_surface_points, points_to_surface, rest_bones,
+    save_gltf_animation, DistanceStats, HeatWeightsParams, MeshQuery, MeshSequence, SkinWeights,
+    SurfacePoint, TriMesh, UvLayout,
 };
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::{mean, rms};
 use dynamic_shapes::template::{
-    capture_sequence, edge_error_pct, initialise_pose, pose_error, reference_sizes,
-    rest_pose_start, score_ellipsoids, silhouette_error_pct, size_from_poses, AutoInitParams,
-    ContourRayHullParams, DeformationTransfer, EllipsoidModel, EllipsoidState, FrameObservation,
-    PoseEditor, PoseModel, PoseParams, SequenceCapture, ShapeEstimator, ShapeFrame, ShapeParams,
-    SilhouetteParams, SizingParams, Template, UserRay,
+    capture_sequence, capture_sequence_corrected, edge_error_pct, initialise_pose, pose_error,
+    reference_sizes, rest_pose_start, score_ellipsoids, silhouette_error_pct, size_from_poses,
+    AutoInitParams, ContourRayHullParams, DeformationTransfer, EllipsoidModel, EllipsoidState,
+    FrameObservation, OracleUser, PoseEditor, PoseModel, PoseParams, SequenceCapture,
+    ShapeEstimator, ShapeFrame, ShapeParams, SilhouetteParams, SizingParams, Template, UserRay,
 };
 use dynamic_shapes_studio::{
     exercise_motion, fast_motion, makehuman_performer, play_bvh, preview, Capture, CaptureSpec,
@@ -94,7 +104,7 @@ fn rms_mm(a: &[DVec3], b: &[DVec3], subset: Option<&[usize]>) -> f64 {
     1e3 * rms(&d)
 }
 
-/// Every run takes every second frame of its motion.
+/// Every run takes every second frame of its motion unless `--fps` says otherwise.
 const FRAME_STEP: usize = 2;
 
 /// Vertices of the decimated template the issue's figures are measured with (≈ 10k).
@@ -111,6 +121,21 @@ struct Cli {
     /// Vertices of the decimated template; 0 keeps the performer's full mesh.
     #[arg(long, default_value_t = TEMPLATE_VERTICES)]
     template_vertices: usize,
+    /// Camera resolution, `WIDTHxHEIGHT` (default: 1600x1200, `--quick` 480x360).
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<(u32, u32)>,
+    /// Camera height above the floor (the rest mesh's lowest point), m: the ring looking down
+    /// at the pelvis from this height, as the thesis's rigs did (§2.5.1: "a ring of eight
+    /// cameras looking down at the performer"; 2.2 m puts them above a standing performer's
+    /// head). Default: level with the pelvis (its height + 0.15 m).
+    #[arg(long)]
+    camera_height_m: Option<f64>,
+    /// Frame rate of the captured frames, Hz: each motion is sampled every
+    /// `round(motion rate / fps)` frames (the thesis captured at 25 fps, §2.5.1). Default:
+    /// every second frame of each motion (15 fps for the 30 Hz exercise, 30 fps for the
+    /// 60 Hz fast motion and walk).
+    #[arg(long)]
+    fps: Option<f64>,
     /// Frames per run (default: 100, `--quick` 12 and 8).
     #[arg(long)]
     frames: Option<usize>,
@@ -142,9 +167,79 @@ struct Cli {
     /// Seed of `--auto-size`'s bone scale factors.
     #[arg(long, default_value_t = 12)]
     size_seed: u64,
+    /// The user who fixes frames (§2.3.3), emulated by an oracle that sees the true pose: in
+    /// the forward pass, every joint farther than `--user-threshold-mm` from its true
+    /// position gets user rays through its true position from two cameras 90° apart, and
+    /// the frame is re-fitted (`capture_sequence_corrected`). Adds `fixed_frames_pct` and
+    /// counts `user_rays`.
+    #[arg(long)]
+    oracle_user: bool,
+    /// The emulated user's threshold, mm (the thesis fixes "hard frames"; 5 cm is where a
+    /// joint visibly leaves its limb in a camera view at the studio's resolution).
+    #[arg(long, default_value_t = 50.0)]
+    user_threshold_mm: f64,
     /// Only the runs with these names (e.g. `skirt_walk`); default: all.
     #[arg(long = "run", value_name = "NAME")]
     runs: Vec<String>,
+}
+
+/// Two-way point-to-surface distances between a template-topology mesh and the true mesh,
+/// m: over the whole surfaces, and over the skirt (the template's skirt vertices to the true
+/// surface pooled with the true skirt's vertices to the template's surface). Unlike vertex
+/// RMS these ignore sliding along the surface (§2.6's texture sliding) and twists no
+/// silhouette sees.
+struct SurfaceScore {
+    whole: DistanceStats,
+    skirt: Option<DistanceStats>,
+}
+
+impl SurfaceScore {
+    fn new(
+        mesh: &TriMesh,
+        skirt: &[usize],
+        truth: &MeshQuery,
+        true_mesh: &TriMesh,
+        true_skirt: &[DVec3],
+    ) -> Result<Self, Box<dyn std::error::Error>> {
+        let query = MeshQuery::new(mesh)?;
+        let to_truth = points_to_surface(&mesh.vertices, truth)?;
+        let from_truth = points_to_surface(&true_mesh.vertices, &query)?;
+        let pooled: Vec<f64> = to_truth
+            .per_vertex
+            .iter()
+            .chain(&from_truth.per_vertex)
+            .copied()
+            .collect();
+        let skirt = if skirt.is_empty() || true_skirt.is_empty() {
+            None
+        } else {
+            let from_truth = points_to_surface(true_skirt, &query)?;
+            let pooled: Vec<f64> = skirt
+                .iter()
+                .map(|&v| to_truth.per_vertex[v])
+                .chain(from_truth.per_vertex)
+                .collect();
+            Some(DistanceStats::from_distances(&pooled)?)
+        };
+        Ok(Self {
+            whole: DistanceStats::from_distances(&pooled)?,
+            skirt,
+        })
+    }
+}
+
+/// `WIDTHxHEIGHT` in pixels.
+fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("`{s}`: give WIDTHxHEIGHT, e.g. 800x600"))?;
+    let parse = |v: &str| {
+        v.parse::<u32>()
+            .ok()
+            .filter(|&v| v >= 16)
+            .ok_or_else(|| format!("`{s}`: each side a whole number of pixels ≥ 16"))
+    };
+    Ok((parse(w)?, parse(h)?))
 }
 
 /// The template the tracker is given and where its vertices sit in the performer's rest mesh.
@@ -394,7 +489,29 @@ fn capture_run(
         .forward_kinematics(motion.frame(first))?
         .joint_positions()[0];
     let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), width, height)?;
-    let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k)?;
+    let rig = Rig::ring(
+        8,
+        3.5,
+        args.camera_height_m.map_or(root.y + 0.15, |h| {
+            performer
+                .template
+                .vertices
+                .iter()
+                .map(|v| v.y)
+                .fold(f64::INFINITY, f64::min)
+                + h
+        }),
+        root,
+        DVec3::Y,
+        k,
+    )?;
+    let step = match args.fps {
+        Some(fps) if fps.is_finite() && fps > 0.0 => {
+            ((1.0 / motion.frame_time_s / fps).round() as usize).max(1)
+        }
+        Some(fps) => return Err(format!("--fps {fps}: give a positive frame rate").into()),
+        None => FRAME_STEP,
+    };
     let cameras = rig.cameras.clone();
     let capture_spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
     let capture = Capture::new(&performer, &motion, capture_spec)?;
@@ -408,19 +525,19 @@ fn capture_run(
     );
     let (mut truths, mut masks, mut observations) = (vec![], vec![], vec![]);
     let mut observe_s = 0.0;
-    let last = first + FRAME_STEP * spec.frames;
+    let last = first + step * spec.frames;
     if last > motion.frame_count() {
         return Err(format!(
             "{}: {} frames from {} every {} pass the motion's {}",
             name,
             spec.frames,
             first,
-            FRAME_STEP,
+            step,
             motion.frame_count()
         )
         .into());
     }
-    for f in capture.frames_stepped(first..last, FRAME_STEP) {
+    for f in capture.frames_stepped(first..last, step) {
         let f = f?;
         let m = f.masks();
         let t0 = Instant::now();
@@ -544,7 +661,26 @@ fn capture_run(
             truths[0].theta.clone()
         };
         let stage = run.stage(&format!("{name}: pose and shape"), None);
-        let result = sequence(&embedding.template, &first_pose)?;
+        let result = if args.oracle_user {
+            let mut user = OracleUser::new(
+                embedding.template.skeleton(),
+                &performer.skeleton,
+                truths.iter().map(|t| t.theta.clone()).collect(),
+                [cameras[0].clone(), cameras[cameras.len() / 4].clone()],
+                args.user_threshold_mm * 1e-3,
+            )?;
+            capture_sequence_corrected(
+                &embedding.template,
+                &observations,
+                &first_pose,
+                &[],
+                &mut user,
+                &params,
+                &shape_params,
+            )?
+        } else {
+            sequence(&embedding.template, &first_pose)?
+        };
         stage.finish(format!(
             "pose {:.2} s, shape {:.2} s per frame",
             result.pose_seconds / n,
@@ -601,8 +737,15 @@ fn capture_run(
         ("deforming_", Some(&deforming)),
     ];
     let mut scores = vec![[vec![], vec![], vec![], vec![], vec![], vec![]]; subsets.len()];
+    // Two-way surface distances, m: the result, skinning with the same poses, and the
+    // template's vertices placed on the true surface (the oracle of what this template's
+    // topology can attain).
+    let mut surface: [Vec<SurfaceScore>; 3] = [vec![], vec![], vec![]];
     for (t, truth) in truths.iter().enumerate() {
-        let true_v = &embedding.truth(&truth.true_mesh(&performer))?;
+        let true_mesh = truth.true_mesh(&performer);
+        let true_v = &embedding.truth(&true_mesh)?;
+        let true_query = MeshQuery::new(&true_mesh)?;
+        let true_skirt: Vec<DVec3> = garment.clone().map(|v| true_mesh.vertices[v]).collect();
         joint.push(joint_error_mm(
             sk,
             &result.poses.poses[t],
@@ -627,12 +770,21 @@ fn capture_run(
             }
         }
         let molded = template.mesh_with(result.shapes.frames[t].clone());
+        let lbs_mesh = template.mesh_with(lbs);
+        for (k, mesh) in [&molded, &lbs_mesh, &template.mesh_with(true_v.clone())]
+            .into_iter()
+            .enumerate()
+        {
+            surface[k].push(SurfaceScore::new(
+                mesh,
+                &skirt,
+                &true_query,
+                &true_mesh,
+                &true_skirt,
+            )?);
+        }
         sil.push(mean(&silhouette_error_pct(&molded, &cameras, &masks[t])?));
-        sil_lbs.push(mean(&silhouette_error_pct(
-            &template.mesh_with(lbs),
-            &cameras,
-            &masks[t],
-        )?));
+        sil_lbs.push(mean(&silhouette_error_pct(&lbs_mesh, &cameras, &masks[t])?));
         edge.push(edge_error_pct(template.mesh(), &result.shapes.frames[t])?);
         stage.inc(1);
     }
@@ -642,6 +794,7 @@ fn capture_run(
         figures.insert(key(k), v);
     };
     put("frames", json!(truths.len()));
+    put("fps", json!(1.0 / (motion.frame_time_s * step as f64)));
     put("skirt", json!(spec.skirt));
     put("template_vertices", json!(template.mesh().vertex_count()));
     put("joint_error_mm", json!(mean(&joint)));
@@ -684,6 +837,37 @@ fn capture_run(
         "heat_weights_no_visibility_mean_abs_diff",
         json!(embedding.weights_mean_abs_diff.1),
     );
+    for (k, prefix) in ["", "lbs_", "oracle_attainable_"].iter().enumerate() {
+        let whole: Vec<&DistanceStats> = surface[k].iter().map(|s| &s.whole).collect();
+        put(
+            &format!("{prefix}surface_mean_mm"),
+            json!(1e3 * mean(&whole.iter().map(|d| d.mean).collect::<Vec<_>>())),
+        );
+        put(
+            &format!("{prefix}surface_p95_mm"),
+            json!(1e3 * mean(&whole.iter().map(|d| d.p95).collect::<Vec<_>>())),
+        );
+        let skirt: Vec<&DistanceStats> =
+            surface[k].iter().filter_map(|s| s.skirt.as_ref()).collect();
+        if !skirt.is_empty() {
+            put(
+                &format!("{prefix}skirt_surface_mean_mm"),
+                json!(1e3 * mean(&skirt.iter().map(|d| d.mean).collect::<Vec<_>>())),
+            );
+            put(
+                &format!("{prefix}skirt_surface_p95_mm"),
+                json!(1e3 * mean(&skirt.iter().map(|d| d.p95).collect::<Vec<_>>())),
+            );
+        }
+    }
+    let added = &result.poses.added_user_rays;
+    let fixed = added.iter().filter(|r| !r.is_empty()).count();
+    put("fixed_frames", json!(fixed));
+    put("fixed_frames_pct", json!(100.0 * fixed as f64 / n));
+    put(
+        "user_rays",
+        json!(added.iter().map(Vec::len).sum::<usize>()),
+    );
     put("heat_weights_s", json!(embedding.heat_weights_s));
     put("deforming_vertices", json!(deforming.len()));
     put("silhouette_error_pct", json!(mean(&sil)));
@@ -701,7 +885,7 @@ fn capture_run(
         result,
         sil,
         sil_lbs,
-        frame_time_s: motion.frame_time_s * FRAME_STEP as f64,
+        frame_time_s: motion.frame_time_s * step as f64,
     })
 }
 
@@ -1079,7 +1263,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     args.auto_init |= args.auto_size;
     let quick = args.common.quick;
     args.true_pose_shape |= quick;
-    let size = if quick { (480, 360) } else { (1600, 1200) };
+    let size = args
+        .resolution
+        .unwrap_or(if quick { (480, 360) } else { (1600, 1200) });
     let n = args.frames.unwrap_or(if quick { 12 } else { 100 });
     // The issue's protocol (skirt) first, then the body alone for reference.
     let run_spec = |skirt, motion, frames| RunSpec {
@@ -1151,9 +1337,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         averaged.insert(rest.to_string(), json!(mean(&vals)));
     }
     figures.extend(averaged);
+    let user_rays: u64 = skirt_runs
+        .iter()
+        .filter_map(|r| figures.get(&format!("{r}_user_rays"))?.as_u64())
+        .sum();
+    figures.insert("user_rays".into(), json!(user_rays));
     figures.insert("image_width_px".into(), json!(size.0));
     figures.insert("image_height_px".into(), json!(size.1));
-    figures.insert("user_constraints".into(), json!(0));
+    figures.insert("oracle_user".into(), json!(args.oracle_user));
+    if args.oracle_user {
+        figures.insert("user_threshold_mm".into(), json!(args.user_threshold_mm));
+    }
     if args.auto_init {
         figures.insert("first_pose".into(), json!("automatic"));
     }
@@ -1180,6 +1374,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "mm",
         )
         .baseline(),
+        Headline::new(
+            "skirt_surface_mean_mm",
+            "skirt two-way surface distance, mean",
+            "mm",
+        ),
+        Headline::new(
+            "lbs_skirt_surface_mean_mm",
+            "LBS (same poses) skirt surface distance, mean",
+            "mm",
+        )
+        .baseline(),
+        Headline::new(
+            "oracle_attainable_skirt_surface_mean_mm",
+            "template vertices on the true surface: skirt surface distance, mean",
+            "mm",
+        )
+        .oracle(),
+        Headline::new("surface_mean_mm", "two-way surface distance, mean", "mm"),
+        Headline::new(
+            "lbs_surface_mean_mm",
+            "LBS (same poses) surface distance, mean",
+            "mm",
+        )
+        .baseline(),
+        Headline::new("fixed_frames_pct", "frames fixed by the user", "%")
+            .paper("0–13 fixed frames per sequence, Table 2.1"),
         Headline::new("pose_s_per_frame", "pose time per frame", "s")
             .paper("7.6 s (4.3 s forward + 3.3 s backward, Samba), thesis §2.5.2")
             .goal(Goal::AtMost(0.3)),

@@ -5,7 +5,9 @@
 
 use crate::error::{Error, Result};
 use crate::pipeline::FrameObservation;
-use crate::pose::{fit_pose, PoseFit, PoseModel, PoseParams, PoseTerms, Temporal, UserRay};
+use crate::pose::{
+    checked_user_ray, fit_pose, PoseFit, PoseModel, PoseParams, PoseTerms, Temporal, UserRay,
+};
 
 /// The poses of a tracked sequence with each frame's user rays, re-optimised one frame at a
 /// time (§2.3.3).
@@ -73,17 +75,7 @@ impl<'a> PoseEditor<'a> {
     /// errors of [`Self::reoptimise`].
     pub fn add_user_ray(&mut self, t: usize, ray: UserRay) -> Result<PoseFit> {
         skin_core::check::index("frame", t, self.poses.len())?;
-        skin_core::check::index("joint", ray.joint, self.model.skeleton().joint_count())?;
-        if !(ray.ray.origin.is_finite()
-            && ray.ray.direction.is_finite()
-            && ray.ray.direction.length() > 0.0)
-        {
-            return Err(Error::NonFinite {
-                what: "user ray (give a finite origin and a finite, non-zero direction)",
-            });
-        }
-        let mut ray = ray;
-        ray.ray.direction = ray.ray.direction.normalize();
+        let ray = checked_user_ray(self.model.skeleton(), ray)?;
         self.user[t].push(ray);
         self.reoptimise(t)
     }

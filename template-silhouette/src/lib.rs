@@ -35,6 +35,8 @@ mod initialise;
 mod interactive;
 mod metrics;
 mod molding;
+#[cfg(feature = "validation")]
+mod oracle_user;
 mod pipeline;
 mod pose;
 mod shape;
@@ -62,10 +64,15 @@ pub use initialise::{
 pub use interactive::PoseEditor;
 pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
-pub use pipeline::{capture_sequence, FrameObservation, SequenceCapture};
+#[cfg(feature = "validation")]
+pub use oracle_user::OracleUser;
+pub use pipeline::{
+    capture_sequence, capture_sequence_corrected, FrameObservation, SequenceCapture,
+};
 pub use pose::{
-    fit_frame, fit_pose, track, Effector, EffectorTargets, FrameFit, JointTarget, PoseFit,
-    PoseFrame, PoseModel, PoseParams, PoseTerms, PoseTrack, Temporal, UserRay,
+    fit_frame, fit_pose, track, track_corrected, Effector, EffectorTargets, FrameCorrector,
+    FrameFit, JointTarget, PoseFit, PoseFrame, PoseModel, PoseParams, PoseTerms, PoseTrack,
+    Temporal, UserRay, MAX_CORRECTION_ROUNDS,
 };
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,

@@ -10,7 +10,9 @@ use skin_core::camera::Camera;
 use skin_core::image::Mask;
 
 use crate::error::{Context, Error, Result, ResultExt};
-use crate::pose::{track, PoseFrame, PoseModel, PoseParams, PoseTrack, UserRay};
+use crate::pose::{
+    track_corrected, FrameCorrector, PoseFrame, PoseModel, PoseParams, PoseTrack, UserRay,
+};
 use crate::shape::{ShapeEstimator, ShapeFrame, ShapeParams, ShapeSequence};
 use crate::silhouette_constraints::{contour_rays, ContourRay, SilhouetteParams};
 use crate::template::Template;
@@ -82,13 +84,40 @@ pub struct SequenceCapture {
 ///
 /// # Errors
 /// [`Error::Empty`] for no frame; [`Error::SizeMismatch`] when `user` is neither empty nor one
-/// list per frame; errors of [`PoseModel::new`], [`ShapeEstimator::new`], [`track`] and
+/// list per frame; errors of [`PoseModel::new`], [`ShapeEstimator::new`], [`crate::track`] and
 /// [`ShapeEstimator::estimate`].
 pub fn capture_sequence(
     template: &Template,
     observations: &[FrameObservation],
     first_guess: &[f64],
     user: &[Vec<UserRay>],
+    pose: &PoseParams,
+    shape: &ShapeParams,
+) -> Result<SequenceCapture> {
+    let mut accept = |_: usize, _: &[f64]| Vec::new();
+    capture_sequence_corrected(
+        template,
+        observations,
+        first_guess,
+        user,
+        &mut accept,
+        pose,
+        shape,
+    )
+}
+
+/// [`capture_sequence`] with a user who fixes frames during the forward pass
+/// ([`track_corrected`], §2.3.3); the rays it added are in
+/// [`SequenceCapture::poses`]`.added_user_rays`.
+///
+/// # Errors
+/// As [`capture_sequence`], and those of [`track_corrected`].
+pub fn capture_sequence_corrected(
+    template: &Template,
+    observations: &[FrameObservation],
+    first_guess: &[f64],
+    user: &[Vec<UserRay>],
+    corrector: &mut dyn FrameCorrector,
     pose: &PoseParams,
     shape: &ShapeParams,
 ) -> Result<SequenceCapture> {
@@ -112,7 +141,14 @@ pub fn capture_sequence(
         .map(|(t, o)| o.pose_frame(user.get(t).map_or(&[], Vec::as_slice)))
         .collect();
     let start = Instant::now();
-    let poses = track(&model, &frames, first_guess, Some(&mut estimator), pose)?;
+    let poses = track_corrected(
+        &model,
+        &frames,
+        first_guess,
+        Some(&mut estimator),
+        pose,
+        corrector,
+    )?;
     let pose_seconds = start.elapsed().as_secs_f64();
     let shape_frames: Vec<ShapeFrame<'_>> = poses
         .poses

@@ -622,6 +622,10 @@ pub struct PoseTrack {
     pub forward: Vec<Vec<f64>>,
     /// Final (reverse-pass) poses, per frame.
     pub poses: Vec<Vec<f64>>,
+    /// Per frame, the user rays a [`FrameCorrector`] added during the forward pass (empty
+    /// lists from [`track`]).
+    #[serde(default)]
+    pub added_user_rays: Vec<Vec<UserRay>>,
 }
 
 /// Pose estimation of one frame with the refinement of §2.3.1: fit with `w_R = 0`; then,
@@ -734,6 +738,28 @@ pub struct FrameFit {
     pub refinement: Vec<JointTarget>,
 }
 
+/// Someone who watches the forward pass and fixes frames (§2.3.3, Figure 2-4): after each
+/// frame's fit, [`FrameCorrector::correct`] sees the pose and returns the user rays to add to
+/// that frame (none: the frame is accepted). The frame is re-fitted with them and shown
+/// again, at most [`MAX_CORRECTION_ROUNDS`] times, before tracking goes on from it.
+///
+/// Any `FnMut(usize, &[f64]) -> Vec<UserRay>` is a corrector.
+pub trait FrameCorrector {
+    /// The user rays to add to frame `t`, whose current forward-pass pose is `theta`.
+    fn correct(&mut self, t: usize, theta: &[f64]) -> Vec<UserRay>;
+}
+
+impl<F: FnMut(usize, &[f64]) -> Vec<UserRay>> FrameCorrector for F {
+    fn correct(&mut self, t: usize, theta: &[f64]) -> Vec<UserRay> {
+        self(t, theta)
+    }
+}
+
+/// How many times [`track_corrected`] shows a frame to its corrector: the thesis's user
+/// re-checks a frame after each constraint; three rounds bound a corrector that is never
+/// satisfied.
+pub const MAX_CORRECTION_ROUNDS: usize = 3;
+
 /// Tracks a sequence (§2.3.3): the forward pass from `first_guess` with the linear
 /// prediction `2θ_{t−1} − θ_{t−2}` (clamped to the joint limits), then the reverse pass from
 /// the forward solutions with both temporal neighbours. `first_guess` stands for the user's
@@ -747,8 +773,30 @@ pub fn track(
     model: &PoseModel,
     frames: &[PoseFrame<'_>],
     first_guess: &[f64],
+    shape: Option<&mut ShapeEstimator>,
+    params: &PoseParams,
+) -> Result<PoseTrack> {
+    let mut accept = |_: usize, _: &[f64]| Vec::new();
+    track_corrected(model, frames, first_guess, shape, params, &mut accept)
+}
+
+/// [`track`] with a user who fixes frames during the forward pass (§2.3.3): each frame's fit
+/// is shown to `corrector`; the rays it returns join the frame's own user rays, the frame is
+/// re-fitted from its pose with them (and shown again, at most [`MAX_CORRECTION_ROUNDS`]
+/// times), and the forward pass goes on from the corrected pose. The reverse pass keeps every
+/// frame's rays. [`PoseTrack::added_user_rays`] lists what the corrector added.
+///
+/// # Errors
+/// As [`track`]; [`Error::IndexOutOfRange`] for a ray on a joint the skeleton does not have
+/// and [`Error::NonFinite`] for a ray with NaN or infinite values or a zero direction, each
+/// wrapped with the frame.
+pub fn track_corrected(
+    model: &PoseModel,
+    frames: &[PoseFrame<'_>],
+    first_guess: &[f64],
     mut shape: Option<&mut ShapeEstimator>,
     params: &PoseParams,
+    corrector: &mut dyn FrameCorrector,
 ) -> Result<PoseTrack> {
     if frames.is_empty() {
         return Err(Error::Empty {
@@ -758,6 +806,8 @@ pub fn track(
     let sk = &model.skeleton;
     let mut forward: Vec<Vec<f64>> = Vec::with_capacity(frames.len());
     let mut targets: Vec<Vec<JointTarget>> = Vec::with_capacity(frames.len());
+    let mut added: Vec<Vec<UserRay>> = vec![Vec::new(); frames.len()];
+    let mut user: Vec<Vec<UserRay>> = Vec::with_capacity(frames.len());
     for (t, frame) in frames.iter().enumerate() {
         let guess = match t {
             0 => first_guess.to_vec(),
@@ -779,10 +829,37 @@ pub fn track(
             previous: Some(forward.last().map_or(first_guess, Vec::as_slice)),
             next: None,
         };
-        let done = fit_frame(model, frame, temporal, &guess, shape.as_deref_mut(), params)
+        let mut rays = frame.user.to_vec();
+        let mut done = fit_frame(model, frame, temporal, &guess, shape.as_deref_mut(), params)
             .at(Context::Frame(t))?;
+        for _ in 0..MAX_CORRECTION_ROUNDS {
+            let fix = corrector.correct(t, &done.fit.theta);
+            if fix.is_empty() {
+                break;
+            }
+            for ray in fix {
+                let ray = checked_user_ray(sk, ray).at(Context::Frame(t))?;
+                rays.push(ray);
+                added[t].push(ray);
+            }
+            let corrected = PoseFrame {
+                user: &rays,
+                ..*frame
+            };
+            let start = done.fit.theta.clone();
+            done = fit_frame(
+                model,
+                &corrected,
+                temporal,
+                &start,
+                shape.as_deref_mut(),
+                params,
+            )
+            .at(Context::Frame(t))?;
+        }
         forward.push(done.fit.theta);
         targets.push(done.refinement);
+        user.push(rays);
     }
     let mut poses = forward.clone();
     for t in (0..frames.len()).rev() {
@@ -800,12 +877,31 @@ pub fn track(
             hull: frame.hull,
             temporal,
             refinement: &targets[t],
-            user: frame.user,
+            user: &user[t],
         };
         let fit = fit_pose(model, &terms, &forward[t], params).at(Context::Frame(t))?;
         poses[t] = fit.theta;
     }
-    Ok(PoseTrack { forward, poses })
+    Ok(PoseTrack {
+        forward,
+        poses,
+        added_user_rays: added,
+    })
+}
+
+/// `ray` checked (a joint of `sk`, finite, non-zero direction) with its direction normalised.
+pub(crate) fn checked_user_ray(sk: &Skeleton, mut ray: UserRay) -> Result<UserRay> {
+    skin_core::check::index("joint", ray.joint, sk.joint_count())?;
+    if !(ray.ray.origin.is_finite()
+        && ray.ray.direction.is_finite()
+        && ray.ray.direction.length() > 0.0)
+    {
+        return Err(Error::NonFinite {
+            what: "user ray (give a finite origin and a finite, non-zero direction)",
+        });
+    }
+    ray.ray.direction = ray.ray.direction.normalize();
+    Ok(ray)
 }
 
 #[cfg(test)]

@@ -339,3 +339,99 @@ fn samples_outside_the_template_are_reported() {
         .iter()
         .all(|&i| model.radii_m()[i] == 0.0));
 }
+
+/// §2.3.3's user during the forward pass: a corrector that drags the left wrist to a point
+/// 10 cm beside its true place (rays from two cameras) gets the wrist there and the rays are
+/// listed; accepting every frame leaves the wrist where the hull puts it. Frames the
+/// corrector accepts are shown once; a corrector never satisfied is shown a frame
+/// MAX_CORRECTION_ROUNDS times.
+#[test]
+fn a_corrector_fixes_the_frame_during_the_forward_pass() {
+    let st = studio(20);
+    let sk = st.template.skeleton();
+    let params = PoseParams::default();
+    let model = PoseModel::new(&st.template, &params).unwrap();
+    let wrist = sk.joint_index("l_wrist").unwrap();
+    let truth_fk = sk.forward_kinematics(&st.truth).unwrap();
+    let target = truth_fk.joint_positions()[wrist] + DVec3::new(0.0, 0.1, 0.0);
+    let frames = [PoseFrame {
+        hull: &st.hull,
+        rays: &[],
+        user: &[],
+    }];
+    let wrist_off = |theta: &[f64]| {
+        (sk.forward_kinematics(theta).unwrap().joint_positions()[wrist] - target).length()
+    };
+    let mut shown = 0;
+    let mut user = |_: usize, theta: &[f64]| {
+        shown += 1;
+        if wrist_off(theta) < 0.02 {
+            return Vec::new();
+        }
+        [0, 2]
+            .iter()
+            .map(|&c| {
+                let origin = st.cameras[c].centre();
+                UserRay {
+                    joint: wrist,
+                    ray: Ray::new(origin, target - origin),
+                }
+            })
+            .collect()
+    };
+    let fixed = track_corrected(&model, &frames, &st.truth, None, &params, &mut user).unwrap();
+    let plain = track(&model, &frames, &st.truth, None, &params).unwrap();
+    let (with, without) = (wrist_off(&fixed.poses[0]), wrist_off(&plain.poses[0]));
+    eprintln!("wrist from the dragged place: corrected {with:.4} m, accepted {without:.4} m, shown {shown}×");
+    assert!(with < 0.02, "corrected wrist {with} m from the target");
+    assert!(
+        without > 0.05,
+        "uncorrected wrist {without} m from the target"
+    );
+    assert!(!fixed.added_user_rays[0].is_empty() && plain.added_user_rays[0].is_empty());
+    assert!(
+        (2..=MAX_CORRECTION_ROUNDS).contains(&shown),
+        "shown {shown}×"
+    );
+    let added = fixed.added_user_rays[0].len();
+    assert!(added.is_multiple_of(2));
+    assert!((fixed.added_user_rays[0][0].ray.direction.length() - 1.0).abs() < 1e-12);
+
+    let mut never_satisfied = 0;
+    let mut nag = |_: usize, _: &[f64]| {
+        never_satisfied += 1;
+        vec![UserRay {
+            joint: wrist,
+            ray: Ray::new(st.cameras[0].centre(), target - st.cameras[0].centre()),
+        }]
+    };
+    let nagged = track_corrected(&model, &frames, &st.truth, None, &params, &mut nag).unwrap();
+    assert_eq!(never_satisfied, MAX_CORRECTION_ROUNDS);
+    assert_eq!(nagged.added_user_rays[0].len(), MAX_CORRECTION_ROUNDS);
+}
+
+/// A corrector's bad rays are errors naming the frame: NaN, a zero direction, a joint the
+/// skeleton does not have.
+#[test]
+fn a_correctors_bad_rays_are_errors() {
+    let st = studio(20);
+    let params = PoseParams::default();
+    let model = PoseModel::new(&st.template, &params).unwrap();
+    let frames = [PoseFrame {
+        hull: &st.hull,
+        rays: &[],
+        user: &[],
+    }];
+    let origin = st.cameras[0].centre();
+    for (joint, ray) in [
+        (3, Ray::new(DVec3::new(f64::NAN, 0.0, 0.0), DVec3::Y)),
+        (3, Ray::new(origin, DVec3::ZERO)),
+        (10_000, Ray::new(origin, DVec3::Y)),
+    ] {
+        let mut bad = |_: usize, _: &[f64]| vec![UserRay { joint, ray }];
+        let err = track_corrected(&model, &frames, &st.truth, None, &params, &mut bad)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("frame 0"), "{err}");
+    }
+}
