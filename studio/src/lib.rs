@@ -1,43 +1,23 @@
-//! # dynamic-shapes-studio
+#![doc = include_str!("../README.md")]
 //!
-//! The synthetic capture studio: a rigged performer with known non-skinning deformation,
-//! motions, garments and lighting that render ground truth for every method of
-//! `dynamic-shapes`. It is validation equipment: the methods never need it at run time, and
-//! reach it only through their `validation` features and their tests (the facade re-exports it
-//! as `dynamic_shapes::studio` with the feature `studio`). Errors are
-//! [`skin_core::Error`], the foundations' error type it builds on.
+//! ## Parts, in the order a capture uses them
 //!
-//! * [`Performer`]: template mesh (metres), skeleton, skin weights and a [`DeformationModel`]
-//!   (pose-driven muscle and joint shapes, [`PoseDeformParams`], a pure smooth function of θ;
-//!   a lagging hip flap) that linear blend skinning cannot produce; [`Performer::pose`] →
-//!   [`PosedFrame`] with LBS and true vertices and each effect's displacement separately.
-//! * [`makehuman_performer`]: the MakeHuman CC0 base mesh on a 19-joint, 42-DOF subset of its
-//!   rig; [`procedural_performer`]: a smooth union of capsules, meshed by marching tetrahedra.
-//! * Motions ([`skin_core::skeleton::Motion`]): [`range_of_motion`], [`fast_motion`],
-//!   [`exercise_motion`] (every limited DOF at once through 90 % of its range, turning on the
-//!   spot), and BVH playback through [`retarget`] with a [`JointMap`] ([`play_bvh`] reads,
-//!   maps, retargets and resamples in one call). [`range_coverage`] and [`max_pose_share`]
-//!   (per bone [`pose_shares`]) measure how much of each range a motion visits and how long
-//!   it holds any one pose.
-//! * Rendering is [`skin_core::raster`] (in skin-core: methods use it at run time).
-//! * [`shading`]: lights (point, area, the light-stage dome of Vlasic thesis §3.2.1),
-//!   Lambertian shading with albedo, cast shadows by ray casts.
-//! * [`preview`]: front-view preview pictures of meshes side by side (flat or per-vertex
-//!   colours), for looking at results by eye.
-//! * Garments ([`Garment`], [`DeformationParams::garment`]): a skirt and a draped sheet
-//!   ("Ghost") as their own cloth surfaces with second-order dynamics (XPBD), driven by the
-//!   body and colliding with it, appended to the performer's template as their rest drape.
-//! * Fine detail: [`WrinkleModel`] refines the wrinkle regions at render time
-//!   ([`skin_core::mesh::Refinement`], edges ≤ 3 mm) and adds pose-dependent wrinkles as real
-//!   geometry (elbow and knee creases driven by flexion, garment folds driven by its
-//!   compression; 1–3 mm, 1–3 cm) → [`FineSurface`], with the wrinkle displacement kept
-//!   separately; [`AlbedoTexture`] is a non-uniform albedo (skin variation, a printed garment
-//!   pattern) evaluated at rest positions, shaded through
-//!   [`shading::Albedo::Textured`].
-//! * [`Capture`]: the capture builder — rig × performer × motion × frame rate → per-frame
-//!   observations (silhouettes, shaded images) and ground truth, streamed frame by frame.
-//! * Markers ([`MarkerSet`]): retro-reflective skin markers (Fua et al. §2) that follow the
-//!   true surface, drawn into grey frames with occlusion by the body ([`draw_markers`]).
+//! | Part | Source | Public items |
+//! |---|---|---|
+//! | performers: template mesh (metres), skeleton, skin weights, deformation | MakeHuman CC0 base mesh; Vlasic §2.5.1 (LBS) | [`makehuman_performer`], [`procedural_performer`], [`Performer`] ([`Performer::pose`] → [`PosedFrame`]) |
+//! | pose-driven muscle and joint shapes, a pure C¹ function of θ | pose-space correctives (Lewis et al. 2000) | [`PoseDeformParams`], [`PoseEffect`] |
+//! | dynamic deformation: hip flap, garments (XPBD cloth) | Macklin et al. 2016/2019 | [`DeformationParams`], [`FlapParams`], [`Garment`], [`GarmentParams`], [`SkirtParams`], [`SheetParams`], [`ClothParams`] |
+//! | wrinkles on a refined surface | — | [`WrinkleModel`], [`WrinkleParams`] → [`FineSurface`] |
+//! | albedo texture | — | [`AlbedoTexture`], [`TextureParams`] |
+//! | motions | CMU motion capture (BVH) for real motion | [`range_of_motion`], [`fast_motion`], [`exercise_motion`], [`play_bvh`], [`retarget`], [`range_coverage`], [`max_pose_share`] |
+//! | lights: point, area, the light-stage dome; Lambertian shading with shadows | Vlasic §3.2.1 | [`shading`] |
+//! | the capture: rig × performer × motion → observations and truth, frame by frame | — | [`studio_ring`], [`CaptureSpec`], [`Capture`] → [`CaptureFrame`] ([`FrameTruth`]) |
+//! | skin markers with occlusion | Fua et al. §2 | [`MarkerSet`], [`draw_markers`] |
+//! | preview pictures | — | [`preview`] |
+//!
+//! Rendering is [`skin_core::raster`]. Errors are [`skin_core::Error`]. The facade re-exports
+//! the crate as `dynamic_shapes::studio` with its feature `studio`.
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 pub mod shading;
 

@@ -3,7 +3,7 @@
 //! sources, of which 901 are on the sphere and the rest are placed on the floor. A central area
 //! is reserved for the subject, and therefore it does not contain any floor lights."
 //!
-//! The thesis gives no coordinates. We place the sphere lights on a Fibonacci lattice of the
+//! The thesis gives no coordinates. The sphere lights sit on a Fibonacci lattice of the
 //! spherical zone (area-uniform, as regular as a geodesic subdivision to within a few percent
 //! of spacing, and available for any count) and the floor lights on a sunflower lattice of the
 //! floor annulus between the reserved central area and the dome's rim. Each light is an area
