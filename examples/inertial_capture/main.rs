@@ -1021,7 +1021,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect()
     };
     let mut chart = Chart::new(
-        &format!(
+        format!(
             "Treadmill walk, {treadmill_s} s (Figure 4-7): left shoulder orientation error, \
              MEMS gyroscope bias"
         ),
