@@ -13,7 +13,7 @@
 //!   motion.
 //! * [`GyroBiasModel::Mems`] ([`MemsGyroBias`]): the error terms MEMS rate gyroscopes of the
 //!   thesis's generation carry (the taxonomy of O. J. Woodman, *An introduction to inertial
-//!   navigation*, Univ. of Cambridge tech. report UCAM-CL-TR-696, 2007, §5: constant bias,
+//!   navigation*, Univ. of Cambridge tech. report UCAM-CL-TR-696, 2007: constant bias,
 //!   bias instability, temperature effects, calibration errors; the white noise is
 //!   [`SimulationParams::gyro_noise`](super::SimulationParams::gyro_noise)), with figures
 //!   from the Analog Devices ADXRS300 datasheet (Rev. B), the ±300 °/s ADXRS part of
