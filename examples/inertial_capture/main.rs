@@ -1014,20 +1014,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &chart.draw()?,
         "Mean orientation error of neck, right shoulder and left hip for every sensor combination",
     )?;
+    // One point per second (the mean over its 140 frames): the trend over minutes, not the
+    // gait cycle's ripple.
     let pts = |e: &[f64]| {
-        e.iter()
+        e.chunks(140)
             .enumerate()
-            .map(|(i, v)| (i as f64 / 140.0, *v))
+            .map(|(i, w)| (i as f64 + 0.5, w.iter().sum::<f64>() / w.len() as f64))
             .collect()
     };
     let mut chart = Chart::new(
-        format!(
-            "Treadmill walk, {treadmill_s} s (Figure 4-7): left shoulder orientation error, \
-             MEMS gyroscope bias"
-        ),
+        format!("Treadmill walk (Figure 4-7), {treadmill_s} s, MEMS gyroscope bias: left shoulder"),
         "time after the rest hold (s)",
-        "orientation error (deg)",
+        "orientation error, 1 s means (deg)",
     );
+    chart.size = (1000, 500);
     for (d, colour) in
         drift
             .iter()
@@ -1056,7 +1056,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     run.save_picture(
         "drift.png",
         &chart.draw()?,
-        "Left shoulder error with and without distances",
+        "Left shoulder error (1 s means) with and without distances, simulated suit and oracle",
     )?;
 
     let by_board = |f: fn(&dynamic_shapes::inertial::simulate::SkinMotion) -> f64| {

@@ -118,7 +118,7 @@ impl MemsGyroBias {
     /// * `instability_sd` 0.02 °/s (3.5·10⁻⁴ rad/s), `instability_tau_s` 100 s: the in-run
     ///   stability class (tens of °/h) of consumer MEMS rate gyroscopes of the period; the
     ///   ADXRS300 datasheet does not specify it.
-    /// * `g_sensitivity_sd` chosen so that a row of `G` has an expected norm of 0.2 °/s/g, the
+    /// * `g_sensitivity_sd` chosen so that a row of `G` has an RMS norm of 0.2 °/s/g, the
     ///   datasheet's linear-acceleration effect: 0.2/√3 °/s per g per entry.
     pub fn adxrs300() -> Self {
         let deg = std::f64::consts::PI / 180.0;
