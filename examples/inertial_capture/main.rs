@@ -23,10 +23,20 @@
 //!   grid includes the chart (Euler angles throughout or re-centred), and the exercise table
 //!   is also run in the chart not picked (`table_4_1_exercise_other_chart`,
 //!   `agd_other_chart_deg`): before and after.
-//! * Figure 4-7: a treadmill-like run (the CMU walk in place, 60 s, its bone twist rate
-//!   limited to 10 rad/s: the capture's right humerus twists at 35 rad/s) with and without
-//!   distances, simulated suit and oracle measurements: left-shoulder error over the last 5 s
-//!   (`drift_*_deg`, `treadmill` with the left-arm boards' distance innovations, `drift.png`).
+//! * Gyroscope bias: the suit's gyroscopes carry the MEMS bias model
+//!   (`GyroBiasModel::Mems`, ADXRS300-class figures: turn-on offset, warm-up drift,
+//!   instability, g-sensitivity); the exercise table is also run with the bias as a random
+//!   walk from zero (`table_4_1_exercise_random_walk_bias`, `agd_random_walk_bias_deg`).
+//! * Figure 4-7 over minutes: a treadmill walk (the CMU walk looped in place, 180 s; 45 s with
+//!   `--quick`; its bone twist rate limited to 10 rad/s: the capture's right humerus twists at
+//!   35 rad/s), A+G+D and A+G each tuned on the same grid (the distance gate, 4σ or 8σ, is
+//!   a point of A+G+D's only) on a separate treadmill clip (another simulation seed, 30 s;
+//!   15 s with `--quick`), run through the pipeline with its
+//!   default per-board noise on the simulated suit and on oracle measurements: left-shoulder
+//!   error over the last 30 s (`drift_with_d_deg`, `drift_without_d_deg`), the slope of a
+//!   line fitted to it (`drift_slope_*_deg_per_s`), the oracle's largest error
+//!   (`drift_oracle_max_deg`), `treadmill` with the left-arm boards' distance innovations,
+//!   `drift.png`.
 //! * The pipeline as a user runs it: every simulated recording is written in the crate's
 //!   recording format (a JSON manifest and CSV streams, `Recording::write`), read back
 //!   (checked exact) and run through the public `pipeline` (Table 4.1's runs with its
@@ -48,7 +58,7 @@
 //!   `bench/inertial_vs_peers.sh`).
 //!
 //! `cargo run --release --example inertial_capture [-- --quick]` (`--quick`: 10 s exercise,
-//! 10 s of the range of motion, the walk, a 20 s treadmill run, a smaller tuning grid;
+//! 10 s of the range of motion, the walk, a 45 s treadmill run, smaller tuning grids;
 //! `--delta-step N`: the noise-shaped delta code's unit, default 16, 0 for the whole-count
 //! code; `--no-code-noise`: the filter is not told the code's per-frame error; `--ber R`: the
 //! link's bit error rate; `--key-interval K`: key frames every K frames, 0 for none;
@@ -67,8 +77,8 @@ use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton};
 use dynamic_shapes::inertial::pipeline::fit_headings;
 use dynamic_shapes::inertial::score::{run_filter, table_4_1, tune, FilterRun, TuningPoint};
 use dynamic_shapes::inertial::simulate::{
-    model_recording, prepare_motion, treadmill_motion, SimulatedRecording, SimulationParams,
-    SuitSimulator,
+    model_recording, prepare_motion, treadmill_motion, GyroBiasModel, SimulatedRecording,
+    SimulationParams, SuitSimulator,
 };
 use dynamic_shapes::inertial::tuning::{estimate_board_axis_noise, estimate_board_noise};
 use dynamic_shapes::inertial::{
@@ -205,18 +215,42 @@ fn variants(
 /// with room for the swing (≤ 6.6 rad/s on the walk's upper arms).
 const TWIST_LIMIT_RAD_S: f64 = 10.0;
 
-/// One treadmill run: left-shoulder error over time and its first / last 5 s means.
+/// One treadmill run: left-shoulder error over time, its first / last 5 s and last 30 s
+/// means, the slope of a least-squares line through it and its largest value.
 struct DriftRun {
     source: &'static str,
     distances: bool,
     first_5s_deg: f64,
     last_5s_deg: f64,
+    last_30s_deg: f64,
+    slope_deg_per_s: f64,
+    max_deg: f64,
+    /// Largest error after the first `DRIFT_SETTLE_S` of motion.
+    max_settled_deg: f64,
     diverged_frames: usize,
     errors_deg: Vec<f64>,
     /// Distances used over the whole body (passed the confidence, field-of-view and gate
     /// tests), and per left-arm board the distance innovations that reached the gate.
     distances_used: usize,
     left_arm_distances: Value,
+}
+
+/// Seconds of the treadmill's error series (after the rest hold) left out of the settled
+/// maximum: the blend from the rest pose into the walk and the filter's first gait cycles.
+const DRIFT_SETTLE_S: f64 = 10.0;
+
+/// Slope (per second) of the least-squares line through `e`, one value per 140 Hz frame.
+fn fitted_slope_per_s(e: &[f64]) -> f64 {
+    let n = e.len() as f64;
+    let t_mean = (n - 1.0) / 2.0 / 140.0;
+    let e_mean = e.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (i, v) in e.iter().enumerate() {
+        let dt = i as f64 / 140.0 - t_mean;
+        sxy += dt * (v - e_mean);
+        sxx += dt * dt;
+    }
+    sxy / sxx
 }
 
 /// Largest world-frame angular speed (rad/s) of joint `j` between consecutive frames.
@@ -345,10 +379,10 @@ fn cmu_walk(skeleton: &Skeleton) -> Result<Motion, Box<dyn std::error::Error>> {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let quick = args.common.quick;
-    let (exercise_s, rom_s, treadmill_s) = if quick {
-        (10.0, 10.0, 20.0)
+    let (exercise_s, rom_s, treadmill_s, drift_tune_s) = if quick {
+        (10.0, 10.0, 45.0, 15.0)
     } else {
-        (30.0, f64::INFINITY, 60.0)
+        (30.0, f64::INFINITY, 180.0, 30.0)
     };
     let mut run = Run::start(
         "inertial_capture",
@@ -607,6 +641,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rigid_table = Vec::new();
     let mut euler_table = Vec::new();
     let mut global_table = Vec::new();
+    let mut walk_bias_table = Vec::new();
     let mut skin_motion = Vec::new();
     let mut beyond = Value::Null;
     for (name, motion) in [
@@ -658,6 +693,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rigid_table = table_4_1(&skeleton, &rec_rigid, params, &joints, Some(BOARD_NOISE_S))?;
             // The global σ for every board (§4.4.2), the before of the per-board noise.
             global_table = table_4_1(&skeleton, &rec, params, &joints, None)?;
+            // The same suit and seed with the gyroscopes' bias as a random walk from zero
+            // (`GyroBiasModel::RandomWalk`) instead of the MEMS model (the default).
+            let sim_walk_bias = sim.clone().with_gyro_bias(GyroBiasModel::RandomWalk)?;
+            let rec_walk_bias = record(
+                &sim_walk_bias,
+                &skeleton,
+                motion,
+                &sim_params,
+                &cal.offsets,
+                &scratch,
+            );
+            walk_bias_table = table_4_1(
+                &skeleton,
+                &rec_walk_bias,
+                params,
+                &joints,
+                Some(BOARD_NOISE_S),
+            )?;
             // The same recording with the 3-DOF joints in the other chart (Euler angles
             // throughout, or re-centred): before and after the local parameterisation.
             euler_table = table_4_1(
@@ -712,6 +765,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for (label, t) in [
                 ("suit rigid on the bones", &rigid_table),
                 ("global σ (before per-board noise)", &global_table),
+                ("gyroscope bias as a random walk", &walk_bias_table),
                 ("other chart of the 3-DOF joints", &euler_table),
             ] {
                 let r = t
@@ -763,28 +817,115 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rec = record(&sim, &skeleton, &tread, &sim_params, &cal.offsets, &scratch);
     let smooth = prepare_motion(&skeleton, &tread, &sim_params)?;
     let oracle = model_recording(&skeleton, sim.nominal_suit(), &smooth, sim_params.rest_s)?;
-    let l_shoulder = [skeleton.joint_index("l_shoulder").unwrap()];
-    let window = (5.0 * 140.0) as usize;
+    let l_shoulder = skeleton.joint_index("l_shoulder").unwrap();
+    let no_d = SensorSet {
+        distances: false,
+        ..SensorSet::ALL
+    };
+    // A+G and A+G+D are tuned alike on a separate treadmill clip (another simulation seed:
+    // other placement errors, bias draws and noise; `drift_tune_s` long), each on the same
+    // grid, scored by the mean error of the table's three joints and the left shoulder,
+    // through the pipeline with its default per-board noise.
+    let tune_sim_params = SimulationParams {
+        seed: sim_params.seed + 1,
+        ..sim_params
+    };
+    let sim_tune = SuitSimulator::on_performer(&performer, &deformation, tune_sim_params)?;
+    let cal_tune = sim_tune.calibrate_offsets(3)?;
+    let tune_tread = treadmill_motion(&skeleton, &tread_walk, drift_tune_s)?;
+    let tune_rec = record(
+        &sim_tune,
+        &skeleton,
+        &tune_tread,
+        &tune_sim_params,
+        &cal_tune.offsets,
+        &scratch,
+    );
+    let (drift_qs, drift_sas, drift_sgs): (&[f64], &[f64], &[f64]) = if quick {
+        (&[4.0, 20.0], &[0.3, 2.0], &[0.002])
+    } else {
+        (&[4.0, 20.0, 100.0], &[0.3, 2.0], &[0.002, 0.01])
+    };
+    let tune_joints: Vec<usize> = joints.iter().copied().chain([l_shoulder]).collect();
+    let mut drift_grid = Vec::new();
+    let mut drift_tuned = Vec::new();
+    for sensors in [SensorSet::ALL, no_d] {
+        let mut best_drift: Option<(f64, FilterParams)> = None;
+        // The distance gate (4σ, the Table 4.1 point, or 8σ) acts on distances only: A+G's
+        // runs would repeat, so A+G is run once per point.
+        let gates: &[f64] = if sensors.distances {
+            &[4.0, 8.0]
+        } else {
+            &[4.0]
+        };
+        for (&q, &gate) in drift_qs
+            .iter()
+            .flat_map(|q| gates.iter().map(move |g| (q, g)))
+        {
+            for &sa in drift_sas {
+                for &sg in drift_sgs {
+                    let p = FilterParams {
+                        process_sigma: q,
+                        distance_gate_sigma: gate,
+                        ..FilterParams::default()
+                            .with_recentre_rad(0.3)
+                            .with_measurement_sigmas(
+                                with_code(sa, code_accel),
+                                with_code(sg, code_gyro),
+                                0.0025,
+                            )
+                            .with_sensors(sensors)
+                    };
+                    let r = dynamic_shapes::inertial::score::run_filter_board_noise(
+                        &skeleton,
+                        &tune_rec,
+                        p,
+                        true,
+                        &tune_joints,
+                        BOARD_NOISE_S,
+                    )?;
+                    let score =
+                        r.stats.iter().map(|st| st.mean_deg).sum::<f64>() / r.stats.len() as f64;
+                    drift_grid.push(json!({"sensors": r.sensors, "process_sigma": q,
+                        "distance_gate_sigma": gate,
+                        "accelerometer_sigma": p.accelerometer_sigma,
+                        "gyroscope_sigma": p.gyroscope_sigma, "score_deg": score}));
+                    if best_drift.is_none_or(|(b, _)| score < b) {
+                        best_drift = Some((score, p));
+                    }
+                }
+            }
+        }
+        let (score, p) = best_drift.unwrap();
+        stage.println(format!(
+            "tuned on the separate clip, {}: q {} σa {:.3} σg {:.4} gate {}: {score:.2}°",
+            if sensors.distances { "A+G+D" } else { "A+G" },
+            p.process_sigma,
+            p.accelerometer_sigma,
+            p.gyroscope_sigma,
+            p.distance_gate_sigma
+        ));
+        drift_tuned.push((score, p));
+    }
     let mut drift = Vec::new();
     for (source, recording) in [("simulated", &rec), ("oracle", &oracle)] {
-        for sensors in [
-            SensorSet::ALL,
-            SensorSet {
-                distances: false,
-                ..SensorSet::ALL
-            },
-        ] {
-            let r = run_filter(
+        for &(_, p) in &drift_tuned {
+            let r = dynamic_shapes::inertial::score::run_filter_board_noise(
                 &skeleton,
                 recording,
-                params.with_sensors(sensors),
+                p,
                 true,
-                &l_shoulder,
+                &[l_shoulder],
+                BOARD_NOISE_S,
             )?;
             let e = r.errors_deg[0].clone();
             let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-            let first = mean(&e[..window.min(e.len())]);
-            let last = mean(&e[e.len().saturating_sub(window)..]);
+            let tail = |seconds: f64| {
+                let n = (seconds * 140.0) as usize;
+                mean(&e[e.len().saturating_sub(n)..])
+            };
+            let first = mean(&e[..(5 * 140).min(e.len())]);
+            let settle = ((DRIFT_SETTLE_S * 140.0) as usize).min(e.len());
             let left_arm_distances: serde_json::Map<String, Value> =
                 ["l_upper_arm", "l_forearm", "l_hand"]
                     .iter()
@@ -805,9 +946,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .collect();
             drift.push(DriftRun {
                 source,
-                distances: sensors.distances,
+                distances: p.sensors.distances,
                 first_5s_deg: first,
-                last_5s_deg: last,
+                last_5s_deg: tail(5.0),
+                last_30s_deg: tail(30.0),
+                slope_deg_per_s: fitted_slope_per_s(&e),
+                max_deg: e.iter().copied().fold(0.0, f64::max),
+                max_settled_deg: e[settle..].iter().copied().fold(0.0, f64::max),
                 diverged_frames: r.diverged_frames,
                 errors_deg: e,
                 distances_used: r.distances_used,
@@ -815,9 +960,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             });
         }
     }
+    for d in &drift {
+        stage.println(format!(
+            "{} {}: left shoulder first 5 s {:.2}°, last 30 s {:.2}°, last 5 s {:.2}°, \
+             slope {:+.4}°/s, max {:.2}° ({:.2}° after {DRIFT_SETTLE_S} s), {} diverged frames",
+            d.source,
+            if d.distances { "A+G+D" } else { "A+G" },
+            d.first_5s_deg,
+            d.last_30s_deg,
+            d.last_5s_deg,
+            d.slope_deg_per_s,
+            d.max_deg,
+            d.max_settled_deg,
+            d.diverged_frames
+        ));
+    }
     stage.finish(format!(
-        "left shoulder, last 5 s: with D {:.1}°, without {:.1}° (oracle {:.1}° / {:.1}°)",
-        drift[0].last_5s_deg, drift[1].last_5s_deg, drift[2].last_5s_deg, drift[3].last_5s_deg
+        "left shoulder, last 30 s: with D {:.2}°, without {:.2}° (oracle {:.2}° / {:.2}°)",
+        drift[0].last_30s_deg, drift[1].last_30s_deg, drift[2].last_30s_deg, drift[3].last_30s_deg
     ));
 
     // Plots.
@@ -854,17 +1014,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &chart.draw()?,
         "Mean orientation error of neck, right shoulder and left hip for every sensor combination",
     )?;
+    // One point per second (the mean over its 140 frames): the trend over minutes, not the
+    // gait cycle's ripple.
     let pts = |e: &[f64]| {
-        e.iter()
+        e.chunks(140)
             .enumerate()
-            .map(|(i, v)| (i as f64 / 140.0, *v))
+            .map(|(i, w)| (i as f64 + 0.5, w.iter().sum::<f64>() / w.len() as f64))
             .collect()
     };
     let mut chart = Chart::new(
-        "Treadmill-like walk (Figure 4-7): left shoulder orientation error",
-        "time (s)",
-        "orientation error (deg)",
+        format!("Treadmill walk (Figure 4-7), {treadmill_s} s, MEMS gyroscope bias: left shoulder"),
+        "time after the rest hold (s)",
+        "orientation error, 1 s means (deg)",
     );
+    chart.size = (1000, 500);
     for (d, colour) in
         drift
             .iter()
@@ -893,7 +1056,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     run.save_picture(
         "drift.png",
         &chart.draw()?,
-        "Left shoulder error with and without distances",
+        "Left shoulder error (1 s means) with and without distances, simulated suit and oracle",
     )?;
 
     let by_board = |f: fn(&dynamic_shapes::inertial::simulate::SkinMotion) -> f64| {
@@ -936,6 +1099,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
         .unwrap();
     let agd_global = global_table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .unwrap();
+    let agd_walk_bias = walk_bias_table
         .iter()
         .find(|r| r.sensors == "A+G+D" && r.root_supplied)
         .unwrap();
@@ -987,13 +1154,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "mm",
         )
         .oracle(),
-        Headline::new("drift_with_d_deg", "treadmill left shoulder, with D", "deg"),
+        Headline::new(
+            "drift_with_d_deg",
+            "treadmill left shoulder, last 30 s, A+G+D",
+            "deg",
+        ),
         Headline::new(
             "drift_without_d_deg",
-            "treadmill left shoulder, without D",
+            "treadmill left shoulder, last 30 s, A+G",
             "deg",
         )
         .baseline(),
+        Headline::new(
+            "drift_slope_with_d_deg_per_s",
+            "treadmill left shoulder, fitted slope, A+G+D",
+            "deg/s",
+        )
+        .goal(Goal::AtMost(0.01)),
+        Headline::new(
+            "drift_slope_without_d_deg_per_s",
+            "treadmill left shoulder, fitted slope, A+G",
+            "deg/s",
+        )
+        .baseline(),
+        Headline::new(
+            "drift_oracle_max_deg",
+            "treadmill left shoulder, largest error, perfect measurements (A+G+D and A+G)",
+            "deg",
+        )
+        .oracle()
+        .goal(Goal::AtMost(1.0)),
         broad_test,
         broad_gyro_only,
         broad_inclination,
@@ -1020,10 +1210,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "agd_neck_deg": agd.stats[0].mean_deg,
         "agd_shoulder_deg": agd.stats[1].mean_deg,
         "agd_hip_deg": agd.stats[2].mean_deg,
-        "drift_with_d_deg": drift[0].last_5s_deg,
-        "drift_without_d_deg": drift[1].last_5s_deg,
-        "drift_oracle_with_d_deg": drift[2].last_5s_deg,
-        "drift_oracle_without_d_deg": drift[3].last_5s_deg,
+        "drift_with_d_deg": drift[0].last_30s_deg,
+        "drift_without_d_deg": drift[1].last_30s_deg,
+        "drift_oracle_with_d_deg": drift[2].last_30s_deg,
+        "drift_oracle_without_d_deg": drift[3].last_30s_deg,
         "treadmill": {
             "duration_s": treadmill_s,
             "twist_rate_limit_rad_per_s": TWIST_LIMIT_RAD_S,
@@ -1031,6 +1221,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "l_forearm": arm_speeds[2], "r_forearm": arm_speeds[3]},
             "runs": drift.iter().map(|d| json!({"measurements": d.source, "distances": d.distances,
                 "first_5s_deg": d.first_5s_deg, "last_5s_deg": d.last_5s_deg,
+                "last_30s_deg": d.last_30s_deg, "slope_deg_per_s": d.slope_deg_per_s,
+                "max_deg": d.max_deg, "max_settled_deg": d.max_settled_deg,
                 "diverged_frames": d.diverged_frames, "distances_used": d.distances_used,
                 "left_arm_distance_innovations": d.left_arm_distances})).collect::<Vec<_>>(),
         },
@@ -1085,6 +1277,57 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "left_hip": agd_global.stats[2].mean_deg}),
         );
         f.insert("board_noise_s".into(), json!(BOARD_NOISE_S));
+        // Figure 4-7 over minutes, and Table 4.1 under the other bias model.
+        for (key, v) in [
+            ("drift_slope_with_d_deg_per_s", drift[0].slope_deg_per_s),
+            ("drift_slope_without_d_deg_per_s", drift[1].slope_deg_per_s),
+            (
+                "drift_oracle_slope_with_d_deg_per_s",
+                drift[2].slope_deg_per_s,
+            ),
+            (
+                "drift_oracle_slope_without_d_deg_per_s",
+                drift[3].slope_deg_per_s,
+            ),
+            (
+                "drift_oracle_max_deg",
+                drift[2].max_deg.max(drift[3].max_deg),
+            ),
+            (
+                "drift_oracle_max_settled_deg",
+                drift[2].max_settled_deg.max(drift[3].max_settled_deg),
+            ),
+        ] {
+            f.insert(key.into(), json!(v));
+        }
+        f.insert("gyro_bias".into(), json!(sim_params.gyro_bias));
+        f.insert(
+            "table_4_1_exercise_random_walk_bias".into(),
+            walk_bias_table.iter().map(run_json).collect(),
+        );
+        f.insert(
+            "agd_random_walk_bias_deg".into(),
+            json!({"neck": agd_walk_bias.stats[0].mean_deg,
+                "right_shoulder": agd_walk_bias.stats[1].mean_deg,
+                "left_hip": agd_walk_bias.stats[2].mean_deg}),
+        );
+        let tuned: Vec<Value> = drift_tuned
+            .iter()
+            .map(|(score, p)| {
+                json!({"sensors": if p.sensors.distances { "A+G+D" } else { "A+G" },
+                    "process_sigma": p.process_sigma, "accelerometer_sigma": p.accelerometer_sigma,
+                    "gyroscope_sigma": p.gyroscope_sigma, "distance_gate_sigma": p.distance_gate_sigma,
+                    "recentre_rad": p.recentre_rad, "score_deg": score})
+            })
+            .collect();
+        if let Some(t) = f.get_mut("treadmill").and_then(Value::as_object_mut) {
+            t.insert("gyro_bias".into(), json!(sim_params.gyro_bias));
+            t.insert("settle_s".into(), json!(DRIFT_SETTLE_S));
+            t.insert("tuning_clip_s".into(), json!(drift_tune_s));
+            t.insert("tuning_seed".into(), json!(tune_sim_params.seed));
+            t.insert("tuned".into(), Value::Array(tuned));
+            t.insert("tuning_grid".into(), Value::Array(drift_grid));
+        }
         f.insert(
             "code_noise".into(),
             json!({"gyroscope_sigma": code_gyro, "accelerometer_sigma": code_accel}),

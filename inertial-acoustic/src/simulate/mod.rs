@@ -16,7 +16,8 @@
 //!   independent path from the filter's analytic `J θ̈ + J̇θ̇`), angular velocities by central
 //!   differences of the boards' true orientations; the paper's white noise (0.02 m/s², 0.002
 //!   rad/s), per-axis zero and
-//!   slope errors, a gyroscope bias random walk, 12-bit counts (four 10-bit samples
+//!   slope errors, a gyroscope bias ([`GyroBiasModel`]: by default a MEMS part's turn-on
+//!   offset, warm-up drift, instability and g-sensitivity; a random walk as the option), 12-bit counts (four 10-bit samples
 //!   accumulated), 6-bit delta modulation with error-correcting code and scrambling, random bit
 //!   errors; decoded and calibrated by the §4.3.3 procedure (±g poses and ±45 rpm turntable
 //!   runs simulated with the same errors).
@@ -27,6 +28,7 @@
 //!   the same wire, white noise; processed by [`PulseDetector`](crate::PulseDetector) with per-source offsets
 //!   calibrated from static placements 30–90 cm apart.
 
+mod bias;
 mod motion;
 mod physics;
 mod recorder;
@@ -34,6 +36,7 @@ mod recorder;
 mod tests;
 
 pub use crate::garment::{GarmentPose, GarmentSurface, MIN_PATCH, PATCH_RADIUS_M};
+pub use bias::{GyroBiasModel, MemsGyroBias};
 pub use motion::{
     prepare_motion, treadmill_motion, SmoothMotion, TREADMILL_MIN_CYCLE_S, TREADMILL_MIN_SPEED_M_S,
 };
@@ -59,8 +62,14 @@ pub struct SimulationParams {
     pub gyro_zero_sd: f64,
     /// Spread of the scale (slope) errors, relative. Default: 0.03.
     pub scale_sd: f64,
-    /// Gyroscope bias random walk, rad/s per √s. Default: 0.0005.
+    /// Gyroscope bias random walk, rad/s per √s, of [`GyroBiasModel::RandomWalk`] (unused by
+    /// the other model). Default: 0.0005.
     pub gyro_bias_walk: f64,
+    /// How the gyroscopes' bias starts and moves over a recording. Default:
+    /// [`GyroBiasModel::Mems`] with [`MemsGyroBias::adxrs300`]. Parameters written without
+    /// this field read back as [`GyroBiasModel::RandomWalk`], the model they were made with.
+    #[serde(default = "random_walk")]
+    pub gyro_bias: GyroBiasModel,
     /// Accelerometer range (full scale of the 12-bit count), m/s². Default: ±6 g.
     pub accel_range: f64,
     /// Gyroscope range, rad/s. Default: ±20 (1150 °/s). The 6-bit delta code slews at most
@@ -142,6 +151,7 @@ impl Default for SimulationParams {
             gyro_zero_sd: 0.1,
             scale_sd: 0.03,
             gyro_bias_walk: 0.0005,
+            gyro_bias: GyroBiasModel::default(),
             accel_range: 6.0 * GRAVITY_M_S2,
             gyro_range: 20.0,
             accumulate_10bit: true,
@@ -170,6 +180,11 @@ impl SimulationParams {
     /// With `seed` replaced.
     pub fn with_seed(self, seed: u64) -> Self {
         SimulationParams { seed, ..self }
+    }
+
+    /// With the gyroscopes' bias model replaced.
+    pub fn with_gyro_bias(self, gyro_bias: GyroBiasModel) -> Self {
+        SimulationParams { gyro_bias, ..self }
     }
 
     /// With the ultrasonic subsystem on or off.
@@ -251,6 +266,7 @@ impl SimulationParams {
         ] {
             non_negative(name, v)?;
         }
+        self.gyro_bias.validate()?;
         positive("accel_range", self.accel_range)?;
         positive("gyro_range", self.gyro_range)?;
         positive("source_amplitude", self.source_amplitude)?;
@@ -289,6 +305,10 @@ fn default_delta_step() -> Option<i32> {
 
 fn default_analog_noise_lsb() -> f64 {
     0.5
+}
+
+fn random_walk() -> GyroBiasModel {
+    GyroBiasModel::RandomWalk
 }
 
 fn default_true() -> bool {

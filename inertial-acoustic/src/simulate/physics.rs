@@ -251,6 +251,17 @@ impl SuitSimulator {
         self
     }
 
+    /// The same suit (placements, front ends, seed) with the gyroscopes' bias model
+    /// replaced ([`SimulationParams::gyro_bias`]).
+    ///
+    /// # Errors
+    /// As [`GyroBiasModel::validate`](super::GyroBiasModel::validate).
+    pub fn with_gyro_bias(mut self, gyro_bias: super::GyroBiasModel) -> Result<Self> {
+        gyro_bias.validate()?;
+        self.params.gyro_bias = gyro_bias;
+        Ok(self)
+    }
+
     /// The same suit (same placements and seed) on another inertial link: its bit error rate
     /// and key interval ([`SimulationParams::bit_error_rate`],
     /// [`SimulationParams::key_interval`]), e.g. to sweep the bit error rate on one suit.

@@ -4,7 +4,7 @@
 
 use super::motion::SmoothMotion;
 use super::physics::{lerp_geometry, rotation_vector, segment_distance, Channel, Geometry};
-use super::SuitSimulator;
+use super::{GyroBiasModel, SuitSimulator};
 use crate::ekf::{DistanceMeasurement, FrameObservations, InertialReading, KnownDofs};
 use crate::inertial::{AxisCalibration, CHANNELS, FRAME_BITS};
 use crate::params::{GRAVITY_M_S2, INERTIAL_RATE_HZ, PULSE_INTERVAL_S, SAMPLES_PER_PULSE};
@@ -85,6 +85,14 @@ pub struct SkinMotion {
     pub mean_deg: f64,
     /// Largest rotation, degrees.
     pub max_deg: f64,
+}
+
+/// One board's constants of the MEMS bias model ([`super::MemsGyroBias`]): turn-on offset,
+/// temperature coefficient (per kelvin) and the rows of the linear-acceleration sensitivity.
+struct BoardBias {
+    turn_on: DVec3,
+    temp_coeff: DVec3,
+    g_sensitivity: [DVec3; 3],
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -191,7 +199,36 @@ impl SuitSimulator {
         let mut encoders = vec![codec.clone(); nb];
         let mut decoders = vec![codec; nb];
         // Prime the codecs at the first frame's values (the link runs before the recording).
+        // The gyroscopes' bias (`GyroBiasModel`): the stochastic part (the random walk, or the
+        // MEMS model's instability) draws three normals per board and frame from the main
+        // stream under either model; the MEMS model's per-board constants come from a stream
+        // of their own, so every other random stream is the same under both models.
         let mut gyro_bias = vec![DVec3::ZERO; nb];
+        let mut bias_rng =
+            ChaCha8Rng::seed_from_u64(self.params.seed.wrapping_mul(0x9E37_79B9) ^ 0x6D65_6D73);
+        let board_bias: Vec<BoardBias> = match p.gyro_bias {
+            GyroBiasModel::RandomWalk => Vec::new(),
+            GyroBiasModel::Mems(m) => (0..nb)
+                .map(|_| {
+                    let mut v = |sd: f64| {
+                        DVec3::new(
+                            normal.sample(&mut bias_rng),
+                            normal.sample(&mut bias_rng),
+                            normal.sample(&mut bias_rng),
+                        ) * sd
+                    };
+                    BoardBias {
+                        turn_on: v(m.turn_on_sd),
+                        temp_coeff: v(m.temp_coeff_sd),
+                        g_sensitivity: [
+                            v(m.g_sensitivity_sd),
+                            v(m.g_sensitivity_sd),
+                            v(m.g_sensitivity_sd),
+                        ],
+                    }
+                })
+                .collect(),
+        };
         let (mut th, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
         let (mut th_p, mut th_m) = (vec![0.0; nd], vec![0.0; nd]);
         let (mut scratch_r, mut scratch_a) = (vec![0.0; nd], vec![0.0; nd]);
@@ -234,19 +271,31 @@ impl SuitSimulator {
                     pos.distance(rigid),
                     q.angle_between(fk.frame_rotation(bone)?),
                 );
-                gyro_bias[b] += DVec3::new(
+                let step = DVec3::new(
                     normal.sample(&mut rng),
                     normal.sample(&mut rng),
                     normal.sample(&mut rng),
-                ) * (p.gyro_bias_walk * dt.sqrt());
-                let values = [
-                    w.x + gyro_bias[b].x,
-                    w.y + gyro_bias[b].y,
-                    w.z + gyro_bias[b].z,
-                    f.x,
-                    f.y,
-                    f.z,
-                ];
+                );
+                let bias = match p.gyro_bias {
+                    GyroBiasModel::RandomWalk => {
+                        gyro_bias[b] += step * (p.gyro_bias_walk * dt.sqrt());
+                        gyro_bias[b]
+                    }
+                    GyroBiasModel::Mems(m) => {
+                        // Exact discretisation of the Gauss–Markov process at dt.
+                        let decay = (-dt / m.instability_tau_s).exp();
+                        gyro_bias[b] = gyro_bias[b] * decay
+                            + step * (m.instability_sd * (1.0 - decay * decay).sqrt());
+                        let c = &board_bias[b];
+                        let warm = m.warm_up_k * (1.0 - (-t / m.warm_up_tau_s).exp());
+                        let g = &c.g_sensitivity;
+                        c.turn_on
+                            + c.temp_coeff * warm
+                            + gyro_bias[b]
+                            + DVec3::new(g[0].dot(f), g[1].dot(f), g[2].dot(f))
+                    }
+                };
+                let values = [w.x + bias.x, w.y + bias.y, w.z + bias.z, f.x, f.y, f.z];
                 let mut counts = [0i32; CHANNELS];
                 for c in 0..CHANNELS {
                     counts[c] = channels[b][c].count(values[c], &mut rng, &normal);

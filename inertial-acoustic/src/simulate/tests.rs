@@ -215,3 +215,112 @@ fn treadmill_loops_a_gait_cycle_without_jumps() {
         Err(Error::InvalidParam { name: "walk", .. })
     ));
 }
+
+/// The gyroscope bias models on a still suit (no ultrasound). Both models share every random
+/// stream but the MEMS constants': with every bias figure zero they record the same. A turn-on
+/// offset alone is constant (the rest pose removes it); a warm-up moves the bias after the rest
+/// pose by far more than the rest window's noise; bad figures are refused.
+#[test]
+fn gyro_bias_models_turn_on_warm_up_and_bad_figures() {
+    let s = human_skeleton(&HumanParams::default()).unwrap();
+    let still = Motion::new(1.0 / 30.0, DMatrix::zeros(s.dof_count(), 300)).unwrap();
+    let base = SimulationParams::default().with_ultrasound(false);
+    let motion = prepare_motion(&s, &still, &base).unwrap();
+    let zero = MemsGyroBias {
+        turn_on_sd: 0.0,
+        temp_coeff_sd: 0.0,
+        instability_sd: 0.0,
+        g_sensitivity_sd: 0.0,
+        ..MemsGyroBias::adxrs300()
+    };
+    let record = |bias: GyroBiasModel, walk: f64| {
+        let p = SimulationParams {
+            gyro_bias_walk: walk,
+            ..base.with_gyro_bias(bias)
+        };
+        let sim = SuitSimulator::new(&s, p).unwrap();
+        sim.record(&motion, &[0.0; 8]).unwrap()
+    };
+    let a = record(GyroBiasModel::RandomWalk, 0.0);
+    let b = record(GyroBiasModel::Mems(zero), 0.0005);
+    assert!(
+        a.recording == b.recording,
+        "zero bias differs between models"
+    );
+    // Per board: mean gyroscope reading over the rest hold and over the last 2 s.
+    let rest = a.recording.rest_frames;
+    let n = a.recording.frames.len();
+    let mean = |rec: &SimulatedRecording, range: std::ops::Range<usize>, board: usize| {
+        let (mut sum, mut k) = (DVec3::ZERO, 0u32);
+        for f in &rec.recording.frames[range] {
+            if let Some(r) = f.inertial[board] {
+                if !r.saturated[..3].iter().any(|&x| x) {
+                    sum += r.gyro_rad_s;
+                    k += 1;
+                }
+            }
+        }
+        sum / f64::from(k)
+    };
+    let shift = |rec: &SimulatedRecording| -> Vec<f64> {
+        (0..rec.recording.suit.boards().len())
+            .map(|board| (mean(rec, n - 280..n, board) - mean(rec, 0..rest, board)).length())
+            .collect()
+    };
+    let turn_on = MemsGyroBias {
+        turn_on_sd: 0.05,
+        ..zero
+    };
+    let on = record(GyroBiasModel::Mems(turn_on), 0.0);
+    let offset = mean(&on, 0..rest, 0).length();
+    assert!(offset > 0.02, "no turn-on offset: {offset}");
+    let none = shift(&a);
+    let kept = shift(&on);
+    let warm = record(
+        GyroBiasModel::Mems(MemsGyroBias {
+            temp_coeff_sd: 0.01,
+            warm_up_k: 8.0,
+            warm_up_tau_s: 2.0,
+            ..zero
+        }),
+        0.0,
+    );
+    let drift = shift(&warm);
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (none, kept, drift) = (median(none), median(kept), median(drift));
+    // The rest window's noise: a few thousandths of a rad/s at most.
+    assert!(
+        none < 0.01 && kept < 0.01,
+        "constant offsets moved: {none}, {kept}"
+    );
+    assert!(drift > 0.05, "warm-up drift {drift} rad/s");
+    for bad in [
+        MemsGyroBias {
+            turn_on_sd: -1.0,
+            ..zero
+        },
+        MemsGyroBias {
+            g_sensitivity_sd: f64::NAN,
+            ..zero
+        },
+        MemsGyroBias {
+            warm_up_tau_s: 0.0,
+            ..zero
+        },
+    ] {
+        let p = base.with_gyro_bias(GyroBiasModel::Mems(bad));
+        assert!(SuitSimulator::new(&s, p).is_err(), "{bad:?} accepted");
+    }
+    // Parameters written before the bias model existed read back as the random walk.
+    let mut json = serde_json::to_value(SimulationParams::default()).unwrap();
+    json.as_object_mut().unwrap().remove("gyro_bias");
+    let old: SimulationParams = serde_json::from_value(json).unwrap();
+    assert_eq!(old.gyro_bias, GyroBiasModel::RandomWalk);
+    assert!(matches!(
+        SimulationParams::default().gyro_bias,
+        GyroBiasModel::Mems(_)
+    ));
+}
