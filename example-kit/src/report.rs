@@ -15,7 +15,7 @@ use crate::cli::Common;
 use crate::progress::{Stage, Timings};
 use crate::{Error, Result};
 
-/// A goal stated for a figure (by the issue, the example or the method's guide).
+/// A goal stated for a figure (by the example or the method's reference page).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Goal {

@@ -576,7 +576,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "points_track_points": tracked.len(),
         "points_track_reprojection_rms_px": avg(&track.reprojection_rms_px),
     });
-    // The imputation and video figures at the top level (the issues' names).
+    // The imputation and video figures at the top level (names compared across runs).
     for extra in [&impute_figures, &video_figures] {
         if let (Some(f), Some(v)) = (figures.as_object_mut(), extra.as_object()) {
             for (k, x) in v {

@@ -36,7 +36,7 @@ use serde_json::json;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
-/// Pixel noise of the bar markers' centroids, px (the condition).
+/// Pixel noise of the bar markers' centroids, px (the validation condition).
 const SIGMA_PX: f64 = 0.3;
 
 fn centre_error_m(cams: &[Camera], truth: &[Camera]) -> AnyResult<f64> {

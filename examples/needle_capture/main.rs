@@ -156,7 +156,7 @@ impl Setup {
 }
 
 /// The performer's deformation: its pose-driven shapes and no hip flap, so the test scores
-/// what a pose-driven model can predict (the issue's protocol; no garment, no wrinkles).
+/// what a pose-driven model can predict (the validation protocol; no garment, no wrinkles).
 fn deformation() -> DeformationParams {
     DeformationParams::default().with_flap(None)
 }
@@ -348,7 +348,7 @@ fn main() -> Res<()> {
     let stage = run.stage("short capture", Some(short_motion.frame_count() as u64));
     let short_store = capture(&performer, &observer, &rig, &short_motion, &stage)?.store;
     stage.finish(format!("{} frames", short_motion.frame_count()));
-    // The issue's unit: camera-frames (one 720×480 mask walked) per second.
+    // The unit: camera-frames (one 720×480 mask walked) per second.
     let camera_frames = (n_train * cameras.len()) as f64;
     let accumulate_fps = camera_frames / long.accumulate_s;
     eprintln!(
@@ -590,7 +590,7 @@ fn main() -> Res<()> {
     }
     stage.finish("exercise and walk tests");
 
-    // --- Where the neighbourhoods came from (the issue's pool diagnostics). ---
+    // --- Where the neighbourhoods came from (the pool diagnostics). ---
     let pools = pool_figures(&main_fit.reports, &body);
     for (k, v) in pools {
         out.insert(k, v);
@@ -757,7 +757,7 @@ fn main() -> Res<()> {
     ] {
         out.insert(k.into(), v);
     }
-    // Added for the headlines: the issue's accuracy goals are these ratios ≥ 2.
+    // The accuracy goals are these ratios ≥ 2.
     let f = |k: &str| out[k].as_f64().unwrap_or(f64::NAN);
     let over_static = f("static_deforming_mean_mm") / f("deforming_mean_mm");
     let over_lbs = f("lbs_deforming_mean_mm") / f("deforming_mean_mm");
@@ -802,7 +802,7 @@ impl SweepPoint {
     }
 }
 
-/// The figures `tour` shows, with the goals of the issue (`docs/needle-model.md`).
+/// The figures `tour` shows, with their goals (`docs/needle-model.md`).
 fn headlines(run: &mut Run, s: &Setup) {
     let doc = "goal from docs/needle-model.md";
     for h in [
@@ -829,28 +829,28 @@ fn headlines(run: &mut Run, s: &Setup) {
             "×",
         )
         .goal(Goal::AtLeast(2.0))
-        .note("the issue's accuracy goal (docs/needle-model.md)"),
+        .note("accuracy goal (docs/needle-model.md)"),
         Headline::new(
             "deforming_gain_over_lbs",
             "pose-deforming error of captured-shape LBS ÷ that of the model",
             "×",
         )
         .goal(Goal::AtLeast(2.0))
-        .note("the issue's accuracy goal (docs/needle-model.md)"),
+        .note("accuracy goal (docs/needle-model.md)"),
         Headline::new(
             "pose_r2_centred",
             "share of the pose variance the model explains (each needle's bias removed)",
             "",
         )
         .goal(Goal::AtLeast(0.5))
-        .note("the issue's goal (docs/needle-model.md)"),
+        .note("goal in docs/needle-model.md"),
         Headline::new(
             "n10_to_100_drop",
             "drop of the pose-deforming error from N = 10 to N = 100",
             "fraction",
         )
         .goal(Goal::AtLeast(0.1))
-        .note("the issue's goal; compare n_seed_spread_mm"),
+        .note("compare n_seed_spread_mm"),
         Headline::new(
             "test_median_mm",
             "model error on the test exercise, median over needles",
@@ -1105,7 +1105,7 @@ fn plot_error_vs_n(run: &mut Run, sweep: &[SweepPoint], fig: &Map<String, Value>
     Ok(())
 }
 
-/// The issue's pool diagnostics: per primitive, the median pool radius in degrees of its
+/// The pool diagnostics: per primitive, the median pool radius in degrees of its
 /// driving joints, the median largest share of one 5° pose cell in a pool, and how often
 /// the `min_near` floor bound; overall, the medians over primitives and the floor's share.
 fn pool_figures(reports: &[PrimitiveFitReport], body: &NeedleBody) -> Vec<(String, Value)> {

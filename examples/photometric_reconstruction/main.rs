@@ -2046,7 +2046,7 @@ fn peer_integration_workload(n: u32) -> Result<(f64, f64, f64), Box<dyn std::err
     Ok((seconds, rms(&out.depth), rms(&prior)))
 }
 
-/// The four goals on the pass-2 merged mesh (Table 3.1's coverage `coverage_key`,
+/// The four goals on the pass-2 merged mesh (Table 3.1's coverage `coverage_key`,
 /// normal and local normal deviation, median distance to the truth, each other key named
 /// `{prefix}normal_dev_deg` etc.) as headlines, labels prefixed by `subject`, with the visual
 /// hull's figure `baseline_key` named as the baseline; beside the deviations, the same

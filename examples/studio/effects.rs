@@ -35,7 +35,7 @@ const CLOSEUP_FLEXION_DEG: f64 = 60.0;
 /// The wrinkles are measured on every `FINE_EVERY`-th measured frame (the refined surface with
 /// the skirt has 1.5 M vertices: about 0.2 s a frame on one core).
 const FINE_EVERY: usize = 10;
-/// Thresholds of the per-effect vertex counts, mm (the studio issue's 2, 5 and 10 mm).
+/// Thresholds of the per-effect vertex counts, mm (the goals' 2, 5 and 10 mm, docs/studio.md).
 const LIMITS_MM: [f64; 3] = [2.0, 5.0, 10.0];
 
 /// The deformation of the performer with every effect on: the default pose-driven shapes,
@@ -81,9 +81,9 @@ fn garment_lag_m(f: &PosedFrame, garment: &Range<usize>) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The free multi-DOF exercise (5 minutes at 30 fps, the acceptance length of the studio
-/// issue) measured by its range coverage and largest held-pose share, against the range of
-/// motion's.
+/// The free multi-DOF exercise (5 minutes at 30 fps, the acceptance length in
+/// docs/studio.md) measured by its range coverage and largest held-pose share, against the
+/// range of motion's.
 pub(crate) fn exercise_figures(p: &Performer) -> AnyResult<(Motion, Value)> {
     let exercise = exercise_motion(&p.skeleton, &ExerciseParams::default())?;
     let coverage = range_coverage(&p.skeleton, &exercise)?

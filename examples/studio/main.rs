@@ -442,14 +442,14 @@ fn headlines(run: &mut Run, w: u32, h: u32) {
             "",
         )
         .goal(Goal::AtLeast(0.8))
-        .note("studio issue, 5 minutes at 30 fps"),
+        .note("goal in docs/studio.md, 5 minutes at 30 fps"),
         Headline::new(
             "exercise_max_pose_share",
             "free exercise: largest share of frames in one 5° pose cell",
             "",
         )
         .goal(Goal::AtMost(0.05))
-        .note("studio issue; the range of motion's is rom_max_pose_share"),
+        .note("goal in docs/studio.md; the range of motion's is rom_max_pose_share"),
         Headline::new(
             "pose_deform_max_mm",
             "pose-driven shapes: largest displacement (walk, exercise)",
@@ -466,21 +466,21 @@ fn headlines(run: &mut Run, w: u32, h: u32) {
             "mm",
         )
         .goal(Goal::AtLeast(100.0))
-        .note("studio issue: ≥ 10 cm in fast motion"),
+        .note("goal in docs/studio.md: ≥ 10 cm in fast motion"),
         Headline::new(
             "wrinkle_amplitude_mm",
             "wrinkles: largest fold displacement (walk, exercise)",
             "mm",
         )
         .goal(Goal::AtMost(3.0))
-        .note("studio issue: folds of 1–3 mm"),
+        .note("goal in docs/studio.md: folds of 1–3 mm"),
         Headline::new(
             "deform_ms_per_frame",
             "the whole deformation per frame on one core (skirt, wrinkles)",
             "ms",
         )
         .goal(Goal::AtMost(20.0))
-        .note("studio issue"),
+        .note("goal in docs/studio.md"),
         Headline::new(
             "raster_fine_ms_per_view",
             "rasterise the refined, wrinkled surface, per view",

@@ -1,7 +1,7 @@
 //! Validation of template-silhouette (Vlasic 2010 thesis, Chapter 2) on the synthetic studio.
 //!
 //! The MakeHuman performer seen by a ring of 8 cameras 3.5 m away (§2.5.1), in several runs:
-//! the protocol — the performer **in the skirt** (its template is the rest mesh with
+//! the protocol — the performer **in the skirt** (its template is the rest mesh with
 //! the skirt's rest drape, as the thesis' scanned templates) in the exercise motion, the fast
 //! motion and the real CMU 131_01 walk — and, for reference, the body alone in the exercise.
 //! Per frame: the visual hull (§2.3.2) and the contour rays (§2.4.2); the skeleton tracked
@@ -107,7 +107,7 @@ fn rms_mm(a: &[DVec3], b: &[DVec3], subset: Option<&[usize]>) -> f64 {
 /// Every run takes every second frame of its motion unless `--fps` says otherwise.
 const FRAME_STEP: usize = 2;
 
-/// Vertices of the decimated template the figures are measured with (≈ 10k).
+/// Vertices of the decimated template the figures are measured with (≈ 10k).
 const TEMPLATE_VERTICES: usize = 10_000;
 
 /// Height of the skirt's waistband, the part of it not marked loose, m.
@@ -1267,7 +1267,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .resolution
         .unwrap_or(if quick { (480, 360) } else { (1600, 1200) });
     let n = args.frames.unwrap_or(if quick { 12 } else { 100 });
-    // The protocol (skirt) first, then the body alone for reference.
+    // The skirt protocol first, then the body alone for reference.
     let run_spec = |skirt, motion, frames| RunSpec {
         skirt,
         motion,
@@ -1317,7 +1317,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             stage.finish("");
         }
     }
-    // The mean over the skirt runs (the protocol), each figure the runs report.
+    // The mean over the skirt runs (the headline protocol), each figure the runs report.
     let skirt_runs: Vec<String> = runs.iter().filter(|r| r.skirt).map(RunSpec::name).collect();
     let mut averaged = Map::new();
     for (k, v) in &figures {

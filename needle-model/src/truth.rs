@@ -52,7 +52,7 @@ pub const NEAR_JOINT_M: f64 = 0.10;
 pub const DEFORMING_M: f64 = 0.002;
 
 /// Span over a test set of a needle's non-skinning length (true minus LBS length) above which
-/// the needle counts as "pose-deforming", metres: 3 mm (the needle follow-up issue). With the
+/// the needle counts as "pose-deforming", metres: 3 mm (the validation protocol's threshold). With the
 /// performer's dynamic effects off, this is the needles whose length the pose-driven shapes
 /// change — what a pose-dependent model exists to recover.
 pub const POSE_DEFORMING_SPAN_M: f64 = 0.003;

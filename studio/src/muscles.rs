@@ -197,7 +197,7 @@ impl Default for PoseDeformParams {
     /// | `elbow_crease` / `elbow_round` | `elbow.flexion` (90°) | 10 mm each | ±20 % of the upper arm around the elbow | flexor in / extensor out |
     /// | `knee_crease` / `knee_round` | `knee.flexion` (90°) | 12 mm each | ±15 % of the thigh around the knee | posterior in / anterior out |
     ///
-    /// Sizes: biceps, brachioradialis, deltoid, calf and trunk as the studio issue specifies.
+    /// Sizes: biceps, brachioradialis, deltoid, calf and trunk as the studio's specification (docs/studio.md) gives them.
     /// The **calf** is driven by `ankle.dorsiflexion`, the only ankle flexion DOF of both
     /// skeletons, with a negative reference (plantarflexion). The **hamstrings** get 10 mm,
     /// half the biceps: they contract as strongly in knee flexion but are a flatter, deeper
