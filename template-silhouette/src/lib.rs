@@ -9,6 +9,7 @@
 //! | one frame's observations | §2.2, Figure 2-3 | [`FrameObservation`] |
 //! | pose: `w_D E_D + w_T E_T + w_R E_R + w_U E_U`, forward and reverse passes | §2.3.1, §2.3.3 | [`track`], [`fit_frame`], [`fit_pose`], [`PoseModel`], [`PoseParams`], [`UserRay`] |
 //! | interactive correction | §2.3.3, Figure 2-4 | [`PoseEditor`] |
+//! | the user who fixes hard frames during the forward pass | §2.3.3 | [`FrameCorrector`], [`track_corrected`], [`capture_sequence_corrected`] |
 //! | Laplacian coordinates, soft constraints | §2.4.1, Eq. 2.1–2.2 | [`Molding`], [`SoftConstraint`] |
 //! | silhouette constraints | §2.4.2, Figure 2-6 | [`contour_rays`], [`silhouette_constraints`], [`SilhouetteParams`] |
 //! | shape: Algorithm 1 | §2.4.2 | [`ShapeEstimator`], [`ShapeParams`], [`temporal_filter`] |
@@ -20,7 +21,8 @@
 //! | bone lengths and widths from the first frames | Fua et al. §5; Vlasic §2.5.1 | [`size_performer`], [`size_from_poses`], [`SizingParams`], [`Template::resized`] |
 //!
 //! With the cargo feature `validation`: the ellipsoid fit's studio scenario and its scores
-//! (`ellipsoid_scenario`, `score_ellipsoids`, `EllipsoidScenarioParams`).
+//! (`ellipsoid_scenario`, `score_ellipsoids`, `EllipsoidScenarioParams`) and `OracleUser`, which
+//! emulates the frame-fixing user from the true poses.
 //!
 //! Errors are one [`Error`]; an error inside a loop over frames, cameras, vertices or joints
 //! says where ([`Error::At`] with a [`Context`]).
@@ -65,6 +67,7 @@ pub use interactive::PoseEditor;
 pub use metrics::{edge_error_pct, silhouette_error_pct};
 pub use molding::{Molding, SoftConstraint};
 #[cfg(feature = "validation")]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub use oracle_user::OracleUser;
 pub use pipeline::{
     capture_sequence, capture_sequence_corrected, FrameObservation, SequenceCapture,

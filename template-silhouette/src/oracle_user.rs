@@ -18,6 +18,7 @@ use crate::pose::{FrameCorrector, UserRay};
 /// A threshold of 5 cm is where a joint visibly leaves its limb in a camera view of the
 /// studio; the user's own placement is exact (the rays pass through the true joint).
 #[derive(Debug, Clone)]
+#[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub struct OracleUser {
     skeleton: Skeleton,
     truth: Skeleton,
