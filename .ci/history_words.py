@@ -2,11 +2,15 @@
 """Text about the software only: fails on words that narrate how the work went.
 
 Scans the library sources (*/src), docs/, examples/, tests/, README.md and ARCHITECTURE.md for
-`session(s)`, `issue N`, `we tried` and `the brief`. What changed and when belongs in commit
+`session(s)`, `issue N`, `the issue('s)`, `we tried` and `the brief`. What changed and when belongs in commit
 messages and CHANGELOG.md. ALLOW lists real uses (file, the matching text)."""
 import os, re, sys
 
-PATTERN = re.compile(r"\bsessions?\b|\bissue \d+|\bwe tried\b|\bthe brief\b", re.I)
+PATTERN = re.compile(
+    r"\bsessions?\b|\bissue \d+|\bwe tried\b|\bthe brief\b|\bthe issue\b|\bissue's\b|\bissues'"
+    r"|\bstudio issue\b|\bfollow-up issue\b",
+    re.I,
+)
 ROOTS = ["docs", "examples", "tests", "README.md", "ARCHITECTURE.md"]
 EXTS = (".rs", ".md", ".py", ".sh", ".toml")
 # (path suffix, substring of the line) pairs that are not work history.

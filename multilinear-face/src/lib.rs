@@ -1,6 +1,6 @@
 //! # multilinear-face
 //!
-//! Multilinear face models after D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis,
+//! Multilinear face models after D. Vlasic, *Reconstruction and Analysis of Dynamic Shapes* (MIT PhD thesis,
 //! 2010), Chapter 5 (and Vlasic, Brand, Pfister, Popović, *Face Transfer with Multilinear
 //! Models*, SIGGRAPH 2005): faces in full correspondence arranged into a data tensor by
 //! attribute (expression × identity, or viseme × expression × identity), decomposed by the

@@ -2,7 +2,7 @@
 //!
 //! Multi-view photometric normal maps from binary half-on spherical lighting (§3.2) and the
 //! surface built from them by integration, matching, merging and hole filling (§3.3), after
-//! D. Vlasic, *Markerless Performance Capture* (MIT PhD thesis, 2010), Chapter 3 (and Vlasic,
+//! D. Vlasic, *Reconstruction and Analysis of Dynamic Shapes* (MIT PhD thesis, 2010), Chapter 3 (and Vlasic,
 //! Peers, Baran, Debevec, Popović, Rusinkiewicz, Matusik, *Dynamic Shape Capture using
 //! Multi-View Photometric Stereo*, SIGGRAPH Asia 2009).
 //!
