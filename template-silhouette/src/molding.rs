@@ -82,6 +82,12 @@ pub struct Molding {
     base_values: Vec<f64>,
     /// Per face, the value slots of its corner pairs `(a, b)` (lower entry) in `normal`.
     face_slots: Vec<[[usize; 3]; 3]>,
+    /// Per vertex, its connected part of the template (parts share no edge: a body and a
+    /// separate skirt are two). The Laplacian fixes each part only up to a translation, so
+    /// every part needs a constraint in each solve.
+    part: Vec<u32>,
+    /// Vertices per part.
+    part_sizes: Vec<usize>,
     chol: SparseCholesky,
 }
 
@@ -177,6 +183,7 @@ impl Molding {
             analysed.values_mut()[s] += 1.0;
         }
         let chol = SparseCholesky::new(&analysed, &CholeskyParams::default())?;
+        let (part, part_sizes) = connected_parts(n, &template.faces);
         Ok(Molding {
             faces: template.faces.clone(),
             delta,
@@ -184,6 +191,8 @@ impl Molding {
             normal,
             base_values,
             face_slots,
+            part,
+            part_sizes,
             chol,
         })
     }
@@ -211,8 +220,11 @@ impl Molding {
     /// [`Error::SizeMismatch`] if `coords` does not have one row per vertex;
     /// [`Error::IndexOutOfRange`] for a constraint on a missing face; [`Error::NonFinite`]
     /// for NaN/inf weights, coordinates or targets; [`Error::InvalidParam`] for a negative
-    /// weight; skin-core's `Singular` when there is no constraint (the Laplacian fixes the
-    /// shape only up to a translation).
+    /// weight, and for a connected part of the template that no constraint with a positive
+    /// weight touches (the Laplacian fixes each part only up to a translation: a separate
+    /// skirt, say, needs a nearly-rigid vertex, a silhouette constraint or
+    /// `ShapeParams::w_anchor > 0`); skin-core's `Singular` if the system is singular
+    /// nonetheless.
     pub fn solve(
         &mut self,
         w_l: f64,
@@ -283,6 +295,7 @@ impl Molding {
                 }
             }
         }
+        self.check_every_part_constrained(groups)?;
         let mut m = self.normal.clone();
         m.values_mut().copy_from_slice(&values);
         self.chol.refactor(&m)?;
@@ -315,6 +328,82 @@ fn apply_transpose(m: &CscMatrix<f64>, x: &[DVec3]) -> Vec<DVec3> {
         out[c] += *v * x[r];
     }
     out
+}
+
+impl Molding {
+    /// [`Error::InvalidParam`] naming the first connected part that no constraint of a
+    /// positive weight touches (its system is singular: a free translation).
+    fn check_every_part_constrained(&self, groups: &[(f64, &[SoftConstraint])]) -> Result<()> {
+        let mut touched = vec![false; self.part_sizes.len()];
+        for (w_c, constraints) in groups {
+            if *w_c <= 0.0 {
+                continue;
+            }
+            for c in *constraints {
+                // Faces were checked by the caller.
+                if let Some(face) = self.faces.get(c.point.face as usize) {
+                    for (k, &v) in face.iter().enumerate() {
+                        if c.point.bary[k] != 0.0 {
+                            touched[self.part[v as usize] as usize] = true;
+                        }
+                    }
+                }
+            }
+        }
+        match touched.iter().position(|t| !t) {
+            None => Ok(()),
+            Some(p) => {
+                let vertex = self.part.iter().position(|&q| q as usize == p).unwrap_or(0);
+                Err(Error::InvalidParam {
+                    name: "constraints",
+                    reason: format!(
+                        "no constraint touches the template's connected part of {} vertices \
+                         that holds vertex {vertex} ({} parts in all), so its position is \
+                         undetermined; constrain it (a nearly-rigid vertex, a silhouette \
+                         constraint, or ShapeParams::w_anchor > 0 to anchor it to skinning) or \
+                         join it to the rest of the mesh",
+                        self.part_sizes[p],
+                        self.part_sizes.len()
+                    ),
+                })
+            }
+        }
+    }
+}
+
+/// Per vertex its connected part (vertices joined by faces; a vertex in no face is a part of
+/// its own), and the size of each part.
+fn connected_parts(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec<usize>) {
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut parent: Vec<usize> = (0..n).collect();
+    for f in faces {
+        let a = root(&mut parent, f[0] as usize);
+        for &v in &f[1..] {
+            let b = root(&mut parent, v as usize);
+            if a != b {
+                parent[b] = a;
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; n];
+    let mut sizes = Vec::new();
+    let mut part = vec![0u32; n];
+    for v in 0..n {
+        let r = root(&mut parent, v);
+        if label[r] == u32::MAX {
+            label[r] = sizes.len() as u32;
+            sizes.push(0);
+        }
+        part[v] = label[r];
+        sizes[label[r] as usize] += 1;
+    }
+    (part, sizes)
 }
 
 #[cfg(test)]
@@ -392,7 +481,10 @@ mod tests {
         // No constraint: the translation is free.
         assert!(matches!(
             m.solve(1.0, &coords, 1000.0, &[]),
-            Err(Error::Core(skin_core::Error::Singular { .. }))
+            Err(Error::InvalidParam {
+                name: "constraints",
+                ..
+            })
         ));
         let c = vertex_constraint(&mesh, 0, DVec3::ZERO);
         assert!(matches!(
@@ -414,5 +506,36 @@ mod tests {
         assert!(m.solve(-1.0, &coords, 1000.0, &[c]).is_err());
         // Still usable after errors.
         assert!(m.solve(1.0, &coords, 1000.0, &[c]).is_ok());
+    }
+
+    /// A template of two separate parts (a sphere and a shifted copy, as a body and a separate
+    /// skirt): constraints on one part only are a clear error naming the other part; one
+    /// constraint on each solves; a zero-weight group does not count.
+    #[test]
+    fn every_connected_part_needs_a_constraint() {
+        let one = shapes::icosphere(1).unwrap();
+        let k = one.vertex_count() as u32;
+        let mut vertices = one.vertices.clone();
+        vertices.extend(one.vertices.iter().map(|v| *v + DVec3::new(3.0, 0.0, 0.0)));
+        let mut faces = one.faces.clone();
+        faces.extend(one.faces.iter().map(|f| [f[0] + k, f[1] + k, f[2] + k]));
+        let mesh = TriMesh::new(vertices, faces).unwrap();
+        let mut m = Molding::new(&mesh, &LaplacianParams::default()).unwrap();
+        let coords = m.coordinates().to_vec();
+        let first = vertex_constraint(&mesh, 0, mesh.vertices[0]);
+        let second = vertex_constraint(&mesh, k as usize, mesh.vertices[k as usize]);
+        let err = m
+            .solve(1.0, &coords, 1000.0, &[first])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("part of {k} vertices")) && err.contains("2 parts"),
+            "{err}"
+        );
+        assert!(m
+            .solve_weighted(1.0, &coords, &[(1000.0, &[first]), (0.0, &[second])])
+            .is_err());
+        let v = m.solve(1.0, &coords, 1000.0, &[first, second]).unwrap();
+        assert!((v[k as usize] - mesh.vertices[k as usize]).length() < 1e-6);
     }
 }

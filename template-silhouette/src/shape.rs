@@ -360,7 +360,8 @@ impl ShapeEstimator {
     ///
     /// # Errors
     /// [`Error::SizeMismatch`] for a `current` of another mesh; errors of the constraints
-    /// and of [`Molding::solve`] (skin-core's `Singular` when no ray gives a constraint).
+    /// and of [`Molding::solve`] ([`Error::InvalidParam`] when no constraint reaches a
+    /// connected part of the template).
     pub fn refine(
         &mut self,
         theta: &[f64],
