@@ -394,13 +394,13 @@ fn connected_parts(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec<usize>) {
     let mut label = vec![u32::MAX; n];
     let mut sizes = Vec::new();
     let mut part = vec![0u32; n];
-    for v in 0..n {
+    for (v, p) in part.iter_mut().enumerate() {
         let r = root(&mut parent, v);
         if label[r] == u32::MAX {
             label[r] = sizes.len() as u32;
             sizes.push(0);
         }
-        part[v] = label[r];
+        *p = label[r];
         sizes[label[r] as usize] += 1;
     }
     (part, sizes)
