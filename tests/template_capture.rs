@@ -11,6 +11,7 @@
 use std::time::Instant;
 
 use dynamic_shapes::core::camera::{Camera, Intrinsics, Rig};
+use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 use dynamic_shapes::core::skeleton::Motion;
@@ -40,6 +41,13 @@ fn body_exercise_studio() -> (Performer, Motion, Vec<Camera>, CaptureSpec) {
     )
     .unwrap();
     let motion = exercise_motion(&performer.skeleton, &ExerciseParams::default()).unwrap();
+    let (cameras, spec) = ring_around(&performer, &motion);
+    (performer, motion, cameras, spec)
+}
+
+/// The ring of §2.5.1 around `performer`'s pelvis at the first frame of `motion`: 8 cameras
+/// at 480 × 360, 3.5 m away, 0.15 m above the pelvis; masks only, at the motion's rate.
+fn ring_around(performer: &Performer, motion: &Motion) -> (Vec<Camera>, CaptureSpec) {
     let root = performer
         .skeleton
         .forward_kinematics(motion.frame(0))
@@ -49,7 +57,18 @@ fn body_exercise_studio() -> (Performer, Motion, Vec<Camera>, CaptureSpec) {
     let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
     let cameras = rig.cameras.clone();
     let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
-    (performer, motion, cameras, spec)
+    (cameras, spec)
+}
+
+/// One frame's observations (hull and contour rays) with the default parameters.
+fn observe(cameras: &[Camera], masks: &[Mask]) -> FrameObservation {
+    FrameObservation::new(
+        cameras,
+        masks,
+        &ContourRayHullParams::default(),
+        &SilhouetteParams::default(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -84,18 +103,7 @@ fn tracked_and_molded_template_fits_the_silhouettes_of_an_exercise() {
 
     let start = Instant::now();
     let masks: Vec<_> = frames.iter().map(|f| f.masks()).collect();
-    let observations: Vec<FrameObservation> = masks
-        .iter()
-        .map(|m| {
-            FrameObservation::new(
-                &cameras,
-                m,
-                &ContourRayHullParams::default(),
-                &SilhouetteParams::default(),
-            )
-            .unwrap()
-        })
-        .collect();
+    let observations: Vec<FrameObservation> = masks.iter().map(|m| observe(&cameras, m)).collect();
     let observe_s = start.elapsed().as_secs_f64();
 
     // §2.3 then §2.4; the first frame's true pose stands in for the user's fit of frame 0.
@@ -317,13 +325,7 @@ fn automatic_first_pose_beats_the_rest_pose_start() {
     for f in [40usize, 60] {
         let frame = capture.frames_stepped(f..f + 1, 1).next().unwrap().unwrap();
         let truth = &frame.truth.theta;
-        let obs = FrameObservation::new(
-            &cameras,
-            &frame.masks(),
-            &ContourRayHullParams::default(),
-            &SilhouetteParams::default(),
-        )
-        .unwrap();
+        let obs = observe(&cameras, &frame.masks());
         let t = Instant::now();
         let auto = initialise_pose(&model, &obs.hull, &obs.rays, &params).unwrap();
         let auto_s = t.elapsed().as_secs_f64();
@@ -388,15 +390,7 @@ fn sizing_from_the_tracked_first_frames_beats_default_proportions() {
     let obs: Vec<FrameObservation> = scenario
         .frames
         .iter()
-        .map(|f| {
-            FrameObservation::new(
-                &scenario.cameras,
-                &f.masks,
-                &ContourRayHullParams::default(),
-                &SilhouetteParams::default(),
-            )
-            .unwrap()
-        })
+        .map(|f| observe(&scenario.cameras, &f.masks))
         .collect();
     let scenario_s = t.elapsed().as_secs_f64();
     let params = SizingParams::default();
@@ -554,15 +548,7 @@ fn resized_body_exercise() -> ResizedStudio {
         .collect();
     let obs: Vec<FrameObservation> = frames
         .iter()
-        .map(|f| {
-            FrameObservation::new(
-                &cameras,
-                &f.masks(),
-                &ContourRayHullParams::default(),
-                &SilhouetteParams::default(),
-            )
-            .unwrap()
-        })
+        .map(|f| observe(&cameras, &f.masks()))
         .collect();
     ResizedStudio {
         default,
@@ -961,15 +947,7 @@ fn an_emulated_user_fixing_frames_cuts_the_joint_error_of_the_skirt_walk() {
     )
     .unwrap()
     .motion;
-    let root = performer
-        .skeleton
-        .forward_kinematics(motion.frame(0))
-        .unwrap()
-        .joint_positions()[0];
-    let k = Intrinsics::from_horizontal_fov(55f64.to_radians(), 480, 360).unwrap();
-    let rig = Rig::ring(8, 3.5, root.y + 0.15, root, DVec3::Y, k).unwrap();
-    let cameras = rig.cameras.clone();
-    let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+    let (cameras, spec) = ring_around(&performer, &motion);
     let capture = Capture::new(&performer, &motion, spec).unwrap();
     let frames: Vec<_> = capture
         .frames_stepped(0..24, 2)
@@ -977,15 +955,7 @@ fn an_emulated_user_fixing_frames_cuts_the_joint_error_of_the_skirt_walk() {
         .collect();
     let observations: Vec<FrameObservation> = frames
         .iter()
-        .map(|f| {
-            FrameObservation::new(
-                &cameras,
-                &f.masks(),
-                &ContourRayHullParams::default(),
-                &SilhouetteParams::default(),
-            )
-            .unwrap()
-        })
+        .map(|f| observe(&cameras, &f.masks()))
         .collect();
     // The template a user would rig: the rest mesh decimated to 10,000 vertices (§2.5.1),
     // bone-heat weights.

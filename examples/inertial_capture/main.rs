@@ -292,6 +292,20 @@ fn record(
     rec
 }
 
+/// A Table 4.1's A+G+D row with the root supplied (the headline row).
+fn agd_rooted(table: &[FilterRun]) -> &FilterRun {
+    table
+        .iter()
+        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
+        .expect("table_4_1 has an A+G+D row with the root supplied")
+}
+
+/// A run's mean error of the three Table 4.1 joints, deg.
+fn joint_means(r: &FilterRun) -> Value {
+    json!({"neck": r.stats[0].mean_deg, "right_shoulder": r.stats[1].mean_deg,
+        "left_hip": r.stats[2].mean_deg})
+}
+
 fn run_json(r: &FilterRun) -> Value {
     json!({
         "sensors": r.sensors,
@@ -658,10 +672,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let rec = record(&sim, &skeleton, motion, &sim_params, &cal.offsets, &dir);
         let table = table_4_1(&skeleton, &rec, params, &joints, Some(BOARD_NOISE_S))?;
         let seconds = (rec.recording.frames.len() - 1) as f64 / 140.0;
-        let agd = table
-            .iter()
-            .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-            .unwrap();
+        let agd = agd_rooted(&table);
         us_s += rec.ultrasound_s;
         in_s += rec.inertial_s;
         ekf_s += agd.ekf_s;
@@ -768,10 +779,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ("gyroscope bias as a random walk", &walk_bias_table),
                 ("other chart of the 3-DOF joints", &euler_table),
             ] {
-                let r = t
-                    .iter()
-                    .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-                    .unwrap();
+                let r = agd_rooted(t);
                 stage.println(format!(
                     "exercise, {label}: A+G+D with root {:.1}/{:.1}/{:.1}°",
                     r.stats[0].mean_deg, r.stats[1].mean_deg, r.stats[2].mean_deg
@@ -1090,26 +1098,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "Per board: how far the garment carries it away from its bone-fixed placement",
     )?;
 
-    let agd = main_table
-        .iter()
-        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-        .unwrap();
-    let agd_rigid = rigid_table
-        .iter()
-        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-        .unwrap();
-    let agd_global = global_table
-        .iter()
-        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-        .unwrap();
-    let agd_walk_bias = walk_bias_table
-        .iter()
-        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-        .unwrap();
-    let agd_euler = euler_table
-        .iter()
-        .find(|r| r.sensors == "A+G+D" && r.root_supplied)
-        .unwrap();
+    let agd = agd_rooted(&main_table);
+    let agd_rigid = agd_rooted(&rigid_table);
+    let agd_global = agd_rooted(&global_table);
+    let agd_walk_bias = agd_rooted(&walk_bias_table);
+    let agd_euler = agd_rooted(&euler_table);
     let nsk = skin_motion.len().max(1) as f64;
     let skin_mean_mm = skin_motion.iter().map(|m| m.mean_mm).sum::<f64>() / nsk;
     let skin_mean_deg = skin_motion.iter().map(|m| m.mean_deg).sum::<f64>() / nsk;
@@ -1245,12 +1238,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "table_4_1": tables,
         "table_4_1_exercise_rigid_attachment": rigid_table.iter().map(run_json).collect::<Vec<_>>(),
         "table_4_1_exercise_other_chart": euler_table.iter().map(run_json).collect::<Vec<_>>(),
-        "agd_other_chart_deg": {"neck": agd_euler.stats[0].mean_deg,
-            "right_shoulder": agd_euler.stats[1].mean_deg, "left_hip": agd_euler.stats[2].mean_deg},
+        "agd_other_chart_deg": joint_means(agd_euler),
         "other_chart_recentre_rad": other_chart,
         "recentre_rad": params.recentre_rad,
-        "agd_rigid_attachment_deg": {"neck": agd_rigid.stats[0].mean_deg,
-            "right_shoulder": agd_rigid.stats[1].mean_deg, "left_hip": agd_rigid.stats[2].mean_deg},
+        "agd_rigid_attachment_deg": joint_means(agd_rigid),
         "skin_motion_exercise": skin_motion,
         "skin_motion_mean_mm": skin_mean_mm,
         "skin_motion_max_mm": skin_max_mm,
@@ -1270,12 +1261,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "table_4_1_exercise_global_sigma".into(),
             global_table.iter().map(run_json).collect(),
         );
-        f.insert(
-            "agd_global_sigma_deg".into(),
-            json!({"neck": agd_global.stats[0].mean_deg,
-                "right_shoulder": agd_global.stats[1].mean_deg,
-                "left_hip": agd_global.stats[2].mean_deg}),
-        );
+        f.insert("agd_global_sigma_deg".into(), joint_means(agd_global));
         f.insert("board_noise_s".into(), json!(BOARD_NOISE_S));
         // Figure 4-7 over minutes, and Table 4.1 under the other bias model.
         for (key, v) in [
@@ -1307,9 +1293,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         f.insert(
             "agd_random_walk_bias_deg".into(),
-            json!({"neck": agd_walk_bias.stats[0].mean_deg,
-                "right_shoulder": agd_walk_bias.stats[1].mean_deg,
-                "left_hip": agd_walk_bias.stats[2].mean_deg}),
+            joint_means(agd_walk_bias),
         );
         let tuned: Vec<Value> = drift_tuned
             .iter()

@@ -59,8 +59,8 @@ use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::{DVec3, Ray};
 use dynamic_shapes::core::mesh::{
     bone_heat_weights, decimate, evaluate_surface_points, points_to_surface, rest_bones,
-    save_gltf_animation, DistanceStats, HeatWeightsParams, MeshQuery, MeshSequence, SkinWeights,
-    SurfacePoint, TriMesh, UvLayout,
+    save_gltf_animation, DistanceStats, HeatWeightsParams, MeshDistance, MeshQuery, MeshSequence,
+    SkinWeights, SurfacePoint, TriMesh, UvLayout,
 };
 use dynamic_shapes::core::random::SplitMix64;
 use dynamic_shapes::core::skeleton::{BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
@@ -202,27 +202,23 @@ impl SurfaceScore {
         true_skirt: &[DVec3],
     ) -> Result<Self, Box<dyn std::error::Error>> {
         let query = MeshQuery::new(mesh)?;
-        let to_truth = points_to_surface(&mesh.vertices, truth)?;
-        let from_truth = points_to_surface(&true_mesh.vertices, &query)?;
-        let pooled: Vec<f64> = to_truth
-            .per_vertex
-            .iter()
-            .chain(&from_truth.per_vertex)
-            .copied()
-            .collect();
+        let whole = MeshDistance::from_sides(
+            points_to_surface(&mesh.vertices, truth)?,
+            points_to_surface(&true_mesh.vertices, &query)?,
+        )?;
         let skirt = if skirt.is_empty() || true_skirt.is_empty() {
             None
         } else {
             let from_truth = points_to_surface(true_skirt, &query)?;
             let pooled: Vec<f64> = skirt
                 .iter()
-                .map(|&v| to_truth.per_vertex[v])
+                .map(|&v| whole.a_to_b.per_vertex[v])
                 .chain(from_truth.per_vertex)
                 .collect();
             Some(DistanceStats::from_distances(&pooled)?)
         };
         Ok(Self {
-            whole: DistanceStats::from_distances(&pooled)?,
+            whole: whole.symmetric,
             skirt,
         })
     }
@@ -837,27 +833,28 @@ fn capture_run(
         "heat_weights_no_visibility_mean_abs_diff",
         json!(embedding.weights_mean_abs_diff.1),
     );
+    // Per mesh (result, LBS, oracle) and part (whole, skirt): the frames' mean and p95, mm.
     for (k, prefix) in ["", "lbs_", "oracle_attainable_"].iter().enumerate() {
         let whole: Vec<&DistanceStats> = surface[k].iter().map(|s| &s.whole).collect();
-        put(
-            &format!("{prefix}surface_mean_mm"),
-            json!(1e3 * mean(&whole.iter().map(|d| d.mean).collect::<Vec<_>>())),
-        );
-        put(
-            &format!("{prefix}surface_p95_mm"),
-            json!(1e3 * mean(&whole.iter().map(|d| d.p95).collect::<Vec<_>>())),
-        );
         let skirt: Vec<&DistanceStats> =
             surface[k].iter().filter_map(|s| s.skirt.as_ref()).collect();
-        if !skirt.is_empty() {
-            put(
-                &format!("{prefix}skirt_surface_mean_mm"),
-                json!(1e3 * mean(&skirt.iter().map(|d| d.mean).collect::<Vec<_>>())),
-            );
-            put(
-                &format!("{prefix}skirt_surface_p95_mm"),
-                json!(1e3 * mean(&skirt.iter().map(|d| d.p95).collect::<Vec<_>>())),
-            );
+        for (part, frames) in [("", whole), ("skirt_", skirt)] {
+            if frames.is_empty() {
+                continue;
+            }
+            for (stat, of) in [
+                (
+                    "mean",
+                    (|d: &DistanceStats| d.mean) as fn(&DistanceStats) -> f64,
+                ),
+                ("p95", |d| d.p95),
+            ] {
+                let v: Vec<f64> = frames.iter().map(|d| of(d)).collect();
+                put(
+                    &format!("{prefix}{part}surface_{stat}_mm"),
+                    json!(1e3 * mean(&v)),
+                );
+            }
         }
     }
     let added = &result.poses.added_user_rays;

@@ -115,6 +115,26 @@ pub struct MeshDistance {
 }
 
 impl MeshDistance {
+    /// The symmetric distance from its two one-sided distances (e.g. computed with
+    /// [`points_to_surface`] against queries built once and reused): both directions'
+    /// distances pooled into [`MeshDistance::symmetric`].
+    ///
+    /// # Errors
+    /// As [`DistanceStats::from_distances`].
+    pub fn from_sides(a_to_b: OneSidedDistance, b_to_a: OneSidedDistance) -> Result<Self> {
+        let pooled: Vec<f64> = a_to_b
+            .per_vertex
+            .iter()
+            .chain(&b_to_a.per_vertex)
+            .copied()
+            .collect();
+        Ok(MeshDistance {
+            symmetric: DistanceStats::from_distances(&pooled)?,
+            a_to_b,
+            b_to_a,
+        })
+    }
+
     /// The vertex-sampled Hausdorff distance.
     pub fn hausdorff(&self) -> f64 {
         self.symmetric.max
@@ -138,19 +158,7 @@ impl MeshDistance {
 /// # Ok::<(), skin_core::Error>(())
 /// ```
 pub fn mesh_distance(a: &TriMesh, b: &TriMesh) -> Result<MeshDistance> {
-    let a_to_b = one_sided_distance(a, b)?;
-    let b_to_a = one_sided_distance(b, a)?;
-    let pooled: Vec<f64> = a_to_b
-        .per_vertex
-        .iter()
-        .chain(&b_to_a.per_vertex)
-        .copied()
-        .collect();
-    Ok(MeshDistance {
-        symmetric: DistanceStats::from_distances(&pooled)?,
-        a_to_b,
-        b_to_a,
-    })
+    MeshDistance::from_sides(one_sided_distance(a, b)?, one_sided_distance(b, a)?)
 }
 
 #[cfg(test)]
