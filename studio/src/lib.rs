@@ -12,6 +12,7 @@
 //! | motions | CMU motion capture (BVH) for real motion | [`range_of_motion`], [`fast_motion`], [`exercise_motion`], [`play_bvh`], [`retarget`], [`range_coverage`], [`max_pose_share`] |
 //! | lights: point, area, the light-stage dome; Lambertian shading with shadows | Vlasic §3.2.1 | [`shading`] |
 //! | the capture: rig × performer × motion → observations and truth, frame by frame | — | [`studio_ring`], [`CaptureSpec`], [`Capture`] → [`CaptureFrame`] ([`FrameTruth`]) |
+//! | the rest pose as a 3D scanner sees it: one closed outer surface | Vlasic §2.5.1 (scanned templates) | [`scan_outer_surface`], [`ScanParams`] → [`Scan`] |
 //! | skin markers with occlusion | Fua et al. §2 | [`MarkerSet`], [`draw_markers`] |
 //! | preview pictures | — | [`preview`] |
 //!
@@ -32,6 +33,7 @@ mod performer;
 mod preview;
 mod procedural_body;
 mod retarget;
+mod scan;
 #[cfg(test)]
 mod tests;
 mod texture;
@@ -67,6 +69,7 @@ pub use performer::{Performer, PosedFrame};
 pub use preview::{preview, Paint, PreviewPanel};
 pub use procedural_body::{procedural_performer, ProceduralBodyParams};
 pub use retarget::{play_bvh, retarget, JointMap, JointPair, RetargetParams, Retargeted};
+pub use scan::{scan_outer_surface, Scan, ScanParams};
 pub use texture::{AlbedoTexture, Material, Print, TextureParams};
 pub use wrinkles::{
     CreaseWrinkles, FineSurface, GarmentWrinkles, WrinkleModel, WrinkleParams, CREASE_LOBE_RAD,

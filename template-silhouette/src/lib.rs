@@ -79,6 +79,7 @@ pub use pose::{
 };
 pub use shape::{
     temporal_filter, ShapeEstimator, ShapeFrame, ShapeIteration, ShapeParams, ShapeSequence,
+    ShapeStart,
 };
 pub use silhouette_constraints::{
     contour_rays, silhouette_constraints, ContourRay, RayCase, SilhouetteConstraint,

@@ -63,6 +63,32 @@ pub struct ShapeParams {
     pub silhouette: SilhouetteParams,
     /// How the cotangent Laplacian treats degenerate triangles. Default: skin-core's.
     pub laplacian: LaplacianParams,
+    /// Where each frame's molding starts. Default: [`ShapeStart::Skinning`], the thesis'.
+    #[serde(default)]
+    pub start: ShapeStart,
+}
+
+/// Where Algorithm 1 starts each frame's molding.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ShapeStart {
+    /// The thesis (§2.4.2, lines 2–5): every frame from Eq. 2.1, the nearly-rigid vertices at
+    /// their skinned places and the rest interpolated; frames are independent between the
+    /// temporal filter's passes and are solved in parallel.
+    #[default]
+    Skinning,
+    /// Beyond the thesis: frame `t` starts from frame `t − 1`'s molded surface carried by
+    /// the pose change ([`Template::carry`]), the first frame from Eq. 2.1; each frame then
+    /// runs the same `w_L` schedule of Eq. 2.2 solves, and the temporal filter runs its
+    /// passes once over the whole sequence at the end.
+    ///
+    /// Why: the silhouette constraints pair each contour ray with the nearest vertex of the
+    /// current shape within 5 cm (§2.4.2). Cloth hangs 10–30 cm from where skinning and
+    /// Eq. 2.1 put it, so from the thesis' start a swinging skirt's contour rays pair with
+    /// the wrong vertices or none and the skirt is re-found, often not at all, every frame;
+    /// from the previous frame's surface it is followed. The cost: frames are solved one
+    /// after another (no parallelism over frames), and an error of one frame is carried to
+    /// the next until the silhouettes correct it.
+    PreviousFrame,
 }
 
 impl Default for ShapeParams {
@@ -76,6 +102,7 @@ impl Default for ShapeParams {
             filter_passes: Self::DEFAULT_FILTER_PASSES,
             silhouette: SilhouetteParams::default(),
             laplacian: LaplacianParams::default(),
+            start: ShapeStart::default(),
         }
     }
 }
@@ -103,6 +130,11 @@ impl ShapeParams {
     /// Sets [`Self::silhouette`].
     pub fn with_silhouette(mut self, silhouette: SilhouetteParams) -> Self {
         self.silhouette = silhouette;
+        self
+    }
+    /// Sets [`Self::start`].
+    pub fn with_start(mut self, start: ShapeStart) -> Self {
+        self.start = start;
         self
     }
     /// Sets [`Self::filter_passes`] (0 turns the temporal filter off).
@@ -414,6 +446,9 @@ impl ShapeEstimator {
         if frames.is_empty() {
             return Err(Error::Empty { what: "frames" });
         }
+        if self.params.start == ShapeStart::PreviousFrame {
+            return self.with_molding(|this, molding| this.estimate_carried(molding, frames));
+        }
         // Frames are independent between filter passes: solved in parallel, each thread
         // with its own clone of the factorisation (the symbolic analysis is shared).
         let base = self.molding()?;
@@ -459,6 +494,47 @@ impl ShapeEstimator {
         Ok(ShapeSequence {
             frames: shapes,
             iterations,
+        })
+    }
+
+    /// Algorithm 1 with [`ShapeStart::PreviousFrame`]: frame by frame, each from the previous
+    /// frame's result carried by the pose change, the `w_L` schedule per frame, then the
+    /// temporal filter over the sequence.
+    fn estimate_carried(
+        &self,
+        molding: &mut Molding,
+        frames: &[ShapeFrame<'_>],
+    ) -> Result<ShapeSequence> {
+        let schedule = self.params.w_l_schedule();
+        let mut counts = vec![Vec::with_capacity(frames.len()); schedule.len()];
+        let mut shapes: Vec<Vec<DVec3>> = Vec::with_capacity(frames.len());
+        for (t, f) in frames.iter().enumerate() {
+            let mut v = match (shapes.last(), t.checked_sub(1)) {
+                (Some(prev), Some(p)) => self.template.carry(prev, frames[p].theta, f.theta),
+                _ => self.initial_shape_with(molding, f.theta),
+            }
+            .at(Context::Frame(t))?;
+            for (k, &w_l) in schedule.iter().enumerate() {
+                let (next, n) = self
+                    .refine_with(molding, f.theta, &v, w_l, f.rays)
+                    .at(Context::Frame(t))?;
+                v = next;
+                counts[k].push(n);
+            }
+            shapes.push(v);
+        }
+        temporal_filter(
+            &mut shapes,
+            self.params.filter_sigma_m,
+            self.params.filter_passes,
+        )?;
+        Ok(ShapeSequence {
+            frames: shapes,
+            iterations: schedule
+                .into_iter()
+                .zip(counts)
+                .map(|(w_l, constraints)| ShapeIteration { w_l, constraints })
+                .collect(),
         })
     }
 }

@@ -139,6 +139,29 @@ impl Template {
         )?)
     }
 
+    /// A shape of this template at pose `from` (a molded frame) carried to pose `to` by the
+    /// pose change: each vertex moves with its skin weights' blend of the bones' moves,
+    /// `v' = Σ_j w_ij M_j(to) M_j(from)⁻¹ v` with `M_j` the skinning transforms. What the
+    /// shape adds to skinning (cloth hanging off its skinned place, a bulge) rides along with
+    /// the bones; `carry(template vertices, rest, θ)` is [`Template::skin`].
+    ///
+    /// # Errors
+    /// [`Error::Core`] with a size mismatch for `vertices` of another mesh; as
+    /// [`Skeleton::check_pose`] for either pose.
+    pub fn carry(&self, vertices: &[DVec3], from: &[f64], to: &[f64]) -> Result<Vec<DVec3>> {
+        let (a, b) = (
+            self.skeleton.forward_kinematics(from)?,
+            self.skeleton.forward_kinematics(to)?,
+        );
+        let moves: Vec<DAffine3> = self
+            .world_from_rest(&b)
+            .iter()
+            .zip(self.world_from_rest(&a))
+            .map(|(to, from)| *to * from.inverse())
+            .collect();
+        Ok(skin(vertices, &self.weights, &moves)?)
+    }
+
     /// This template re-rigged to `skeleton`, the same joint tree with other bone lengths (a
     /// performer sized by [`crate::size_performer`]): each rest vertex moves with its skin
     /// weights' blend of the joints' rest-frame moves (linear blend skinning from this
@@ -289,6 +312,35 @@ pub(crate) mod tests {
                 ..
             }))
         ));
+    }
+
+    #[test]
+    fn carry_moves_a_shape_with_the_pose_change_and_composes() {
+        let t = bendy();
+        let rest = t.skeleton().rest_pose();
+        let (a, b) = (vec![0.1, 0.3, -0.4], vec![-0.05, 0.1, 0.6]);
+        // From the rest pose, carrying is skinning.
+        let skinned = t.skin(&a).unwrap();
+        let carried = t.carry(&t.mesh().vertices, &rest, &a).unwrap();
+        assert!(skinned
+            .iter()
+            .zip(&carried)
+            .all(|(p, q)| p.distance(*q) < 1e-12));
+        // A bulge off the skinned surface at `a` keeps its size along a rigid part at `b`.
+        let mut shape = skinned.clone();
+        let v = (0..shape.len())
+            .find(|&i| t.mesh().vertices[i].y < 0.2)
+            .unwrap();
+        shape[v] += DVec3::new(0.02, 0.0, 0.0);
+        let there = t.carry(&shape, &a, &b).unwrap();
+        let lbs_b = t.skin(&b).unwrap();
+        assert!((there[v].distance(lbs_b[v]) - 0.02).abs() < 1e-9);
+        // Carrying a → b → rest returns the shape's rest-frame vertices for rigid ones.
+        let back = t.carry(&there, &b, &rest).unwrap();
+        let rest_shape = t.carry(&shape, &a, &rest).unwrap();
+        assert!(back[v].distance(rest_shape[v]) < 1e-9);
+        assert!(t.carry(&shape[..3], &a, &b).is_err());
+        assert!(t.carry(&shape, &a, &[0.0]).is_err());
     }
 
     #[test]

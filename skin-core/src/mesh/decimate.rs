@@ -63,6 +63,7 @@ pub fn decimate(mesh: &TriMesh, target_vertices: usize) -> Result<Decimation> {
         meshopt::SimplifyOptions::LockBorder,
         Some(&mut error),
     );
+    let kept = drop_coincident_pairs(&kept);
     let (new_index, original_index) = compact_vertices(n, kept.iter().copied());
     let faces: Vec<[u32; 3]> = kept
         .chunks_exact(3)
@@ -94,6 +95,29 @@ pub fn decimate(mesh: &TriMesh, target_vertices: usize) -> Result<Decimation> {
     })
 }
 
+/// `indices` without the triangles that occur more than once over the same three vertices
+/// (in either orientation). Edge collapses that close a thin place (a web between two fingers
+/// of a scanned surface) fold its two sheets onto each other as a pair of coincident opposite
+/// triangles, which make three or four faces meet at their edges; the pair encloses nothing,
+/// and removing it leaves the surface around it manifold.
+fn drop_coincident_pairs(indices: &[u32]) -> Vec<u32> {
+    let key = |f: &[u32]| {
+        let mut k = [f[0], f[1], f[2]];
+        k.sort_unstable();
+        k
+    };
+    let mut count: std::collections::HashMap<[u32; 3], usize> = Default::default();
+    for f in indices.chunks_exact(3) {
+        *count.entry(key(f)).or_default() += 1;
+    }
+    indices
+        .chunks_exact(3)
+        .filter(|f| count[&key(f)] == 1)
+        .flatten()
+        .copied()
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,6 +141,13 @@ mod tests {
             d.mesh.surface_area().unwrap(),
         );
         assert!((a - b).abs() < 0.02 * a, "{a} vs {b}");
+    }
+
+    #[test]
+    fn coincident_triangle_pairs_are_dropped_and_the_rest_kept() {
+        // Faces 0 and 2 are the same triangle in opposite orientations; face 1 is alone.
+        let indices = [0, 1, 2, 1, 2, 3, 0, 2, 1, 2, 3, 4];
+        assert_eq!(drop_coincident_pairs(&indices), [1, 2, 3, 2, 3, 4]);
     }
 
     #[test]
