@@ -16,8 +16,8 @@ use std::collections::{HashMap, HashSet};
 use serde::{Deserialize, Serialize};
 use skin_core::math::DVec3;
 use skin_core::mesh::{
-    decimate, marching_tetrahedra, vertex_neighbors, vertex_normals, EdgeTopology, MeshQuery,
-    NormalWeighting, ScalarGrid, TriMesh, WindingNumber,
+    connected_parts, decimate, marching_tetrahedra, vertex_neighbors, vertex_normals, EdgeTopology,
+    MeshQuery, NormalWeighting, ScalarGrid, TriMesh, WindingNumber,
 };
 use skin_core::{Error, Result};
 
@@ -284,42 +284,24 @@ fn closed_garment(performer: &Performer) -> Result<Option<TriMesh>> {
     Ok(Some(mesh))
 }
 
-/// The connected piece of `mesh` with the most faces (pieces share vertices), compacted.
+/// The connected part of `mesh` with the most vertices, compacted.
 fn largest_piece(mesh: &TriMesh) -> Result<TriMesh> {
-    let n = mesh.vertex_count();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for f in &mesh.faces {
-        let a = root(&mut parent, f[0] as usize);
-        for &v in &f[1..] {
-            let b = root(&mut parent, v as usize);
-            parent[b] = a;
-        }
-    }
-    let mut count = vec![0usize; n];
-    for f in &mesh.faces {
-        count[root(&mut parent, f[0] as usize)] += 1;
-    }
-    let Some(best) = (0..n).max_by_key(|&i| count[i]).filter(|&i| count[i] > 0) else {
+    let (part, sizes) = connected_parts(mesh)?;
+    let Some(best) = (0..sizes.len()).max_by_key(|&p| sizes[p]) else {
         return Err(Error::Empty {
             what: "scanned surface (the performer occupies no grid node; give a finer voxel)",
         });
     };
-    let mut index = vec![u32::MAX; n];
+    let mut index = vec![u32::MAX; mesh.vertex_count()];
     let mut out = TriMesh {
         vertices: Vec::new(),
         faces: Vec::new(),
     };
-    for f in &mesh.faces {
-        if root(&mut parent, f[0] as usize) != best {
-            continue;
-        }
+    for f in mesh
+        .faces
+        .iter()
+        .filter(|f| part[f[0] as usize] as usize == best)
+    {
         let face = f.map(|v| {
             let v = v as usize;
             if index[v] == u32::MAX {
@@ -329,6 +311,11 @@ fn largest_piece(mesh: &TriMesh) -> Result<TriMesh> {
             index[v]
         });
         out.faces.push(face);
+    }
+    if out.faces.is_empty() {
+        return Err(Error::Empty {
+            what: "scanned surface (the performer occupies no grid node; give a finer voxel)",
+        });
     }
     Ok(out)
 }

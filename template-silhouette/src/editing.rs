@@ -32,7 +32,7 @@ use nalgebra_sparse::{CooMatrix, CscMatrix};
 use skin_core::check;
 use skin_core::lsq::{LsqParams, LsqProblem, LsqSolver};
 use skin_core::math::{DMat3, DVec3};
-use skin_core::mesh::TriMesh;
+use skin_core::mesh::{connected_parts, TriMesh};
 
 use crate::error::Result;
 
@@ -138,7 +138,7 @@ impl DeformationTransfer {
             root_areas.push(s * twice_area);
             projectors.push(DMat3::IDENTITY - outer(nh, nh));
         }
-        let anchors = anchors(template, edited);
+        let anchors = anchors(template, edited)?;
         let mut c = CooMatrix::new(anchors.len(), n);
         for (r, (v, _)) in anchors.iter().enumerate() {
             c.push(r, *v, 1.0);
@@ -249,39 +249,22 @@ fn degenerate(which: &str, face: usize) -> crate::Error {
 
 /// The vertices that place each connected part: its unedited vertices (offset zero), or, in
 /// a part the edit moved entirely, all its vertices with the edit's displacement.
-fn anchors(template: &TriMesh, edited: &[DVec3]) -> Vec<(usize, DVec3)> {
-    let n = template.vertex_count();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for f in &template.faces {
-        let r0 = root(&mut parent, f[0] as usize);
-        for &v in &f[1..] {
-            let r = root(&mut parent, v as usize);
-            parent[r] = r0;
-        }
-    }
+fn anchors(template: &TriMesh, edited: &[DVec3]) -> Result<Vec<(usize, DVec3)>> {
+    let (part, sizes) = connected_parts(template)?;
     let moved: Vec<DVec3> = edited
         .iter()
         .zip(&template.vertices)
         .map(|(e, t)| *e - *t)
         .collect();
-    let mut has_unedited = vec![false; n];
+    let mut has_unedited = vec![false; sizes.len()];
     for (v, d) in moved.iter().enumerate() {
         if d.length() < UNEDITED_TOLERANCE_M {
-            let r = root(&mut parent, v);
-            has_unedited[r] = true;
+            has_unedited[part[v] as usize] = true;
         }
     }
-    (0..n)
+    Ok((0..moved.len())
         .filter_map(|v| {
-            let r = root(&mut parent, v);
-            if !has_unedited[r] {
+            if !has_unedited[part[v] as usize] {
                 Some((v, moved[v]))
             } else if moved[v].length() < UNEDITED_TOLERANCE_M {
                 Some((v, DVec3::ZERO))
@@ -289,7 +272,7 @@ fn anchors(template: &TriMesh, edited: &[DVec3]) -> Vec<(usize, DVec3)> {
                 None
             }
         })
-        .collect()
+        .collect())
 }
 
 #[cfg(test)]

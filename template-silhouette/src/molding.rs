@@ -23,7 +23,9 @@ use nalgebra::DMatrix;
 use nalgebra_sparse::{CooMatrix, CscMatrix};
 use skin_core::lsq::{CholeskyParams, SparseCholesky};
 use skin_core::math::DVec3;
-use skin_core::mesh::{cotangent_laplacian, LaplacianParams, SurfacePoint, TriMesh};
+use skin_core::mesh::{
+    connected_parts, cotangent_laplacian, LaplacianParams, SurfacePoint, TriMesh,
+};
 
 use crate::error::{Error, Result};
 
@@ -183,7 +185,7 @@ impl Molding {
             analysed.values_mut()[s] += 1.0;
         }
         let chol = SparseCholesky::new(&analysed, &CholeskyParams::default())?;
-        let (part, part_sizes) = connected_parts(n, &template.faces);
+        let (part, part_sizes) = connected_parts(template)?;
         Ok(Molding {
             faces: template.faces.clone(),
             delta,
@@ -369,41 +371,6 @@ impl Molding {
             }
         }
     }
-}
-
-/// Per vertex its connected part (vertices joined by faces; a vertex in no face is a part of
-/// its own), and the size of each part.
-fn connected_parts(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec<usize>) {
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    let mut parent: Vec<usize> = (0..n).collect();
-    for f in faces {
-        let a = root(&mut parent, f[0] as usize);
-        for &v in &f[1..] {
-            let b = root(&mut parent, v as usize);
-            if a != b {
-                parent[b] = a;
-            }
-        }
-    }
-    let mut label = vec![u32::MAX; n];
-    let mut sizes = Vec::new();
-    let mut part = vec![0u32; n];
-    for (v, p) in part.iter_mut().enumerate() {
-        let r = root(&mut parent, v);
-        if label[r] == u32::MAX {
-            label[r] = sizes.len() as u32;
-            sizes.push(0);
-        }
-        *p = label[r];
-        sizes[label[r] as usize] += 1;
-    }
-    (part, sizes)
 }
 
 #[cfg(test)]

@@ -56,8 +56,8 @@ pub use surface_point::{
     closest_point_on_triangle, evaluate_surface_points, SurfacePoint, TrianglePoint,
 };
 pub use topology::{
-    boundary_edges, is_closed, unique_edges, vertex_faces, vertex_neighbors, Adjacency,
-    EdgeTopology,
+    boundary_edges, connected_parts, is_closed, unique_edges, vertex_faces, vertex_neighbors,
+    Adjacency, EdgeTopology,
 };
 pub use trimesh::{triangle_area, BoundingBox, TriMesh};
 pub use uv::{UvLayout, UvSplit};

@@ -65,6 +65,59 @@ impl Adjacency {
     }
 }
 
+/// The connected parts of a mesh (vertices joined by faces; a vertex in no face is a part of
+/// its own): per vertex its part, numbered in the order of each part's first vertex, and the
+/// vertex count of each part.
+///
+/// # Errors
+/// As [`TriMesh::validate`].
+///
+/// # Example
+/// ```
+/// use skin_core::math::DVec3;
+/// use skin_core::mesh::{connected_parts, TriMesh};
+/// let v = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z, DVec3::ONE, DVec3::NEG_X, DVec3::NEG_Y];
+/// let mesh = TriMesh::new(v, vec![[0, 1, 2], [3, 4, 5]])?;
+/// let (part, sizes) = connected_parts(&mesh)?;
+/// assert_eq!(part, [0, 0, 0, 1, 1, 1, 2]);
+/// assert_eq!(sizes, [3, 3, 1]);
+/// # Ok::<(), skin_core::Error>(())
+/// ```
+pub fn connected_parts(mesh: &TriMesh) -> Result<(Vec<u32>, Vec<usize>)> {
+    mesh.validate()?;
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let n = mesh.vertex_count();
+    let mut parent: Vec<usize> = (0..n).collect();
+    for f in &mesh.faces {
+        let a = root(&mut parent, f[0] as usize);
+        for &v in &f[1..] {
+            let b = root(&mut parent, v as usize);
+            if a != b {
+                parent[b] = a;
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; n];
+    let mut sizes = Vec::new();
+    let mut part = vec![0u32; n];
+    for (v, p) in part.iter_mut().enumerate() {
+        let r = root(&mut parent, v);
+        if label[r] == u32::MAX {
+            label[r] = sizes.len() as u32;
+            sizes.push(0);
+        }
+        *p = label[r];
+        sizes[label[r] as usize] += 1;
+    }
+    Ok((part, sizes))
+}
+
 /// Unique undirected edges as `[a, b]` with `a < b`, sorted. Degenerate edges of faces that
 /// repeat a vertex (`a == b`) are left out.
 ///
