@@ -336,6 +336,40 @@ fn met_text(h: &Headline, v: Option<f64>) -> &'static str {
     }
 }
 
+/// A record's `protocol` table (`{variant: {figure: value}}`, as `template_capture` writes
+/// it), one row per figure and one column per variant; empty without one.
+fn protocol_table(r: &Record) -> String {
+    let Some(Value::Object(rows)) = r.figures.get("protocol") else {
+        return String::new();
+    };
+    let variants: Vec<(&String, &serde_json::Map<String, Value>)> = rows
+        .iter()
+        .filter_map(|(k, v)| Some((k, v.as_object()?)))
+        .collect();
+    let Some((_, first)) = variants.first() else {
+        return String::new();
+    };
+    let mut s = String::from("\nEvery protocol (`protocol` in the record):\n\n| figure |");
+    for (name, _) in &variants {
+        let _ = write!(s, " {} |", cell(name));
+    }
+    s.push_str("\n|---|");
+    s.push_str(&"---:|".repeat(variants.len()));
+    s.push('\n');
+    for key in first.keys() {
+        if !first[key].is_number() {
+            continue;
+        }
+        let _ = write!(s, "| `{}` |", cell(key));
+        for (_, row) in &variants {
+            let v = row.get(key).and_then(Value::as_f64);
+            let _ = write!(s, " {} |", v.map_or("—".to_string(), round3));
+        }
+        s.push('\n');
+    }
+    s
+}
+
 fn cell(s: &str) -> String {
     s.replace('|', "\\|").replace('\n', " ")
 }
@@ -415,6 +449,7 @@ fn render_example(name: &str, full: &[Record], quick: &[Record]) -> String {
             cell(h.paper.as_deref().unwrap_or("")),
         );
     }
+    s.push_str(&protocol_table(r));
     s
 }
 
