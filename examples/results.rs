@@ -342,10 +342,23 @@ fn protocol_table(r: &Record) -> String {
     let Some(Value::Object(rows)) = r.figures.get("protocol") else {
         return String::new();
     };
-    let variants: Vec<(&String, &serde_json::Map<String, Value>)> = rows
+    // The thesis' switches in the order they build up, then the full-size rows.
+    const ORDER: [&str; 9] = [
+        "before",
+        "oracle_user",
+        "cameras_down",
+        "fps30",
+        "scan_template",
+        "thesis",
+        "beyond",
+        "thesis_full",
+        "beyond_full",
+    ];
+    let mut variants: Vec<(&String, &serde_json::Map<String, Value>)> = rows
         .iter()
         .filter_map(|(k, v)| Some((k, v.as_object()?)))
         .collect();
+    variants.sort_by_key(|(k, _)| ORDER.iter().position(|o| o == k).unwrap_or(ORDER.len()));
     let Some((_, first)) = variants.first() else {
         return String::new();
     };
