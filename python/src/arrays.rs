@@ -20,13 +20,12 @@ use crate::errors::invalid;
 pub(crate) type Shape<'a> = &'a [Option<usize>];
 
 fn shape_text(shape: Shape<'_>) -> String {
-    let names = ["n", "m", "k", "l", "p"];
+    let mut names = ["n", "m", "k", "l", "p"].iter().cycle();
     let parts: Vec<String> = shape
         .iter()
-        .enumerate()
-        .map(|(i, s)| match s {
+        .map(|s| match s {
             Some(n) => n.to_string(),
-            None => names[i % names.len()].to_string(),
+            None => names.next().map_or("?", |n| n).to_string(),
         })
         .collect();
     if parts.len() == 1 {
