@@ -555,7 +555,7 @@ fn write_python_fixtures() {
     js.insert("broad_heading_deg", json!(err.heading_deg));
     let human = skin_core::skeleton::human_skeleton(&Default::default()).unwrap();
     let sim_params = SimulationParams::default();
-    let sim = SuitSimulator::new(&human, sim_params.clone()).unwrap();
+    let sim = SuitSimulator::new(&human, sim_params).unwrap();
     let cal = sim.calibrate_offsets(3).unwrap();
     let exercise =
         exercise_motion(&human, &ExerciseParams::default().with_duration_s(8.0)).unwrap();

@@ -315,10 +315,7 @@ impl Skeleton {
     #[staticmethod]
     #[pyo3(signature = (height_m = 1.75))]
     fn human(height_m: f64) -> PyResult<Self> {
-        let params = sk::HumanParams {
-            height_m,
-            ..Default::default()
-        };
+        let params = sk::HumanParams { height_m };
         Ok(Skeleton {
             inner: sk::human_skeleton(&params).map_err(to_py)?,
         })
