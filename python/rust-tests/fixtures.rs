@@ -404,13 +404,13 @@ fn write_python_fixtures() {
     )
     .unwrap();
     let pcam = via_json(&dir, "photo_camera.json", &pcam);
-    let photograph = |s: &CalibrationSphere| -> Vec<f32> {
+    let photograph_with = |cam: &Camera, s: &CalibrationSphere| -> Vec<f32> {
         let mesh = uv_sphere(s.centre, s.radius_m, 48, 96).unwrap();
         let params = RenderParams::default().with_buffers(Buffers {
             triangle: true,
             ..Buffers::MASK_ONLY
         });
-        let view = Rasterizer::new(&pcam).render(&mesh, &params).unwrap();
+        let view = Rasterizer::new(cam).render(&mesh, &params).unwrap();
         let shaded = shade_patterns(
             &view,
             &mesh,
@@ -451,7 +451,32 @@ fn write_python_fixtures() {
         radius_m: 0.15,
         ..sphere
     };
-    let (raw_sphere, raw_probe) = (photograph(&sphere), photograph(&probe));
+    let (raw_sphere, raw_probe) = (
+        photograph_with(&pcam, &sphere),
+        photograph_with(&pcam, &probe),
+    );
+    // The overhead benchmark's inputs (benches/overhead.*): the same scene at 256 × 256.
+    let big = Intrinsics::from_horizontal_fov(0.2, 256, 256).unwrap();
+    let big = Camera::look_at(
+        big,
+        DVec3::new(0.0, 1.0, 3.0),
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::Y,
+    )
+    .unwrap();
+    let big = via_json(&dir, "overhead_camera.json", &big);
+    f64s(
+        &dir,
+        "overhead_sphere_images",
+        &[7, 256, 256],
+        photograph_with(&big, &sphere).iter().map(|&v| f64::from(v)),
+    );
+    f64s(
+        &dir,
+        "overhead_probe_images",
+        &[7, 256, 256],
+        photograph_with(&big, &probe).iter().map(|&v| f64::from(v)),
+    );
     f64s(
         &dir,
         "photo_sphere_images",

@@ -269,7 +269,7 @@ impl Camera {
         serde_json::to_string(&self.inner).map_err(|e| invalid(e.to_string()))
     }
 
-    /// A camera from [`Camera.to_json`]'s text.
+    /// A camera from `Camera.to_json`'s text.
     #[staticmethod]
     fn from_json(text: &str) -> PyResult<Self> {
         let inner = serde_json::from_str(text).map_err(|e| invalid(format!("camera JSON: {e}")))?;
@@ -397,7 +397,7 @@ impl Skeleton {
         serde_json::to_string(&self.inner).map_err(|e| invalid(e.to_string()))
     }
 
-    /// A skeleton from [`Skeleton.to_json`]'s text.
+    /// A skeleton from `Skeleton.to_json`'s text.
     #[staticmethod]
     fn from_json(text: &str) -> PyResult<Self> {
         let inner =
@@ -540,6 +540,7 @@ fn bone_heat_weights<'py>(
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("CMU_METRES_PER_UNIT", sk::CMU_METRES_PER_UNIT)?;
     m.add_class::<Camera>()?;
     m.add_class::<Skeleton>()?;
     m.add_function(wrap_pyfunction!(read_obj, m)?)?;

@@ -9,6 +9,7 @@ use nalgebra::DVector;
 use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
+use std::path::PathBuf;
 
 use crate::arrays::{finite, from_dmatrix, from_points3, owned1, owned3, rows3, view};
 use crate::errors::{invalid, to_py};
@@ -230,9 +231,36 @@ fn impute<'py>(
     faces_array(py, &filled)
 }
 
+/// The bilinear face set of the validation (the `face_transfer` example's): faces from the ICT
+/// face basis in `ict_dir` (the repository's `data/ict-face`), expressions × identities with
+/// the basis's identity-dependent expression interaction. Returns `(faces, attribute_sizes,
+/// triangles)`: `(faces, vertices, 3)` in the data's units (≈ cm), `[expressions,
+/// identities]`, `(m, 3)` uint32.
+#[pyfunction]
+fn ict_bilinear_set<'py>(py: Python<'py>, ict_dir: PathBuf) -> PyResult<Bound<'py, PyTuple>> {
+    use multilinear_face::validation::{bilinear_face_set, FaceSetParams, IctBasis};
+    let set = py
+        .detach(|| -> multilinear_face::Result<_> {
+            bilinear_face_set(&IctBasis::read(&ict_dir)?, &FaceSetParams::default())
+        })
+        .map_err(to_py)?;
+    let faces = faces_array(py, &set.faces)?;
+    let sizes = set.faces.attribute_sizes().to_vec();
+    let tris = crate::arrays::from_rows(py, set.triangles.iter().copied(), set.triangles.len());
+    PyTuple::new(
+        py,
+        [
+            faces.into_any(),
+            sizes.into_pyobject(py)?.into_any(),
+            tris.into_any(),
+        ],
+    )
+}
+
 pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     let m = PyModule::new(parent.py(), "face")?;
     m.add_class::<FaceModel>()?;
     m.add_function(wrap_pyfunction!(impute, &m)?)?;
+    m.add_function(wrap_pyfunction!(ict_bilinear_set, &m)?)?;
     parent.add_submodule(&m)
 }

@@ -6,7 +6,7 @@ use inertial_acoustic::imu_log::{
 };
 use inertial_acoustic::pipeline::{run, PipelineParams};
 use inertial_acoustic::{
-    heading_inclination_rmse as rust_rmse, FilterParams, Recording as RustRecording,
+    heading_inclination_rmse as rust_rmse, FilterParams, Recording as RustRecording, SensorSet,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -173,10 +173,11 @@ impl ImuLog {
 
 /// The filter of §4.4 for one board over a log (z up), started from its first `rest_s` s at
 /// rest (§4.4.4). Sigmas default to the Rust `FilterParams` defaults: process (rad/s²),
-/// accelerometer (m/s²), gyroscope (rad/s). Returns `(orientation, rate)`: `(n, 4)`
+/// accelerometer (m/s²), gyroscope (rad/s); `gyro_only` drops the accelerometer rows (the
+/// gyroscope-integration baseline). Returns `(orientation, rate)`: `(n, 4)`
 /// quaternions `(x, y, z, w)` board to world and `(n, 3)` rates (rad/s, board axes).
 #[pyfunction]
-#[pyo3(signature = (log, rest_s, process_sigma = None, accelerometer_sigma = None, gyroscope_sigma = None))]
+#[pyo3(signature = (log, rest_s, process_sigma = None, accelerometer_sigma = None, gyroscope_sigma = None, gyro_only = false))]
 fn run_orientation<'py>(
     py: Python<'py>,
     log: &ImuLog,
@@ -184,14 +185,22 @@ fn run_orientation<'py>(
     process_sigma: Option<f64>,
     accelerometer_sigma: Option<f64>,
     gyroscope_sigma: Option<f64>,
+    gyro_only: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let d = FilterParams::default();
-    let params = FilterParams {
+    let mut params = FilterParams {
         process_sigma: process_sigma.unwrap_or(d.process_sigma),
         accelerometer_sigma: accelerometer_sigma.unwrap_or(d.accelerometer_sigma),
         gyroscope_sigma: gyroscope_sigma.unwrap_or(d.gyroscope_sigma),
         ..d
     };
+    if gyro_only {
+        params = params.with_sensors(SensorSet {
+            accelerometers: false,
+            gyroscopes: true,
+            distances: false,
+        });
+    }
     let out = py
         .detach(|| rust_orientation(&log.inner, params, rest_s))
         .map_err(to_py)?;

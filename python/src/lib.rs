@@ -2,8 +2,8 @@
 //!
 //! The Python package `dynamic_shapes` (in `python/dynamic_shapes`) re-exports everything
 //! defined here, adds the exception classes (`_errors.py`), the type stubs and `py.typed`.
-//! Arrays cross the boundary as NumPy `float64` (masks `uint8`), checked by [`arrays`];
-//! errors of the Rust crates become the typed Python exceptions of [`errors`]; every call
+//! Arrays cross the boundary as NumPy `float64` (masks `uint8`), checked by the `arrays` module;
+//! errors of the Rust crates become the typed Python exceptions of the `errors` module; every call
 //! that does real work releases the GIL (`Python::detach`).
 
 mod arrays;

@@ -21,6 +21,7 @@ from ._errors import (
     NumericalError,
 )
 from ._native import (
+    CMU_METRES_PER_UNIT,
     Camera,
     Skeleton,
     bone_heat_weights,
@@ -45,6 +46,7 @@ for _name in ("needle", "template", "photometric", "inertial", "face"):
     _sys.modules[f"{__name__}.{_name}"] = getattr(_native, _name)
 
 __all__ = [
+    "CMU_METRES_PER_UNIT",
     "Camera",
     "Skeleton",
     "bone_heat_weights",

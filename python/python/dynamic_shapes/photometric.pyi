@@ -1,0 +1,33 @@
+"""photometric-normals (Vlasic 2010 §3.2-3.3): normals, integration, reconstruction."""
+
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+from . import Camera
+
+F64 = npt.NDArray[np.float64]
+U8 = npt.NDArray[np.uint8]
+
+class Calibration: ...
+
+def calibrate_sphere(
+    camera: Camera,
+    centre: Tuple[float, float, float],
+    radius_m: float,
+    images: F64,
+    up: Tuple[float, float, float] = (0.0, 1.0, 0.0),
+) -> Calibration: ...
+def estimate_normals(
+    camera: Camera, calibration: Calibration, images: F64, mask: Optional[U8] = None
+) -> Tuple[F64, U8]: ...
+def integrate_normals(camera: Camera, normals: F64, valid: U8, proxy_depth_m: F64) -> F64: ...
+def hull_depths(cameras: Sequence[Camera], masks: U8) -> F64: ...
+def reconstruct(
+    cameras: Sequence[Camera],
+    masks: U8,
+    normals: F64,
+    valid: U8,
+    pairs: Sequence[Tuple[int, int]],
+) -> Tuple[F64, npt.NDArray[np.uint32]]: ...
