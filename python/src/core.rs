@@ -296,9 +296,24 @@ pub(crate) fn project_all(
         .collect()
 }
 
-/// Cameras from a Python sequence of [`Camera`].
-pub(crate) fn cameras(list: Vec<Camera>) -> Vec<RustCamera> {
-    list.into_iter().map(|c| c.inner).collect()
+/// Cameras and their silhouettes `(..., cameras, h, w)` uint8 with `leading` axes before
+/// `h, w`, the last of them the cameras': the leading sizes, the cameras and the masks in
+/// row-major order, after checking the camera axis against the cameras given.
+pub(crate) fn views(
+    cameras: Vec<Camera>,
+    masks: &Bound<'_, PyAny>,
+    leading: usize,
+) -> PyResult<(Vec<usize>, Vec<RustCamera>, Vec<skin_core::image::Mask>)> {
+    let (lead, masks) = arrays::masks(masks, "masks", leading)?;
+    let cams: Vec<RustCamera> = cameras.into_iter().map(|c| c.inner).collect();
+    if lead[leading - 1] != cams.len() {
+        return Err(invalid(format!(
+            "masks has {} cameras but {} cameras were given",
+            lead[leading - 1],
+            cams.len()
+        )));
+    }
+    Ok((lead, cams, masks))
 }
 
 /// A joint tree with per-joint degrees of freedom (rotations in rad, translations in m).

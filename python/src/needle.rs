@@ -120,20 +120,12 @@ fn reconstruct(
 ) -> PyResult<NeedleModel> {
     let s = skeleton.inner.clone();
     let thetas = matrix_rows(thetas, "thetas", Some(s.dof_count()))?;
-    let (lead, flat) = crate::arrays::masks(masks, "masks", 2)?;
-    let cams = crate::core::cameras(cameras);
+    let (lead, cams, flat) = crate::core::views(cameras, masks, 2)?;
     if lead[0] != thetas.len() {
         return Err(invalid(format!(
             "masks has {} frames but thetas has {}",
             lead[0],
             thetas.len()
-        )));
-    }
-    if lead[1] != cams.len() {
-        return Err(invalid(format!(
-            "masks has {} cameras per frame but {} cameras were given",
-            lead[1],
-            cams.len()
         )));
     }
     let mut params = ReconstructionParams::default();

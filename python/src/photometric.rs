@@ -203,15 +203,7 @@ fn hull_depths<'py>(
     cameras: Vec<Camera>,
     masks: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
-    let (lead, masks) = crate::arrays::masks(masks, "masks", 1)?;
-    let cams = crate::core::cameras(cameras);
-    if lead[0] != cams.len() {
-        return Err(invalid(format!(
-            "masks has {} cameras but {} cameras were given",
-            lead[0],
-            cams.len()
-        )));
-    }
+    let (lead, cams, masks) = crate::core::views(cameras, masks, 1)?;
     let maps = py
         .detach(|| -> photometric_normals::Result<Vec<DepthMap>> {
             PolygonalHull::new(&cams, &masks)?.depth_maps(&Default::default())
@@ -243,15 +235,7 @@ fn reconstruct<'py>(
     valid: &Bound<'py, PyAny>,
     pairs: Vec<(usize, usize)>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let (lead, masks) = crate::arrays::masks(masks, "masks", 1)?;
-    let cams = crate::core::cameras(cameras);
-    if lead[0] != cams.len() {
-        return Err(invalid(format!(
-            "masks has {} cameras but {} cameras were given",
-            lead[0],
-            cams.len()
-        )));
-    }
+    let (_, cams, masks) = crate::core::views(cameras, masks, 1)?;
     let n = finite(normals, "normals", &[Some(cams.len()), None, None, Some(3)])?;
     let (h, w) = (n.as_array().shape()[1], n.as_array().shape()[2]);
     let v = view::<u8>(

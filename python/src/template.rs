@@ -6,12 +6,12 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use template_silhouette::{
     capture_sequence, ContourRayHullParams, DeformationTransfer as RustTransfer, FrameObservation,
-    PoseParams, ShapeParams, SilhouetteParams, Template as RustTemplate,
+    PoseParams, ResultExt, ShapeParams, SilhouetteParams, Template as RustTemplate,
 };
 
 use crate::arrays::{from_points3, owned3, points3, vector};
 use crate::core::{skin_weights, trimesh, Camera, Skeleton};
-use crate::errors::{invalid, to_py};
+use crate::errors::to_py;
 
 /// A template: a mesh (at the skeleton's rest pose) bound to a skeleton by skinning weights.
 #[pyclass(module = "dynamic_shapes.template", frozen)]
@@ -69,15 +69,7 @@ fn track<'py>(
 ) -> PyResult<Bound<'py, PyTuple>> {
     let dofs = template.inner.skeleton().dof_count();
     let first = vector(first_pose, "first_pose", Some(dofs))?;
-    let (lead, masks) = crate::arrays::masks(masks, "masks", 2)?;
-    let cams = crate::core::cameras(cameras);
-    if lead[1] != cams.len() {
-        return Err(invalid(format!(
-            "masks has {} cameras per frame but {} cameras were given",
-            lead[1],
-            cams.len()
-        )));
-    }
+    let (lead, cams, masks) = crate::core::views(cameras, masks, 2)?;
     let per = lead[1];
     let out = py
         .detach(|| -> template_silhouette::Result<_> {
@@ -89,10 +81,7 @@ fn track<'py>(
                         &ContourRayHullParams::default(),
                         &SilhouetteParams::default(),
                     )
-                    .map_err(|e| template_silhouette::Error::At {
-                        at: template_silhouette::Context::Frame(f),
-                        source: Box::new(e),
-                    })
+                    .at(template_silhouette::Context::Frame(f))
                 })
                 .collect::<template_silhouette::Result<Vec<_>>>()?;
             capture_sequence(
