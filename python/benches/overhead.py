@@ -1,5 +1,6 @@
 """The Python side of the binding-overhead measurement (benches/overhead.rs is the Rust side,
-on the same inputs): `python overhead.py project CALLS` or `python overhead.py normals CALLS`.
+on the same inputs): `python overhead.py project CALLS` or `python overhead.py normals CALLS [array]` (`array`:
+pass the NumPy array each call instead of a `PatternImages` converted once).
 Time whole runs with CALLS and with 0; the difference over CALLS is one call's time."""
 
 import sys
@@ -27,6 +28,8 @@ def main():
         cam = ds.Camera.from_json((FIXTURES / "overhead_camera.json").read_text())
         cal = photometric.calibrate_sphere(cam, (0.0, 1.0, 0.0), 0.2, np.load(FIXTURES / "overhead_sphere_images.npy"))
         probe = np.load(FIXTURES / "overhead_probe_images.npy")
+        if len(sys.argv) < 4 or sys.argv[3] != "array":
+            probe = photometric.PatternImages(probe)  # converted once, as the Rust side does
         valid = 0
         for _ in range(calls):
             _, v = photometric.estimate_normals(cam, cal, probe)

@@ -21,25 +21,69 @@ use crate::errors::{invalid, to_py};
 /// The seven pattern images `(7, h, w)` float64 in the order X, Y, Z, Full, X̄, Ȳ, Z̄ (Eq.
 /// 3.1), linear intensities.
 fn pattern_images(images: &Bound<'_, PyAny>) -> PyResult<PatternImages> {
-    let v = finite(images, "images", &[Some(PATTERNS.len()), None, None])?;
+    // NaN and infinity are refused by `PatternImages::new`.
+    let v = view::<f64>(
+        images,
+        "images",
+        "float64",
+        &[Some(PATTERNS.len()), None, None],
+    )?;
     let a = v.as_array();
     let (h, w) = (a.shape()[1], a.shape()[2]);
     let (hu, wu) = (
         u32::try_from(h).map_err(|_| invalid("images: height too large"))?,
         u32::try_from(w).map_err(|_| invalid("images: width too large"))?,
     );
+    // Stored as f32, the library's image type (the values are rounded to f32); a contiguous
+    // array is read as one slice, a strided one element by element.
+    let flat: Vec<f32> = match v.as_slice() {
+        Ok(s) => s.iter().map(|&x| x as f32).collect(),
+        Err(_) => a.iter().map(|&x| x as f32).collect(),
+    };
     let list = PATTERNS
         .iter()
-        .enumerate()
-        .map(|(i, &p)| {
-            // Stored as f32, the library's image type (the values are rounded to f32).
-            let im = GrayF32Image::from_fn(wu, hu, |x, y| {
-                image::Luma([a[[i, y as usize, x as usize]] as f32])
-            });
-            (p, im)
+        .zip(flat.chunks_exact(h * w))
+        .map(|(&p, chunk)| {
+            GrayF32Image::from_raw(wu, hu, chunk.to_vec())
+                .map(|im| (p, im))
+                .ok_or_else(|| invalid("images: size does not match its shape"))
         })
-        .collect();
+        .collect::<PyResult<Vec<_>>>()?;
     PatternImages::new(list).map_err(to_py)
+}
+
+/// The seven pattern images of one view, converted once (to reuse with several calls).
+#[pyclass(module = "dynamic_shapes.photometric", frozen, name = "PatternImages")]
+pub(crate) struct Patterns {
+    inner: PatternImages,
+}
+
+#[pymethods]
+impl Patterns {
+    /// From `(7, h, w)` float64 images in the order X, Y, Z, Full, X̄, Ȳ, Z̄ (Eq. 3.1).
+    #[new]
+    fn new(images: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(Patterns {
+            inner: pattern_images(images)?,
+        })
+    }
+
+    /// `(height, width)` of the images, px.
+    #[getter]
+    fn shape(&self) -> (u32, u32) {
+        (self.inner.height(), self.inner.width())
+    }
+}
+
+/// Runs `f` on the pattern images given as a [`Patterns`] or as a `(7, h, w)` array.
+fn with_images<T>(
+    images: &Bound<'_, PyAny>,
+    f: impl FnOnce(&PatternImages) -> PyResult<T>,
+) -> PyResult<T> {
+    match images.cast::<Patterns>() {
+        Ok(p) => f(&p.get().inner),
+        Err(_) => f(&pattern_images(images)?),
+    }
 }
 
 fn one_mask(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mask> {
@@ -61,7 +105,8 @@ impl Calibration {
 }
 
 /// Calibrates a camera from a grey sphere (centre in m, radius in m) photographed under the
-/// seven patterns `images` `(7, h, w)`; `up` is the world's up direction.
+/// seven patterns `images` (`(7, h, w)` float64 or a `PatternImages`); `up` is the world's up
+/// direction.
 #[pyfunction]
 #[pyo3(signature = (camera, centre, radius_m, images, up = (0.0, 1.0, 0.0)))]
 fn calibrate_sphere(
@@ -72,28 +117,29 @@ fn calibrate_sphere(
     images: &Bound<'_, PyAny>,
     up: (f64, f64, f64),
 ) -> PyResult<Calibration> {
-    let images = pattern_images(images)?;
     let sphere = CalibrationSphere {
         centre: DVec3::new(centre.0, centre.1, centre.2),
         radius_m,
     };
     let up = DVec3::new(up.0, up.1, up.2);
-    let inner = py
-        .detach(|| -> photometric_normals::Result<HeightCalibration> {
+    let inner = with_images(images, |images| {
+        py.detach(|| -> photometric_normals::Result<HeightCalibration> {
             let table = LookupTable::from_sphere(
                 &camera.inner,
                 &sphere,
-                &images,
+                images,
                 up,
                 &CalibrationParams::default(),
             )?;
             HeightCalibration::new(vec![table])
         })
-        .map_err(to_py)?;
+        .map_err(to_py)
+    })?;
     Ok(Calibration { inner })
 }
 
-/// Per-pixel normals from the seven pattern images `(7, h, w)` (§3.2): `(normals, valid)`,
+/// Per-pixel normals from the seven pattern images (§3.2; `(7, h, w)` float64 or a
+/// `PatternImages`, converted once for repeated calls): `(normals, valid)`,
 /// `(h, w, 3)` unit world normals and an `(h, w)` uint8 mask of the pixels with a normal.
 /// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject).
 #[pyfunction]
@@ -105,19 +151,19 @@ fn estimate_normals<'py>(
     images: &Bound<'py, PyAny>,
     mask: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let images = pattern_images(images)?;
     let mask = mask.map(|m| one_mask(m, "mask")).transpose()?;
-    let map = py
-        .detach(|| {
+    let map = with_images(images, |images| {
+        py.detach(|| {
             rust_normals(
                 &camera.inner,
                 &calibration.inner,
-                &images,
+                images,
                 mask.as_ref(),
                 &NormalParams::default(),
             )
         })
-        .map_err(to_py)?;
+        .map_err(to_py)
+    })?;
     normal_arrays(py, &map)
 }
 
@@ -265,6 +311,7 @@ fn reconstruct<'py>(
 pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     let m = PyModule::new(parent.py(), "photometric")?;
     m.add_class::<Calibration>()?;
+    m.add_class::<Patterns>()?;
     m.add_function(wrap_pyfunction!(calibrate_sphere, &m)?)?;
     m.add_function(wrap_pyfunction!(estimate_normals, &m)?)?;
     m.add_function(wrap_pyfunction!(integrate_normals, &m)?)?;

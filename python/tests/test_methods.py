@@ -100,6 +100,8 @@ def test_normals_and_integration_match_rust(fx, calibration):
     normals, valid = photometric.estimate_normals(cam, cal, fx["photo_probe_images"])
     assert same(normals, fx["photo_normals"]) and same(valid, fx["photo_valid"])
     assert valid.dtype == np.uint8
+    again = photometric.estimate_normals(cam, cal, photometric.PatternImages(fx["photo_probe_images"]))
+    assert same(again[0], normals) and same(again[1], valid)
     depth = photometric.integrate_normals(cam, normals, valid, fx["photo_proxy"])
     assert same(depth, fx["photo_depth"])
 
