@@ -140,7 +140,8 @@ fn calibrate_sphere(
 
 /// Per-pixel normals from the seven pattern images (§3.2; `(7, h, w)` float64 or a
 /// `PatternImages`, converted once for repeated calls): `(normals, valid)`,
-/// `(h, w, 3)` unit world normals and an `(h, w)` uint8 mask of the pixels with a normal.
+/// `(h, w, 3)` unit normals in the camera frame (x right, y down, z forward; zero where
+/// invalid) and an `(h, w)` uint8 mask of the pixels with a normal.
 /// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject).
 #[pyfunction]
 #[pyo3(signature = (camera, calibration, images, mask = None))]
