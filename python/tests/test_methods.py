@@ -215,3 +215,40 @@ def test_face_errors(fx, face_model):
         face.impute(fx["face_data"], [2, 3], np.zeros(6, np.uint8))
     with pytest.raises(ds.InvalidInputError, match="NaN"):
         model.track_points(list(range(20)), np.full((3, 20, 2), np.nan), [False, True])
+
+
+def test_reconstruct_errors(fx, studio):
+    _, cams, _, masks = studio
+    normals = np.zeros((4, 120, 160, 3))
+    valid = np.zeros((4, 120, 160), np.uint8)
+    with pytest.raises(ds.InvalidInputError, match="4 cameras but 3"):
+        photometric.reconstruct(cams[:3], masks[0], normals, valid, [(0, 1)])
+    with pytest.raises(ds.InvalidInputError, match=r"normals must have shape \(4, n, m, 3\)"):
+        photometric.reconstruct(cams, masks[0], normals[:2], valid, [(0, 1)])
+    with pytest.raises(ds.InvalidInputError, match=r"valid must have shape \(4, 120, 160\)"):
+        photometric.reconstruct(cams, masks[0], normals, valid[:, :10], [(0, 1)])
+
+
+def test_long_calls_release_the_gil(fx, studio, tmpl):
+    """Another Python thread runs while template tracking computes."""
+    import threading
+
+    _, cams, thetas, masks = studio
+    ticks, done = [0], threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks[0] += 1
+
+    counter = threading.Thread(target=count)
+    counter.start()
+    try:
+        before = ticks[0]
+        template.track(tmpl, cams, masks[:2], thetas[0])
+        during = ticks[0] - before
+    finally:
+        done.set()
+        counter.join()
+    # With the GIL held for the whole call the counter could only advance at the call's
+    # edges (a few switch intervals); released, it runs throughout.
+    assert during > 10_000, during
