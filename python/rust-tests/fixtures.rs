@@ -690,6 +690,76 @@ fn write_python_fixtures() {
         );
     }
 
+    // Video tracking: a person outside the training set rendered over 4 frames (the
+    // validation's face video), tracked by the thesis's 6 × 9 model of the bilinear set.
+    {
+        use multilinear_face::validation::{
+            bilinear_face_set, feature_vertices, render_face_video, FaceSetParams, FaceVideoParams,
+            IctBasis,
+        };
+        let basis = IctBasis::read(repo().join("data/ict-face")).unwrap();
+        let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
+        let novel = bilinear_face_set(
+            &basis,
+            &FaceSetParams::default().with_identities(1).with_seed(99),
+        )
+        .unwrap();
+        let tracked = feature_vertices(basis.neutral(), 300).unwrap();
+        let features = feature_vertices(basis.neutral(), 12).unwrap();
+        let video = render_face_video(
+            &novel.faces,
+            &[0, 1, 3, 0],
+            4,
+            &bi.triangles,
+            &basis.neutral().vertices,
+            &features,
+            &FaceVideoParams::default(),
+        )
+        .unwrap();
+        let (w, h) = video.frames[0].dimensions();
+        u8s(
+            &dir,
+            "video_frames",
+            &[4, h as usize, w as usize, 3],
+            video.frames.iter().flat_map(|f| f.as_raw().clone()),
+        );
+        js.insert("video_tracked", json!(tracked));
+        js.insert("video_feature_vertices", json!(video.features.vertices));
+        f64s(
+            &dir,
+            "video_feature_pixels",
+            &[video.features.pixels.len(), 2],
+            video.features.pixels.iter().flatten().copied(),
+        );
+        let (model, _) = multilinear_face::MultilinearModel::fit(
+            &bi.faces,
+            &multilinear_face::ModelParams::thesis_bilinear(),
+        )
+        .unwrap();
+        let track = multilinear_face::track_video(
+            &model,
+            &bi.triangles,
+            &tracked,
+            &video.frames,
+            &video.features,
+            &[false, true],
+            &Default::default(),
+        )
+        .unwrap();
+        f64s(
+            &dir,
+            "video_tracked_fraction",
+            &[4],
+            track.tracked_fraction.iter().copied(),
+        );
+        f64s(
+            &dir,
+            "video_rms",
+            &[4],
+            track.reprojection_rms_px.iter().copied(),
+        );
+    }
+
     std::fs::write(
         dir.join("fixtures.json"),
         serde_json::to_string_pretty(&js).unwrap(),

@@ -2,8 +2,9 @@
 
 use glam::DVec3;
 use multilinear_face::{
-    impute as rust_impute, mean_weights, track_points as rust_track, FaceTensor, ImputeParams,
-    KnownFaces, ModelParams, MultilinearModel, TrackParams,
+    impute as rust_impute, mean_weights, track_points as rust_track, track_video as rust_video,
+    FaceTensor, FeaturePoints, ImputeParams, KnownFaces, ModelParams, MultilinearModel,
+    TrackParams, VideoTrackParams, WeakPerspective,
 };
 use nalgebra::DVector;
 use numpy::{PyArray1, PyArray2, PyArray3};
@@ -170,32 +171,73 @@ impl FaceModel {
                 )
             })
             .map_err(to_py)?;
-        let d = PyDict::new(py);
-        let n = t.weights.len();
-        let per_mode = (0..self.inner.ranks().len())
-            .map(|m| {
-                let r = self.inner.ranks()[m];
-                let flat: Vec<f64> = t
-                    .weights
-                    .iter()
-                    .flat_map(|w| w[m].as_slice().to_vec())
-                    .collect();
-                crate::arrays::owned2(py, flat, n, r)
+        track_dict(
+            py,
+            &self.inner,
+            &t.weights,
+            &t.cameras,
+            t.reprojection_rms_px,
+        )
+    }
+
+    /// Tracks a face through video frames (§5.4.1–5.4.2): `frames` `(frames, h, w, 3)` uint8
+    /// RGB; the model's `triangles` `(m, 3)` uint32; KLT on the model vertices `tracked`,
+    /// started from `feature_vertices` seen at `feature_pixels` `(k, 2)` in frame 0;
+    /// `constant` as in `track_points`. Returns the dict of `track_points` plus
+    /// `tracked_fraction` `(frames,)`. Raises `DynamicShapesError` with "face lost" when the
+    /// face is lost (the message names the frame).
+    #[allow(clippy::too_many_arguments, reason = "Python arguments, named at the call")]
+    fn track_video<'py>(
+        &self,
+        py: Python<'py>,
+        frames: &Bound<'py, PyAny>,
+        triangles: &Bound<'py, PyAny>,
+        tracked: Vec<usize>,
+        feature_vertices: Vec<usize>,
+        feature_pixels: &Bound<'py, PyAny>,
+        constant: Vec<bool>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let v = view::<u8>(frames, "frames", "uint8", &[None, None, None, Some(3)])?;
+        let a = v.as_array();
+        let (h, w) = (a.shape()[1], a.shape()[2]);
+        let (hu, wu) = (
+            u32::try_from(h).map_err(|_| invalid("frames: height too large"))?,
+            u32::try_from(w).map_err(|_| invalid("frames: width too large"))?,
+        );
+        let images = a
+            .outer_iter()
+            .map(|f| {
+                image::RgbImage::from_raw(wu, hu, f.iter().copied().collect())
+                    .ok_or_else(|| invalid("frames: size does not match its shape"))
             })
-            .collect::<Vec<_>>();
-        d.set_item("weights", per_mode)?;
-        d.set_item(
-            "reprojection_rms_px",
-            owned1(py, t.reprojection_rms_px.clone()),
+            .collect::<PyResult<Vec<_>>>()?;
+        let tris = crate::arrays::faces(triangles, "triangles", self.inner.vertex_count())?;
+        let pixels = crate::arrays::points2(feature_pixels, "feature_pixels")?;
+        let features = FeaturePoints {
+            vertices: feature_vertices,
+            pixels: pixels.iter().map(|p| p.to_array()).collect(),
+        };
+        let t = py
+            .detach(|| {
+                rust_video(
+                    &self.inner,
+                    &tris,
+                    &tracked,
+                    &images,
+                    &features,
+                    &constant,
+                    &VideoTrackParams::default(),
+                )
+            })
+            .map_err(to_py)?;
+        let d = track_dict(
+            py,
+            &self.inner,
+            &t.weights,
+            &t.cameras,
+            t.reprojection_rms_px,
         )?;
-        d.set_item(
-            "scale",
-            owned1(py, t.cameras.iter().map(|c| c.scale).collect()),
-        )?;
-        let rows: Vec<f64> = t.cameras.iter().flat_map(|c| c.rows.concat()).collect();
-        d.set_item("rotation_rows", owned3(py, rows, (n, 2, 3)))?;
-        let tr: Vec<f64> = t.cameras.iter().flat_map(|c| c.translation).collect();
-        d.set_item("translation", crate::arrays::owned2(py, tr, n, 2))?;
+        d.set_item("tracked_fraction", owned1(py, t.tracked_fraction))?;
         Ok(d)
     }
 
@@ -206,6 +248,41 @@ impl FaceModel {
             self.inner.ranks()
         )
     }
+}
+
+/// A tracking result as a dict: per-mode weights `(frames, rank)`, RMS, weak-perspective cameras.
+fn track_dict<'py>(
+    py: Python<'py>,
+    model: &MultilinearModel,
+    weights: &[Vec<DVector<f64>>],
+    cameras: &[WeakPerspective],
+    rms: Vec<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let n = weights.len();
+    let per_mode = model
+        .ranks()
+        .iter()
+        .enumerate()
+        .map(|(m, &r)| {
+            let flat: Vec<f64> = weights
+                .iter()
+                .flat_map(|w| w[m].as_slice().to_vec())
+                .collect();
+            crate::arrays::owned2(py, flat, n, r)
+        })
+        .collect::<Vec<_>>();
+    d.set_item("weights", per_mode)?;
+    d.set_item("reprojection_rms_px", owned1(py, rms))?;
+    d.set_item(
+        "scale",
+        owned1(py, cameras.iter().map(|c| c.scale).collect()),
+    )?;
+    let rows: Vec<f64> = cameras.iter().flat_map(|c| c.rows.concat()).collect();
+    d.set_item("rotation_rows", owned3(py, rows, (n, 2, 3)))?;
+    let tr: Vec<f64> = cameras.iter().flat_map(|c| c.translation).collect();
+    d.set_item("translation", crate::arrays::owned2(py, tr, n, 2))?;
+    Ok(d)
 }
 
 /// Fills in missing faces (§5.3.4, per-mode PPCA solved jointly): `faces` `(faces, vertices,
