@@ -186,7 +186,10 @@ impl FaceModel {
     /// `constant` as in `track_points`. Returns the dict of `track_points` plus
     /// `tracked_fraction` `(frames,)`. Raises `DynamicShapesError` with "face lost" when the
     /// face is lost (the message names the frame).
-    #[allow(clippy::too_many_arguments, reason = "Python arguments, named at the call")]
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "Python arguments, named at the call"
+    )]
     fn track_video<'py>(
         &self,
         py: Python<'py>,
