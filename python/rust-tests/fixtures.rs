@@ -758,6 +758,55 @@ fn write_python_fixtures() {
             &[4],
             track.reprojection_rms_px.iter().copied(),
         );
+        // Face transfer: frame 0's colours lifted onto its tracked face, rendered as frame 2's
+        // face under frame 2's camera over frame 2.
+        let (f0, f2) = (
+            model.face(&track.weights[0]).unwrap(),
+            model.face(&track.weights[2]).unwrap(),
+        );
+        points(&dir, "transfer_source_face", &f0);
+        points(&dir, "transfer_target_face", &f2);
+        for (name, c) in [("source", &track.cameras[0]), ("target", &track.cameras[2])] {
+            f64s(
+                &dir,
+                &format!("transfer_{name}_camera"),
+                &[9],
+                [
+                    c.scale,
+                    c.rows[0][0],
+                    c.rows[0][1],
+                    c.rows[0][2],
+                    c.rows[1][0],
+                    c.rows[1][1],
+                    c.rows[1][2],
+                    c.translation[0],
+                    c.translation[1],
+                ],
+            );
+        }
+        u32s(
+            &dir,
+            "video_triangles",
+            &[bi.triangles.len(), 3],
+            bi.triangles.iter().flatten().copied(),
+        );
+        let texture =
+            multilinear_face::lift_texture(&f0, &bi.triangles, &track.cameras[0], &video.frames[0])
+                .unwrap();
+        let out = multilinear_face::render_textured(
+            &f2,
+            &bi.triangles,
+            &track.cameras[2],
+            &texture,
+            &video.frames[2],
+        )
+        .unwrap();
+        u8s(
+            &dir,
+            "transfer_rendered",
+            &[h as usize, w as usize, 3],
+            out.into_raw(),
+        );
     }
 
     std::fs::write(

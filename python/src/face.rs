@@ -2,9 +2,9 @@
 
 use glam::DVec3;
 use multilinear_face::{
-    impute as rust_impute, mean_weights, track_points as rust_track, track_video as rust_video,
-    FaceTensor, FeaturePoints, ImputeParams, KnownFaces, ModelParams, MultilinearModel,
-    TrackParams, VideoTrackParams, WeakPerspective,
+    impute as rust_impute, lift_texture, mean_weights, render_textured, track_points as rust_track,
+    track_video as rust_video, FaceTensor, FeaturePoints, ImputeParams, KnownFaces, ModelParams,
+    MultilinearModel, TrackParams, VideoTrackParams, WeakPerspective,
 };
 use nalgebra::DVector;
 use numpy::{PyArray1, PyArray2, PyArray3};
@@ -288,6 +288,81 @@ fn track_dict<'py>(
     Ok(d)
 }
 
+/// A weak-perspective camera from its scale, `(2, 3)` rotation rows and `(2,)` translation (px).
+fn weak_perspective(
+    scale: f64,
+    rows: &Bound<'_, PyAny>,
+    translation: (f64, f64),
+) -> PyResult<WeakPerspective> {
+    let r = finite(rows, "rotation_rows", &[Some(2), Some(3)])?;
+    let a = r.as_array();
+    Ok(WeakPerspective {
+        scale,
+        rows: [
+            [a[[0, 0]], a[[0, 1]], a[[0, 2]]],
+            [a[[1, 0]], a[[1, 1]], a[[1, 2]]],
+        ],
+        translation: [translation.0, translation.1],
+    })
+}
+
+fn rgb(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<image::RgbImage> {
+    let v = view::<u8>(obj, name, "uint8", &[None, None, Some(3)])?;
+    let a = v.as_array();
+    let (h, w) = (a.shape()[0], a.shape()[1]);
+    let (hu, wu) = (
+        u32::try_from(h).map_err(|_| invalid(format!("{name}: height too large")))?,
+        u32::try_from(w).map_err(|_| invalid(format!("{name}: width too large")))?,
+    );
+    image::RgbImage::from_raw(wu, hu, a.iter().copied().collect())
+        .ok_or_else(|| invalid(format!("{name}: size does not match its shape")))
+}
+
+/// Face transfer (§5.5): the colours of `source_face` `(n, 3)` seen by its weak-perspective
+/// camera (`source_scale`, `source_rows` `(2, 3)`, `source_translation` px) in
+/// `source_frame` `(h, w, 3)` uint8 are lifted onto the vertices, then `target_face` (in
+/// correspondence) is rendered with them under the target camera over `target_frame`.
+/// Returns the composited `(h, w, 3)` uint8 frame.
+#[pyfunction]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "Python arguments, named at the call"
+)]
+fn transfer<'py>(
+    py: Python<'py>,
+    triangles: &Bound<'py, PyAny>,
+    source_face: &Bound<'py, PyAny>,
+    source_scale: f64,
+    source_rows: &Bound<'py, PyAny>,
+    source_translation: (f64, f64),
+    source_frame: &Bound<'py, PyAny>,
+    target_face: &Bound<'py, PyAny>,
+    target_scale: f64,
+    target_rows: &Bound<'py, PyAny>,
+    target_translation: (f64, f64),
+    target_frame: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let src = crate::arrays::points3(source_face, "source_face")?;
+    let dst = crate::arrays::points3(target_face, "target_face")?;
+    let tris = crate::arrays::faces(triangles, "triangles", src.len())?;
+    let (sc, tc) = (
+        weak_perspective(source_scale, source_rows, source_translation)?,
+        weak_perspective(target_scale, target_rows, target_translation)?,
+    );
+    let (sf, tf) = (
+        rgb(source_frame, "source_frame")?,
+        rgb(target_frame, "target_frame")?,
+    );
+    let out = py
+        .detach(|| -> multilinear_face::Result<image::RgbImage> {
+            let texture = lift_texture(&src, &tris, &sc, &sf)?;
+            render_textured(&dst, &tris, &tc, &texture, &tf)
+        })
+        .map_err(to_py)?;
+    let (w, h) = out.dimensions();
+    Ok(owned3(py, out.into_raw(), (h as usize, w as usize, 3)))
+}
+
 /// Fills in missing faces (§5.3.4, per-mode PPCA solved jointly): `faces` `(faces, vertices,
 /// 3)` over `attribute_sizes`, `known` `(faces,)` uint8 (non-zero = captured; the values of
 /// the missing faces are ignored). Returns the completed `(faces, vertices, 3)`.
@@ -342,5 +417,6 @@ pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<FaceModel>()?;
     m.add_function(wrap_pyfunction!(impute, &m)?)?;
     m.add_function(wrap_pyfunction!(ict_bilinear_set, &m)?)?;
+    m.add_function(wrap_pyfunction!(transfer, &m)?)?;
     parent.add_submodule(&m)
 }

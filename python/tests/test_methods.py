@@ -274,3 +274,23 @@ def test_video_tracking_matches_rust(fx):
     with pytest.raises(ds.InvalidInputError, match="frames"):
         model.track_video(frames[:0], tris, fx.json["video_tracked"],
                           fx.json["video_feature_vertices"], fx["video_feature_pixels"], [False, True])
+
+
+def test_face_transfer_matches_rust(fx):
+    frames, tris = fx["video_frames"], fx["video_triangles"]
+
+    def camera(name):
+        c = fx[f"transfer_{name}_camera"]
+        return c[0], c[1:7].reshape(2, 3), (c[7], c[8])
+
+    (ss, sr, st), (ts, tr, tt) = camera("source"), camera("target")
+    out = face.transfer(tris, fx["transfer_source_face"], ss, sr, st, frames[0],
+                        fx["transfer_target_face"], ts, tr, tt, frames[2])
+    assert out.dtype == np.uint8
+    assert same(out, fx["transfer_rendered"])
+    with pytest.raises(ds.InvalidInputError, match="rotation_rows"):
+        face.transfer(tris, fx["transfer_source_face"], ss, sr[:1], st, frames[0],
+                      fx["transfer_target_face"], ts, tr, tt, frames[2])
+    with pytest.raises(ds.InvalidInputError):
+        face.transfer(tris, fx["transfer_source_face"], -1.0, sr, st, frames[0],
+                      fx["transfer_target_face"], ts, tr, tt, frames[2])

@@ -32,3 +32,16 @@ class FaceModel:
 
 def impute(faces: F64, attribute_sizes: Sequence[int], known: npt.NDArray[np.uint8]) -> F64: ...
 def ict_bilinear_set(ict_dir: Union[str, PathLike]) -> Tuple[F64, List[int], npt.NDArray[np.uint32]]: ...
+def transfer(
+    triangles: npt.NDArray[np.uint32],
+    source_face: F64,
+    source_scale: float,
+    source_rows: F64,
+    source_translation: Tuple[float, float],
+    source_frame: npt.NDArray[np.uint8],
+    target_face: F64,
+    target_scale: float,
+    target_rows: F64,
+    target_translation: Tuple[float, float],
+    target_frame: npt.NDArray[np.uint8],
+) -> npt.NDArray[np.uint8]: ...
