@@ -1,0 +1,42 @@
+"""photometric-normals (Vlasic 2010 §3.2-3.3): normals, integration, reconstruction."""
+
+from typing import Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+from . import Camera
+
+F64 = npt.NDArray[np.float64]
+U8 = npt.NDArray[np.uint8]
+
+class Calibration: ...
+
+class PatternImages:
+    """The seven pattern images of one view, converted once."""
+
+    def __init__(self, images: F64) -> None: ...
+    @property
+    def shape(self) -> Tuple[int, int]: ...
+
+Images = Union[F64, PatternImages]
+
+def calibrate_sphere(
+    camera: Camera,
+    centre: Tuple[float, float, float],
+    radius_m: float,
+    images: Images,
+    up: Tuple[float, float, float] = (0.0, 1.0, 0.0),
+) -> Calibration: ...
+def estimate_normals(
+    camera: Camera, calibration: Calibration, images: Images, mask: Optional[U8] = None
+) -> Tuple[F64, U8]: ...
+def integrate_normals(camera: Camera, normals: F64, valid: U8, proxy_depth_m: F64) -> F64: ...
+def hull_depths(cameras: Sequence[Camera], masks: U8) -> F64: ...
+def reconstruct(
+    cameras: Sequence[Camera],
+    masks: U8,
+    normals: F64,
+    valid: U8,
+    pairs: Sequence[Tuple[int, int]],
+) -> Tuple[F64, npt.NDArray[np.uint32]]: ...

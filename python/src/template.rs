@@ -1,0 +1,153 @@
+//! template-silhouette (Vlasic 2010 Ch. 2): tracking a template through multi-view
+//! silhouettes; deformation transfer of an edit.
+
+use numpy::{PyArray2, PyArray3};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+use template_silhouette::{
+    capture_sequence, ContourRayHullParams, DeformationTransfer as RustTransfer, FrameObservation,
+    PoseParams, ResultExt, ShapeParams, SilhouetteParams, Template as RustTemplate,
+};
+
+use crate::arrays::{from_points3, owned3, points3, vector};
+use crate::core::{skin_weights, trimesh, Camera, Skeleton};
+use crate::errors::to_py;
+
+/// A template: a mesh (at the skeleton's rest pose) bound to a skeleton by skinning weights.
+#[pyclass(module = "dynamic_shapes.template", frozen)]
+pub(crate) struct Template {
+    inner: RustTemplate,
+}
+
+#[pymethods]
+impl Template {
+    /// A template from `(n, 3)` vertices (m), `(m, 3)` uint32 faces, a skeleton and
+    /// `(n, joint_count)` skinning weights (rows renormalised).
+    #[new]
+    fn new(
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        skeleton: &Skeleton,
+        weights: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let mesh = trimesh(vertices, faces)?;
+        let w = skin_weights(weights, mesh.vertex_count(), skeleton.inner.joint_count())?;
+        let inner = RustTemplate::new(mesh, skeleton.inner.clone(), w).map_err(to_py)?;
+        Ok(Template { inner })
+    }
+
+    /// Number of vertices.
+    #[getter]
+    fn vertex_count(&self) -> usize {
+        self.inner.vertex_count()
+    }
+
+    /// The template skinned to pose `theta`: `(n, 3)` (m).
+    fn skin<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let t = vector(theta, "theta", Some(self.inner.skeleton().dof_count()))?;
+        let v = py.detach(|| self.inner.skin(&t)).map_err(to_py)?;
+        Ok(from_points3(py, &v))
+    }
+}
+
+/// Captures a sequence (§2.2): per frame, the visual hull and contour rays of the silhouettes
+/// `masks` `(frames, cameras, h, w)` uint8; pose tracking through the hulls from
+/// `first_pose` (the first frame's fit, §2.3.3), forward and reverse passes; then Laplacian
+/// molding to the silhouettes (Algorithm 1). Returns `(poses, vertices)`: `(frames,
+/// dof_count)` and `(frames, n, 3)` (m).
+#[pyfunction]
+fn track<'py>(
+    py: Python<'py>,
+    template: &Template,
+    cameras: Vec<Camera>,
+    masks: &Bound<'py, PyAny>,
+    first_pose: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let dofs = template.inner.skeleton().dof_count();
+    let first = vector(first_pose, "first_pose", Some(dofs))?;
+    let (lead, cams, masks) = crate::core::views(cameras, masks, 2)?;
+    let per = lead[1];
+    let out = py
+        .detach(|| -> template_silhouette::Result<_> {
+            let obs = (0..lead[0])
+                .map(|f| {
+                    FrameObservation::new(
+                        &cams,
+                        &masks[f * per..(f + 1) * per],
+                        &ContourRayHullParams::default(),
+                        &SilhouetteParams::default(),
+                    )
+                    .at(template_silhouette::Context::Frame(f))
+                })
+                .collect::<template_silhouette::Result<Vec<_>>>()?;
+            capture_sequence(
+                &template.inner,
+                &obs,
+                &first,
+                &[],
+                &PoseParams::default(),
+                &ShapeParams::default(),
+            )
+        })
+        .map_err(to_py)?;
+    let n = template.inner.vertex_count();
+    let frames = out.poses.poses.len();
+    let poses = crate::arrays::from_vec_rows(py, &out.poses.poses, dofs)?;
+    let verts: Vec<f64> = out
+        .shapes
+        .frames
+        .iter()
+        .flat_map(|f| f.iter().flat_map(|p| p.to_array()))
+        .collect();
+    let verts: Bound<'py, PyArray3<f64>> = owned3(py, verts, (out.shapes.frames.len(), n, 3));
+    debug_assert_eq!(frames, out.shapes.frames.len());
+    PyTuple::new(py, [poses.into_any(), verts.into_any()])
+}
+
+/// Deformation transfer (§2.5.3, Sumner & Popović 2004): the edit `template → edited` (same
+/// faces) carried onto other poses of the template.
+#[pyclass(module = "dynamic_shapes.template", frozen)]
+pub(crate) struct DeformationTransfer {
+    inner: RustTransfer,
+}
+
+#[pymethods]
+impl DeformationTransfer {
+    /// Prepares the transfer of the edit from `(n, 3)` template vertices with `(m, 3)` uint32
+    /// faces to `edited` `(n, 3)`.
+    #[new]
+    fn new(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        edited: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let mesh = trimesh(vertices, faces)?;
+        let e = points3(edited, "edited")?;
+        let inner = py.detach(|| RustTransfer::new(&mesh, &e)).map_err(to_py)?;
+        Ok(DeformationTransfer { inner })
+    }
+
+    /// The edit applied to `frame` `(n, 3)` (the template in another pose): `(n, 3)` (m).
+    fn transfer<'py>(
+        &self,
+        py: Python<'py>,
+        frame: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let f = points3(frame, "frame")?;
+        let out = py.detach(|| self.inner.transfer(&f)).map_err(to_py)?;
+        Ok(from_points3(py, &out))
+    }
+}
+
+pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
+    let m = PyModule::new(parent.py(), "template")?;
+    m.add_class::<Template>()?;
+    m.add_class::<DeformationTransfer>()?;
+    m.add_function(wrap_pyfunction!(track, &m)?)?;
+    parent.add_submodule(&m)
+}
