@@ -11,17 +11,24 @@ cd "$(dirname "$0")/.."
 peers=$(cd ../shared/bench/peers && pwd)
 py=${PY:-$peers/.venv/bin/python}
 cargo build --release --example inertial_capture >/dev/null
-rust=$(target/release/examples/inertial_capture --real-only 2>/dev/null | tail -1)
-fusion=$($py examples/inertial_capture/fusion_broad.py \
+# The three JSON lines go through files, not arguments: one argument is limited to 128 KiB
+# (MAX_ARG_STRLEN) and the example's line grows with its tuning grids.
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+target/release/examples/inertial_capture --real-only 2>/dev/null | tail -1 >"$tmp/rust.json"
+$py examples/inertial_capture/fusion_broad.py \
     --tuning data/imu-broad/09_undisturbed_fast_rotation_with_breaks_B_first60s.hdf5 \
     --test data/imu-broad/07_undisturbed_fast_rotation_B_first60s.hdf5 \
-    --ours out/inertial_capture/broad_ours.csv | tail -1)
+    --ours out/inertial_capture/broad_ours.csv | tail -1 >"$tmp/fusion.json"
 # One core for both (our figures are single-threaded; OpenBLAS threads on this shared 2-core
 # machine oversubscribe and slow FilterPy down about tenfold).
-filterpy=$(cd "$peers" && OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $py ekf.py | tail -1)
-python3 - "$rust" "$fusion" "$filterpy" <<'PY'
+(cd "$peers" && OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $py ekf.py | tail -1) >"$tmp/filterpy.json"
+python3 - "$tmp/rust.json" "$tmp/fusion.json" "$tmp/filterpy.json" <<'PY'
 import json, sys
-rust, fusion, filterpy = (json.loads(a) for a in sys.argv[1:])
+def read(path):
+    with open(path) as f:
+        return json.load(f)
+rust, fusion, filterpy = (read(a) for a in sys.argv[1:])
 ekf = rust["ekf_peer_workload"]
 out = {
     "broad_ours_test_rmse_deg": fusion.get("ours_test_rmse_deg"),

@@ -202,25 +202,56 @@ impl MultilinearModel {
         Ok(())
     }
 
-    /// `ℳ ×ₙ wₙᵀ` over the modes other than `skip`, as a `3V × (rₛₖᵢₚ or 1)` matrix.
+    /// `ℳ ×ₙ wₙᵀ` over the modes other than `skip`, as a `3V × (rₛₖᵢₚ or 1)` matrix (weights
+    /// already checked). Each row of `ℳ` (one coordinate: its `r₁ × r₂ × ⋯` block, row-major)
+    /// is viewed as `outer × rₛₖᵢₚ × inner` (the modes before and after `skip`) and contracted
+    /// with the Kronecker product of the other modes' weights, one pass over the tensor.
     fn contract(&self, weights: &[DVector<f64>], skip: Option<usize>) -> Result<DMatrix<f64>> {
-        let rows: Vec<DMatrix<f64>> = weights
-            .iter()
-            .map(|w| DMatrix::from_row_slice(1, w.len(), w.as_slice()))
-            .collect();
-        let products: Vec<(usize, &DMatrix<f64>)> = rows
-            .iter()
-            .enumerate()
-            .filter(|(n, _)| Some(*n) != skip)
-            .map(|(n, m)| (n + 1, m))
-            .collect();
-        let t = if products.is_empty() {
-            self.core.clone()
-        } else {
-            self.core.multi_mode_product(&products)?
+        let ranks = self.ranks();
+        let block: usize = ranks.iter().product();
+        let (cols, inner) = match skip {
+            Some(m) => (ranks[m], ranks[m + 1..].iter().product::<usize>()),
+            None => (1, block),
         };
-        let cols = t.len() / t.shape()[0];
-        Ok(DMatrix::from_row_slice(t.shape()[0], cols, t.data()))
+        let outer = block / (cols * inner);
+        // coef[o · inner + i]: the product of the weights of the multi-index (o, i).
+        let mut coef = vec![1.0; outer * inner];
+        let mut stride = outer * inner;
+        for (n, w) in weights.iter().enumerate() {
+            if Some(n) == skip {
+                continue;
+            }
+            stride /= ranks[n];
+            for (k, c) in coef.iter_mut().enumerate() {
+                *c *= w[(k / stride) % ranks[n]];
+            }
+        }
+        let rows = self.core.shape()[0];
+        let mut out = DMatrix::zeros(rows, cols);
+        let mut acc = vec![0.0; cols];
+        for (i, row) in self.core.data().chunks_exact(block).enumerate() {
+            if inner == 1 {
+                // `skip` is the last mode: the row is `outer × cols`, a weighted sum of rows.
+                acc.fill(0.0);
+                for (seg, &c) in row.chunks_exact(cols).zip(&coef) {
+                    for (s, &v) in acc.iter_mut().zip(seg) {
+                        *s += c * v;
+                    }
+                }
+            } else {
+                for (a, s) in acc.iter_mut().enumerate() {
+                    *s = coef
+                        .chunks_exact(inner)
+                        .enumerate()
+                        .map(|(o, c)| dot(&row[(o * cols + a) * inner..][..inner], c))
+                        .sum();
+                }
+            }
+            for (a, s) in acc.iter().enumerate() {
+                out[(i, a)] = *s;
+            }
+        }
+        Ok(out)
     }
 
     /// A face from one weight vector per attribute (Eq. 5.5):
@@ -248,6 +279,24 @@ impl MultilinearModel {
         self.check_weights(weights, Some(mode))?;
         self.contract(weights, Some(mode))
     }
+}
+
+/// `Σ aᵢ bᵢ` over equal-length slices, four partial sums (no serial chain of additions).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Dial tuning (§5.4): a linear transform of one attribute's weights so that the dials are

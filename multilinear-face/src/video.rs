@@ -39,7 +39,7 @@ use image::RgbImage;
 use nalgebra::DVector;
 use rayon::prelude::*;
 
-use crate::klt::{track as klt_track, Klt, Pyramid};
+use crate::klt::{track as klt_track, Klt, Pyramid, Scratch};
 use crate::model::MultilinearModel;
 use crate::tracking::{
     fit_constants, fit_frame, mean_weights, reprojection_rms, shape_points, track_points,
@@ -301,6 +301,10 @@ pub fn track_video(
     let model = &model.restrict(&ext)?;
     let all: Vec<usize> = (0..ext.len()).collect();
     let mean = mean_weights(model)?;
+    // The tracked vertices come first in `ext` (local indices `0..n_tracked`): the solves,
+    // which see only them, contract a model of those rows alone.
+    let n_tracked = track_local.iter().max().map_or(0, |&v| v + 1);
+    let solve_model = &model.restrict(&all[..n_tracked])?;
 
     let klt_fine = Klt {
         levels: 1,
@@ -350,7 +354,12 @@ pub fn track_video(
                 cameras[t] = cameras[s];
             }
             let ps = shape_points(model, &weights[s], &all)?;
-            let pt = shape_points(model, &weights[t], &all)?;
+            // Pass 1 starts frame t from frame s's weights: the same shape.
+            let pt = if weights[t] == weights[s] {
+                ps.clone()
+            } else {
+                shape_points(model, &weights[t], &all)?
+            };
             let (fs, ft) = (
                 facing(&ps, &tri_local, &cameras[s]),
                 facing(&pt, &tri_local, &cameras[t]),
@@ -371,11 +380,14 @@ pub fn track_video(
             let tk = Instant::now();
             let results: Vec<_> = visible
                 .par_iter()
-                .map(|&k| {
+                .map_init(Scratch::default, |scratch, &k| {
                     let v = track_local[k];
                     let q = cameras[s].project(ps[v]);
                     let p0 = cameras[t].project(pt[v]);
-                    (v, klt_track(&pyramids[s], &pyramids[t], q, p0, &klt))
+                    (
+                        v,
+                        klt_track(&pyramids[s], &pyramids[t], q, p0, &klt, scratch),
+                    )
                 })
                 .collect();
             klt_seconds += tk.elapsed().as_secs_f64();
@@ -408,7 +420,7 @@ pub fn track_video(
                 z: Some(&o.z),
             };
             cameras[t] = fit_frame(
-                model,
+                solve_model,
                 &mut weights[t],
                 constant,
                 &sys,
@@ -417,7 +429,7 @@ pub fn track_video(
                 params.rounds,
             )
             .at(Context::Frame(t))?;
-            reprojection_rms_px[t] = reprojection_rms(model, &weights[t], &cameras[t], &sys)?;
+            reprojection_rms_px[t] = reprojection_rms(solve_model, &weights[t], &cameras[t], &sys)?;
             tracked_fraction[t] = fraction;
             klt_residual_ratio[t] = ratios[ratios.len() / 2];
             obs[t] = o;
@@ -432,7 +444,7 @@ pub fn track_video(
             })
             .collect();
         fit_constants(
-            model,
+            solve_model,
             constant,
             &mut weights,
             &cameras,
