@@ -34,6 +34,12 @@ struct Args {
     /// figures with their quick records.
     #[arg(long, value_delimiter = ',')]
     check_quick: Vec<String>,
+    /// With `--check-quick`: run the example binaries beside this one as they are, not
+    /// through `cargo run` (CI builds every example with the workspace first; `cargo run` of
+    /// one example resolves the features of one package, not the workspace's, and rebuilds
+    /// the shared crates). Stale binaries give stale figures: build them first.
+    #[arg(long)]
+    prebuilt: bool,
     /// Copy the reference pages' pictures from this full tour's output directory (the parent
     /// of each example's directory) into docs/img/.
     #[arg(long, value_name = "DIR")]
@@ -99,7 +105,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let results = root.join("results");
     if !args.check_quick.is_empty() {
-        return check_quick(root, &results, &args.check_quick);
+        return check_quick(root, &results, &args.check_quick, args.prebuilt);
     }
     if let Some(dir) = &args.images {
         return copy_images(dir, &root.join("docs").join("img"));
@@ -176,8 +182,10 @@ fn check_quick(
     root: &Path,
     results: &Path,
     names: &[String],
+    prebuilt: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let here = std::env::current_exe()?;
     let mut failures = Vec::new();
     for name in names {
         let path = Record::path_in(results, name, true);
@@ -185,18 +193,16 @@ fn check_quick(
             .map_err(|e| format!("{name}: no quick record ({e}); run the tour with --record"))?;
         let out = std::env::temp_dir().join(format!("results-check-{name}-{}", std::process::id()));
         eprintln!("results: re-running {name} --quick");
-        let status = Command::new(&cargo)
+        let mut command = if prebuilt {
+            Command::new(here.with_file_name(format!("{name}{}", std::env::consts::EXE_SUFFIX)))
+        } else {
+            let mut c = Command::new(&cargo);
+            c.args(["run", "--release", "--quiet", "--example", name, "--"]);
+            c
+        };
+        let status = command
             .current_dir(root)
-            .args([
-                "run",
-                "--release",
-                "--quiet",
-                "--example",
-                name,
-                "--",
-                "--quick",
-                "--out",
-            ])
+            .args(["--quick", "--out"])
             .arg(&out)
             .stdout(std::process::Stdio::null())
             .status()?;
