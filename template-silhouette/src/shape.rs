@@ -509,11 +509,11 @@ impl ShapeEstimator {
         let mut counts = vec![Vec::with_capacity(frames.len()); schedule.len()];
         let mut shapes: Vec<Vec<DVec3>> = Vec::with_capacity(frames.len());
         for (t, f) in frames.iter().enumerate() {
-            let mut v = match (shapes.last(), t.checked_sub(1)) {
-                (Some(prev), Some(p)) => self.template.carry(prev, frames[p].theta, f.theta),
-                _ => self.initial_shape_with(molding, f.theta),
-            }
-            .at(Context::Frame(t))?;
+            let start = match shapes.last() {
+                Some(prev) => self.template.carry(prev, frames[t - 1].theta, f.theta),
+                None => self.initial_shape_with(molding, f.theta),
+            };
+            let mut v = start.at(Context::Frame(t))?;
             for (k, &w_l) in schedule.iter().enumerate() {
                 let (next, n) = self
                     .refine_with(molding, f.theta, &v, w_l, f.rays)
