@@ -159,7 +159,7 @@ pub const METHODS: [(&str, &str, &[&str]); 6] = [
     (
         "template-silhouette",
         "Skeleton tracking and template molding to silhouettes (Vlasic thesis Ch. 2; Fua et al.)",
-        &["template_capture", "ellipsoid_fit"],
+        &["template_capture", "ellipsoid_fit", "capture_anywhere"],
     ),
     (
         "photometric-normals",

@@ -16,6 +16,7 @@
 //! | the whole sequence (pose, then shape) | §2.2 | [`capture_sequence`] → [`SequenceCapture`] |
 //! | Table 2.1 metrics | §2.5.2 | [`silhouette_error_pct`], [`edge_error_pct`] |
 //! | template edits carried to every frame | §2.5.3, Figure 2-9 | [`DeformationTransfer`] |
+//! | a dynamic shape model learned from molded sequences, driven by poses (beyond: Ch. 6, Dyna) | Ch. 6, Figure 6-1 | [`shape_model::ShapeModel`], [`shape_model::ShapeDriver`], [`shape_model::ShapeModelParams`] |
 //! | articulated ellipsoids, robust fit | Fua et al. §4.2, §5 | [`EllipsoidModel`], [`fit_ellipsoids`], [`fit_ellipsoids_multi`], [`EllipsoidParams`] |
 //! | automatic first pose | Fua et al. §4.2, §5 | [`initialise_pose`], [`AutoInitParams`] |
 //! | bone lengths and widths from the first frames | Fua et al. §5; Vlasic §2.5.1 | [`size_performer`], [`size_from_poses`], [`SizingParams`], [`Template::resized`] |
@@ -42,6 +43,7 @@ mod oracle_user;
 mod pipeline;
 mod pose;
 mod shape;
+pub mod shape_model;
 mod silhouette_constraints;
 mod sizing;
 mod template;
