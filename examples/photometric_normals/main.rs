@@ -34,7 +34,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use image::{Rgb, RgbImage};
-use serde_json::json;
+use serde_json::{json, Value};
 
 use dynamic_shapes::core::camera::Rig;
 use dynamic_shapes::core::math::DVec3;
@@ -44,8 +44,8 @@ use dynamic_shapes::photometric::truth::{
     TrueSurface, STUDIO_FRAME,
 };
 use dynamic_shapes::photometric::{
-    estimate_normals, Exposure, NormalMap, NormalParams, Pattern, PatternImages, SilhouetteParams,
-    CYCLE, PATTERNS,
+    estimate_normals, Exposure, FlowParams, NormalMap, NormalParams, Pattern, PatternImages,
+    SilhouetteParams, CYCLE, PATTERNS,
 };
 use dynamic_shapes_studio::{makehuman_performer, Capture, PatternSchedule, WrinkleParams};
 use example_kit::plot::{
@@ -97,6 +97,11 @@ struct Args {
     /// Timed repetitions of `--flow-only` (after one warm-up).
     #[arg(long, default_value_t = 10)]
     flow_reps: usize,
+    /// JSON lines printed by `bench/peers/flow.py` in the same run: with it (and without
+    /// `--quick`) the flow workload also runs `FlowParams::fast()` and reports its time and
+    /// EPE against OpenCV's DIS medium (`flow_time_ratio_dis`, `flow_epe_ratio_dis`).
+    #[arg(long)]
+    peers: Option<std::path::PathBuf>,
     /// Render a smooth, consistent true surface (`TrueSurface::Smooth`): every face, not only
     /// the wrinkle regions, Phong-tessellated to the wrinkles' 3 mm edges.
     #[arg(long)]
@@ -105,12 +110,20 @@ struct Args {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    let dis = match &args.peers {
+        Some(p) => dis_medium(p)?,
+        None => None,
+    };
     if args.flow_only {
-        let (ms, epe, epe_interior) = peer_flow_workload(1024, args.flow_reps)?;
-        println!(
-            "{}",
-            json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior})
-        );
+        let (ms, epe, epe_interior) =
+            peer_flow_workload(1024, args.flow_reps, &FlowParams::default())?;
+        let mut line = json!({"flow_size_px": 1024, "flow_ms": ms, "flow_epe_px": epe, "flow_epe_interior_px": epe_interior});
+        if let Some(dis) = &dis {
+            line["flow_fast"] = fast_flow_against_dis(1024, args.flow_reps, dis)?;
+            line["flow_time_ratio_dis"] = line["flow_fast"]["time_ratio_dis"].clone();
+            line["flow_epe_ratio_dis"] = line["flow_fast"]["epe_ratio_dis"].clone();
+        }
+        println!("{line}");
         return Ok(());
     }
     let quick = args.common.quick;
@@ -399,8 +412,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ));
     let stage = run.stage("flow (peer workload)", None);
     let flow_n = if quick { 256 } else { 1024 };
+    let flow_reps = if quick { 3 } else { 10 };
     let (flow_ms, flow_epe_px, flow_epe_interior_px) =
-        peer_flow_workload(flow_n, if quick { 3 } else { 10 })?;
+        peer_flow_workload(flow_n, flow_reps, &FlowParams::default())?;
+    let flow_fast = match (&dis, quick) {
+        (Some(dis), false) => Some(fast_flow_against_dis(flow_n, flow_reps, dis)?),
+        _ => None,
+    };
     stage.finish(format!(
         "{flow_n}² pair: {flow_ms:.0} ms, EPE {flow_epe_px:.3} px (interior {flow_epe_interior_px:.3} px)"
     ));
@@ -439,6 +457,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "calibration_ms_per_camera": median(&cal_ms),
         "capture_s": capture_s,
     });
+    if let Some(fast) = flow_fast {
+        figures["flow_time_ratio_dis"] = fast["time_ratio_dis"].clone();
+        figures["flow_epe_ratio_dis"] = fast["epe_ratio_dis"].clone();
+        figures["flow_fast"] = fast;
+    }
     let n_best_sweep: Vec<_> = N_BEST_SWEEP
         .iter()
         .zip(&acc.n_best)
@@ -575,14 +598,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// OpenCV's DIS medium line (`bench/peers/flow.py --variant dis`) of a peers file, if any.
+fn dis_medium(path: &std::path::Path) -> Result<Option<Value>, Box<dyn std::error::Error>> {
+    Ok(std::fs::read_to_string(path)?
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .find(|p| p["workload"] == "flow" && p["peer"].as_str().is_some_and(|s| s.contains("DIS"))))
+}
+
+/// [`FlowParams::fast`] on the flow workload beside the peer's DIS medium line: its time and
+/// EPE and their ratios to the peer's.
+fn fast_flow_against_dis(
+    n: u32,
+    reps: usize,
+    dis: &Value,
+) -> Result<Value, Box<dyn std::error::Error>> {
+    let (ms, epe, epe_interior) = peer_flow_workload(n, reps, &FlowParams::fast())?;
+    let dis_ms = dis["seconds"].as_f64().unwrap_or(f64::NAN) * 1e3;
+    let dis_epe = dis["quality"]["epe_px"].as_f64().unwrap_or(f64::NAN);
+    Ok(json!({
+        "params": "FlowParams::fast()",
+        "flow_ms": ms,
+        "flow_epe_px": epe,
+        "flow_epe_interior_px": epe_interior,
+        "peer": dis["peer"],
+        "peer_ms": dis_ms,
+        "peer_epe_px": dis_epe,
+        "time_ratio_dis": ms / dis_ms,
+        "epe_ratio_dis": epe / dis_epe,
+    }))
+}
+
 /// The flow workload of `bench/peers/flow.py` regenerated (its README, §7): a 64-sine texture
 /// quantised to 8 bits, the second image warped analytically, the forward flow by 20
 /// fixed-point iterations. Returns the median time of `reps` runs (after one warm-up), ms, the
 /// mean EPE over pixels whose target is inside, px, and the same without a 32 px border.
-fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
+fn peer_flow_workload(
+    n: u32,
+    reps: usize,
+    params: &FlowParams,
+) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
     use dynamic_shapes::core::image::GrayF32Image;
     use dynamic_shapes::core::random::SplitMix64;
-    use dynamic_shapes::photometric::{dense_flow, FlowParams};
+    use dynamic_shapes::photometric::dense_flow;
     use std::f64::consts::TAU;
     const K: usize = 64;
     let rho: Vec<f64> = SplitMix64::new(70)
@@ -624,13 +682,12 @@ fn peer_flow_workload(n: u32, reps: usize) -> Result<(f64, f64, f64), Box<dyn st
         let w = warp(f64::from(x), f64::from(y));
         image::Luma([tex(f64::from(x) - w[0], f64::from(y) - w[1])])
     });
-    let params = FlowParams::default();
-    dense_flow(&i1, &i2, &params)?;
+    dense_flow(&i1, &i2, params)?;
     let mut times = Vec::new();
     let mut flow = None;
     for _ in 0..reps {
         let t = Instant::now();
-        flow = Some(dense_flow(&i1, &i2, &params)?);
+        flow = Some(dense_flow(&i1, &i2, params)?);
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let flow = flow.ok_or("at least one rep")?;

@@ -10,10 +10,15 @@
 //!   visual hull). Distances are to the exact scene.
 //! * `bench/peers/poisson.py` (6b): 200,000 oriented samples of a sphere of radius 0.4 without
 //!   its cap z > 0.3, all weight 1 (Open3D takes no weights), depth 8 and 9 (`--quick`: 50,000
-//!   samples, depth 7). Errors `| ‖v‖ − 0.4 |` as the peer reports them.
+//!   samples, depth 7). Errors `| ‖v‖ − 0.4 |` as the peer reports them (means over
+//!   vertices), and per unit area over the whole surface and the filled cap
+//!   (`err_all_area_mm`, `err_filled_area_mm`): a mean over vertices weighs each region by how
+//!   finely it is triangulated, and the peer triangulates the filled cap coarsely.
 //!
 //! `--peers FILE` reads the JSON lines the peer scripts printed in the same run (one per
-//! run; CI never needs Python) and reports the time ratios ours / peer.
+//! run; CI never needs Python) and reports the time ratios ours / peer, among them
+//! `merge_time_ratio_open3d` (6a, uniform weights) and `poisson_time_ratio_open3d` (6b,
+//! depth 8).
 //!
 //! Writes under `out/surface_merge/`: `merge.png` (merged surface, its distance to the scene
 //! in false colour, the hole-filled surface's), `poisson.png` (the filled sphere's error),
@@ -154,6 +159,26 @@ fn bar<'a>(label: &'a str, max: f64, ramp: &'a dyn Fn(f64) -> [u8; 3]) -> Colour
     }
 }
 
+/// Mean distance to the sphere of radius `r`, mm, per unit area (each face at its centroid,
+/// weighted by its area) over the whole mesh and over the filled hole (`z > cut`). Unlike a
+/// mean over vertices, it does not depend on how finely a region is triangulated.
+fn area_weighted_errors(mesh: &TriMesh, r: f64, cut: f64) -> (f64, f64) {
+    let (mut all, mut all_a, mut filled, mut filled_a) = (0.0, 0.0, 0.0, 0.0);
+    for f in 0..mesh.face_count() {
+        let [p, q, s] = mesh.triangle(f);
+        let a = 0.5 * (q - p).cross(s - p).length();
+        let c = (p + q + s) / 3.0;
+        let e = (c.length() - r).abs() * 1e3;
+        all += a * e;
+        all_a += a;
+        if c.z > cut {
+            filled += a * e;
+            filled_a += a;
+        }
+    }
+    (all / all_a, filled / filled_a)
+}
+
 /// Time ratio ours / peer for the peer line whose `peer` field ends with `variant`.
 fn peer_ratio(peers: &[Value], workload: &str, variant: &str, ours_ms: f64) -> Value {
     peers
@@ -263,8 +288,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .filter(|(v, _)| v.z <= cut - 0.05)
             .map(|(_, &e)| e * 1e3)
             .collect();
+        let (err_all_area_mm, err_filled_area_mm) = area_weighted_errors(&s.mesh, r, cut);
         poisson_runs.push(json!({
             "depth": depth,
+            "err_all_area_mm": err_all_area_mm,
+            "err_filled_area_mm": err_filled_area_mm,
+            "filled_vertices": s.mesh.vertices.iter().filter(|v| v.z > cut).count(),
             "points": n_points,
             "poisson_ms": elapsed,
             "poisson_cpu_ms": cpu,
@@ -376,7 +405,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(_, &d)| d)
         .collect();
     let p0 = &poisson_runs[0];
-    let figures = json!({
+    let mut figures = json!({
         "quick": quick,
         "image_size": size,
         "merge_ms": merge_ms,
@@ -432,6 +461,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "poisson_err_all_mm": p0["err_all_mm"],
         "poisson_depth_ms": p0["poisson_ms"],
     });
+    if !quick && !peers.is_empty() {
+        // Workload 6a at the peer's settings against Open3D's uniform TSDF; 6b at depth 8.
+        let merge = &figures["peer_tsdf"]["uniform"]["peer_uniform"]["time_ratio_ours_over_peer"];
+        let poisson = &p0["peer"]["time_ratio_ours_over_peer"];
+        let (merge, poisson) = (merge.clone(), poisson.clone());
+        figures["merge_time_ratio_open3d"] = merge;
+        figures["poisson_time_ratio_open3d"] = poisson;
+    }
     for h in [
         Headline::new("merge_ms", "VRIP merge, 8 views, 2 mm voxels", "ms")
             .paper("2 min per frame (merging), thesis §3.4"),

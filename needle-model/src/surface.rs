@@ -149,32 +149,70 @@ pub fn merged_mesh(body: &AnimatedBody) -> Result<TriMesh> {
 /// zero on the needle surface, in metres. Assumes a primitive accepted by [`primitive_mesh`]'s
 /// checks (any `radial ≥ 1` is fine here).
 pub fn primitive_implicit(p: &AnimatedPrimitive, x: DVec3) -> f64 {
-    let axis_vec = p.axis_end - p.axis_start;
-    let len = axis_vec.length();
-    let axis = axis_vec / len;
-    let rel = x - p.axis_start;
-    let t = rel.dot(axis);
-    let radial_vec = rel - axis * t;
-    let r = radial_vec.length();
-    let u = p.directions[0];
-    let v = axis.cross(u);
-    let phi = radial_vec
-        .dot(v)
-        .atan2(radial_vec.dot(u))
-        .rem_euclid(std::f64::consts::TAU);
-    let (m, a) = (p.radial, p.axial);
-    let kf = phi / std::f64::consts::TAU * m as f64;
-    let k0 = (kf.floor() as usize).min(m - 1);
-    let k1 = (k0 + 1) % m;
-    let wk = (kf - k0 as f64).clamp(0.0, 1.0);
-    let sf = (t / len * a as f64 - 0.5).clamp(0.0, (a - 1) as f64);
-    let r0 = (sf.floor() as usize).min(a - 1);
-    let r1 = (r0 + 1).min(a - 1);
-    let ws = sf - r0 as f64;
-    let l = |r: usize, k: usize| p.lengths[r * m + k];
-    let radius = (1.0 - ws) * ((1.0 - wk) * l(r0, k0) + wk * l(r0, k1))
-        + ws * ((1.0 - wk) * l(r1, k0) + wk * l(r1, k1));
-    (r - radius).max(-t).max(t - len)
+    Implicit::new(p).value(x, f64::INFINITY)
+}
+
+/// [`primitive_implicit`] with the primitive's frame computed once.
+struct Implicit<'a> {
+    p: &'a AnimatedPrimitive,
+    axis: DVec3,
+    len: f64,
+    /// Needle 0's direction and `axis × u`: the angle φ of a point is measured from `u`.
+    u: DVec3,
+    v: DVec3,
+    /// The longest needle plus a margin that covers the rounding of the bilinear profile.
+    max_radius: f64,
+}
+
+impl<'a> Implicit<'a> {
+    fn new(p: &'a AnimatedPrimitive) -> Self {
+        let axis_vec = p.axis_end - p.axis_start;
+        let len = axis_vec.length();
+        let axis = axis_vec / len;
+        let u = p.directions[0];
+        let max_radius = p.lengths.iter().fold(f64::NEG_INFINITY, |m, &l| m.max(l));
+        Self {
+            p,
+            axis,
+            len,
+            u,
+            v: axis.cross(u),
+            max_radius: max_radius + 1e-9 * (1.0 + max_radius.abs()),
+        }
+    }
+
+    /// The value at `x`, or any value `≥ above` when it is certainly `≥ above` (the profile
+    /// is a convex combination of needle lengths, so `r − max length` bounds `r − R(φ, t)`
+    /// from below without the angle).
+    fn value(&self, x: DVec3, above: f64) -> f64 {
+        let p = self.p;
+        let (axis, len) = (self.axis, self.len);
+        let rel = x - p.axis_start;
+        let t = rel.dot(axis);
+        let radial_vec = rel - axis * t;
+        let r = radial_vec.length();
+        let bound = (r - self.max_radius).max(-t).max(t - len);
+        if bound >= above {
+            return bound;
+        }
+        let phi = radial_vec
+            .dot(self.v)
+            .atan2(radial_vec.dot(self.u))
+            .rem_euclid(std::f64::consts::TAU);
+        let (m, a) = (p.radial, p.axial);
+        let kf = phi / std::f64::consts::TAU * m as f64;
+        let k0 = (kf.floor() as usize).min(m - 1);
+        let k1 = (k0 + 1) % m;
+        let wk = (kf - k0 as f64).clamp(0.0, 1.0);
+        let sf = (t / len * a as f64 - 0.5).clamp(0.0, (a - 1) as f64);
+        let r0 = (sf.floor() as usize).min(a - 1);
+        let r1 = (r0 + 1).min(a - 1);
+        let ws = sf - r0 as f64;
+        let l = |r: usize, k: usize| p.lengths[r * m + k];
+        let radius = (1.0 - ws) * ((1.0 - wk) * l(r0, k0) + wk * l(r0, k1))
+            + ws * ((1.0 - wk) * l(r1, k0) + wk * l(r1, k1));
+        (r - radius).max(-t).max(t - len)
+    }
 }
 
 /// One watertight surface of the union of all primitives (§3.2), by marching tetrahedra over
@@ -249,24 +287,40 @@ pub fn union_mesh(body: &AnimatedBody, params: &SurfaceParams) -> Result<TriMesh
             name: "voxel_m",
             reason: format!("grid {dims:?} too large for voxel {h} m"),
         })?;
+    // Each primitive is evaluated on the nodes of its box only: per row of nodes (j, k), the
+    // primitives whose box the row crosses and the run of columns inside it (found with the
+    // same comparisons a per-node box test makes).
+    let implicits: Vec<Implicit<'_>> = body.primitives.iter().map(Implicit::new).collect();
+    let xs: Vec<f64> = (0..dims[0])
+        .map(|i| (origin + DVec3::new(i as f64, 0.0, 0.0) * h).x)
+        .collect();
     let mut values = vec![0.0; total];
     let slab = dims[0] * dims[1];
     values
         .par_chunks_mut(slab)
         .enumerate()
         .for_each(|(k, out)| {
+            out.fill(f64::INFINITY);
             for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let x = origin + DVec3::new(i as f64, j as f64, k as f64) * h;
-                    let mut f = f64::INFINITY;
-                    for (p, (a, b)) in body.primitives.iter().zip(&boxes) {
-                        if x.cmpge(*a).all() && x.cmple(*b).all() {
-                            f = f.min(primitive_implicit(p, x));
-                        }
+                let row = &mut out[dims[0] * j..dims[0] * (j + 1)];
+                let yz = origin + DVec3::new(0.0, j as f64, k as f64) * h;
+                for (imp, (a, b)) in implicits.iter().zip(&boxes) {
+                    if !(yz.y >= a.y && yz.y <= b.y && yz.z >= a.z && yz.z <= b.z) {
+                        continue;
                     }
-                    // Outside every box: a positive value one voxel out (never interpolated
-                    // into a surface, since every box includes a one-voxel margin).
-                    out[i + dims[0] * j] = if f.is_finite() { f } else { h };
+                    let i0 = xs.partition_point(|&x| x < a.x);
+                    let i1 = xs.partition_point(|&x| x <= b.x);
+                    for (i, f) in row.iter_mut().enumerate().take(i1).skip(i0) {
+                        let x = origin + DVec3::new(i as f64, j as f64, k as f64) * h;
+                        *f = f.min(imp.value(x, *f));
+                    }
+                }
+                // Outside every box: a positive value one voxel out (never interpolated
+                // into a surface, since every box includes a one-voxel margin).
+                for f in row.iter_mut() {
+                    if !f.is_finite() {
+                        *f = h;
+                    }
                 }
             }
         });

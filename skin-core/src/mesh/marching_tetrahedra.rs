@@ -13,8 +13,8 @@
 use super::TriMesh;
 use crate::math::DVec3;
 use crate::{Error, Result};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// A scalar field sampled on a regular axis-aligned grid.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -111,11 +111,14 @@ impl ScalarGrid {
         i + self.dims[0] * (j + self.dims[1] * k)
     }
 
-    fn node(&self, n: usize) -> DVec3 {
-        let i = n % self.dims[0];
-        let j = (n / self.dims[0]) % self.dims[1];
-        let k = n / (self.dims[0] * self.dims[1]);
-        self.origin + DVec3::new(i as f64, j as f64, k as f64) * self.spacing_m
+    /// Position of corner `c` (`x + 2y + 4z`) of the cell whose lowest node is `ijk`.
+    fn corner(&self, ijk: [usize; 3], c: usize) -> DVec3 {
+        self.origin
+            + DVec3::new(
+                (ijk[0] + (c & 1)) as f64,
+                (ijk[1] + ((c >> 1) & 1)) as f64,
+                (ijk[2] + ((c >> 2) & 1)) as f64,
+            ) * self.spacing_m
     }
 }
 
@@ -155,77 +158,230 @@ pub fn marching_tetrahedra(grid: &ScalarGrid, iso: f64) -> Result<TriMesh> {
     if !iso.is_finite() {
         return Err(Error::NonFinite { what: "iso value" });
     }
-    let mut vertices: Vec<DVec3> = Vec::new();
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut edge_vertex: HashMap<(usize, usize), u32> = HashMap::new();
     let [nx, ny, nz] = grid.dims;
-    let mut vertex_on = |a: usize, b: usize, vertices: &mut Vec<DVec3>| -> u32 {
-        let key = (a.min(b), a.max(b));
-        *edge_vertex.entry(key).or_insert_with(|| {
-            let (va, vb) = (grid.values[a] - iso, grid.values[b] - iso);
-            // va and vb have opposite "inside" status, so va < 0 ≤ vb or vice versa: vb ≠ va.
-            let t = (va / (va - vb)).clamp(0.0, 1.0);
-            vertices.push(grid.node(a).lerp(grid.node(b), t));
-            (vertices.len() - 1) as u32
-        })
-    };
-    for k in 0..nz - 1 {
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let corner: [usize; 8] = std::array::from_fn(|c| {
-                    grid.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
-                });
-                let inside: [bool; 8] = std::array::from_fn(|c| grid.values[corner[c]] < iso);
-                if inside.iter().all(|&b| b) || inside.iter().all(|&b| !b) {
-                    continue;
+    // Two passes: the layers of cells are polygonised in parallel into triangles of edge
+    // keys; then one pass in layer order numbers the edges' vertices in order of first use
+    // (the same mesh, vertex for vertex, as a serial walk over the cells).
+    if grid.values.len() > u32::MAX as usize {
+        return Err(Error::InvalidParam {
+            name: "dims",
+            reason: format!("grid {:?} has more nodes than 32-bit ids hold", grid.dims),
+        });
+    }
+    let layers: Vec<Vec<Triangle>> = (0..nz - 1)
+        .into_par_iter()
+        .map(|k| layer_triangles(grid, iso, k))
+        .collect();
+    // Vertex ids of the edges whose lower node lies in layer k (`lower`) or k + 1 (`upper`)
+    // while the cells of layer k are numbered.
+    let mut lower = EdgeSlab::new(nx * ny);
+    let mut upper = EdgeSlab::new(nx * ny);
+    let mut vertices: Vec<DVec3> = Vec::new();
+    let mut faces: Vec<[u32; 3]> = Vec::with_capacity(layers.iter().map(Vec::len).sum());
+    for (k, triangles) in layers.iter().enumerate() {
+        for tri in triangles {
+            // Vertices are made in the triangle's unflipped corner order.
+            let [p, q, r] = tri.edges.map(|e| {
+                let slab = if e.upper { &mut upper } else { &mut lower };
+                let slot = 7 * e.node as usize + e.offset as usize - 1;
+                if slab.ids[slot] == u32::MAX {
+                    slab.ids[slot] = vertices.len() as u32;
+                    slab.used.push(slot);
+                    vertices.push(e.vertex(grid, iso, k));
                 }
-                for tet in TETS {
-                    let n: [usize; 4] = tet.map(|c| corner[c]);
-                    let ins: Vec<usize> = (0..4).filter(|&q| inside[tet[q]]).collect();
-                    let outs: Vec<usize> = (0..4).filter(|&q| !inside[tet[q]]).collect();
-                    let polys: Vec<Vec<(usize, usize)>> = match ins.len() {
-                        1 => vec![outs.iter().map(|&o| (ins[0], o)).collect()],
-                        3 => vec![ins.iter().map(|&a| (a, outs[0])).collect()],
-                        2 => {
-                            let (a, b, c, d) = (ins[0], ins[1], outs[0], outs[1]);
-                            // Quad a–c, a–d, b–d, b–c split in two triangles.
-                            vec![vec![(a, c), (a, d), (b, d)], vec![(a, c), (b, d), (b, c)]]
-                        }
-                        _ => vec![],
-                    };
-                    // Mean position of the inside corners minus that of the outside ones points
-                    // inwards; triangles must face the other way.
-                    let centroid = |qs: &[usize]| {
-                        qs.iter().map(|&q| grid.node(n[q])).sum::<DVec3>() / qs.len() as f64
-                    };
-                    let outward = centroid(&outs) - centroid(&ins);
-                    for poly in polys {
-                        let ids: Vec<u32> = poly
-                            .iter()
-                            .map(|&(a, b)| vertex_on(n[a], n[b], &mut vertices))
-                            .collect();
-                        let [p, q, r] = [ids[0], ids[1], ids[2]];
-                        if p == q || q == r || p == r {
-                            continue;
-                        }
-                        let normal = (vertices[q as usize] - vertices[p as usize])
-                            .cross(vertices[r as usize] - vertices[p as usize]);
-                        faces.push(if normal.dot(outward) >= 0.0 {
-                            [p, q, r]
-                        } else {
-                            [p, r, q]
-                        });
-                    }
-                }
+                slab.ids[slot]
+            });
+            faces.push(if tri.flip { [p, r, q] } else { [p, q, r] });
+        }
+        // The next layer's lower edges are this layer's upper ones.
+        lower.clear();
+        std::mem::swap(&mut lower, &mut upper);
+    }
+    TriMesh::new(vertices, faces)
+}
+
+/// A triangle of iso-surface points on three grid edges; `flip` reverses it to face outwards.
+struct Triangle {
+    edges: [EdgeKey; 3],
+    flip: bool,
+}
+
+/// A grid edge of the Kuhn split, seen from a cell of layer `k`: from its lower node, node
+/// `node` (`i + nx · j`) of layer `k` or (`upper`) `k + 1`, to that node's neighbour at
+/// `offset` (`x + 2y + 4z`, 1–7).
+#[derive(Clone, Copy, PartialEq)]
+struct EdgeKey {
+    node: u32,
+    upper: bool,
+    offset: u8,
+}
+
+impl EdgeKey {
+    /// The iso-surface point on the edge, interpolated linearly from its inside end.
+    fn vertex(self, grid: &ScalarGrid, iso: f64, k: usize) -> DVec3 {
+        let nx = grid.dims[0];
+        let ijk = [
+            self.node as usize % nx,
+            self.node as usize / nx,
+            k + usize::from(self.upper),
+        ];
+        let n = grid.index(ijk[0], ijk[1], ijk[2]);
+        let o = self.offset as usize;
+        let other = grid.index(
+            ijk[0] + (o & 1),
+            ijk[1] + ((o >> 1) & 1),
+            ijk[2] + ((o >> 2) & 1),
+        );
+        let (lo, hi) = (grid.corner(ijk, 0), grid.corner(ijk, o));
+        // The end inside comes first.
+        let (a, b, pa, pb) = if grid.values[n] < iso {
+            (n, other, lo, hi)
+        } else {
+            (other, n, hi, lo)
+        };
+        let (va, vb) = (grid.values[a] - iso, grid.values[b] - iso);
+        // va and vb have opposite "inside" status, so va < 0 ≤ vb or vice versa: vb ≠ va.
+        let t = (va / (va - vb)).clamp(0.0, 1.0);
+        pa.lerp(pb, t)
+    }
+}
+
+/// Vertex ids of the edges leaving one layer of nodes: 7 slots per node (offset − 1),
+/// `u32::MAX` where no vertex has been made.
+struct EdgeSlab {
+    ids: Vec<u32>,
+    /// Slots written since the last [`EdgeSlab::clear`].
+    used: Vec<usize>,
+}
+
+impl EdgeSlab {
+    fn new(nodes: usize) -> Self {
+        Self {
+            ids: vec![u32::MAX; 7 * nodes],
+            used: Vec::new(),
+        }
+    }
+
+    fn clear(&mut self) {
+        for &s in &self.used {
+            self.ids[s] = u32::MAX;
+        }
+        self.used.clear();
+    }
+}
+
+/// The oriented triangles of the cells of layer `k` (cells `(·, ·, k)`), in cell order.
+fn layer_triangles(grid: &ScalarGrid, iso: f64, k: usize) -> Vec<Triangle> {
+    let [nx, ny, _] = grid.dims;
+    let mut out = Vec::new();
+    // Inside bits of the four nodes (i, j..=j+1, k..=k+1) of a column of cells, at the bit
+    // positions of corners 0, 2, 4, 6 (`x + 2y + 4z` with x = 0); a cell's corners are its
+    // two columns' bits, the second shifted by one.
+    let mut column = vec![0u8; nx];
+    for j in 0..ny - 1 {
+        for (i, c) in column.iter_mut().enumerate() {
+            let inside =
+                |dj: usize, dk: usize| u8::from(grid.values[grid.index(i, j + dj, k + dk)] < iso);
+            *c = inside(0, 0) | inside(1, 0) << 2 | inside(0, 1) << 4 | inside(1, 1) << 6;
+        }
+        for i in 0..nx - 1 {
+            let bits = column[i] | column[i + 1] << 1;
+            if bits != 0 && bits != u8::MAX {
+                cell_triangles(grid, iso, [i, j, k], bits, &mut out);
             }
         }
     }
-    TriMesh::new(vertices, faces)
+    out
+}
+
+/// Appends the triangles of the six tetrahedra of the cell whose lowest node is `ijk` and
+/// whose corner `c` is inside when bit `c` of `bits` is set.
+fn cell_triangles(grid: &ScalarGrid, iso: f64, ijk: [usize; 3], bits: u8, out: &mut Vec<Triangle>) {
+    let inside: [bool; 8] = std::array::from_fn(|c| bits >> c & 1 == 1);
+    let position: [DVec3; 8] = std::array::from_fn(|c| grid.corner(ijk, c));
+    let base = grid.index(ijk[0], ijk[1], ijk[2]);
+    let [nx, ny, _] = grid.dims;
+    let node = |c: usize| base + (c & 1) + nx * (((c >> 1) & 1) + ny * ((c >> 2) & 1));
+    let value: [f64; 8] = std::array::from_fn(|c| grid.values[node(c)]);
+    // Edge from corner `lo` to corner `hi` (a superset of `lo`'s bits).
+    let key = |lo: usize, hi: usize| EdgeKey {
+        node: (ijk[0] + (lo & 1) + nx * (ijk[1] + ((lo >> 1) & 1))) as u32,
+        upper: lo & 4 != 0,
+        offset: (hi ^ lo) as u8,
+    };
+    for tet in TETS {
+        // Positions 0..4 along the tetrahedron's path, split by inside status (ascending).
+        let (mut ins, mut outs) = ([0usize; 4], [0usize; 4]);
+        let (mut ni, mut no) = (0, 0);
+        for (q, &c) in tet.iter().enumerate() {
+            if inside[c] {
+                ins[ni] = q;
+                ni += 1;
+            } else {
+                outs[no] = q;
+                no += 1;
+            }
+        }
+        // (inside, outside) corner pairs; along the path the earlier corner is the lower.
+        let edge = |x: usize, y: usize| (tet[x], tet[y]);
+        let (polys, count): ([[(usize, usize); 3]; 2], usize) = match ni {
+            1 => {
+                let t = [0, 1, 2].map(|m| edge(ins[0], outs[m]));
+                ([t, t], 1)
+            }
+            3 => {
+                let t = [0, 1, 2].map(|m| edge(ins[m], outs[0]));
+                ([t, t], 1)
+            }
+            2 => {
+                let (a, b, c, d) = (ins[0], ins[1], outs[0], outs[1]);
+                // Quad a–c, a–d, b–d, b–c split in two triangles.
+                (
+                    [
+                        [edge(a, c), edge(a, d), edge(b, d)],
+                        [edge(a, c), edge(b, d), edge(b, c)],
+                    ],
+                    2,
+                )
+            }
+            _ => continue,
+        };
+        // Mean position of the inside corners minus that of the outside ones points
+        // inwards; triangles must face the other way.
+        let centroid = |qs: &[usize]| {
+            let mut s = DVec3::ZERO;
+            for &q in qs {
+                s += position[tet[q]];
+            }
+            s / qs.len() as f64
+        };
+        let outward = centroid(&outs[..no]) - centroid(&ins[..ni]);
+        for poly in &polys[..count] {
+            let keys = poly.map(|(a, b)| key(a.min(b), a.max(b)));
+            let [p, q, r] = keys;
+            if p == q || q == r || p == r {
+                continue;
+            }
+            // As EdgeKey::vertex, from the cell's corners.
+            let [vp, vq, vr] = poly.map(|(a, b)| {
+                let (va, vb) = (value[a] - iso, value[b] - iso);
+                let t = (va / (va - vb)).clamp(0.0, 1.0);
+                position[a].lerp(position[b], t)
+            });
+            let normal = (vq - vp).cross(vr - vp);
+            let facing_out = normal.dot(outward) >= 0.0;
+            out.push(Triangle {
+                edges: keys,
+                flip: !facing_out,
+            });
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::HashMap;
 
     fn area_volume(m: &TriMesh) -> (f64, f64) {
         let mut a = 0.0;
