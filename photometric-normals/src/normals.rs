@@ -272,60 +272,23 @@ fn estimate_at_heights(
     })
 }
 
-#[cfg(test)]
+// The probe scene is the validation's (`truth::small_dome_sphere`): the workspace's test run
+// has the feature on.
+#[cfg(all(test, feature = "validation"))]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use crate::{
-        grey, patterns_weights, CalibrationParams, CalibrationSphere, LookupTable, PATTERNS,
-    };
-    use dynamic_shapes_studio::shading::{
-        dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows,
-    };
+    use crate::truth::small_dome_sphere;
+    use crate::{CalibrationParams, CalibrationSphere, LookupTable};
     use skin_core::camera::Intrinsics;
-    use skin_core::mesh::shapes::uv_sphere;
-    use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 
     /// A camera 5 m above the dome's floor centre looking straight down, calibrated with grey
     /// spheres at two heights under the axis, and a probe sphere at `probe_y`: its pattern
     /// images and rendered depth along the pixel rays.
     fn top_camera_probe(probe_y: f64) -> (Camera, HeightCalibration, PatternImages, DepthMap) {
-        let dome = DomeParams {
-            sphere_lights: 300,
-            floor_lights: 100,
-            ..Default::default()
-        };
-        let lights = dome_lights(&dome).unwrap();
-        let centre = DVec3::new(0.0, 4.0 / 3.0, 0.0);
-        let positions: Vec<DVec3> = lights.iter().map(Light::position).collect();
-        let weights = patterns_weights(&positions, centre, &PATTERNS).unwrap();
         let k = Intrinsics::from_horizontal_fov(0.15, 64, 64).unwrap();
         let cam = Camera::look_at(k, DVec3::new(0.0, 5.0, 0.0), DVec3::ZERO, DVec3::Z).unwrap();
-        let render = |s: &CalibrationSphere| {
-            let mesh = uv_sphere(s.centre, s.radius_m, 48, 96).unwrap();
-            let params = RenderParams::default().with_buffers(Buffers {
-                triangle: true,
-                depth: true,
-                ..Buffers::MASK_ONLY
-            });
-            let view = Rasterizer::new(&cam).render(&mesh, &params).unwrap();
-            let shaded = shade_patterns(
-                &view,
-                &mesh,
-                &lights,
-                &weights,
-                &Albedo::Uniform([0.5; 3]),
-                &Shadows::None,
-            )
-            .unwrap();
-            let images = PATTERNS
-                .iter()
-                .zip(&shaded)
-                .map(|(&p, s)| (p, grey(&s.to_image().unwrap())));
-            (
-                PatternImages::new(images.collect()).unwrap(),
-                DepthMap::from_view(&view).unwrap(),
-            )
-        };
+        let render = |s: &CalibrationSphere| small_dome_sphere(&cam, s).unwrap();
         let tables = [0.6, 1.4]
             .iter()
             .map(|&y| {

@@ -13,6 +13,7 @@ mod face;
 mod inertial;
 mod needle;
 mod photometric;
+mod studio;
 mod template;
 
 use pyo3::prelude::*;
@@ -28,5 +29,6 @@ fn native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     photometric::register(m)?;
     inertial::register(m)?;
     face::register(m)?;
+    studio::register(m)?;
     Ok(())
 }

@@ -6,7 +6,7 @@ use numpy::ndarray::{ArrayViewD, Axis};
 use numpy::{PyArray2, PyArray3};
 use photometric_normals::{
     estimate_normals as rust_normals, integrate_normals as rust_integrate,
-    reconstruct as rust_reconstruct, CalibrationParams, CalibrationSphere, DepthMap,
+    reconstruct as rust_reconstruct, CalibrationParams, CalibrationSphere, DepthMap, Exposure,
     HeightCalibration, IntegrationParams, LookupTable, NormalMap, NormalParams, PatternImages,
     PolygonalHull, ReconstructParams, PATTERNS,
 };
@@ -94,7 +94,7 @@ fn one_mask(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mask> {
 /// A photometric calibration: per height, the grey sphere's lookup table (§3.2.3).
 #[pyclass(module = "dynamic_shapes.photometric", frozen)]
 pub(crate) struct Calibration {
-    inner: HeightCalibration,
+    pub(crate) inner: HeightCalibration,
 }
 
 #[pymethods]
@@ -142,17 +142,44 @@ fn calibrate_sphere(
 /// `PatternImages`, converted once for repeated calls): `(normals, valid)`,
 /// `(h, w, 3)` unit normals in the camera frame (x right, y down, z forward; zero where
 /// invalid) and an `(h, w)` uint8 mask of the pixels with a normal.
-/// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject).
+/// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject). The keywords are
+/// `NormalParams`' fields with its defaults: `n_best` (Eq. 3.2's N), the exposure
+/// (`white_level`, the linear intensity of normalised 1; the trusted normalised range
+/// `min_normalised`–`max_normalised`, §3.2.3), `performance_centre` (m, where a pixel's height
+/// is taken) and `up`.
 #[pyfunction]
-#[pyo3(signature = (camera, calibration, images, mask = None))]
+#[pyo3(signature = (camera, calibration, images, mask = None, *, n_best = 8, white_level = 1.0,
+    min_normalised = 0.03, max_normalised = 0.97, performance_centre = (0.0, 1.0, 0.0),
+    up = (0.0, 1.0, 0.0)))]
+#[allow(clippy::too_many_arguments)]
 fn estimate_normals<'py>(
     py: Python<'py>,
     camera: &Camera,
     calibration: &Calibration,
     images: &Bound<'py, PyAny>,
     mask: Option<&Bound<'py, PyAny>>,
+    n_best: usize,
+    white_level: f32,
+    min_normalised: f32,
+    max_normalised: f32,
+    performance_centre: (f64, f64, f64),
+    up: (f64, f64, f64),
 ) -> PyResult<Bound<'py, PyTuple>> {
     let mask = mask.map(|m| one_mask(m, "mask")).transpose()?;
+    let params = NormalParams {
+        n_best,
+        exposure: Exposure {
+            white_level,
+            min_normalised,
+            max_normalised,
+        },
+        performance_centre: DVec3::new(
+            performance_centre.0,
+            performance_centre.1,
+            performance_centre.2,
+        ),
+        up: DVec3::new(up.0, up.1, up.2),
+    };
     let map = with_images(images, |images| {
         py.detach(|| {
             rust_normals(
@@ -160,7 +187,7 @@ fn estimate_normals<'py>(
                 &calibration.inner,
                 images,
                 mask.as_ref(),
-                &NormalParams::default(),
+                &params,
             )
         })
         .map_err(to_py)
