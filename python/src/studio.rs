@@ -22,8 +22,7 @@ use skin_core::skeleton::Motion;
 
 use dynamic_shapes_studio::{
     exercise_motion, fast_motion, makehuman_performer, scan_outer_surface, Capture, CaptureSpec,
-    DeformationParams, ExerciseParams, FastMotionParams, GarmentParams, Performer, ScanParams,
-    SkirtParams, WrinkleParams,
+    DeformationParams, ExerciseParams, FastMotionParams, Performer, ScanParams, WrinkleParams,
 };
 
 use crate::core::{mesh_arrays, Camera, Skeleton};
