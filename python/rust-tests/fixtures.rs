@@ -29,22 +29,8 @@ use skin_core::skeleton::{read_bvh, BvhParams, CMU_METRES_PER_UNIT};
 
 /// An `.npy` file (format 1.0, little endian, C order).
 fn npy(dir: &Path, name: &str, descr: &str, shape: &[usize], bytes: Vec<u8>) {
-    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let shape = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend_from_slice(&u16::try_from(header.len()).unwrap().to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    out.extend(bytes);
-    std::fs::write(dir.join(format!("{name}.npy")), out).unwrap();
+    dynamic_shapes_py::batch::npy::write(&dir.join(format!("{name}.npy")), descr, shape, &bytes)
+        .unwrap();
 }
 
 fn f64s(dir: &Path, name: &str, shape: &[usize], v: impl IntoIterator<Item = f64>) {

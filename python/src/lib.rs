@@ -7,6 +7,8 @@
 //! that does real work releases the GIL (`Python::detach`).
 
 mod arrays;
+pub mod batch;
+mod batch_py;
 mod core;
 mod errors;
 mod face;
@@ -30,5 +32,6 @@ fn native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     inertial::register(m)?;
     face::register(m)?;
     studio::register(m)?;
+    batch_py::register(m)?;
     Ok(())
 }

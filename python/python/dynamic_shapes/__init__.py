@@ -8,7 +8,8 @@ release the GIL. Arrays returned are built in Rust and handed to NumPy without a
 
 Modules: the core (meshes, cameras, skeletons, skinning, Laplacian) at the top level, and one
 submodule per method: needle, template, photometric, inertial, face; studio holds the
-synthetic capture studio's scenes with their ground truth (validation equipment).
+synthetic capture studio's scenes with their ground truth (validation equipment); batch
+the frame-range entry points of batch runs (paths and plain values).
 """
 
 import sys as _sys
@@ -44,7 +45,8 @@ photometric = _native.photometric
 inertial = _native.inertial
 face = _native.face
 studio = _native.studio
-for _name in ("needle", "template", "photometric", "inertial", "face", "studio"):
+batch = _native.batch
+for _name in ("needle", "template", "photometric", "inertial", "face", "studio", "batch"):
     _sys.modules[f"{__name__}.{_name}"] = getattr(_native, _name)
 
 __all__ = [
@@ -66,6 +68,7 @@ __all__ = [
     "inertial",
     "face",
     "studio",
+    "batch",
     "DynamicShapesError",
     "InvalidInputError",
     "FormatError",
