@@ -10,13 +10,17 @@
 //! values, never paths of a layout of their own. Everything here is plain Rust (no Python),
 //! tested by `rust-tests/batch.rs` and bound in Python as `dynamic_shapes.batch`.
 //!
-//! **A capture folder**: `capture.json` (`kind`, `frames`, `width`, `height`, `cameras` in
-//! the crates' serde form, and per kind: `white_level`, `performance_centre`, `spheres` for
-//! a photometric capture; `skeleton` and `thetas`, the mocap poses, for a silhouette
-//! capture); `frames/NNNNNN/camC_mask.npy` (`(h, w)` uint8) and, photometric,
+//! **A capture folder**: `capture.json` (`kind`, `frames`, `width`, `height`, and per kind:
+//! `white_level` for a photometric capture; `skeleton` and `thetas`, the mocap poses, for a
+//! silhouette capture); `cameras/camC.json` (each camera in the crates' serde form);
+//! `frames/NNNNNN/camC_mask.npy` (`(h, w)` uint8) and, photometric,
 //! `frames/NNNNNN/camC_patterns.npy` (`(7, h, w)` float32, X, Y, Z, Full, X̄, Ȳ, Z̄);
-//! photometric: `calibration/camC_sphereI.npy` (`(7, h, w)` float32, the grey sphere `I` of
-//! `spheres`); silhouette: `template.obj` (the template a user would rig).
+//! photometric: `performance_centre.npy` (`(3,)` float64, m), `calibration/spheres.npy`
+//! (`(k, 4)` float64: centre and radius of each grey sphere, m) and
+//! `calibration/camC_sphereI.npy` (`(7, h, w)` float32, sphere `I` seen by camera `C`);
+//! silhouette: `template.obj` (the template a user would rig). Geometry is binary or in a
+//! file of its own so that every reader gets the same bits (a number in a shared JSON
+//! document is parsed by each reader's own float parser).
 //!
 //! **Chunks with state**: tracking needs the pose of the frame before its first; a chunk is
 //! given its first frame's pose ([`track_chunk`] returns the last pose, which the next chunk
@@ -281,8 +285,14 @@ impl CaptureInfo {
                 .ok_or_else(|| format_error(&path, format!("no {k}")))
         };
         let (frames, width, height) = (get("frames")?, get("width")?, get("height")?);
-        let cameras: Vec<Camera> = serde_json::from_value(json["cameras"].clone())
-            .map_err(|e| format_error(&path, format!("cameras: {e}")))?;
+        let count = get("cameras")?;
+        let cameras = (0..count)
+            .map(|c| {
+                let p = capture.join("cameras").join(format!("cam{c}.json"));
+                let text = std::fs::read_to_string(&p).map_err(io(&p))?;
+                serde_json::from_str(&text).map_err(|e| format_error(&p, e.to_string()))
+            })
+            .collect::<Result<Vec<Camera>>>()?;
         Ok(Self {
             frames: usize::try_from(frames).map_err(|_| format_error(&path, "frames"))?,
             width: u32::try_from(width).map_err(|_| format_error(&path, "width"))?,
@@ -347,6 +357,23 @@ impl CaptureInfo {
             .collect::<Result<Vec<_>>>()?;
         Ok(PatternImages::new(list)?)
     }
+}
+
+fn write_cameras(out: &Path, cameras: &[Camera]) -> Result<()> {
+    create_dir(&out.join("cameras"))?;
+    for (c, cam) in cameras.iter().enumerate() {
+        let path = out.join("cameras").join(format!("cam{c}.json"));
+        let text = serde_json::to_string(cam).map_err(|e| format_error(&path, e.to_string()))?;
+        std::fs::write(&path, text).map_err(io(&path))?;
+    }
+    Ok(())
+}
+
+fn read_f64(path: &Path, shape: &[usize]) -> Result<Vec<f64>> {
+    Ok(read_typed(path, "<f8", shape)?
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
+        .collect())
 }
 
 fn patterns_f32(images: &PatternImages) -> impl Iterator<Item = f32> + '_ {
@@ -445,16 +472,27 @@ pub fn write_photometric_capture(
             )?;
         }
     }
+    write_f64(
+        &out.join("calibration").join("spheres.npy"),
+        &[spheres.len(), 4],
+        spheres
+            .iter()
+            .flat_map(|s| [s.centre.x, s.centre.y, s.centre.z, s.radius_m]),
+    )?;
+    write_f64(
+        &out.join("performance_centre.npy"),
+        &[3],
+        scene.root.to_array(),
+    )?;
+    write_cameras(out, &scene.ring.cameras)?;
     let info = json!({
         "kind": "photometric",
         "frames": frames.len(),
         "first_motion_frame": frames.start,
         "width": size,
         "height": size,
-        "cameras": scene.ring.cameras,
+        "cameras": scene.ring.cameras.len(),
         "white_level": white_level,
-        "performance_centre": scene.root.to_array(),
-        "spheres": spheres,
     });
     let path = out.join("capture.json");
     std::fs::write(&path, info.to_string()).map_err(io(&path))
@@ -490,8 +528,17 @@ pub fn photometric_frames(
     let info = CaptureInfo::read(capture, "photometric")?;
     info.check(&frames)?;
     let white_level: f32 = info.field(capture, "white_level")?;
-    let centre: [f64; 3] = info.field(capture, "performance_centre")?;
-    let spheres: Vec<CalibrationSphere> = info.field(capture, "spheres")?;
+    let centre = read_f64(&capture.join("performance_centre.npy"), &[3])?;
+    let sphere_path = capture.join("calibration").join("spheres.npy");
+    let (_, shape, _) = npy::read(&sphere_path)?;
+    let k = shape.first().copied().unwrap_or(0);
+    let spheres: Vec<CalibrationSphere> = read_f64(&sphere_path, &[k, 4])?
+        .chunks_exact(4)
+        .map(|s| CalibrationSphere {
+            centre: DVec3::new(s[0], s[1], s[2]),
+            radius_m: s[3],
+        })
+        .collect();
     let exposure = Exposure::default().with_white_level(white_level);
     let cal_params = CalibrationParams {
         exposure,
@@ -499,7 +546,7 @@ pub fn photometric_frames(
     };
     let params = NormalParams::default()
         .with_exposure(exposure)
-        .with_performance_centre(DVec3::from_array(centre));
+        .with_performance_centre(DVec3::new(centre[0], centre[1], centre[2]));
     let cals = info
         .cameras
         .iter()
@@ -621,13 +668,14 @@ pub fn write_silhouette_capture(
         },
     )?;
     mesh::write_obj(out.join("template.obj"), &scan.mesh)?;
+    write_cameras(out, &cams)?;
     let info = json!({
         "kind": "silhouette",
         "frames": frames,
         "first_motion_frame": first,
         "width": width,
         "height": height,
-        "cameras": cams,
+        "cameras": cams.len(),
         "skeleton": performer.skeleton,
         "thetas": thetas,
     });
