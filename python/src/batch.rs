@@ -163,7 +163,7 @@ pub mod npy {
         std::fs::write(path, out).map_err(io(path))
     }
 
-    /// Reads an array written by [`write`]: its `descr`, shape and element bytes.
+    /// Reads an array written by [`write()`]: its `descr`, shape and element bytes.
     ///
     /// # Errors
     /// [`super::BatchError::Io`] for a missing file, [`super::BatchError::Format`] for
