@@ -7,6 +7,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse
 
+from . import batch as batch
 from . import face as face
 from . import inertial as inertial
 from . import needle as needle

@@ -28,6 +28,20 @@ def calibrate_sphere(
     images: Images,
     up: Tuple[float, float, float] = (0.0, 1.0, 0.0),
 ) -> Calibration: ...
+def calibrate_spheres(
+    camera: Camera,
+    centres: Sequence[Tuple[float, float, float]],
+    radius_m: float,
+    images: F64,
+    up: Tuple[float, float, float] = (0.0, 1.0, 0.0),
+    *,
+    white_level: float = 1.0,
+    min_normalised: float = 0.03,
+    max_normalised: float = 0.97,
+    rim_fraction: float = 0.97,
+    min_samples: int = 50,
+) -> Calibration:
+    """Calibration from grey spheres at several heights, images (spheres, 7, h, w)."""
 def estimate_normals(
     camera: Camera,
     calibration: Calibration,
@@ -51,4 +65,6 @@ def reconstruct(
     normals: F64,
     valid: U8,
     pairs: Sequence[Tuple[int, int]],
+    *,
+    poisson_depth: int = 9,
 ) -> Tuple[F64, npt.NDArray[np.uint32]]: ...
