@@ -9,6 +9,8 @@ use template_silhouette::{
     PoseParams, ResultExt, ShapeParams, ShapeStart, SilhouetteParams, Template as RustTemplate,
 };
 
+use skin_core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
+
 use crate::arrays::{from_points3, owned3, points3, vector};
 use crate::core::{skin_weights, trimesh, Camera, Skeleton};
 use crate::errors::to_py;
@@ -33,6 +35,33 @@ impl Template {
         let mesh = trimesh(vertices, faces)?;
         let w = skin_weights(weights, mesh.vertex_count(), skeleton.inner.joint_count())?;
         let inner = RustTemplate::new(mesh, skeleton.inner.clone(), w).map_err(to_py)?;
+        Ok(Template { inner })
+    }
+
+    /// A template rigged by the library's bone-heat weights (Pinocchio, with its visibility
+    /// test unless `visibility` is false), computed and kept in Rust: the weights are not
+    /// renormalised through a dense matrix as `Template(v, f, skeleton, weights)` does.
+    #[staticmethod]
+    #[pyo3(signature = (vertices, faces, skeleton, visibility = true))]
+    fn rigged(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        skeleton: &Skeleton,
+        visibility: bool,
+    ) -> PyResult<Self> {
+        let mesh = trimesh(vertices, faces)?;
+        let params = if visibility {
+            HeatWeightsParams::default()
+        } else {
+            HeatWeightsParams::default().without_visibility()
+        };
+        let inner = py
+            .detach(|| -> template_silhouette::Result<RustTemplate> {
+                let w = bone_heat_weights(&mesh, &rest_bones(&skeleton.inner)?, &params)?;
+                RustTemplate::new(mesh, skeleton.inner.clone(), w)
+            })
+            .map_err(to_py)?;
         Ok(Template { inner })
     }
 

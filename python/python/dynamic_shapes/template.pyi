@@ -13,6 +13,11 @@ class Template:
     def __init__(
         self, vertices: F64, faces: npt.NDArray[np.uint32], skeleton: Skeleton, weights: F64
     ) -> None: ...
+    @staticmethod
+    def rigged(
+        vertices: F64, faces: npt.NDArray[np.uint32], skeleton: Skeleton, visibility: bool = True
+    ) -> "Template":
+        """A template rigged by bone-heat weights computed and kept in Rust."""
     @property
     def vertex_count(self) -> int: ...
     def skin(self, theta: F64) -> F64: ...
