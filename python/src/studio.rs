@@ -21,8 +21,9 @@ use skin_core::mesh::{decimate, TriMesh};
 use skin_core::skeleton::Motion;
 
 use dynamic_shapes_studio::{
-    exercise_motion, fast_motion, makehuman_performer, scan_outer_surface, Capture, CaptureSpec,
-    DeformationParams, ExerciseParams, FastMotionParams, Performer, ScanParams, WrinkleParams,
+    exercise_motion, fast_motion, makehuman_performer, procedural_performer, scan_outer_surface,
+    studio_ring, Capture, CaptureSpec, DeformationParams, ExerciseParams, FastMotionParams,
+    Performer, ProceduralBodyParams, ScanParams, WrinkleParams,
 };
 
 use crate::core::{mesh_arrays, Camera, Skeleton};
@@ -337,10 +338,127 @@ fn silhouette_capture<'py>(
     Ok(d)
 }
 
+/// The needle example's performer: procedural, with its pose-driven shapes and no hip flap (the
+/// validation protocol: what a pose-driven model can predict).
+fn needle_performer() -> skin_core::Result<Performer> {
+    procedural_performer(&ProceduralBodyParams {
+        deformation: DeformationParams::default().with_flap(None),
+        ..Default::default()
+    })
+}
+
+/// The training capture of the Rust example `needle_capture --quick`: the procedural
+/// performer (pose-driven shapes, no flap) turning through the studio's free exercise
+/// (`seconds` long, seed `seed`) at the motion's frame rate, seen by the studio ring of
+/// `cameras` cameras at `width` × `height` px.
+///
+/// Returns a dict: `cameras`, `skeleton`, `thetas` `(frames, dofs)` (the mocap poses the
+/// needle model takes), `masks` `(frames, cameras, h, w)` uint8.
+#[pyfunction]
+#[pyo3(signature = (seconds = 24.0, seed = 11, cameras = 3, width = 360, height = 240))]
+fn needle_capture<'py>(
+    py: Python<'py>,
+    seconds: f64,
+    seed: u64,
+    cameras: usize,
+    width: u32,
+    height: u32,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (skeleton, cams, thetas, masks) = py
+        .detach(|| -> skin_core::Result<_> {
+            let performer = needle_performer()?;
+            let motion = exercise_motion(
+                &performer.skeleton,
+                &ExerciseParams::default()
+                    .with_duration_s(seconds)
+                    .with_seed(seed),
+            )?;
+            let rig = studio_ring(cameras, width, height)?;
+            let cams = rig.cameras.clone();
+            let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
+            let capture = Capture::new(&performer, &motion, spec)?;
+            let (mut thetas, mut masks) = (vec![], vec![]);
+            for f in capture.frames() {
+                let f = f?;
+                masks.extend(f.masks());
+                thetas.push(f.truth.theta.clone());
+            }
+            Ok((performer.skeleton.clone(), cams, thetas, masks))
+        })
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("cameras", camera_list(py, &cams)?)?;
+    d.set_item(
+        "thetas",
+        crate::arrays::from_vec_rows(py, &thetas, skeleton.dof_count())?,
+    )?;
+    d.set_item(
+        "masks",
+        mask_array(py, &masks, &[thetas.len(), cams.len()])?,
+    )?;
+    d.set_item("skeleton", Py::new(py, Skeleton { inner: skeleton })?)?;
+    Ok(d)
+}
+
+/// The needle example's test scoring: `model`'s needle-length errors against the true
+/// surface on the studio's exercise of seed `seed` (`seconds` long, every `stride`-th frame),
+/// a motion it was not trained on (`needle_model::truth::TestSet`). Returns a dict of mm
+/// arrays: `all_mm` (every scored needle-frame), `near_joints_mm`, `deforming_mm` (true and
+/// LBS lengths differ), `pose_deforming_mm` (the needles the pose deforms: the headline's).
+#[pyfunction]
+#[pyo3(signature = (model, seconds = 8.0, seed = 23, stride = 8))]
+fn needle_test_errors<'py>(
+    py: Python<'py>,
+    model: &crate::needle::NeedleModel,
+    seconds: f64,
+    seed: u64,
+    stride: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    if stride == 0 {
+        return Err(invalid("stride must be positive"));
+    }
+    let errors = py
+        .detach(|| -> needle_model::Result<needle_model::truth::Errors> {
+            let performer = needle_performer()?;
+            let motion = exercise_motion(
+                &performer.skeleton,
+                &ExerciseParams::default()
+                    .with_duration_s(seconds)
+                    .with_seed(seed),
+            )?;
+            let spec = CaptureSpec::masks_only(studio_ring(3, 360, 240)?)
+                .with_frame_rate_hz(1.0 / motion.frame_time_s);
+            let capture = Capture::new(&performer, &motion, spec)?;
+            let mut set = needle_model::truth::TestSet::default();
+            for frame in capture.frames_stepped(0..capture.frame_count(), stride) {
+                set.push_frame(&model.body, &performer, &frame?.truth)?;
+            }
+            set.errors(&model.model)
+        })
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("all_mm", crate::arrays::owned1(py, errors.all_mm))?;
+    d.set_item(
+        "near_joints_mm",
+        crate::arrays::owned1(py, errors.near_joints_mm),
+    )?;
+    d.set_item(
+        "deforming_mm",
+        crate::arrays::owned1(py, errors.deforming_mm),
+    )?;
+    d.set_item(
+        "pose_deforming_mm",
+        crate::arrays::owned1(py, errors.pose_deforming_mm),
+    )?;
+    Ok(d)
+}
+
 pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     let m = PyModule::new(parent.py(), "studio")?;
     m.add("STUDIO_FRAME", STUDIO_FRAME)?;
     m.add_function(wrap_pyfunction!(photometric_frame, &m)?)?;
     m.add_function(wrap_pyfunction!(silhouette_capture, &m)?)?;
+    m.add_function(wrap_pyfunction!(needle_capture, &m)?)?;
+    m.add_function(wrap_pyfunction!(needle_test_errors, &m)?)?;
     parent.add_submodule(&m)
 }

@@ -36,3 +36,13 @@ def silhouette_capture(
     """MakeHuman's silhouettes in a studio motion seen by a camera ring. Keys: cameras, masks
     (frames, cameras, h, w), thetas (frames, dofs), skeleton, rest_vertices, rest_faces,
     template_vertices, template_faces."""
+
+def needle_capture(
+    seconds: float = 24.0, seed: int = 11, cameras: int = 3, width: int = 360, height: int = 240
+) -> Dict[str, Any]:
+    """The needle example's training capture (procedural performer, free exercise, studio
+    ring). Keys: cameras, skeleton, thetas (frames, dofs), masks (frames, cameras, h, w)."""
+
+def needle_test_errors(model: Any, seconds: float = 8.0, seed: int = 23, stride: int = 8) -> Dict[str, Any]:
+    """A needle model's length errors (mm) on a test exercise against the true surface. Keys:
+    all_mm, near_joints_mm, deforming_mm, pose_deforming_mm."""
