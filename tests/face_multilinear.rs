@@ -8,8 +8,8 @@ use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::core::mesh::TriMesh;
 use dynamic_shapes::face::validation::{
     aligned_rms, bilinear_face_set, face_width, feature_vertices, hold_out, ict_face_set,
-    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSet,
-    FaceSetParams, IctBasis,
+    impute_rel_error, point_track_sequence, remeshed_scan, trilinear_face_set, FaceSetParams,
+    IctBasis, TrackingScenario,
 };
 use dynamic_shapes::face::{
     fit_template, impute, impute_by_averaging, impute_ppca, mean_weights, track_points,
@@ -439,25 +439,20 @@ fn face_data_reader_bad_input() {
     assert!(bilinear_face_set(&full, &p).is_err());
 }
 
-/// The tracking set-up: the ICT basis, the bilinear set and its 6 × 9 model, a person the
-/// model never saw (another seed) and 1,000 tracked vertices.
-fn tracking_setup() -> (IctBasis, FaceSet, MultilinearModel, FaceSet, Vec<usize>) {
-    let basis = basis();
-    let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
-    let (model, _) = MultilinearModel::fit(&bi.faces, &ModelParams::thesis_bilinear()).unwrap();
-    let novel = bilinear_face_set(
-        &basis,
-        &FaceSetParams::default().with_identities(1).with_seed(99),
-    )
-    .unwrap();
-    let tracked = feature_vertices(basis.neutral(), 1000).unwrap();
-    (basis, bi, model, novel, tracked)
+/// The tracking scenario with 1,000 tracked vertices.
+fn tracking_setup() -> TrackingScenario {
+    TrackingScenario::new(basis(), 1000).unwrap()
 }
 
 #[test]
 fn face_tracking_from_point_tracks() {
     // A person the model never saw, 1,000 tracked vertices, 0.5 px noise.
-    let (_, _, model, novel, tracked) = tracking_setup();
+    let TrackingScenario {
+        model,
+        novel,
+        tracked,
+        ..
+    } = tracking_setup();
     let seq =
         point_track_sequence(&novel.faces, &[0, 1, 3, 5, 2, 7, 0], &tracked, 40, 0.5, 5).unwrap();
     let track = track_points(
@@ -515,23 +510,18 @@ fn face_tracking_from_point_tracks() {
 
 #[test]
 fn face_tracking_from_video() {
-    use dynamic_shapes::face::validation::{render_face_video, FaceVideoParams};
     use dynamic_shapes::face::{track_video, FeaturePoints, VideoTrackParams};
     // A person the model never saw, 20 rendered 640 × 480 frames (neutral → smile → surprise
     // → neutral with head motion), 1,000 tracked vertices, 12 feature points (1 px noise).
-    let (basis, bi, model, novel, tracked) = tracking_setup();
-    let features = feature_vertices(basis.neutral(), 12).unwrap();
+    let scenario = tracking_setup();
     let n = 20;
-    let video = render_face_video(
-        &novel.faces,
-        &[0, 1, 3, 0],
-        n,
-        &bi.triangles,
-        &basis.neutral().vertices,
-        &features,
-        &FaceVideoParams::default(),
-    )
-    .unwrap();
+    let video = scenario.video(&[0, 1, 3, 0], n, 12).unwrap();
+    let TrackingScenario {
+        training: bi,
+        model,
+        tracked,
+        ..
+    } = scenario;
     assert_eq!(video.frames[0].dimensions(), (640, 480));
     let run = |frames: &[image::RgbImage], f: &FeaturePoints| {
         track_video(

@@ -9,18 +9,20 @@
 
 use std::time::Instant;
 
+use dynamic_shapes::core::camera::Camera;
 use dynamic_shapes::core::camera::{Intrinsics, Rig};
 use dynamic_shapes::core::image::Mask;
 use dynamic_shapes::core::math::DVec3;
 use dynamic_shapes::photometric::truth::{
     angular_errors_deg, calibrate_camera, colour_scores, distant_light_normals,
     dome_power_fraction, pattern_images, render_sphere_patterns, silhouette_scores, skirt_subject,
-    summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
+    small_dome_sphere, summarize, GreenScreen, LightStage, SensorNoise, StudioScene,
 };
 use dynamic_shapes::photometric::{
-    estimate_normals, extract_silhouette, macbeth_reference, Backdrop, CalibrationParams,
-    CalibrationSphere, ColourParams, ColourTransfer, Error, Exposure, LookupTable, NormalParams,
-    Pattern, PatternImages, SilhouetteParams, PATTERNS,
+    estimate_normals, estimate_normals_on_proxy, extract_silhouette, macbeth_reference, Backdrop,
+    CalibrationParams, CalibrationSphere, ColourParams, ColourTransfer, DepthMap, Error, Exposure,
+    HeightCalibration, LookupTable, NormalMap, NormalParams, Pattern, PatternImages,
+    SilhouetteParams, PATTERNS,
 };
 use dynamic_shapes_studio::{makehuman_performer, Capture, PatternSchedule};
 
@@ -352,4 +354,58 @@ fn motion_compensation_recovers_normals_of_a_moving_performer() {
         e_u.median_deg >= 1.5 * e_c.median_deg,
         "without compensation at least 1.5× worse"
     );
+}
+
+/// A camera 5 m above the dome's floor centre looking straight down, calibrated with grey
+/// spheres at two heights under the axis, and a probe sphere at `probe_y`: its pattern
+/// images and rendered depth along the pixel rays.
+fn top_camera_probe(probe_y: f64) -> (Camera, HeightCalibration, PatternImages, DepthMap) {
+    let k = Intrinsics::from_horizontal_fov(0.15, 64, 64).unwrap();
+    let cam = Camera::look_at(k, DVec3::new(0.0, 5.0, 0.0), DVec3::ZERO, DVec3::Z).unwrap();
+    let render = |s: &CalibrationSphere| small_dome_sphere(&cam, s).unwrap();
+    let tables = [0.6, 1.4]
+        .iter()
+        .map(|&y| {
+            let sphere = CalibrationSphere {
+                centre: DVec3::new(0.0, y, 0.0),
+                radius_m: 0.2,
+            };
+            let (images, _) = render(&sphere);
+            LookupTable::from_sphere(
+                &cam,
+                &sphere,
+                &images,
+                DVec3::Y,
+                &CalibrationParams::default(),
+            )
+            .unwrap()
+        })
+        .collect();
+    let calibration = HeightCalibration::new(tables).unwrap();
+    let (images, depth) = render(&CalibrationSphere {
+        centre: DVec3::new(0.0, probe_y, 0.0),
+        radius_m: 0.15,
+    });
+    (cam, calibration, images, depth)
+}
+
+#[test]
+fn a_camera_above_the_centre_gets_normals_only_on_a_proxy() {
+    let (cam, calibration, images, depth) = top_camera_probe(1.4);
+    let params = NormalParams::default().with_performance_centre(DVec3::new(0.0, 1.0, 0.0));
+    let plane = estimate_normals(&cam, &calibration, &images, None, &params).unwrap();
+    let on_proxy =
+        estimate_normals_on_proxy(&cam, &calibration, &images, None, &depth, &params).unwrap();
+    let count = |m: &NormalMap| m.valid.iter().filter(|&&v| v).count();
+    // The plane through the centre facing a camera above it does not exist.
+    assert_eq!(count(&plane), 0);
+    // The probe covers a disc of about 18 px radius; its top faces the camera (−z).
+    assert!(count(&on_proxy) > 500, "{}", count(&on_proxy));
+    let centre_normal = on_proxy.normals[32 * 64 + 32];
+    assert!(centre_normal.z < -0.99, "{centre_normal}");
+    let bad = DepthMap::empty(32, 32).unwrap();
+    assert!(matches!(
+        estimate_normals_on_proxy(&cam, &calibration, &images, None, &bad, &params),
+        Err(Error::InvalidParam { .. })
+    ));
 }

@@ -28,6 +28,7 @@ use skin_core::stats::{mean, median};
 
 use crate::calibration::{CalibrationParams, CalibrationSphere, HeightCalibration, LookupTable};
 use crate::cycle::{CYCLE, PATTERNS};
+use crate::depth_map::DepthMap;
 use crate::normals::{NormalMap, NormalParams};
 use crate::patterns::{grey, key, patterns_weights, Exposure, PatternImages};
 use crate::{Error, Result};
@@ -541,11 +542,26 @@ pub fn render_sphere_patterns(
     centre: DVec3,
     albedo: f32,
 ) -> Result<PatternImages> {
-    let mesh = uv_sphere(sphere.centre, sphere.radius_m, 96, 192)?;
+    Ok(sphere_patterns_view(camera, sphere, lights, centre, albedo, (96, 192), false)?.0)
+}
+
+/// [`render_sphere_patterns`] of a sphere tessellated into `(rings, segments)`, with the
+/// rendered view (its depth buffer when `depth`).
+fn sphere_patterns_view(
+    camera: &Camera,
+    sphere: &CalibrationSphere,
+    lights: &[Light],
+    centre: DVec3,
+    albedo: f32,
+    (rings, segments): (usize, usize),
+    depth: bool,
+) -> Result<(PatternImages, RenderedView)> {
+    let mesh = uv_sphere(sphere.centre, sphere.radius_m, rings, segments)?;
     let view = Rasterizer::new(camera).render(
         &mesh,
         &RenderParams::default().with_buffers(Buffers {
             triangle: true,
+            depth,
             ..Buffers::MASK_ONLY
         }),
     )?;
@@ -564,7 +580,30 @@ pub fn render_sphere_patterns(
         .zip(shaded)
         .map(|(&p, s)| Ok((p, grey(&s.to_image()?))))
         .collect::<Result<Vec<_>>>()?;
-    PatternImages::new(images)
+    Ok((PatternImages::new(images)?, view))
+}
+
+/// The crate's quick-start scene: a small dome (300 sphere and 100 floor lights, the patterns
+/// centred at `(0, 4/3, 0)`) lighting a grey sphere (albedo 0.5, 48 × 96 UV tessellation)
+/// that `camera` photographs under the seven patterns. Returns the images and the sphere's
+/// depth along the pixel rays (NaN off the sphere). The unit tests' probes and the Python
+/// bindings' fixtures.
+///
+/// # Errors
+/// As [`render_sphere_patterns`].
+pub fn small_dome_sphere(
+    camera: &Camera,
+    sphere: &CalibrationSphere,
+) -> Result<(PatternImages, DepthMap)> {
+    let lights = dome_lights(&DomeParams {
+        sphere_lights: 300,
+        floor_lights: 100,
+        ..Default::default()
+    })?;
+    let centre = DVec3::new(0.0, 4.0 / 3.0, 0.0);
+    let (images, view) =
+        sphere_patterns_view(camera, sphere, &lights, centre, 0.5, (48, 96), true)?;
+    Ok((images, DepthMap::from_view(&view)?))
 }
 
 /// §3.2.3 calibration of one camera: a grey sphere of radius `radius_m` at each of `heights`

@@ -8,46 +8,29 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dynamic_shapes_studio::shading::{
-    dome_lights, shade_patterns, Albedo, DomeParams, Light, Shadows,
-};
 use dynamic_shapes_studio::{
     exercise_motion, fast_motion, procedural_performer, studio_ring, Capture, CaptureSpec,
     ExerciseParams, FastMotionParams, ProceduralBodyParams,
 };
 use glam::{DAffine3, DVec3};
 use inertial_acoustic::simulate::{prepare_motion, SimulationParams, SuitSimulator};
+use photometric_normals::truth::small_dome_sphere;
 use photometric_normals::{
-    estimate_normals, grey, integrate_normals, patterns_weights, CalibrationParams,
-    CalibrationSphere, DepthMap, HeightCalibration, IntegrationParams, LookupTable, NormalParams,
-    PatternImages, PolygonalHull, PATTERNS,
+    estimate_normals, integrate_normals, CalibrationParams, CalibrationSphere, DepthMap,
+    HeightCalibration, IntegrationParams, LookupTable, NormalParams, PatternImages, PolygonalHull,
+    PATTERNS,
 };
 use serde_json::{json, Value};
 use skin_core::camera::{Camera, Intrinsics};
 use skin_core::image::Mask;
 use skin_core::mesh::shapes::uv_sphere;
 use skin_core::mesh::{self, LaplacianParams, SkinBinding, SkinWeights, TriMesh};
-use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 use skin_core::skeleton::{read_bvh, BvhParams, CMU_METRES_PER_UNIT};
 
 /// An `.npy` file (format 1.0, little endian, C order).
 fn npy(dir: &Path, name: &str, descr: &str, shape: &[usize], bytes: Vec<u8>) {
-    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let shape = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend_from_slice(&u16::try_from(header.len()).unwrap().to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    out.extend(bytes);
-    std::fs::write(dir.join(format!("{name}.npy")), out).unwrap();
+    dynamic_shapes_py::batch::npy::write(&dir.join(format!("{name}.npy")), descr, shape, &bytes)
+        .unwrap();
 }
 
 fn f64s(dir: &Path, name: &str, shape: &[usize], v: impl IntoIterator<Item = f64>) {
@@ -387,14 +370,6 @@ fn write_python_fixtures() {
     points(&dir, "transfer_frame1", &dt.transfer(&skinned).unwrap());
 
     // photometric-normals: the crate's quick start (a grey sphere under a small dome, 64 × 64).
-    let dome = DomeParams {
-        sphere_lights: 300,
-        floor_lights: 100,
-        ..Default::default()
-    };
-    let lights = dome_lights(&dome).unwrap();
-    let positions: Vec<DVec3> = lights.iter().map(Light::position).collect();
-    let weights = patterns_weights(&positions, DVec3::new(0.0, 4.0 / 3.0, 0.0), &PATTERNS).unwrap();
     let pk = Intrinsics::from_horizontal_fov(0.2, 64, 64).unwrap();
     let pcam = Camera::look_at(
         pk,
@@ -405,24 +380,10 @@ fn write_python_fixtures() {
     .unwrap();
     let pcam = via_json(&dir, "photo_camera.json", &pcam);
     let photograph_with = |cam: &Camera, s: &CalibrationSphere| -> Vec<f32> {
-        let mesh = uv_sphere(s.centre, s.radius_m, 48, 96).unwrap();
-        let params = RenderParams::default().with_buffers(Buffers {
-            triangle: true,
-            ..Buffers::MASK_ONLY
-        });
-        let view = Rasterizer::new(cam).render(&mesh, &params).unwrap();
-        let shaded = shade_patterns(
-            &view,
-            &mesh,
-            &lights,
-            &weights,
-            &Albedo::Uniform([0.5; 3]),
-            &Shadows::None,
-        )
-        .unwrap();
-        shaded
+        let (images, _) = small_dome_sphere(cam, s).unwrap();
+        PATTERNS
             .iter()
-            .flat_map(|s| grey(&s.to_image().unwrap()).into_raw())
+            .flat_map(|&p| images.image(p).as_raw().clone())
             .collect()
     };
     let images_of = |raw: &[f32]| {
@@ -693,29 +654,16 @@ fn write_python_fixtures() {
     // Video tracking: a person outside the training set rendered over 4 frames (the
     // validation's face video), tracked by the thesis's 6 × 9 model of the bilinear set.
     {
-        use multilinear_face::validation::{
-            bilinear_face_set, feature_vertices, render_face_video, FaceSetParams, FaceVideoParams,
-            IctBasis,
-        };
+        use multilinear_face::validation::{IctBasis, TrackingScenario};
         let basis = IctBasis::read(repo().join("data/ict-face")).unwrap();
-        let bi = bilinear_face_set(&basis, &FaceSetParams::default()).unwrap();
-        let novel = bilinear_face_set(
-            &basis,
-            &FaceSetParams::default().with_identities(1).with_seed(99),
-        )
-        .unwrap();
-        let tracked = feature_vertices(basis.neutral(), 300).unwrap();
-        let features = feature_vertices(basis.neutral(), 12).unwrap();
-        let video = render_face_video(
-            &novel.faces,
-            &[0, 1, 3, 0],
-            4,
-            &bi.triangles,
-            &basis.neutral().vertices,
-            &features,
-            &FaceVideoParams::default(),
-        )
-        .unwrap();
+        let scenario = TrackingScenario::new(basis, 300).unwrap();
+        let video = scenario.video(&[0, 1, 3, 0], 4, 12).unwrap();
+        let TrackingScenario {
+            training: bi,
+            model,
+            tracked,
+            ..
+        } = scenario;
         let (w, h) = video.frames[0].dimensions();
         u8s(
             &dir,
@@ -731,11 +679,6 @@ fn write_python_fixtures() {
             &[video.features.pixels.len(), 2],
             video.features.pixels.iter().flatten().copied(),
         );
-        let (model, _) = multilinear_face::MultilinearModel::fit(
-            &bi.faces,
-            &multilinear_face::ModelParams::thesis_bilinear(),
-        )
-        .unwrap();
         let track = multilinear_face::track_video(
             &model,
             &bi.triangles,

@@ -89,6 +89,22 @@ classify_method_error!(photometric_normals { MissingPattern => Input, OutOfView 
 classify_method_error!(inertial_acoustic { MissingBone => Input, Corrupted => Format, Hdf5 => Format });
 classify_method_error!(multilinear_face { UnknownName => Input });
 
+impl Classify for crate::batch::BatchError {
+    fn kind(&self) -> Kind {
+        use crate::batch::BatchError as E;
+        match self {
+            E::Io { .. } => Kind::File,
+            E::Format { .. } => Kind::Format,
+            E::Input(_) => Kind::Input,
+            E::Core(e) => e.kind(),
+            E::Needle(e) => e.kind(),
+            E::Template(e) => e.kind(),
+            E::Photometric(e) => e.kind(),
+            E::Inertial(e) => e.kind(),
+        }
+    }
+}
+
 static ERRORS_MODULE: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
 /// The Python exception of `kind` with `message`.

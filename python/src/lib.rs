@@ -7,12 +7,15 @@
 //! that does real work releases the GIL (`Python::detach`).
 
 mod arrays;
+pub mod batch;
+mod batch_py;
 mod core;
 mod errors;
 mod face;
 mod inertial;
 mod needle;
 mod photometric;
+mod studio;
 mod template;
 
 use pyo3::prelude::*;
@@ -28,5 +31,7 @@ fn native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     photometric::register(m)?;
     inertial::register(m)?;
     face::register(m)?;
+    studio::register(m)?;
+    batch_py::register(m)?;
     Ok(())
 }

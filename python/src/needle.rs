@@ -18,9 +18,9 @@ use crate::errors::{invalid, to_py};
 /// its pose configuration (§5).
 #[pyclass(module = "dynamic_shapes.needle", frozen)]
 pub(crate) struct NeedleModel {
-    body: NeedleBody,
+    pub(crate) body: NeedleBody,
     skeleton: RustSkeleton,
-    model: RustModel,
+    pub(crate) model: RustModel,
     observations: u64,
 }
 

@@ -6,7 +6,7 @@ use numpy::ndarray::{ArrayViewD, Axis};
 use numpy::{PyArray2, PyArray3};
 use photometric_normals::{
     estimate_normals as rust_normals, integrate_normals as rust_integrate,
-    reconstruct as rust_reconstruct, CalibrationParams, CalibrationSphere, DepthMap,
+    reconstruct as rust_reconstruct, CalibrationParams, CalibrationSphere, DepthMap, Exposure,
     HeightCalibration, IntegrationParams, LookupTable, NormalMap, NormalParams, PatternImages,
     PolygonalHull, ReconstructParams, PATTERNS,
 };
@@ -94,7 +94,7 @@ fn one_mask(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mask> {
 /// A photometric calibration: per height, the grey sphere's lookup table (§3.2.3).
 #[pyclass(module = "dynamic_shapes.photometric", frozen)]
 pub(crate) struct Calibration {
-    inner: HeightCalibration,
+    pub(crate) inner: HeightCalibration,
 }
 
 #[pymethods]
@@ -138,21 +138,113 @@ fn calibrate_sphere(
     Ok(Calibration { inner })
 }
 
+/// Calibrates a camera from grey spheres at several heights (§3.2.3): `centres` (m, one per
+/// sphere) of radius `radius_m`, photographed under the seven patterns `images` `(spheres, 7,
+/// h, w)` float64; `up` is the world's up direction. The keywords are `CalibrationParams`'
+/// fields with their defaults: the exposure (`white_level`, `min_normalised`,
+/// `max_normalised`), `rim_fraction` and `min_samples`.
+#[pyfunction]
+#[pyo3(signature = (camera, centres, radius_m, images, up = (0.0, 1.0, 0.0), *, white_level = 1.0,
+    min_normalised = 0.03, max_normalised = 0.97, rim_fraction = 0.97, min_samples = 50))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate_spheres(
+    py: Python<'_>,
+    camera: &Camera,
+    centres: Vec<(f64, f64, f64)>,
+    radius_m: f64,
+    images: &Bound<'_, PyAny>,
+    up: (f64, f64, f64),
+    white_level: f32,
+    min_normalised: f32,
+    max_normalised: f32,
+    rim_fraction: f64,
+    min_samples: usize,
+) -> PyResult<Calibration> {
+    let v = view::<f64>(
+        images,
+        "images",
+        "float64",
+        &[Some(centres.len()), Some(PATTERNS.len()), None, None],
+    )?;
+    let a = v.as_array();
+    let per = (0..centres.len())
+        .map(|i| {
+            let one = a.index_axis(Axis(0), i).to_owned();
+            let arr = numpy::PyArray::from_owned_array(py, one);
+            pattern_images(arr.as_any())
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let params = CalibrationParams {
+        exposure: Exposure {
+            white_level,
+            min_normalised,
+            max_normalised,
+        },
+        rim_fraction,
+        min_samples,
+    };
+    let up = DVec3::new(up.0, up.1, up.2);
+    let inner = py
+        .detach(|| -> photometric_normals::Result<HeightCalibration> {
+            let tables = centres
+                .iter()
+                .zip(&per)
+                .map(|(c, im)| {
+                    let sphere = CalibrationSphere {
+                        centre: DVec3::new(c.0, c.1, c.2),
+                        radius_m,
+                    };
+                    LookupTable::from_sphere(&camera.inner, &sphere, im, up, &params)
+                })
+                .collect::<photometric_normals::Result<Vec<_>>>()?;
+            HeightCalibration::new(tables)
+        })
+        .map_err(to_py)?;
+    Ok(Calibration { inner })
+}
+
 /// Per-pixel normals from the seven pattern images (§3.2; `(7, h, w)` float64 or a
 /// `PatternImages`, converted once for repeated calls): `(normals, valid)`,
 /// `(h, w, 3)` unit normals in the camera frame (x right, y down, z forward; zero where
 /// invalid) and an `(h, w)` uint8 mask of the pixels with a normal.
-/// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject).
+/// `mask` `(h, w)` uint8 limits the pixels (non-zero = subject). The keywords are
+/// `NormalParams`' fields with its defaults: `n_best` (Eq. 3.2's N), the exposure
+/// (`white_level`, the linear intensity of normalised 1; the trusted normalised range
+/// `min_normalised`–`max_normalised`, §3.2.3), `performance_centre` (m, where a pixel's height
+/// is taken) and `up`.
 #[pyfunction]
-#[pyo3(signature = (camera, calibration, images, mask = None))]
+#[pyo3(signature = (camera, calibration, images, mask = None, *, n_best = 8, white_level = 1.0,
+    min_normalised = 0.03, max_normalised = 0.97, performance_centre = (0.0, 1.0, 0.0),
+    up = (0.0, 1.0, 0.0)))]
+#[allow(clippy::too_many_arguments)]
 fn estimate_normals<'py>(
     py: Python<'py>,
     camera: &Camera,
     calibration: &Calibration,
     images: &Bound<'py, PyAny>,
     mask: Option<&Bound<'py, PyAny>>,
+    n_best: usize,
+    white_level: f32,
+    min_normalised: f32,
+    max_normalised: f32,
+    performance_centre: (f64, f64, f64),
+    up: (f64, f64, f64),
 ) -> PyResult<Bound<'py, PyTuple>> {
     let mask = mask.map(|m| one_mask(m, "mask")).transpose()?;
+    let params = NormalParams {
+        n_best,
+        exposure: Exposure {
+            white_level,
+            min_normalised,
+            max_normalised,
+        },
+        performance_centre: DVec3::new(
+            performance_centre.0,
+            performance_centre.1,
+            performance_centre.2,
+        ),
+        up: DVec3::new(up.0, up.1, up.2),
+    };
     let map = with_images(images, |images| {
         py.detach(|| {
             rust_normals(
@@ -160,7 +252,7 @@ fn estimate_normals<'py>(
                 &calibration.inner,
                 images,
                 mask.as_ref(),
-                &NormalParams::default(),
+                &params,
             )
         })
         .map_err(to_py)
@@ -273,7 +365,10 @@ fn hull_depths<'py>(
 /// `masks` `(cameras, h, w)`, normal integration, matching of the camera `pairs`, merging and
 /// hole filling, twice. `normals` `(cameras, h, w, 3)` and `valid` `(cameras, h, w)` are the
 /// views' normal maps. Returns the watertight surface `(vertices, faces)` of the second pass.
+/// `poisson_depth` is the hole filling's octree depth (`ReconstructParams::poisson`; 9 ≈ 4 mm
+/// cells).
 #[pyfunction]
+#[pyo3(signature = (cameras, masks, normals, valid, pairs, *, poisson_depth = 9))]
 fn reconstruct<'py>(
     py: Python<'py>,
     cameras: Vec<Camera>,
@@ -281,6 +376,7 @@ fn reconstruct<'py>(
     normals: &Bound<'py, PyAny>,
     valid: &Bound<'py, PyAny>,
     pairs: Vec<(usize, usize)>,
+    poisson_depth: u32,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let (_, cams, masks) = crate::core::views(cameras, masks, 1)?;
     let n = finite(normals, "normals", &[Some(cams.len()), None, None, Some(3)])?;
@@ -298,12 +394,16 @@ fn reconstruct<'py>(
     let mesh = py
         .detach(|| -> photometric_normals::Result<_> {
             let hull = PolygonalHull::new(&cams, &masks)?;
-            Ok(
-                rust_reconstruct(&cams, &maps, &hull, &pairs, &ReconstructParams::default())?
-                    .pass2
-                    .filled
-                    .mesh,
-            )
+            Ok(rust_reconstruct(
+                &cams,
+                &maps,
+                &hull,
+                &pairs,
+                &ReconstructParams::default().with_poisson_depth(poisson_depth),
+            )?
+            .pass2
+            .filled
+            .mesh)
         })
         .map_err(to_py)?;
     mesh_arrays(py, &mesh)
@@ -314,6 +414,7 @@ pub(crate) fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Calibration>()?;
     m.add_class::<Patterns>()?;
     m.add_function(wrap_pyfunction!(calibrate_sphere, &m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate_spheres, &m)?)?;
     m.add_function(wrap_pyfunction!(estimate_normals, &m)?)?;
     m.add_function(wrap_pyfunction!(integrate_normals, &m)?)?;
     m.add_function(wrap_pyfunction!(hull_depths, &m)?)?;

@@ -6,8 +6,10 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use template_silhouette::{
     capture_sequence, ContourRayHullParams, DeformationTransfer as RustTransfer, FrameObservation,
-    PoseParams, ResultExt, ShapeParams, SilhouetteParams, Template as RustTemplate,
+    PoseParams, ResultExt, ShapeParams, ShapeStart, SilhouetteParams, Template as RustTemplate,
 };
+
+use skin_core::mesh::{bone_heat_weights, rest_bones, HeatWeightsParams};
 
 use crate::arrays::{from_points3, owned3, points3, vector};
 use crate::core::{skin_weights, trimesh, Camera, Skeleton};
@@ -36,6 +38,33 @@ impl Template {
         Ok(Template { inner })
     }
 
+    /// A template rigged by the library's bone-heat weights (Pinocchio, with its visibility
+    /// test unless `visibility` is false), computed and kept in Rust: the weights are not
+    /// renormalised through a dense matrix as `Template(v, f, skeleton, weights)` does.
+    #[staticmethod]
+    #[pyo3(signature = (vertices, faces, skeleton, visibility = true))]
+    fn rigged(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        skeleton: &Skeleton,
+        visibility: bool,
+    ) -> PyResult<Self> {
+        let mesh = trimesh(vertices, faces)?;
+        let params = if visibility {
+            HeatWeightsParams::default()
+        } else {
+            HeatWeightsParams::default().without_visibility()
+        };
+        let inner = py
+            .detach(|| -> template_silhouette::Result<RustTemplate> {
+                let w = bone_heat_weights(&mesh, &rest_bones(&skeleton.inner)?, &params)?;
+                RustTemplate::new(mesh, skeleton.inner.clone(), w)
+            })
+            .map_err(to_py)?;
+        Ok(Template { inner })
+    }
+
     /// Number of vertices.
     #[getter]
     fn vertex_count(&self) -> usize {
@@ -58,15 +87,63 @@ impl Template {
 /// `masks` `(frames, cameras, h, w)` uint8; pose tracking through the hulls from
 /// `first_pose` (the first frame's fit, §2.3.3), forward and reverse passes; then Laplacian
 /// molding to the silhouettes (Algorithm 1). Returns `(poses, vertices)`: `(frames,
-/// dof_count)` and `(frames, n, 3)` (m).
+/// dof_count)` and `(frames, n, 3)` (m). The keywords are `ShapeParams`' and `PoseParams`'
+/// fields with their defaults: `shape_start` (`"skinning"`: each frame from Eq. 2.1, the
+/// thesis; `"previous"`: from the previous frame's molded surface carried by the pose
+/// change), `w_anchor`, `w_c`, `w_l_step`, `filter_sigma_m`, `filter_passes` (§2.4.2);
+/// `w_d`, `w_t`, `w_r`, `w_u`, `samples_per_bone`, `refinement_rounds` (§2.3.1).
 #[pyfunction]
+#[pyo3(signature = (template, cameras, masks, first_pose, *, shape_start = "skinning",
+    w_anchor = 0.0, w_c = 1000.0, w_l_step = 0.2, filter_sigma_m = 0.07, filter_passes = 2,
+    w_d = 5.0, w_t = 1.0, w_r = 500.0, w_u = 5000.0, samples_per_bone = 4,
+    refinement_rounds = 2))]
+#[allow(clippy::too_many_arguments)]
 fn track<'py>(
     py: Python<'py>,
     template: &Template,
     cameras: Vec<Camera>,
     masks: &Bound<'py, PyAny>,
     first_pose: &Bound<'py, PyAny>,
+    shape_start: &str,
+    w_anchor: f64,
+    w_c: f64,
+    w_l_step: f64,
+    filter_sigma_m: f64,
+    filter_passes: usize,
+    w_d: f64,
+    w_t: f64,
+    w_r: f64,
+    w_u: f64,
+    samples_per_bone: usize,
+    refinement_rounds: usize,
 ) -> PyResult<Bound<'py, PyTuple>> {
+    let start = match shape_start {
+        "skinning" => ShapeStart::Skinning,
+        "previous" => ShapeStart::PreviousFrame,
+        other => {
+            return Err(crate::errors::invalid(format!(
+                "shape_start {other:?}: give \"skinning\" or \"previous\""
+            )))
+        }
+    };
+    let shape = ShapeParams {
+        start,
+        w_anchor,
+        w_c,
+        w_l_step,
+        filter_sigma_m,
+        filter_passes,
+        ..ShapeParams::default()
+    };
+    let pose = PoseParams {
+        w_d,
+        w_t,
+        w_r,
+        w_u,
+        samples_per_bone,
+        refinement_rounds,
+        ..PoseParams::default()
+    };
     let dofs = template.inner.skeleton().dof_count();
     let first = vector(first_pose, "first_pose", Some(dofs))?;
     let (lead, cams, masks) = crate::core::views(cameras, masks, 2)?;
@@ -84,14 +161,7 @@ fn track<'py>(
                     .at(template_silhouette::Context::Frame(f))
                 })
                 .collect::<template_silhouette::Result<Vec<_>>>()?;
-            capture_sequence(
-                &template.inner,
-                &obs,
-                &first,
-                &[],
-                &PoseParams::default(),
-                &ShapeParams::default(),
-            )
+            capture_sequence(&template.inner, &obs, &first, &[], &pose, &shape)
         })
         .map_err(to_py)?;
     let n = template.inner.vertex_count();

@@ -67,6 +67,18 @@ def test_template_tracking_matches_rust(fx, studio, tmpl):
     assert same(tmpl.skin(thetas[1]), fx["lbs_frame1"])
 
 
+def test_rigged_template_skins_with_the_heat_weights(fx, studio):
+    skel, _, thetas, _ = studio
+    v, f = fx["performer_vertices"], fx["performer_faces"]
+    rigged = template.Template.rigged(v, f, skel)
+    dense = template.Template(v, f, skel, fx["heat_weights"])
+    # The same weights; the dense path renormalises each row, so the last bits may differ.
+    assert np.allclose(rigged.skin(thetas[1]), dense.skin(thetas[1]), rtol=0, atol=1e-12)
+    assert not np.array_equal(rigged.skin(thetas[1]), rigged.skin(thetas[0]))
+    with pytest.raises(ds.InvalidInputError):
+        template.Template.rigged(v, f + np.uint32(len(v)), skel)
+
+
 def test_template_errors(studio, tmpl):
     _, cams, thetas, masks = studio
     empty = masks[:2].copy()

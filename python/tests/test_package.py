@@ -10,7 +10,8 @@ import dynamic_shapes as ds
 
 PACKAGE = Path(ds.__file__).parent
 MODULES = {"__init__": ds, "needle": ds.needle, "template": ds.template,
-           "photometric": ds.photometric, "inertial": ds.inertial, "face": ds.face}
+           "photometric": ds.photometric, "inertial": ds.inertial, "face": ds.face,
+           "studio": ds.studio, "batch": ds.batch}
 
 
 def public(module):

@@ -45,6 +45,7 @@
 
 mod dataset;
 mod ict_basis;
+mod tracking;
 mod video;
 
 pub use dataset::{
@@ -53,4 +54,5 @@ pub use dataset::{
     FaceSetParams, PointTrackSequence, BILINEAR_EXPRESSIONS, TRILINEAR_EXPRESSIONS, VISEMES,
 };
 pub use ict_basis::{IctBasis, NamedShape, Recipe, ICT_BLENDSHAPES};
+pub use tracking::TrackingScenario;
 pub use video::{render_face_frame, render_face_video, FaceVideo, FaceVideoParams};

@@ -7,7 +7,9 @@ TypeError, anything else wrong with an input an InvalidInputError (a ValueError)
 release the GIL. Arrays returned are built in Rust and handed to NumPy without a copy.
 
 Modules: the core (meshes, cameras, skeletons, skinning, Laplacian) at the top level, and one
-submodule per method: needle, template, photometric, inertial, face.
+submodule per method: needle, template, photometric, inertial, face; studio holds the
+synthetic capture studio's scenes with their ground truth (validation equipment); batch
+the frame-range entry points of batch runs (paths and plain values).
 """
 
 import sys as _sys
@@ -42,7 +44,9 @@ template = _native.template
 photometric = _native.photometric
 inertial = _native.inertial
 face = _native.face
-for _name in ("needle", "template", "photometric", "inertial", "face"):
+studio = _native.studio
+batch = _native.batch
+for _name in ("needle", "template", "photometric", "inertial", "face", "studio", "batch"):
     _sys.modules[f"{__name__}.{_name}"] = getattr(_native, _name)
 
 __all__ = [
@@ -63,6 +67,8 @@ __all__ = [
     "photometric",
     "inertial",
     "face",
+    "studio",
+    "batch",
     "DynamicShapesError",
     "InvalidInputError",
     "FormatError",

@@ -7,10 +7,12 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse
 
+from . import batch as batch
 from . import face as face
 from . import inertial as inertial
 from . import needle as needle
 from . import photometric as photometric
+from . import studio as studio
 from . import template as template
 from ._errors import DynamicShapesError as DynamicShapesError
 from ._errors import FileError as FileError
