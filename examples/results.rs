@@ -498,7 +498,7 @@ fn render_readme_block(full: &[Record], quick: &[Record]) -> String {
         let _ = writeln!(
             s,
             "| `{krate}` | {met} of {stated}{} | [results](docs/results.md#{anchor}) |",
-            if any_quick { " (quick runs)" } else { "" }
+            if any_quick { " (with quick runs)" } else { "" }
         );
     }
     s
