@@ -347,6 +347,18 @@ fn needle_performer() -> skin_core::Result<Performer> {
     })
 }
 
+/// The needle performer and the studio's exercise of `seconds` with `seed`.
+fn needle_exercise(seconds: f64, seed: u64) -> skin_core::Result<(Performer, Motion)> {
+    let performer = needle_performer()?;
+    let motion = exercise_motion(
+        &performer.skeleton,
+        &ExerciseParams::default()
+            .with_duration_s(seconds)
+            .with_seed(seed),
+    )?;
+    Ok((performer, motion))
+}
+
 /// The training capture of the Rust example `needle_capture --quick`: the procedural
 /// performer (pose-driven shapes, no flap) turning through the studio's free exercise
 /// (`seconds` long, seed `seed`) at the motion's frame rate, seen by the studio ring of
@@ -366,13 +378,7 @@ fn needle_capture<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let (skeleton, cams, thetas, masks) = py
         .detach(|| -> skin_core::Result<_> {
-            let performer = needle_performer()?;
-            let motion = exercise_motion(
-                &performer.skeleton,
-                &ExerciseParams::default()
-                    .with_duration_s(seconds)
-                    .with_seed(seed),
-            )?;
+            let (performer, motion) = needle_exercise(seconds, seed)?;
             let rig = studio_ring(cameras, width, height)?;
             let cams = rig.cameras.clone();
             let spec = CaptureSpec::masks_only(rig).with_frame_rate_hz(1.0 / motion.frame_time_s);
@@ -419,13 +425,7 @@ fn needle_test_errors<'py>(
     }
     let errors = py
         .detach(|| -> needle_model::Result<needle_model::truth::Errors> {
-            let performer = needle_performer()?;
-            let motion = exercise_motion(
-                &performer.skeleton,
-                &ExerciseParams::default()
-                    .with_duration_s(seconds)
-                    .with_seed(seed),
-            )?;
+            let (performer, motion) = needle_exercise(seconds, seed)?;
             let spec = CaptureSpec::masks_only(studio_ring(3, 360, 240)?)
                 .with_frame_rate_hz(1.0 / motion.frame_time_s);
             let capture = Capture::new(&performer, &motion, spec)?;
