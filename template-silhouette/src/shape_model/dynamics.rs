@@ -71,8 +71,9 @@ impl Bank {
 /// 0.25–1 m below its support) damped by air within a second or two; the lags cover the
 /// trailing of cloth behind the body's speed. Five filters, not a fitted pole per
 /// component: the filters are fixed, so the whole model stays one linear least-squares fit
-/// (pose and dynamic parts together: fitted apart, the pose part's intercept absorbs the
-/// steady drag of a walk and the dynamic part loses it), stable by construction (every pole
+/// (pose and dynamic parts together: fitted apart, the pose part takes what the motion
+/// explains — a walk's steady drag, correlated with the walking poses — and the dynamic part
+/// loses it), stable by construction (every pole
 /// inside the unit circle).
 pub(crate) fn default_poles() -> Vec<DynamicPole> {
     vec![

@@ -11,7 +11,7 @@ use skin_core::math::DVec3;
 use super::{FrameStream, Parts, ShapeModel, TrainingFrame};
 use crate::error::{Context, Error, Result, ResultExt};
 
-const MODEL_MAGIC: &[u8; 8] = b"DSSHAPE1";
+const MODEL_MAGIC: &[u8; 8] = b"DSSHAPE2";
 const SEQUENCE_MAGIC: &[u8; 8] = b"DSMOLD01";
 /// Largest JSON header read, bytes (a template of a million vertices fits).
 const MAX_HEADER_BYTES: u64 = 1 << 30;
@@ -91,7 +91,7 @@ impl ShapeModel {
     ///
     /// | bytes | content |
     /// |---|---|
-    /// | 8 | `DSSHAPE1` |
+    /// | 8 | `DSSHAPE2` |
     /// | 8 | `H`, the header's length (u64) |
     /// | `H` | the header, UTF-8 JSON: the template (mesh, skeleton, weights), the frame time, the parameters, the feature layout, the pose regression, the filters and the dynamic map |
     /// | `8 · n · k` | the residual basis `U` (f64), component after component, one normal offset per vertex |
@@ -121,12 +121,11 @@ impl ShapeModel {
         let mut r = BufReader::new(File::open(path).map_err(io(path))?);
         let parts: Parts = read_header(&mut r, path, MODEL_MAGIC, "shape model")?;
         let n = parts.template.vertex_count();
-        let nf = parts.feature_mean.len();
-        let k = parts.pose_weights.len() / (nf + 1).max(1);
+        let nf = parts.feature_rest.len();
+        let k = parts.pose_weights.len() / nf.max(1);
         let outputs = parts.params.poles.len() * parts.input_scale.len();
         let consistent = k > 0
-            && parts.pose_weights.len() == (nf + 1) * k
-            && parts.feature_scale.len() == nf
+            && parts.pose_weights.len() == nf * k
             && nf == parts.layout.pose_len()
             && parts.input_scale.len() == parts.layout.motion_len()
             && parts.dynamic_weights.len() == outputs * k

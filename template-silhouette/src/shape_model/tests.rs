@@ -107,6 +107,40 @@ fn the_pose_part_learns_the_bulge_and_the_dynamic_part_the_swing_on_an_unseen_st
 }
 
 #[test]
+fn validation_over_many_sequences_groups_them_and_keeps_the_signal() {
+    // Twelve short sequences: more than MAX_FOLDS, so groups of them are left out in turn.
+    let mut train: Vec<TrainingSequence> = (0..12)
+        .map(|i| performer(60, 0.5 * i as f64, i % 2 == 1))
+        .collect();
+    let params = ShapeModelParams {
+        cross_validate: true,
+        ..small()
+    };
+    let model = ShapeModel::learn(&bendy(), &mut train[..], &params).unwrap();
+    let (ridge, validation) = model.ridge();
+    assert!(validation.is_some_and(|e| e.is_finite() && e > 0.0));
+    assert!(
+        ridge[0] < RIDGE_GRID[RIDGE_GRID.len() - 1],
+        "ridge {ridge:?}"
+    );
+    let [lbs, _, full] = errors(&model, &performer(240, 0.9, true));
+    assert!(full < 0.5 * lbs, "full {full}, LBS {lbs}");
+}
+
+#[test]
+fn a_folds_training_equations_are_the_whole_minus_its_own() {
+    let x = DMatrix::from_fn(9, 3, |t, i| ((t * 3 + i) as f64 * 0.7).sin());
+    let y = DMatrix::from_fn(9, 2, |t, j| ((t + 5 * j) as f64 * 1.3).cos());
+    let (part, rest) = ([2, 3, 4], [0, 1, 5, 6, 7, 8]);
+    let direct = Normal::of(&x.select_rows(&rest), &y.select_rows(&rest));
+    let minus =
+        Normal::of(&x, &y).without(&Normal::of(&x.select_rows(&part), &y.select_rows(&part)));
+    assert!((direct.gram - minus.gram).norm() < 1e-12);
+    assert!((direct.rhs - minus.rhs).norm() < 1e-12);
+    assert!((direct.energy - minus.energy).abs() < 1e-12);
+}
+
+#[test]
 fn a_saved_model_loads_equal_and_drives_the_same() {
     let mut train = [performer(120, 0.0, true)];
     let model = ShapeModel::learn(&bendy(), &mut train[..], &small()).unwrap();
