@@ -20,8 +20,9 @@
 //! without an intercept, as SMPL's pose blend shapes: the model is zero at rest, where the
 //! template is the performer, so the ridge shrinks it towards the template — the one shape
 //! known to hold for every motion — and not towards the training motions' mean, which for a
-//! garment is the mean of those motions' swing (measured on the studio's skirt: with an
-//! intercept the suit-driven model's skirt error is 1.09–1.21 × LBS's, without it 1.00 ×).
+//! garment is the mean of those motions' swing (measured on the studio's skirt, 600 frames:
+//! with an intercept the model learned from the truth has 1.15 × LBS's skirt error in unseen
+//! motions, without it 0.97 ×).
 //! A linear regression, not needle-model's
 //! normalised radial basis functions over prototype poses: those interpolate between the
 //! training poses and fall back to their mean far from them, while a model captured on a
