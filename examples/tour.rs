@@ -5,7 +5,7 @@
 //! `figures.json` (`example_kit::report`); the full JSON stays in `figures.json`.
 //!
 //! Run with `cargo run --release --example tour [-- --full] [-- --out DIR] [-- --record]
-//! [-- --only a,b]`; `--record` commits each example's figures under `results/` (see
+//! [-- --only a,b] [-- --full --peers FILE]`; `--record` commits each example's figures under `results/` (see
 //! `example_kit::record`), from which `--example results` writes `docs/results.md`. Examples are
 //! discovered from `examples/*.rs` and `examples/*/main.rs` so a new example joins the tour by
 //! existing. `--full` runs them at full size. The examples' progress goes to stderr as they
@@ -40,7 +40,16 @@ struct Args {
     /// Run only these examples (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// With `--full`: the JSON lines the peer scripts printed in the same run
+    /// (`../shared/bench/peers/run_all.sh` writes them to `results/peers.jsonl`), passed to the
+    /// examples that compare against them ([`PEER_EXAMPLES`]), whose records then carry the
+    /// time and accuracy ratios to OpenCV and Open3D. Needs the peers' virtualenv: never in CI.
+    #[arg(long, value_name = "FILE", requires = "full")]
+    peers: Option<PathBuf>,
 }
+
+/// The examples that take `--peers FILE`.
+const PEER_EXAMPLES: [&str; 2] = ["photometric_normals", "surface_merge"];
 
 struct Outcome {
     name: String,
@@ -105,6 +114,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .stderr(Stdio::inherit());
         if !args.full {
             cmd.arg("--quick");
+        }
+        if let Some(peers) = args
+            .peers
+            .as_ref()
+            .filter(|_| PEER_EXAMPLES.contains(&name.as_str()))
+        {
+            cmd.arg("--peers").arg(std::path::absolute(peers)?);
         }
         let output = cmd.output()?;
         let seconds = start.elapsed().as_secs_f64();

@@ -457,6 +457,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "calibration_ms_per_camera": median(&cal_ms),
         "capture_s": capture_s,
     });
+    let peer_compared = flow_fast.is_some();
     if let Some(fast) = flow_fast {
         figures["flow_time_ratio_dis"] = fast["time_ratio_dis"].clone();
         figures["flow_epe_ratio_dis"] = fast["epe_ratio_dis"].clone();
@@ -593,6 +594,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .goal(Goal::AtMost(300.0)),
     ] {
         run.headline(h);
+    }
+    if peer_compared {
+        // Only with `--peers`: OpenCV's DIS medium measured in the same run.
+        run.headline(
+            Headline::new(
+                "flow_time_ratio_dis",
+                "fast flow setting's time over OpenCV DIS medium's (peer workload, same run)",
+                "×",
+            )
+            .goal(Goal::AtMost(1.0)),
+        );
+        run.headline(
+            Headline::new(
+                "flow_epe_ratio_dis",
+                "fast flow setting's EPE over OpenCV DIS medium's (peer workload)",
+                "×",
+            )
+            .goal(Goal::AtMost(1.0)),
+        );
     }
     run.finish(figures)?;
     Ok(())

@@ -49,7 +49,7 @@ use dynamic_shapes::photometric::{
     PoissonParams, PoissonSurface,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
-use example_kit::{Headline, Run};
+use example_kit::{Goal, Headline, Run};
 
 #[derive(Parser, Debug)]
 struct Args {
@@ -468,6 +468,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (merge, poisson) = (merge.clone(), poisson.clone());
         figures["merge_time_ratio_open3d"] = merge;
         figures["poisson_time_ratio_open3d"] = poisson;
+        let peer_quality = &p0["peer"]["peer_quality"];
+        for (ours, theirs, ratio) in [
+            (
+                "err_observed_mm",
+                "err_observed_mm",
+                "poisson_err_observed_ratio_open3d",
+            ),
+            ("err_all_mm", "err_all_mm", "poisson_err_all_ratio_open3d"),
+        ] {
+            figures[ratio] = json!(
+                p0[ours].as_f64().unwrap_or(f64::NAN)
+                    / peer_quality[theirs].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        for (key, label) in [
+            (
+                "merge_time_ratio_open3d",
+                "merge time over Open3D's uniform TSDF (6a, same run)",
+            ),
+            (
+                "poisson_time_ratio_open3d",
+                "screened Poisson time over Open3D's (6b, depth 8, same run)",
+            ),
+            (
+                "poisson_err_observed_ratio_open3d",
+                "screened Poisson error where sampled over Open3D's (6b)",
+            ),
+            (
+                "poisson_err_all_ratio_open3d",
+                "screened Poisson error over the whole surface over Open3D's (6b, per vertex)",
+            ),
+        ] {
+            run.headline(Headline::new(key, label, "×").goal(Goal::AtMost(1.0)));
+        }
     }
     for h in [
         Headline::new("merge_ms", "VRIP merge, 8 views, 2 mm voxels", "ms")
