@@ -230,6 +230,7 @@ fn coverage_budget_with_exact_normals() {
         iso_value: 0.0,
         levels: Vec::new(),
         dropped_components: 0,
+        times: Default::default(),
     };
     let metric = MetricParams::default();
     let report = |label: &str, pass: &Pass, surface: &SurfaceParams, filled: Option<&TriMesh>| {

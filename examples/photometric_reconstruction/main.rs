@@ -627,6 +627,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for key in FLOOR_KEYS {
         figures[key] = perfect[key].clone();
     }
+    stage_times(&mut figures, &rec, t_two_pass);
     figures["truth_vertices"] = json!(mesh.vertex_count());
     figures["truth_capture_s"] = json!(t_capture);
     figures["truth_facet_gap_mean_deg"] = json!(truth_gap.mean_deg);
@@ -1153,6 +1154,7 @@ fn subject_run(
         "hull_s": obs.t_hull,
         "two_pass_s": two_pass_s,
     });
+    stage_times(&mut out, &rec, two_pass_s);
     for key in UNREFINED_KEYS {
         out[key] = p2[key].clone();
     }
@@ -1780,6 +1782,50 @@ fn perfect_geometry(
         "surface_median_mm": d.median_mm,
         "surface_p95_mm": d.p95_mm,
     }))
+}
+
+/// Where the two passes' wall time goes: for each pass (`pass1_`, `pass2_`) the proxy, the
+/// per-view stage (integration, matching, offsets), the merge (preparing the views, finding
+/// the blocks, filling the voxels, finding the cells, marching cubes), the refinement
+/// (targets, solve) and the hole filling (samples, solve, cells, marching cubes), s; and
+/// `two_pass_other_s`, the part of `two_pass_s` outside every pass's stages (the hull's
+/// samples, the passes' bookkeeping).
+fn stage_times(figures: &mut serde_json::Value, rec: &Reconstruction, two_pass_s: f64) {
+    let mut staged = 0.0;
+    for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
+        let (t, v, m, p) = (
+            &pass.times,
+            &pass.views.times,
+            &pass.merged.times,
+            &pass.filled.times,
+        );
+        let refine = pass.refined.unwrap_or_default();
+        staged += t.proxy_s + t.per_view_s + t.merge_s + t.refine_s + t.poisson_s;
+        for (key, value) in [
+            ("proxy_s", t.proxy_s),
+            ("per_view_s", t.per_view_s),
+            ("integration_s", v.integration_s),
+            ("matching_s", v.matching_s),
+            ("offsets_s", v.offsets_s),
+            ("merge_s", t.merge_s),
+            ("merge_prepare_s", m.prepare_s),
+            ("merge_blocks_s", m.blocks_s),
+            ("merge_fill_s", m.fill_s),
+            ("merge_cells_s", m.cells_s),
+            ("merge_march_s", m.march_s),
+            ("refine_s", t.refine_s),
+            ("refine_targets_s", refine.targets_s),
+            ("refine_solve_s", refine.solve_s),
+            ("poisson_s", t.poisson_s),
+            ("poisson_samples_s", p.samples_s),
+            ("poisson_solve_s", p.solve_s),
+            ("poisson_cells_s", p.cells_s),
+            ("poisson_march_s", p.march_s),
+        ] {
+            figures[format!("{name}_{key}")] = json!(value);
+        }
+    }
+    figures["two_pass_other_s"] = json!(two_pass_s - staged);
 }
 
 /// The median distance of the visual hull's surface (its per-view meshes' vertices) to the

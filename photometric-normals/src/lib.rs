@@ -142,7 +142,7 @@ pub use matching::{
     depth_map_mesh, match_pair, matching_images, MatchMetric, MatchStats, MatchView,
     MatchingParams, PairMatches, SubPixel, ViewMatches,
 };
-pub use merge::{merge_views, MergeParams, MergeStats, MergeView, MergedSurface};
+pub use merge::{merge_views, MergeParams, MergeStats, MergeTimes, MergeView, MergedSurface};
 #[cfg(feature = "validation")]
 #[cfg_attr(docsrs, doc(cfg(feature = "validation")))]
 pub use metrics::{
@@ -161,7 +161,9 @@ pub use offsets::{
     ViewSurfaces,
 };
 pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
-pub use poisson::{screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface};
+pub use poisson::{
+    screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface, PoissonTimes,
+};
 pub use proxy::{mesh_proxy_depth, PolygonalHull, PolygonalHullParams};
 pub use reconstruct::{
     hull_samples, reconstruct, reconstruct_from_hull_depths, Pass, PassTimes, ReconstructParams,

@@ -75,8 +75,9 @@ pub(crate) type NodeMap<K, V> = HashMap<K, V, BuildHasherDefault<NodeHasher>>;
 pub(crate) type NodeSet<K> = HashSet<K, BuildHasherDefault<NodeHasher>>;
 
 /// Whether the cell at `cell` has all eight corners observed and corners on both sides of
-/// `iso`: exactly the cells [`march_cells`] draws something in (a cheap test to run in
-/// parallel before the sequential polygonisation).
+/// `iso`: exactly the cells [`march_cells_par`] draws something in (a cheap test to run in
+/// parallel before the polygonisation; the reference of the merge's `straddling_cells`).
+#[cfg(test)]
 pub(crate) fn cell_straddles(
     cell: Node,
     mut value: impl FnMut(Node) -> Option<f64>,
@@ -209,6 +210,7 @@ fn cell_loops(f: &[f64; 8]) -> Vec<Vec<usize>> {
 ///
 /// # Errors
 /// Errors of [`TriMesh::new`] (none for a valid field).
+#[cfg(test)]
 pub(crate) fn march_cells(
     cells: impl IntoIterator<Item = Node>,
     value: impl FnMut(Node) -> Option<f64>,
@@ -261,7 +263,9 @@ pub(crate) mod tests_support {
     }
 }
 
-/// [`march_cells`] with a choice of vertex placement on the edges.
+/// One serial march (the reference of [`march_cells_par`]) with a choice of vertex placement
+/// on the edges.
+#[cfg(test)]
 pub(crate) fn march_cells_with(
     cells: impl IntoIterator<Item = Node>,
     value: impl FnMut(Node) -> Option<f64>,
@@ -281,7 +285,10 @@ struct Chunk {
     keys: Vec<Option<(Node, u8)>>,
 }
 
-/// [`march_cells_with`] over chunks of `cells` in parallel, each with its own value function
+/// Polygonises the `iso` surface of `value` over `cells` (each by its lowest node; cells with
+/// an unobserved (`None`) corner are skipped), nodes mapped to world points by `position`,
+/// vertices placed on the edges by `fit`:
+/// over chunks of `cells` in parallel, each with its own value function
 /// from `make_value` (e.g. with a cache of its own), stitched in order by shared grid edges:
 /// the same mesh, vertex for vertex and face for face, as one serial march over `cells`.
 pub(crate) fn march_cells_par<V: FnMut(Node) -> Option<f64>>(

@@ -27,6 +27,8 @@
 //! voxels dense. Blocks are filled in parallel (rayon); each voxel's value depends only on
 //! the views, so the result does not depend on the thread count.
 
+use std::time::Instant;
+
 use rayon::prelude::*;
 use skin_core::camera::Camera;
 use skin_core::check;
@@ -34,13 +36,15 @@ use skin_core::image::{distance_to_background, Mask};
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 
-use crate::marching_cubes::{cell_straddles, march_cells, Node, NodeMap, NodeSet};
+use crate::marching_cubes::{march_cells_par, EdgeFit, Node, NodeMap, NodeSet};
 use crate::{Context, DepthMap, Error, Result, ResultExt};
 
 /// Voxels along each side of a block of the sparse volume.
 pub(crate) const BLOCK_VOXELS: usize = 8;
 const BLOCK: i64 = BLOCK_VOXELS as i64;
 const BLOCK_LEN: usize = BLOCK_VOXELS * BLOCK_VOXELS * BLOCK_VOXELS;
+/// Cells per parallel task of the merge's marching cubes.
+const MARCH_CHUNK: usize = 32_768;
 
 /// Parameters of the volumetric merge.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,6 +166,21 @@ pub struct MergeStats {
     pub volume_bytes: usize,
 }
 
+/// Wall times of a merge's stages, s.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MergeTimes {
+    /// Preparing the views: per-pixel weights (boundary distance, cosine, inverse distance).
+    pub prepare_s: f64,
+    /// Finding the blocks each view's ramp crosses.
+    pub blocks_s: f64,
+    /// Filling the blocks' voxels (every voxel projected into the views that may see it).
+    pub fill_s: f64,
+    /// Finding the cells with a sign change.
+    pub cells_s: f64,
+    /// Marching cubes over those cells.
+    pub march_s: f64,
+}
+
 /// The merged surface and the volume's size.
 #[derive(Debug, Clone)]
 pub struct MergedSurface {
@@ -170,6 +189,8 @@ pub struct MergedSurface {
     pub mesh: TriMesh,
     /// Volume size figures.
     pub stats: MergeStats,
+    /// Wall times of the stages.
+    pub times: MergeTimes,
 }
 
 /// One view, prepared: per-pixel depth (NaN where unusable) and weight.
@@ -185,11 +206,15 @@ impl PreparedView<'_> {
     /// Bilinear depth and weight at a pixel position, `None` unless all four pixels around it
     /// have a surface without a depth jump between them.
     fn sample(&self, px: DVec2, max_jump: f64) -> Option<(f64, f64)> {
-        let (fx, fy) = (px.x.floor(), px.y.floor());
-        if fx < 0.0 || fy < 0.0 || fx + 1.0 >= self.width as f64 || fy + 1.0 >= self.height as f64 {
+        // `0 <= px < size − 1` is `floor(px) + 1 < size`; on that range truncation is
+        // `floor`, exactly, and far cheaper than the libm call on this hot path (every voxel
+        // × view of the merge). NaN fails the test.
+        let inside = |v: f64, size: usize| v >= 0.0 && v < (size - 1) as f64;
+        if !(inside(px.x, self.width) && inside(px.y, self.height)) {
             return None;
         }
-        let (x, y) = (fx as usize, fy as usize);
+        let (x, y) = (px.x as usize, px.y as usize);
+        let (fx, fy) = (x as f64, y as f64);
         let (tx, ty) = (px.x - fx, px.y - fy);
         let i = y * self.width + x;
         let idx = [i, i + 1, i + self.width, i + self.width + 1];
@@ -419,6 +444,60 @@ fn fill_block(b: Node, views: &[PreparedView], params: &MergeParams) -> Block {
     Block { distance, weight }
 }
 
+/// Nodes along each side of a block's cells: its voxels and the next blocks' first layer.
+const PAD: usize = BLOCK_VOXELS + 1;
+
+/// The cells of block `b` (by their lowest node, in the block's voxel order) whose eight
+/// corners are all observed and not all on one side of the zero level: exactly the cells
+/// the marching cubes draw something in (`cell_straddles` with iso 0). `around[k]` is the
+/// block at offset `(k & 1, (k >> 1) & 1, (k >> 2) & 1)` from `b` (`None`: not allocated),
+/// which holds the cells' corners beyond `b`'s last layer. The corner values are gathered
+/// once into a padded grid instead of eight look-ups per cell through the neighbour blocks.
+fn straddling_cells(b: Node, around: &[Option<&Block>; 8]) -> Vec<Node> {
+    let mut value = [0.0f64; PAD * PAD * PAD];
+    let mut observed = [false; PAD * PAD * PAD];
+    for z in 0..PAD {
+        for y in 0..PAD {
+            for x in 0..PAD {
+                let k = usize::from(x >= BLOCK_VOXELS)
+                    | usize::from(y >= BLOCK_VOXELS) << 1
+                    | usize::from(z >= BLOCK_VOXELS) << 2;
+                let Some(block) = around[k] else { continue };
+                let i = x % BLOCK_VOXELS
+                    + BLOCK_VOXELS * (y % BLOCK_VOXELS + BLOCK_VOXELS * (z % BLOCK_VOXELS));
+                if block.weight[i] > 0.0 {
+                    let j = x + PAD * (y + PAD * z);
+                    observed[j] = true;
+                    value[j] = f64::from(block.distance[i]);
+                }
+            }
+        }
+    }
+    (0..BLOCK_LEN)
+        .filter(|&i| {
+            let (x, y, z) = (
+                i % BLOCK_VOXELS,
+                (i / BLOCK_VOXELS) % BLOCK_VOXELS,
+                i / (BLOCK_VOXELS * BLOCK_VOXELS),
+            );
+            let (mut below, mut above) = (false, false);
+            for c in 0..8 {
+                let j = x + (c & 1) + PAD * (y + ((c >> 1) & 1) + PAD * (z + ((c >> 2) & 1)));
+                if !observed[j] {
+                    return false;
+                }
+                if value[j] < 0.0 {
+                    below = true;
+                } else {
+                    above = true;
+                }
+            }
+            below && above
+        })
+        .map(|i| block_node(b, i))
+        .collect()
+}
+
 /// Whether any voxel of block `b` can get a sample from view `v`: the block's pixel footprint
 /// (its corners' projections) overlaps the image, and the distances of the block's points to
 /// the camera overlap the ramp around the depths in that footprint. A conservative test: it
@@ -523,21 +602,29 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
             what: "views to merge",
         });
     }
+    let mut times = MergeTimes::default();
+    let t = Instant::now();
     let prepared = views
         .iter()
         .enumerate()
         .map(|(i, v)| prepare(v, params).at(Context::Camera(i)))
         .collect::<Result<Vec<_>>>()?;
+    times.prepare_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let mut keys = NodeSet::default();
     for (i, v) in prepared.iter().enumerate() {
         keys.extend(view_blocks(v, params).at(Context::Camera(i))?);
     }
     let mut keys: Vec<Node> = keys.into_iter().collect();
     keys.sort_unstable();
+    times.blocks_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let blocks: Vec<Block> = keys
         .par_iter()
         .map(|&b| fill_block(b, &prepared, params))
         .collect();
+    times.fill_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let voxels_observed = blocks
         .iter()
         .map(|b| b.weight.iter().filter(|&&w| w > 0.0).count())
@@ -557,7 +644,7 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
     // Only cells with a sign change draw anything: find them in parallel (same order as a
     // sequential walk over the blocks, so the mesh does not depend on the thread count).
     // Per block, the blocks at offsets (0|1, 0|1, 0|1) hold all its cells' corners: look
-    // them up once, then read the voxels directly.
+    // them up once, then read the voxels directly (`straddling_cells`).
     let cells: Vec<Node> = keys
         .par_iter()
         .enumerate()
@@ -571,31 +658,24 @@ pub fn merge_views(views: &[MergeView], params: &MergeParams) -> Result<MergedSu
                     .get(&[b[0] + o[0], b[1] + o[1], b[2] + o[2]])
                     .map(|&j| &blocks[j])
             });
-            let local = move |l: [i64; 3]| -> Option<f64> {
-                let k = usize::from(l[0] >= BLOCK)
-                    | usize::from(l[1] >= BLOCK) << 1
-                    | usize::from(l[2] >= BLOCK) << 2;
-                let block = around[k]?;
-                let m = l.map(|c| c % BLOCK);
-                let i = (m[0] + BLOCK * (m[1] + BLOCK * m[2])) as usize;
-                (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
-            };
-            (0..BLOCK_LEN).filter_map(move |i| {
-                let c = block_node(b, i);
-                let l = [
-                    c[0] - b[0] * BLOCK,
-                    c[1] - b[1] * BLOCK,
-                    c[2] - b[2] * BLOCK,
-                ];
-                let at =
-                    |n: Node| local([n[0] - c[0] + l[0], n[1] - c[1] + l[1], n[2] - c[2] + l[2]]);
-                cell_straddles(c, at, 0.0).then_some(c)
-            })
+            straddling_cells(b, &around)
         })
         .collect();
-    let mesh = march_cells(cells, value, 0.0, |n| node_position(n, params.voxel_m))?;
+    times.cells_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    // In parallel chunks, stitched in order: the same mesh as one serial march.
+    let mesh = march_cells_par(
+        &cells,
+        MARCH_CHUNK,
+        || value,
+        0.0,
+        |n| node_position(n, params.voxel_m),
+        EdgeFit::Linear,
+    )?;
+    times.march_s = t.elapsed().as_secs_f64();
     Ok(MergedSurface {
         mesh,
+        times,
         stats: MergeStats {
             blocks: keys.len(),
             voxels_allocated: keys.len() * BLOCK_LEN,
@@ -653,6 +733,55 @@ mod tests {
         assert!(med < 0.002, "median {med}");
         assert!(merged.stats.voxels_observed > 0);
         assert!(merged.stats.voxels_observed <= merged.stats.voxels_allocated);
+    }
+
+    #[test]
+    fn straddling_cells_are_the_cells_that_straddle() {
+        // Eight blocks around block `b` (some missing), distances of both signs and a
+        // quarter of the voxels unobserved; the padded scan must find exactly the cells
+        // `cell_straddles` accepts.
+        use crate::marching_cubes::cell_straddles;
+        let rng = skin_core::random::SplitMix64::new(7);
+        let u = rng.uniform(8 * 2 * BLOCK_LEN);
+        let blocks: Vec<Block> = (0..8)
+            .map(|k| Block {
+                distance: (0..BLOCK_LEN)
+                    .map(|i| (u[2 * (k * BLOCK_LEN + i)] - 0.45) as f32)
+                    .collect(),
+                weight: (0..BLOCK_LEN)
+                    .map(|i| f32::from(u[2 * (k * BLOCK_LEN + i) + 1] > 0.25))
+                    .collect(),
+            })
+            .collect();
+        let b: Node = [-3, 2, 5];
+        for missing in [None, Some(3), Some(6)] {
+            let around: [Option<&Block>; 8] =
+                std::array::from_fn(|k| (Some(k) != missing).then(|| &blocks[k]));
+            let value = |n: Node| -> Option<f64> {
+                let l = [
+                    n[0] - b[0] * BLOCK,
+                    n[1] - b[1] * BLOCK,
+                    n[2] - b[2] * BLOCK,
+                ];
+                let k = usize::from(l[0] >= BLOCK)
+                    | usize::from(l[1] >= BLOCK) << 1
+                    | usize::from(l[2] >= BLOCK) << 2;
+                let block = around[k]?;
+                let m = l.map(|c| c % BLOCK);
+                let i = (m[0] + BLOCK * (m[1] + BLOCK * m[2])) as usize;
+                (block.weight[i] > 0.0).then(|| f64::from(block.distance[i]))
+            };
+            let expected: Vec<Node> = (0..BLOCK_LEN)
+                .map(|i| block_node(b, i))
+                .filter(|&c| cell_straddles(c, value, 0.0))
+                .collect();
+            assert!(!expected.is_empty());
+            assert_eq!(
+                straddling_cells(b, &around),
+                expected,
+                "missing {missing:?}"
+            );
+        }
     }
 
     #[test]

@@ -126,6 +126,14 @@ struct VertexData {
 }
 
 impl VertexData {
+    /// The vertex normals only (no edges: for the samples without the local deviation).
+    fn normals_only(mesh: &TriMesh) -> Result<Self> {
+        Ok(Self {
+            normals: vertex_normals(mesh, NormalWeighting::Area)?,
+            edges: Vec::new(),
+        })
+    }
+
     fn new(mesh: &TriMesh) -> Result<Self> {
         let normals = vertex_normals(mesh, NormalWeighting::Area)?;
         let mut edges: Vec<(usize, usize)> = mesh
@@ -531,7 +539,7 @@ pub fn vertex_normal_samples(
     mut visit: impl FnMut(usize, VertexNormalSample),
 ) -> Result<()> {
     let per_camera = covered_renders(cameras, normals, silhouettes, surfaces, mesh, params)?;
-    let data = VertexData::new(mesh)?;
+    let data = VertexData::normals_only(mesh)?;
     let tol = 0.5 * params.near_m;
     for (c, (covered, hit)) in per_camera.into_iter().enumerate() {
         let to_world = cameras[c].world_from_camera();

@@ -49,6 +49,7 @@ use std::time::Instant;
 
 use nalgebra::DMatrix;
 use nalgebra_sparse::CscMatrix;
+use rayon::prelude::*;
 use skin_core::camera::Camera;
 use skin_core::check;
 use skin_core::image::Mask;
@@ -210,45 +211,73 @@ pub fn target_normals(
             }
         }
     }
-    if params.correction_rounds > 0 {
-        correct_low_frequencies(mesh, &mut targets, params.correction_rounds)?;
-    }
-    if params.smoothing > 0 {
+    if params.correction_rounds > 0 || params.smoothing > 0 {
         let edges = unique_edges(mesh)?;
+        if params.correction_rounds > 0 {
+            correct_low_frequencies(mesh, &edges, &mut targets, params.correction_rounds)?;
+        }
         average_rounds(&edges, &mut targets, params.smoothing);
     }
     Ok(targets)
 }
 
 /// `rounds` of 1-ring averaging (renormalised) of a field over the vertices that have a value.
+/// `edges`: unique, each `[a, b]` with `a < b`, sorted (as [`unique_edges`] gives them).
+///
+/// Each vertex gathers its neighbours' values in ascending index order (every vertex in
+/// parallel): the order in which a scatter over the sorted edges would add them, so the sums
+/// are the same, bit for bit.
 fn average_rounds(edges: &[[u32; 2]], field: &mut [Option<DVec3>], rounds: usize) {
+    if rounds == 0 {
+        return;
+    }
+    // Neighbours of every vertex (CSR), in the order of the sorted edges: for vertex v the
+    // edges [a, v] (a < v) come before the edges [v, b], each run in ascending order.
+    let n = field.len();
+    let mut offsets = vec![0usize; n + 1];
+    for &[a, b] in edges {
+        offsets[a as usize + 1] += 1;
+        offsets[b as usize + 1] += 1;
+    }
+    for i in 0..n {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut neighbours = vec![0u32; offsets[n]];
+    for &[a, b] in edges {
+        neighbours[fill[a as usize]] = b;
+        fill[a as usize] += 1;
+        neighbours[fill[b as usize]] = a;
+        fill[b as usize] += 1;
+    }
+    let mut next = vec![None; n];
     for _ in 0..rounds {
-        let mut acc: Vec<DVec3> = field.iter().map(|t| t.unwrap_or(DVec3::ZERO)).collect();
-        for &[a, b] in edges {
-            let (a, b) = (a as usize, b as usize);
-            if let (Some(ta), Some(tb)) = (field[a], field[b]) {
-                acc[a] += tb;
-                acc[b] += ta;
-            }
-        }
-        for (t, a) in field.iter_mut().zip(acc) {
-            if t.is_some() {
-                *t = a.try_normalize();
-            }
-        }
+        next.par_iter_mut().enumerate().for_each(|(v, out)| {
+            *out = field[v].and_then(|own| {
+                let mut acc = own;
+                for &u in &neighbours[offsets[v]..offsets[v + 1]] {
+                    if let Some(t) = field[u as usize] {
+                        acc += t;
+                    }
+                }
+                acc.try_normalize()
+            });
+        });
+        field.copy_from_slice(&next);
     }
 }
 
 /// Nehab 2005's first step ([`RefineParams::correction_rounds`]): each target is rotated by
 /// the rotation that takes the `rounds`-averaged targets onto the `rounds`-averaged mesh
 /// normals (turned to agree with the target), so the targets keep only their high
-/// frequencies. A vertex whose averaged fields vanish loses its target.
+/// frequencies. A vertex whose averaged fields vanish loses its target. `edges`: the mesh's
+/// unique edges.
 fn correct_low_frequencies(
     mesh: &TriMesh,
+    edges: &[[u32; 2]],
     targets: &mut [Option<DVec3>],
     rounds: usize,
 ) -> Result<()> {
-    let edges = unique_edges(mesh)?;
     let own = vertex_normals(mesh, NormalWeighting::Area)?;
     // The mesh's normals where a target is, oriented as the target (the metric compares
     // without the mesh's orientation).
@@ -265,8 +294,8 @@ fn correct_low_frequencies(
         .zip(&low_mesh)
         .map(|(t, m)| m.and(*t))
         .collect();
-    average_rounds(&edges, &mut low_mesh, rounds);
-    average_rounds(&edges, &mut low_targets, rounds);
+    average_rounds(edges, &mut low_mesh, rounds);
+    average_rounds(edges, &mut low_targets, rounds);
     for ((t, lt), lm) in targets.iter_mut().zip(low_targets).zip(low_mesh) {
         *t = match (*t, lt, lm) {
             (Some(t), Some(lt), Some(lm)) => {

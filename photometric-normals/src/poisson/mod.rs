@@ -53,6 +53,8 @@
 //! (the cells to march, small components dropped); this file holds the public types and
 //! [`screened_poisson`].
 
+use std::time::Instant;
+
 use skin_core::check;
 use skin_core::math::DVec3;
 use skin_core::mesh::{vertex_normals, NormalWeighting, TriMesh};
@@ -221,6 +223,19 @@ pub struct PoissonLevel {
     pub residual: f64,
 }
 
+/// Wall times of a reconstruction's stages, s.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PoissonTimes {
+    /// The samples in the unit cube and their areas (the local sample density).
+    pub samples_s: f64,
+    /// Every level assembled and solved, coarse to fine.
+    pub solve_s: f64,
+    /// The iso-value and the finest cells that can hold the surface.
+    pub cells_s: f64,
+    /// Marching cubes over those cells and the small components dropped.
+    pub march_s: f64,
+}
+
 /// A screened Poisson reconstruction.
 #[derive(Debug, Clone)]
 pub struct PoissonSurface {
@@ -232,6 +247,8 @@ pub struct PoissonSurface {
     pub levels: Vec<PoissonLevel>,
     /// Connected components dropped as specks ([`PoissonParams::min_component_fraction`]).
     pub dropped_components: usize,
+    /// Wall times of the stages.
+    pub times: PoissonTimes,
 }
 
 /// Screened Poisson reconstruction of a closed surface from oriented, weighted samples (see
@@ -280,8 +297,14 @@ pub fn screened_poisson(
         }
         check::positive("weight", s.weight)?;
     }
+    let mut times = PoissonTimes::default();
+    let t = Instant::now();
     let (unit, origin, side) = unit_samples(samples, params.scale, params.depth);
+    times.samples_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let (levels, figures) = solve_hierarchy(&unit, params)?;
+    times.solve_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let mut comp = Composite {
         levels: &levels,
         memo: NodeMap::default(),
@@ -297,6 +320,8 @@ pub fn screened_poisson(
     comp.outside = iso + 0.5;
     let outside = comp.outside;
     let cells = extraction_cells(&levels, iso, outside);
+    times.cells_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let hf = levels[finest].h();
     let mesh = march_cells_par(
         &cells,
@@ -314,11 +339,13 @@ pub fn screened_poisson(
         EdgeFit::Cubic,
     )?;
     let (mesh, dropped_components) = drop_small_components(mesh, params.min_component_fraction)?;
+    times.march_s = t.elapsed().as_secs_f64();
     Ok(PoissonSurface {
         mesh,
         iso_value: iso,
         levels: figures,
         dropped_components,
+        times,
     })
 }
 

@@ -146,43 +146,65 @@ pub(super) fn grid_kernel_areas(qs: &[DVec3], depth: u32) -> Option<Vec<f64>> {
         .collect();
     order.par_sort_unstable();
     let mut runs: NodeMap<u64, (u32, u32)> = NodeMap::default();
+    let mut cells: Vec<(u32, u32)> = Vec::new();
     let mut start = 0usize;
     for i in 1..=order.len() {
         if i == order.len() || order[i].0 != order[start].0 {
             runs.insert(order[start].0, (start as u32, i as u32));
+            cells.push((start as u32, i as u32));
             start = i;
         }
     }
     let points: Vec<DVec3> = order.iter().map(|&(_, i)| qs[i as usize]).collect();
     let (half2, r2_max) = (cell * cell, r * r);
-    let gather = |q: DVec3, reach: i64, d2: &mut Vec<f64>| {
-        d2.clear();
-        let c = coords(q);
+    // The samples of the cells within `reach` of cell `c`, cell by cell in z, y, x order.
+    let candidates = |c: [i64; 3], reach: i64, out: &mut Vec<DVec3>| {
+        out.clear();
         for z in (c[2] - reach).max(0)..=(c[2] + reach).min(dims[2] - 1) {
             for y in (c[1] - reach).max(0)..=(c[1] + reach).min(dims[1] - 1) {
                 for x in (c[0] - reach).max(0)..=(c[0] + reach).min(dims[0] - 1) {
                     if let Some(&(a, b)) = runs.get(&key([x, y, z])) {
-                        d2.extend(
-                            points[a as usize..b as usize]
-                                .iter()
-                                .map(|p| (*p - q).length_squared()),
-                        );
+                        out.extend_from_slice(&points[a as usize..b as usize]);
                     }
                 }
             }
         }
     };
-    Some(
-        qs.par_iter()
-            .map_init(Vec::new, |d2, &q| {
-                gather(q, 1, d2);
-                if d2.iter().filter(|&&d| d <= half2).count() < DENSITY_NEIGHBOURS {
-                    gather(q, 2, d2);
-                }
-                kernel_sum(d2, r2_max, DENSITY_NEIGHBOURS)
-            })
-            .collect(),
-    )
+    // Cell by cell: every sample of a cell has the same candidates (gathered once per cell,
+    // the wider ones only when a sample needs them), and each sample's squared distances to
+    // them, in their order, are what a gather per sample would give.
+    let per_cell: Vec<Vec<(u32, f64)>> = cells
+        .par_iter()
+        .map_init(
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(near, far, d2): &mut (Vec<DVec3>, Vec<DVec3>, Vec<f64>), &(a, b)| {
+                let c = coords(points[a as usize]);
+                candidates(c, 1, near);
+                far.clear();
+                order[a as usize..b as usize]
+                    .iter()
+                    .map(|&(_, i)| {
+                        let q = qs[i as usize];
+                        d2.clear();
+                        d2.extend(near.iter().map(|p| (*p - q).length_squared()));
+                        if d2.iter().filter(|&&d| d <= half2).count() < DENSITY_NEIGHBOURS {
+                            if far.is_empty() {
+                                candidates(c, 2, far);
+                            }
+                            d2.clear();
+                            d2.extend(far.iter().map(|p| (*p - q).length_squared()));
+                        }
+                        (i, kernel_sum(d2, r2_max, DENSITY_NEIGHBOURS))
+                    })
+                    .collect()
+            },
+        )
+        .collect();
+    let mut areas = vec![0.0; qs.len()];
+    for (i, a) in per_cell.into_iter().flatten() {
+        areas[i as usize] = a;
+    }
+    Some(areas)
 }
 
 /// [`kernel_areas`] with the neighbours from a kd-tree (the reference of
