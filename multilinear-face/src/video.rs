@@ -42,8 +42,8 @@ use rayon::prelude::*;
 use crate::klt::{track as klt_track, Klt, Pyramid, Scratch};
 use crate::model::MultilinearModel;
 use crate::tracking::{
-    fit_constants, fit_frame, mean_weights, reprojection_rms, shape_points, track_points,
-    FrameSystem, TrackParams, WeakPerspective,
+    fit_constants, fit_frame, mean_weights, reprojection_rms, track_points, FrameSystem,
+    TrackParams, WeakPerspective,
 };
 use crate::{Context, Error, Result, ResultExt};
 
@@ -353,12 +353,12 @@ pub fn track_video(
                 weights[t] = weights[s].clone();
                 cameras[t] = cameras[s];
             }
-            let ps = shape_points(model, &weights[s], &all)?;
+            let ps = model.face_points(&weights[s], &all)?;
             // Pass 1 starts frame t from frame s's weights: the same shape.
             let pt = if weights[t] == weights[s] {
                 ps.clone()
             } else {
-                shape_points(model, &weights[t], &all)?
+                model.face_points(&weights[t], &all)?
             };
             let (fs, ft) = (
                 facing(&ps, &tri_local, &cameras[s]),
