@@ -244,7 +244,12 @@ pub(crate) struct FrameSystem<'a> {
 }
 
 /// Coordinate descent on one frame (Eq. 5.8): the camera, then each per-frame attribute with
-/// the others fixed, `rounds` times; returns the camera.
+/// the others fixed, `rounds` times; returns the camera. `start`: the model points of
+/// `sys.points` for the given `weights`, when the caller has them.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the frame's system, its solve settings and start"
+)]
 pub(crate) fn fit_frame(
     model: &MultilinearModel,
     weights: &mut [DVector<f64>],
@@ -253,10 +258,14 @@ pub(crate) fn fit_frame(
     mean: &[DVector<f64>],
     prior: f64,
     rounds: usize,
+    mut start: Option<Vec<[f64; 3]>>,
 ) -> Result<WeakPerspective> {
     let mut cam = WeakPerspective::identity();
     for _ in 0..rounds.max(1) {
-        let pts = model.face_points(weights, sys.points)?;
+        let pts = match start.take() {
+            Some(pts) => pts,
+            None => model.face_points(weights, sys.points)?,
+        };
         cam = WeakPerspective::fit_weighted(&pts, sys.pixels, sys.z)?;
         for m in (0..weights.len()).filter(|&m| !constant[m]) {
             let (a, b) = projected_system(model, m, weights, &cam, sys.points, sys.pixels, sys.z)?;
@@ -307,15 +316,24 @@ pub(crate) fn reprojection_rms(
     sys: &FrameSystem<'_>,
 ) -> Result<f64> {
     let pts = model.face_points(weights, sys.points)?;
+    Ok(points_reprojection_rms(&pts, cam, sys.pixels))
+}
+
+/// RMS distance between the projections of model points `pts` and the observed pixels, px.
+pub(crate) fn points_reprojection_rms(
+    pts: &[[f64; 3]],
+    cam: &WeakPerspective,
+    pixels: &[[f64; 2]],
+) -> f64 {
     let se: f64 = pts
         .iter()
-        .zip(sys.pixels)
+        .zip(pixels)
         .map(|(x, p)| {
             let q = cam.project(*x);
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         })
         .sum();
-    Ok((se / pts.len().max(1) as f64).sqrt())
+    (se / pts.len().max(1) as f64).sqrt()
 }
 
 /// Tracks the model through 2D point tracks: `frames[t][k]` is the pixel position of model
@@ -425,6 +443,7 @@ pub fn track_points(
                 &mean,
                 params.prior,
                 params.rounds,
+                None,
             )
             .at(Context::Frame(t))?;
         }
