@@ -203,10 +203,17 @@ impl MultilinearModel {
     }
 
     /// `ℳ ×ₙ wₙᵀ` over the modes other than `skip`, as a `3V × (rₛₖᵢₚ or 1)` matrix (weights
-    /// already checked). Each row of `ℳ` (one coordinate: its `r₁ × r₂ × ⋯` block, row-major)
-    /// is viewed as `outer × rₛₖᵢₚ × inner` (the modes before and after `skip`) and contracted
-    /// with the Kronecker product of the other modes' weights, one pass over the tensor.
-    fn contract(&self, weights: &[DVector<f64>], skip: Option<usize>) -> Result<DMatrix<f64>> {
+    /// already checked), or only the rows of `vertices` (`3 × vertices.len()` rows, in their
+    /// order; indices checked). Each row of `ℳ` (one coordinate: its `r₁ × r₂ × ⋯` block,
+    /// row-major) is viewed as `outer × rₛₖᵢₚ × inner` (the modes before and after `skip`) and
+    /// contracted with the Kronecker product of the other modes' weights, one pass over the
+    /// tensor. A row's value does not depend on which other rows are computed.
+    fn contract(
+        &self,
+        weights: &[DVector<f64>],
+        skip: Option<usize>,
+        vertices: Option<&[usize]>,
+    ) -> Result<DMatrix<f64>> {
         let ranks = self.ranks();
         let block: usize = ranks.iter().product();
         let (cols, inner) = match skip {
@@ -226,10 +233,21 @@ impl MultilinearModel {
                 *c *= w[(k / stride) % ranks[n]];
             }
         }
-        let rows = self.core.shape()[0];
-        let mut out = DMatrix::zeros(rows, cols);
+        let data = self.core.data();
+        let rows: Vec<&[f64]> = match vertices {
+            None => data.chunks_exact(block).collect(),
+            Some(vs) => {
+                let mut rows = Vec::with_capacity(3 * vs.len());
+                for &v in vs {
+                    skin_core::check::index("vertex", v, self.vertex_count)?;
+                    rows.extend(data[3 * v * block..3 * (v + 1) * block].chunks_exact(block));
+                }
+                rows
+            }
+        };
+        let mut out = DMatrix::zeros(rows.len(), cols);
         let mut acc = vec![0.0; cols];
-        for (i, row) in self.core.data().chunks_exact(block).enumerate() {
+        for (i, row) in rows.into_iter().enumerate() {
             if inner == 1 {
                 // `skip` is the last mode: the row is `outer × cols`, a weighted sum of rows.
                 acc.fill(0.0);
@@ -262,10 +280,25 @@ impl MultilinearModel {
     /// [`Error::NonFinite`].
     pub fn face(&self, weights: &[DVector<f64>]) -> Result<Vec<DVec3>> {
         self.check_weights(weights, None)?;
-        let f = self.contract(weights, None)?;
+        let f = self.contract(weights, None, None)?;
         Ok(f.as_slice()
             .chunks_exact(3)
             .map(|c| DVec3::new(c[0], c[1], c[2]))
+            .collect())
+    }
+
+    /// The points of `vertices` (in their order) of the face of `weights`: the same values as
+    /// those rows of [`MultilinearModel::face`], without computing the others.
+    pub(crate) fn face_points(
+        &self,
+        weights: &[DVector<f64>],
+        vertices: &[usize],
+    ) -> Result<Vec<[f64; 3]>> {
+        self.check_weights(weights, None)?;
+        let f = self.contract(weights, None, Some(vertices))?;
+        Ok(f.as_slice()
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
             .collect())
     }
 
@@ -277,7 +310,20 @@ impl MultilinearModel {
     pub fn linear_basis(&self, mode: usize, weights: &[DVector<f64>]) -> Result<DMatrix<f64>> {
         skin_core::check::index("attribute mode", mode, self.factors.len())?;
         self.check_weights(weights, Some(mode))?;
-        self.contract(weights, Some(mode))
+        self.contract(weights, Some(mode), None)
+    }
+
+    /// The rows of [`MultilinearModel::linear_basis`] of `vertices` only (`3 ×
+    /// vertices.len()` rows: vertex `vertices[k]` in rows `3k..3k + 3`), the same values.
+    pub(crate) fn linear_basis_rows(
+        &self,
+        mode: usize,
+        weights: &[DVector<f64>],
+        vertices: &[usize],
+    ) -> Result<DMatrix<f64>> {
+        skin_core::check::index("attribute mode", mode, self.factors.len())?;
+        self.check_weights(weights, Some(mode))?;
+        self.contract(weights, Some(mode), Some(vertices))
     }
 }
 
@@ -457,6 +503,23 @@ mod tests {
         ];
         let (full, part) = (m.face(&w).unwrap(), sub.face(&w).unwrap());
         assert_eq!(part, vec![full[7], full[2], full[29]]);
+        // Some rows only: the same values as those of the whole face and basis.
+        let points = m.face_points(&w, &[7, 2, 29]).unwrap();
+        assert_eq!(
+            points,
+            vec![full[7].to_array(), full[2].to_array(), full[29].to_array()]
+        );
+        for mode in 0..2 {
+            let (basis, rows) = (
+                m.linear_basis(mode, &w).unwrap(),
+                m.linear_basis_rows(mode, &w, &[7, 2, 29]).unwrap(),
+            );
+            for (k, v) in [7, 2, 29].into_iter().enumerate() {
+                assert_eq!(rows.rows(3 * k, 3), basis.rows(3 * v, 3));
+            }
+        }
+        assert!(m.face_points(&w, &[30]).is_err());
+        assert!(m.linear_basis_rows(0, &w, &[30]).is_err());
         assert!(m.restrict(&[30]).is_err());
         assert!(m.restrict(&[]).is_err());
     }

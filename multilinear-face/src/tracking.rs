@@ -181,13 +181,13 @@ pub(crate) fn projected_system(
     pixels: &[[f64; 2]],
     z: Option<&[[f64; 3]]>,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
-    let basis = model.linear_basis(mode, weights)?;
+    let basis = model.linear_basis_rows(mode, weights, tracked)?;
     let r = basis.ncols();
     let r2 = cam.r2() * cam.scale;
     let mut a = DMatrix::zeros(2 * tracked.len(), r);
     let mut b = DVector::zeros(2 * tracked.len());
-    for (k, (&v, p)) in tracked.iter().zip(pixels).enumerate() {
-        let rows = basis.rows(3 * v, 3);
+    for (k, p) in pixels.iter().enumerate().take(tracked.len()) {
+        let rows = basis.rows(3 * k, 3);
         let proj = r2 * rows; // 2 × r
         let rhs = Vector2::new(p[0] - cam.translation[0], p[1] - cam.translation[1]);
         match z {
@@ -235,15 +235,6 @@ pub(crate) fn solve_ridge(
         })
 }
 
-pub(crate) fn shape_points(
-    model: &MultilinearModel,
-    w: &[DVector<f64>],
-    tracked: &[usize],
-) -> Result<Vec<[f64; 3]>> {
-    let f = model.face(w)?;
-    Ok(tracked.iter().map(|&v| f[v].to_array()).collect())
-}
-
 /// The point equations of one frame: model vertices `points` seen at `pixels`, each
 /// weighted by its KLT `Z` (or unweighted).
 pub(crate) struct FrameSystem<'a> {
@@ -253,7 +244,12 @@ pub(crate) struct FrameSystem<'a> {
 }
 
 /// Coordinate descent on one frame (Eq. 5.8): the camera, then each per-frame attribute with
-/// the others fixed, `rounds` times; returns the camera.
+/// the others fixed, `rounds` times; returns the camera. `start`: the model points of
+/// `sys.points` for the given `weights`, when the caller has them.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the frame's system, its solve settings and start"
+)]
 pub(crate) fn fit_frame(
     model: &MultilinearModel,
     weights: &mut [DVector<f64>],
@@ -262,10 +258,14 @@ pub(crate) fn fit_frame(
     mean: &[DVector<f64>],
     prior: f64,
     rounds: usize,
+    mut start: Option<Vec<[f64; 3]>>,
 ) -> Result<WeakPerspective> {
     let mut cam = WeakPerspective::identity();
     for _ in 0..rounds.max(1) {
-        let pts = shape_points(model, weights, sys.points)?;
+        let pts = match start.take() {
+            Some(pts) => pts,
+            None => model.face_points(weights, sys.points)?,
+        };
         cam = WeakPerspective::fit_weighted(&pts, sys.pixels, sys.z)?;
         for m in (0..weights.len()).filter(|&m| !constant[m]) {
             let (a, b) = projected_system(model, m, weights, &cam, sys.points, sys.pixels, sys.z)?;
@@ -315,16 +315,25 @@ pub(crate) fn reprojection_rms(
     cam: &WeakPerspective,
     sys: &FrameSystem<'_>,
 ) -> Result<f64> {
-    let pts = shape_points(model, weights, sys.points)?;
+    let pts = model.face_points(weights, sys.points)?;
+    Ok(points_reprojection_rms(&pts, cam, sys.pixels))
+}
+
+/// RMS distance between the projections of model points `pts` and the observed pixels, px.
+pub(crate) fn points_reprojection_rms(
+    pts: &[[f64; 3]],
+    cam: &WeakPerspective,
+    pixels: &[[f64; 2]],
+) -> f64 {
     let se: f64 = pts
         .iter()
-        .zip(sys.pixels)
+        .zip(pixels)
         .map(|(x, p)| {
             let q = cam.project(*x);
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         })
         .sum();
-    Ok((se / pts.len().max(1) as f64).sqrt())
+    (se / pts.len().max(1) as f64).sqrt()
 }
 
 /// Tracks the model through 2D point tracks: `frames[t][k]` is the pixel position of model
@@ -407,7 +416,7 @@ pub fn track_points(
     let mut cameras = Vec::with_capacity(frames.len());
     for (t, px) in frames.iter().enumerate() {
         cameras.push(
-            WeakPerspective::fit(&shape_points(model, &weights[t], tracked)?, px)
+            WeakPerspective::fit(&model.face_points(&weights[t], tracked)?, px)
                 .at(Context::Frame(t))?,
         );
     }
@@ -434,6 +443,7 @@ pub fn track_points(
                 &mean,
                 params.prior,
                 params.rounds,
+                None,
             )
             .at(Context::Frame(t))?;
         }

@@ -42,8 +42,8 @@ use rayon::prelude::*;
 use crate::klt::{track as klt_track, Klt, Pyramid, Scratch};
 use crate::model::MultilinearModel;
 use crate::tracking::{
-    fit_constants, fit_frame, mean_weights, reprojection_rms, shape_points, track_points,
-    FrameSystem, TrackParams, WeakPerspective,
+    fit_constants, fit_frame, mean_weights, points_reprojection_rms, track_points, FrameSystem,
+    TrackParams, WeakPerspective,
 };
 use crate::{Context, Error, Result, ResultExt};
 
@@ -341,6 +341,8 @@ pub fn track_video(
     let mut tracked_fraction = vec![1.0; n];
     let mut reprojection_rms_px = vec![0.0; n];
     let mut klt_residual_ratio = vec![0.0; n];
+    // Each frame's model points (all of `ext`) for its current weights, once computed.
+    let mut shapes: Vec<Option<Vec<[f64; 3]>>> = vec![None; n];
 
     for pass in 0..params.passes.max(1) {
         let pairs: Vec<(usize, usize)> = (pass > 0 && n > 1)
@@ -352,13 +354,17 @@ pub fn track_video(
             if pass == 0 {
                 weights[t] = weights[s].clone();
                 cameras[t] = cameras[s];
+                shapes[t] = None;
             }
-            let ps = shape_points(model, &weights[s], &all)?;
+            let ps = match shapes[s].take() {
+                Some(ps) => ps,
+                None => model.face_points(&weights[s], &all)?,
+            };
             // Pass 1 starts frame t from frame s's weights: the same shape.
-            let pt = if weights[t] == weights[s] {
-                ps.clone()
-            } else {
-                shape_points(model, &weights[t], &all)?
+            let pt = match shapes[t].take() {
+                Some(pt) => pt,
+                None if weights[t] == weights[s] => ps.clone(),
+                None => model.face_points(&weights[t], &all)?,
             };
             let (fs, ft) = (
                 facing(&ps, &tri_local, &cameras[s]),
@@ -419,6 +425,10 @@ pub fn track_video(
                 pixels: &o.pixels,
                 z: Some(&o.z),
             };
+            // The solve starts from frame t's points (`pt`), and the fitted frame's points serve
+            // its reprojection error and the next pair (the tracked vertices are the first of
+            // `ext`, so `solve_model`'s points are theirs).
+            let start = o.points.iter().map(|&v| pt[v]).collect();
             cameras[t] = fit_frame(
                 solve_model,
                 &mut weights[t],
@@ -427,9 +437,14 @@ pub fn track_video(
                 &mean,
                 params.prior,
                 params.rounds,
+                Some(start),
             )
             .at(Context::Frame(t))?;
-            reprojection_rms_px[t] = reprojection_rms(solve_model, &weights[t], &cameras[t], &sys)?;
+            let fitted = model.face_points(&weights[t], &all)?;
+            let pts: Vec<[f64; 3]> = o.points.iter().map(|&v| fitted[v]).collect();
+            reprojection_rms_px[t] = points_reprojection_rms(&pts, &cameras[t], sys.pixels);
+            shapes[s] = Some(ps);
+            shapes[t] = Some(fitted);
             tracked_fraction[t] = fraction;
             klt_residual_ratio[t] = ratios[ratios.len() / 2];
             obs[t] = o;
@@ -452,6 +467,8 @@ pub fn track_video(
             &mean,
             params.prior,
         )?;
+        // The constant attributes changed every frame's weights.
+        shapes.fill(None);
     }
     Ok(VideoTrack {
         cameras,
