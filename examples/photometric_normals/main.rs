@@ -649,94 +649,31 @@ fn fast_flow_against_dis(
     }))
 }
 
-/// The flow workload of `bench/peers/flow.py` regenerated (its README, §7): a 64-sine texture
-/// quantised to 8 bits, the second image warped analytically, the forward flow by 20
-/// fixed-point iterations. Returns the median time of `reps` runs (after one warm-up), ms, the
-/// mean EPE over pixels whose target is inside, px, and the same without a 32 px border.
+/// The flow workload of `bench/peers/flow.py` (`peer_workloads::FlowWorkload`) at `n`²:
+/// the median time of `reps` runs (after one warm-up), ms, the mean EPE over pixels whose
+/// target is inside, px, and the same without a 32 px border.
 fn peer_flow_workload(
     n: u32,
     reps: usize,
     params: &FlowParams,
 ) -> Result<(f64, f64, f64), Box<dyn std::error::Error>> {
-    use dynamic_shapes::core::image::GrayF32Image;
-    use dynamic_shapes::core::random::SplitMix64;
     use dynamic_shapes::photometric::dense_flow;
-    use std::f64::consts::TAU;
-    const K: usize = 64;
-    let rho: Vec<f64> = SplitMix64::new(70)
-        .uniform(K)
-        .iter()
-        .map(|u| 0.01 + 0.14 * u)
-        .collect();
-    let th: Vec<f64> = SplitMix64::new(71)
-        .uniform(K)
-        .iter()
-        .map(|u| TAU * u)
-        .collect();
-    let ph: Vec<f64> = SplitMix64::new(72)
-        .uniform(K)
-        .iter()
-        .map(|u| TAU * u)
-        .collect();
-    let tex = |x: f64, y: f64| -> f32 {
-        let mut t = 0.0;
-        for k in 0..K {
-            t += (TAU * (rho[k] * th[k].cos() * x + rho[k] * th[k].sin() * y) + ph[k]).sin();
-        }
-        ((128.0 + 32.0 * t / (K as f64 / 2.0).sqrt() + 0.5)
-            .floor()
-            .clamp(0.0, 255.0)
-            / 255.0) as f32
-    };
-    let nf = f64::from(n);
-    let s = nf / 1024.0;
-    let warp = |x: f64, y: f64| {
-        let (cx, cy) = (x / nf, y / nf);
-        [
-            s * (6.0 * (TAU * 1.5 * cy + 0.3).sin() + 3.0 * (TAU * cx).cos()),
-            s * (5.0 * (TAU * 2.0 * cx).cos() - 4.0 * (TAU * (cy + 0.25)).sin()),
-        ]
-    };
-    let i1 = GrayF32Image::from_fn(n, n, |x, y| image::Luma([tex(f64::from(x), f64::from(y))]));
-    let i2 = GrayF32Image::from_fn(n, n, |x, y| {
-        let w = warp(f64::from(x), f64::from(y));
-        image::Luma([tex(f64::from(x) - w[0], f64::from(y) - w[1])])
-    });
-    dense_flow(&i1, &i2, params)?;
+    use dynamic_shapes::photometric::peer_workloads::FlowWorkload;
+    let w = FlowWorkload::new(n)?;
+    dense_flow(&w.first, &w.second, params)?;
     let mut times = Vec::new();
     let mut flow = None;
     for _ in 0..reps {
         let t = Instant::now();
-        flow = Some(dense_flow(&i1, &i2, params)?);
+        flow = Some(dense_flow(&w.first, &w.second, params)?);
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let flow = flow.ok_or("at least one rep")?;
-    let (mut e, mut c, mut ei, mut ci) = (0.0, 0usize, 0.0, 0usize);
-    for y in 0..n {
-        for x in 0..n {
-            let (px, py) = (f64::from(x), f64::from(y));
-            let mut u = warp(px, py);
-            for _ in 0..20 {
-                u = warp(px + u[0], py + u[1]);
-            }
-            let (tx, ty) = (px + u[0], py + u[1]);
-            if !(0.0..=nf - 1.0).contains(&tx) || !(0.0..=nf - 1.0).contains(&ty) {
-                continue;
-            }
-            let f = flow.u[(y * n + x) as usize];
-            let d = ((f64::from(f[0]) - u[0]).powi(2) + (f64::from(f[1]) - u[1]).powi(2)).sqrt();
-            e += d;
-            c += 1;
-            if x >= 32 && y >= 32 && x < n - 32 && y < n - 32 {
-                ei += d;
-                ci += 1;
-            }
-        }
-    }
+    let (epe, epe_interior) = w.epe(&flow)?;
     Ok((
         dynamic_shapes::core::stats::median(&times),
-        e / c.max(1) as f64,
-        ei / ci.max(1) as f64,
+        epe,
+        epe_interior,
     ))
 }
 

@@ -94,7 +94,8 @@
 //! the validation (`StudioScene`: a subject, its light stage and camera ring), the studio's
 //! light patterns and calibration spheres, ground-truth scoring (angular error, shadowed
 //! concavities, wrinkled regions) and the distant-light baseline; `peer_workloads` regenerates
-//! the peer benchmarks' merging and Poisson inputs (workloads 6a and 6b) with their truth.
+//! the peer benchmarks' merging, Poisson and flow inputs (workloads 6a, 6b and the flow
+//! pair) with their truth.
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 #![warn(unnameable_types, unreachable_pub)]

@@ -1,14 +1,18 @@
-//! The documented inputs of the peer benchmarks `bench/peers/tsdf_mc.py` (workload 6a) and
-//! `bench/peers/poisson.py` (workload 6b), regenerated bit for bit (the peers' counter-based
-//! SplitMix64 is `skin_core::random::SplitMix64`), with their ground truth, so the merge and
-//! the hole filling run on exactly the peers' workloads.
+//! The documented inputs of the peer benchmarks `bench/peers/tsdf_mc.py` (workload 6a),
+//! `bench/peers/poisson.py` (workload 6b) and `bench/peers/flow.py` (the flow workload),
+//! regenerated bit for bit (the peers' counter-based SplitMix64 is
+//! `skin_core::random::SplitMix64`), with their ground truth, so the merge, the hole filling
+//! and the dense flow run on exactly the peers' workloads.
+
+use std::f64::consts::TAU;
 
 use skin_core::camera::{Camera, Intrinsics, RadialDistortion};
+use skin_core::image::GrayF32Image;
 use skin_core::math::{DAffine3, DMat3, DVec2, DVec3};
 use skin_core::mesh::shapes::uv_sphere;
 use skin_core::random::SplitMix64;
 
-use crate::{DepthMap, OrientedSample, Result};
+use crate::{DepthMap, Error, Flow, OrientedSample, Result};
 
 /// Workload 6a's sphere: centre and radius, m.
 pub const TSDF_SPHERE: (DVec3, f64) = (DVec3::new(-0.15, 0.0, 0.0), 0.2);
@@ -177,5 +181,150 @@ mod tests {
             .all(|s| (s.position.length() - 0.4).abs() < 1e-12 && s.position.z <= 0.3));
         let first = SplitMix64::new(80).uniform_at(0);
         assert!((s[0].position.z - (-0.4 + 0.7 * first)).abs() < 1e-15);
+    }
+}
+
+/// The flow workload of `bench/peers/flow.py` (its README, §7): a texture of 64 sines
+/// quantised to 8 bits and the same texture warped by a smooth analytic field, at `n`² pixels
+/// (the peer's is 1024²; the warp scales with `n`).
+#[derive(Debug, Clone)]
+pub struct FlowWorkload {
+    /// The first image.
+    pub first: GrayF32Image,
+    /// The second image: the first moved by the warp.
+    pub second: GrayF32Image,
+    n: u32,
+}
+
+/// Sines of the workload's texture.
+const FLOW_SINES: usize = 64;
+
+/// The warp at pixel `(x, y)` of an `n`² image, px: where the texture at `(x, y)` of the
+/// second image came from is `(x, y) − warp(x, y)`.
+fn flow_warp(n: f64, x: f64, y: f64) -> [f64; 2] {
+    let s = n / 1024.0;
+    let (cx, cy) = (x / n, y / n);
+    [
+        s * (6.0 * (TAU * 1.5 * cy + 0.3).sin() + 3.0 * (TAU * cx).cos()),
+        s * (5.0 * (TAU * 2.0 * cx).cos() - 4.0 * (TAU * (cy + 0.25)).sin()),
+    ]
+}
+
+impl FlowWorkload {
+    /// The workload at `n`² pixels.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParam`] for `n` below 64 (the border the interior EPE leaves out would
+    /// cover the image).
+    pub fn new(n: u32) -> Result<Self> {
+        if n < 64 {
+            return Err(Error::InvalidParam {
+                name: "n",
+                reason: format!("{n} px: give at least 64"),
+            });
+        }
+        let draw = |seed: u64, lo: f64, span: f64| -> Vec<f64> {
+            SplitMix64::new(seed)
+                .uniform(FLOW_SINES)
+                .iter()
+                .map(|u| lo + span * u)
+                .collect()
+        };
+        let (rho, th, ph) = (draw(70, 0.01, 0.14), draw(71, 0.0, TAU), draw(72, 0.0, TAU));
+        let tex = |x: f64, y: f64| -> f32 {
+            let mut t = 0.0;
+            for k in 0..FLOW_SINES {
+                t += (TAU * (rho[k] * th[k].cos() * x + rho[k] * th[k].sin() * y) + ph[k]).sin();
+            }
+            ((128.0 + 32.0 * t / (FLOW_SINES as f64 / 2.0).sqrt() + 0.5)
+                .floor()
+                .clamp(0.0, 255.0)
+                / 255.0) as f32
+        };
+        let nf = f64::from(n);
+        let first =
+            GrayF32Image::from_fn(n, n, |x, y| image::Luma([tex(f64::from(x), f64::from(y))]));
+        let second = GrayF32Image::from_fn(n, n, |x, y| {
+            let w = flow_warp(nf, f64::from(x), f64::from(y));
+            image::Luma([tex(f64::from(x) - w[0], f64::from(y) - w[1])])
+        });
+        Ok(FlowWorkload { first, second, n })
+    }
+
+    /// The mean end-point error of `flow` (first to second image) against the true forward
+    /// flow (the warp inverted by 20 fixed-point iterations), px: over the pixels whose
+    /// target lies inside the image, and over those of them at least 32 px from the border.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] for a flow of another size.
+    pub fn epe(&self, flow: &Flow) -> Result<(f64, f64)> {
+        let n = self.n;
+        skin_core::check::same_size("flow pixels", (n * n) as usize, flow.u.len())?;
+        let nf = f64::from(n);
+        let (mut e, mut c, mut ei, mut ci) = (0.0, 0usize, 0.0, 0usize);
+        for y in 0..n {
+            for x in 0..n {
+                let (px, py) = (f64::from(x), f64::from(y));
+                let mut u = flow_warp(nf, px, py);
+                for _ in 0..20 {
+                    u = flow_warp(nf, px + u[0], py + u[1]);
+                }
+                let (tx, ty) = (px + u[0], py + u[1]);
+                if !(0.0..=nf - 1.0).contains(&tx) || !(0.0..=nf - 1.0).contains(&ty) {
+                    continue;
+                }
+                let f = flow.u[(y * n + x) as usize];
+                let d =
+                    ((f64::from(f[0]) - u[0]).powi(2) + (f64::from(f[1]) - u[1]).powi(2)).sqrt();
+                e += d;
+                c += 1;
+                if x >= 32 && y >= 32 && x < n - 32 && y < n - 32 {
+                    ei += d;
+                    ci += 1;
+                }
+            }
+        }
+        Ok((e / c.max(1) as f64, ei / ci.max(1) as f64))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{dense_flow, FlowParams};
+
+    #[test]
+    fn the_flow_workload_scores_a_flow_against_its_warp() {
+        let w = FlowWorkload::new(128).unwrap();
+        let zero = Flow {
+            width: 128,
+            height: 128,
+            u: vec![[0.0; 2]; 128 * 128],
+        };
+        // No motion scores the warp's own mean length (≈ 8 px at 1024², an eighth here).
+        let (still, _) = w.epe(&zero).unwrap();
+        assert!(still > 0.4 && still < 1.5, "zero flow EPE {still}");
+        let (epe, interior) = w
+            .epe(&dense_flow(&w.first, &w.second, &FlowParams::default()).unwrap())
+            .unwrap();
+        assert!(
+            epe < 0.2 * still && interior <= epe * 1.5,
+            "EPE {epe} ({interior} inside), still {still}"
+        );
+    }
+
+    #[test]
+    fn bad_flow_workload_input_is_a_clear_error() {
+        assert!(matches!(
+            FlowWorkload::new(32),
+            Err(Error::InvalidParam { name: "n", .. })
+        ));
+        let w = FlowWorkload::new(64).unwrap();
+        let small = Flow {
+            width: 32,
+            height: 32,
+            u: vec![[0.0; 2]; 32 * 32],
+        };
+        assert!(w.epe(&small).is_err());
     }
 }
