@@ -152,38 +152,6 @@ pub fn poisson_samples(n: usize, weight: f64) -> Vec<OrientedSample> {
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn views_see_the_scene_surface() {
-        let views = tsdf_views(64).unwrap();
-        assert_eq!(views.len(), 8);
-        for (cam, map) in &views {
-            assert!(map.valid_count() > 300);
-            for (i, d) in map.depth_m.iter().enumerate().filter(|(_, d)| !d.is_nan()) {
-                let (x, y) = ((i % 64) as u32, (i / 64) as u32);
-                let p = map.point(cam, x, y).unwrap().unwrap();
-                assert!(tsdf_scene_sdf(p).abs() < 1e-9, "{d}");
-            }
-        }
-        // The sphere's centre is in front of camera 0's image centre row.
-        let px = views[0].0.project(DVec3::ZERO).unwrap();
-        assert!((px.x - 31.5).abs() < 1e-9 && (px.y - 31.5).abs() < 1e-9);
-    }
-
-    #[test]
-    fn poisson_samples_are_on_the_cut_sphere() {
-        let s = poisson_samples(1000, 1.0);
-        assert!(s
-            .iter()
-            .all(|s| (s.position.length() - 0.4).abs() < 1e-12 && s.position.z <= 0.3));
-        let first = SplitMix64::new(80).uniform_at(0);
-        assert!((s[0].position.z - (-0.4 + 0.7 * first)).abs() < 1e-15);
-    }
-}
-
 /// The flow workload of `bench/peers/flow.py` (its README, §7): a texture of 64 sines
 /// quantised to 8 bits and the same texture warped by a smooth analytic field, at `n`² pixels
 /// (the peer's is 1024²; the warp scales with `n`).
@@ -292,6 +260,33 @@ impl FlowWorkload {
 mod tests {
     use super::*;
     use crate::{dense_flow, FlowParams};
+
+    #[test]
+    fn views_see_the_scene_surface() {
+        let views = tsdf_views(64).unwrap();
+        assert_eq!(views.len(), 8);
+        for (cam, map) in &views {
+            assert!(map.valid_count() > 300);
+            for (i, d) in map.depth_m.iter().enumerate().filter(|(_, d)| !d.is_nan()) {
+                let (x, y) = ((i % 64) as u32, (i / 64) as u32);
+                let p = map.point(cam, x, y).unwrap().unwrap();
+                assert!(tsdf_scene_sdf(p).abs() < 1e-9, "{d}");
+            }
+        }
+        // The sphere's centre is in front of camera 0's image centre row.
+        let px = views[0].0.project(DVec3::ZERO).unwrap();
+        assert!((px.x - 31.5).abs() < 1e-9 && (px.y - 31.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn poisson_samples_are_on_the_cut_sphere() {
+        let s = poisson_samples(1000, 1.0);
+        assert!(s
+            .iter()
+            .all(|s| (s.position.length() - 0.4).abs() < 1e-12 && s.position.z <= 0.3));
+        let first = SplitMix64::new(80).uniform_at(0);
+        assert!((s[0].position.z - (-0.4 + 0.7 * first)).abs() < 1e-15);
+    }
 
     #[test]
     fn the_flow_workload_scores_a_flow_against_its_warp() {
