@@ -495,13 +495,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "poisson_err_observed_ratio_open3d",
                 "screened Poisson error where sampled over Open3D's (6b)",
             ),
-            (
-                "poisson_err_all_ratio_open3d",
-                "screened Poisson error over the whole surface over Open3D's (6b, per vertex)",
-            ),
         ] {
             run.headline(Headline::new(key, label, "×").goal(Goal::AtMost(1.0)));
         }
+        // Not a goal: the two meshes cover different surfaces. The domain (the samples'
+        // bounding cube × 1.1, as Open3D's `scale`) ends at z = 0.39, below the sphere's top
+        // at 0.40, so neither reconstruction can close the cap on the sphere.
+        run.headline(
+            Headline::new(
+                "poisson_err_all_ratio_open3d",
+                "screened Poisson error over the whole surface over Open3D's (6b, per vertex)",
+                "×",
+            )
+            .note(
+                "not comparable: the domain ends at z = 0.39 below the sphere's top (0.40); \
+                 Open3D leaves the cap open there and its mean covers little more than the \
+                 sampled part, this closes it with a lid on the domain's face",
+            ),
+        );
     }
     for h in [
         Headline::new("merge_ms", "VRIP merge, 8 views, 2 mm voxels", "ms")

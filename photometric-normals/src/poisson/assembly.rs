@@ -7,7 +7,9 @@ use skin_core::math::DVec3;
 use crate::marching_cubes::{Node, NodeMap};
 use crate::Result;
 
-use super::grid::{add, cell_of, trilinear, Composite, Level, AXES, B, NONE};
+use super::grid::{
+    add, cell_of, corners8, nearest_node, quadratic, trilinear, Composite, Level, AXES, B, NONE,
+};
 use super::samples::{band_blocks, UnitSample};
 use super::solve::{level_cg, parents, COARSEST_DEPTH};
 use super::{PoissonLevel, PoissonParams};
@@ -45,34 +47,53 @@ pub(super) fn solve_level(
     let nn = level.nodes.len();
     let h = level.h();
     let n = level.n;
-    // Splat flux and screening mass: each chunk of samples finds its nodes and weights in
-    // parallel, then the sums are taken serially in sample order (the same sums, bit for
-    // bit, as one serial loop).
-    let contributions: Vec<Vec<(u32, u32, f64)>> = samples
+    // Splat flux (quadratic B-spline) and screening mass (trilinear). Each chunk of samples
+    // finds its nodes in parallel (4 bytes a node: the weights are recomputed below, which
+    // keeps the transient to 140 bytes a sample); the sums are then taken serially in sample
+    // order (the same sums, bit for bit, as one serial loop).
+    let nodes_of: Vec<Vec<SplatNodes>> = samples
         .par_chunks(SPLAT_CHUNK)
-        .enumerate()
-        .map(|(ci, chunk)| {
-            let mut out = Vec::with_capacity(chunk.len() * 8);
-            for (k, s) in chunk.iter().enumerate() {
-                let (c, t) = cell_of(s.q, n);
-                for o in 0..8 {
-                    let off = [(o & 1) as i64, ((o >> 1) & 1) as i64, ((o >> 2) & 1) as i64];
-                    if let Some(i) = level.index(add(c, off, 1)) {
-                        out.push((i as u32, (ci * SPLAT_CHUNK + k) as u32, trilinear(t, off)));
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|s| {
+                    let index = |p: Node| {
+                        level
+                            .in_domain(p)
+                            .then(|| level.index(p))
+                            .flatten()
+                            .map_or(NONE, |i| i as u32)
+                    };
+                    let flux = level.stencil_indices(nearest_node(s.q, n).0);
+                    let (c, _) = cell_of(s.q, n);
+                    let mut mass = [NONE; 8];
+                    for (slot, off) in mass.iter_mut().zip(corners8()) {
+                        *slot = index(add(c, off, 1));
                     }
-                }
-            }
-            out
+                    SplatNodes { flux, mass }
+                })
+                .collect()
         })
         .collect();
     let mut v = vec![DVec3::ZERO; nn];
     let mut mass = vec![0.0; nn];
-    for &(i, k, w) in contributions.iter().flatten() {
-        let s = &samples[k as usize];
-        v[i as usize] += s.flux * (w / (h * h * h));
-        mass[i as usize] += s.mass * w;
+    for (s, nodes) in samples.iter().zip(nodes_of.iter().flatten()) {
+        let (_, t) = nearest_node(s.q, n);
+        let (wx, wy, wz) = (quadratic(t.x), quadratic(t.y), quadratic(t.z));
+        let flux = s.flux / (h * h * h);
+        for (k, &i) in nodes.flux.iter().enumerate() {
+            if i != NONE {
+                v[i as usize] += flux * (wx[k % 3] * wy[(k / 3) % 3] * wz[k / 9]);
+            }
+        }
+        let (_, t) = cell_of(s.q, n);
+        for (&i, off) in nodes.mass.iter().zip(corners8()) {
+            if i != NONE {
+                mass[i as usize] += s.mass * trilinear(t, off);
+            }
+        }
     }
-    drop(contributions);
+    drop(nodes_of);
     // Start values and Dirichlet values from the coarser levels.
     let start_and_boundary = |p: Node, comp: &mut Composite| -> f64 {
         match coarser.len() {
@@ -170,6 +191,13 @@ pub(super) fn solve_level(
         iterations: cg.iterations,
         residual: cg.relative_residual,
     })
+}
+
+/// A sample's unknowns (`NONE` = outside the domain or the band): those of its flux splat,
+/// in [`Level::stencil_indices`] order, and of its screening splat, in [`corners8`] order.
+struct SplatNodes {
+    flux: [u32; 27],
+    mass: [u32; 8],
 }
 
 /// Samples per parallel task of a level's splat.

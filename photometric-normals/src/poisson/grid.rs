@@ -96,6 +96,35 @@ impl Level {
         let s = self.slot[d as usize * B3 + (l[0] + B * (l[1] + B * l[2])) as usize];
         (s != NONE).then_some(s as usize)
     }
+
+    /// Unknown indices (`NONE` outside the domain or the band) of the 27 nodes around node
+    /// `c`, offsets −1, 0, 1 along each axis, x fastest: [`Level::index`] with each axis's blocks and offsets
+    /// found once.
+    pub(super) fn stencil_indices(&self, c: Node) -> [u32; 27] {
+        let axis = |v: i64| {
+            [v - 1, v, v + 1].map(|p| {
+                if (0..=self.n).contains(&p) {
+                    Some((p / B, p % B))
+                } else {
+                    None
+                }
+            })
+        };
+        let (ax, ay, az) = (axis(c[0]), axis(c[1]), axis(c[2]));
+        let mut out = [NONE; 27];
+        for (k, slot) in out.iter_mut().enumerate() {
+            let (Some((bx, lx)), Some((by, ly)), Some((bz, lz))) =
+                (ax[k % 3], ay[(k / 3) % 3], az[k / 9])
+            else {
+                continue;
+            };
+            let d = self.dir[(bx + self.nb * (by + self.nb * bz)) as usize];
+            if d != NONE {
+                *slot = self.slot[d as usize * B3 + (lx + B * (ly + B * lz)) as usize];
+            }
+        }
+        out
+    }
 }
 
 /// Values of the composite indicator: the finest level holding a node, interpolated from
@@ -178,6 +207,32 @@ pub(super) fn cell_of(q: DVec3, n: i64) -> (Node, DVec3) {
 pub(super) fn trilinear(t: DVec3, o: [i64; 3]) -> f64 {
     let f = |t: f64, o: i64| if o == 0 { 1.0 - t } else { t };
     f(t.x, o[0]) * f(t.y, o[1]) * f(t.z, o[2])
+}
+
+/// Node nearest to unit-cube point `q` on a grid of `n` cells, and the offset of `q` from it,
+/// cells (each component in `[−½, ½]`).
+pub(super) fn nearest_node(q: DVec3, n: i64) -> (Node, DVec3) {
+    let g = q * n as f64;
+    let c = [g.x.round() as i64, g.y.round() as i64, g.z.round() as i64];
+    (c, g - DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
+}
+
+/// Weights along one axis of the nodes at offsets −1, 0, 1 from [`nearest_node`], for a
+/// point at offset `t` from it: the quadratic B-spline, `(½ − t)²/2`, `¾ − t²`,
+/// `(½ + t)²/2`. The 27 products of the three axes' weights (x fastest)
+/// sum to 1 and their centroid is the point, as the trilinear weights' are, but the kernel
+/// is three cells wide and smooth.
+pub(super) fn quadratic(t: f64) -> [f64; 3] {
+    [
+        0.5 * (0.5 - t) * (0.5 - t),
+        0.75 - t * t,
+        0.5 * (0.5 + t) * (0.5 + t),
+    ]
+}
+
+/// The 8 corner offsets of a cell, x fastest.
+pub(super) fn corners8() -> impl Iterator<Item = [i64; 3]> {
+    (0..8i64).map(|o| [o & 1, (o >> 1) & 1, (o >> 2) & 1])
 }
 
 pub(super) const AXES: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];

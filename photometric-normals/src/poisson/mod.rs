@@ -14,8 +14,12 @@
 //! B-splines on an adaptive octree this uses the **trilinear (degree-1) basis on a hierarchy of
 //! sparse regular grids**: level `d` has `2ᵈ` cells per axis; levels up to
 //! [`PoissonParams::dense_depth`] are complete, finer levels hold only the 4³-node blocks
-//! around the samples (a band a few cells wide). `V` is splatted trilinearly onto nodes, the
-//! gradient energy is the 7-point finite-difference form (`V` averaged onto grid edges), the
+//! around the samples (a band a few cells wide). `V` is splatted onto nodes by the quadratic
+//! B-spline around the nearest node (three cells wide: Kazhdan et al. 2006's smoothing filter,
+//! the box convolved with itself twice; ours, measured on workload 6b at depth 8, where about
+//! two samples fall at random in each finest cell: the trilinear splat, two cells wide,
+//! followed their clustering, 0.060 mm against 0.047 mm mean error where sampled, for 8 % less
+//! time), the gradient energy is the 7-point finite-difference form (`V` averaged onto grid edges), the
 //! screening term is mass-lumped onto nodes (`Σᵢ wᵢ aᵢ φₙ(pᵢ)`), and the domain boundary is
 //! free (Neumann). The sample area `aᵢ` is `1 / σᵢ`, the inverse of the local sample density
 //! per unit area estimated by a smooth kernel over the 40 nearest samples within at most 4
@@ -115,6 +119,9 @@ pub struct PoissonParams {
     /// Kazhdan's default depth).
     pub depth: u32,
     /// Screening weight α. Default 4 (Kazhdan & Hoppe 2013's default, in unit-cube units).
+    /// Stronger screening trades the filled holes for the sampled part (measured at α = 32:
+    /// workload 6b's error where sampled 18 % lower, but the studio's filled holes pulled
+    /// towards the low-weight visual hull, p95 distance 26.5 → 36.7 mm).
     pub screening: f64,
     /// Domain side over the samples' bounding cube. Default 1.1 (Kazhdan's `--scale`).
     pub scale: f64,

@@ -7,7 +7,7 @@ use skin_core::math::DVec3;
 
 use crate::marching_cubes::{Node, NodeMap, NodeSet};
 
-use super::grid::{cell_of, B};
+use super::grid::{cell_of, nearest_node, B};
 use super::OrientedSample;
 
 /// Unit-cube sample: position, oriented area `w a n`, screening mass `w a`.
@@ -264,17 +264,35 @@ pub(super) fn cell_areas(qs: &[DVec3], samples: &[OrientedSample], depth: u32) -
         .collect()
 }
 
-/// Active-block mask of a band level: blocks holding a sample cell's corners, dilated.
+/// Active-block mask of a band level: blocks holding a node of a sample's splats, dilated
+/// by `dilate` blocks. The flux splat's quadratic stencil reaches one node beyond the
+/// sample cell's corners; a dilation by a block or more holds it, so the corners' blocks
+/// are dilated then, and the stencil's span only without dilation.
 pub(super) fn band_blocks(samples: &[UnitSample], depth: u32, dilate: i64) -> Vec<bool> {
     let n = 1i64 << depth;
     let nb = n / B + 1;
     let mut active = vec![false; (nb * nb * nb) as usize];
     let mut core: NodeSet<Node> = NodeSet::default();
+    let mut last = [[-1i64; 3]; 2];
     for s in samples {
-        let (c, _) = cell_of(s.q, n);
-        for o in 0..8 {
-            let p = [c[0] + (o & 1), c[1] + ((o >> 1) & 1), c[2] + ((o >> 2) & 1)];
-            core.insert(p.map(|v| v / B));
+        let (lo, hi) = if dilate > 0 {
+            let (c, _) = cell_of(s.q, n);
+            (c, c.map(|v| v + 1))
+        } else {
+            let (c, _) = nearest_node(s.q, n);
+            (c.map(|v| (v - 1).max(0)), c.map(|v| (v + 1).min(n)))
+        };
+        let (lo, hi) = (lo.map(|v| v / B), hi.map(|v| v / B));
+        if [lo, hi] == last {
+            continue;
+        }
+        last = [lo, hi];
+        for bz in lo[2]..=hi[2] {
+            for by in lo[1]..=hi[1] {
+                for bx in lo[0]..=hi[0] {
+                    core.insert([bx, by, bz]);
+                }
+            }
         }
     }
     for b in core {
