@@ -46,7 +46,7 @@ use dynamic_shapes::photometric::peer_workloads::{
 };
 use dynamic_shapes::photometric::{
     merge_views, screened_poisson, MergeParams, MergeView, MergedSurface, OrientedSample,
-    PoissonParams, PoissonSurface,
+    PoissonParams, PoissonSurface, ReconstructParams,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -251,7 +251,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     samples.extend(&proxy);
     let t = Instant::now();
     let cpu0 = cpu_ms();
-    let filled = screened_poisson(&samples, &PoissonParams::default())?;
+    // The reconstruction's hole filling (its flux splat for merged meshes) at depth 8.
+    let fill_params = ReconstructParams::default().poisson.with_depth(8);
+    let filled = screened_poisson(&samples, &fill_params)?;
     let fill_ms = ms(t);
     let fill_cpu_ms = cpu_since(cpu0);
     let filled_d = scene_distances(&filled.mesh);

@@ -163,7 +163,8 @@ pub use offsets::{
 };
 pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
 pub use poisson::{
-    screened_poisson, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface, PoissonTimes,
+    screened_poisson, FluxSplat, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface,
+    PoissonTimes,
 };
 pub use proxy::{mesh_proxy_depth, PolygonalHull, PolygonalHullParams};
 pub use reconstruct::{

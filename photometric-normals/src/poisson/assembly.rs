@@ -12,7 +12,7 @@ use super::grid::{
 };
 use super::samples::{band_blocks, UnitSample};
 use super::solve::{level_cg, parents, COARSEST_DEPTH};
-use super::{PoissonLevel, PoissonParams};
+use super::{FluxSplat, PoissonLevel, PoissonParams};
 
 /// Every level from the coarsest (dense down to `params.dense_depth`, then the band around
 /// the samples) to `params.depth`, each solved from the coarser ones, with its figures.
@@ -64,12 +64,19 @@ pub(super) fn solve_level(
                             .flatten()
                             .map_or(NONE, |i| i as u32)
                     };
-                    let flux = level.stencil_indices(nearest_node(s.q, n).0);
                     let (c, _) = cell_of(s.q, n);
                     let mut mass = [NONE; 8];
                     for (slot, off) in mass.iter_mut().zip(corners8()) {
                         *slot = index(add(c, off, 1));
                     }
+                    let flux = match params.flux_splat {
+                        FluxSplat::Quadratic => level.stencil_indices(nearest_node(s.q, n).0),
+                        FluxSplat::Trilinear => {
+                            let mut flux = [NONE; 27];
+                            flux[..8].copy_from_slice(&mass);
+                            flux
+                        }
+                    };
                     SplatNodes { flux, mass }
                 })
                 .collect()
@@ -78,15 +85,26 @@ pub(super) fn solve_level(
     let mut v = vec![DVec3::ZERO; nn];
     let mut mass = vec![0.0; nn];
     for (s, nodes) in samples.iter().zip(nodes_of.iter().flatten()) {
-        let (_, t) = nearest_node(s.q, n);
-        let (wx, wy, wz) = (quadratic(t.x), quadratic(t.y), quadratic(t.z));
-        let flux = s.flux / (h * h * h);
-        for (k, &i) in nodes.flux.iter().enumerate() {
-            if i != NONE {
-                v[i as usize] += flux * (wx[k % 3] * wy[(k / 3) % 3] * wz[k / 9]);
+        let (_, t) = cell_of(s.q, n);
+        match params.flux_splat {
+            FluxSplat::Quadratic => {
+                let (_, t) = nearest_node(s.q, n);
+                let (wx, wy, wz) = (quadratic(t.x), quadratic(t.y), quadratic(t.z));
+                let flux = s.flux / (h * h * h);
+                for (k, &i) in nodes.flux.iter().enumerate() {
+                    if i != NONE {
+                        v[i as usize] += flux * (wx[k % 3] * wy[(k / 3) % 3] * wz[k / 9]);
+                    }
+                }
+            }
+            FluxSplat::Trilinear => {
+                for (&i, off) in nodes.flux[..8].iter().zip(corners8()) {
+                    if i != NONE {
+                        v[i as usize] += s.flux * (trilinear(t, off) / (h * h * h));
+                    }
+                }
             }
         }
-        let (_, t) = cell_of(s.q, n);
         for (&i, off) in nodes.mass.iter().zip(corners8()) {
             if i != NONE {
                 mass[i as usize] += s.mass * trilinear(t, off);
@@ -193,8 +211,9 @@ pub(super) fn solve_level(
     })
 }
 
-/// A sample's unknowns (`NONE` = outside the domain or the band): those of its flux splat,
-/// in [`Level::stencil_indices`] order, and of its screening splat, in [`corners8`] order.
+/// A sample's unknowns (`NONE` = outside the domain or the band): those of its flux splat
+/// (quadratic: in [`Level::stencil_indices`] order; trilinear: the first 8, as `mass`), and
+/// of its screening splat, in [`corners8`] order.
 struct SplatNodes {
     flux: [u32; 27],
     mass: [u32; 8],
