@@ -506,7 +506,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         run.headline(
             Headline::new(
                 "poisson_err_all_ratio_open3d",
-                "screened Poisson error over the whole surface over Open3D's (6b, per vertex)",
+                "screened Poisson error over the whole surface over Open3D's (6b, per vertex; \
+                 Open3D leaves the cap open)",
                 "×",
             )
             .note(
