@@ -47,35 +47,25 @@ pub(super) fn solve_level(
     let nn = level.nodes.len();
     let h = level.h();
     let n = level.n;
-    // Splat flux (quadratic B-spline) and screening mass (trilinear). Each chunk of samples
-    // finds its nodes in parallel (4 bytes a node: the weights are recomputed below, which
-    // keeps the transient to 140 bytes a sample); the sums are then taken serially in sample
-    // order (the same sums, bit for bit, as one serial loop).
+    // Splat flux ([`FluxSplat`]) and screening mass (trilinear). Each chunk of samples finds
+    // its nodes in parallel (4 bytes a node: the weights are recomputed below, which keeps the
+    // transient to 140 bytes a sample); the sums are then taken serially in sample order (the
+    // same sums, bit for bit, as one serial loop).
     let nodes_of: Vec<Vec<SplatNodes>> = samples
         .par_chunks(SPLAT_CHUNK)
         .map(|chunk| {
             chunk
                 .iter()
                 .map(|s| {
-                    let index = |p: Node| {
-                        level
-                            .in_domain(p)
-                            .then(|| level.index(p))
-                            .flatten()
-                            .map_or(NONE, |i| i as u32)
-                    };
+                    // A cell's corners are in the domain (`cell_of` clamps the cell).
                     let (c, _) = cell_of(s.q, n);
                     let mut mass = [NONE; 8];
                     for (slot, off) in mass.iter_mut().zip(corners8()) {
-                        *slot = index(add(c, off, 1));
+                        *slot = level.index(add(c, off, 1)).map_or(NONE, |i| i as u32);
                     }
                     let flux = match params.flux_splat {
                         FluxSplat::Quadratic => level.stencil_indices(nearest_node(s.q, n).0),
-                        FluxSplat::Trilinear => {
-                            let mut flux = [NONE; 27];
-                            flux[..8].copy_from_slice(&mass);
-                            flux
-                        }
+                        FluxSplat::Trilinear => [NONE; 27],
                     };
                     SplatNodes { flux, mass }
                 })
@@ -98,7 +88,7 @@ pub(super) fn solve_level(
                 }
             }
             FluxSplat::Trilinear => {
-                for (&i, off) in nodes.flux[..8].iter().zip(corners8()) {
+                for (&i, off) in nodes.mass.iter().zip(corners8()) {
                     if i != NONE {
                         v[i as usize] += s.flux * (trilinear(t, off) / (h * h * h));
                     }
@@ -211,9 +201,9 @@ pub(super) fn solve_level(
     })
 }
 
-/// A sample's unknowns (`NONE` = outside the domain or the band): those of its flux splat
-/// (quadratic: in [`Level::stencil_indices`] order; trilinear: the first 8, as `mass`), and
-/// of its screening splat, in [`corners8`] order.
+/// A sample's unknowns (`NONE` = outside the domain or the band): those of its quadratic
+/// flux splat, in [`Level::stencil_indices`] order (all `NONE` for the trilinear splat,
+/// which uses `mass`'s), and of its cell's corners, in [`corners8`] order.
 struct SplatNodes {
     flux: [u32; 27],
     mass: [u32; 8],

@@ -7,7 +7,7 @@ use skin_core::mesh::TriMesh;
 use crate::marching_cubes::{Node, NodeMap};
 use crate::Result;
 
-use super::grid::{Composite, Level, B, NONE};
+use super::grid::{add, corners8, Composite, Level, B, NONE};
 
 /// Drops the connected components (sharing vertices) of `mesh` with fewer vertices than
 /// `fraction` × the largest component's; returns the mesh and the number dropped.
@@ -79,13 +79,8 @@ pub(super) fn collect_cells(
     }
     let mut below = false;
     let mut above = false;
-    for c in 0..8 {
-        let p = [
-            cell[0] + (c & 1),
-            cell[1] + ((c >> 1) & 1),
-            cell[2] + ((c >> 2) & 1),
-        ];
-        if comp.value(li, p) < iso {
+    for o in corners8() {
+        if comp.value(li, add(cell, o, 1)) < iso {
             below = true;
         } else {
             above = true;
@@ -106,13 +101,8 @@ pub(super) fn collect_cells(
         any
     };
     if refine {
-        for c in 0..8 {
-            let child = [
-                2 * cell[0] + (c & 1),
-                2 * cell[1] + ((c >> 1) & 1),
-                2 * cell[2] + ((c >> 2) & 1),
-            ];
-            collect_cells(comp, li + 1, child, iso, out);
+        for o in corners8() {
+            collect_cells(comp, li + 1, add(cell.map(|c| 2 * c), o, 1), iso, out);
         }
     }
 }

@@ -98,8 +98,8 @@ impl Level {
     }
 
     /// Unknown indices (`NONE` outside the domain or the band) of the 27 nodes around node
-    /// `c`, offsets −1, 0, 1 along each axis, x fastest: [`Level::index`] with each axis's blocks and offsets
-    /// found once.
+    /// `c`, offsets −1, 0, 1 along each axis, x fastest: [`Level::index`] with each axis's
+    /// blocks and offsets found once.
     pub(super) fn stencil_indices(&self, c: Node) -> [u32; 27] {
         let axis = |v: i64| {
             [v - 1, v, v + 1].map(|p| {
@@ -180,8 +180,7 @@ impl Composite<'_> {
         let n = self.levels[li].n;
         let (cell, t) = cell_of(q, n);
         let mut v = 0.0;
-        for c in 0..8 {
-            let o = [(c & 1) as i64, ((c >> 1) & 1) as i64, ((c >> 2) & 1) as i64];
+        for o in corners8() {
             let w = trilinear(t, o);
             if w > 0.0 {
                 v += w * self.value(li, [cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]);
