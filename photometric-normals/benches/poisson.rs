@@ -3,7 +3,8 @@
 //! merged surface plus proxy at 1024²) and prints one JSON line per depth: wall and CPU
 //! seconds (this process, all threads), the mesh's vertex and face counts and a hash of its
 //! vertices and faces (bit for bit: the same hash before and after a change means the same
-//! mesh).
+//! mesh), the stages' wall times (`stages_s`: samples, solve, cells, march) and per level
+//! `[depth, nodes, CG iterations]`.
 //!
 //! `cargo bench -p photometric-normals --bench poisson [-- DEPTH …]`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
@@ -44,13 +45,25 @@ fn main() {
             v.to_array().map(f64::to_bits).hash(&mut h);
         }
         out.mesh.faces.hash(&mut h);
+        let levels: Vec<String> = out
+            .levels
+            .iter()
+            .map(|l| format!("[{},{},{}]", l.depth, l.nodes, l.iterations))
+            .collect();
+        let t = out.times;
         println!(
             "{{\"depth\":{depth},\"samples\":{},\"wall_s\":{wall:.2},\"cpu_s\":{cpu:.2},\
-             \"vertices\":{},\"faces\":{},\"mesh_hash\":\"{:016x}\"}}",
+             \"vertices\":{},\"faces\":{},\"mesh_hash\":\"{:016x}\",\
+             \"stages_s\":[{:.2},{:.2},{:.2},{:.2}],\"levels\":[{}]}}",
             samples.len(),
             out.mesh.vertex_count(),
             out.mesh.face_count(),
-            h.finish()
+            h.finish(),
+            t.samples_s,
+            t.solve_s,
+            t.cells_s,
+            t.march_s,
+            levels.join(",")
         );
     }
 }
