@@ -29,7 +29,9 @@ pub(super) struct Level {
     /// Diagonal of the level's operator (filled by `solve_level`).
     pub(super) diag: Vec<f64>,
     /// Unknown neighbours along −x, +x, −y, +y, −z, +z (`NONE` = outside the domain or the
-    /// band); every off-diagonal entry of the operator is −1.
+    /// band); every off-diagonal entry of the operator is −1. A table, not computed from the
+    /// block layout (ours, measured on the `poisson` bench at depth 9: computing them saved
+    /// the table's 24 bytes a node, 17 % of the peak memory, but the solve ran 15 % slower).
     pub(super) nbr: Vec<[u32; 6]>,
     /// Unknowns of the coarser level whose basis functions are nonzero at each node (`NONE`
     /// = absent or outside the coarser band), in the order of `solve::parents`.
