@@ -432,18 +432,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let exact = obs.exact.as_slice();
 
     let stage = run.stage("two passes: per-view surfaces, merge, hole filling", None);
-    let t = Instant::now();
-    // The hull's depth maps rendered in `observe` (timed in `t_hull`) are pass 1's proxies.
-    let rec = reconstruct_from_hull_depths(
-        cameras,
-        estimated,
-        hull,
-        proxies.clone(),
-        0.0,
-        &layout.pairs,
-        &rparams,
-    )?;
-    let t_two_pass = t.elapsed().as_secs_f64();
+    let (rec, t_two_pass) = two_passes(&obs, &layout, &rparams)?;
     let est = &rec.pass1.views;
     let est_err = est.errors_against(truths, proxies, estimated)?;
     let pass2 = &rec.pass2.views;
@@ -1114,17 +1103,7 @@ fn subject_run(
     let obs = observe(run, scene, name, shadows, layout.ring)?;
     let pairs = &layout.pairs;
     let stage = run.stage(&format!("{name}: two passes"), None);
-    let t = Instant::now();
-    let rec = reconstruct_from_hull_depths(
-        &obs.cameras,
-        &obs.estimated,
-        &obs.hull,
-        obs.proxies.clone(),
-        0.0,
-        pairs,
-        rparams,
-    )?;
-    let two_pass_s = t.elapsed().as_secs_f64();
+    let (rec, two_pass_s) = two_passes(&obs, layout, rparams)?;
     let per_view =
         rec.pass2
             .views
@@ -1820,6 +1799,26 @@ fn perfect_geometry(
 /// (targets, solve) and the hole filling (samples, solve, cells, marching cubes), s; and
 /// `two_pass_other_s`, the part of `two_pass_s` outside every pass's stages (the hull's
 /// samples, the passes' bookkeeping).
+/// Both passes from `obs`'s part-1 normal maps, with the hull's depth maps rendered in
+/// `observe` (timed in `t_hull`) as pass 1's proxies, and their wall time, s.
+fn two_passes(
+    obs: &Observed,
+    layout: &Layout,
+    rparams: &ReconstructParams,
+) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
+    let t = Instant::now();
+    let rec = reconstruct_from_hull_depths(
+        &obs.cameras,
+        &obs.estimated,
+        &obs.hull,
+        obs.proxies.clone(),
+        0.0,
+        &layout.pairs,
+        rparams,
+    )?;
+    Ok((rec, t.elapsed().as_secs_f64()))
+}
+
 /// Image side of the thesis's cameras, px (Vlasic 2010 §3.4: eight 1024 × 1024 views).
 const THESIS_SIZE_PX: u32 = 1024;
 
@@ -1836,17 +1835,7 @@ fn thesis_size_timing(
 ) -> Result<serde_json::Value, Box<dyn std::error::Error>> {
     let obs = observe(run, scene, "skirt at 1024² (timing)", shadows, layout.ring)?;
     let stage = run.stage("skirt at 1024² (timing): two passes", None);
-    let t = Instant::now();
-    let rec = reconstruct_from_hull_depths(
-        &obs.cameras,
-        &obs.estimated,
-        &obs.hull,
-        obs.proxies.clone(),
-        0.0,
-        &layout.pairs,
-        rparams,
-    )?;
-    let two_pass_s = t.elapsed().as_secs_f64();
+    let (rec, two_pass_s) = two_passes(&obs, layout, rparams)?;
     let seconds = obs.t_hull + two_pass_s;
     let mut figures = json!({
         "size_px": THESIS_SIZE_PX,
