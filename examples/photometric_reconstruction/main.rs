@@ -1793,12 +1793,6 @@ fn perfect_geometry(
     }))
 }
 
-/// Where the two passes' wall time goes: for each pass (`pass1_`, `pass2_`) the proxy, the
-/// per-view stage (integration, matching, offsets), the merge (preparing the views, finding
-/// the blocks, filling the voxels, finding the cells, marching cubes), the refinement
-/// (targets, solve) and the hole filling (samples, solve, cells, marching cubes), s; and
-/// `two_pass_other_s`, the part of `two_pass_s` outside every pass's stages (the hull's
-/// samples, the passes' bookkeeping).
 /// Both passes from `obs`'s part-1 normal maps, with the hull's depth maps rendered in
 /// `observe` (timed in `t_hull`) as pass 1's proxies, and their wall time, s.
 fn two_passes(
@@ -1848,6 +1842,12 @@ fn thesis_size_timing(
     Ok(figures)
 }
 
+/// Where the two passes' wall time goes: for each pass (`pass1_`, `pass2_`) the proxy, the
+/// per-view stage (integration, matching, offsets), the merge (preparing the views, finding
+/// the blocks, filling the voxels, finding the cells, marching cubes), the refinement
+/// (targets, solve) and the hole filling (samples, solve, cells, marching cubes), s; and
+/// `two_pass_other_s`, the part of `two_pass_s` outside every pass's stages (the hull's
+/// samples, the passes' bookkeeping).
 fn stage_times(figures: &mut serde_json::Value, rec: &Reconstruction, two_pass_s: f64) {
     let mut staged = 0.0;
     for (name, pass) in [("pass1", &rec.pass1), ("pass2", &rec.pass2)] {
