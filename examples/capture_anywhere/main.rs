@@ -62,7 +62,9 @@ use dynamic_shapes::core::mesh::{
 use dynamic_shapes::core::skeleton::{read_bvh, BvhParams, Motion, Skeleton, CMU_METRES_PER_UNIT};
 use dynamic_shapes::core::stats::mean;
 use dynamic_shapes::inertial::pipeline::{self, PipelineParams};
-use dynamic_shapes::inertial::simulate::{prepare_motion, SimulationParams, SuitSimulator};
+use dynamic_shapes::inertial::simulate::{
+    prepare_motion, SimulationParams, SmoothMotion, SuitSimulator,
+};
 use dynamic_shapes::inertial::FilterParams;
 use dynamic_shapes::template::shape_model::{
     SequenceFiles, SequenceWriter, ShapeModel, ShapeModelParams,
@@ -391,15 +393,13 @@ fn drive(
         &PipelineParams::default().with_filter(filter),
     )?;
     let (suit_hz, start_s) = (rec.recording.rate_hz, rec.recording.start_s);
-    let frames = (smooth.duration_s() * FPS).floor() as usize;
+    let (truth, meshes) = true_frames(performer, &smooth)?;
     let nd = skeleton.dof_count();
     let root: Vec<usize> = skeleton.joint_dofs(0).collect();
-    let (mut suit, mut truth) = (Vec::new(), Vec::new());
-    let (mut theta, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
+    let mut suit = Vec::new();
     let mut errors = Vec::new();
-    for k in 0..frames {
+    for (k, theta) in truth.iter().enumerate() {
         let t = k as f64 / FPS;
-        smooth.eval(t, &mut theta, &mut rate, &mut acc);
         let x = ((t - start_s) * suit_hz).max(0.0);
         let i = (x.floor() as usize).min(result.theta.len() - 1);
         let j = (i + 1).min(result.theta.len() - 1);
@@ -422,7 +422,7 @@ fn drive(
             dynamic_shapes::inertial::joint_orientation_errors_deg(
                 skeleton,
                 &estimate,
-                &theta,
+                theta,
                 &(1..skeleton.joint_count()).collect::<Vec<_>>(),
             )?
             .iter()
@@ -431,13 +431,7 @@ fn drive(
                 / (skeleton.joint_count() - 1) as f64,
         );
         suit.push(estimate);
-        truth.push(theta.clone());
     }
-    let mut state = DeformationState::default();
-    let meshes = truth
-        .iter()
-        .map(|th| Ok(performer.mesh(performer.pose(th, &mut state, 1.0 / FPS)?.true_vertices)))
-        .collect::<Result<Vec<_>, Box<dyn std::error::Error>>>()?;
     let rest = ((start_s + rec.recording.rest_frames as f64 / suit_hz) * FPS).ceil() as usize;
     Ok(Driven {
         name,
@@ -447,6 +441,44 @@ fn drive(
         rest,
         suit_error_deg: mean(&errors[rest..]),
     })
+}
+
+/// Per frame, a pose and the true mesh.
+type TrueFrames = (Vec<Vec<f64>>, Vec<TriMesh>);
+
+/// The studio's truth along `smooth` (a motion as the suit simulation smooths it), per frame
+/// at [`FPS`]: the pose and the true mesh.
+fn true_frames(
+    performer: &Performer,
+    smooth: &SmoothMotion,
+) -> Result<TrueFrames, Box<dyn std::error::Error>> {
+    let frames = (smooth.duration_s() * FPS).floor() as usize;
+    let nd = performer.skeleton.dof_count();
+    let (mut theta, mut rate, mut acc) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd]);
+    let truth: Vec<Vec<f64>> = (0..frames)
+        .map(|k| {
+            smooth.eval(k as f64 / FPS, &mut theta, &mut rate, &mut acc);
+            theta.clone()
+        })
+        .collect();
+    let mut state = DeformationState::default();
+    let meshes = truth
+        .iter()
+        .map(|th| Ok(performer.mesh(performer.pose(th, &mut state, 1.0 / FPS)?.true_vertices)))
+        .collect::<Result<Vec<_>, Box<dyn std::error::Error>>>()?;
+    Ok((truth, meshes))
+}
+
+/// A shape model driven from rest along `poses`, one surface per pose.
+fn driven(
+    model: &ShapeModel,
+    poses: &[Vec<f64>],
+) -> Result<Vec<Vec<DVec3>>, Box<dyn std::error::Error>> {
+    let mut driver = model.driver();
+    Ok(poses
+        .iter()
+        .map(|th| driver.step(th))
+        .collect::<Result<_, _>>()?)
 }
 
 /// Surface scores of one variant over a driven motion: per frame (skirt mean, m) and pooled.
@@ -683,7 +715,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&in_sample_dir)?;
     let mut in_sample_files = Vec::new();
     for (name, motion) in &tests {
-        let d = drive(name, &performer, &deformation, motion)?;
+        let smooth = prepare_motion(&skeleton, motion, &SimulationParams::default())?;
+        let (truth, meshes) = true_frames(&performer, &smooth)?;
         let path = in_sample_dir.join(format!("{name}.dsmold"));
         let mut w = SequenceWriter::create(
             &path,
@@ -691,7 +724,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             skeleton.dof_count(),
             1.0 / FPS,
         )?;
-        for (theta, mesh) in d.truth.iter().zip(&d.meshes) {
+        for (theta, mesh) in truth.iter().zip(&meshes) {
             w.push(theta, &embedding.truth(mesh)?)?;
         }
         w.finish()?;
@@ -745,32 +778,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         // The variants' surfaces.
         let t0 = Instant::now();
-        let mut driver = model.driver();
-        let full: Vec<Vec<DVec3>> = d
-            .suit
-            .iter()
-            .map(|th| driver.step(th))
-            .collect::<Result<_, _>>()?;
+        let full = driven(&model, &d.suit)?;
         model_s += t0.elapsed().as_secs_f64();
         model_frames += d.suit.len();
-        let mut driver = model.driver();
-        let full_true: Vec<Vec<DVec3>> = d
-            .truth
-            .iter()
-            .map(|th| driver.step(th))
-            .collect::<Result<_, _>>()?;
-        let mut driver = oracle.driver();
-        let oracle_true: Vec<Vec<DVec3>> = d
-            .truth
-            .iter()
-            .map(|th| driver.step(th))
-            .collect::<Result<_, _>>()?;
-        let mut driver = ceiling.driver();
-        let ceiling_true: Vec<Vec<DVec3>> = d
-            .truth
-            .iter()
-            .map(|th| driver.step(th))
-            .collect::<Result<_, _>>()?;
+        let full_true = driven(&model, &d.truth)?;
+        let oracle_true = driven(&oracle, &d.truth)?;
+        let ceiling_true = driven(&ceiling, &d.truth)?;
         let mut scores: Vec<Scores> = names.iter().map(|_| Scores::default()).collect();
         let mut hem_lag: [Vec<(f64, f64)>; 3] = [vec![], vec![], vec![]];
         let stage = run.stage(
