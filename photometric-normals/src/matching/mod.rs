@@ -37,10 +37,12 @@
 //! **Files**, in dependency order: `params.rs` (the knobs), `views.rs` (inputs and results),
 //! `mesh.rs` (surfaces as points and meshes), `epipolar.rs` (per-view set-up, a plane's line
 //! samples), `horn.rs` (the optimal rotation), `metrics.rs` (a cell's cost under each
-//! metric), `epipolar_dp.rs` (the four-state programme), `plane.rs` (one plane: costs, path,
-//! sub-pixel matches, breaks), `pair.rs` (a pair plane by plane), `coarse_to_fine.rs` (the
-//! entry point [`match_pair`], with the half-resolution pass).
+//! metric), `batch.rs` (the surface metric of a row's cells at once, one per SIMD lane),
+//! `epipolar_dp.rs` (the four-state programme), `plane.rs` (one plane: costs, path, sub-pixel
+//! matches, breaks), `pair.rs` (a pair plane by plane), `coarse_to_fine.rs` (the entry point
+//! [`match_pair`], with the half-resolution pass).
 
+mod batch;
 mod coarse_to_fine;
 mod epipolar;
 mod epipolar_dp;

@@ -7,9 +7,10 @@ use skin_core::stats::median;
 use crate::integrate::IntegrationParams;
 use crate::PolygonalHull;
 
+use super::batch::{window_distances, Fixed, Scratch};
 use super::epipolar::{Line, Prepared};
 use super::epipolar_dp::lowest_cost_path;
-use super::metrics::{projected_difference, window_difference, window_distance, Windows};
+use super::metrics::{projected_difference, window_difference, Windows};
 use super::params::{MatchMetric, MatchingParams, SubPixel};
 
 /// One plane's result: good matches (left pixel, right pixel, depth along each ray) and break
@@ -52,7 +53,11 @@ pub(super) fn match_plane(
     }
     let mut costs = vec![f64::INFINITY; na * nb];
     let mut stack = (Vec::new(), Vec::new());
-    let mut pairs = Vec::with_capacity(params.window_px * params.window_px);
+    // Per row: the cells to evaluate (right sample, in the narrow band, in the median's
+    // sample) and their costs, with the surface metric's scratch space.
+    let (mut candidates, mut row_costs) = (Vec::new(), Vec::new());
+    let (mut bs, mut sides) = (Vec::new(), (Vec::new(), Vec::new()));
+    let mut batch = Scratch::default();
     // Per sample, once per plane: the guide depth, the ray's dot with the centres' offset
     // (closest approach then costs one dot product per cell) and, for the surface metric,
     // the pixel of the sample's surface point in the other view.
@@ -115,6 +120,8 @@ pub(super) fn match_plane(
         let narrow_a = pl.narrow(ia);
         let ray_a = ll.rays[a];
         let d_a = ray_a.dot(w);
+        candidates.clear();
+        row_costs.clear();
         for b in 0..nb {
             let gb = guide_b[b];
             if gb.is_nan() {
@@ -149,15 +156,8 @@ pub(super) fn match_plane(
                 continue;
             };
             let c = match params.metric {
-                MatchMetric::SurfaceRigid => {
-                    let left = window_distance(&own_a, a, &in_left_b, b, &mut pairs);
-                    // The larger of the two: the second is not needed once the first is ∞.
-                    if left == f64::INFINITY {
-                        left
-                    } else {
-                        left.max(window_distance(&own_b, b, &in_right_a, a, &mut pairs))
-                    }
-                }
+                // The row's comparisons all at once, below.
+                MatchMetric::SurfaceRigid => f64::NAN,
                 MatchMetric::FullOnWindow | MatchMetric::IlluminationStack => {
                     let from = usize::from(params.metric == MatchMetric::IlluminationStack);
                     window_difference(pl, pr, ia, ib, half, from, &mut stack)
@@ -166,6 +166,29 @@ pub(super) fn match_plane(
                     projected_difference(pl, pr, ia, xb, half, &mut stack)
                 }
             };
+            candidates.push((b, narrow, sampled));
+            row_costs.push(c);
+        }
+        if surface {
+            // Both windows' distances for every cell of the row; the cost is the larger of
+            // the two (∞ when the first is).
+            bs.clear();
+            bs.extend(candidates.iter().map(|c| c.0));
+            let (left, right) = &mut sides;
+            window_distances((&own_a, a), &in_left_b, &bs, Fixed::Own, &mut batch, left);
+            window_distances(
+                (&in_right_a, a),
+                &own_b,
+                &bs,
+                Fixed::Other,
+                &mut batch,
+                right,
+            );
+            for ((c, &l), &r) in row_costs.iter_mut().zip(left.iter()).zip(right.iter()) {
+                *c = if l == f64::INFINITY { l } else { l.max(r) };
+            }
+        }
+        for (&(b, narrow, sampled), &c) in candidates.iter().zip(&row_costs) {
             out.evaluated += 1;
             if sampled && c.is_finite() {
                 sample.push(c);

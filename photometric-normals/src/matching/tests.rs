@@ -5,9 +5,10 @@ use skin_core::mesh::TriMesh;
 
 use crate::{mesh_proxy_depth, DepthMap, PolygonalHull};
 
+use super::batch::{window_distances, Fixed, Scratch};
 use super::coarse_to_fine::match_pair;
 use super::epipolar_dp::{lowest_cost_path, LV, RV};
-use super::metrics::rigid_residual;
+use super::metrics::{rigid_residual, window_distance, Windows};
 use super::params::{MatchMetric, MatchingParams, SubPixel};
 use super::plane::DENSE_PROGRAMME;
 use super::views::{MatchView, PairMatches};
@@ -94,6 +95,75 @@ fn quaternion_kabsch_equals_the_svd_kabsch() {
         );
     }
     eprintln!("worst relative difference {worst:e}");
+}
+
+#[test]
+fn one_window_against_many_is_each_comparison_to_the_bit() {
+    // Two 14 × 11 surfaces of bumpy cm-scale points with holes, a flat constant patch (every
+    // point at its centroid) and one non-finite point; every pixel a window centre, so
+    // windows are full, partial (holes, the border) or missing.
+    let (w, h) = (14u32, 11u32);
+    let mut uniform = uniform_draws(11);
+    let mut surface = |shift: f64| -> Vec<Option<DVec3>> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (f64::from(i % w), f64::from(i / w));
+                let hole = uniform() < 0.06;
+                let p = if (2.0..5.0).contains(&x) && (6.0..9.0).contains(&y) {
+                    DVec3::new(0.1, 0.2, 2.0)
+                } else {
+                    DVec3::new(
+                        0.004 * x,
+                        0.004 * y,
+                        2.0 + shift + 0.003 * (x * 0.7 + y).sin() + 0.0005 * uniform(),
+                    )
+                };
+                (!hole).then_some(p)
+            })
+            .collect()
+    };
+    let (mut own_field, other_field) = (surface(0.0), surface(0.01));
+    own_field[5 * w as usize + 10] = Some(DVec3::new(f64::NAN, 0.0, 2.0));
+    let all = || (0..(w * h) as usize).map(Some);
+    let own = Windows::gather(&own_field, (w, h), all(), 2, None);
+    let other = Windows::gather(&other_field, (w, h), all(), 2, None);
+    let n = (w * h) as usize;
+    // Batches of every length mod 4, with repeats.
+    let ts: Vec<usize> = (0..n).chain((0..n).step_by(7)).collect();
+    let (mut scratch, mut out, mut pairs) = (Scratch::default(), Vec::new(), Vec::new());
+    let mut compared = 0;
+    for s in 0..n {
+        for (start, len) in [
+            (0, ts.len()),
+            ((s * 13) % 40, 1),
+            (s % 3, 2),
+            (s % 5, 3),
+            (s, 5),
+        ] {
+            let ts = &ts[start..start + len];
+            window_distances((&own, s), &other, ts, Fixed::Own, &mut scratch, &mut out);
+            for (&t, &d) in ts.iter().zip(&out) {
+                let one = window_distance(&own, s, &other, t, &mut pairs);
+                assert_eq!(
+                    d.to_bits(),
+                    one.to_bits(),
+                    "own {s} against {t}: {d} vs {one}"
+                );
+            }
+            window_distances((&other, s), &own, ts, Fixed::Other, &mut scratch, &mut out);
+            for (&t, &d) in ts.iter().zip(&out) {
+                let one = window_distance(&own, t, &other, s, &mut pairs);
+                assert_eq!(
+                    d.to_bits(),
+                    one.to_bits(),
+                    "own {t} against {s}: {d} vs {one}"
+                );
+                compared += usize::from(d.is_finite() && d > 0.0);
+            }
+        }
+    }
+    // The comparisons were mostly of real windows, not of the special cases.
+    assert!(compared > 10_000, "{compared} finite comparisons");
 }
 
 #[test]
