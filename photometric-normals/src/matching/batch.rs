@@ -169,9 +169,9 @@ fn full_groups<const OWN_FIXED: bool>(
                 h[e] = add(h[e], mul(p, q));
             }
         }
-        // Per lane: the rotation of the cross-covariance scaled to unit mean squared spread
-        // (scalar: Horn's eigenvalue is found by a Newton iteration of its own length), then
-        // its nine entries as lanes.
+        // Per lane: the rotation of the cross-covariance scaled to unit mean squared spread,
+        // then its nine entries as lanes. The rotation is scalar: Horn's eigenvalue is found by
+        // a Newton iteration of each lane's own length (in lanes, measured: 4 % slower).
         let mut r = [[0.0f64; LANES]; 9];
         let mut lane_value = [None::<f64>; LANES];
         for l in 0..LANES {
