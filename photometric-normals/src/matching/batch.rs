@@ -1,15 +1,17 @@
 //! The surface metric of one window against many ([`window_distances`]): the comparisons of
 //! one grid row, computed four at a time.
 //!
-//! Each comparison is [`window_distance`]'s, operation for operation: the cross-covariance
-//! summed over the window's points in order, Horn's rotation of it, the distances summed in
-//! order. Only the comparisons are interleaved (one per SIMD lane), so every cost is the
-//! same to the bit as one comparison at a time. The lanes are compiled for the widest
+//! Two full windows are compared as one comparison alone would be, operation for operation:
+//! the cross-covariance of the centred points summed in window order, Horn's rotation of it
+//! ([`horn_rotation`]), the distances summed in order. Only the comparisons are interleaved
+//! (one per SIMD lane), so every cost is the same to the bit as one comparison at a time (the
+//! unit test keeps that scalar computation as its reference). A window that is not full is
+//! compared alone ([`partial_window_distance`]). The lanes are compiled for the widest
 //! instruction set the processor has (`pulp`'s run-time dispatch: AVX2 on most x86-64,
 //! NEON on aarch64), where one comparison at a time leaves the sums serial and scalar.
 
 use super::horn::horn_rotation;
-use super::metrics::{window_distance, Windows};
+use super::metrics::{partial_window_distance, Windows};
 
 /// Comparisons per group: one per lane of an AVX2 register of `f64`.
 const LANES: usize = 4;
@@ -30,13 +32,14 @@ pub(super) struct Scratch {
     full: Vec<usize>,
     /// One group's varying windows, centred: per point, x then y then z, each `LANES` wide.
     lanes: Vec<[f64; LANES]>,
+    /// [`partial_window_distance`]'s scratch space.
     pairs: Vec<(skin_core::math::DVec3, skin_core::math::DVec3)>,
 }
 
-/// [`window_distance`] of the window `s` of `fixed_windows` against each window `ts` of
-/// `varying`, into `out` (cleared first), in the order of `ts`. `fixed` says whether the fixed
-/// window is the comparison's own (`window_distance(fixed_windows, s, varying, t)`) or its
-/// other (`window_distance(varying, t, fixed_windows, s)`).
+/// The surface metric's distance of the window `s` of `fixed_windows` against each window
+/// `ts` of `varying`, into `out` (cleared first), in the order of `ts`: the mean distance of
+/// corresponding points after the optimal rigid alignment of the own window onto the other.
+/// `fixed` says whether the fixed window is the comparison's own or its other.
 pub(super) fn window_distances(
     (fixed_windows, s): (&Windows, usize),
     varying: &Windows,
@@ -56,8 +59,10 @@ pub(super) fn window_distances(
         }
         // A partial window: the pairs where both points exist, one comparison at a time.
         out.push(match fixed {
-            Fixed::Own => window_distance(fixed_windows, s, varying, t, &mut scratch.pairs),
-            Fixed::Other => window_distance(varying, t, fixed_windows, s, &mut scratch.pairs),
+            Fixed::Own => partial_window_distance(fixed_windows, s, varying, t, &mut scratch.pairs),
+            Fixed::Other => {
+                partial_window_distance(varying, t, fixed_windows, s, &mut scratch.pairs)
+            }
         });
     }
     if scratch.full.is_empty() {

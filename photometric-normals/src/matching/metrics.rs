@@ -66,56 +66,6 @@ pub(super) fn aligned_distance<I: Iterator<Item = (DVec3, DVec3)>>(
         / n as f64
 }
 
-/// [`aligned_distance`] of two full windows, centred (`xs, ys, zs`), with the sum `g` of
-/// both windows' squared norms.
-pub(super) fn aligned_distance_full(
-    (ax, ay, az): (&[f64], &[f64], &[f64]),
-    (bx, by, bz): (&[f64], &[f64], &[f64]),
-    g: f64,
-) -> f64 {
-    if g <= 0.0 {
-        return 0.0;
-    }
-    let k = ax
-        .len()
-        .min(ay.len())
-        .min(az.len())
-        .min(bx.len())
-        .min(by.len())
-        .min(bz.len());
-    let (ax, ay, az, bx, by, bz) = (&ax[..k], &ay[..k], &az[..k], &bx[..k], &by[..k], &bz[..k]);
-    let mut h = [0.0f64; 9];
-    for i in 0..k {
-        let (x, y, z) = (ax[i], ay[i], az[i]);
-        let (u, v, w) = (bx[i], by[i], bz[i]);
-        h[0] += x * u;
-        h[1] += x * v;
-        h[2] += x * w;
-        h[3] += y * u;
-        h[4] += y * v;
-        h[5] += y * w;
-        h[6] += z * u;
-        h[7] += z * v;
-        h[8] += z * w;
-    }
-    let s = 1.0 / (0.5 * g);
-    let h = h.map(|v| v * s);
-    let Some(r) = horn_rotation(&[[h[0], h[1], h[2]], [h[3], h[4], h[5]], [h[6], h[7], h[8]]])
-    else {
-        return f64::INFINITY;
-    };
-    let [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]] = r;
-    let mut sum = 0.0;
-    for i in 0..k {
-        let (x, y, z) = (ax[i], ay[i], az[i]);
-        let dx = r00 * x + r01 * y + r02 * z - bx[i];
-        let dy = r10 * x + r11 * y + r12 * z - by[i];
-        let dz = r20 * x + r21 * y + r22 * z - bz[i];
-        sum += (dx * dx + dy * dy + dz * dz).sqrt();
-    }
-    sum / k as f64
-}
-
 /// The surface windows of a plane's samples, gathered once per plane: `k = window²` points
 /// per sample in window order (rows, then columns; `NaN` where the pixel is outside the image
 /// or has no surface), and the centroid of each window whose points all exist.
@@ -214,10 +164,11 @@ impl Windows {
 }
 
 /// The surface metric's distance between the window `s` of `own` (a view's surface) and the
-/// window `t` of `other` (the other surface rendered into that view): the mean distance of
-/// the pairs of existing points after the optimal rigid alignment, `∞` if fewer than half
-/// the window's pairs exist. `pairs` is scratch space.
-pub(super) fn window_distance(
+/// window `t` of `other` (the other surface rendered into that view) when either is not full:
+/// the mean distance of the pairs of existing points after the optimal rigid alignment, `∞`
+/// if fewer than half the window's pairs exist. `pairs` is scratch space. Two full windows
+/// are compared, a grid row's at once, by [`window_distances`](super::batch::window_distances).
+pub(super) fn partial_window_distance(
     own: &Windows,
     s: usize,
     other: &Windows,
@@ -225,14 +176,6 @@ pub(super) fn window_distance(
     pairs: &mut Vec<(DVec3, DVec3)>,
 ) -> f64 {
     let (a, b) = (own.window(s), other.window(t));
-    if own.centroids[s].is_some() && other.centroids[t].is_some() {
-        // Full windows: the centroids are the ones `rigid_residual` would compute.
-        return aligned_distance_full(
-            own.centred(s),
-            other.centred(t),
-            own.spread[s] + other.spread[t],
-        );
-    }
     pairs.clear();
     pairs.extend(
         a.iter()
