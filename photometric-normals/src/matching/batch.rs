@@ -42,8 +42,9 @@ pub(super) struct Scratch {
 
 /// The surface metric's distance of the window `s` of `fixed_windows` against each window
 /// `ts` of `varying`, into `out` (cleared first), in the order of `ts`: the mean distance of
-/// corresponding points after the optimal rigid alignment of the own window onto the other.
-/// `fixed` says whether the fixed window is the comparison's own or its other.
+/// corresponding points after the optimal rigid alignment of the own window onto the other
+/// (where either window is not full, [`partial_window_distance`]'s). `fixed` says whether the
+/// fixed window is the comparison's own or its other.
 pub(super) fn window_distances(
     (fixed_windows, s): (&Windows, usize),
     varying: &Windows,

@@ -117,8 +117,8 @@ fn window_distance_alone(
     partial_window_distance(own, s, other, t, pairs)
 }
 
-/// The reference: `metrics::aligned_distance` of two full windows, one comparison at a time, centred (`xs, ys, zs`), with the sum `g` of
-/// both windows' squared norms.
+/// The reference for two full windows, one comparison at a time in scalar arithmetic:
+/// centred (`xs, ys, zs`), with the sum `g` of both windows' squared norms.
 fn aligned_distance_full(
     (ax, ay, az): (&[f64], &[f64], &[f64]),
     (bx, by, bz): (&[f64], &[f64], &[f64]),
