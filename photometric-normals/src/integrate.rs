@@ -303,24 +303,27 @@ pub fn depth_errors(
     })
 }
 
-/// Camera-frame unit ray direction of every pixel (row-major).
+/// Camera-frame unit ray direction of every pixel (row-major). [`crate::per_view_surfaces`]
+/// computes them once per camera for its integrations and pairs; the public entry points
+/// ([`integrate_normals`], [`crate::match_pair`]) compute their own.
 pub(crate) fn camera_rays(camera: &Camera) -> Result<Vec<DVec3>> {
-    let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
+    let (w, h) = (
+        camera.intrinsics.width as usize,
+        camera.intrinsics.height as usize,
+    );
     let rot = camera.camera_from_world();
-    // Rows in parallel (a 1024² camera has a million rays, and every view of every pass and
-    // every matched pair asks for them).
-    let rows: Vec<Vec<DVec3>> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            (0..w)
-                .map(|x| {
-                    let ray = camera.ray(DVec2::new(f64::from(x), f64::from(y)))?;
-                    Ok(rot.transform_vector3(ray.direction))
-                })
-                .collect::<Result<Vec<DVec3>>>()
-        })
-        .collect::<Result<_>>()?;
-    Ok(rows.concat())
+    // Rows in parallel, written in place (a 1024² camera has a million rays).
+    let mut rays = vec![DVec3::ZERO; w * h];
+    rays.par_chunks_mut(w.max(1))
+        .enumerate()
+        .try_for_each(|(y, row)| {
+            for (x, out) in row.iter_mut().enumerate() {
+                let ray = camera.ray(DVec2::new(x as f64, y as f64))?;
+                *out = rot.transform_vector3(ray.direction);
+            }
+            Ok::<(), Error>(())
+        })?;
+    Ok(rays)
 }
 
 /// Multiplies each region's depths by the least-squares scale `s = Σ z_i z̄_i / Σ z_i²` over
@@ -626,6 +629,20 @@ pub fn integrate_normals_with_evidence(
     evidence: Option<&DepthMap>,
     params: &IntegrationParams,
 ) -> Result<Integrated> {
+    integrate_with_rays(camera, normals, proxy, match_breaks, evidence, params, None)
+}
+
+/// [`integrate_normals_with_evidence`] with the camera's [`camera_rays`] when the caller has
+/// them (computed once per camera for all of a pass's integrations and pairs).
+pub(crate) fn integrate_with_rays(
+    camera: &Camera,
+    normals: &NormalMap,
+    proxy: &DepthMap,
+    match_breaks: Option<&Mask>,
+    evidence: Option<&DepthMap>,
+    params: &IntegrationParams,
+    camera_frame_rays: Option<&[DVec3]>,
+) -> Result<Integrated> {
     params.validate()?;
     let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
     let n_px = w as usize * h as usize;
@@ -637,6 +654,9 @@ pub fn integrate_normals_with_evidence(
     }
     if let Some(e) = evidence {
         check::same_size("evidence depth map pixels", n_px, e.depth_m.len())?;
+    }
+    if let Some(r) = camera_frame_rays {
+        check::same_size("camera rays", n_px, r.len())?;
     }
     for (n, _) in normals
         .normals
@@ -720,7 +740,14 @@ pub fn integrate_normals_with_evidence(
             what: "pixels to integrate (no valid normals connected to a proxy depth)",
         });
     }
-    let rays = camera_rays(camera)?;
+    let computed;
+    let rays = match camera_frame_rays {
+        Some(rays) => rays,
+        None => {
+            computed = camera_rays(camera)?;
+            &computed
+        }
+    };
     let n = pixels.len();
     let rows: Vec<(usize, f64, usize, f64)> = neighbour_pairs(w, &pixels, &unknown)
         .filter(|&(i, j)| linked(i, j))

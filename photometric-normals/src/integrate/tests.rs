@@ -316,3 +316,29 @@ fn bad_input_is_an_error() {
         assert!(integrate_normals(&cam, &normals, &proxy, None, &bad).is_err());
     }
 }
+
+#[test]
+fn given_camera_rays_integrate_to_the_bit_and_rays_of_another_size_are_an_error() {
+    let (cam, normals, _, proxy) = sphere_view();
+    let p = IntegrationParams::default();
+    let bits = |d: &DepthMap| d.depth_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let own = integrate_normals(&cam, &normals, &proxy, None, &p).unwrap();
+    let rays = camera_rays(&cam).unwrap();
+    let given = integrate_with_rays(&cam, &normals, &proxy, None, None, &p, Some(&rays)).unwrap();
+    assert_eq!(bits(&own.depth), bits(&given.depth));
+    // The given rays are the ones used: another camera's (wider field of view) change the
+    // surface.
+    let wide = Camera::look_at(
+        Intrinsics::from_horizontal_fov(0.6, 96, 96).unwrap(),
+        DVec3::new(0.0, 0.0, 3.0),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
+    let other = camera_rays(&wide).unwrap();
+    let moved = integrate_with_rays(&cam, &normals, &proxy, None, None, &p, Some(&other)).unwrap();
+    assert_ne!(bits(&own.depth), bits(&moved.depth));
+    let short = integrate_with_rays(&cam, &normals, &proxy, None, None, &p, Some(&rays[1..]));
+    let message = short.expect_err("rays of another size").to_string();
+    assert!(message.contains("camera rays"), "{message}");
+}

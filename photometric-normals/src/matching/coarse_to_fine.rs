@@ -2,7 +2,9 @@
 //! resolution to narrow the full-resolution band, then the full-resolution matching.
 
 use skin_core::camera::Camera;
+use skin_core::check;
 use skin_core::image::GrayF32Image;
+use skin_core::math::DVec3;
 
 use crate::integrate::IntegrationParams;
 use crate::{DepthMap, Error, PolygonalHull, Result};
@@ -25,6 +27,18 @@ pub fn match_pair(
     hull: Option<&PolygonalHull>,
     params: &MatchingParams,
 ) -> Result<PairMatches> {
+    match_pair_with_rays(left, right, hull, params, None)
+}
+
+/// [`match_pair`] with the two cameras' [`crate::integrate::camera_rays`] when the caller has
+/// them (computed once per camera for all of a pass's pairs and integrations).
+pub(crate) fn match_pair_with_rays(
+    left: &MatchView<'_>,
+    right: &MatchView<'_>,
+    hull: Option<&PolygonalHull>,
+    params: &MatchingParams,
+    camera_rays: Option<[&[DVec3]; 2]>,
+) -> Result<PairMatches> {
     params.validate()?;
     if params.metric.needs_images() {
         for v in [left, right] {
@@ -44,6 +58,11 @@ pub fn match_pair(
     for v in [left, right] {
         check_view(v)?;
     }
+    if let Some(rays) = camera_rays {
+        for (v, r) in [left, right].into_iter().zip(rays) {
+            check::same_size("camera rays", v.surface.depth_m.len(), r.len())?;
+        }
+    }
     let coarse = params.coarse_to_fine
         && [left, right].iter().all(|v| {
             let k = &v.camera.intrinsics;
@@ -54,7 +73,7 @@ pub fn match_pair(
     } else {
         None
     };
-    Ok(match_views(left, right, hull, params, narrow)?.0)
+    Ok(match_views(left, right, hull, params, narrow, camera_rays)?.0)
 }
 
 /// Coarse-to-fine applies to images at least twice this size.
@@ -163,7 +182,7 @@ pub(super) fn coarse_intervals(
         coarse_to_fine: false,
         ..*params
     };
-    let (_, (rl, rr)) = match_views(&hl.view(), &hr.view(), hull, &coarse_params, None)?;
+    let (_, (rl, rr)) = match_views(&hl.view(), &hr.view(), hull, &coarse_params, None, None)?;
     let widen = |view: &MatchView<'_>, half: &HalfView, ranges: &[(f64, f64)]| {
         let k = &view.camera.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);

@@ -29,7 +29,7 @@ pub(super) fn points_of(camera: &Camera, depth: &DepthMap, rays: &[DVec3]) -> Ve
 pub fn depth_map_mesh(camera: &Camera, depth: &DepthMap, max_jump_m: f64) -> Result<TriMesh> {
     depth.check_camera(camera)?;
     check::positive("max_jump_m", max_jump_m)?;
-    let rays = world_rays(camera)?;
+    let rays = world_rays(camera, None)?;
     mesh_of_points(depth, &points_of(camera, depth, &rays), max_jump_m)
 }
 
@@ -60,9 +60,9 @@ pub(super) fn mesh_of_points(
             if q.iter().any(|&i| index[i] == u32::MAX) {
                 continue;
             }
-            let d: Vec<f64> = q.iter().map(|&i| depth.depth_m[i]).collect();
-            let spread = d.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-                - d.iter().cloned().fold(f64::INFINITY, f64::min);
+            let d = q.map(|i| depth.depth_m[i]);
+            let spread = d.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                - d.iter().copied().fold(f64::INFINITY, f64::min);
             if spread > max_jump_m {
                 continue;
             }
@@ -83,10 +83,15 @@ pub(super) fn mesh_of_points(
     Ok(TriMesh::new(vertices, faces)?)
 }
 
-pub(super) fn world_rays(camera: &Camera) -> Result<Vec<DVec3>> {
+/// The camera's world ray direction per pixel: `camera_frame`'s (its [`camera_rays`], when the
+/// caller has them) turned into the world, or computed.
+pub(super) fn world_rays(camera: &Camera, camera_frame: Option<&[DVec3]>) -> Result<Vec<DVec3>> {
     let r = camera.world_from_camera();
-    Ok(camera_rays(camera)?
-        .into_par_iter()
-        .map(|d| r.transform_vector3(d))
-        .collect())
+    let mut rays = match camera_frame {
+        Some(rays) => rays.to_vec(),
+        None => camera_rays(camera)?,
+    };
+    rays.par_iter_mut()
+        .for_each(|d| *d = r.transform_vector3(*d));
+    Ok(rays)
 }

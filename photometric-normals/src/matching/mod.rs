@@ -55,6 +55,7 @@ mod plane;
 mod views;
 
 pub use coarse_to_fine::match_pair;
+pub(crate) use coarse_to_fine::match_pair_with_rays;
 pub use mesh::depth_map_mesh;
 pub use params::{MatchMetric, MatchingParams, SubPixel};
 pub use views::{matching_images, MatchStats, MatchView, PairMatches, ViewMatches};

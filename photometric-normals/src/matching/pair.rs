@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 use skin_core::image::Mask;
-use skin_core::math::DVec2;
+use skin_core::math::{DVec2, DVec3};
 
 use crate::integrate::IntegrationParams;
 use crate::{DepthMap, Error, PolygonalHull, Result};
@@ -17,21 +17,27 @@ use super::views::{MatchStats, MatchView, PairMatches, ViewMatches};
 /// Per-pixel path depth ranges (min, max along the ray; `NaN` where no path match).
 pub(super) type PathRanges = Vec<(f64, f64)>;
 
-/// [`match_pair`] after its checks, with the coarse intervals of coarse-to-fine matching;
-/// also returns each view's per-pixel path depth ranges.
+/// [`match_pair`] after its checks, with the coarse intervals of coarse-to-fine matching and,
+/// when the caller has them, the two cameras' [`crate::integrate::camera_rays`]; also returns
+/// each view's per-pixel path depth ranges.
 pub(super) fn match_views(
     left: &MatchView<'_>,
     right: &MatchView<'_>,
     hull: Option<&PolygonalHull>,
     params: &MatchingParams,
     narrow: Option<(PathRanges, PathRanges)>,
+    camera_rays: Option<[&[DVec3]; 2]>,
 ) -> Result<(PairMatches, (PathRanges, PathRanges))> {
     let jump = IntegrationParams::jump_threshold_m(params.jump_m, left.camera.intrinsics.width);
     // Surfaces are meshed without bridging jumps of a few matching thresholds.
     let mesh_jump = 4.0 * jump;
     // Per pair, once per camera: the world rays and the surface points (each side's set-up
     // needs both views').
-    let (rays_l, rays_r) = rayon::join(|| world_rays(left.camera), || world_rays(right.camera));
+    let [own_l, own_r] = camera_rays.map_or([None, None], |r| r.map(Some));
+    let (rays_l, rays_r) = rayon::join(
+        || world_rays(left.camera, own_l),
+        || world_rays(right.camera, own_r),
+    );
     let (rays_l, rays_r) = (rays_l?, rays_r?);
     let points_l = points_of(left.camera, left.surface, &rays_l);
     let points_r = points_of(right.camera, right.surface, &rays_r);

@@ -3,10 +3,11 @@ use skin_core::image::Mask;
 use skin_core::math::{DVec2, DVec3};
 use skin_core::mesh::TriMesh;
 
+use crate::integrate::camera_rays;
 use crate::{mesh_proxy_depth, DepthMap, PolygonalHull};
 
 use super::batch::{window_distances, Fixed, Scratch};
-use super::coarse_to_fine::match_pair;
+use super::coarse_to_fine::{match_pair, match_pair_with_rays};
 use super::epipolar_dp::{lowest_cost_path, LV, RV};
 use super::horn::horn_rotation;
 use super::metrics::{partial_window_distance, rigid_residual, Windows};
@@ -766,4 +767,28 @@ fn dynamic_programme_follows_the_cheap_diagonal_and_skips_an_occlusion() {
     assert!(!path.iter().any(|&(a, _)| a == 2), "{path:?}");
     let none = lowest_cost_path(&[f64::INFINITY; 4], 2, 2, &[(0, 0); 2], 0.5, 0.1);
     assert!(none.is_empty());
+}
+
+#[test]
+fn given_camera_rays_match_to_the_bit_and_rays_of_another_size_are_an_error() {
+    // 128² so that the pair is matched coarse to fine (the half-resolution pass computes its
+    // own rays).
+    let (cams, truth) = sphere_ring(128, 2);
+    let (left, right) = (plain(&cams[0], &truth[0]), plain(&cams[1], &truth[1]));
+    let params = MatchingParams::default();
+    let own = match_pair(&left, &right, None, &params).unwrap();
+    let rays: Vec<Vec<DVec3>> = cams.iter().map(|c| camera_rays(c).unwrap()).collect();
+    let given = |r: [&[DVec3]; 2]| match_pair_with_rays(&left, &right, None, &params, Some(r));
+    let cached = given([&rays[0], &rays[1]]).unwrap();
+    for (a, b) in [(&own.left, &cached.left), (&own.right, &cached.right)] {
+        assert_eq!(bits(&a.target), bits(&b.target));
+        assert_eq!(a.breaks, b.breaks);
+    }
+    assert_eq!(own.stats, cached.stats);
+    // The given rays are the ones used: the two cameras' swapped change the matches.
+    let swapped = given([&rays[1], &rays[0]]).unwrap();
+    assert_ne!(bits(&own.left.target), bits(&swapped.left.target));
+    let short = given([&rays[0][1..], &rays[1]]);
+    let message = short.expect_err("rays of another size").to_string();
+    assert!(message.contains("camera rays"), "{message}");
 }
