@@ -1,7 +1,10 @@
 //! Rasteriser and shading speed on the MakeHuman body (13,380 vertices, 26,756 triangles; a
 //! bumpy body-sized blob of similar size when the data set is absent): silhouette, depth and
 //! normals at 1600×1200 (the `raster_ms_per_view` workload of the studio example), and the
-//! 1,200-light dome with per-vertex shadows at 1024×1024 (`shade_ms_per_view_shadowed`).
+//! 1,200-light dome with per-vertex shadows at 1024×1024 (`shade_ms_per_view_shadowed`), and
+//! a dense mesh (a sphere of 1.2 M triangles, as many as a merged studio mesh at 512²) into a
+//! 512 × 512 camera with depth and normals, both faces, as the reconstruction's coverage and
+//! proxy renders do: there the per-triangle set-up and binning outweigh the scan conversion.
 //!
 //! Run: `cargo bench -p skin-core --bench raster`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
@@ -13,6 +16,7 @@ use dynamic_shapes_studio::shading::{
 };
 use skin_core::camera::{Camera, Intrinsics, RadialDistortion};
 use skin_core::math::{DVec2, DVec3};
+use skin_core::mesh::shapes::uv_sphere;
 use skin_core::mesh::{read_obj_group, MeshQuery, TriMesh};
 use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 
@@ -77,6 +81,39 @@ fn bench_raster(c: &mut Criterion) {
     g.finish();
 }
 
+/// A 1.2 M-triangle sphere of 0.9 m radius seen from 3 m by a 512² camera, both faces
+/// rendered: depth only (the coverage and proxy renders) and depth with normals.
+fn bench_raster_dense(c: &mut Criterion) {
+    let mesh = uv_sphere(DVec3::new(0.0, 0.9, 0.0), 0.9, 600, 1000).expect("valid");
+    let k = Intrinsics::new(600.0, 600.0, 255.5, 255.5, 512, 512).expect("valid");
+    let cam = Camera::look_at(
+        k,
+        DVec3::new(0.0, 1.2, 3.0),
+        DVec3::new(0.0, 0.9, 0.0),
+        DVec3::Y,
+    )
+    .expect("valid");
+    let ras = Rasterizer::new(&cam);
+    let mut g = c.benchmark_group("raster_512_dense_1m2");
+    g.sample_size(10);
+    let depth = Buffers {
+        mask: false,
+        depth: true,
+        camera_z: false,
+        normal: false,
+        triangle: false,
+    };
+    for (what, buffers) in [("depth", depth), ("mask_depth_normals", Buffers::default())] {
+        let params = RenderParams::default()
+            .with_buffers(buffers)
+            .with_cull_back_faces(false);
+        g.bench_function(what, |b| {
+            b.iter(|| ras.render(&mesh, &params).expect("visible"))
+        });
+    }
+    g.finish();
+}
+
 /// Dome shading: per-vertex shadow rays (once per frame) and per-pixel shading of one view.
 fn bench_shade(c: &mut Criterion) {
     let mesh = makehuman_body();
@@ -126,5 +163,5 @@ fn bench_shade(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_raster, bench_shade);
+criterion_group!(benches, bench_raster, bench_raster_dense, bench_shade);
 criterion_main!(benches);

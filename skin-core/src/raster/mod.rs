@@ -20,10 +20,10 @@
 //! unless [`RenderParams::allow_empty`] is set, in which case it is returned with an empty
 //! mask.
 //!
-//! **Speed.** Triangle set-up in parallel; scan conversion in parallel bands of 16 rows with an
-//! f32 inner loop over each triangle's (distortion-aware, conservative) bounding box and an
-//! inverse-depth test; attributes resolved once per covered pixel. Output is identical for any
-//! number of threads.
+//! **Speed.** Triangle set-up and binning in parallel; scan conversion in parallel bands of
+//! 16 rows with an f32 inner loop over each triangle's (distortion-aware, conservative)
+//! bounding box and an inverse-depth test; attributes resolved once per covered pixel. Output
+//! is identical for any number of threads.
 
 mod params;
 mod render;
@@ -203,7 +203,7 @@ impl Rasterizer {
 fn raster<D: Dirs>(
     dirs: &D,
     width: usize,
-    tris: &[setup::TriSetup],
+    tris: &[Option<setup::TriSetup>],
     bins: &render::Bins,
     ctx: &ResolveCtx<'_>,
     mask_only: bool,

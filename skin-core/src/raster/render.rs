@@ -1,7 +1,7 @@
 //! Scan conversion in horizontal bands (one rayon task per band) and per-pixel resolve of the
 //! requested buffers.
 //!
-//! Triangles are binned to bands of [`BAND_ROWS`] rows in face order (a counting sort), so each
+//! Triangles are binned to bands of [`BAND_ROWS`] rows in face order ([`bin_triangles`]), so each
 //! band sees its triangles in the same order whatever the thread count: output is identical for
 //! any number of threads. Within a band the inner loop is an f32 edge-function test over the
 //! triangle's bounding box with an inverse-depth (`1/z`) test; attributes are computed once per
@@ -40,35 +40,55 @@ pub(crate) struct ResolveCtx<'a> {
     pub(crate) normals: NormalMode,
 }
 
-/// Band bins: `order[start[b]..start[b+1]]` are the set-up indices touching band `b`, in face
-/// order.
+/// Band bins: `order[start[b]..start[b+1]]` are the faces touching band `b`, in face order.
 pub(crate) struct Bins {
     pub(crate) start: Vec<usize>,
     pub(crate) order: Vec<u32>,
 }
 
-pub(crate) fn bin_triangles(tris: &[TriSetup], n_bands: usize) -> Bins {
-    let mut count = vec![0usize; n_bands + 1];
-    for t in tris {
-        for b in t.y0 as usize / BAND_ROWS..=t.y1 as usize / BAND_ROWS {
-            count[b + 1] += 1;
-        }
-    }
+/// Faces per task of [`bin_triangles`].
+const BIN_CHUNK: usize = 1 << 16;
+
+/// Bins the set-up faces to bands: each chunk of faces lists its faces per band in parallel,
+/// then each band's lists are joined in chunk order, so every band holds its faces in face
+/// order whatever the thread count (a serial counting sort gives the same bins; on a dense
+/// mesh its two passes over every face were a serial part of each render).
+pub(crate) fn bin_triangles(tris: &[Option<TriSetup>], n_bands: usize) -> Bins {
+    let lists: Vec<Vec<Vec<u32>>> = tris
+        .par_chunks(BIN_CHUNK)
+        .enumerate()
+        .map(|(ci, chunk)| {
+            let mut per_band = vec![Vec::new(); n_bands];
+            for (k, t) in chunk.iter().enumerate() {
+                let Some(t) = t else { continue };
+                let face = (ci * BIN_CHUNK + k) as u32;
+                for list in &mut per_band[t.y0 as usize / BAND_ROWS..=t.y1 as usize / BAND_ROWS] {
+                    list.push(face);
+                }
+            }
+            per_band
+        })
+        .collect();
+    let mut start = vec![0usize; n_bands + 1];
     for b in 0..n_bands {
-        count[b + 1] += count[b];
+        start[b + 1] = start[b] + lists.iter().map(|l| l[b].len()).sum::<usize>();
     }
-    let mut fill = count.clone();
-    let mut order = vec![0u32; count[n_bands]];
-    for (i, t) in tris.iter().enumerate() {
-        for b in t.y0 as usize / BAND_ROWS..=t.y1 as usize / BAND_ROWS {
-            order[fill[b]] = i as u32;
-            fill[b] += 1;
+    let mut order = vec![0u32; start[n_bands]];
+    let mut bands = Vec::with_capacity(n_bands);
+    let mut rest = order.as_mut_slice();
+    for b in 0..n_bands {
+        let (band, tail) = rest.split_at_mut(start[b + 1] - start[b]);
+        bands.push(band);
+        rest = tail;
+    }
+    bands.into_par_iter().enumerate().for_each(|(b, band)| {
+        let mut at = 0;
+        for l in &lists {
+            band[at..at + l[b].len()].copy_from_slice(&l[b]);
+            at += l[b].len();
         }
-    }
-    Bins {
-        start: count,
-        order,
-    }
+    });
+    Bins { start, order }
 }
 
 #[inline(always)]
@@ -87,7 +107,7 @@ fn inside(t: &TriSetup, d: [f32; 2]) -> bool {
         & ((v2 > 0.0) | ((v2 == 0.0) & t.top_left[2]))
 }
 
-/// Per-worker scratch: inverse depth and winning set-up index per band pixel.
+/// Per-worker scratch: inverse depth and winning face per band pixel.
 pub(crate) struct Scratch {
     w: Vec<f32>,
     id: Vec<u32>,
@@ -106,7 +126,7 @@ impl Scratch {
 pub(crate) fn mask_band<D: Dirs>(
     dirs: &D,
     width: usize,
-    tris: &[TriSetup],
+    tris: &[Option<TriSetup>],
     ids: &[u32],
     out: &mut BandOut<'_>,
 ) -> usize {
@@ -114,7 +134,7 @@ pub(crate) fn mask_band<D: Dirs>(
     out.mask.fill(0);
     let (y0, y1) = (out.y0, out.y0 + rows - 1);
     for &i in ids {
-        let t = &tris[i as usize];
+        let Some(t) = &tris[i as usize] else { continue };
         let (x0, x1) = (t.x0 as usize, t.x1 as usize);
         for y in (t.y0 as usize).max(y0)..=(t.y1 as usize).min(y1) {
             let base = (y - y0) * width;
@@ -133,7 +153,7 @@ pub(crate) fn mask_band<D: Dirs>(
 pub(crate) fn full_band<D: Dirs>(
     dirs: &D,
     width: usize,
-    tris: &[TriSetup],
+    tris: &[Option<TriSetup>],
     ids: &[u32],
     ctx: &ResolveCtx<'_>,
     scratch: &mut Scratch,
@@ -146,7 +166,7 @@ pub(crate) fn full_band<D: Dirs>(
     idb.fill(NO_TRIANGLE);
     let (y0, y1) = (out.y0, out.y0 + rows - 1);
     for &i in ids {
-        let t = &tris[i as usize];
+        let Some(t) = &tris[i as usize] else { continue };
         let (x0, x1) = (t.x0 as usize, t.x1 as usize);
         for y in (t.y0 as usize).max(y0)..=(t.y1 as usize).min(y1) {
             let base = (y - y0) * width;
@@ -169,14 +189,13 @@ pub(crate) fn full_band<D: Dirs>(
         let y = y0 + yy;
         for x in 0..width {
             let j = yy * width + x;
-            let id = idb[j];
-            if id == NO_TRIANGLE {
+            let face = idb[j];
+            if face == NO_TRIANGLE {
                 continue;
             }
             covered += 1;
-            let t = &tris[id as usize];
             let d = dirs.dir(x, y);
-            let (lam, z) = cache.resolve(ctx, t.face, d, zb[j]);
+            let (lam, z) = cache.resolve(ctx, face, d, zb[j]);
             if !out.mask.is_empty() {
                 out.mask[j] = 1;
             }
@@ -187,11 +206,11 @@ pub(crate) fn full_band<D: Dirs>(
                 out.camera_z[j] = z;
             }
             if !out.triangle.is_empty() {
-                out.triangle[j] = t.face;
+                out.triangle[j] = face;
                 out.bary[j] = [lam[1], lam[2]];
             }
             if !out.normal.is_empty() {
-                out.normal[j] = pixel_normal(ctx, t.face, lam);
+                out.normal[j] = pixel_normal(ctx, face, lam);
             }
         }
     }

@@ -227,6 +227,48 @@ fn identical_for_one_and_two_threads() {
     assert_eq!(a, b);
 }
 
+/// The parallel binning against a serial counting sort: more faces than one binning task
+/// takes, some without a set-up, each band's faces in face order.
+#[test]
+fn bins_hold_each_bands_faces_in_face_order() {
+    use super::render::{bin_triangles, BAND_ROWS};
+    use super::setup::TriSetup;
+    let n_bands = 37;
+    let rng = crate::random::SplitMix64::new(7);
+    let tris: Vec<Option<TriSetup>> = (0..200_000u64)
+        .map(|i| {
+            let y0 = (rng.uniform_at(3 * i) * (n_bands * BAND_ROWS) as f64) as u32;
+            let y1 = (y0 + (rng.uniform_at(3 * i + 1) * 3.0 * BAND_ROWS as f64) as u32)
+                .min((n_bands * BAND_ROWS - 1) as u32);
+            (rng.uniform_at(3 * i + 2) > 0.2).then_some(TriSetup {
+                e: [[0.0; 3]; 3],
+                top_left: [false; 3],
+                w: [0.0; 3],
+                x0: 0,
+                x1: 0,
+                y0,
+                y1,
+            })
+        })
+        .collect();
+    let bins = bin_triangles(&tris, n_bands);
+    let mut start = vec![0];
+    let mut order = Vec::new();
+    for b in 0..n_bands {
+        for (f, t) in tris.iter().enumerate() {
+            if let Some(t) = t {
+                if (t.y0 as usize / BAND_ROWS..=t.y1 as usize / BAND_ROWS).contains(&b) {
+                    order.push(f as u32);
+                }
+            }
+        }
+        start.push(order.len());
+    }
+    assert!(order.len() > tris.len());
+    assert_eq!(bins.start, start);
+    assert_eq!(bins.order, order);
+}
+
 #[test]
 fn sphere_normals_depth_and_barycentrics_are_analytic() {
     let c = DVec3::new(0.0, 0.1, 0.0);
