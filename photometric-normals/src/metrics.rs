@@ -39,7 +39,7 @@ use skin_core::math::Ray;
 #[cfg(feature = "validation")]
 use skin_core::mesh::MeshQuery;
 use skin_core::mesh::{one_sided_distance, vertex_normals, NormalWeighting, TriMesh};
-use skin_core::raster::{Rasterizer, RenderParams};
+use skin_core::raster::{Buffers, Rasterizer, RenderParams};
 
 #[cfg(feature = "validation")]
 use crate::{depth_jumps, IntegrationParams, ViewSurfaces};
@@ -253,9 +253,9 @@ fn vertex_sums(
     (count, dev, local, pairs)
 }
 
-/// One camera's rendering of `mesh` for the metrics: the rendered view, its hit depth and
-/// the covered pixels (a valid normal inside the silhouette whose mesh hit lies within
-/// `near_m` of the view's per-view surface).
+/// One camera's rendering of `mesh` for the metrics: the rendered view (the depth, and the
+/// mask and normals if `with_normals`), its hit depth and the covered pixels (a valid normal
+/// inside the silhouette whose mesh hit lies within `near_m` of the view's per-view surface).
 fn covered_render(
     camera: &Camera,
     normals: &NormalMap,
@@ -263,6 +263,7 @@ fn covered_render(
     surface: &DepthMap,
     mesh: &TriMesh,
     params: &MetricParams,
+    with_normals: bool,
 ) -> Result<(skin_core::raster::RenderedView, Vec<bool>, DepthMap)> {
     surface.check_camera(camera)?;
     let w = surface.width;
@@ -281,9 +282,17 @@ fn covered_render(
         surface.depth_m.len(),
         silhouette.pixel_count(),
     )?;
+    let buffers = Buffers {
+        mask: with_normals,
+        depth: true,
+        camera_z: false,
+        normal: with_normals,
+        triangle: false,
+    };
     let view = Rasterizer::new(camera).render(
         mesh,
         &RenderParams::default()
+            .with_buffers(buffers)
             .with_cull_back_faces(false)
             .with_allow_empty(true),
     )?;
@@ -307,7 +316,8 @@ fn camera_sums(
     mesh: &TriMesh,
     params: &MetricParams,
 ) -> Result<(Sums, Vec<bool>, DepthMap)> {
-    let (view, covered, hit) = covered_render(camera, normals, silhouette, surface, mesh, params)?;
+    let (view, covered, hit) =
+        covered_render(camera, normals, silhouette, surface, mesh, params, true)?;
     let (w, h) = (surface.width, surface.height);
     let rec = rendered_normals(camera, &view)?;
     let measured = (0..surface.depth_m.len())
@@ -407,6 +417,7 @@ fn covered_renders(
                 &surfaces[c],
                 mesh,
                 params,
+                false,
             )
             .map(|(_, covered, hit)| (covered, hit))
             .at(Context::Camera(c))
