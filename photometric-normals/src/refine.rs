@@ -387,7 +387,7 @@ pub fn refine_with_normals(
         })
         .filter(|&(a, b)| b != u32::MAX && a != b)
         .collect();
-    edges.sort_unstable();
+    edges.par_sort_unstable();
     edges.dedup();
     let mut off = vec![0.0; edges.len()];
     let mut diag = vec![lambda; n_unknowns];

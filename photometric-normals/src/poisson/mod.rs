@@ -55,6 +55,8 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use skin_core::check;
 use skin_core::math::DVec3;
 use skin_core::mesh::{vertex_normals, NormalWeighting, TriMesh};
@@ -336,20 +338,27 @@ pub fn screened_poisson(
     let (levels, figures) = solve_hierarchy(&unit, params)?;
     times.solve_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let mut comp = Composite {
-        levels: &levels,
-        memo: NodeMap::default(),
-        outside: 0.0,
-    };
     let finest = levels.len() - 1;
+    // The indicator at every sample in parallel (each task memoises in its own `Composite`,
+    // which changes no value), then the weighted mean summed in sample order.
+    let at_samples: Vec<f64> = unit
+        .par_iter()
+        .map_init(
+            || Composite {
+                levels: &levels,
+                memo: NodeMap::default(),
+                outside: 0.0,
+            },
+            |comp, s| comp.at_point(finest, s.q),
+        )
+        .collect();
     let (mut sw, mut swx) = (0.0, 0.0);
-    for s in &unit {
+    for (s, x) in unit.iter().zip(&at_samples) {
         sw += s.weight;
-        swx += s.weight * comp.at_point(finest, s.q);
+        swx += s.weight * x;
     }
     let iso = swx / sw;
-    comp.outside = iso + 0.5;
-    let outside = comp.outside;
+    let outside = iso + 0.5;
     let cells = extraction_cells(&levels, iso, outside);
     times.cells_s = t.elapsed().as_secs_f64();
     let t = Instant::now();

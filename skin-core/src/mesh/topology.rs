@@ -7,6 +7,8 @@
 //! (Ch. 3). Everything is built in O(F log F) from the face list and stored compactly
 //! ([`Adjacency`], a CSR layout) so meshes of 10⁵–10⁶ faces are cheap.
 
+use rayon::slice::ParallelSliceMut;
+
 use crate::mesh::TriMesh;
 use crate::Result;
 
@@ -23,7 +25,7 @@ impl Adjacency {
     /// Builds from `(row, value)` pairs over `rows` rows; each row's values are sorted and
     /// deduplicated.
     fn from_pairs(rows: usize, mut pairs: Vec<(u32, u32)>) -> Self {
-        pairs.sort_unstable();
+        pairs.par_sort_unstable();
         pairs.dedup();
         let mut offsets = vec![0usize; rows + 1];
         for &(r, _) in &pairs {
@@ -191,7 +193,7 @@ impl EdgeTopology {
                 }
             }
         }
-        half.sort_unstable();
+        half.par_sort_unstable();
         let mut edges = Vec::new();
         let mut face_count = Vec::new();
         let mut face_neighbors = vec![[None; 3]; mesh.face_count()];
