@@ -389,11 +389,28 @@ pub fn refine_with_normals(
         .collect();
     edges.par_sort_unstable();
     edges.dedup();
+    // Each face edge's index in `edges` (`u32::MAX` where an end is fixed), looked up in
+    // parallel; the sums below stay serial, in face order.
+    let edge_of: Vec<[u32; 3]> = mesh
+        .faces
+        .par_iter()
+        .map(|f| {
+            [0, 1, 2].map(|k| {
+                let (ua, ub) = (unknown[f[k] as usize], unknown[f[(k + 1) % 3] as usize]);
+                if ua == u32::MAX || ub == u32::MAX {
+                    return u32::MAX;
+                }
+                edges
+                    .binary_search(&(ua.min(ub), ua.max(ub)))
+                    .map_or(u32::MAX, |e| e as u32)
+            })
+        })
+        .collect();
     let mut off = vec![0.0; edges.len()];
     let mut diag = vec![lambda; n_unknowns];
     let mut rhs = vec![0.0; n_unknowns];
     let mu = 1.0 - lambda;
-    for f in &mesh.faces {
+    for (f, fe) in mesh.faces.iter().zip(&edge_of) {
         let ids = f.map(|v| v as usize);
         let Some(tf) = ids
             .iter()
@@ -419,11 +436,8 @@ pub fn refine_with_normals(
                 diag[ub as usize] += mu * beta * beta;
                 rhs[ub as usize] += mu * beta * c;
             }
-            if ua != u32::MAX && ub != u32::MAX {
-                let key = (ua.min(ub), ua.max(ub));
-                if let Ok(e) = edges.binary_search(&key) {
-                    off[e] -= mu * alpha * beta;
-                }
+            if fe[k] != u32::MAX {
+                off[fe[k] as usize] -= mu * alpha * beta;
             }
         }
     }
