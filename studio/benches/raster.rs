@@ -6,7 +6,7 @@
 //! 512 × 512 camera with depth and normals, both faces, as the reconstruction's coverage and
 //! proxy renders do: there the per-triangle set-up and binning outweigh the scan conversion.
 //!
-//! Run: `cargo bench -p skin-core --bench raster`.
+//! Run: `cargo bench -p dynamic-shapes-studio --bench raster`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // not library code
 #![allow(missing_docs)] // criterion_group!/criterion_main! generate undocumented items.
 
