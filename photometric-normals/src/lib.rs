@@ -164,7 +164,7 @@ pub use offsets::{
 pub use patterns::{grey, pattern_weights, patterns_weights, Exposure, PatternImages};
 pub use poisson::{
     screened_poisson, FluxSplat, OrientedSample, PoissonLevel, PoissonParams, PoissonSurface,
-    PoissonTimes,
+    PoissonTimes, ScreeningForm,
 };
 pub use proxy::{mesh_proxy_depth, PolygonalHull, PolygonalHullParams};
 pub use reconstruct::{

@@ -5,6 +5,8 @@ use skin_core::math::DVec3;
 
 use crate::marching_cubes::{Node, NodeMap};
 
+use super::screening::CellScreening;
+
 pub(super) const B: i64 = 4; // nodes per block side
 pub(super) const B3: usize = (B * B * B) as usize;
 pub(super) const NONE: u32 = u32::MAX;
@@ -36,6 +38,13 @@ pub(super) struct Level {
     /// Unknowns of the coarser level whose basis functions are nonzero at each node (`NONE`
     /// = absent or outside the coarser band), in the order of `solve::parents`.
     pub(super) up: Vec<[u32; 8]>,
+    /// The screening's couplings between the corners of the samples' cells
+    /// ([`ScreeningForm::Consistent`](super::ScreeningForm::Consistent)); `None` when the
+    /// screening is lumped onto `diag`.
+    pub(super) screen: Option<CellScreening>,
+    /// With the consistent screening, the smoother's and Jacobi preconditioner's diagonal
+    /// (filled by `solve_level`); empty otherwise, where `diag` serves.
+    pub(super) l1_diag: Vec<f64>,
 }
 
 impl Level {
@@ -76,6 +85,18 @@ impl Level {
             diag: Vec::new(),
             nbr: Vec::new(),
             up: Vec::new(),
+            screen: None,
+            l1_diag: Vec::new(),
+        }
+    }
+
+    /// The diagonal of the smoother and the Jacobi preconditioner: `l1_diag` with the
+    /// consistent screening, `diag` otherwise.
+    pub(super) fn smoother_diag(&self) -> &[f64] {
+        if self.l1_diag.is_empty() {
+            &self.diag
+        } else {
+            &self.l1_diag
         }
     }
 

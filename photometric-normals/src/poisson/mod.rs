@@ -16,8 +16,8 @@
 //! [`PoissonParams::dense_depth`] are complete, finer levels hold only the 4³-node blocks
 //! around the samples (a band a few cells wide). `V` is splatted onto nodes by the quadratic
 //! B-spline around the nearest node or trilinearly ([`FluxSplat`]), the gradient energy is the 7-point finite-difference form (`V` averaged onto grid edges), the
-//! screening term is mass-lumped onto nodes (`Σᵢ wᵢ aᵢ φₙ(pᵢ)`), and the domain boundary is
-//! free (Neumann). The sample area `aᵢ` is `1 / σᵢ`, the inverse of the local sample density
+//! screening term is mass-lumped onto nodes (`Σᵢ wᵢ aᵢ φₙ(pᵢ)`) by default or taken at the
+//! samples as written ([`ScreeningForm`]), and the domain boundary is free (Neumann). The sample area `aᵢ` is `1 / σᵢ`, the inverse of the local sample density
 //! per unit area estimated by a smooth kernel over the 40 nearest samples within at most 4
 //! finest cells (`ρᵢ = Σⱼ (1 − dᵢⱼ²/rᵢ²)²`, `σᵢ = 3ρᵢ / (π rᵢ²)`), so confidences scale a sample's pull
 //! relative to equally dense samples, as in Kazhdan's code (which splats a B-spline density
@@ -48,7 +48,8 @@
 //! [`PoissonParams::min_component_fraction`] of the largest are dropped.
 //!
 //! **Files**, in dependency order: `grid.rs` (levels of blocks, the composite indicator),
-//! `samples.rs` (sample areas, band blocks), `solve.rs` (a level's conjugate gradients and
+//! `samples.rs` (sample areas, band blocks), `screening.rs` (the consistent screening's
+//! couplings), `solve.rs` (a level's conjugate gradients and
 //! V-cycle), `assembly.rs` (the cascade of levels, each assembled and solved), `extract.rs`
 //! (the cells to march, small components dropped); this file holds the public types and
 //! [`screened_poisson`].
@@ -68,6 +69,7 @@ mod assembly;
 mod extract;
 mod grid;
 mod samples;
+mod screening;
 mod solve;
 
 use assembly::solve_hierarchy;
@@ -119,13 +121,15 @@ pub struct PoissonParams {
     /// Screening weight α. Default 4 (Kazhdan & Hoppe 2013's default, in unit-cube units).
     /// Not the same screening as Kazhdan's code at the same number: it multiplies the weight
     /// of a node at depth `d` by `2^d` (its `adaptiveExponent` of 1, as Open3D calls it), so its
-    /// default is about α = 4 · 2^depth here (1,024 at depth 8). Here that strength does not
-    /// pay: workload 6b's mean error where sampled, depth 8, is 0.047 mm at α = 4, 0.039 at
-    /// 64, 0.048 at 256 and 0.086 at 1,024 (stronger screening removes the smooth bias the
-    /// hole leaves on the sampled part, but the mass-lumped screening adds artefacts at the
-    /// grid's period). Stronger screening also trades the filled holes for the sampled part
-    /// (measured at α = 32: the studio's filled holes pulled towards the low-weight visual
-    /// hull, p95 distance 26.5 → 36.7 mm).
+    /// default is about α = 4 · 2^depth here (1,024 at depth 8). With the default
+    /// [`ScreeningForm::Lumped`] that strength does not pay: workload 6b's mean error where
+    /// sampled, depth 8, is 0.047 mm at α = 4, 0.039 at 64, 0.048 at 256 and 0.086 at 1,024
+    /// (stronger screening removes the smooth bias the hole leaves on the sampled part, but
+    /// the lumped screening adds artefacts at the grid's period); with
+    /// [`ScreeningForm::Consistent`] it does (see there). Stronger screening also trades the
+    /// filled holes for the sampled part (measured with the lumped form at α = 32: the
+    /// studio's filled holes pulled towards the low-weight visual hull, p95 distance 26.5 →
+    /// 36.7 mm).
     pub screening: f64,
     /// Domain side over the samples' bounding cube. Default 1.1 (Kazhdan's `--scale`).
     pub scale: f64,
@@ -152,6 +156,35 @@ pub struct PoissonParams {
     /// How each sample's oriented area is spread onto the nodes. Default
     /// [`FluxSplat::Quadratic`].
     pub flux_splat: FluxSplat,
+    /// How the screening term is discretised. Default [`ScreeningForm::Lumped`].
+    pub screening_form: ScreeningForm,
+}
+
+/// How [`screened_poisson`] discretises the screening term `α Σᵢ wᵢ aᵢ χ(pᵢ)²`.
+///
+/// Measured on workload 6b (200,000 random samples of a holed sphere, depth 8; Open3D's
+/// error where sampled 0.020 mm), mean error where sampled:
+///
+/// | form | α = 4 | α = 256 | α = 1,024 (Kazhdan's strength) | α = 4,096 |
+/// |---|---|---|---|---|
+/// | lumped | 0.047 mm | 0.048 mm | 0.086 mm | |
+/// | consistent | 0.047 mm | 0.034 mm | 0.032 mm | 0.032 mm |
+///
+/// In alternated runs the consistent form at α = 1,024 and 4,096 took 1.0–1.2× the time of
+/// the lumped form at α = 4 (4.8–5.0 s): its couplings cost little, and the complete levels'
+/// V-cycles need 4–23 iterations instead of 5–6.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ScreeningForm {
+    /// Mass-lumped onto the nodes: each node's own value is pulled towards 0 with the
+    /// weight `Σᵢ wᵢ aᵢ φₙ(pᵢ)` (ours: a diagonal term, so the operator stays 7-point; the
+    /// default, with which the thesis pipeline's figures are measured). It pulls both sides of
+    /// the surface towards the iso-value, by amounts that depend on where the surface cuts
+    /// each cell: artefacts at the grid's period under strong screening.
+    #[default]
+    Lumped,
+    /// As written (Kazhdan & Hoppe 2013): the trilinear value at each sample is pulled
+    /// towards 0, which couples the 8 corners of each sample's cell.
+    Consistent,
 }
 
 /// How [`screened_poisson`] spreads each sample's oriented area onto the grid's nodes.
@@ -185,6 +218,7 @@ impl Default for PoissonParams {
             multigrid_bands: false,
             min_component_fraction: 0.01,
             flux_splat: FluxSplat::Quadratic,
+            screening_form: ScreeningForm::Lumped,
         }
     }
 }
@@ -217,6 +251,12 @@ impl PoissonParams {
     /// With another flux splat.
     pub fn with_flux_splat(mut self, splat: FluxSplat) -> Self {
         self.flux_splat = splat;
+        self
+    }
+
+    /// With another discretisation of the screening term.
+    pub fn with_screening_form(mut self, form: ScreeningForm) -> Self {
+        self.screening_form = form;
         self
     }
 

@@ -23,17 +23,30 @@ pub(super) const COARSEST_SWEEPS: usize = 60;
 pub(super) const COARSEST_DEPTH: u32 = 2;
 
 impl Level {
-    /// `y = A x` for this level's operator (diagonal `diag`, −1 to each unknown neighbour).
+    /// `y = A x` for this level's operator ([`Level::row`]).
     pub(super) fn apply(&self, x: &[f64], y: &mut [f64]) {
-        y.par_iter_mut().enumerate().for_each(|(i, yi)| {
-            let mut s = self.diag[i] * x[i];
-            for &j in &self.nbr[i] {
-                if j != NONE {
-                    s -= x[j as usize];
-                }
+        let u = self.screen.as_ref().map(|s| s.products(x));
+        let u = u.as_deref().map(Vec::as_slice);
+        y.par_iter_mut()
+            .enumerate()
+            .for_each(|(i, yi)| *yi = self.row(i, x, u));
+    }
+
+    /// Row `i` of the operator applied to `x`: the diagonal `diag`, −1 to each unknown
+    /// neighbour and, with the consistent screening, its couplings (`u`, the screening's
+    /// [`products`](super::screening::CellScreening::products) with `x`).
+    #[inline]
+    pub(super) fn row(&self, i: usize, x: &[f64], u: Option<&[f64]>) -> f64 {
+        let mut s = self.diag[i] * x[i];
+        for &j in &self.nbr[i] {
+            if j != NONE {
+                s -= x[j as usize];
             }
-            *yi = s;
-        });
+        }
+        if let (Some(screen), Some(u)) = (&self.screen, u) {
+            s += screen.off_diagonal(i, u);
+        }
+        s
     }
 
     /// `sweeps` damped Jacobi sweeps on `A e = r` (a symmetric smoother).
@@ -44,7 +57,7 @@ impl Level {
             e.par_iter_mut()
                 .zip(&ae)
                 .zip(r)
-                .zip(&self.diag)
+                .zip(self.smoother_diag())
                 .for_each(|(((ei, ai), ri), di)| *ei += OMEGA * (ri - ai) / di);
         }
     }
@@ -155,7 +168,7 @@ pub(super) fn level_cg(
     let preconditioner = if multigrid {
         Preconditioner::Apply(&mut v)
     } else {
-        Preconditioner::Jacobi(&level.diag)
+        Preconditioner::Jacobi(level.smoother_diag())
     };
     Ok(pcg(
         level,
@@ -191,6 +204,8 @@ impl LinearOperator for Level {
             Level::apply(self, p, q);
             return reduction.dot(p, q);
         };
+        let u = self.screen.as_ref().map(|s| s.products(p));
+        let u = u.as_deref().map(Vec::as_slice);
         let partial: Vec<f64> = q
             .par_chunks_mut(chunk)
             .enumerate()
@@ -199,12 +214,7 @@ impl LinearOperator for Level {
                 let mut pq = 0.0;
                 for (k, qi) in qc.iter_mut().enumerate() {
                     let i = base + k;
-                    let mut s = self.diag[i] * p[i];
-                    for &j in &self.nbr[i] {
-                        if j != NONE {
-                            s -= p[j as usize];
-                        }
-                    }
+                    let s = self.row(i, p, u);
                     *qi = s;
                     pq += p[i] * s;
                 }

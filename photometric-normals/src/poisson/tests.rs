@@ -70,6 +70,18 @@ fn random_holed_sphere(n: usize) -> Vec<OrientedSample> {
         .collect()
 }
 
+/// Mean distance of the vertices where the holed sphere is sampled (`z ≤ 0.25`, away from
+/// the hole's rim) to the sphere, m.
+fn error_where_sampled(mesh: &TriMesh) -> f64 {
+    let err: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .filter(|v| v.z <= 0.25)
+        .map(|v| (v.length() - 0.4).abs())
+        .collect();
+    skin_core::stats::mean(&err)
+}
+
 #[test]
 fn random_samples_give_a_smooth_surface() {
     // About two samples per finest cell, placed at random: the trilinear flux splat (two
@@ -80,15 +92,7 @@ fn random_samples_give_a_smooth_surface() {
         let params = PoissonParams::default()
             .with_depth(7)
             .with_flux_splat(splat);
-        let s = screened_poisson(&samples, &params).unwrap();
-        let err: Vec<f64> = s
-            .mesh
-            .vertices
-            .iter()
-            .filter(|v| v.z <= 0.25)
-            .map(|v| (v.length() - 0.4).abs())
-            .collect();
-        skin_core::stats::mean(&err)
+        error_where_sampled(&screened_poisson(&samples, &params).unwrap().mesh)
     };
     let (quadratic, trilinear) = (error(FluxSplat::Quadratic), error(FluxSplat::Trilinear));
     assert!(quadratic < 0.1e-3, "quadratic {quadratic}");
@@ -224,15 +228,23 @@ fn fused_jacobi_cg_follows_the_textbook_iteration() {
 fn the_surface_does_not_depend_on_the_thread_count() {
     // The CG's sums are taken in a fixed order, so 1, 2 and 3 threads give the same mesh
     // bit for bit (rayon's `sum`, used before, added in an order that depends on how the
-    // work was split).
+    // work was split), with either form of the screening.
     let samples = holed_sphere(20_000);
-    let params = PoissonParams::default().with_depth(7);
+    for form in [ScreeningForm::Lumped, ScreeningForm::Consistent] {
+        let params = PoissonParams::default()
+            .with_depth(7)
+            .with_screening_form(form);
+        same_surface_on_any_thread_count(&samples, &params);
+    }
+}
+
+fn same_surface_on_any_thread_count(samples: &[OrientedSample], params: &PoissonParams) {
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| screened_poisson(&samples, &params).unwrap())
+            .install(|| screened_poisson(samples, params).unwrap())
     };
     let one = run(1);
     for threads in [2, 3] {
@@ -411,4 +423,93 @@ fn rejects_bad_samples() {
     s[7].weight = 1.0;
     assert!(screened_poisson(&s, &p.with_depth(12)).is_err());
     assert!(screened_poisson(&s, &p.with_screening(f64::NAN)).is_err());
+}
+
+#[test]
+fn consistent_screening_is_the_point_values_quadratic_form() {
+    // On a complete depth-3 level with random samples (several in some cells, none in
+    // others) and random node values: `xᵀ S x` from the cells' diagonal and off-diagonal
+    // parts is `α/h Σᵢ mᵢ χ(pᵢ)²` with `χ` trilinear, and `S` is symmetric.
+    use super::screening::CellScreening;
+    let depth = 3;
+    let nb = (1i64 << depth) / B + 1;
+    let level = Level::new(depth, &vec![true; (nb * nb * nb) as usize]);
+    let nn = level.nodes.len();
+    let random = skin_core::random::SplitMix64::new(7).uniform(4 * 300 + 2 * nn);
+    let (coords, values) = random.split_at(4 * 300);
+    let samples: Vec<UnitSample> = coords
+        .chunks_exact(4)
+        .enumerate()
+        .map(|(k, u)| {
+            // A third of the samples in one cell.
+            let q = if k % 3 == 0 {
+                DVec3::new(0.3 + 0.1 * u[0], 0.55 + 0.1 * u[1], 0.4 + 0.1 * u[2])
+            } else {
+                DVec3::new(u[0], u[1], u[2])
+            };
+            UnitSample {
+                q,
+                flux: DVec3::ZERO,
+                mass: 0.5 + u[3],
+                weight: 1.0,
+            }
+        })
+        .collect();
+    let alpha = 3.0;
+    let screen = CellScreening::new(&samples, level.n, alpha, |p| level.index(p), nn);
+    let apply = |x: &[f64]| -> Vec<f64> {
+        let u = screen.products(x);
+        (0..nn)
+            .map(|i| screen.diagonal(i) * x[i] + screen.off_diagonal(i, &u))
+            .collect()
+    };
+    let (x, y) = values.split_at(nn);
+    let (sx, sy) = (apply(x), apply(y));
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>();
+    let energy: f64 = samples
+        .iter()
+        .map(|s| {
+            let (c, t) = cell_of(s.q, level.n);
+            let chi: f64 = corners8()
+                .map(|o| trilinear(t, o) * x[level.index(add(c, o, 1)).unwrap()])
+                .sum();
+            alpha * level.n as f64 * s.mass * chi * chi
+        })
+        .sum();
+    let form = dot(x, &sx);
+    assert!((form - energy).abs() < 1e-12 * energy, "{form} vs {energy}");
+    let (xsy, ysx) = (dot(x, &sy), dot(y, &sx));
+    assert!((xsy - ysx).abs() < 1e-12 * xsy.abs(), "{xsy} vs {ysx}");
+}
+
+#[test]
+fn consistent_screening_pulls_to_the_samples_without_grid_artefacts() {
+    // Workload 6b's recipe at depth 7 with Kazhdan's screening strength (his code scales
+    // α = 4 by 2^depth): taken at the samples, the screening lowers the error where sampled
+    // below the default's; lumped onto the nodes at the same strength, it raises it. The
+    // complete levels' V-cycles converge (the l1-Jacobi smoother).
+    let samples = random_holed_sphere(50_000);
+    let alpha = 4.0 * 128.0;
+    let run = |form: ScreeningForm, alpha: f64| {
+        let params = PoissonParams::default()
+            .with_depth(7)
+            .with_screening(alpha)
+            .with_screening_form(form);
+        let s = screened_poisson(&samples, &params).unwrap();
+        let complete_iterations = s
+            .levels
+            .iter()
+            .filter(|l| l.depth <= params.dense_depth)
+            .map(|l| l.iterations)
+            .max()
+            .unwrap();
+        (error_where_sampled(&s.mesh), complete_iterations)
+    };
+    let (default, _) = run(ScreeningForm::Lumped, 4.0);
+    let (lumped, _) = run(ScreeningForm::Lumped, alpha);
+    let (consistent, iterations) = run(ScreeningForm::Consistent, alpha);
+    assert!(consistent < 0.8 * default, "{consistent} vs {default}");
+    assert!(lumped > default, "{lumped} vs {default}");
+    // 14 with the plain diagonal as the smoother's.
+    assert!(iterations <= 12, "{iterations} iterations");
 }
