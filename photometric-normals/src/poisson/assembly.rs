@@ -7,9 +7,8 @@ use skin_core::math::DVec3;
 use crate::marching_cubes::{Node, NodeMap};
 use crate::Result;
 
-use super::grid::{
-    add, cell_of, corners8, nearest_node, quadratic, trilinear, Composite, Level, AXES, B, NONE,
-};
+use super::cells::{add, cell_of, corners8, nearest_node, quadratic, trilinear, AXES, NONE};
+use super::grid::{Composite, Level, B};
 use super::samples::{band_blocks, UnitSample};
 use super::screening::CellScreening;
 use super::solve::{level_cg, parents, COARSEST_DEPTH};
@@ -104,7 +103,8 @@ pub(super) fn solve_level(
     }
     drop(nodes_of);
     if params.screening_form == ScreeningForm::Consistent {
-        let screen = CellScreening::new(samples, n, params.screening, |p| level.index(p), nn);
+        let points = samples.iter().map(|s| (s.q, s.mass));
+        let screen = CellScreening::new(points, n, params.screening, |p| level.index(p), nn);
         level.screen = Some(screen);
     }
     // Start values and Dirichlet values from the coarser levels.

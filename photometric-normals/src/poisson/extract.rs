@@ -7,7 +7,8 @@ use skin_core::mesh::TriMesh;
 use crate::marching_cubes::{Node, NodeMap};
 use crate::Result;
 
-use super::grid::{add, corners8, Composite, Level, B, NONE};
+use super::cells::{add, corners8, NONE};
+use super::grid::{Composite, Level, B};
 
 /// Drops the connected components (sharing vertices) of `mesh` with fewer vertices than
 /// `fraction` × the largest component's; returns the mesh and the number dropped.

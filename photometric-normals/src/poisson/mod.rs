@@ -47,12 +47,12 @@
 //! cells wide, not linear over one cell). Components smaller than
 //! [`PoissonParams::min_component_fraction`] of the largest are dropped.
 //!
-//! **Files**, in dependency order: `grid.rs` (levels of blocks, the composite indicator),
-//! `samples.rs` (sample areas, band blocks), `screening.rs` (the consistent screening's
-//! couplings), `solve.rs` (a level's conjugate gradients and
-//! V-cycle), `assembly.rs` (the cascade of levels, each assembled and solved), `extract.rs`
-//! (the cells to march, small components dropped); this file holds the public types and
-//! [`screened_poisson`].
+//! **Files**, in dependency order: `cells.rs` (a grid's cells and nodes, splat weights),
+//! `screening.rs` (the consistent screening's couplings), `grid.rs` (levels of blocks, the
+//! composite indicator), `samples.rs` (sample areas, band blocks), `solve.rs` (a level's
+//! conjugate gradients and V-cycle), `assembly.rs` (the cascade of levels, each assembled and
+//! solved), `extract.rs` (the cells to march, small components dropped); this file holds the
+//! public types and [`screened_poisson`].
 
 use std::time::Instant;
 
@@ -66,6 +66,7 @@ use crate::marching_cubes::{march_cells_par, EdgeFit, NodeMap};
 use crate::{Error, Result};
 
 mod assembly;
+mod cells;
 mod extract;
 mod grid;
 mod samples;

@@ -7,7 +7,8 @@ use skin_core::math::DVec3;
 
 use crate::marching_cubes::{Node, NodeMap, NodeSet};
 
-use super::grid::{cell_of, nearest_node, B};
+use super::cells::{cell_of, nearest_node};
+use super::grid::B;
 use super::OrientedSample;
 
 /// Unit-cube sample: position, oriented area `w a n`, screening mass `w a`.

@@ -13,12 +13,13 @@
 
 use std::sync::{Mutex, MutexGuard};
 
+use skin_core::math::DVec3;
+
 use rayon::prelude::*;
 
 use crate::marching_cubes::{Node, NodeMap};
 
-use super::grid::{cell_of, corners8, NONE};
-use super::samples::UnitSample;
+use super::cells::{cell_of, corners8, NONE};
 
 /// The screened cells of one level and, per unknown, the cells it is a corner of.
 pub(super) struct CellScreening {
@@ -78,12 +79,13 @@ fn offsets(members: impl Iterator<Item = usize>, groups: usize) -> Vec<u32> {
 }
 
 impl CellScreening {
-    /// The blocks of the cells holding samples on a grid of `n` cells (cell size `h`), with
-    /// `index` giving a node's unknown (`None` outside the band) and `unknowns` their count.
+    /// The blocks of the cells holding the samples (unit-cube position and screening mass
+    /// `mᵢ`, in sample order) on a grid of `n` cells (cell size `h`), with `index` giving a
+    /// node's unknown (`None` outside the band) and `unknowns` their count.
     /// Each block sums its samples in sample order, so the operator does not depend on the
     /// thread count.
     pub(super) fn new(
-        samples: &[UnitSample],
+        samples: impl Iterator<Item = (DVec3, f64)>,
         n: i64,
         alpha: f64,
         index: impl Fn(Node) -> Option<usize>,
@@ -94,9 +96,8 @@ impl CellScreening {
         let mut cell_of_key: NodeMap<Node, u32> = NodeMap::default();
         let mut corners: Vec<[u32; 8]> = Vec::new();
         let cell_and_local: Vec<(u32, [f64; 4])> = samples
-            .iter()
-            .map(|s| {
-                let (c, t) = cell_of(s.q, n);
+            .map(|(q, mass)| {
+                let (c, t) = cell_of(q, n);
                 let ci = *cell_of_key.entry(c).or_insert_with(|| {
                     let mut out = [NONE; 8];
                     for (slot, o) in out.iter_mut().zip(corners8()) {
@@ -106,7 +107,7 @@ impl CellScreening {
                     corners.push(out);
                     (corners.len() - 1) as u32
                 });
-                (ci, [t.x, t.y, t.z, scale * s.mass])
+                (ci, [t.x, t.y, t.z, scale * mass])
             })
             .collect();
         drop(cell_of_key);
@@ -128,14 +129,14 @@ impl CellScreening {
             .collect();
         let cell_start = offsets(cell_and_local.iter().map(|&(c, _)| c as usize), cells);
         let mut fill = cell_start.clone();
-        let mut by_cell = vec![[0.0; 4]; samples.len()];
+        let mut by_cell = vec![[0.0; 4]; cell_and_local.len()];
         for &(c, local) in &cell_and_local {
             by_cell[fill[c as usize] as usize] = local;
             fill[c as usize] += 1;
         }
         drop(cell_and_local);
         let mut diagonals = vec![[0.0; 8]; cells];
-        let stored = samples.len() >= STORE_FROM * cells;
+        let stored = by_cell.len() >= STORE_FROM * cells;
         let mut stored_blocks = vec![[0.0; 64]; if stored { cells } else { 0 }];
         for c in 0..cells {
             for local in &by_cell[cell_start[c] as usize..cell_start[c + 1] as usize] {

@@ -9,7 +9,8 @@ use skin_core::lsq::{
 use crate::marching_cubes::Node;
 use crate::Result;
 
-use super::grid::{Level, NONE};
+use super::cells::NONE;
+use super::grid::Level;
 use super::PoissonParams;
 
 /// Damping of the Jacobi smoother (the 3-D 7-point stencil's smoothing optimum is 6/7; a

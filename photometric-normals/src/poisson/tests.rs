@@ -1,4 +1,5 @@
 use super::assembly::*;
+use super::cells::*;
 use super::grid::*;
 use super::samples::*;
 use super::solve::*;
@@ -456,7 +457,8 @@ fn consistent_screening_is_the_point_values_quadratic_form() {
         })
         .collect();
     let alpha = 3.0;
-    let screen = CellScreening::new(&samples, level.n, alpha, |p| level.index(p), nn);
+    let points = samples.iter().map(|s| (s.q, s.mass));
+    let screen = CellScreening::new(points, level.n, alpha, |p| level.index(p), nn);
     let apply = |x: &[f64]| -> Vec<f64> {
         let u = screen.products(x);
         (0..nn)
