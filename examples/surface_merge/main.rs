@@ -13,7 +13,9 @@
 //!   samples, depth 7). Errors `| ‖v‖ − 0.4 |` as the peer reports them (means over
 //!   vertices), and per unit area over the whole surface and the filled cap
 //!   (`err_all_area_mm`, `err_filled_area_mm`): a mean over vertices weighs each region by how
-//!   finely it is triangulated, and the peer triangulates the filled cap coarsely.
+//!   finely it is triangulated, and the peer triangulates the filled cap coarsely. The first
+//!   depth again with the screening taken at the samples at Kazhdan's strength
+//!   (`ScreeningForm::Consistent`, α = 4 · 2^depth: `poisson_consistent`).
 //!
 //! `--peers FILE` reads the JSON lines the peer scripts printed in the same run (one per
 //! run; CI never needs Python) and reports the time ratios ours / peer, among them
@@ -46,7 +48,7 @@ use dynamic_shapes::photometric::peer_workloads::{
 };
 use dynamic_shapes::photometric::{
     merge_views, screened_poisson, MergeParams, MergeView, MergedSurface, OrientedSample,
-    PoissonParams, PoissonSurface, ReconstructParams,
+    PoissonParams, PoissonSurface, ReconstructParams, ScreeningForm,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -179,6 +181,41 @@ fn area_weighted_errors(mesh: &TriMesh, r: f64, cut: f64) -> (f64, f64) {
     (all / all_a, filled / filled_a)
 }
 
+/// Workload 6b's errors `| ‖v‖ − 0.4 |` of a reconstruction: means over the vertices where
+/// sampled (`z ≤ 0.25`) and everywhere, per unit area everywhere and over the filled cap,
+/// and the mesh's size, levels and topology.
+fn sphere_errors(s: &PoissonSurface) -> Value {
+    let (r, cut) = POISSON_SPHERE;
+    let err: Vec<f64> = s
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - r).abs())
+        .collect();
+    let observed: Vec<f64> = s
+        .mesh
+        .vertices
+        .iter()
+        .zip(&err)
+        .filter(|(v, _)| v.z <= cut - 0.05)
+        .map(|(_, &e)| e * 1e3)
+        .collect();
+    let (err_all_area_mm, err_filled_area_mm) = area_weighted_errors(&s.mesh, r, cut);
+    json!({
+        "err_all_area_mm": err_all_area_mm,
+        "err_filled_area_mm": err_filled_area_mm,
+        "filled_vertices": s.mesh.vertices.iter().filter(|v| v.z > cut).count(),
+        "err_observed_mm": mean(&observed),
+        "max_observed_mm": observed.iter().fold(0.0f64, |a, &b| a.max(b)),
+        "err_all_mm": mean(&err) * 1e3,
+        "vertices": s.mesh.vertex_count(),
+        "dropped_components": s.dropped_components,
+        "triangles": s.mesh.face_count(),
+        "levels": s.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
+        "topology": topology(&s.mesh),
+    })
+}
+
 /// Time ratio ours / peer for the peer line whose `peer` field ends with `variant`.
 fn peer_ratio(peers: &[Value], workload: &str, variant: &str, ours_ms: f64) -> Value {
     peers
@@ -275,40 +312,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let s = screened_poisson(&sphere_samples, &PoissonParams::default().with_depth(depth))?;
         let elapsed = ms(t);
         let cpu = cpu_since(cpu0);
-        let (r, cut) = POISSON_SPHERE;
-        let err: Vec<f64> = s
-            .mesh
-            .vertices
-            .iter()
-            .map(|v| (v.length() - r).abs())
-            .collect();
-        let observed: Vec<f64> = s
-            .mesh
-            .vertices
-            .iter()
-            .zip(&err)
-            .filter(|(v, _)| v.z <= cut - 0.05)
-            .map(|(_, &e)| e * 1e3)
-            .collect();
-        let (err_all_area_mm, err_filled_area_mm) = area_weighted_errors(&s.mesh, r, cut);
-        poisson_runs.push(json!({
+        let mut run_figures = sphere_errors(&s);
+        let extra = json!({
             "depth": depth,
-            "err_all_area_mm": err_all_area_mm,
-            "err_filled_area_mm": err_filled_area_mm,
-            "filled_vertices": s.mesh.vertices.iter().filter(|v| v.z > cut).count(),
             "points": n_points,
             "poisson_ms": elapsed,
             "poisson_cpu_ms": cpu,
-            "err_observed_mm": mean(&observed),
-            "max_observed_mm": observed.iter().fold(0.0f64, |a, &b| a.max(b)),
-            "err_all_mm": mean(&err) * 1e3,
-            "vertices": s.mesh.vertex_count(),
-            "dropped_components": s.dropped_components,
-            "triangles": s.mesh.face_count(),
-            "levels": s.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
-            "topology": topology(&s.mesh),
             "peer": if quick { Value::Null } else { peer_ratio(&peers, "poisson", &format!("depth{depth}"), elapsed) },
-        }));
+        });
+        for (k, v) in extra.as_object().unwrap() {
+            run_figures[k] = v.clone();
+        }
+        poisson_runs.push(run_figures);
         last = Some(s);
     }
     // The same solve with multigrid V-cycles preconditioning the band levels too (the
@@ -327,7 +342,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "poisson_cpu_ms": cpu_since(cpu0),
         "levels": mg.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
     });
-    stage.finish(format!("{} runs", poisson_runs.len()));
+    // The screening taken at the samples (`ScreeningForm::Consistent`) at Kazhdan's strength:
+    // his code scales the weight of a depth-d node by 2^d, so his α = 4 is α = 4 · 2^depth
+    // here.
+    let alpha = 4.0 * f64::from(1u32 << depths[0]);
+    let cpu0 = cpu_ms();
+    let t = Instant::now();
+    let consistent = screened_poisson(
+        &sphere_samples,
+        &PoissonParams::default()
+            .with_depth(depths[0])
+            .with_screening(alpha)
+            .with_screening_form(ScreeningForm::Consistent),
+    )?;
+    let mut consistent_figures = sphere_errors(&consistent);
+    consistent_figures["depth"] = json!(depths[0]);
+    consistent_figures["screening"] = json!(alpha);
+    consistent_figures["poisson_ms"] = json!(ms(t));
+    consistent_figures["poisson_cpu_ms"] = json!(cpu_since(cpu0));
+    stage.finish(format!("{} runs", poisson_runs.len() + 2));
 
     // Pictures and meshes.
     let k = Intrinsics::from_horizontal_fov(0.9, 480, 400)?;
@@ -459,6 +492,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
         "peer_poisson": poisson_runs,
         "poisson_multigrid_bands": multigrid_bands,
+        "poisson_consistent": consistent_figures,
+        "poisson_consistent_err_observed_mm": consistent_figures["err_observed_mm"],
         "poisson_err_observed_mm": p0["err_observed_mm"],
         "poisson_err_all_mm": p0["err_all_mm"],
         "poisson_depth_ms": p0["poisson_ms"],
@@ -484,6 +519,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     / peer_quality[theirs].as_f64().unwrap_or(f64::NAN)
             );
         }
+        // The consistent screening at Kazhdan's strength against the same Open3D run.
+        let consistent = figures["poisson_consistent"].clone();
+        figures["poisson_consistent_err_observed_ratio_open3d"] = json!(
+            consistent["err_observed_mm"].as_f64().unwrap_or(f64::NAN)
+                / peer_quality["err_observed_mm"].as_f64().unwrap_or(f64::NAN)
+        );
+        figures["poisson_consistent_time_ratio_open3d"] = json!(
+            consistent["poisson_ms"].as_f64().unwrap_or(f64::NAN)
+                / p0["peer"]["peer_ms"].as_f64().unwrap_or(f64::NAN)
+        );
         for (key, label) in [
             (
                 "merge_time_ratio_open3d",
@@ -496,6 +541,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (
                 "poisson_err_observed_ratio_open3d",
                 "screened Poisson error where sampled over Open3D's (6b)",
+            ),
+            (
+                "poisson_consistent_err_observed_ratio_open3d",
+                "screened Poisson error where sampled over Open3D's, screening at the samples (6b)",
             ),
         ] {
             run.headline(Headline::new(key, label, "×").goal(Goal::AtMost(1.0)));
