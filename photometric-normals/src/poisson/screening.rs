@@ -4,12 +4,8 @@
 //! 8 × 8 block is `α/h Σ mᵢ φ(pᵢ) φ(pᵢ)ᵀ` over its samples. Each unknown lists the (cell,
 //! corner) pairs it belongs to. A product is taken in two parallel passes with a fixed order
 //! of sums: every cell's block times its corners' values, then every unknown's share
-//! gathered from its cells. On levels with few samples a cell, the blocks are applied from
-//! their samples' local coordinates (32 bytes a sample) rather than stored (512 bytes a cell;
-//! ours, measured on workload 6b, about one sample per finest cell: streaming stored blocks
-//! cost more than the arithmetic they save, and on the coarse levels, thousands of samples a
-//! cell, the reverse). A gather of each cell's corners per unknown instead of the two
-//! passes costs 8 times the reads.
+//! gathered from its cells (ours: a gather of each cell's corners per unknown instead costs 8
+//! times the reads). The blocks take 512 bytes a screened cell.
 
 use std::sync::{Mutex, MutexGuard};
 
@@ -19,7 +15,7 @@ use rayon::prelude::*;
 
 use crate::marching_cubes::{Node, NodeMap};
 
-use super::cells::{cell_of, corners8, NONE};
+use super::cells::{cell_of, corners8, trilinear, NONE};
 
 /// The screened cells of one level and, per unknown, the cells it is a corner of.
 pub(super) struct CellScreening {
@@ -27,8 +23,8 @@ pub(super) struct CellScreening {
     corners: Vec<[u32; 8]>,
     /// The diagonal of each screened cell's block.
     diagonals: Vec<[f64; 8]>,
-    /// The blocks, stored or from their samples.
-    blocks: Blocks,
+    /// Each screened cell's block without its diagonal, row-major.
+    blocks: Vec<[f64; 64]>,
     /// Unknown `i`'s entries are `entries[start[i]..start[i + 1]]`, each `cell · 8 + corner`.
     start: Vec<u32>,
     entries: Vec<u32>,
@@ -36,34 +32,8 @@ pub(super) struct CellScreening {
     scratch: Mutex<Vec<f64>>,
 }
 
-/// How the cells' blocks are held.
-enum Blocks {
-    /// Each cell's block, row-major.
-    Stored(Vec<[f64; 64]>),
-    /// Cell `c`'s samples are `samples[cell_start[c]..cell_start[c + 1]]`: each sample's
-    /// local coordinates in its cell and its screening weight `α/h · mᵢ`, in sample order
-    /// within a cell.
-    FromSamples {
-        cell_start: Vec<u32>,
-        samples: Vec<[f64; 4]>,
-    },
-}
-
-/// Samples a cell on average from which a level's blocks are stored rather than applied
-/// from their samples (a stored block reads 64 numbers, a sample 4 and costs about 30
-/// operations).
-const STORE_FROM: usize = 8;
-
 /// Screened cells per parallel task of the products.
 const CELL_CHUNK: usize = 4096;
-
-/// The trilinear weights of a cell's corners ([`corners8`] order) at local coordinates `t`.
-#[inline]
-fn weights(t: &[f64; 4]) -> [f64; 8] {
-    let (x, y, z) = (t[0], t[1], t[2]);
-    let (ax, ay, az) = ([1.0 - x, x], [1.0 - y, y], [1.0 - z, z]);
-    std::array::from_fn(|k| ax[k & 1] * ay[(k >> 1) & 1] * az[k >> 2])
-}
 
 /// Offsets `start` (length `groups + 1`) of a grouping whose group sizes are counted from
 /// `members`, each a group index.
@@ -127,41 +97,22 @@ impl CellScreening {
             .into_iter()
             .map(|(c, local)| (renumber[c as usize], local))
             .collect();
-        let cell_start = offsets(cell_and_local.iter().map(|&(c, _)| c as usize), cells);
-        let mut fill = cell_start.clone();
-        let mut by_cell = vec![[0.0; 4]; cell_and_local.len()];
-        for &(c, local) in &cell_and_local {
-            by_cell[fill[c as usize] as usize] = local;
-            fill[c as usize] += 1;
-        }
-        drop(cell_and_local);
         let mut diagonals = vec![[0.0; 8]; cells];
-        let stored = by_cell.len() >= STORE_FROM * cells;
-        let mut stored_blocks = vec![[0.0; 64]; if stored { cells } else { 0 }];
-        for c in 0..cells {
-            for local in &by_cell[cell_start[c] as usize..cell_start[c + 1] as usize] {
-                let w = weights(local);
-                for (d, wk) in diagonals[c].iter_mut().zip(w) {
-                    *d += local[3] * wk * wk;
-                }
-                if stored {
-                    let block = &mut stored_blocks[c];
-                    for k in 0..8 {
-                        for l in (0..8).filter(|&l| l != k) {
-                            block[8 * k + l] += local[3] * w[k] * w[l];
-                        }
-                    }
+        let mut blocks = vec![[0.0; 64]; cells];
+        for (c, local) in cell_and_local {
+            let t = DVec3::new(local[0], local[1], local[2]);
+            let mut w = [0.0; 8];
+            for (wk, o) in w.iter_mut().zip(corners8()) {
+                *wk = trilinear(t, o);
+            }
+            let (m, c) = (local[3], c as usize);
+            for k in 0..8 {
+                diagonals[c][k] += m * w[k] * w[k];
+                for l in (0..8).filter(|&l| l != k) {
+                    blocks[c][8 * k + l] += m * w[k] * w[l];
                 }
             }
         }
-        let blocks = if stored {
-            Blocks::Stored(stored_blocks)
-        } else {
-            Blocks::FromSamples {
-                cell_start,
-                samples: by_cell,
-            }
-        };
         let start = offsets(
             corners
                 .iter()
@@ -210,37 +161,9 @@ impl CellScreening {
                 for (k, out) in uc.chunks_exact_mut(8).enumerate() {
                     let c = chunk * CELL_CHUNK + k;
                     let xc = self.corners[c].map(|j| if j == NONE { 0.0 } else { x[j as usize] });
-                    let mut acc = [0.0; 8];
-                    match &self.blocks {
-                        Blocks::Stored(blocks) => {
-                            for (k, a) in acc.iter_mut().enumerate() {
-                                let row = &blocks[c][8 * k..8 * k + 8];
-                                *a = row.iter().zip(&xc).map(|(m, v)| m * v).sum();
-                            }
-                            out.copy_from_slice(&acc);
-                            continue;
-                        }
-                        Blocks::FromSamples {
-                            cell_start,
-                            samples,
-                        } => {
-                            let range = cell_start[c] as usize..cell_start[c + 1] as usize;
-                            for local in &samples[range] {
-                                let w = weights(local);
-                                let at: f64 = w.iter().zip(&xc).map(|(a, b)| a * b).sum();
-                                let mv = local[3] * at;
-                                for (a, wk) in acc.iter_mut().zip(w) {
-                                    *a += mv * wk;
-                                }
-                            }
-                        }
-                    }
-                    for ((o, a), (d, xk)) in out
-                        .iter_mut()
-                        .zip(acc)
-                        .zip(self.diagonals[c].iter().zip(xc))
-                    {
-                        *o = a - d * xk;
+                    for (k, o) in out.iter_mut().enumerate() {
+                        let row = &self.blocks[c][8 * k..8 * k + 8];
+                        *o = row.iter().zip(&xc).map(|(m, v)| m * v).sum();
                     }
                 }
             });
