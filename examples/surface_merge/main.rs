@@ -48,7 +48,7 @@ use dynamic_shapes::photometric::peer_workloads::{
 };
 use dynamic_shapes::photometric::{
     merge_views, screened_poisson, MergeParams, MergeView, MergedSurface, OrientedSample,
-    PoissonParams, PoissonSurface, ReconstructParams, ScreeningForm,
+    PoissonLevel, PoissonParams, PoissonSurface, ReconstructParams, ScreeningForm,
 };
 use example_kit::plot::{error_colour, side_by_side, titled, with_colour_bar, ColourBar};
 use example_kit::{Goal, Headline, Run};
@@ -211,9 +211,17 @@ fn sphere_errors(s: &PoissonSurface) -> Value {
         "vertices": s.mesh.vertex_count(),
         "dropped_components": s.dropped_components,
         "triangles": s.mesh.face_count(),
-        "levels": s.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
+        "levels": level_figures(&s.levels),
         "topology": topology(&s.mesh),
     })
+}
+
+/// Per level of a reconstruction: depth, nodes, CG iterations and the residual reached.
+fn level_figures(levels: &[PoissonLevel]) -> Vec<Value> {
+    levels
+        .iter()
+        .map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual}))
+        .collect()
 }
 
 /// Time ratio ours / peer for the peer line whose `peer` field ends with `variant`.
@@ -313,16 +321,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let elapsed = ms(t);
         let cpu = cpu_since(cpu0);
         let mut run_figures = sphere_errors(&s);
-        let extra = json!({
-            "depth": depth,
-            "points": n_points,
-            "poisson_ms": elapsed,
-            "poisson_cpu_ms": cpu,
-            "peer": if quick { Value::Null } else { peer_ratio(&peers, "poisson", &format!("depth{depth}"), elapsed) },
-        });
-        for (k, v) in extra.as_object().unwrap() {
-            run_figures[k] = v.clone();
-        }
+        run_figures["depth"] = json!(depth);
+        run_figures["points"] = json!(n_points);
+        run_figures["poisson_ms"] = json!(elapsed);
+        run_figures["poisson_cpu_ms"] = json!(cpu);
+        run_figures["peer"] = if quick {
+            Value::Null
+        } else {
+            peer_ratio(&peers, "poisson", &format!("depth{depth}"), elapsed)
+        };
         poisson_runs.push(run_figures);
         last = Some(s);
     }
@@ -340,7 +347,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "depth": depths[0],
         "poisson_ms": ms(t),
         "poisson_cpu_ms": cpu_since(cpu0),
-        "levels": mg.levels.iter().map(|l| json!({"depth": l.depth, "nodes": l.nodes, "cg_iterations": l.iterations, "residual": l.residual})).collect::<Vec<_>>(),
+        "levels": level_figures(&mg.levels),
     });
     // The screening taken at the samples (`ScreeningForm::Consistent`) at Kazhdan's strength:
     // his code scales the weight of a depth-d node by 2^d, so his α = 4 is α = 4 · 2^depth

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use crate::marching_cubes::{Node, NodeMap};
 
-use super::cells::{cell_of, corners8, trilinear, NONE};
+use super::cells::{add, cell_of, corners8, trilinear, NONE};
 
 /// The screened cells of one level and, per unknown, the cells it is a corner of.
 pub(super) struct CellScreening {
@@ -71,8 +71,7 @@ impl CellScreening {
                 let ci = *cell_of_key.entry(c).or_insert_with(|| {
                     let mut out = [NONE; 8];
                     for (slot, o) in out.iter_mut().zip(corners8()) {
-                        *slot = index([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
-                            .map_or(NONE, |i| i as u32);
+                        *slot = index(add(c, o, 1)).map_or(NONE, |i| i as u32);
                     }
                     corners.push(out);
                     (corners.len() - 1) as u32
